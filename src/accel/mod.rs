@@ -1,0 +1,76 @@
+//! Acceleration structures: the thing that answers "what does this ray hit first?" and "is this
+//! segment blocked?". A binned-SAH BVH is the default; brute force (`none`) is kept as the ground
+//! truth every other structure must agree with.
+
+pub mod bvh;
+
+pub use bvh::Bvh;
+
+use crate::geometry::primitive::Intersection;
+use crate::geometry::{GeometryStore, PrimRef, Ray};
+
+/// Which acceleration structure to build (`--accel`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum AccelKind {
+    #[default]
+    Bvh,
+    /// Test every primitive: slow, but trivially correct.
+    None,
+}
+
+impl std::str::FromStr for AccelKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "bvh" => Ok(AccelKind::Bvh),
+            "none" => Ok(AccelKind::None),
+            other => Err(format!(
+                "unknown accelerator '{other}' (expected bvh or none)"
+            )),
+        }
+    }
+}
+
+pub enum Accel {
+    Bvh(Bvh),
+    None(Vec<PrimRef>),
+}
+
+impl Accel {
+    pub fn build(kind: AccelKind, geometry: &GeometryStore) -> Accel {
+        match kind {
+            AccelKind::Bvh => Accel::Bvh(Bvh::build(geometry)),
+            AccelKind::None => Accel::None(geometry.all_prims()),
+        }
+    }
+
+    /// Closest hit along the ray within `(0, ray.t_max)`.
+    #[inline]
+    pub fn intersect(&self, geometry: &GeometryStore, ray: &Ray) -> Option<Intersection> {
+        match self {
+            Accel::Bvh(b) => b.intersect(geometry, ray),
+            Accel::None(prims) => {
+                let mut best: Option<Intersection> = None;
+                let mut t_max = ray.t_max;
+                for &p in prims {
+                    if let Some(h) = geometry.intersect(p, ray, t_max) {
+                        t_max = h.t;
+                        best = Some(h);
+                    }
+                }
+                best
+            }
+        }
+    }
+
+    /// Any hit within `(0, ray.t_max)`: for shadow rays.
+    #[inline]
+    pub fn occluded(&self, geometry: &GeometryStore, ray: &Ray) -> bool {
+        match self {
+            Accel::Bvh(b) => b.occluded(geometry, ray),
+            Accel::None(prims) => prims
+                .iter()
+                .any(|&p| geometry.intersect(p, ray, ray.t_max).is_some()),
+        }
+    }
+}

@@ -1,0 +1,320 @@
+//! The `trayecto` command line (SPEC §2): `render`, `info`. Errors are reported with their context
+//! and a non-zero exit code; nothing is rendered until every option has been checked.
+
+use crate::accel::AccelKind;
+use crate::film::output::{Format, write_image};
+use crate::film::tonemap::Tonemap;
+use crate::integrator::{IntegratorKind, PathSettings};
+use crate::render::{RenderObserver, RenderSettings};
+use crate::sampling::SamplerKind;
+use crate::world::{World, WorldOptions};
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "trayecto",
+    version,
+    about = "Trayecto: a physically based path tracer. With no subcommand it renders (the built-in Cornell box by default).",
+    args_conflicts_with_subcommands = true
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+    #[command(flatten)]
+    pub render: RenderArgs,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Render a scene file or a built-in scene to an image.
+    Render(RenderArgs),
+    /// Show what a scene contains and every warning about it.
+    Info(InfoArgs),
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct RenderArgs {
+    /// Scene file (.gltf, .glb, .obj, .ply, .fbx, .toml) or built-in name.
+    #[arg(default_value = "cornell")]
+    pub scene: String,
+    /// Output image; the format follows the extension (.png, .ppm, .exr, .hdr).
+    #[arg(short = 'o', long = "output", default_value = "render.png")]
+    pub output: PathBuf,
+    /// Image width in pixels [resolución].
+    #[arg(long, default_value_t = 512)]
+    pub width: u32,
+    /// Image height in pixels [resolución].
+    #[arg(long, default_value_t = 512)]
+    pub height: u32,
+    /// Camera samples per pixel [sobremuestreo].
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    /// Continuation paths split at the first hit [rayos secundarios].
+    #[arg(long, default_value_t = 1)]
+    pub secondary: u32,
+    /// Maximum number of bounces: 0 shows emitters only, 1 is direct lighting [profundidad máxima].
+    #[arg(long, default_value_t = 64)]
+    pub max_depth: u32,
+    /// Linear multiplier applied before tone mapping [exposición].
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Rendering mode.
+    #[arg(long, default_value = "path")]
+    pub integrator: IntegratorKind,
+    /// Acceleration structure: bvh or none.
+    #[arg(long, default_value = "bvh")]
+    pub accel: AccelKind,
+    /// Camera sample generator: independent or stratified.
+    #[arg(long, default_value = "stratified")]
+    pub sampler: SamplerKind,
+    /// Disable next-event estimation (light sampling) for area and environment lights.
+    #[arg(long)]
+    pub no_nee: bool,
+    /// Disable multiple importance sampling (light samples get full weight).
+    #[arg(long)]
+    pub no_mis: bool,
+    /// Bounces before Russian roulette starts.
+    #[arg(long, default_value_t = 3)]
+    pub rr_depth: u32,
+    /// Random seed; the image is a pure function of the seed and the settings.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Worker threads (default: all cores). Does not change the image.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Tone mapping for .png/.ppm: clamp, gamma2.2, aces or agx.
+    #[arg(long, default_value = "clamp")]
+    pub tonemap: Tonemap,
+    /// Camera to render, by name or index (default: the first).
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Render a scene without lights unlit instead of adding a white environment.
+    #[arg(long)]
+    pub no_default_light: bool,
+    /// Print only errors.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct InfoArgs {
+    /// Scene file or built-in name.
+    pub scene: String,
+}
+
+impl RenderArgs {
+    /// The render settings these options describe, checked for absurd values.
+    pub fn settings(&self) -> Result<RenderSettings> {
+        let s = RenderSettings {
+            width: self.width,
+            height: self.height,
+            spp: self.spp,
+            seed: self.seed,
+            threads: self.threads,
+            sampler: self.sampler,
+            integrator: self.integrator,
+            path: PathSettings {
+                max_depth: self.max_depth,
+                rr_depth: self.rr_depth,
+                nee: !self.no_nee,
+                mis: !self.no_mis,
+                secondary: self.secondary,
+            },
+        };
+        s.validate()?;
+        if !(self.exposure.is_finite() && self.exposure > 0.0) {
+            bail!(
+                "invalid setting: exposure must be a positive number (got {})",
+                self.exposure
+            );
+        }
+        Ok(s)
+    }
+
+    pub fn world_options(&self) -> WorldOptions {
+        WorldOptions {
+            accel: self.accel,
+            camera: self.camera.clone(),
+            no_default_light: self.no_default_light,
+        }
+    }
+}
+
+/// Terminal progress bar (only when stderr is a terminal).
+struct Progress {
+    bar: Option<indicatif::ProgressBar>,
+}
+
+impl RenderObserver for Progress {
+    fn tile_done(&self, done: u64, total: u64) {
+        if let Some(b) = &self.bar {
+            b.set_length(total);
+            b.set_position(done);
+        }
+    }
+}
+
+fn fmt_duration(d: Duration) -> String {
+    format!("{:.3} s", d.as_secs_f64())
+}
+
+pub fn run_render(args: &RenderArgs) -> Result<()> {
+    let settings = args.settings()?;
+    Format::from_path(&args.output)?;
+    if let Some(parent) = args.output.parent()
+        && !parent.as_os_str().is_empty()
+        && !parent.is_dir()
+    {
+        bail!(
+            "{}: the output folder does not exist",
+            args.output.display()
+        );
+    }
+    let say = |s: String| {
+        if !args.quiet {
+            eprintln!("{s}");
+        }
+    };
+
+    let t0 = Instant::now();
+    let scene = crate::scene::load(&args.scene)?;
+    let load_time = t0.elapsed();
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+
+    let t1 = Instant::now();
+    let world = World::build(&scene, &args.world_options())?;
+    let build_time = t1.elapsed();
+    for w in &world.warnings {
+        eprintln!("warning: {w}");
+    }
+    say(format!(
+        "scene '{}': {} triangles, {} primitives, {} materials, {} lights ({} area), {} cameras",
+        scene.name,
+        world.triangle_count(),
+        world.primitive_count(),
+        world.materials.len(),
+        world.lights.lights.len(),
+        world.area_light_count(),
+        scene.cameras.len()
+    ));
+    say(format!(
+        "rendering {}x{} at {} spp, max depth {}, {} integrator, {} threads",
+        settings.width,
+        settings.height,
+        settings.spp,
+        settings.path.max_depth,
+        format!("{:?}", settings.integrator).to_lowercase(),
+        settings.threads.unwrap_or_else(rayon::current_num_threads)
+    ));
+
+    let bar = if std::io::stderr().is_terminal() && !args.quiet {
+        let b = indicatif::ProgressBar::new(1);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40.cyan/blue} {percent:>3}% {elapsed_precise} (eta {eta})",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        Some(b)
+    } else {
+        None
+    };
+    let progress = Progress { bar };
+    let cancel = AtomicBool::new(false);
+    let out = crate::render::render(&world, &settings, &progress, &cancel)?;
+    if let Some(b) = &progress.bar {
+        b.finish_and_clear();
+    }
+
+    let t3 = Instant::now();
+    write_image(&out.image, &args.output, args.exposure, args.tonemap)?;
+    let write_time = t3.elapsed();
+    if out.discarded_samples > 0 {
+        eprintln!(
+            "warning: {} samples were NaN or infinite and were discarded",
+            out.discarded_samples
+        );
+    }
+    say(format!("load            {}", fmt_duration(load_time)));
+    say(format!("build (accel)   {}", fmt_duration(build_time)));
+    say(format!("render          {}", fmt_duration(out.render_time)));
+    say(format!("write           {}", fmt_duration(write_time)));
+    say(format!("total           {}", fmt_duration(t0.elapsed())));
+    say(format!(
+        "rays            {} ({} camera/bounce, {} shadow), {:.2} Mrays/s",
+        out.stats.rays + out.stats.shadow_rays,
+        out.stats.rays,
+        out.stats.shadow_rays,
+        out.rays_per_second() / 1e6
+    ));
+    say(format!("wrote {}", args.output.display()));
+    Ok(())
+}
+
+pub fn run_info(args: &InfoArgs) -> Result<()> {
+    let scene = crate::scene::load(&args.scene)?;
+    let world = World::build(&scene, &WorldOptions::default())
+        .with_context(|| format!("compiling {}", args.scene))?;
+    let b = world.bounds;
+    println!("scene       {}", scene.name);
+    println!("meshes      {}", scene.meshes.len());
+    println!("objects     {}", scene.objects.len());
+    println!("triangles   {}", world.triangle_count());
+    println!("primitives  {}", world.primitive_count());
+    println!(
+        "bounds      [{:.4}, {:.4}, {:.4}] – [{:.4}, {:.4}, {:.4}]",
+        b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
+    );
+    println!("materials   {}", scene.materials.len());
+    for (i, m) in scene.materials.iter().enumerate() {
+        println!(
+            "  {i}: '{}' {:?}{}",
+            m.name,
+            m.model,
+            if m.is_emissive() { " (emissive)" } else { "" }
+        );
+    }
+    println!("textures    {}", scene.textures.len());
+    println!(
+        "lights      {} ({} area)",
+        world.lights.lights.len(),
+        world.area_light_count()
+    );
+    for l in &scene.lights {
+        println!("  '{}'", l.name());
+    }
+    println!("cameras     {}", scene.cameras.len());
+    for (i, c) in scene.cameras.iter().enumerate() {
+        println!("  {i}: '{}' vfov {:.2}°", c.name, c.vfov_deg);
+    }
+    let warnings: Vec<&String> = scene.warnings.iter().chain(world.warnings.iter()).collect();
+    println!("warnings    {}", warnings.len());
+    for w in warnings {
+        println!("  {w}");
+    }
+    Ok(())
+}
+
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Some(Command::Render(a)) => run_render(a),
+        Some(Command::Info(a)) => run_info(a),
+        None => run_render(&cli.render),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,209 @@
+//! Image files. The format follows the extension (SPEC §5): `.png` (8-bit sRGB after exposure and
+//! tone mapping), `.ppm` (plain-text P3, as the thesis wrote, §5.1.2), `.exr` (linear 32-bit float,
+//! the raw radiance) and `.hdr` (Radiance RGBE, linear). EXR and HDR ignore exposure and tone
+//! mapping: they hold the estimate itself.
+
+use super::Image;
+use super::tonemap::Tonemap;
+use crate::math::Vec3;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    #[error("{path}: unsupported output format (use .png, .ppm, .exr or .hdr)")]
+    UnknownFormat { path: PathBuf },
+    #[error("{path}: {message}")]
+    Write { path: PathBuf, message: String },
+    #[error("{path}: {message}")]
+    Read { path: PathBuf, message: String },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Png,
+    Ppm,
+    Exr,
+    Hdr,
+}
+
+impl Format {
+    pub fn from_path(path: &Path) -> Result<Format, OutputError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("png") => Ok(Format::Png),
+            Some("ppm") => Ok(Format::Ppm),
+            Some("exr") => Ok(Format::Exr),
+            Some("hdr") => Ok(Format::Hdr),
+            _ => Err(OutputError::UnknownFormat {
+                path: path.to_path_buf(),
+            }),
+        }
+    }
+}
+
+/// Display-referred 8-bit RGB after exposure and tone mapping.
+pub fn to_rgb8(image: &Image, exposure: f32, tonemap: Tonemap) -> Vec<u8> {
+    let mut out = Vec::with_capacity(image.data.len() * 3);
+    for p in &image.data {
+        let c = tonemap.apply(*p * exposure);
+        for v in [c.x, c.y, c.z] {
+            out.push((v * 255.0 + 0.5).clamp(0.0, 255.0) as u8);
+        }
+    }
+    out
+}
+
+/// Writes `image` to `path` in the format its extension names.
+pub fn write_image(
+    image: &Image,
+    path: &Path,
+    exposure: f32,
+    tonemap: Tonemap,
+) -> Result<(), OutputError> {
+    let format = Format::from_path(path)?;
+    let werr = |m: String| OutputError::Write {
+        path: path.to_path_buf(),
+        message: m,
+    };
+    match format {
+        Format::Png => {
+            let rgb = to_rgb8(image, exposure, tonemap);
+            image::save_buffer_with_format(
+                path,
+                &rgb,
+                image.width,
+                image.height,
+                image::ExtendedColorType::Rgb8,
+                image::ImageFormat::Png,
+            )
+            .map_err(|e| werr(e.to_string()))
+        }
+        Format::Ppm => {
+            let rgb = to_rgb8(image, exposure, tonemap);
+            let mut text = String::with_capacity(rgb.len() * 4 + 32);
+            text.push_str(&format!("P3\n{} {}\n255\n", image.width, image.height));
+            for row in rgb.chunks(image.width as usize * 3) {
+                let line: Vec<String> = row.iter().map(|v| v.to_string()).collect();
+                text.push_str(&line.join(" "));
+                text.push('\n');
+            }
+            std::fs::File::create(path)
+                .and_then(|mut f| f.write_all(text.as_bytes()))
+                .map_err(|e| werr(e.to_string()))
+        }
+        Format::Exr => {
+            let w = image.width as usize;
+            exr::prelude::write_rgb_file(path, w, image.height as usize, |x, y| {
+                let p = image.data[y * w + x];
+                (p.x, p.y, p.z)
+            })
+            .map_err(|e| werr(e.to_string()))
+        }
+        Format::Hdr => {
+            let pixels: Vec<image::Rgb<f32>> = image
+                .data
+                .iter()
+                .map(|p| image::Rgb([p.x, p.y, p.z]))
+                .collect();
+            let file = std::fs::File::create(path).map_err(|e| werr(e.to_string()))?;
+            image::codecs::hdr::HdrEncoder::new(std::io::BufWriter::new(file))
+                .encode(&pixels, image.width as usize, image.height as usize)
+                .map_err(|e| werr(e.to_string()))
+        }
+    }
+}
+
+/// Reads a linear RGB EXR (e.g. a reference image).
+pub fn read_exr(path: &Path) -> Result<Image, OutputError> {
+    use exr::prelude::read_first_rgba_layer_from_file;
+    let img = read_first_rgba_layer_from_file(
+        path,
+        |res, _| {
+            let (w, h) = (res.width(), res.height());
+            (w, h, vec![Vec3::ZERO; w * h])
+        },
+        |(w, _, data): &mut (usize, usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            data[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
+        },
+    )
+    .map_err(|e| OutputError::Read {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let (w, h, data) = img.layer_data.channel_data.pixels;
+    Ok(Image {
+        width: w as u32,
+        height: h as u32,
+        data,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gradient() -> Image {
+        let (w, h) = (8u32, 4u32);
+        let data = (0..w * h)
+            .map(|i| Vec3::new(i as f32 / 32.0, 0.25, 2.0))
+            .collect();
+        Image {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+
+    #[test]
+    fn exr_round_trips_exactly() {
+        let dir = tempdir();
+        let p = dir.join("a.exr");
+        let img = gradient();
+        write_image(&img, &p, 1.0, Tonemap::Clamp).unwrap();
+        let back = read_exr(&p).unwrap();
+        assert_eq!(back, img);
+    }
+
+    #[test]
+    fn ppm_is_plain_p3() {
+        let dir = tempdir();
+        let p = dir.join("a.ppm");
+        write_image(&gradient(), &p, 1.0, Tonemap::Gamma22).unwrap();
+        let text = std::fs::read_to_string(&p).unwrap();
+        let mut it = text.split_whitespace();
+        assert_eq!(it.next(), Some("P3"));
+        assert_eq!(it.next(), Some("8"));
+        assert_eq!(it.next(), Some("4"));
+        assert_eq!(it.next(), Some("255"));
+        assert_eq!(it.count(), 8 * 4 * 3);
+    }
+
+    #[test]
+    fn png_and_hdr_write_and_unknown_extension_fails() {
+        let dir = tempdir();
+        write_image(&gradient(), &dir.join("a.png"), 1.0, Tonemap::Clamp).unwrap();
+        let png = image::open(dir.join("a.png")).unwrap();
+        assert_eq!((png.width(), png.height()), (8, 4));
+        write_image(&gradient(), &dir.join("a.hdr"), 1.0, Tonemap::Clamp).unwrap();
+        let hdr = image::open(dir.join("a.hdr")).unwrap().to_rgb32f();
+        assert!((hdr.get_pixel(0, 0)[2] - 2.0).abs() < 0.02);
+        assert!(matches!(
+            write_image(&gradient(), &dir.join("a.bmp"), 1.0, Tonemap::Clamp),
+            Err(OutputError::UnknownFormat { .. })
+        ));
+    }
+
+    fn tempdir() -> PathBuf {
+        let d = std::env::temp_dir().join(format!(
+            "trayecto-out-{}-{:?}",
+            std::process::id(),
+            std::thread::current().id()
+        ));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+}

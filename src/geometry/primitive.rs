@@ -1,0 +1,426 @@
+//! The flat, world-space store of every primitive the accelerators index. Triangles keep their
+//! vertices inline for the intersection loop and their shading attributes (normals, UVs, tangents,
+//! colours) in per-mesh arrays that are only read for the closest hit.
+
+use super::cuboid::Cuboid;
+use super::quad::Quad;
+use super::sphere::Sphere;
+use super::triangle::TriangleVerts;
+use super::{Bounds3, Ray};
+use crate::math::{Vec2, Vec3, Vec4};
+
+/// Marker for "no area light attached".
+pub const NO_LIGHT: u32 = u32::MAX;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum PrimitiveKind {
+    Triangle = 0,
+    Sphere = 1,
+    Cuboid = 2,
+    Quad = 3,
+}
+
+/// A primitive's kind and index packed in 32 bits (kind in the top two bits).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PrimRef(pub u32);
+
+impl PrimRef {
+    const SHIFT: u32 = 30;
+    const MASK: u32 = (1 << Self::SHIFT) - 1;
+    /// Largest index a primitive of one kind may have.
+    pub const MAX_INDEX: u32 = Self::MASK;
+
+    #[inline]
+    pub fn new(kind: PrimitiveKind, index: u32) -> PrimRef {
+        debug_assert!(index <= Self::MASK);
+        PrimRef(((kind as u32) << Self::SHIFT) | index)
+    }
+
+    #[inline]
+    pub fn kind(self) -> PrimitiveKind {
+        match self.0 >> Self::SHIFT {
+            0 => PrimitiveKind::Triangle,
+            1 => PrimitiveKind::Sphere,
+            2 => PrimitiveKind::Cuboid,
+            _ => PrimitiveKind::Quad,
+        }
+    }
+
+    #[inline]
+    pub fn index(self) -> usize {
+        (self.0 & Self::MASK) as usize
+    }
+}
+
+/// The closest hit found by an accelerator: enough to rebuild the full [`SurfaceHit`] later.
+#[derive(Clone, Copy, Debug)]
+pub struct Intersection {
+    pub t: f32,
+    pub prim: PrimRef,
+    /// Barycentrics (b1, b2) for triangles, (u, v) for quads; unused otherwise.
+    pub u: f32,
+    pub v: f32,
+}
+
+/// Shading attributes of a world-space triangle mesh.
+#[derive(Clone, Debug, Default)]
+pub struct MeshAttributes {
+    pub indices: Vec<[u32; 3]>,
+    pub normals: Option<Vec<Vec3>>,
+    pub tangents: Option<Vec<Vec4>>,
+    pub uv0: Option<Vec<Vec2>>,
+    pub uv1: Option<Vec<Vec2>>,
+    pub colors: Option<Vec<Vec4>>,
+    pub material: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct AnalyticPrim<S> {
+    pub shape: S,
+    pub material: u32,
+    pub light: u32,
+}
+
+/// Everything the integrator needs to know about the closest hit.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceHit {
+    pub t: f32,
+    pub p: Vec3,
+    pub p_error: Vec3,
+    /// Unit geometric normal on the front side (counter-clockwise winding / outward).
+    pub ng: Vec3,
+    /// Unit shading normal (interpolated), in the same hemisphere as `ng`.
+    pub ns: Vec3,
+    /// Tangent (∂p/∂u direction, or the mesh's tangent) and the bitangent sign.
+    pub tangent: Vec3,
+    pub bitangent_sign: f32,
+    pub uv: [Vec2; 2],
+    pub color: Vec4,
+    pub material: u32,
+    pub light: u32,
+    pub prim: PrimRef,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct GeometryStore {
+    pub triangles: Vec<TriangleVerts>,
+    /// For each triangle: (mesh index, triangle index within the mesh).
+    pub tri_mesh: Vec<(u32, u32)>,
+    pub tri_light: Vec<u32>,
+    pub meshes: Vec<MeshAttributes>,
+    pub spheres: Vec<AnalyticPrim<Sphere>>,
+    pub cuboids: Vec<AnalyticPrim<Cuboid>>,
+    pub quads: Vec<AnalyticPrim<Quad>>,
+}
+
+impl GeometryStore {
+    /// Every primitive reference, in a fixed order (triangles, spheres, boxes, quads).
+    pub fn all_prims(&self) -> Vec<PrimRef> {
+        let mut v = Vec::with_capacity(self.len());
+        v.extend(
+            (0..self.triangles.len() as u32).map(|i| PrimRef::new(PrimitiveKind::Triangle, i)),
+        );
+        v.extend((0..self.spheres.len() as u32).map(|i| PrimRef::new(PrimitiveKind::Sphere, i)));
+        v.extend((0..self.cuboids.len() as u32).map(|i| PrimRef::new(PrimitiveKind::Cuboid, i)));
+        v.extend((0..self.quads.len() as u32).map(|i| PrimRef::new(PrimitiveKind::Quad, i)));
+        v
+    }
+
+    pub fn len(&self) -> usize {
+        self.triangles.len() + self.spheres.len() + self.cuboids.len() + self.quads.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    pub fn bounds(&self, prim: PrimRef) -> Bounds3 {
+        let i = prim.index();
+        match prim.kind() {
+            PrimitiveKind::Triangle => {
+                let t = &self.triangles[i];
+                Bounds3::from_point(t.p0)
+                    .union_point(t.p1)
+                    .union_point(t.p2)
+            }
+            PrimitiveKind::Sphere => {
+                let s = &self.spheres[i].shape;
+                Bounds3::new(
+                    s.center - Vec3::splat(s.radius),
+                    s.center + Vec3::splat(s.radius),
+                )
+            }
+            PrimitiveKind::Cuboid => self.cuboids[i].shape.world_bounds(),
+            PrimitiveKind::Quad => {
+                let q = &self.quads[i].shape;
+                Bounds3::from_point(q.corner)
+                    .union_point(q.corner + q.e1)
+                    .union_point(q.corner + q.e2)
+                    .union_point(q.corner + q.e1 + q.e2)
+            }
+        }
+    }
+
+    pub fn scene_bounds(&self) -> Bounds3 {
+        self.all_prims()
+            .iter()
+            .fold(Bounds3::EMPTY, |b, &p| b.union(&self.bounds(p)))
+    }
+
+    /// Tests one primitive; returns the hit if it is closer than `t_max`.
+    #[inline]
+    pub fn intersect(&self, prim: PrimRef, ray: &Ray, t_max: f32) -> Option<Intersection> {
+        let i = prim.index();
+        match prim.kind() {
+            PrimitiveKind::Triangle => {
+                self.triangles[i]
+                    .intersect(ray, t_max)
+                    .map(|h| Intersection {
+                        t: h.t,
+                        prim,
+                        u: h.b1,
+                        v: h.b2,
+                    })
+            }
+            PrimitiveKind::Sphere => {
+                self.spheres[i]
+                    .shape
+                    .intersect(ray, t_max)
+                    .map(|t| Intersection {
+                        t,
+                        prim,
+                        u: 0.0,
+                        v: 0.0,
+                    })
+            }
+            PrimitiveKind::Cuboid => {
+                self.cuboids[i]
+                    .shape
+                    .intersect(ray, t_max)
+                    .map(|h| Intersection {
+                        t: h.t,
+                        prim,
+                        u: 0.0,
+                        v: 0.0,
+                    })
+            }
+            PrimitiveKind::Quad => self.quads[i]
+                .shape
+                .intersect(ray, t_max)
+                .map(|(t, u, v)| Intersection { t, prim, u, v }),
+        }
+    }
+
+    /// Material index of a primitive.
+    pub fn material(&self, prim: PrimRef) -> u32 {
+        let i = prim.index();
+        match prim.kind() {
+            PrimitiveKind::Triangle => self.meshes[self.tri_mesh[i].0 as usize].material,
+            PrimitiveKind::Sphere => self.spheres[i].material,
+            PrimitiveKind::Cuboid => self.cuboids[i].material,
+            PrimitiveKind::Quad => self.quads[i].material,
+        }
+    }
+
+    /// Area light index attached to a primitive, or [`NO_LIGHT`].
+    pub fn light(&self, prim: PrimRef) -> u32 {
+        let i = prim.index();
+        match prim.kind() {
+            PrimitiveKind::Triangle => self.tri_light[i],
+            PrimitiveKind::Sphere => self.spheres[i].light,
+            PrimitiveKind::Cuboid => self.cuboids[i].light,
+            PrimitiveKind::Quad => self.quads[i].light,
+        }
+    }
+
+    pub fn set_light(&mut self, prim: PrimRef, light: u32) {
+        let i = prim.index();
+        match prim.kind() {
+            PrimitiveKind::Triangle => self.tri_light[i] = light,
+            PrimitiveKind::Sphere => self.spheres[i].light = light,
+            PrimitiveKind::Cuboid => self.cuboids[i].light = light,
+            PrimitiveKind::Quad => self.quads[i].light = light,
+        }
+    }
+
+    /// Surface area of a primitive in world space.
+    pub fn area(&self, prim: PrimRef) -> f32 {
+        let i = prim.index();
+        match prim.kind() {
+            PrimitiveKind::Triangle => self.triangles[i].area(),
+            PrimitiveKind::Sphere => self.spheres[i].shape.area(),
+            PrimitiveKind::Cuboid => self.cuboids[i].shape.area(),
+            PrimitiveKind::Quad => self.quads[i].shape.area(),
+        }
+    }
+
+    /// Expands an accelerator's closest hit into full shading information.
+    pub fn surface_hit(&self, ray: &Ray, isect: &Intersection) -> SurfaceHit {
+        let i = isect.prim.index();
+        let mut hit = SurfaceHit {
+            t: isect.t,
+            p: Vec3::ZERO,
+            p_error: Vec3::ZERO,
+            ng: Vec3::Z,
+            ns: Vec3::Z,
+            tangent: Vec3::X,
+            bitangent_sign: 1.0,
+            uv: [Vec2::ZERO; 2],
+            color: Vec4::ONE,
+            material: self.material(isect.prim),
+            light: self.light(isect.prim),
+            prim: isect.prim,
+        };
+        match isect.prim.kind() {
+            PrimitiveKind::Triangle => self.triangle_hit(i, isect.u, isect.v, &mut hit),
+            PrimitiveKind::Sphere => {
+                let s = &self.spheres[i].shape;
+                let (p, err, n) = s.surface_point(ray, isect.t);
+                let (u, v) = s.uv(n);
+                hit.p = p;
+                hit.p_error = err;
+                hit.ng = n;
+                hit.ns = n;
+                // ∂p/∂u runs around the y axis (east).
+                let t = Vec3::new(-n.z, 0.0, n.x);
+                hit.tangent = if t.length_squared() > 1e-12 {
+                    t.normalize()
+                } else {
+                    Vec3::X
+                };
+                hit.uv = [Vec2::new(u, v); 2];
+            }
+            PrimitiveKind::Cuboid => {
+                let c = &self.cuboids[i].shape;
+                match c.intersect(ray, f32::INFINITY) {
+                    Some(h) => {
+                        let (p, err, n) = c.surface_point(&h);
+                        let (u, v) = c.uv(&h);
+                        hit.p = p;
+                        hit.p_error = err;
+                        hit.ng = n;
+                        hit.ns = n;
+                        hit.tangent = crate::math::Frame::from_normal(n).x;
+                        hit.uv = [Vec2::new(u, v); 2];
+                    }
+                    None => {
+                        // Unreachable in practice (same inputs as the accelerator's test); fall
+                        // back to the parametric point so shading stays finite.
+                        hit.p = ray.at(isect.t);
+                        hit.p_error = hit.p.abs() * crate::math::gamma(8);
+                    }
+                }
+            }
+            PrimitiveKind::Quad => {
+                let q = &self.quads[i].shape;
+                let (p, err) = q.point(isect.u, isect.v);
+                let n = q.normal();
+                hit.p = p;
+                hit.p_error = err;
+                hit.ng = n;
+                hit.ns = n;
+                hit.tangent = q.e1.normalize();
+                hit.uv = [Vec2::new(isect.u, isect.v); 2];
+            }
+        }
+        hit
+    }
+
+    fn triangle_hit(&self, i: usize, b1: f32, b2: f32, hit: &mut SurfaceHit) {
+        let tri = &self.triangles[i];
+        let (p, err) = tri.point(b1, b2);
+        hit.p = p;
+        hit.p_error = err;
+        let ng = tri.normal_unnormalized();
+        let ng = if ng.length_squared() > 0.0 {
+            ng.normalize()
+        } else {
+            Vec3::Z
+        };
+        hit.ng = ng;
+        let (mesh_i, local) = self.tri_mesh[i];
+        let mesh = &self.meshes[mesh_i as usize];
+        let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
+        let b0 = 1.0 - b1 - b2;
+        let lerp3 = |a: Vec3, b: Vec3, c: Vec3| a * b0 + b * b1 + c * b2;
+        let lerp2 = |a: Vec2, b: Vec2, c: Vec2| a * b0 + b * b1 + c * b2;
+        hit.ns = match &mesh.normals {
+            Some(n) => {
+                let ns = lerp3(n[i0], n[i1], n[i2]);
+                if ns.length_squared() > 1e-20 && ns.is_finite() {
+                    let ns = ns.normalize();
+                    // Shading normals must describe the same side as the winding: a flipped
+                    // normal would make front-face emission and refraction disagree.
+                    if ns.dot(ng) < 0.0 { -ns } else { ns }
+                } else {
+                    ng
+                }
+            }
+            None => ng,
+        };
+        if let Some(uv) = &mesh.uv0 {
+            hit.uv[0] = lerp2(uv[i0], uv[i1], uv[i2]);
+        }
+        hit.uv[1] = match &mesh.uv1 {
+            Some(uv) => lerp2(uv[i0], uv[i1], uv[i2]),
+            None => hit.uv[0],
+        };
+        if let Some(c) = &mesh.colors {
+            hit.color = c[i0] * b0 + c[i1] * b1 + c[i2] * b2;
+        }
+        // Tangent frame: the mesh's own tangents, else ∂p/∂u from the UV parameterisation
+        // (PBRT eq. 3.33), else any vector perpendicular to the normal.
+        let mut tangent = None;
+        if let Some(t) = &mesh.tangents {
+            let t4 = t[i0] * b0 + t[i1] * b1 + t[i2] * b2;
+            let t3 = t4.truncate();
+            if t3.length_squared() > 1e-20 && t3.is_finite() {
+                tangent = Some(t3.normalize());
+                hit.bitangent_sign = if t[i0].w < 0.0 { -1.0 } else { 1.0 };
+            }
+        } else if let Some(uv) = &mesh.uv0 {
+            let duv02 = uv[i0] - uv[i2];
+            let duv12 = uv[i1] - uv[i2];
+            let dp02 = tri.p0 - tri.p2;
+            let dp12 = tri.p1 - tri.p2;
+            let det = duv02.x * duv12.y - duv02.y * duv12.x;
+            if det.abs() > 1e-12 {
+                let inv = 1.0 / det;
+                let dpdu = (dp02 * duv12.y - dp12 * duv02.y) * inv;
+                let dpdv = (dp12 * duv02.x - dp02 * duv12.x) * inv;
+                if dpdu.length_squared() > 1e-20 && dpdu.is_finite() {
+                    tangent = Some(dpdu.normalize());
+                    // Handedness of (T, B, N): B should align with ∂p/∂v.
+                    hit.bitangent_sign = if hit.ns.cross(dpdu).dot(dpdv) < 0.0 {
+                        -1.0
+                    } else {
+                        1.0
+                    };
+                }
+            }
+        }
+        hit.tangent = tangent.unwrap_or_else(|| crate::math::Frame::from_normal(hit.ns).x);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prim_ref_round_trips() {
+        for kind in [
+            PrimitiveKind::Triangle,
+            PrimitiveKind::Sphere,
+            PrimitiveKind::Cuboid,
+            PrimitiveKind::Quad,
+        ] {
+            for idx in [0u32, 1, 12345, PrimRef::MAX_INDEX] {
+                let r = PrimRef::new(kind, idx);
+                assert_eq!(r.kind(), kind);
+                assert_eq!(r.index(), idx as usize);
+            }
+        }
+    }
+}

@@ -1,0 +1,170 @@
+//! Ray–triangle intersection (Möller & Trumbore 1997, "Fast, Minimum Storage Ray/Triangle
+//! Intersection"; the thesis §5.1.4). The hit point is rebuilt from barycentrics, whose error bound
+//! is PBRT eq. 3.31, rather than from `o + t·d`, which carries the error of `t`.
+
+use super::Ray;
+use crate::math::{Vec3, gamma};
+
+/// A triangle's world-space vertices, stored inline for the intersection loop.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleVerts {
+    pub p0: Vec3,
+    pub p1: Vec3,
+    pub p2: Vec3,
+}
+
+/// Result of a triangle test: distance and the barycentrics of `p1` and `p2`.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleHit {
+    pub t: f32,
+    pub b1: f32,
+    pub b2: f32,
+}
+
+impl TriangleVerts {
+    /// Möller–Trumbore. Both faces are hit (culling is a shading decision, not a geometric one).
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
+        let e1 = self.p1 - self.p0;
+        let e2 = self.p2 - self.p0;
+        let pvec = ray.d.cross(e2);
+        let det = e1.dot(pvec);
+        // A degenerate triangle or a ray in its plane: no hit. `!(x != 0)` also rejects NaN.
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let inv_det = 1.0 / det;
+        let tvec = ray.o - self.p0;
+        let b1 = tvec.dot(pvec) * inv_det;
+        if !(0.0..=1.0).contains(&b1) {
+            return None;
+        }
+        let qvec = tvec.cross(e1);
+        let b2 = ray.d.dot(qvec) * inv_det;
+        if b2 < 0.0 || b1 + b2 > 1.0 {
+            return None;
+        }
+        let t = e2.dot(qvec) * inv_det;
+        // Reject hits too close to the origin to be distinguished from it: the spawned origin is
+        // already offset by its error bound, so t must only be positive beyond rounding of t.
+        if !(t > 0.0 && t < t_max) {
+            return None;
+        }
+        Some(TriangleHit { t, b1, b2 })
+    }
+
+    /// Point on the triangle at barycentrics `(1−b1−b2, b1, b2)` and its absolute error bound.
+    #[inline]
+    pub fn point(&self, b1: f32, b2: f32) -> (Vec3, Vec3) {
+        let b0 = 1.0 - b1 - b2;
+        let a = self.p0 * b0;
+        let b = self.p1 * b1;
+        let c = self.p2 * b2;
+        let p = a + b + c;
+        let err = (a.abs() + b.abs() + c.abs()) * gamma(7);
+        (p, err)
+    }
+
+    /// Unnormalised geometric normal; its direction follows the counter-clockwise winding
+    /// (p0 → p1 → p2), which defines the front face.
+    #[inline]
+    pub fn normal_unnormalized(&self) -> Vec3 {
+        (self.p1 - self.p0).cross(self.p2 - self.p0)
+    }
+
+    #[inline]
+    pub fn area(&self) -> f32 {
+        0.5 * self.normal_unnormalized().length()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri() -> TriangleVerts {
+        TriangleVerts {
+            p0: Vec3::new(0.0, 0.0, 0.0),
+            p1: Vec3::new(1.0, 0.0, 0.0),
+            p2: Vec3::new(0.0, 1.0, 0.0),
+        }
+    }
+
+    #[test]
+    fn hit_front_and_back() {
+        let t = tri();
+        let front = Ray::new(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z);
+        let h = t.intersect(&front, f32::INFINITY).unwrap();
+        assert!((h.t - 1.0).abs() < 1e-6);
+        assert!((h.b1 - 0.25).abs() < 1e-6 && (h.b2 - 0.25).abs() < 1e-6);
+        let back = Ray::new(Vec3::new(0.25, 0.25, -1.0), Vec3::Z);
+        assert!(t.intersect(&back, f32::INFINITY).is_some());
+        // The normal follows the CCW winding: +z.
+        assert!(t.normal_unnormalized().z > 0.0);
+    }
+
+    #[test]
+    fn misses() {
+        let t = tri();
+        // Outside each edge.
+        for o in [
+            Vec3::new(-0.1, 0.5, 1.0),
+            Vec3::new(0.5, -0.1, 1.0),
+            Vec3::new(0.6, 0.6, 1.0),
+        ] {
+            assert!(t.intersect(&Ray::new(o, -Vec3::Z), f32::INFINITY).is_none());
+        }
+        // Behind the origin.
+        let r = Ray::new(Vec3::new(0.25, 0.25, 1.0), Vec3::Z);
+        assert!(t.intersect(&r, f32::INFINITY).is_none());
+        // Beyond t_max.
+        let r = Ray::new(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z);
+        assert!(t.intersect(&r, 0.5).is_none());
+    }
+
+    #[test]
+    fn grazing_ray_in_plane_misses() {
+        let t = tri();
+        let r = Ray::new(Vec3::new(-1.0, 0.25, 0.0), Vec3::X);
+        assert!(t.intersect(&r, f32::INFINITY).is_none());
+    }
+
+    #[test]
+    fn degenerate_triangle_never_hits() {
+        let t = TriangleVerts {
+            p0: Vec3::ZERO,
+            p1: Vec3::X,
+            p2: Vec3::X * 2.0,
+        };
+        let r = Ray::new(Vec3::new(0.5, 0.0, 1.0), -Vec3::Z);
+        assert!(t.intersect(&r, f32::INFINITY).is_none());
+    }
+
+    #[test]
+    fn far_from_origin_hit_point_within_error_bound() {
+        let off = Vec3::new(1e5, -2e5, 3e5);
+        let t = TriangleVerts {
+            p0: off,
+            p1: off + Vec3::X * 10.0,
+            p2: off + Vec3::Y * 10.0,
+        };
+        let r = Ray::new(off + Vec3::new(2.0, 3.0, 50.0), -Vec3::Z);
+        let h = t.intersect(&r, f32::INFINITY).unwrap();
+        let (p, err) = t.point(h.b1, h.b2);
+        let exact = off + Vec3::new(2.0, 3.0, 0.0);
+        for i in 0..3 {
+            // The bound is conservative: the true plane (z = off.z exactly) lies within it.
+            assert!(
+                (p[i] - exact[i]).abs() <= err[i] + 0.05,
+                "axis {i}: {p} vs {exact} ± {err}"
+            );
+        }
+        assert!((p.z - exact.z).abs() <= err.z);
+    }
+
+    #[test]
+    fn nan_ray_never_hits() {
+        let r = Ray::new(Vec3::new(f32::NAN, 0.0, 1.0), -Vec3::Z);
+        assert!(tri().intersect(&r, f32::INFINITY).is_none());
+    }
+}

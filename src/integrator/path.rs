@@ -1,0 +1,207 @@
+//! The unidirectional path tracer of the thesis (§5.4), made unbiased: BSDF importance sampling
+//! (§5.4.3), next-event estimation (§5.4.4) combined with BSDF sampling by multiple importance
+//! sampling with the power heuristic (Veach 1997, ch. 9), and Russian roulette (§5.4.5) that divides
+//! by the survival probability. Turning NEE or MIS off changes the variance, not the expectation:
+//!
+//! * NEE and MIS on: light samples and BSDF-sampled emitter hits are both kept, weighted by the
+//!   power heuristic; the weights of the two strategies sum to one for every path.
+//! * NEE on, MIS off: light samples carry weight 1, emitter hits after a non-specular bounce weight 0.
+//! * NEE off: emitter hits carry weight 1. Delta lights (point, spot, directional) can never be hit,
+//!   so they are always sampled explicitly.
+//!
+//! Depth counts bounces: `max_depth = 0` shows only emitters seen directly, 1 is direct lighting.
+
+use super::RayStats;
+use crate::geometry::Ray;
+use crate::geometry::primitive::{NO_LIGHT, SurfaceHit};
+use crate::material::Bsdf;
+use crate::material::bsdf::emitted;
+use crate::math::{Frame, Vec3};
+use crate::sampling::SampleStream;
+use crate::sampling::warp::power_heuristic;
+use crate::world::World;
+
+#[derive(Clone, Copy, Debug)]
+pub struct PathSettings {
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    pub nee: bool,
+    pub mis: bool,
+    /// Continuation paths split at the first hit (the thesis's "rayos secundarios").
+    pub secondary: u32,
+}
+
+impl Default for PathSettings {
+    fn default() -> Self {
+        PathSettings {
+            max_depth: 64,
+            rr_depth: 3,
+            nee: true,
+            mis: true,
+            secondary: 1,
+        }
+    }
+}
+
+/// Orients the geometric and shading normals for scattering. Opaque BSDFs see the side the ray
+/// came from (two-sided shading by flipping the normals, SPEC §4); transmissive ones keep the
+/// surface's own orientation so they know whether the ray enters or leaves.
+#[inline]
+pub fn oriented_normals(hit: &SurfaceHit, wo: Vec3, transmissive: bool) -> (Vec3, Vec3) {
+    if !transmissive && hit.ng.dot(wo) < 0.0 {
+        (-hit.ng, -hit.ns)
+    } else {
+        (hit.ng, hit.ns)
+    }
+}
+
+/// Radiance arriving at the camera along `ray`.
+pub fn radiance(
+    world: &World,
+    ray: &Ray,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+) -> Vec3 {
+    stats.rays += 1;
+    let Some(hit) = world.intersect(ray) else {
+        return world.lights.escaped(ray.d.normalize()).0;
+    };
+    let wo = -ray.d.normalize();
+    let mut l = emitted(
+        &world.materials[hit.material as usize],
+        &world.textures,
+        &hit,
+        wo,
+    );
+    if set.max_depth == 0 {
+        return l;
+    }
+    let n = set.secondary.max(1);
+    let mut sum = Vec3::ZERO;
+    for _ in 0..n {
+        sum += continue_path(world, hit, wo, s, set, stats);
+    }
+    l += sum / n as f32;
+    l
+}
+
+/// Scatters from `hit` (reached with direction `-wo`) until the path ends; returns the radiance
+/// it gathers, not counting `hit`'s own emission.
+fn continue_path(
+    world: &World,
+    mut hit: SurfaceHit,
+    mut wo: Vec3,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+) -> Vec3 {
+    let mut l = Vec3::ZERO;
+    let mut beta = Vec3::ONE;
+    let mut depth = 0u32;
+    loop {
+        let material = &world.materials[hit.material as usize];
+        let bsdf = Bsdf::from_material(material, &world.textures, &hit);
+        let (ng, ns) = oriented_normals(&hit, wo, bsdf.is_transmissive());
+        let frame = Frame::from_normal_tangent(ns, hit.tangent);
+        let wo_local = frame.to_local(wo);
+
+        // Next-event estimation: one light sample, shadow-tested.
+        let u_light = s.next_1d();
+        let u_light2 = s.next_2d();
+        if !bsdf.is_specular()
+            && let Some(ls) = world.lights.sample(
+                &world.geometry,
+                &world.materials,
+                &world.textures,
+                &hit,
+                ng,
+                u_light,
+                u_light2,
+            )
+            && (set.nee || ls.delta)
+        {
+            let wi_local = frame.to_local(ls.wi);
+            // Shading and geometric normals must agree on the side of `wi`, or light would leak
+            // through the surface.
+            let consistent = ls.wi.dot(ng) * wi_local.z > 0.0;
+            let f = bsdf.eval(wo_local, wi_local);
+            if consistent && f != Vec3::ZERO {
+                stats.shadow_rays += 1;
+                if !world.occluded(&ls.shadow) {
+                    let weight = if ls.delta || !set.mis {
+                        1.0
+                    } else {
+                        power_heuristic(ls.pmf * ls.pdf, bsdf.pdf(wo_local, wi_local))
+                    };
+                    l += beta * f * wi_local.z.abs() * ls.li * (weight / (ls.pmf * ls.pdf));
+                }
+            }
+        }
+
+        // BSDF sampling: choose the next direction.
+        let u_lobe = s.next_1d();
+        let u_dir = s.next_2d();
+        let Some(bs) = bsdf.sample(wo_local, u_lobe, u_dir) else {
+            break;
+        };
+        let wi = frame.to_world(bs.wi);
+        if wi.dot(ng) * bs.wi.z <= 0.0 {
+            break;
+        }
+        beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+        if !(beta.max_element() > 0.0) || !beta.is_finite() {
+            break;
+        }
+        depth += 1;
+
+        let ray = Ray::spawn(hit.p, hit.p_error, ng, wi);
+        stats.rays += 1;
+        let Some(next) = world.intersect(&ray) else {
+            let (le, pdf_light) = world.lights.escaped(wi);
+            if le != Vec3::ZERO {
+                let weight = if bs.specular || !set.nee {
+                    1.0
+                } else if !set.mis {
+                    0.0
+                } else {
+                    power_heuristic(bs.pdf, pdf_light)
+                };
+                l += beta * le * weight;
+            }
+            break;
+        };
+        let wo_next = -wi;
+        let next_material = &world.materials[next.material as usize];
+        let le = emitted(next_material, &world.textures, &next, wo_next);
+        if le != Vec3::ZERO {
+            let weight = if bs.specular || !set.nee || next.light == NO_LIGHT {
+                1.0
+            } else if !set.mis {
+                0.0
+            } else {
+                let pdf_light = world
+                    .lights
+                    .pdf_area(&world.geometry, next.light, hit.p, &next);
+                power_heuristic(bs.pdf, pdf_light)
+            };
+            l += beta * le * weight;
+        }
+        if depth >= set.max_depth {
+            break;
+        }
+        // Russian roulette: survive with probability q, and divide by it to stay unbiased.
+        if depth >= set.rr_depth {
+            let q = beta.max_element().min(1.0);
+            if q < 1.0 {
+                if s.next_1d() >= q {
+                    break;
+                }
+                beta /= q;
+            }
+        }
+        hit = next;
+        wo = wo_next;
+    }
+    l
+}

@@ -1,0 +1,25 @@
+//! Trayecto: a physically based offline renderer (a backward path tracer).
+//!
+//! The modules follow a photon's life backwards from the camera:
+//! [`scene`] (what loaders produce) → [`world`] (compiled for rendering: [`geometry`] and
+//! [`accel`]) → [`camera`] rays → [`integrator`] (where each path's fate is decided, using
+//! [`material`] BSDFs, [`light`] sampling and [`sampling`]) → [`film`] → [`render`] (the driver),
+//! with the front ends ([`cli`]) on top.
+
+// `!(x > 0.0)` is used on purpose throughout: unlike `x <= 0.0` it also rejects NaN, which is how
+// hostile or degenerate data is kept out of the renderer.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod accel;
+pub mod camera;
+pub mod cli;
+pub mod film;
+pub mod geometry;
+pub mod integrator;
+pub mod light;
+pub mod material;
+pub mod math;
+pub mod render;
+pub mod sampling;
+pub mod scene;
+pub mod world;

@@ -1,0 +1,189 @@
+//! Small numeric toolbox shared by every stage: re-exported vector types, orthonormal frames and the
+//! floating-point error bounds used for robust ray spawning (Pharr, Jakob & Humphreys, *PBRT* 3rd ed.
+//! §3.9 "Managing rounding error").
+
+pub use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+
+pub const PI: f32 = std::f32::consts::PI;
+pub const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
+
+/// Half of the machine epsilon: the bound on the relative error of one rounded f32 operation.
+pub const MACHINE_EPSILON: f32 = f32::EPSILON * 0.5;
+
+/// γ(n) = nε / (1 − nε): bound on the relative error accumulated by `n` f32 operations (PBRT eq. 3.8).
+#[inline]
+pub fn gamma(n: i32) -> f32 {
+    let ne = n as f32 * MACHINE_EPSILON;
+    ne / (1.0 - ne)
+}
+
+/// The next representable f32 above `v` (PBRT §3.9.1).
+#[inline]
+pub fn next_float_up(v: f32) -> f32 {
+    if v.is_infinite() && v > 0.0 {
+        return v;
+    }
+    let v = if v == -0.0 { 0.0 } else { v };
+    let bits = v.to_bits();
+    let bits = if v >= 0.0 { bits + 1 } else { bits - 1 };
+    f32::from_bits(bits)
+}
+
+/// The next representable f32 below `v`.
+#[inline]
+pub fn next_float_down(v: f32) -> f32 {
+    if v.is_infinite() && v < 0.0 {
+        return v;
+    }
+    let v = if v == 0.0 { -0.0 } else { v };
+    let bits = v.to_bits();
+    let bits = if v > 0.0 { bits - 1 } else { bits + 1 };
+    f32::from_bits(bits)
+}
+
+/// Moves a surface point `p` whose absolute error is bounded by `p_error` off the surface with normal `n`,
+/// to the side of direction `w`, far enough that a ray leaving it cannot re-hit the same surface
+/// (PBRT eq. 3.18 and `OffsetRayOrigin`). The offset scales with the point's magnitude, so results do
+/// not depend on the scene's scale as a fixed epsilon would.
+#[inline]
+pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
+    let d = n.abs().dot(p_error);
+    let mut offset = n * d;
+    if w.dot(n) < 0.0 {
+        offset = -offset;
+    }
+    let mut po = p + offset;
+    for i in 0..3 {
+        if offset[i] > 0.0 {
+            po[i] = next_float_up(po[i]);
+        } else if offset[i] < 0.0 {
+            po[i] = next_float_down(po[i]);
+        }
+    }
+    po
+}
+
+/// An orthonormal basis whose `z` axis is a given unit normal. Shading happens in this local frame,
+/// where cos θ is simply the `z` component.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub x: Vec3,
+    pub y: Vec3,
+    pub z: Vec3,
+}
+
+impl Frame {
+    /// Builds a frame around unit vector `n` without branches on the sign of `n.z`
+    /// (Duff et al. 2017, "Building an Orthonormal Basis, Revisited", JCGT 6(1)).
+    #[inline]
+    pub fn from_normal(n: Vec3) -> Frame {
+        let sign = 1.0f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        let x = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+        let y = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+        Frame { x, y, z: n }
+    }
+
+    /// Builds a frame from a normal and an approximate tangent (Gram–Schmidt), for normal mapping
+    /// and anisotropic shading. Falls back to [`Frame::from_normal`] if the tangent is degenerate.
+    #[inline]
+    pub fn from_normal_tangent(n: Vec3, t: Vec3) -> Frame {
+        let t = t - n * n.dot(t);
+        let len2 = t.length_squared();
+        if !(len2 > 1e-12) || !len2.is_finite() {
+            return Frame::from_normal(n);
+        }
+        let x = t / len2.sqrt();
+        Frame {
+            x,
+            y: n.cross(x),
+            z: n,
+        }
+    }
+
+    #[inline]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(self.x), v.dot(self.y), v.dot(self.z))
+    }
+
+    #[inline]
+    pub fn to_world(&self, v: Vec3) -> Vec3 {
+        self.x * v.x + self.y * v.y + self.z * v.z
+    }
+}
+
+/// Relative luminance of a linear Rec.709 colour (used for light power and Russian roulette).
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// Transforms a point by an affine 4×4 matrix.
+#[inline]
+pub fn transform_point(m: &Mat4, p: Vec3) -> Vec3 {
+    m.transform_point3(p)
+}
+
+/// Transforms a normal by the inverse transpose of the matrix whose inverse is `inv`.
+#[inline]
+pub fn transform_normal(inv: &Mat4, n: Vec3) -> Vec3 {
+    let m = Mat3::from_mat4(*inv).transpose();
+    m * n
+}
+
+/// True when every element of the matrix is finite.
+pub fn mat4_is_finite(m: &Mat4) -> bool {
+    m.to_cols_array().iter().all(|v| v.is_finite())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn next_float_moves_one_ulp() {
+        for v in [0.0f32, -0.0, 1.0, -1.0, 1e-30, -1e30, 123.456] {
+            let up = next_float_up(v);
+            let down = next_float_down(v);
+            assert!(up > v, "{v}");
+            assert!(down < v, "{v}");
+        }
+        assert_eq!(next_float_up(1.0), 1.0 + f32::EPSILON);
+    }
+
+    #[test]
+    fn frame_is_orthonormal_for_all_normals() {
+        let normals = [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(0.0, 0.0, -0.999_999),
+            Vec3::new(1.0, 2.0, -3.0).normalize(),
+        ];
+        for n in normals {
+            let n = n.normalize();
+            let f = Frame::from_normal(n);
+            assert!((f.x.length() - 1.0).abs() < 1e-5);
+            assert!((f.y.length() - 1.0).abs() < 1e-5);
+            assert!(f.x.dot(f.y).abs() < 1e-5);
+            assert!(f.x.dot(n).abs() < 1e-5);
+            assert!(f.y.dot(n).abs() < 1e-5);
+            // Right-handed: x × y = z.
+            assert!((f.x.cross(f.y) - n).length() < 1e-4);
+            let v = Vec3::new(0.3, -0.4, 0.5);
+            assert!((f.to_world(f.to_local(v)) - v).length() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn offset_leaves_the_surface_on_the_requested_side() {
+        let p = Vec3::new(1e5, 3.0, -2e4);
+        let err = Vec3::splat(gamma(7)) * p.abs();
+        let n = Vec3::Y;
+        let up = offset_ray_origin(p, err, n, Vec3::Y);
+        let down = offset_ray_origin(p, err, n, -Vec3::Y);
+        assert!(up.y > p.y);
+        assert!(down.y < p.y);
+    }
+}

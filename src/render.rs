@@ -1,0 +1,303 @@
+//! The render driver: splits the image into tiles, renders them in parallel passes (so front ends
+//! can show a progressive preview), accumulates the film and reports statistics. Every sample is a
+//! pure function of (seed, pixel, sample index), and the film adds tiles in a fixed order, so the
+//! image is bit-identical for any thread count.
+
+use crate::film::{Film, FilmBlock, Image};
+use crate::integrator::{IntegratorKind, PathSettings, RayStats, path};
+use crate::math::Vec2;
+use crate::sampling::{SampleStream, SamplerKind};
+use crate::world::World;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+pub const MAX_DIMENSION: u32 = 16384;
+pub const MAX_PIXELS: u64 = 1 << 27;
+pub const MAX_SPP: u32 = 1 << 20;
+pub const MAX_DEPTH: u32 = 1024;
+pub const MAX_SECONDARY: u32 = 1024;
+const TILE: u32 = 16;
+
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub seed: u64,
+    /// Worker threads; `None` uses every core.
+    pub threads: Option<usize>,
+    pub sampler: SamplerKind,
+    pub integrator: IntegratorKind,
+    pub path: PathSettings,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 512,
+            height: 512,
+            spp: 64,
+            seed: 0,
+            threads: None,
+            sampler: SamplerKind::default(),
+            integrator: IntegratorKind::default(),
+            path: PathSettings::default(),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("invalid setting: {0}")]
+    InvalidSetting(String),
+    #[error("render cancelled")]
+    Cancelled,
+    #[error("could not start {0} worker threads: {1}")]
+    ThreadPool(usize, String),
+}
+
+impl RenderSettings {
+    /// Refuses absurd values before any work starts (SPEC §7).
+    pub fn validate(&self) -> Result<(), RenderError> {
+        let bad = |m: String| Err(RenderError::InvalidSetting(m));
+        if self.width == 0
+            || self.height == 0
+            || self.width > MAX_DIMENSION
+            || self.height > MAX_DIMENSION
+        {
+            return bad(format!(
+                "resolution {}x{} is out of range (each side must be 1 to {MAX_DIMENSION})",
+                self.width, self.height
+            ));
+        }
+        if self.width as u64 * self.height as u64 > MAX_PIXELS {
+            return bad(format!(
+                "resolution {}x{} has more than {MAX_PIXELS} pixels",
+                self.width, self.height
+            ));
+        }
+        if self.spp == 0 || self.spp > MAX_SPP {
+            return bad(format!(
+                "samples per pixel must be 1 to {MAX_SPP} (got {})",
+                self.spp
+            ));
+        }
+        if self.path.max_depth > MAX_DEPTH {
+            return bad(format!(
+                "max depth must be at most {MAX_DEPTH} (got {})",
+                self.path.max_depth
+            ));
+        }
+        if self.path.secondary == 0 || self.path.secondary > MAX_SECONDARY {
+            return bad(format!(
+                "secondary rays must be 1 to {MAX_SECONDARY} (got {})",
+                self.path.secondary
+            ));
+        }
+        if let Some(t) = self.threads
+            && (t == 0 || t > 1024)
+        {
+            return bad(format!("threads must be 1 to 1024 (got {t})"));
+        }
+        Ok(())
+    }
+}
+
+/// Receives progress from the driver. Called from the driver's thread only.
+pub trait RenderObserver: Sync {
+    /// After each pass: the film so far, samples per pixel done and planned.
+    fn pass_done(&self, _film: &Film, _samples_done: u32, _spp: u32) {}
+    /// After each tile (from worker threads): tiles done and total over the whole render.
+    fn tile_done(&self, _done: u64, _total: u64) {}
+}
+
+/// An observer that ignores everything.
+pub struct NoObserver;
+impl RenderObserver for NoObserver {}
+
+#[derive(Clone, Debug)]
+pub struct RenderOutput {
+    pub image: Image,
+    pub stats: RayStats,
+    pub discarded_samples: u64,
+    pub render_time: Duration,
+}
+
+impl RenderOutput {
+    pub fn rays_per_second(&self) -> f64 {
+        (self.stats.rays + self.stats.shadow_rays) as f64 / self.render_time.as_secs_f64().max(1e-9)
+    }
+}
+
+/// The sample-index ranges of the progressive passes: 1, 1, 2, 4, … samples, at most 64 per pass.
+/// Depends only on `spp`, which keeps the accumulation order (and so the image) fixed.
+pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
+    let mut passes = Vec::new();
+    let mut start = 0;
+    let mut size = 1;
+    while start < spp {
+        let end = (start + size).min(spp);
+        passes.push((start, end));
+        start = end;
+        if passes.len() > 1 {
+            size = (size * 2).min(64);
+        }
+    }
+    passes
+}
+
+pub fn render(
+    world: &World,
+    settings: &RenderSettings,
+    observer: &dyn RenderObserver,
+    cancel: &AtomicBool,
+) -> Result<RenderOutput, RenderError> {
+    settings.validate()?;
+    let run = || render_in_pool(world, settings, observer, cancel);
+    match settings.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|e| RenderError::ThreadPool(n, e.to_string()))?
+            .install(run),
+        None => run(),
+    }
+}
+
+fn render_in_pool(
+    world: &World,
+    settings: &RenderSettings,
+    observer: &dyn RenderObserver,
+    cancel: &AtomicBool,
+) -> Result<RenderOutput, RenderError> {
+    let start = Instant::now();
+    let (w, h) = (settings.width, settings.height);
+    let camera = crate::camera::Camera::new(&world.camera, w, h);
+    let mut tiles = Vec::new();
+    for y0 in (0..h).step_by(TILE as usize) {
+        for x0 in (0..w).step_by(TILE as usize) {
+            tiles.push((x0, y0, TILE.min(w - x0), TILE.min(h - y0)));
+        }
+    }
+    let passes = pass_schedule(settings.spp);
+    let total_tiles = (tiles.len() * passes.len()) as u64;
+    let tiles_done = AtomicU64::new(0);
+    let mut film = Film::new(w, h);
+    let mut stats = RayStats::default();
+    for &(s0, s1) in &passes {
+        let blocks: Vec<(FilmBlock, RayStats)> = tiles
+            .par_iter()
+            .map(|&(x0, y0, tw, th)| {
+                let mut block = FilmBlock::new(x0, y0, tw, th);
+                let mut st = RayStats::default();
+                if cancel.load(Ordering::Relaxed) {
+                    return (block, st);
+                }
+                for y in y0..y0 + th {
+                    for x in x0..x0 + tw {
+                        for s in s0..s1 {
+                            let mut stream = SampleStream::new(
+                                settings.sampler,
+                                settings.seed,
+                                (x, y),
+                                s,
+                                settings.spp,
+                            );
+                            let l =
+                                sample_pixel(world, &camera, settings, &mut stream, x, y, &mut st);
+                            block.add(x, y, l);
+                        }
+                    }
+                }
+                let done = tiles_done.fetch_add(1, Ordering::Relaxed) + 1;
+                observer.tile_done(done, total_tiles);
+                (block, st)
+            })
+            .collect();
+        if cancel.load(Ordering::Relaxed) {
+            return Err(RenderError::Cancelled);
+        }
+        for (b, st) in &blocks {
+            film.add_block(b);
+            stats += *st;
+        }
+        observer.pass_done(&film, s1, settings.spp);
+    }
+    Ok(RenderOutput {
+        image: film.to_image(),
+        stats,
+        discarded_samples: film.discarded,
+        render_time: start.elapsed(),
+    })
+}
+
+/// One camera sample of pixel (x, y): a uniformly jittered film position (a box filter over the
+/// pixel, as the reference images use) and a lens position.
+#[inline]
+fn sample_pixel(
+    world: &World,
+    camera: &crate::camera::Camera,
+    settings: &RenderSettings,
+    stream: &mut SampleStream,
+    x: u32,
+    y: u32,
+    stats: &mut RayStats,
+) -> crate::math::Vec3 {
+    let jitter = stream.next_2d();
+    let lens = stream.next_2d();
+    let film = Vec2::new(x as f32 + jitter.x, y as f32 + jitter.y);
+    let ray = camera.generate_ray(film, lens);
+    match settings.integrator {
+        IntegratorKind::Path => path::radiance(world, &ray, stream, &settings.path, stats),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pass_schedule_covers_every_sample_once() {
+        for spp in [1u32, 2, 3, 7, 64, 1000] {
+            let p = pass_schedule(spp);
+            assert_eq!(p.first().unwrap().0, 0);
+            assert_eq!(p.last().unwrap().1, spp);
+            for w in p.windows(2) {
+                assert_eq!(w[0].1, w[1].0);
+            }
+            assert!(p.iter().all(|(a, b)| b > a && b - a <= 64));
+        }
+    }
+
+    #[test]
+    fn absurd_settings_are_refused() {
+        let ok = RenderSettings::default();
+        assert!(ok.validate().is_ok());
+        for s in [
+            RenderSettings {
+                width: 0,
+                ..ok.clone()
+            },
+            RenderSettings {
+                height: 1_000_000,
+                ..ok.clone()
+            },
+            RenderSettings {
+                width: 16384,
+                height: 16384,
+                ..ok.clone()
+            },
+            RenderSettings {
+                spp: 0,
+                ..ok.clone()
+            },
+            RenderSettings {
+                threads: Some(0),
+                ..ok.clone()
+            },
+        ] {
+            assert!(s.validate().is_err(), "{s:?}");
+        }
+    }
+}

@@ -1,0 +1,125 @@
+//! Piecewise-constant 1D distribution sampled by inverting its CDF (PBRT §A.5.1 / §13.3.1); used to
+//! choose lights in proportion to power.
+
+#[derive(Clone, Debug, Default)]
+pub struct Distribution1D {
+    pub func: Vec<f32>,
+    /// cdf[0] = 0, cdf[n] = 1.
+    pub cdf: Vec<f32>,
+    pub func_int: f32,
+}
+
+impl Distribution1D {
+    /// Builds from non-negative weights. Negative or non-finite weights count as zero; if every
+    /// weight is zero the distribution is uniform.
+    pub fn new(weights: &[f32]) -> Distribution1D {
+        let n = weights.len();
+        let func: Vec<f32> = weights
+            .iter()
+            .map(|&w| if w.is_finite() && w > 0.0 { w } else { 0.0 })
+            .collect();
+        let mut cdf = vec![0.0f64; n + 1];
+        for i in 0..n {
+            cdf[i + 1] = cdf[i] + func[i] as f64 / n as f64;
+        }
+        let total = cdf[n];
+        let (func, cdf) = if total > 0.0 {
+            (
+                func,
+                cdf.iter()
+                    .map(|&c| (c / total) as f32)
+                    .collect::<Vec<f32>>(),
+            )
+        } else {
+            (
+                vec![1.0; n],
+                (0..=n).map(|i| i as f32 / n.max(1) as f32).collect(),
+            )
+        };
+        let func_int = if total > 0.0 { total as f32 } else { 1.0 };
+        let mut cdf = cdf;
+        if let Some(last) = cdf.last_mut() {
+            *last = 1.0;
+        }
+        Distribution1D {
+            func,
+            cdf,
+            func_int,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.func.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.func.is_empty()
+    }
+
+    /// Chooses an index with probability proportional to its weight; returns (index, probability).
+    #[inline]
+    pub fn sample_discrete(&self, u: f32) -> (usize, f32) {
+        let n = self.func.len();
+        // Largest i with cdf[i] <= u.
+        let i = match self.cdf.partition_point(|&c| c <= u) {
+            0 => 0,
+            k => (k - 1).min(n - 1),
+        };
+        // Skip zero-probability entries that a cdf plateau could land on.
+        let mut i = i;
+        while i + 1 < n && self.cdf[i + 1] <= self.cdf[i] {
+            i += 1;
+        }
+        (i, self.discrete_pdf(i))
+    }
+
+    /// Probability of choosing index `i`.
+    #[inline]
+    pub fn discrete_pdf(&self, i: usize) -> f32 {
+        self.func[i] / (self.func_int * self.func.len() as f32)
+    }
+
+    /// Continuous sample in [0, 1) with density proportional to the function; returns (x, pdf, index).
+    #[inline]
+    pub fn sample_continuous(&self, u: f32) -> (f32, f32, usize) {
+        let (i, _) = self.sample_discrete(u);
+        let n = self.func.len();
+        let width = self.cdf[i + 1] - self.cdf[i];
+        let du = if width > 0.0 {
+            (u - self.cdf[i]) / width
+        } else {
+            0.5
+        };
+        let x = ((i as f32 + du.clamp(0.0, 1.0)) / n as f32).min(1.0 - f32::EPSILON);
+        (x, self.func[i] / self.func_int, i)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn discrete_probabilities_match_weights() {
+        let d = Distribution1D::new(&[1.0, 0.0, 3.0, 0.0]);
+        assert!((d.discrete_pdf(0) - 0.25).abs() < 1e-6);
+        assert_eq!(d.discrete_pdf(1), 0.0);
+        assert!((d.discrete_pdf(2) - 0.75).abs() < 1e-6);
+        let mut counts = [0usize; 4];
+        for k in 0..10_000 {
+            let u = (k as f32 + 0.5) / 10_000.0;
+            counts[d.sample_discrete(u).0] += 1;
+        }
+        assert_eq!(counts[1], 0);
+        assert_eq!(counts[3], 0);
+        assert!((counts[2] as f32 / 10_000.0 - 0.75).abs() < 0.01);
+    }
+
+    #[test]
+    fn zero_weights_are_uniform() {
+        let d = Distribution1D::new(&[0.0, 0.0]);
+        assert!((d.discrete_pdf(0) - 0.5).abs() < 1e-6);
+        let d = Distribution1D::new(&[f32::NAN, 1.0]);
+        assert_eq!(d.discrete_pdf(0), 0.0);
+    }
+}

@@ -1,0 +1,431 @@
+//! Scene description: what every loader (built-in scenes, glTF, OBJ, PLY, FBX, TOML) produces and the
+//! renderer consumes. It is plain data in the file's own terms (object-space meshes, transforms,
+//! materials with texture references, lights, cameras); [`crate::world::World`] compiles it into the
+//! render-time representation.
+
+pub mod builtin;
+
+use std::path::Path;
+
+use crate::material::{Material, Texture};
+use crate::math::{Mat4, Vec2, Vec3, Vec4};
+use std::path::PathBuf;
+
+pub type MeshId = usize;
+pub type MaterialId = usize;
+
+/// A triangle mesh in object space.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    pub name: String,
+    pub positions: Vec<Vec3>,
+    pub indices: Vec<[u32; 3]>,
+    pub normals: Option<Vec<Vec3>>,
+    /// xyz tangent, w = ±1 bitangent sign (glTF convention).
+    pub tangents: Option<Vec<Vec4>>,
+    pub uv0: Option<Vec<Vec2>>,
+    pub uv1: Option<Vec<Vec2>>,
+    pub colors: Option<Vec<Vec4>>,
+}
+
+/// The shape an object places in the world.
+#[derive(Clone, Debug)]
+pub enum Shape {
+    Mesh(MeshId),
+    /// A sphere in object space. Its transform must be a similarity (uniform scale).
+    Sphere {
+        center: Vec3,
+        radius: f32,
+    },
+    /// An axis-aligned box in object space; any affine transform.
+    Cuboid {
+        min: Vec3,
+        max: Vec3,
+    },
+    /// A parallelogram `corner + u·e1 + v·e2`, front face along `e1 × e2`.
+    Quad {
+        corner: Vec3,
+        e1: Vec3,
+        e2: Vec3,
+    },
+}
+
+/// One shape placed in the world with a material. Several objects may share a mesh (instancing).
+#[derive(Clone, Debug)]
+pub struct Object {
+    pub name: String,
+    pub shape: Shape,
+    pub transform: Mat4,
+    pub material: MaterialId,
+}
+
+/// A perspective camera. Camera space looks down −z with +y up (glTF convention).
+#[derive(Clone, Debug)]
+pub struct CameraDesc {
+    pub name: String,
+    pub camera_to_world: Mat4,
+    /// Vertical field of view in degrees.
+    pub vfov_deg: f32,
+    /// Aspect ratio the file asks for, if any (the render's width/height wins).
+    pub aspect: Option<f32>,
+    /// Lens radius; 0 is a pinhole.
+    pub aperture_radius: f32,
+    pub focus_distance: f32,
+}
+
+impl CameraDesc {
+    pub fn look_at(name: &str, eye: Vec3, target: Vec3, up: Vec3, vfov_deg: f32) -> CameraDesc {
+        let view = Mat4::look_at_rh(eye, target, up);
+        CameraDesc {
+            name: name.to_string(),
+            camera_to_world: view.inverse(),
+            vfov_deg,
+            aspect: None,
+            aperture_radius: 0.0,
+            focus_distance: (target - eye).length().max(1e-6),
+        }
+    }
+}
+
+/// Lights that are not emissive surfaces. Radiometric units throughout (RGB):
+/// intensity in W/sr, irradiance in W/m², radiance in W/(m²·sr).
+#[derive(Clone, Debug)]
+pub enum LightDesc {
+    Point {
+        name: String,
+        position: Vec3,
+        intensity: Vec3,
+    },
+    Spot {
+        name: String,
+        position: Vec3,
+        direction: Vec3,
+        intensity: Vec3,
+        /// Half-angles in radians.
+        inner_angle: f32,
+        outer_angle: f32,
+    },
+    Directional {
+        name: String,
+        /// Direction the light travels.
+        direction: Vec3,
+        irradiance: Vec3,
+    },
+    /// Uniform radiance from every direction (the thesis's "ambient" light).
+    Ambient { name: String, radiance: Vec3 },
+    /// Equirectangular environment map.
+    Environment {
+        name: String,
+        path: PathBuf,
+        scale: Vec3,
+        /// World-from-environment rotation.
+        transform: Mat4,
+    },
+}
+
+impl LightDesc {
+    pub fn name(&self) -> &str {
+        match self {
+            LightDesc::Point { name, .. }
+            | LightDesc::Spot { name, .. }
+            | LightDesc::Directional { name, .. }
+            | LightDesc::Ambient { name, .. }
+            | LightDesc::Environment { name, .. } => name,
+        }
+    }
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    pub name: String,
+    /// Where the scene was read from, for messages.
+    pub source: Option<PathBuf>,
+    pub meshes: Vec<Mesh>,
+    pub objects: Vec<Object>,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    pub lights: Vec<LightDesc>,
+    pub cameras: Vec<CameraDesc>,
+    /// Everything in the file that was not understood or not supported, by name.
+    pub warnings: Vec<String>,
+}
+
+/// Errors of scene loading and validation. Every message names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{path}: {message}")]
+    Invalid { path: String, message: String },
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("unknown built-in scene '{0}' (available: {list})", list = builtin::NAMES.join(", "))]
+    UnknownBuiltin(String),
+}
+
+impl SceneError {
+    pub fn invalid(path: impl std::fmt::Display, message: impl Into<String>) -> SceneError {
+        SceneError::Invalid {
+            path: path.to_string(),
+            message: message.into(),
+        }
+    }
+}
+
+impl Scene {
+    pub fn add_material(&mut self, m: Material) -> MaterialId {
+        self.materials.push(m);
+        self.materials.len() - 1
+    }
+
+    pub fn add_mesh(&mut self, m: Mesh) -> MeshId {
+        self.meshes.push(m);
+        self.meshes.len() - 1
+    }
+
+    pub fn add_object(&mut self, name: &str, shape: Shape, transform: Mat4, material: MaterialId) {
+        self.objects.push(Object {
+            name: name.to_string(),
+            shape,
+            transform,
+            material,
+        });
+    }
+
+    /// Number of triangles after instancing.
+    pub fn triangle_count(&self) -> usize {
+        self.objects
+            .iter()
+            .map(|o| match o.shape {
+                Shape::Mesh(m) => self.meshes.get(m).map_or(0, |m| m.indices.len()),
+                _ => 0,
+            })
+            .sum()
+    }
+
+    fn label(&self) -> String {
+        match &self.source {
+            Some(p) => p.display().to_string(),
+            None => self.name.clone(),
+        }
+    }
+
+    /// Checks internal consistency (indices in range, finite numbers) so the renderer can trust
+    /// the data. Loaders call this last; it turns hostile input into a clear error instead of a
+    /// panic later.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let label = self.label();
+        let err = |m: String| Err(SceneError::invalid(&label, m));
+        for (i, mesh) in self.meshes.iter().enumerate() {
+            let n = mesh.positions.len();
+            if n > crate::geometry::PrimRef::MAX_INDEX as usize {
+                return err(format!(
+                    "mesh {i} '{}' has too many vertices ({n})",
+                    mesh.name
+                ));
+            }
+            if let Some(p) = mesh.positions.iter().position(|p| !p.is_finite()) {
+                return err(format!(
+                    "mesh {i} '{}': vertex {p} has a non-finite position",
+                    mesh.name
+                ));
+            }
+            for (t, tri) in mesh.indices.iter().enumerate() {
+                if tri.iter().any(|&v| v as usize >= n) {
+                    return err(format!(
+                        "mesh {i} '{}': triangle {t} references vertex {:?} but the mesh has {n} vertices",
+                        mesh.name, tri
+                    ));
+                }
+            }
+            let attr_len_ok = |len: Option<usize>| len.is_none_or(|l| l == n);
+            if !attr_len_ok(mesh.normals.as_ref().map(|v| v.len()))
+                || !attr_len_ok(mesh.tangents.as_ref().map(|v| v.len()))
+                || !attr_len_ok(mesh.uv0.as_ref().map(|v| v.len()))
+                || !attr_len_ok(mesh.uv1.as_ref().map(|v| v.len()))
+                || !attr_len_ok(mesh.colors.as_ref().map(|v| v.len()))
+            {
+                return err(format!(
+                    "mesh {i} '{}': a vertex attribute has a different length than the positions",
+                    mesh.name
+                ));
+            }
+        }
+        if self.triangle_count() > crate::geometry::PrimRef::MAX_INDEX as usize {
+            return err(format!("too many triangles ({})", self.triangle_count()));
+        }
+        for (i, o) in self.objects.iter().enumerate() {
+            if !crate::math::mat4_is_finite(&o.transform) {
+                return err(format!(
+                    "object {i} '{}' has a non-finite transform",
+                    o.name
+                ));
+            }
+            if o.material >= self.materials.len() {
+                return err(format!(
+                    "object {i} '{}' references material {} of {}",
+                    o.name,
+                    o.material,
+                    self.materials.len()
+                ));
+            }
+            let shape_ok = match &o.shape {
+                Shape::Mesh(m) => *m < self.meshes.len(),
+                Shape::Sphere { center, radius } => {
+                    center.is_finite() && radius.is_finite() && *radius > 0.0
+                }
+                Shape::Cuboid { min, max } => {
+                    min.is_finite() && max.is_finite() && min.cmple(*max).all()
+                }
+                Shape::Quad { corner, e1, e2 } => {
+                    corner.is_finite() && e1.is_finite() && e2.is_finite()
+                }
+            };
+            if !shape_ok {
+                return err(format!(
+                    "object {i} '{}' has an invalid shape (missing mesh, non-finite data, a non-positive \
+                     sphere radius or a box with min > max)",
+                    o.name
+                ));
+            }
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            m.validate(self.textures.len()).map_err(|e| {
+                SceneError::invalid(&label, format!("material {i} '{}': {e}", m.name))
+            })?;
+        }
+        for (i, c) in self.cameras.iter().enumerate() {
+            let ok = crate::math::mat4_is_finite(&c.camera_to_world)
+                && c.vfov_deg > 0.0
+                && c.vfov_deg < 180.0
+                && c.aperture_radius >= 0.0
+                && c.aperture_radius.is_finite()
+                && c.focus_distance > 0.0
+                && c.focus_distance.is_finite();
+            if !ok {
+                return err(format!(
+                    "camera {i} '{}' is invalid (field of view must be in (0, 180) degrees, focus distance positive)",
+                    c.name
+                ));
+            }
+        }
+        for l in &self.lights {
+            let finite = match l {
+                LightDesc::Point {
+                    position,
+                    intensity,
+                    ..
+                } => position.is_finite() && intensity.is_finite(),
+                LightDesc::Spot {
+                    position,
+                    direction,
+                    intensity,
+                    inner_angle,
+                    outer_angle,
+                    ..
+                } => {
+                    position.is_finite()
+                        && direction.is_finite()
+                        && direction.length_squared() > 0.0
+                        && intensity.is_finite()
+                        && inner_angle.is_finite()
+                        && outer_angle.is_finite()
+                }
+                LightDesc::Directional {
+                    direction,
+                    irradiance,
+                    ..
+                } => {
+                    direction.is_finite()
+                        && direction.length_squared() > 0.0
+                        && irradiance.is_finite()
+                }
+                LightDesc::Ambient { radiance, .. } => radiance.is_finite(),
+                LightDesc::Environment {
+                    scale, transform, ..
+                } => scale.is_finite() && crate::math::mat4_is_finite(transform),
+            };
+            if !finite {
+                return err(format!(
+                    "light '{}' has non-finite or degenerate parameters",
+                    l.name()
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// True if anything emits light: a light, or a material with emission.
+    pub fn has_light(&self) -> bool {
+        !self.lights.is_empty()
+            || self
+                .objects
+                .iter()
+                .any(|o| self.materials[o.material].is_emissive())
+    }
+
+    /// World-space bounds of all objects (conservative for analytic shapes).
+    pub fn bounds(&self) -> crate::geometry::Bounds3 {
+        use crate::geometry::Bounds3;
+        let mut b = Bounds3::EMPTY;
+        for o in &self.objects {
+            let pts: Vec<Vec3> = match &o.shape {
+                Shape::Mesh(m) => self.meshes[*m].positions.clone(),
+                Shape::Sphere { center, radius } => {
+                    let r = Vec3::splat(*radius);
+                    (0..8)
+                        .map(|i| Bounds3::new(*center - r, *center + r).corner(i))
+                        .collect()
+                }
+                Shape::Cuboid { min, max } => {
+                    (0..8).map(|i| Bounds3::new(*min, *max).corner(i)).collect()
+                }
+                Shape::Quad { corner, e1, e2 } => {
+                    vec![*corner, *corner + *e1, *corner + *e2, *corner + *e1 + *e2]
+                }
+            };
+            for p in pts {
+                b = b.union_point(o.transform.transform_point3(p));
+            }
+        }
+        b
+    }
+}
+
+/// Loads a scene from a file path, or a built-in scene by name (`cornell`). The format follows the
+/// file's extension.
+// Loaders add their extensions to the match below as formats land.
+#[allow(clippy::match_single_binding)]
+pub fn load(spec: &str) -> Result<Scene, SceneError> {
+    let path = Path::new(spec);
+    if builtin::NAMES.contains(&spec) && !path.exists() {
+        return builtin::load(spec);
+    }
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    let Some(ext) = ext else {
+        if path.exists() {
+            return Err(SceneError::invalid(
+                spec,
+                "the file has no extension, so its format is unknown",
+            ));
+        }
+        return Err(SceneError::UnknownBuiltin(spec.to_string()));
+    };
+    if !path.is_file() {
+        return Err(SceneError::Io {
+            path: spec.to_string(),
+            source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        });
+    }
+    match ext.as_str() {
+        other => Err(SceneError::invalid(
+            spec,
+            format!("unsupported scene format '.{other}'"),
+        )),
+    }
+}

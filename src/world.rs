@@ -1,0 +1,350 @@
+//! The render-time world: the scene description compiled into world-space primitives, an
+//! accelerator, materials, textures, lights and the chosen camera.
+
+use crate::accel::{Accel, AccelKind};
+use crate::geometry::cuboid::Cuboid;
+use crate::geometry::primitive::{
+    AnalyticPrim, Intersection, MeshAttributes, NO_LIGHT, SurfaceHit,
+};
+use crate::geometry::quad::Quad;
+use crate::geometry::sphere::Sphere;
+use crate::geometry::triangle::TriangleVerts;
+use crate::geometry::{Bounds3, GeometryStore, PrimRef, PrimitiveKind, Ray};
+use crate::light::{Light, LightSet};
+use crate::material::{Material, Texture};
+use crate::math::{Mat3, Vec3, Vec4, transform_normal};
+use crate::scene::{CameraDesc, LightDesc, Scene, SceneError, Shape};
+
+/// Options that shape the world but are not part of the scene file.
+#[derive(Clone, Debug, Default)]
+pub struct WorldOptions {
+    pub accel: AccelKind,
+    /// `--camera NAME|INDEX`.
+    pub camera: Option<String>,
+    /// `--no-default-light`: leave a scene without lights unlit.
+    pub no_default_light: bool,
+}
+
+pub struct World {
+    pub geometry: GeometryStore,
+    pub accel: Accel,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    pub lights: LightSet,
+    pub camera: CameraDesc,
+    pub bounds: Bounds3,
+    /// Warnings produced while compiling (in addition to the scene's own).
+    pub warnings: Vec<String>,
+}
+
+impl World {
+    pub fn build(scene: &Scene, options: &WorldOptions) -> Result<World, SceneError> {
+        scene.validate()?;
+        let label = scene
+            .source
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| scene.name.clone());
+        let mut warnings = Vec::new();
+        let mut g = GeometryStore::default();
+        for obj in &scene.objects {
+            let m = obj.transform;
+            let material = obj.material as u32;
+            match &obj.shape {
+                Shape::Mesh(mesh_id) => {
+                    let mesh = &scene.meshes[*mesh_id];
+                    let inv = m.inverse();
+                    let flip = Mat3::from_mat4(m).determinant() < 0.0;
+                    let positions: Vec<Vec3> = mesh
+                        .positions
+                        .iter()
+                        .map(|&p| m.transform_point3(p))
+                        .collect();
+                    let mut attrs = MeshAttributes {
+                        indices: Vec::with_capacity(mesh.indices.len()),
+                        normals: mesh.normals.as_ref().map(|ns| {
+                            ns.iter()
+                                .map(|&n| transform_normal(&inv, n).normalize_or_zero())
+                                .collect()
+                        }),
+                        tangents: mesh.tangents.as_ref().map(|ts| {
+                            ts.iter()
+                                .map(|t| {
+                                    let v = m.transform_vector3(t.truncate()).normalize_or_zero();
+                                    // Mirroring flips the bitangent's handedness.
+                                    Vec4::new(v.x, v.y, v.z, if flip { -t.w } else { t.w })
+                                })
+                                .collect()
+                        }),
+                        uv0: mesh.uv0.clone(),
+                        uv1: mesh.uv1.clone(),
+                        colors: mesh.colors.clone(),
+                        material,
+                    };
+                    let mesh_index = g.meshes.len() as u32;
+                    for tri in &mesh.indices {
+                        // A negative-determinant transform mirrors the mesh: swap two vertices so the
+                        // counter-clockwise (front) winding is preserved.
+                        let tri = if flip { [tri[0], tri[2], tri[1]] } else { *tri };
+                        let verts = TriangleVerts {
+                            p0: positions[tri[0] as usize],
+                            p1: positions[tri[1] as usize],
+                            p2: positions[tri[2] as usize],
+                        };
+                        g.tri_mesh.push((mesh_index, attrs.indices.len() as u32));
+                        g.tri_light.push(NO_LIGHT);
+                        g.triangles.push(verts);
+                        attrs.indices.push(tri);
+                    }
+                    g.meshes.push(attrs);
+                }
+                Shape::Sphere { center, radius } => {
+                    let lin = Mat3::from_mat4(m);
+                    let sx = lin.x_axis.length();
+                    let (sy, sz) = (lin.y_axis.length(), lin.z_axis.length());
+                    let similar = (sx - sy).abs() <= 1e-4 * sx && (sx - sz).abs() <= 1e-4 * sx;
+                    let orthogonal = lin.x_axis.dot(lin.y_axis).abs() <= 1e-4 * sx * sy
+                        && lin.y_axis.dot(lin.z_axis).abs() <= 1e-4 * sy * sz
+                        && lin.x_axis.dot(lin.z_axis).abs() <= 1e-4 * sx * sz;
+                    if !(similar && orthogonal) {
+                        return Err(SceneError::invalid(
+                            &label,
+                            format!(
+                                "sphere '{}' has a non-uniform scale or shear, which is not supported",
+                                obj.name
+                            ),
+                        ));
+                    }
+                    g.spheres.push(AnalyticPrim {
+                        shape: Sphere {
+                            center: m.transform_point3(*center),
+                            radius: radius * sx,
+                        },
+                        material,
+                        light: NO_LIGHT,
+                    });
+                }
+                Shape::Cuboid { min, max } => {
+                    if Mat3::from_mat4(m).determinant() == 0.0 {
+                        warnings.push(format!(
+                            "box '{}' has a singular transform and was skipped",
+                            obj.name
+                        ));
+                        continue;
+                    }
+                    g.cuboids.push(AnalyticPrim {
+                        shape: Cuboid::new(Bounds3::new(*min, *max), m),
+                        material,
+                        light: NO_LIGHT,
+                    });
+                }
+                Shape::Quad { corner, e1, e2 } => {
+                    let c = m.transform_point3(*corner);
+                    let (mut a, mut b) = (m.transform_vector3(*e1), m.transform_vector3(*e2));
+                    if Mat3::from_mat4(m).determinant() < 0.0 {
+                        std::mem::swap(&mut a, &mut b);
+                    }
+                    g.quads.push(AnalyticPrim {
+                        shape: Quad {
+                            corner: c,
+                            e1: a,
+                            e2: b,
+                        },
+                        material,
+                        light: NO_LIGHT,
+                    });
+                }
+            }
+        }
+
+        // Area lights: every primitive with an emissive material and non-zero area.
+        let mut lights = Vec::new();
+        for prim in g.all_prims() {
+            let material = g.material(prim);
+            if scene.materials[material as usize].is_emissive() && g.area(prim) > 0.0 {
+                g.set_light(prim, lights.len() as u32);
+                lights.push(Light::Area { prim, material });
+            }
+        }
+        for l in &scene.lights {
+            match l {
+                LightDesc::Point {
+                    position,
+                    intensity,
+                    ..
+                } => lights.push(Light::Point {
+                    position: *position,
+                    intensity: *intensity,
+                }),
+                LightDesc::Spot {
+                    position,
+                    direction,
+                    intensity,
+                    inner_angle,
+                    outer_angle,
+                    ..
+                } => lights.push(Light::Spot {
+                    position: *position,
+                    direction: direction.normalize(),
+                    intensity: *intensity,
+                    cos_inner: inner_angle.cos(),
+                    cos_outer: outer_angle.cos(),
+                }),
+                LightDesc::Directional {
+                    direction,
+                    irradiance,
+                    ..
+                } => lights.push(Light::Directional {
+                    direction: direction.normalize(),
+                    irradiance: *irradiance,
+                }),
+                LightDesc::Ambient { radiance, .. } => lights.push(Light::Uniform {
+                    radiance: *radiance,
+                }),
+                LightDesc::Environment { name, path, .. } => {
+                    return Err(SceneError::invalid(
+                        &label,
+                        format!(
+                            "environment light '{name}' ({}) needs environment-map support, which is not built yet",
+                            path.display()
+                        ),
+                    ));
+                }
+            }
+        }
+        if lights.is_empty() {
+            if options.no_default_light {
+                warnings.push(
+                    "the scene has no lights and --no-default-light is set: it renders black"
+                        .into(),
+                );
+            } else {
+                warnings.push(
+                    "the scene has no lights: lighting it with a uniform white environment (radiance 1); \
+                     --no-default-light renders it unlit"
+                        .into(),
+                );
+                lights.push(Light::Uniform {
+                    radiance: Vec3::ONE,
+                });
+            }
+        }
+
+        let bounds = g.scene_bounds();
+        let camera = select_camera(scene, options, bounds, &label)?;
+        let accel = Accel::build(options.accel, &g);
+        let lights = LightSet::new(lights, &g, &scene.materials, &scene.textures, bounds);
+        Ok(World {
+            geometry: g,
+            accel,
+            materials: scene.materials.clone(),
+            textures: scene.textures.clone(),
+            lights,
+            camera,
+            bounds,
+            warnings,
+        })
+    }
+
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
+        self.intersect_raw(ray)
+            .map(|i| self.geometry.surface_hit(ray, &i))
+    }
+
+    #[inline]
+    pub fn intersect_raw(&self, ray: &Ray) -> Option<Intersection> {
+        self.accel.intersect(&self.geometry, ray)
+    }
+
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.accel.occluded(&self.geometry, ray)
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.geometry.triangles.len()
+    }
+
+    pub fn primitive_count(&self) -> usize {
+        self.geometry.len()
+    }
+
+    pub fn area_light_count(&self) -> usize {
+        self.lights
+            .lights
+            .iter()
+            .filter(|l| matches!(l, Light::Area { .. }))
+            .count()
+    }
+
+    /// Count of area lights that are triangles (for reports).
+    pub fn emissive_triangle_count(&self) -> usize {
+        self.lights
+            .lights
+            .iter()
+            .filter(
+                |l| matches!(l, Light::Area { prim, .. } if prim.kind() == PrimitiveKind::Triangle),
+            )
+            .count()
+    }
+
+    pub fn prim_ref(kind: PrimitiveKind, index: u32) -> PrimRef {
+        PrimRef::new(kind, index)
+    }
+}
+
+/// The camera named by `--camera` (name or index), else the scene's first, else one that frames
+/// the scene's bounds from the front (+z), looking down −z.
+fn select_camera(
+    scene: &Scene,
+    options: &WorldOptions,
+    bounds: Bounds3,
+    label: &str,
+) -> Result<CameraDesc, SceneError> {
+    if let Some(sel) = &options.camera {
+        let found = match sel.parse::<usize>() {
+            Ok(i) => scene.cameras.get(i),
+            Err(_) => scene.cameras.iter().find(|c| c.name == *sel),
+        };
+        return found.cloned().ok_or_else(|| {
+            let names: Vec<String> = scene
+                .cameras
+                .iter()
+                .enumerate()
+                .map(|(i, c)| format!("{i}: '{}'", c.name))
+                .collect();
+            SceneError::invalid(
+                label,
+                format!(
+                    "no camera '{sel}' (the scene has {})",
+                    if names.is_empty() {
+                        "no cameras".to_string()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            )
+        });
+    }
+    if let Some(c) = scene.cameras.first() {
+        return Ok(c.clone());
+    }
+    Ok(auto_camera(bounds))
+}
+
+/// A camera that frames `bounds` from the +z side with a 39.6° vertical field of view.
+pub fn auto_camera(bounds: Bounds3) -> CameraDesc {
+    let (center, radius) = if bounds.is_empty() {
+        (Vec3::ZERO, 1.0)
+    } else {
+        let (c, r) = bounds.bounding_sphere();
+        (c, r.max(1e-4))
+    };
+    let vfov: f32 = 39.6;
+    let dist = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
+    let eye = center + Vec3::new(0.0, 0.0, dist);
+    let mut cam = CameraDesc::look_at("auto", eye, center, Vec3::Y, vfov);
+    cam.focus_distance = dist;
+    cam
+}
