@@ -4,6 +4,7 @@
 //! render-time representation.
 
 pub mod builtin;
+pub mod conventions;
 
 use std::path::Path;
 
