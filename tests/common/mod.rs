@@ -1,0 +1,72 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use trayecto::film::Image;
+use trayecto::render::{NoObserver, RenderSettings, render};
+use trayecto::scene::Scene;
+use trayecto::world::{World, WorldOptions};
+
+/// Renders `scene` in-process and returns the linear image.
+pub fn render_scene(scene: &Scene, settings: &RenderSettings) -> Image {
+    let world = World::build(scene, &WorldOptions::default()).expect("scene builds");
+    render_world(&world, settings)
+}
+
+pub fn render_world(world: &World, settings: &RenderSettings) -> Image {
+    render(world, settings, &NoObserver, &AtomicBool::new(false))
+        .expect("render succeeds")
+        .image
+}
+
+/// The repository's own test data.
+pub fn repo_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The shared third-party scenes folder: `$TRAYECTO_SHARED`, else the nearest ancestor of the
+/// crate that has `shared/scenes` beside it. A missing folder fails the test that needs it.
+pub fn shared_dir() -> PathBuf {
+    if let Ok(p) = std::env::var("TRAYECTO_SHARED") {
+        return PathBuf::from(p);
+    }
+    let mut dir = repo_dir();
+    loop {
+        let candidate = dir.join("shared");
+        if candidate.join("scenes").is_dir() {
+            return candidate;
+        }
+        if !dir.pop() {
+            panic!(
+                "no shared/scenes folder found above {}",
+                repo_dir().display()
+            );
+        }
+    }
+}
+
+/// Root-mean-square difference over all channels.
+pub fn rmse(a: &Image, b: &Image) -> f64 {
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    let mut s = 0.0f64;
+    for (p, q) in a.data.iter().zip(&b.data) {
+        let d = *p - *q;
+        s += (d.x as f64).powi(2) + (d.y as f64).powi(2) + (d.z as f64).powi(2);
+    }
+    (s / (3 * a.data.len()) as f64).sqrt()
+}
+
+/// Asserts that each channel mean of `img` is within `rel` of `reference`'s.
+pub fn assert_means_close(img: &Image, reference: &Image, rel: f32, what: &str) {
+    let (m, r) = (img.mean(), reference.mean());
+    for c in 0..3 {
+        let err = (m[c] - r[c]).abs() / r[c].abs().max(1e-6);
+        assert!(
+            err <= rel,
+            "{what}: channel {c} mean {} vs reference {} (relative error {err:.4} > {rel})",
+            m[c],
+            r[c]
+        );
+    }
+}

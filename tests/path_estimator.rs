@@ -1,0 +1,252 @@
+//! Statistical tests of the path tracer's estimator: closed-form furnaces, agreement of every
+//! NEE/MIS/RR/sampler/secondary configuration (they change noise, never the expectation),
+//! determinism across thread counts and independence from the scene's scale.
+
+mod common;
+use common::*;
+use trayecto::film::Image;
+use trayecto::integrator::PathSettings;
+use trayecto::material::Material;
+use trayecto::math::{Mat4, Vec3};
+use trayecto::render::RenderSettings;
+use trayecto::sampling::SamplerKind;
+use trayecto::scene::{CameraDesc, Scene, Shape, builtin};
+
+fn base(w: u32, spp: u32) -> RenderSettings {
+    RenderSettings {
+        width: w,
+        height: w,
+        spp,
+        seed: 3,
+        ..Default::default()
+    }
+}
+
+fn with_path(mut s: RenderSettings, f: impl FnOnce(&mut PathSettings)) -> RenderSettings {
+    f(&mut s.path);
+    s
+}
+
+/// A closed sphere seen from inside, every point emitting `le` (both sides) and reflecting with
+/// `albedo`: the radiance everywhere is le / (1 − albedo) (the geometric series of bounces).
+fn emissive_sphere_furnace(albedo: f32, le: f32) -> Scene {
+    let mut s = Scene::default();
+    let mut m = Material::diffuse("furnace", Vec3::splat(albedo));
+    m.emissive = Vec3::splat(le);
+    m.double_sided = true;
+    let id = s.add_material(m);
+    s.add_object(
+        "sphere",
+        Shape::Sphere {
+            center: Vec3::ZERO,
+            radius: 1.0,
+        },
+        Mat4::IDENTITY,
+        id,
+    );
+    s.cameras.push(CameraDesc::look_at(
+        "in",
+        Vec3::new(0.1, 0.2, 0.3),
+        Vec3::new(0.0, 0.0, -1.0),
+        Vec3::Y,
+        60.0,
+    ));
+    s
+}
+
+/// A closed box of six inward-facing quads, for the same closed-form check on flat emitters.
+fn emissive_box_furnace(albedo: f32, le: f32, double_sided: bool, inward: bool) -> Scene {
+    let mut s = Scene::default();
+    let mut m = Material::diffuse("furnace", Vec3::splat(albedo));
+    m.emissive = Vec3::splat(le);
+    m.double_sided = double_sided;
+    let id = s.add_material(m);
+    let faces = [
+        ([-1.0, -1.0, -1.0], [0.0, 0.0, 2.0], [2.0, 0.0, 0.0]),
+        ([-1.0, 1.0, -1.0], [2.0, 0.0, 0.0], [0.0, 0.0, 2.0]),
+        ([-1.0, -1.0, -1.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]),
+        ([-1.0, -1.0, 1.0], [0.0, 2.0, 0.0], [2.0, 0.0, 0.0]),
+        ([-1.0, -1.0, -1.0], [0.0, 2.0, 0.0], [0.0, 0.0, 2.0]),
+        ([1.0, -1.0, -1.0], [0.0, 0.0, 2.0], [0.0, 2.0, 0.0]),
+    ];
+    for (i, (c, a, b)) in faces.into_iter().enumerate() {
+        let (a, b) = if inward { (a, b) } else { (b, a) };
+        s.add_object(
+            &format!("face{i}"),
+            Shape::Quad {
+                corner: Vec3::from(c),
+                e1: Vec3::from(a),
+                e2: Vec3::from(b),
+            },
+            Mat4::IDENTITY,
+            id,
+        );
+    }
+    s.cameras.push(CameraDesc::look_at(
+        "in",
+        Vec3::new(0.2, -0.1, 0.5),
+        Vec3::new(0.3, 0.1, -1.0),
+        Vec3::Y,
+        70.0,
+    ));
+    s
+}
+
+fn configs() -> Vec<(&'static str, PathSettings)> {
+    let d = PathSettings::default();
+    vec![
+        ("nee+mis", d),
+        ("nee, no mis", PathSettings { mis: false, ..d }),
+        ("no nee", PathSettings { nee: false, ..d }),
+        ("rr from bounce 0", PathSettings { rr_depth: 0, ..d }),
+        (
+            "no rr",
+            PathSettings {
+                rr_depth: 1000,
+                max_depth: 200,
+                ..d
+            },
+        ),
+        ("secondary 3", PathSettings { secondary: 3, ..d }),
+    ]
+}
+
+fn assert_uniform(img: &Image, expected: f32, tol: f32, what: &str) {
+    let m = img.mean();
+    for c in 0..3 {
+        assert!(
+            (m[c] - expected).abs() <= tol * expected,
+            "{what}: mean {} vs closed form {expected} (tolerance {tol})",
+            m[c]
+        );
+    }
+}
+
+#[test]
+fn furnace_sphere_returns_le_over_one_minus_albedo() {
+    let scene = emissive_sphere_furnace(0.5, 1.0);
+    for (name, p) in configs() {
+        let img = render_scene(&scene, &with_path(base(24, 32), |s| *s = p));
+        assert_uniform(&img, 2.0, 0.01, name);
+    }
+}
+
+#[test]
+fn furnace_box_returns_le_over_one_minus_albedo() {
+    let scene = emissive_box_furnace(0.8, 0.5, false, true);
+    for (name, p) in configs() {
+        let img = render_scene(&scene, &with_path(base(24, 32), |s| *s = p));
+        assert_uniform(&img, 2.5, 0.015, name);
+    }
+}
+
+#[test]
+fn emission_is_one_sided_unless_double_sided() {
+    // Faces pointing outwards: the camera inside sees only their back sides, which do not emit.
+    let dark = render_scene(&emissive_box_furnace(0.8, 0.5, false, false), &base(16, 4));
+    assert_eq!(dark.mean(), Vec3::ZERO);
+    let lit = render_scene(&emissive_box_furnace(0.8, 0.5, true, false), &base(24, 32));
+    assert_uniform(&lit, 2.5, 0.015, "double-sided outward faces");
+}
+
+#[test]
+fn max_depth_truncates_the_series_exactly() {
+    // With N bounces the furnace sums le · (1 + a + … + a^N).
+    let scene = emissive_sphere_furnace(0.5, 1.0);
+    for n in [0u32, 1, 2, 5] {
+        let img = render_scene(
+            &scene,
+            &with_path(base(16, 32), |s| {
+                s.max_depth = n;
+                s.rr_depth = 1000;
+            }),
+        );
+        let expected: f32 = (0..=n).map(|k| 0.5f32.powi(k as i32)).sum();
+        assert_uniform(&img, expected, 0.01, &format!("max depth {n}"));
+    }
+}
+
+#[test]
+fn nee_mis_and_sampler_settings_agree_on_the_cornell_box() {
+    let scene = builtin::cornell();
+    let reference = render_scene(&scene, &base(64, 256));
+    let variants = [
+        ("no mis", with_path(base(64, 256), |s| s.mis = false)),
+        ("no nee", with_path(base(64, 512), |s| s.nee = false)),
+        (
+            "independent",
+            RenderSettings {
+                sampler: SamplerKind::Independent,
+                ..base(64, 256)
+            },
+        ),
+        (
+            "rr from bounce 1",
+            with_path(base(64, 256), |s| s.rr_depth = 1),
+        ),
+    ];
+    for (name, settings) in variants {
+        let img = render_scene(&scene, &settings);
+        assert_means_close(&img, &reference, 0.015, name);
+    }
+}
+
+#[test]
+fn image_is_identical_for_any_thread_count() {
+    let scene = builtin::cornell();
+    let one = render_scene(
+        &scene,
+        &RenderSettings {
+            threads: Some(1),
+            ..base(40, 8)
+        },
+    );
+    let two = render_scene(
+        &scene,
+        &RenderSettings {
+            threads: Some(2),
+            ..base(40, 8)
+        },
+    );
+    let three = render_scene(
+        &scene,
+        &RenderSettings {
+            threads: Some(3),
+            ..base(40, 8)
+        },
+    );
+    assert!(
+        one == two && two == three,
+        "images differ between thread counts"
+    );
+    let other_seed = render_scene(
+        &scene,
+        &RenderSettings {
+            seed: 4,
+            threads: Some(2),
+            ..base(40, 8)
+        },
+    );
+    assert!(one != other_seed, "the seed must change the noise");
+}
+
+#[test]
+fn results_do_not_depend_on_scene_scale() {
+    let reference = render_scene(&builtin::cornell(), &base(48, 64));
+    for scale in [1e-3f32, 1e4] {
+        let mut scene = builtin::cornell();
+        let m = Mat4::from_scale(Vec3::splat(scale));
+        for o in &mut scene.objects {
+            o.transform = m * o.transform;
+        }
+        for c in &mut scene.cameras {
+            c.camera_to_world = m * c.camera_to_world * Mat4::from_scale(Vec3::splat(1.0 / scale));
+            c.focus_distance *= scale;
+        }
+        let img = render_scene(&scene, &base(48, 64));
+        assert_means_close(&img, &reference, 0.01, &format!("scale {scale}"));
+        // No self-intersection acne: no pixel darker than half of the unscaled one on the walls.
+        let (p, q) = (img.get(24, 30), reference.get(24, 30));
+        assert!(p.x > 0.5 * q.x, "scale {scale}: {p} vs {q}");
+    }
+}
