@@ -250,3 +250,40 @@ fn results_do_not_depend_on_scene_scale() {
         assert!(p.x > 0.5 * q.x, "scale {scale}: {p} vs {q}");
     }
 }
+
+/// The Cornell box with its light quad replaced by an equivalent emitter of another kind.
+fn cornell_with_light(shape: impl Fn(&mut Scene) -> Shape) -> Scene {
+    let mut scene = builtin::cornell();
+    let i = scene
+        .objects
+        .iter()
+        .position(|o| o.name == "light")
+        .unwrap();
+    scene.objects[i].shape = shape(&mut scene);
+    scene
+}
+
+#[test]
+fn triangle_mesh_and_quad_emitters_agree() {
+    // Two triangles covering the same rectangle as the light quad: NEE samples emissive
+    // triangles by area, the quad as one parallelogram; the expected images are the same.
+    let quad = render_scene(&builtin::cornell(), &base(48, 128));
+    let tris = cornell_with_light(|s| {
+        let (c, e1, e2) = (
+            Vec3::new(-0.23, 0.99, -0.18),
+            Vec3::new(0.46, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, 0.38),
+        );
+        let mesh = trayecto::scene::Mesh {
+            name: "light-mesh".into(),
+            positions: vec![c, c + e1, c + e1 + e2, c + e2],
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            ..Default::default()
+        };
+        Shape::Mesh(s.add_mesh(mesh))
+    });
+    let world = trayecto::world::World::build(&tris, &Default::default()).unwrap();
+    assert_eq!(world.emissive_triangle_count(), 2);
+    let img = render_world(&world, &base(48, 128));
+    assert_means_close(&img, &quad, 0.015, "triangle light vs quad light");
+}
