@@ -98,6 +98,9 @@ fn continue_path(
 ) -> Vec3 {
     let mut l = Vec3::ZERO;
     let mut beta = Vec3::ONE;
+    // Product of η² over refractions: undoes the 1/η² radiance scaling for Russian roulette,
+    // whose survival should not depend on which medium the path is in (PBRT-v4 §14.1.2).
+    let mut eta_scale = 1.0f32;
     let mut depth = 0u32;
     loop {
         let material = &world.materials[hit.material as usize];
@@ -150,6 +153,7 @@ fn continue_path(
             break;
         }
         beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+        eta_scale *= bs.eta * bs.eta;
         if !(beta.max_element() > 0.0) || !beta.is_finite() {
             break;
         }
@@ -192,7 +196,7 @@ fn continue_path(
         }
         // Russian roulette: survive with probability q, and divide by it to stay unbiased.
         if depth >= set.rr_depth {
-            let q = beta.max_element().min(1.0);
+            let q = (beta.max_element() * eta_scale).min(1.0);
             if q < 1.0 {
                 if s.next_1d() >= q {
                     break;

@@ -3,6 +3,7 @@
 //! it at each hit.
 
 pub mod bsdf;
+pub mod microfacet;
 pub mod texture;
 
 pub use bsdf::Bsdf;

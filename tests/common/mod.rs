@@ -25,11 +25,18 @@ pub fn repo_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// The shared third-party scenes folder: `$TRAYECTO_SHARED`, else the nearest ancestor of the
-/// crate that has `shared/scenes` beside it. A missing folder fails the test that needs it.
+/// The shared folder that holds `scenes/`: `$TRAYECTO_SHARED` if set, else the first ancestor of
+/// the crate root with a `shared/scenes` inside (`/work/shared` beside `/work/main`; `../shared`
+/// beside CI's clone). Panics (a test failure, never a skip) if it cannot be found.
 pub fn shared_dir() -> PathBuf {
-    if let Ok(p) = std::env::var("TRAYECTO_SHARED") {
-        return PathBuf::from(p);
+    if let Ok(dir) = std::env::var("TRAYECTO_SHARED") {
+        let p = PathBuf::from(dir);
+        assert!(
+            p.join("scenes").is_dir(),
+            "TRAYECTO_SHARED={} has no scenes/ folder",
+            p.display()
+        );
+        return p;
     }
     let mut dir = repo_dir();
     loop {
@@ -39,7 +46,7 @@ pub fn shared_dir() -> PathBuf {
         }
         if !dir.pop() {
             panic!(
-                "no shared/scenes folder found above {}",
+                "no shared/scenes folder above {} (set TRAYECTO_SHARED)",
                 repo_dir().display()
             );
         }

@@ -1,0 +1,324 @@
+//! Chi-square goodness-of-fit tests for every sampling routine (in the style of Mitsuba's and
+//! PBRT's `chi2` tests): sampled directions are binned in a 2D histogram over (cos θ, φ), which
+//! splits the sphere into cells of equal solid angle, and compared with the pdf integrated over
+//! each cell by a sub-grid quadrature. Cells expecting fewer than 5 samples are pooled; the
+//! p-value of Pearson's statistic is compared with 1 % after a Šidák correction for the number of
+//! tests. The Dirac lobes get a binomial test of their discrete choice instead.
+
+use trayecto::material::Bsdf;
+use trayecto::material::microfacet::fresnel_dielectric;
+use trayecto::math::{PI, Vec2, Vec3};
+use trayecto::sampling::rng::Pcg32;
+
+const N_COS: usize = 32;
+const N_PHI: usize = 64;
+const SUB: usize = 12;
+const N_SAMPLES: usize = 400_000;
+/// Number of chi-square tests in this file (for the Šidák correction).
+const N_TESTS: f64 = 40.0;
+
+fn ln_gamma(x: f64) -> f64 {
+    // Lanczos approximation (g = 7, n = 9).
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    let x = x - 1.0;
+    let mut a = C[0];
+    let t = x + 7.5;
+    for (i, c) in C.iter().enumerate().skip(1) {
+        a += c / (x + i as f64);
+    }
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+}
+
+/// Regularised upper incomplete gamma Q(a, x): series below a + 1, Lentz continued fraction above.
+fn gamma_q(a: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let lg = ln_gamma(a);
+    if x < a + 1.0 {
+        let (mut sum, mut term, mut ap) = (1.0 / a, 1.0 / a, a);
+        for _ in 0..10_000 {
+            ap += 1.0;
+            term *= x / ap;
+            sum += term;
+            if term.abs() < sum.abs() * 1e-15 {
+                break;
+            }
+        }
+        1.0 - sum * (-x + a * x.ln() - lg).exp()
+    } else {
+        let tiny = 1e-300;
+        let mut b = x + 1.0 - a;
+        let mut c = 1.0 / tiny;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..10_000 {
+            let an = -(i as f64) * (i as f64 - a);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = b + an / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-15 {
+                break;
+            }
+        }
+        (-x + a * x.ln() - lg).exp() * h
+    }
+}
+
+fn cell_of(w: Vec3) -> usize {
+    let c = ((w.z.clamp(-1.0, 1.0) + 1.0) * 0.5 * N_COS as f32) as usize;
+    let mut phi = w.y.atan2(w.x);
+    if phi < 0.0 {
+        phi += 2.0 * PI;
+    }
+    let p = (phi / (2.0 * PI) * N_PHI as f32) as usize;
+    c.min(N_COS - 1) * N_PHI + p.min(N_PHI - 1)
+}
+
+fn dir(cos: f64, phi: f64) -> Vec3 {
+    let s = (1.0 - cos * cos).max(0.0).sqrt();
+    Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, cos as f32)
+}
+
+/// Runs the chi-square test of `sample` against `pdf`; panics with a description on failure.
+/// Returns the integral of the pdf over the sphere.
+fn chi2(
+    name: &str,
+    mut sample: impl FnMut(&mut Pcg32) -> Option<Vec3>,
+    pdf: impl Fn(Vec3) -> f32,
+) -> f64 {
+    let mut rng = Pcg32::new(0x5eed, name.len() as u64 * 7919 + 1);
+    let mut observed = vec![0f64; N_COS * N_PHI];
+    for _ in 0..N_SAMPLES {
+        if let Some(w) = sample(&mut rng)
+            && w.is_finite()
+        {
+            observed[cell_of(w.normalize())] += 1.0;
+        }
+    }
+    let dc = 2.0 / N_COS as f64;
+    let dp = 2.0 * std::f64::consts::PI / N_PHI as f64;
+    let mut expected = vec![0f64; N_COS * N_PHI];
+    let mut integral = 0.0;
+    for ci in 0..N_COS {
+        for pi in 0..N_PHI {
+            let mut s = 0.0;
+            for a in 0..SUB {
+                for b in 0..SUB {
+                    let c = -1.0 + dc * (ci as f64 + (a as f64 + 0.5) / SUB as f64);
+                    let p = dp * (pi as f64 + (b as f64 + 0.5) / SUB as f64);
+                    s += pdf(dir(c, p)) as f64;
+                }
+            }
+            let v = s / (SUB * SUB) as f64 * dc * dp;
+            integral += v;
+            expected[ci * N_PHI + pi] = v * N_SAMPLES as f64;
+        }
+    }
+    let mut cells: Vec<(f64, f64)> = expected.into_iter().zip(observed).collect();
+    cells.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
+    let (mut pool_e, mut pool_o, mut stat, mut dof) = (0.0, 0.0, 0.0, 0usize);
+    for &(e, o) in &cells {
+        if e == 0.0 && o > 0.0 {
+            panic!("{name}: {o} samples landed where the pdf is zero");
+        }
+        if e < 5.0 {
+            pool_e += e;
+            pool_o += o;
+        } else {
+            stat += (o - e) * (o - e) / e;
+            dof += 1;
+        }
+    }
+    if pool_e > 0.0 {
+        stat += (pool_o - pool_e) * (pool_o - pool_e) / pool_e.max(5.0);
+        dof += 1;
+    }
+    let dof = dof.saturating_sub(1).max(1);
+    let p = gamma_q(dof as f64 / 2.0, stat / 2.0);
+    let alpha = 1.0 - (1.0 - 0.01f64).powf(1.0 / N_TESTS);
+    assert!(
+        p > alpha,
+        "{name}: chi-square rejects the sampler (stat {stat:.1}, dof {dof}, p {p:.3e}, pdf integral {integral:.4})"
+    );
+    integral
+}
+
+fn wo_at(theta_deg: f32) -> Vec3 {
+    let t = theta_deg.to_radians();
+    Vec3::new(t.sin(), 0.0, t.cos())
+}
+
+fn check_bsdf(name: &str, bsdf: Bsdf, wo: Vec3) -> f64 {
+    // The sampled value and pdf must be what eval and pdf say.
+    let mut rng = Pcg32::new(3, 4);
+    for _ in 0..2000 {
+        let u = Vec2::new(rng.next_f32(), rng.next_f32());
+        if let Some(s) = bsdf.sample(wo, rng.next_f32(), u) {
+            let pdf = bsdf.pdf(wo, s.wi);
+            let f = bsdf.eval(wo, s.wi);
+            assert!(
+                (pdf - s.pdf).abs() <= 2e-3 * pdf.max(s.pdf) + 1e-6,
+                "{name}: sample pdf {} vs pdf() {pdf} at {:?}",
+                s.pdf,
+                s.wi
+            );
+            assert!(
+                (f - s.f).abs().max_element()
+                    <= 2e-3 * f.max_element().max(s.f.max_element()) + 1e-6,
+                "{name}: sample f {:?} vs eval {f:?}",
+                s.f
+            );
+        }
+    }
+    chi2(
+        name,
+        |r| {
+            let u = Vec2::new(r.next_f32(), r.next_f32());
+            bsdf.sample(wo, r.next_f32(), u).map(|s| s.wi)
+        },
+        |wi| bsdf.pdf(wo, wi),
+    )
+}
+
+#[test]
+fn diffuse_sampling_matches_pdf() {
+    let b = Bsdf::Diffuse {
+        albedo: Vec3::splat(0.7),
+    };
+    for deg in [0.0, 60.0] {
+        let i = check_bsdf(&format!("diffuse {deg}"), b, wo_at(deg));
+        assert!((i - 1.0).abs() < 2e-3, "diffuse pdf integrates to {i}");
+    }
+}
+
+fn plain_hit() -> trayecto::geometry::SurfaceHit {
+    use trayecto::geometry::{PrimRef, PrimitiveKind, SurfaceHit};
+    SurfaceHit {
+        t: 1.0,
+        p: Vec3::ZERO,
+        p_error: Vec3::ZERO,
+        ng: Vec3::Z,
+        ns: Vec3::Z,
+        tangent: Vec3::X,
+        bitangent_sign: 1.0,
+        uv: [Vec2::ZERO; 2],
+        color: trayecto::math::Vec4::ONE,
+        material: 0,
+        light: u32::MAX,
+        prim: PrimRef::new(PrimitiveKind::Sphere, 0),
+    }
+}
+
+fn metal_rough(base: Vec3, metallic: f32, roughness: f32) -> Bsdf {
+    let m = trayecto::material::Material {
+        model: trayecto::material::MaterialModel::MetallicRoughness,
+        base_color: base,
+        metallic,
+        roughness,
+        ..Default::default()
+    };
+    Bsdf::from_material(&m, &[], &plain_hit())
+}
+
+#[test]
+fn metallic_roughness_sampling_matches_pdf() {
+    for (metallic, roughness, deg) in [
+        (1.0, 0.3, 0.0),
+        (1.0, 0.3, 70.0),
+        (1.0, 0.6, 45.0),
+        (1.0, 1.0, 80.0),
+        (0.0, 0.3, 30.0),
+        (0.0, 0.7, 75.0),
+        (0.5, 0.5, 60.0),
+        (0.0, 1.0, 0.0),
+    ] {
+        let b = metal_rough(Vec3::new(0.9, 0.6, 0.3), metallic, roughness);
+        let name = format!("metal-rough m{metallic} r{roughness} {deg}°");
+        let i = check_bsdf(&name, b, wo_at(deg));
+        assert!(i <= 1.0 + 3e-3, "{name}: pdf integrates to {i}");
+    }
+}
+
+#[test]
+fn rough_dielectric_sampling_matches_pdf() {
+    for (roughness, deg, inside) in [
+        (0.3, 20.0, false),
+        (0.3, 75.0, false),
+        (0.6, 45.0, false),
+        (0.3, 20.0, true),
+        (0.6, 50.0, true),
+        (1.0, 10.0, false),
+    ] {
+        let b = Bsdf::dielectric(1.5, roughness, Vec3::ONE);
+        let mut wo = wo_at(deg);
+        if inside {
+            wo.z = -wo.z;
+        }
+        let name = format!("rough dielectric r{roughness} {deg}° inside={inside}");
+        let i = check_bsdf(&name, b, wo);
+        assert!(i <= 1.0 + 3e-3, "{name}: pdf integrates to {i}");
+    }
+}
+
+/// Dirac lobes: directions are exact and the reflect/transmit choice follows Fresnel.
+#[test]
+fn specular_lobes_choose_by_fresnel() {
+    for (deg, inside) in [(0.0, false), (50.0, false), (30.0, true), (60.0, true)] {
+        let b = Bsdf::dielectric(1.5, 0.0, Vec3::ONE);
+        assert!(b.is_specular());
+        let mut wo = wo_at(deg);
+        if inside {
+            wo.z = -wo.z;
+        }
+        let r = fresnel_dielectric(wo.z, 1.5) as f64;
+        let mut rng = Pcg32::new(9, 9);
+        let n = 200_000;
+        let mut reflected = 0usize;
+        for _ in 0..n {
+            let s = b
+                .sample(
+                    wo,
+                    rng.next_f32(),
+                    Vec2::new(rng.next_f32(), rng.next_f32()),
+                )
+                .unwrap();
+            if s.wi.z * wo.z > 0.0 {
+                reflected += 1;
+                assert!((s.wi - Vec3::new(-wo.x, -wo.y, wo.z)).length() < 1e-5);
+            } else {
+                // Snell: η_o sin θ_o = η_i sin θ_i.
+                let (eo, ei) = if wo.z > 0.0 { (1.0, 1.5) } else { (1.5, 1.0) };
+                let so = (1.0 - wo.z * wo.z).sqrt();
+                let si = (1.0 - s.wi.z * s.wi.z).sqrt();
+                assert!((eo * so - ei * si).abs() < 1e-4);
+                assert!((s.eta - ei / eo).abs() < 1e-6);
+            }
+        }
+        let frac = reflected as f64 / n as f64;
+        let sigma = (r * (1.0 - r) / n as f64).sqrt().max(1e-9);
+        assert!(
+            (frac - r).abs() <= 5.0 * sigma + 1e-9,
+            "{deg}° inside={inside}: reflected {frac} vs Fresnel {r}"
+        );
+    }
+}
