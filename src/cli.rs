@@ -4,7 +4,7 @@
 use crate::accel::AccelKind;
 use crate::film::output::{Format, write_image};
 use crate::film::tonemap::Tonemap;
-use crate::integrator::{IntegratorKind, PathSettings};
+use crate::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
 use crate::render::{RenderObserver, RenderSettings};
 use crate::sampling::SamplerKind;
 use crate::world::{World, WorldOptions};
@@ -64,13 +64,19 @@ pub struct RenderArgs {
     /// Linear multiplier applied before tone mapping [exposición].
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub exposure: f32,
-    /// Rendering mode.
+    /// Rendering mode: path, raycast or whitted.
     #[arg(long, default_value = "path")]
     pub integrator: IntegratorKind,
-    /// Acceleration structure: bvh or none.
+    /// What the raycast mode shows: shaded, normals, barycentric, depth, albedo or uv.
+    #[arg(long, default_value = "shaded")]
+    pub aov: Aov,
+    /// Direct-lighting model of the raycast and whitted modes: phong, blinn-phong or pbr.
+    #[arg(long, default_value = "pbr")]
+    pub shading: ShadingModel,
+    /// Acceleration structure: bvh, grid or none.
     #[arg(long, default_value = "bvh")]
     pub accel: AccelKind,
-    /// Camera sample generator: independent or stratified.
+    /// Camera sample generator: independent, stratified, sobol or poisson-disk.
     #[arg(long, default_value = "stratified")]
     pub sampler: SamplerKind,
     /// Disable next-event estimation (light sampling) for area and environment lights.
@@ -118,7 +124,7 @@ impl RenderArgs {
             seed: self.seed,
             threads: self.threads,
             sampler: self.sampler,
-            integrator: self.integrator,
+            integrator: self.integrator.with_options(self.aov, self.shading),
             path: PathSettings {
                 max_depth: self.max_depth,
                 rr_depth: self.rr_depth,
@@ -211,7 +217,7 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         settings.height,
         settings.spp,
         settings.path.max_depth,
-        format!("{:?}", settings.integrator).to_lowercase(),
+        settings.integrator.name(),
         settings.threads.unwrap_or_else(rayon::current_num_threads)
     ));
 

@@ -4,7 +4,7 @@
 //! image is bit-identical for any thread count.
 
 use crate::film::{Film, FilmBlock, Image};
-use crate::integrator::{IntegratorKind, PathSettings, RayStats, path};
+use crate::integrator::{IntegratorKind, PathSettings, RayStats, path, raycast, whitted};
 use crate::math::Vec2;
 use crate::sampling::{SampleStream, SamplerKind};
 use crate::world::World;
@@ -250,6 +250,12 @@ fn sample_pixel(
     let ray = camera.generate_ray(film, lens);
     match settings.integrator {
         IntegratorKind::Path => path::radiance(world, &ray, stream, &settings.path, stats),
+        IntegratorKind::Raycast { aov, shading } => {
+            raycast::radiance(world, &ray, stream, aov, shading, stats)
+        }
+        IntegratorKind::Whitted { shading } => {
+            whitted::radiance(world, &ray, stream, settings.path.max_depth, shading, stats)
+        }
     }
 }
 

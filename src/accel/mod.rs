@@ -3,8 +3,10 @@
 //! truth every other structure must agree with.
 
 pub mod bvh;
+pub mod grid;
 
 pub use bvh::Bvh;
+pub use grid::Grid;
 
 use crate::geometry::primitive::Intersection;
 use crate::geometry::{GeometryStore, PrimRef, Ray};
@@ -16,6 +18,8 @@ pub enum AccelKind {
     Bvh,
     /// Test every primitive: slow, but trivially correct.
     None,
+    /// The thesis's uniform grid with 3D-DDA traversal (§5.3.6).
+    Grid,
 }
 
 impl std::str::FromStr for AccelKind {
@@ -24,8 +28,9 @@ impl std::str::FromStr for AccelKind {
         match s {
             "bvh" => Ok(AccelKind::Bvh),
             "none" => Ok(AccelKind::None),
+            "grid" => Ok(AccelKind::Grid),
             other => Err(format!(
-                "unknown accelerator '{other}' (expected bvh or none)"
+                "unknown accelerator '{other}' (expected bvh, grid or none)"
             )),
         }
     }
@@ -34,6 +39,7 @@ impl std::str::FromStr for AccelKind {
 pub enum Accel {
     Bvh(Bvh),
     None(Vec<PrimRef>),
+    Grid(Grid),
 }
 
 impl Accel {
@@ -41,6 +47,7 @@ impl Accel {
         match kind {
             AccelKind::Bvh => Accel::Bvh(Bvh::build(geometry)),
             AccelKind::None => Accel::None(geometry.all_prims()),
+            AccelKind::Grid => Accel::Grid(Grid::build(geometry)),
         }
     }
 
@@ -60,6 +67,7 @@ impl Accel {
                 }
                 best
             }
+            Accel::Grid(g) => g.intersect(geometry, ray),
         }
     }
 
@@ -71,6 +79,7 @@ impl Accel {
             Accel::None(prims) => prims
                 .iter()
                 .any(|&p| geometry.intersect(p, ray, ray.t_max).is_some()),
+            Accel::Grid(g) => g.occluded(geometry, ray),
         }
     }
 }

@@ -2,8 +2,12 @@
 //! the only unbiased one.
 
 pub mod path;
+pub mod raycast;
+pub mod whitted;
 
 pub use path::PathSettings;
+pub use raycast::Aov;
+pub use whitted::ShadingModel;
 
 /// Counters kept per tile (never shared per ray) and summed at the end.
 #[derive(Clone, Copy, Debug, Default)]
@@ -26,6 +30,29 @@ impl std::ops::AddAssign for RayStats {
 pub enum IntegratorKind {
     #[default]
     Path,
+    /// The thesis's ray caster: first hit only, shown as the view `aov`.
+    Raycast { aov: Aov, shading: ShadingModel },
+    /// The thesis's Whitted ray tracer: local shading plus mirror reflection and refraction.
+    Whitted { shading: ShadingModel },
+}
+
+impl IntegratorKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorKind::Path => "path",
+            IntegratorKind::Raycast { .. } => "raycast",
+            IntegratorKind::Whitted { .. } => "whitted",
+        }
+    }
+
+    /// The same mode with the raycast/Whitted options `--aov` and `--shading` applied.
+    pub fn with_options(self, aov: Aov, shading: ShadingModel) -> IntegratorKind {
+        match self {
+            IntegratorKind::Path => IntegratorKind::Path,
+            IntegratorKind::Raycast { .. } => IntegratorKind::Raycast { aov, shading },
+            IntegratorKind::Whitted { .. } => IntegratorKind::Whitted { shading },
+        }
+    }
 }
 
 impl std::str::FromStr for IntegratorKind {
@@ -33,7 +60,16 @@ impl std::str::FromStr for IntegratorKind {
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
             "path" => Ok(IntegratorKind::Path),
-            other => Err(format!("unknown integrator '{other}' (expected path)")),
+            "raycast" => Ok(IntegratorKind::Raycast {
+                aov: Aov::default(),
+                shading: ShadingModel::default(),
+            }),
+            "whitted" => Ok(IntegratorKind::Whitted {
+                shading: ShadingModel::default(),
+            }),
+            other => Err(format!(
+                "unknown integrator '{other}' (expected path, raycast or whitted)"
+            )),
         }
     }
 }

@@ -3,8 +3,10 @@
 //! Every warp has a matching pdf, checked by chi-square tests in `tests/`.
 
 pub mod distribution;
+pub mod poisson;
 pub mod rng;
 pub mod sampler;
+pub mod sobol;
 pub mod warp;
 
 pub use distribution::Distribution1D;

@@ -15,6 +15,11 @@ pub enum SamplerKind {
     Independent,
     #[default]
     Stratified,
+    /// Owen-scrambled Sobol (Burley 2020), see [`super::sobol`].
+    Sobol,
+    /// Poisson-disk points for 2D requests (§5.3.2), see [`super::poisson`]; 1D requests are
+    /// stratified.
+    PoissonDisk,
 }
 
 impl std::str::FromStr for SamplerKind {
@@ -23,8 +28,10 @@ impl std::str::FromStr for SamplerKind {
         match s {
             "independent" => Ok(SamplerKind::Independent),
             "stratified" => Ok(SamplerKind::Stratified),
+            "sobol" => Ok(SamplerKind::Sobol),
+            "poisson-disk" | "poisson" => Ok(SamplerKind::PoissonDisk),
             other => Err(format!(
-                "unknown sampler '{other}' (expected independent or stratified)"
+                "unknown sampler '{other}' (expected independent, stratified, sobol or poisson-disk)"
             )),
         }
     }
@@ -74,7 +81,11 @@ impl SampleStream {
         self.dim += 1;
         match self.kind {
             SamplerKind::Independent => self.random(d, 0),
-            SamplerKind::Stratified => {
+            SamplerKind::Sobol => {
+                let x = super::sobol::scrambled_1d(self.sample, self.dim_hash(d) as u32);
+                u32_to_unit_f32(x)
+            }
+            SamplerKind::Stratified | SamplerKind::PoissonDisk => {
                 let n = self.spp;
                 let stratum = permute(self.sample % n, n, self.dim_hash(d) as u32);
                 let jitter = self.random(d, 1);
@@ -88,6 +99,25 @@ impl SampleStream {
         self.dim += 2;
         match self.kind {
             SamplerKind::Independent => Vec2::new(self.random(d, 0), self.random(d + 1, 0)),
+            SamplerKind::Sobol => {
+                let (x, y) = super::sobol::scrambled_2d(self.sample, self.dim_hash(d) as u32);
+                Vec2::new(u32_to_unit_f32(x), u32_to_unit_f32(y))
+            }
+            SamplerKind::PoissonDisk => {
+                // The pixel's samples are the first spp points of the progressive pattern, handed
+                // out in a per-dimension order; each repetition beyond the pattern's size gets its
+                // own shift.
+                let size = super::poisson::PATTERN_SIZE as u32;
+                let cycle = self.sample / size;
+                let n = self.spp.min(size);
+                let salt = self.dim_hash(d) ^ mix64(cycle as u64 + 1);
+                let j = permute(self.sample % n, n, salt as u32);
+                let shift = Vec2::new(
+                    u32_to_unit_f32(mix64(salt ^ 0x51) as u32),
+                    u32_to_unit_f32(mix64(salt ^ 0xa7) as u32),
+                );
+                super::poisson::shifted(j as usize, shift)
+            }
             SamplerKind::Stratified => {
                 // An nx × ny grid with at least spp cells; the permutation spreads the samples over
                 // distinct cells.
@@ -193,7 +223,12 @@ mod tests {
 
     #[test]
     fn streams_are_deterministic_and_distinct() {
-        for kind in [SamplerKind::Independent, SamplerKind::Stratified] {
+        for kind in [
+            SamplerKind::Independent,
+            SamplerKind::Stratified,
+            SamplerKind::Sobol,
+            SamplerKind::PoissonDisk,
+        ] {
             let mut a = SampleStream::new(kind, 1, (0, 0), 3, 8);
             let mut b = SampleStream::new(kind, 1, (0, 0), 3, 8);
             let mut c = SampleStream::new(kind, 1, (1, 0), 3, 8);

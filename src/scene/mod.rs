@@ -5,6 +5,7 @@
 
 pub mod builtin;
 pub mod conventions;
+pub mod testscenes;
 
 use std::path::Path;
 

@@ -1,0 +1,171 @@
+//! Owen-scrambled Sobol points (Burley 2020, "Practical Hash-based Owen Scrambling", JCGT 9(4)).
+//!
+//! The first two Sobol dimensions (van der Corput and the Pascal-matrix dimension) give a 2D
+//! (0, m, 2)-net for every power-of-two prefix. Each 1D or 2D request of a sample stream is
+//! "padded" as Burley §4 describes: the sample index is shuffled by a nested uniform scramble with a
+//! seed of its own, so different dimensions are decorrelated, and every coordinate is Owen-scrambled
+//! with a hash-based nested uniform scramble (the Laine–Karras permutation applied to the reversed
+//! bits, Burley §3). Scrambling keeps the net property and makes every point uniformly distributed,
+//! so the estimator stays unbiased.
+//!
+//! Direction numbers: the generator matrices are built from the primitive polynomials and initial
+//! values `m_k` of Joe & Kuo 2008 ("Constructing Sobol sequences with better two-dimensional
+//! projections", the new-joe-kuo-6.21201 table), of which only the first rows are needed here.
+
+/// (degree s, coefficients a, initial m_1..m_s) for Sobol dimensions 1.. (dimension 0 is the
+/// identity matrix), from Joe & Kuo's table.
+const JOE_KUO: [(u32, u32, [u32; 3]); 3] =
+    [(1, 0, [1, 0, 0]), (2, 1, [1, 3, 0]), (3, 1, [1, 3, 1])];
+
+/// Number of Sobol dimensions available.
+pub const DIMENSIONS: usize = 1 + JOE_KUO.len();
+
+/// Generator matrices as 32 direction numbers each (bit 31 is the most significant).
+fn directions() -> &'static [[u32; 32]; DIMENSIONS] {
+    static DIRS: std::sync::OnceLock<[[u32; 32]; DIMENSIONS]> = std::sync::OnceLock::new();
+    DIRS.get_or_init(|| {
+        let mut v = [[0u32; 32]; DIMENSIONS];
+        for (k, d) in v[0].iter_mut().enumerate() {
+            *d = 1u32 << (31 - k);
+        }
+        for (dim, &(s, a, m)) in JOE_KUO.iter().enumerate() {
+            let s = s as usize;
+            let dirs = &mut v[dim + 1];
+            for k in 0..s {
+                dirs[k] = m[k] << (31 - k);
+            }
+            // Bratley & Fox 1988, eq. for v_k from the primitive polynomial's coefficients.
+            for k in s..32 {
+                let mut x = dirs[k - s] ^ (dirs[k - s] >> s);
+                for j in 1..s {
+                    if (a >> (s - 1 - j)) & 1 == 1 {
+                        x ^= dirs[k - j];
+                    }
+                }
+                dirs[k] = x;
+            }
+        }
+        v
+    })
+}
+
+/// The `index`-th Sobol point's coordinate in dimension `dim` as 32 fixed-point bits.
+#[inline]
+pub fn sobol(index: u32, dim: usize) -> u32 {
+    if dim == 0 {
+        return index.reverse_bits();
+    }
+    let dirs = &directions()[dim.min(DIMENSIONS - 1)];
+    let mut x = 0u32;
+    let mut i = index;
+    let mut k = 0;
+    while i != 0 {
+        if i & 1 == 1 {
+            x ^= dirs[k];
+        }
+        i >>= 1;
+        k += 1;
+    }
+    x
+}
+
+/// Laine & Karras 2011's hash-based permutation, which only lets bits flip depending on less
+/// significant bits (constants from Burley 2020, listing 2).
+#[inline]
+fn laine_karras(mut x: u32, seed: u32) -> u32 {
+    x = x.wrapping_add(seed);
+    x ^= x.wrapping_mul(0x6c50b47c);
+    x ^= x.wrapping_mul(0xb82f1e52);
+    x ^= x.wrapping_mul(0xc7afe638);
+    x ^= x.wrapping_mul(0x8d22f6e6);
+    x
+}
+
+/// Owen's nested uniform scramble of a 32-bit fixed-point number (Burley 2020, listing 3).
+#[inline]
+pub fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
+    laine_karras(x.reverse_bits(), seed).reverse_bits()
+}
+
+#[inline]
+fn hash_u32(a: u32, b: u32) -> u32 {
+    (super::rng::mix64(((a as u64) << 32) | b as u64) >> 32) as u32
+}
+
+/// Shuffled, Owen-scrambled Sobol point `index` in dimensions (0, 1), as 32-bit fixed point.
+#[inline]
+pub fn scrambled_2d(index: u32, seed: u32) -> (u32, u32) {
+    let i = nested_uniform_scramble(index, seed);
+    (
+        nested_uniform_scramble(sobol(i, 0), hash_u32(seed, 0)),
+        nested_uniform_scramble(sobol(i, 1), hash_u32(seed, 1)),
+    )
+}
+
+/// Shuffled, Owen-scrambled 1D Sobol (van der Corput) point.
+#[inline]
+pub fn scrambled_1d(index: u32, seed: u32) -> u32 {
+    let i = nested_uniform_scramble(index, seed);
+    nested_uniform_scramble(sobol(i, 0), hash_u32(seed, 0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn first_points_match_the_sobol_sequence() {
+        // Dimension 1 (x + 1, the Pascal matrix), in index (not Gray-code) order.
+        let expect = [0.0, 0.5, 0.75, 0.25, 0.625, 0.125, 0.375, 0.875];
+        for (i, e) in expect.iter().enumerate() {
+            let x = sobol(i as u32, 1) as f64 / 4294967296.0;
+            assert_eq!(x, *e, "index {i}");
+        }
+        // Dimension 2 (Joe–Kuo s=2, a=1, m=1,3): v = 1/2, 3/4, 3/8, … so x(i) = ⊕ v_k over i's bits.
+        let expect = [0.0, 0.5, 0.75, 0.25, 0.375, 0.875, 0.625, 0.125];
+        for (i, e) in expect.iter().enumerate() {
+            let x = sobol(i as u32, 2) as f64 / 4294967296.0;
+            assert_eq!(x, *e, "index {i}");
+        }
+    }
+
+    /// Every elementary interval of volume 1/n holds exactly one of the first n points.
+    fn is_02_net(points: &[(u32, u32)]) -> bool {
+        let n = points.len();
+        let m = n.trailing_zeros();
+        (0..=m).all(|bx| {
+            let by = m - bx;
+            let mut seen = vec![false; n];
+            points.iter().all(|&(x, y)| {
+                let cx = if bx == 0 {
+                    0
+                } else {
+                    (x >> (32 - bx)) as usize
+                };
+                let cy = if by == 0 {
+                    0
+                } else {
+                    (y >> (32 - by)) as usize
+                };
+                let c = (cy << bx) | cx;
+                !std::mem::replace(&mut seen[c], true)
+            })
+        })
+    }
+
+    #[test]
+    fn scrambled_points_form_02_nets() {
+        for seed in [0u32, 1, 0xdeadbeef, 12345] {
+            for n in [4u32, 16, 64, 256] {
+                let pts: Vec<(u32, u32)> = (0..n).map(|i| scrambled_2d(i, seed)).collect();
+                assert!(is_02_net(&pts), "seed {seed} n {n}");
+                let xs: Vec<u32> = (0..n).map(|i| scrambled_1d(i, seed)).collect();
+                let mut strata = vec![0; n as usize];
+                for x in xs {
+                    strata[(x >> (32 - n.trailing_zeros())) as usize] += 1;
+                }
+                assert!(strata.iter().all(|&c| c == 1));
+            }
+        }
+    }
+}
