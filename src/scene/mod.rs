@@ -5,6 +5,7 @@
 
 pub mod builtin;
 pub mod conventions;
+pub mod fbx;
 
 use std::path::Path;
 
@@ -424,6 +425,7 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
         });
     }
     match ext.as_str() {
+        "fbx" => fbx::load(path),
         other => Err(SceneError::invalid(
             spec,
             format!("unsupported scene format '.{other}'"),
