@@ -5,6 +5,7 @@
 
 pub mod builtin;
 pub mod conventions;
+pub mod fbx;
 pub mod testscenes;
 
 use std::path::Path;
@@ -425,6 +426,7 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
         });
     }
     match ext.as_str() {
+        "fbx" => fbx::load(path),
         other => Err(SceneError::invalid(
             spec,
             format!("unsupported scene format '.{other}'"),
