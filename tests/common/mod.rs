@@ -53,6 +53,13 @@ pub fn shared_dir() -> PathBuf {
     }
 }
 
+/// A file under `shared/scenes`, which must exist.
+pub fn shared_scene(rel: &str) -> PathBuf {
+    let p = shared_dir().join("scenes").join(rel);
+    assert!(p.is_file(), "missing shared test scene {}", p.display());
+    p
+}
+
 /// Root-mean-square difference over all channels.
 pub fn rmse(a: &Image, b: &Image) -> f64 {
     assert_eq!((a.width, a.height), (b.width, b.height));

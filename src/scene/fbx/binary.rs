@@ -143,7 +143,9 @@ impl Document {
 pub fn looks_like_ascii_fbx(data: &[u8]) -> bool {
     let head = &data[..data.len().min(4096)];
     let text = String::from_utf8_lossy(head);
-    text.trim_start_matches('\u{feff}').trim_start().starts_with("; FBX")
+    text.trim_start_matches('\u{feff}')
+        .trim_start()
+        .starts_with("; FBX")
         || text.contains("FBXHeaderExtension:")
 }
 
@@ -205,7 +207,9 @@ impl<'a> Reader<'a> {
     /// record (or of the file).
     fn node(&mut self, depth: usize, limit: usize) -> Result<Option<Node>, ParseError> {
         if depth > MAX_DEPTH {
-            return self.err(format!("nodes are nested more than {MAX_DEPTH} levels deep"));
+            return self.err(format!(
+                "nodes are nested more than {MAX_DEPTH} levels deep"
+            ));
         }
         let start = self.pos;
         let end = self.field()?;
@@ -350,9 +354,7 @@ impl<'a> Reader<'a> {
             }
             other => {
                 self.pos = at;
-                return self.err(format!(
-                    "node '{node}': unknown array encoding {other}"
-                ));
+                return self.err(format!("node '{node}': unknown array encoding {other}"));
             }
         };
         Ok(match code {

@@ -58,7 +58,9 @@ impl Layer {
                 return None;
             }
         };
-        let reference = elem.child_str("ReferenceInformationType").unwrap_or("Direct");
+        let reference = elem
+            .child_str("ReferenceInformationType")
+            .unwrap_or("Direct");
         let index = if reference == "IndexToDirect" || reference == "Index" {
             elem.child(index)
                 .and_then(|n| n.prop(0))
@@ -116,7 +118,7 @@ fn f64_array(node: &Node, child: &str) -> Option<Vec<f64>> {
 pub fn convert(geom: &Node, name: &str) -> Result<Converted, String> {
     let mut warnings = Vec::new();
     let verts = f64_array(geom, "Vertices").unwrap_or_default();
-    if verts.len() % 3 != 0 {
+    if !verts.len().is_multiple_of(3) {
         return Err(format!(
             "mesh '{name}': its Vertices array has {} numbers, not a multiple of 3",
             verts.len()
@@ -185,7 +187,10 @@ pub fn convert(geom: &Node, name: &str) -> Result<Converted, String> {
         let Some(vals) = f64_array(e, "UV") else {
             continue;
         };
-        let uv: Vec<DVec2> = vals.chunks_exact(2).map(|c| DVec2::new(c[0], c[1])).collect();
+        let uv: Vec<DVec2> = vals
+            .chunks_exact(2)
+            .map(|c| DVec2::new(c[0], c[1]))
+            .collect();
         if let Some(layer) = Layer::read(e, "UVIndex", uv.len(), "UV", &mut warnings, name) {
             uvs.push((layer, uv));
         }
@@ -276,7 +281,11 @@ pub fn convert(geom: &Node, name: &str) -> Result<Converted, String> {
                     out.push(vals[n_ix as usize].as_vec3());
                 }
                 for (s, (_, vals)) in uvs.iter().enumerate() {
-                    let out = if s == 0 { m.uv0.as_mut() } else { m.uv1.as_mut() };
+                    let out = if s == 0 {
+                        m.uv0.as_mut()
+                    } else {
+                        m.uv1.as_mut()
+                    };
                     if let Some(out) = out {
                         let uv = vals[uv_ix[s] as usize];
                         // FBX puts v = 0 at the bottom of the image; textures here are stored
@@ -294,9 +303,11 @@ pub fn convert(geom: &Node, name: &str) -> Result<Converted, String> {
         tris.clear();
         triangulate(&poly_pts, &mut tris);
         for t in &tris {
-            part.mesh
-                .indices
-                .push([corner_vertex[t[0]], corner_vertex[t[1]], corner_vertex[t[2]]]);
+            part.mesh.indices.push([
+                corner_vertex[t[0]],
+                corner_vertex[t[1]],
+                corner_vertex[t[2]],
+            ]);
         }
     }
     if skipped > 0 {

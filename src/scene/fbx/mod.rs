@@ -123,7 +123,11 @@ fn v3(v: DVec3) -> Vec3 {
 }
 
 impl<'a> Converter<'a> {
-    fn new(doc: &'a Document, label: &str, scene_dir: Option<&'a Path>) -> Result<Self, SceneError> {
+    fn new(
+        doc: &'a Document,
+        label: &str,
+        scene_dir: Option<&'a Path>,
+    ) -> Result<Self, SceneError> {
         let err = |m: String| SceneError::invalid(label, m);
         let objects_node = doc
             .node("Objects")
@@ -135,11 +139,7 @@ impl<'a> Converter<'a> {
                 continue;
             };
             let name = object_name(n.prop(1).and_then(|p| p.as_str()).unwrap_or(""));
-            let class = n
-                .prop(2)
-                .and_then(|p| p.as_str())
-                .unwrap_or("")
-                .to_string();
+            let class = n.prop(2).and_then(|p| p.as_str()).unwrap_or("").to_string();
             if objects
                 .insert(
                     id,
@@ -241,11 +241,11 @@ impl<'a> Converter<'a> {
     }
 
     fn model_parent(&self, id: i64) -> Option<i64> {
-        self.parents.get(&id)?.iter().copied().find(|p| {
-            self.objects
-                .get(p)
-                .is_some_and(|o| o.kind() == "Model")
-        })
+        self.parents
+            .get(&id)?
+            .iter()
+            .copied()
+            .find(|p| self.objects.get(p).is_some_and(|o| o.kind() == "Model"))
     }
 
     fn run(mut self) -> Result<Scene, SceneError> {
@@ -267,7 +267,9 @@ impl<'a> Converter<'a> {
                 (o.name.clone(), o.class.clone())
             };
             if !visible {
-                self.warn(format!("model '{name}' is hidden (Visibility 0) and was skipped"));
+                self.warn(format!(
+                    "model '{name}' is hidden (Visibility 0) and was skipped"
+                ));
                 continue;
             }
             let world = self.axis * global;
@@ -339,8 +341,16 @@ impl<'a> Converter<'a> {
                         named.push(format!("geometry '{}' of type '{}'", o.name, o.class));
                     }
                 }
-                "NodeAttribute" | "Material" | "Texture" | "Video" | "Pose" | "Implementation"
-                | "BindingTable" | "DisplayLayer" | "SelectionSet" | "Collection"
+                "NodeAttribute"
+                | "Material"
+                | "Texture"
+                | "Video"
+                | "Pose"
+                | "Implementation"
+                | "BindingTable"
+                | "DisplayLayer"
+                | "SelectionSet"
+                | "Collection"
                 | "CollectionExclusive" => {}
                 k if k.starts_with("Animation") => bump(format!("{k} (animation)")),
                 "Deformer" | "SubDeformer" => bump(format!(
@@ -603,25 +613,28 @@ impl<'a> Converter<'a> {
             .child_str("FileName")
             .or_else(|| o.node.child_str("Filename"))
             .map(str::to_string);
-        let wrap_u = o.props.entries.get("WrapModeU").and_then(|v| v.values.first()?.as_i64());
-        let wrap_v = o.props.entries.get("WrapModeV").and_then(|v| v.values.first()?.as_i64());
+        let wrap_u = o
+            .props
+            .entries
+            .get("WrapModeU")
+            .and_then(|v| v.values.first()?.as_i64());
+        let wrap_v = o
+            .props
+            .entries
+            .get("WrapModeV")
+            .and_then(|v| v.values.first()?.as_i64());
         // An embedded image: a Video object connected to the texture, with its bytes in Content.
-        let embedded = self
-            .children_of(id, "Video")
-            .into_iter()
-            .find_map(|v| match self.objects[&v].node.child("Content")?.prop(0)? {
+        let embedded = self.children_of(id, "Video").into_iter().find_map(|v| {
+            match self.objects[&v].node.child("Content")?.prop(0)? {
                 binary::Property::Raw(b) if !b.is_empty() => Some(b.clone()),
                 _ => None,
-            });
+            }
+        });
         let result = match (&embedded, self.scene_dir) {
             (Some(bytes), _) => texture::decode(&tname, bytes, srgb),
-            (None, Some(dir)) => texture::load(
-                dir,
-                &tname,
-                relative.as_deref(),
-                absolute.as_deref(),
-                srgb,
-            ),
+            (None, Some(dir)) => {
+                texture::load(dir, &tname, relative.as_deref(), absolute.as_deref(), srgb)
+            }
             (None, None) => Err("no scene folder to read it from".to_string()),
         };
         let index = match result {
@@ -664,7 +677,9 @@ impl<'a> Converter<'a> {
 
     fn light(&mut self, id: i64, name: &str, world: DMat4) {
         let Some(attr) = self.attribute(id) else {
-            self.warn(format!("light '{name}' has no light attribute and was skipped"));
+            self.warn(format!(
+                "light '{name}' has no light attribute and was skipped"
+            ));
             return;
         };
         let p = Props {
@@ -741,7 +756,9 @@ impl<'a> Converter<'a> {
 
     fn camera(&mut self, id: i64, name: &str, world: DMat4) {
         let Some(attr) = self.attribute(id) else {
-            self.warn(format!("camera '{name}' has no camera attribute and was skipped"));
+            self.warn(format!(
+                "camera '{name}' has no camera attribute and was skipped"
+            ));
             return;
         };
         let mut notes = Vec::new();
@@ -804,12 +821,18 @@ impl<'a> Converter<'a> {
         let fwd = world.transform_vector3(DVec3::X).normalize_or_zero();
         let mut up = world.transform_vector3(DVec3::Y).normalize_or_zero();
         if fwd == DVec3::ZERO || !eye.is_finite() {
-            notes.push(format!("camera '{name}' has a degenerate transform and was skipped"));
+            notes.push(format!(
+                "camera '{name}' has a degenerate transform and was skipped"
+            ));
             self.scene.warnings.extend(notes);
             return;
         }
         if up.cross(fwd).length_squared() < 1e-12 {
-            up = if fwd.y.abs() < 0.9 { DVec3::Y } else { DVec3::Z };
+            up = if fwd.y.abs() < 0.9 {
+                DVec3::Y
+            } else {
+                DVec3::Z
+            };
         }
         let mut cam = CameraDesc::look_at(name, v3(eye), v3(eye + fwd), v3(up), vfov);
         cam.aspect = aspect.map(|a| a as f32);

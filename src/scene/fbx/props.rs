@@ -29,7 +29,11 @@ impl PropertyTable {
         else {
             return t;
         };
-        for p in p70.children.iter().filter(|c| c.name == "P" || c.name == "Property") {
+        for p in p70
+            .children
+            .iter()
+            .filter(|c| c.name == "P" || c.name == "Property")
+        {
             let Some(name) = p.prop(0).and_then(|v| v.as_str()) else {
                 continue;
             };

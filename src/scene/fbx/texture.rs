@@ -66,10 +66,17 @@ fn normalize_relative(p: &Path) -> Option<PathBuf> {
 
 /// Resolves a texture's file inside `scene_dir`, refusing anything that escapes it (`..`,
 /// absolute paths elsewhere, symbolic links out of the folder).
-pub fn resolve(scene_dir: &Path, relative: Option<&str>, absolute: Option<&str>) -> Result<PathBuf, String> {
-    let root = scene_dir
-        .canonicalize()
-        .map_err(|e| format!("cannot access the scene folder {}: {e}", scene_dir.display()))?;
+pub fn resolve(
+    scene_dir: &Path,
+    relative: Option<&str>,
+    absolute: Option<&str>,
+) -> Result<PathBuf, String> {
+    let root = scene_dir.canonicalize().map_err(|e| {
+        format!(
+            "cannot access the scene folder {}: {e}",
+            scene_dir.display()
+        )
+    })?;
     let inside = |p: &Path| -> Option<PathBuf> {
         let c = p.canonicalize().ok()?;
         (c.starts_with(&root) && c.is_file()).then_some(c)
@@ -101,7 +108,10 @@ pub fn resolve(scene_dir: &Path, relative: Option<&str>, absolute: Option<&str>)
     // Last resort: the bare file name next to the scene (textures copied along with the .fbx).
     for cand in [relative, absolute].into_iter().flatten() {
         let cand = clean(cand);
-        if let Some(base) = cand.rsplit('/').next().filter(|b| !b.is_empty() && *b != "..")
+        if let Some(base) = cand
+            .rsplit('/')
+            .next()
+            .filter(|b| !b.is_empty() && *b != "..")
             && let Some(c) = inside(&root.join(base))
         {
             return Ok(c);

@@ -220,9 +220,9 @@ mod tests {
 
     #[test]
     fn pivots_rotate_about_the_pivot() {
-        use super::super::props::PropertyTable;
-        use super::super::props::PropValue;
         use super::super::binary::Property;
+        use super::super::props::PropValue;
+        use super::super::props::PropertyTable;
         let mut t = PropertyTable::default();
         let v3 = |x: f64, y: f64, z: f64| PropValue {
             values: vec![Property::F64(x), Property::F64(y), Property::F64(z)],
@@ -242,8 +242,8 @@ mod tests {
 
     #[test]
     fn z_up_files_are_rotated_to_y_up() {
-        use super::super::props::{PropValue, PropertyTable};
         use super::super::binary::Property;
+        use super::super::props::{PropValue, PropertyTable};
         let mut t = PropertyTable::default();
         let int = |v: i32| PropValue {
             values: vec![Property::I32(v)],
