@@ -14,7 +14,7 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -166,10 +166,6 @@ impl RenderObserver for Progress {
     }
 }
 
-fn fmt_duration(d: Duration) -> String {
-    format!("{:.3} s", d.as_secs_f64())
-}
-
 pub fn run_render(args: &RenderArgs) -> Result<()> {
     let settings = args.settings()?;
     Format::from_path(&args.output)?;
@@ -249,18 +245,30 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
             out.discarded_samples
         );
     }
-    say(format!("load            {}", fmt_duration(load_time)));
-    say(format!("build (accel)   {}", fmt_duration(build_time)));
-    say(format!("render          {}", fmt_duration(out.render_time)));
-    say(format!("write           {}", fmt_duration(write_time)));
-    say(format!("total           {}", fmt_duration(t0.elapsed())));
-    say(format!(
-        "rays            {} ({} camera/bounce, {} shadow), {:.2} Mrays/s",
+    // The thesis's console log (Fig. 5.44–5.46): phase durations and the time at which each ended.
+    let mut report = crate::phases::PhaseReport::new();
+    report.phase("scene loaded", load_time);
+    report.phase(
+        "world compiled",
+        build_time.saturating_sub(world.accel_build_time),
+    );
+    report.phase("acceleration structure built", world.accel_build_time);
+    report.phase(
+        format!("rendered ({})", settings.integrator.name()),
+        out.render_time,
+    );
+    report.phase("image written", write_time);
+    report.note(format!("acceleration    {}", world.accel.describe()));
+    report.note(format!(
+        "rays            {} ({} camera/bounce/reflection/refraction, {} shadow), {:.2} Mrays/s",
         out.stats.rays + out.stats.shadow_rays,
         out.stats.rays,
         out.stats.shadow_rays,
         out.rays_per_second() / 1e6
     ));
+    for line in report.lines() {
+        say(line);
+    }
     say(format!("wrote {}", args.output.display()));
     Ok(())
 }

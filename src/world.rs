@@ -35,6 +35,8 @@ pub struct World {
     pub bounds: Bounds3,
     /// Warnings produced while compiling (in addition to the scene's own).
     pub warnings: Vec<String>,
+    /// Time spent building the acceleration structure (for the phase report).
+    pub accel_build_time: std::time::Duration,
 }
 
 impl World {
@@ -232,7 +234,9 @@ impl World {
 
         let bounds = g.scene_bounds();
         let camera = select_camera(scene, options, bounds, &label)?;
+        let accel_start = std::time::Instant::now();
         let accel = Accel::build(options.accel, &g);
+        let accel_build_time = accel_start.elapsed();
         let lights = LightSet::new(lights, &g, &scene.materials, &scene.textures, bounds);
         Ok(World {
             geometry: g,
@@ -243,6 +247,7 @@ impl World {
             camera,
             bounds,
             warnings,
+            accel_build_time,
         })
     }
 

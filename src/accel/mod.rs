@@ -51,6 +51,21 @@ impl Accel {
         }
     }
 
+    /// One line for reports: the structure and its size.
+    pub fn describe(&self) -> String {
+        match self {
+            Accel::Bvh(b) => format!("bvh ({} nodes)", b.nodes.len()),
+            Accel::None(p) => format!("none ({} primitives tested per ray)", p.len()),
+            Accel::Grid(g) => {
+                let s = g.stats();
+                format!(
+                    "grid {}x{}x{} ({} cells, {} empty, {} references)",
+                    s.res[0], s.res[1], s.res[2], s.cells, s.empty_cells, s.references
+                )
+            }
+        }
+    }
+
     /// Closest hit along the ray within `(0, ray.t_max)`.
     #[inline]
     pub fn intersect(&self, geometry: &GeometryStore, ray: &Ray) -> Option<Intersection> {
