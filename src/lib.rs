@@ -22,4 +22,5 @@ pub mod math;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod server;
 pub mod world;
