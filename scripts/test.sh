@@ -12,3 +12,6 @@ cargo clippy --release --all-targets -- -D warnings
 
 echo "== cargo test"
 cargo test --release --all-targets
+
+echo "== browser end-to-end (web UI)"
+./scripts/e2e.sh
