@@ -15,3 +15,6 @@ echo "== cargo test"
 # to compile, fast to run). Benchmarks are type-checked by clippy above; running them is
 # `cargo bench`: their timings do not belong in the test suite.
 cargo test
+
+echo "== browser end-to-end (web UI)"
+./scripts/e2e.sh

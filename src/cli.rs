@@ -36,6 +36,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Show what a scene contains and every warning about it.
     Info(InfoArgs),
+    /// Serve the web UI: render from the browser with a live preview.
+    Serve(crate::server::ServeArgs),
 }
 
 #[derive(Args, Debug, Clone)]
@@ -322,6 +324,7 @@ pub fn main() -> ExitCode {
     let result = match &cli.command {
         Some(Command::Render(a)) => run_render(a),
         Some(Command::Info(a)) => run_info(a),
+        Some(Command::Serve(a)) => crate::server::run(a),
         None => run_render(&cli.render),
     };
     match result {

@@ -23,4 +23,5 @@ pub mod phases;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod server;
 pub mod world;

@@ -1,0 +1,455 @@
+//! Render jobs: each runs on its own thread through the ordinary driver (`render::render`), with an
+//! observer that keeps the latest film snapshot for the preview and the tile counters for the
+//! progress bar. Cancelling sets the driver's flag; when the thread ends the world, the film and
+//! the preview are dropped, so a cancelled job holds no image memory.
+
+use super::request::RenderRequest;
+use crate::film::output::{to_rgb8, write_image};
+use crate::film::{Film, Image};
+use crate::render::{RenderError, RenderObserver};
+use crate::world::{World, WorldOptions};
+use serde_json::{Value, json};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JobState {
+    Loading,
+    Building,
+    Rendering,
+    Writing,
+    Done,
+    Failed,
+    Cancelled,
+}
+
+impl JobState {
+    pub fn name(self) -> &'static str {
+        match self {
+            JobState::Loading => "loading",
+            JobState::Building => "building",
+            JobState::Rendering => "rendering",
+            JobState::Writing => "writing",
+            JobState::Done => "done",
+            JobState::Failed => "failed",
+            JobState::Cancelled => "cancelled",
+        }
+    }
+
+    pub fn is_active(self) -> bool {
+        !matches!(
+            self,
+            JobState::Done | JobState::Failed | JobState::Cancelled
+        )
+    }
+}
+
+/// The mutable part of a job, behind one mutex (touched once per pass, not per sample).
+pub struct JobStatus {
+    pub state: JobState,
+    pub samples_done: u32,
+    /// The film after the latest pass, and how many snapshots have been taken so far.
+    pub preview: Option<Arc<Image>>,
+    pub preview_version: u64,
+    /// PNG of the preview, cached for the version it was encoded from.
+    pub preview_png: Option<(u64, Arc<Vec<u8>>)>,
+    pub render_started: Option<Instant>,
+    pub finished: Option<Instant>,
+    pub timings: Vec<(&'static str, f64)>,
+    pub log: Vec<String>,
+    pub error: Option<String>,
+    pub png: Option<PathBuf>,
+    pub exr: Option<PathBuf>,
+}
+
+pub struct Job {
+    pub id: u64,
+    pub request: RenderRequest,
+    pub cancel: AtomicBool,
+    pub created: Instant,
+    pub created_unix: u64,
+    pub tiles_done: AtomicU64,
+    pub tiles_total: AtomicU64,
+    status: Mutex<JobStatus>,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A panic while holding the lock leaves plain data that is still readable.
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl Job {
+    pub fn status(&self) -> MutexGuard<'_, JobStatus> {
+        lock(&self.status)
+    }
+
+    fn set_state(&self, s: JobState) {
+        self.status().state = s;
+    }
+
+    fn log(&self, line: String) {
+        self.status().log.push(line);
+    }
+
+    /// The preview as PNG (encoded on demand, once per pass), if there is one.
+    pub fn preview_png(&self) -> Option<Arc<Vec<u8>>> {
+        let (version, image) = {
+            let st = self.status();
+            if let Some((v, png)) = &st.preview_png
+                && *v == st.preview_version
+            {
+                return Some(png.clone());
+            }
+            (st.preview_version, st.preview.clone()?)
+        };
+        let rgb = to_rgb8(&image, self.request.exposure, self.request.tonemap);
+        let png = Arc::new(encode_png(&rgb, image.width, image.height)?);
+        let mut st = self.status();
+        if st.preview_version == version {
+            st.preview_png = Some((version, png.clone()));
+        }
+        Some(png)
+    }
+
+    /// The job as the API reports it.
+    pub fn to_json(&self) -> Value {
+        let st = self.status();
+        let r = &self.request;
+        let now = st.finished.unwrap_or_else(Instant::now);
+        let elapsed = now.duration_since(self.created).as_secs_f64();
+        let total = self.tiles_total.load(Ordering::Relaxed);
+        let done = self.tiles_done.load(Ordering::Relaxed).min(total);
+        let progress = match st.state {
+            JobState::Done => 1.0,
+            _ if total > 0 => done as f64 / total as f64,
+            _ => 0.0,
+        };
+        // Remaining time extrapolates the render phase's rate over the tiles left; unknown until
+        // the first tile is done.
+        let remaining = match (st.state, st.render_started) {
+            (JobState::Rendering, Some(t0)) if done > 0 => {
+                let spent = now.duration_since(t0).as_secs_f64();
+                Some(spent * (total - done) as f64 / done as f64)
+            }
+            (s, _) if !s.is_active() => Some(0.0),
+            _ => None,
+        };
+        let base = format!("/api/renders/{}", self.id);
+        json!({
+            "id": self.id,
+            "scene": r.scene,
+            "output": r.output,
+            "width": r.settings.width,
+            "height": r.settings.height,
+            "spp": r.settings.spp,
+            "secondary": r.settings.path.secondary,
+            "max_depth": r.settings.path.max_depth,
+            "exposure": r.exposure,
+            "state": st.state.name(),
+            "active": st.state.is_active(),
+            "samples_done": st.samples_done,
+            "progress": progress,
+            "elapsed_s": elapsed,
+            "remaining_s": remaining,
+            "preview_version": st.preview_version,
+            "preview": if st.preview.is_some() { Some(format!("{base}/preview.png")) } else { None },
+            "timings": st.timings.iter().map(|(k, v)| json!({"phase": k, "seconds": v})).collect::<Vec<_>>(),
+            "log": st.log,
+            "error": st.error,
+            "png": st.png.as_ref().map(|_| format!("{base}/image.png")),
+            "exr": st.exr.as_ref().map(|_| format!("{base}/image.exr")),
+            "created_unix": self.created_unix,
+        })
+    }
+}
+
+fn encode_png(rgb: &[u8], w: u32, h: u32) -> Option<Vec<u8>> {
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut out,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    )
+    .write_image(rgb, w, h, image::ExtendedColorType::Rgb8)
+    .ok()?;
+    Some(out)
+}
+
+/// Feeds the driver's progress into the job.
+struct Observer<'a>(&'a Job);
+
+impl RenderObserver for Observer<'_> {
+    fn pass_done(&self, film: &Film, samples_done: u32, _spp: u32) {
+        // The copy is made outside the lock; the lock is held only to swap it in.
+        let image = Arc::new(film.to_image());
+        let mut st = self.0.status();
+        st.preview = Some(image);
+        st.preview_version += 1;
+        st.samples_done = samples_done;
+    }
+
+    fn tile_done(&self, done: u64, total: u64) {
+        self.0.tiles_total.store(total, Ordering::Relaxed);
+        self.0.tiles_done.fetch_max(done, Ordering::Relaxed);
+    }
+}
+
+/// Why a job could not be started.
+#[derive(Debug, PartialEq)]
+pub enum SubmitError {
+    /// Already `max_jobs` jobs running.
+    Busy(usize),
+    /// A running job writes the same output name.
+    NameInUse(String),
+}
+
+/// Every job the server knows: the running ones and the last few finished ones.
+pub struct Jobs {
+    list: Mutex<Vec<Arc<Job>>>,
+    next_id: AtomicU64,
+    max_active: usize,
+    history: usize,
+    output_dir: PathBuf,
+}
+
+impl Jobs {
+    pub fn new(max_active: usize, history: usize, output_dir: PathBuf) -> Jobs {
+        Jobs {
+            list: Mutex::new(Vec::new()),
+            next_id: AtomicU64::new(1),
+            max_active,
+            history,
+            output_dir,
+        }
+    }
+
+    pub fn get(&self, id: u64) -> Option<Arc<Job>> {
+        lock(&self.list).iter().find(|j| j.id == id).cloned()
+    }
+
+    /// Newest first.
+    pub fn all(&self) -> Vec<Arc<Job>> {
+        lock(&self.list).iter().rev().cloned().collect()
+    }
+
+    pub fn active_count(&self) -> usize {
+        lock(&self.list)
+            .iter()
+            .filter(|j| j.status().state.is_active())
+            .count()
+    }
+
+    /// Starts a job on its own thread, unless too many are running.
+    pub fn submit(&self, request: RenderRequest) -> Result<Arc<Job>, SubmitError> {
+        let job = {
+            let mut list = lock(&self.list);
+            let active: Vec<&Arc<Job>> = list
+                .iter()
+                .filter(|j| j.status().state.is_active())
+                .collect();
+            if active.len() >= self.max_active {
+                return Err(SubmitError::Busy(self.max_active));
+            }
+            if active.iter().any(|j| j.request.output == request.output) {
+                return Err(SubmitError::NameInUse(request.output));
+            }
+            let job = Arc::new(Job {
+                id: self.next_id.fetch_add(1, Ordering::Relaxed),
+                request,
+                cancel: AtomicBool::new(false),
+                created: Instant::now(),
+                created_unix: SystemTime::now()
+                    .duration_since(UNIX_EPOCH)
+                    .map(|d| d.as_secs())
+                    .unwrap_or(0),
+                tiles_done: AtomicU64::new(0),
+                tiles_total: AtomicU64::new(0),
+                status: Mutex::new(JobStatus {
+                    state: JobState::Loading,
+                    samples_done: 0,
+                    preview: None,
+                    preview_version: 0,
+                    preview_png: None,
+                    render_started: None,
+                    finished: None,
+                    timings: Vec::new(),
+                    log: Vec::new(),
+                    error: None,
+                    png: None,
+                    exr: None,
+                }),
+            });
+            list.push(job.clone());
+            // Forget the oldest finished jobs beyond the history length.
+            let mut finished = list
+                .iter()
+                .filter(|j| !j.status().state.is_active())
+                .count();
+            list.retain(|j| {
+                if finished > self.history && !j.status().state.is_active() {
+                    finished -= 1;
+                    false
+                } else {
+                    true
+                }
+            });
+            job
+        };
+        let worker = job.clone();
+        let out_dir = self.output_dir.clone();
+        let spawned = std::thread::Builder::new()
+            .name(format!("render-{}", job.id))
+            .spawn(move || {
+                let j = worker.clone();
+                // A panic in the renderer must not leave the job counted as running forever.
+                let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    run_job(&j, &out_dir)
+                }));
+                let mut st = worker.status();
+                match r {
+                    Ok(Ok(())) => st.state = JobState::Done,
+                    Ok(Err(JobEnd::Cancelled)) => {
+                        st.state = JobState::Cancelled;
+                        st.log.push("cancelled".into());
+                    }
+                    Ok(Err(JobEnd::Failed(m))) => {
+                        st.log.push(format!("error: {m}"));
+                        st.error = Some(m);
+                        st.state = JobState::Failed;
+                    }
+                    Err(_) => {
+                        st.error = Some("internal error: the renderer panicked".into());
+                        st.state = JobState::Failed;
+                    }
+                }
+                // Free the image memory: the result is on disk, and a cancelled or failed job
+                // keeps nothing.
+                st.preview = None;
+                st.preview_png = None;
+                st.finished = Some(Instant::now());
+            });
+        if let Err(e) = spawned {
+            let mut st = job.status();
+            st.state = JobState::Failed;
+            st.error = Some(format!("could not start a render thread: {e}"));
+            st.finished = Some(Instant::now());
+        }
+        Ok(job)
+    }
+}
+
+enum JobEnd {
+    Cancelled,
+    Failed(String),
+}
+
+fn secs(d: Duration) -> f64 {
+    d.as_secs_f64()
+}
+
+/// Load, build, render, write: the CLI's phases, timed and logged the same way.
+fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
+    let r = &job.request;
+    let cancelled = || job.cancel.load(Ordering::Relaxed);
+    let t0 = Instant::now();
+    let scene =
+        crate::scene::load(&r.source.load_spec()).map_err(|e| JobEnd::Failed(e.to_string()))?;
+    let load = t0.elapsed();
+    for w in &scene.warnings {
+        job.log(format!("warning: {w}"));
+    }
+    job.status().timings.push(("load", secs(load)));
+    if cancelled() {
+        return Err(JobEnd::Cancelled);
+    }
+
+    job.set_state(JobState::Building);
+    let t1 = Instant::now();
+    let world = World::build(&scene, &WorldOptions::default())
+        .map_err(|e| JobEnd::Failed(e.to_string()))?;
+    drop(scene);
+    job.status()
+        .timings
+        .push(("build (accel)", secs(t1.elapsed())));
+    for w in &world.warnings {
+        job.log(format!("warning: {w}"));
+    }
+    job.log(format!(
+        "scene '{}': {} triangles, {} primitives, {} materials, {} lights ({} area)",
+        r.scene,
+        world.triangle_count(),
+        world.primitive_count(),
+        world.materials.len(),
+        world.lights.lights.len(),
+        world.area_light_count(),
+    ));
+    let s = &r.settings;
+    job.log(format!(
+        "rendering {}x{} at {} spp, {} secondary, max depth {}, {} integrator",
+        s.width,
+        s.height,
+        s.spp,
+        s.path.secondary,
+        s.path.max_depth,
+        format!("{:?}", s.integrator).to_lowercase()
+    ));
+    if cancelled() {
+        return Err(JobEnd::Cancelled);
+    }
+
+    {
+        let mut st = job.status();
+        st.state = JobState::Rendering;
+        st.render_started = Some(Instant::now());
+    }
+    let out = match crate::render::render(&world, s, &Observer(job), &job.cancel) {
+        Ok(o) => o,
+        Err(RenderError::Cancelled) => return Err(JobEnd::Cancelled),
+        Err(e) => return Err(JobEnd::Failed(e.to_string())),
+    };
+    drop(world);
+    job.status().timings.push(("render", secs(out.render_time)));
+
+    job.set_state(JobState::Writing);
+    let t3 = Instant::now();
+    let png = out_dir.join(format!("{}.png", r.output));
+    let exr = out_dir.join(format!("{}.exr", r.output));
+    for p in [&png, &exr] {
+        write_image(&out.image, p, r.exposure, r.tonemap).map_err(|e| {
+            // Report the name only, not the server's folder layout.
+            JobEnd::Failed(format!(
+                "could not write {}: {e}",
+                p.file_name()
+                    .map(|f| f.to_string_lossy())
+                    .unwrap_or_default()
+            ))
+        })?;
+    }
+    let write = t3.elapsed();
+    {
+        let mut st = job.status();
+        st.timings.push(("write", secs(write)));
+        st.timings.push(("total", secs(job.created.elapsed())));
+        st.png = Some(png);
+        st.exr = Some(exr);
+        st.samples_done = s.spp;
+    }
+    if out.discarded_samples > 0 {
+        job.log(format!(
+            "warning: {} samples were NaN or infinite and were discarded",
+            out.discarded_samples
+        ));
+    }
+    job.log(format!(
+        "rays {} ({} camera/bounce, {} shadow), {:.2} Mrays/s",
+        out.stats.rays + out.stats.shadow_rays,
+        out.stats.rays,
+        out.stats.shadow_rays,
+        out.rays_per_second() / 1e6
+    ));
+    job.log(format!("wrote {0}.png and {0}.exr", r.output));
+    Ok(())
+}

@@ -1,0 +1,569 @@
+//! What a client may ask for, checked field by field before any work starts (SPEC §7): the scene
+//! is a built-in name or a file that canonicalises to a path inside the scenes folder, the output
+//! name is a plain file name, and every number is inside both the renderer's limits
+//! (`RenderSettings::validate`) and the server's own, tighter caps.
+
+use crate::film::tonemap::Tonemap;
+use crate::integrator::{IntegratorKind, PathSettings};
+use crate::render::{MAX_DEPTH, MAX_SECONDARY, RenderSettings};
+use crate::sampling::SamplerKind;
+use crate::scene::builtin;
+use serde_json::{Map, Value};
+use std::collections::BTreeMap;
+use std::path::{Component, Path, PathBuf};
+use std::str::FromStr;
+
+/// File extensions the scene picker lists (the formats `scene::load` reads or will read).
+pub const SCENE_EXTENSIONS: &[&str] = &["gltf", "glb", "obj", "ply", "fbx", "toml"];
+/// Integrator and tone-mapping names offered to the page; only those the library parses are
+/// shown, so new modes appear by themselves when they land.
+const INTEGRATOR_NAMES: &[&str] = &["path", "whitted", "raycast"];
+const TONEMAP_NAMES: &[&str] = &["clamp", "gamma2.2", "aces", "agx"];
+pub const MAX_SCENE_NAME: usize = 512;
+pub const MAX_OUTPUT_NAME: usize = 64;
+/// How deep and how wide the scenes folder is listed, so a huge or looping tree cannot stall it.
+const LIST_MAX_DEPTH: usize = 8;
+const LIST_MAX_ENTRIES: usize = 5000;
+
+/// The server's caps, tighter than the renderer's (a public page should not accept a week of work).
+#[derive(Clone, Debug)]
+pub struct Limits {
+    pub max_size: u32,
+    pub max_spp: u32,
+    pub max_secondary: u32,
+    pub max_depth: u32,
+    /// Upper bound on width × height × spp × secondary.
+    pub max_samples: u64,
+    pub max_jobs: usize,
+    pub max_body: usize,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_size: 4096,
+            max_spp: 16384,
+            max_secondary: 64.min(MAX_SECONDARY),
+            max_depth: MAX_DEPTH,
+            max_samples: 1 << 34,
+            max_jobs: 2,
+            max_body: 16 * 1024,
+        }
+    }
+}
+
+pub fn integrator_names() -> Vec<&'static str> {
+    INTEGRATOR_NAMES
+        .iter()
+        .copied()
+        .filter(|n| IntegratorKind::from_str(n).is_ok())
+        .collect()
+}
+
+pub fn tonemap_names() -> Vec<&'static str> {
+    TONEMAP_NAMES
+        .iter()
+        .copied()
+        .filter(|n| Tonemap::from_str(n).is_ok())
+        .collect()
+}
+
+/// Where the scene comes from once resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SceneSource {
+    Builtin(String),
+    /// A canonical path inside the scenes folder.
+    File(PathBuf),
+}
+
+impl SceneSource {
+    /// The argument for `scene::load`.
+    pub fn load_spec(&self) -> String {
+        match self {
+            SceneSource::Builtin(n) => n.clone(),
+            SceneSource::File(p) => p.to_string_lossy().into_owned(),
+        }
+    }
+}
+
+/// A checked render request.
+#[derive(Clone, Debug)]
+pub struct RenderRequest {
+    /// The scene as the client named it.
+    pub scene: String,
+    pub source: SceneSource,
+    /// Base name of the output files (`<output>.png`, `<output>.exr`).
+    pub output: String,
+    pub settings: RenderSettings,
+    pub exposure: f32,
+    pub tonemap: Tonemap,
+}
+
+/// Why a request was refused: the body is not a JSON object, or some fields are wrong (field →
+/// message, shown beside the field by the page).
+#[derive(Debug, PartialEq)]
+pub enum RequestError {
+    Malformed(String),
+    Fields(BTreeMap<String, String>),
+}
+
+/// Canonical scene and output folders plus the caps: everything requests are checked against.
+#[derive(Clone, Debug)]
+pub struct Policy {
+    pub scenes_dir: Option<PathBuf>,
+    pub output_dir: PathBuf,
+    pub limits: Limits,
+    pub threads: Option<usize>,
+}
+
+fn has_scene_extension(p: &Path) -> bool {
+    p.extension()
+        .and_then(|e| e.to_str())
+        .map(|e| SCENE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+        .unwrap_or(false)
+}
+
+/// Resolves a scene name relative to the (canonical) scenes folder. Refuses absolute paths, any
+/// `..`/`.`/root component, backslashes and NULs before touching the file system, then
+/// canonicalises (which resolves symlinks) and checks the result is still inside the folder.
+pub fn resolve_scene(root: &Path, name: &str) -> Result<PathBuf, String> {
+    if name.contains('\0') || name.contains('\\') {
+        return Err("may not contain backslashes or NUL characters".into());
+    }
+    let rel = Path::new(name);
+    if rel.is_absolute() {
+        return Err("must be a path relative to the scenes folder, not an absolute path".into());
+    }
+    for c in rel.components() {
+        if !matches!(c, Component::Normal(_)) {
+            return Err("may not contain '..' or '.' components".into());
+        }
+    }
+    let canon = root
+        .join(rel)
+        .canonicalize()
+        .map_err(|_| format!("no scene '{name}' in the scenes folder"))?;
+    if !canon.starts_with(root) {
+        return Err("resolves outside the scenes folder".into());
+    }
+    if !canon.is_file() {
+        return Err(format!("'{name}' is not a file"));
+    }
+    if !has_scene_extension(&canon) {
+        return Err(format!(
+            "'{name}' is not a scene file (expected .{})",
+            SCENE_EXTENSIONS.join(", .")
+        ));
+    }
+    Ok(canon)
+}
+
+/// Scene files under the (canonical) scenes folder, as '/'-separated relative paths, sorted.
+/// Hidden entries are skipped; symlinks are listed only if they are files that resolve inside
+/// the folder (symlinked folders are not followed, so loops cannot occur).
+pub fn list_scenes(root: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut seen = 0usize;
+    let mut stack: Vec<(PathBuf, usize)> = vec![(root.to_path_buf(), 0)];
+    while let Some((dir, depth)) = stack.pop() {
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            seen += 1;
+            if seen > LIST_MAX_ENTRIES {
+                break;
+            }
+            let name = e.file_name();
+            let Some(name) = name.to_str() else { continue };
+            if name.starts_with('.') {
+                continue;
+            }
+            let path = e.path();
+            let Ok(meta) = std::fs::symlink_metadata(&path) else {
+                continue;
+            };
+            if meta.is_dir() {
+                if depth + 1 < LIST_MAX_DEPTH {
+                    stack.push((path, depth + 1));
+                }
+                continue;
+            }
+            let Ok(rel) = path.strip_prefix(root) else {
+                continue;
+            };
+            let Some(rel) = rel.to_str() else { continue };
+            if !has_scene_extension(&path) {
+                continue;
+            }
+            if meta.file_type().is_symlink() {
+                // Listed only if resolving it would be accepted.
+                if resolve_scene(root, rel).is_err() {
+                    continue;
+                }
+            } else if !meta.is_file() {
+                continue;
+            }
+            out.push(rel.replace(std::path::MAIN_SEPARATOR, "/"));
+        }
+    }
+    out.sort();
+    out
+}
+
+/// A plain output file name: letters, digits, '-', '_' and '.', not starting with '.', at most
+/// [`MAX_OUTPUT_NAME`] characters. A trailing `.png`/`.exr` is dropped (both are written).
+pub fn sanitize_output(name: &str) -> Result<String, String> {
+    let mut n = name.trim();
+    for ext in [".png", ".exr"] {
+        if n.len() > ext.len() && n.to_ascii_lowercase().ends_with(ext) {
+            n = &n[..n.len() - ext.len()];
+        }
+    }
+    if n.is_empty() {
+        return Err("give an output name".into());
+    }
+    if n.chars().count() > MAX_OUTPUT_NAME {
+        return Err(format!("must be at most {MAX_OUTPUT_NAME} characters"));
+    }
+    if n.starts_with('.')
+        || !n
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+    {
+        return Err(
+            "must be a plain file name: letters, digits, '-', '_' and '.', not starting with '.'"
+                .into(),
+        );
+    }
+    Ok(n.to_string())
+}
+
+/// Reads an optional whole number in `lo..=hi`.
+fn uint_field(
+    obj: &Map<String, Value>,
+    key: &str,
+    default: u64,
+    lo: u64,
+    hi: u64,
+    errors: &mut BTreeMap<String, String>,
+) -> u64 {
+    let range = || format!("must be a whole number from {lo} to {hi}");
+    match obj.get(key) {
+        None | Some(Value::Null) => default,
+        Some(Value::Number(n)) => match n.as_u64() {
+            Some(v) if (lo..=hi).contains(&v) => v,
+            _ => {
+                errors.insert(key.into(), range());
+                default
+            }
+        },
+        Some(_) => {
+            errors.insert(key.into(), range());
+            default
+        }
+    }
+}
+
+fn string_field<'a>(
+    obj: &'a Map<String, Value>,
+    key: &str,
+    max_len: usize,
+    errors: &mut BTreeMap<String, String>,
+) -> Option<&'a str> {
+    match obj.get(key) {
+        None | Some(Value::Null) => None,
+        Some(Value::String(s)) if s.len() <= max_len => Some(s.as_str()),
+        Some(Value::String(_)) => {
+            errors.insert(key.into(), format!("is too long (at most {max_len} bytes)"));
+            None
+        }
+        Some(_) => {
+            errors.insert(key.into(), "must be a string".into());
+            None
+        }
+    }
+}
+
+/// The defaults the page starts with (and that apply to fields a client leaves out).
+pub struct Defaults;
+impl Defaults {
+    pub const WIDTH: u64 = 256;
+    pub const HEIGHT: u64 = 256;
+    pub const SPP: u64 = 64;
+    pub const SECONDARY: u64 = 1;
+    pub const MAX_DEPTH: u64 = 16;
+    pub const EXPOSURE: f64 = 1.0;
+    pub const OUTPUT: &str = "render";
+}
+
+/// Parses and checks a JSON render request. Every wrong field is reported, not only the first.
+pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, RequestError> {
+    let value: Value = serde_json::from_slice(body)
+        .map_err(|e| RequestError::Malformed(format!("the body is not valid JSON: {e}")))?;
+    let Value::Object(obj) = value else {
+        return Err(RequestError::Malformed(
+            "the body must be a JSON object".into(),
+        ));
+    };
+    let lim = &policy.limits;
+    let mut errors = BTreeMap::new();
+    let known = [
+        "scene",
+        "output",
+        "width",
+        "height",
+        "spp",
+        "secondary",
+        "max_depth",
+        "exposure",
+        "integrator",
+        "tonemap",
+        "seed",
+    ];
+    for k in obj.keys() {
+        if !known.contains(&k.as_str()) {
+            let shown: String = k.chars().take(40).collect();
+            errors.insert(
+                "request".into(),
+                format!("unknown field '{shown}' (known: {})", known.join(", ")),
+            );
+        }
+    }
+
+    let scene_name = string_field(&obj, "scene", MAX_SCENE_NAME, &mut errors);
+    let mut source = None;
+    match scene_name {
+        None => {
+            errors
+                .entry("scene".into())
+                .or_insert_with(|| "choose a scene".into());
+        }
+        Some(name) if builtin::NAMES.contains(&name) => {
+            source = Some(SceneSource::Builtin(name.to_string()))
+        }
+        Some(name) => match &policy.scenes_dir {
+            None => {
+                errors.insert(
+                    "scene".into(),
+                    format!(
+                        "unknown scene (built-ins: {}; start the server with --scenes DIR for files)",
+                        builtin::NAMES.join(", ")
+                    ),
+                );
+            }
+            Some(root) => match resolve_scene(root, name) {
+                Ok(p) => source = Some(SceneSource::File(p)),
+                Err(m) => {
+                    errors.insert("scene".into(), m);
+                }
+            },
+        },
+    }
+
+    let output = match string_field(&obj, "output", 4 * MAX_OUTPUT_NAME, &mut errors) {
+        None => Some(Defaults::OUTPUT.to_string()),
+        Some(s) => match sanitize_output(s) {
+            Ok(n) => Some(n),
+            Err(m) => {
+                errors.insert("output".into(), m);
+                None
+            }
+        },
+    };
+
+    let size = lim.max_size as u64;
+    let width = uint_field(&obj, "width", Defaults::WIDTH, 1, size, &mut errors) as u32;
+    let height = uint_field(&obj, "height", Defaults::HEIGHT, 1, size, &mut errors) as u32;
+    let spp = uint_field(
+        &obj,
+        "spp",
+        Defaults::SPP,
+        1,
+        lim.max_spp as u64,
+        &mut errors,
+    ) as u32;
+    let secondary = uint_field(
+        &obj,
+        "secondary",
+        Defaults::SECONDARY,
+        1,
+        lim.max_secondary as u64,
+        &mut errors,
+    ) as u32;
+    let max_depth = uint_field(
+        &obj,
+        "max_depth",
+        Defaults::MAX_DEPTH,
+        0,
+        lim.max_depth as u64,
+        &mut errors,
+    ) as u32;
+    let seed = uint_field(&obj, "seed", 0, 0, u64::MAX, &mut errors);
+
+    let exposure = match obj.get("exposure") {
+        None | Some(Value::Null) => Defaults::EXPOSURE,
+        Some(Value::Number(n)) => match n.as_f64() {
+            Some(x) if x.is_finite() && x > 0.0 && x <= 1e6 => x,
+            _ => {
+                errors.insert(
+                    "exposure".into(),
+                    "must be a positive number (at most 1000000)".into(),
+                );
+                1.0
+            }
+        },
+        Some(_) => {
+            errors.insert("exposure".into(), "must be a positive number".into());
+            1.0
+        }
+    } as f32;
+
+    let integrator = match string_field(&obj, "integrator", 32, &mut errors) {
+        None => IntegratorKind::default(),
+        Some(s) => IntegratorKind::from_str(s).unwrap_or_else(|_| {
+            errors.insert(
+                "integrator".into(),
+                format!("must be one of: {}", integrator_names().join(", ")),
+            );
+            IntegratorKind::default()
+        }),
+    };
+    let tonemap = match string_field(&obj, "tonemap", 32, &mut errors) {
+        None => Tonemap::default(),
+        Some(s) => Tonemap::from_str(s).unwrap_or_else(|_| {
+            errors.insert(
+                "tonemap".into(),
+                format!("must be one of: {}", tonemap_names().join(", ")),
+            );
+            Tonemap::default()
+        }),
+    };
+
+    let samples = width as u64 * height as u64 * spp as u64 * secondary as u64;
+    if !errors.contains_key("spp") && samples > lim.max_samples {
+        errors.insert(
+            "spp".into(),
+            format!(
+                "width × height × samples × secondary rays = {samples} is over this server's budget of {}",
+                lim.max_samples
+            ),
+        );
+    }
+
+    let settings = RenderSettings {
+        width,
+        height,
+        spp,
+        seed,
+        threads: policy.threads,
+        sampler: SamplerKind::default(),
+        integrator,
+        path: PathSettings {
+            max_depth,
+            secondary,
+            ..PathSettings::default()
+        },
+    };
+    if errors.is_empty()
+        && let Err(e) = settings.validate()
+    {
+        errors.insert("request".into(), e.to_string());
+    }
+    match (errors.is_empty(), source, output) {
+        (true, Some(source), Some(output)) => Ok(RenderRequest {
+            scene: scene_name.unwrap_or_default().to_string(),
+            source,
+            output,
+            settings,
+            exposure,
+            tonemap,
+        }),
+        _ => Err(RequestError::Fields(errors)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn policy() -> Policy {
+        Policy {
+            scenes_dir: None,
+            output_dir: PathBuf::from("."),
+            limits: Limits::default(),
+            threads: None,
+        }
+    }
+
+    fn fields(body: &str) -> BTreeMap<String, String> {
+        match parse_request(body.as_bytes(), &policy()) {
+            Err(RequestError::Fields(f)) => f,
+            other => panic!("expected field errors, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn defaults_fill_missing_fields() {
+        let r = parse_request(br#"{"scene":"cornell"}"#, &policy()).unwrap();
+        assert_eq!(r.source, SceneSource::Builtin("cornell".into()));
+        assert_eq!(r.output, "render");
+        assert_eq!((r.settings.width, r.settings.height), (256, 256));
+        assert_eq!(r.settings.spp, 64);
+        assert_eq!(r.exposure, 1.0);
+    }
+
+    #[test]
+    fn every_bad_field_is_named() {
+        let f = fields(
+            r#"{"scene":"nope","output":"../x","width":0,"height":100000,"spp":-1,
+                "secondary":1.5,"max_depth":"a","exposure":-2,"integrator":"magic","tonemap":7}"#,
+        );
+        for k in [
+            "scene",
+            "output",
+            "width",
+            "height",
+            "spp",
+            "secondary",
+            "max_depth",
+            "exposure",
+            "integrator",
+            "tonemap",
+        ] {
+            assert!(f.contains_key(k), "{k} missing from {f:?}");
+        }
+    }
+
+    #[test]
+    fn output_names_are_plain() {
+        assert_eq!(sanitize_output("shot-1.png").unwrap(), "shot-1");
+        assert_eq!(sanitize_output(" a_b.c ").unwrap(), "a_b.c");
+        for bad in [
+            "",
+            ".png",
+            "../x",
+            "a/b",
+            "a\\b",
+            ".hidden",
+            "/etc/passwd",
+            "a b",
+            "é",
+        ] {
+            assert!(sanitize_output(bad).is_err(), "{bad:?}");
+        }
+        assert!(sanitize_output(&"a".repeat(65)).is_err());
+    }
+
+    #[test]
+    fn budget_refuses_absurd_work() {
+        let f = fields(r#"{"scene":"cornell","width":4096,"height":4096,"spp":16384}"#);
+        assert!(f["spp"].contains("budget"), "{f:?}");
+    }
+
+    #[test]
+    fn integrators_offered_parse() {
+        assert!(integrator_names().contains(&"path"));
+        assert_eq!(tonemap_names().len(), 4);
+    }
+}
