@@ -52,10 +52,6 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     };
     let mut scene = load_bytes(&data, &label, Some(&dir))?;
     scene.source = Some(path.to_path_buf());
-    if let Some(stem) = path.file_stem() {
-        scene.name = stem.to_string_lossy().into_owned();
-    }
-    scene.validate()?;
     Ok(scene)
 }
 
@@ -64,7 +60,13 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 pub fn load_bytes(data: &[u8], label: &str, scene_dir: Option<&Path>) -> Result<Scene, SceneError> {
     let doc = binary::parse(data)
         .map_err(|e| SceneError::invalid(label, format!("not a readable binary FBX file: {e}")))?;
-    let scene = Converter::new(&doc, label, scene_dir)?.run()?;
+    let mut scene = Converter::new(&doc, label, scene_dir)?.run()?;
+    // So that validation errors name the file too.
+    scene.source = Some(std::path::PathBuf::from(label));
+    scene.name = Path::new(label)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
     scene.validate()?;
     Ok(scene)
 }
