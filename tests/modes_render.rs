@@ -588,3 +588,55 @@ fn accelerators_give_identical_images() {
         );
     }
 }
+
+/// The command line: thesis output path (PPM P3, gamma 2.2) and the phase report.
+#[test]
+fn cli_prints_the_phase_report_and_writes_ppm() {
+    let dir = std::env::temp_dir().join(format!("trayecto-modes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("thesis.ppm");
+    let r = std::process::Command::new(env!("CARGO_BIN_EXE_trayecto"))
+        .args([
+            "render",
+            "cornell",
+            "--integrator",
+            "whitted",
+            "--shading",
+            "blinn-phong",
+            "--accel",
+            "grid",
+            "--sampler",
+            "poisson-disk",
+            "--tonemap",
+            "gamma2.2",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    for needle in [
+        "scene loaded",
+        "acceleration structure built",
+        "rendered (whitted)",
+        "image written",
+        "total",
+        "grid ",
+    ] {
+        assert!(err.contains(needle), "missing '{needle}' in:\n{err}");
+    }
+    let ppm = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        ppm.starts_with("P3\n8 8\n255\n"),
+        "{}",
+        &ppm[..20.min(ppm.len())]
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -262,7 +262,8 @@ impl Grid {
             if !visit(self.cell_prims(cell), t_exit) {
                 return;
             }
-            if !(t_exit <= t1) {
+            // `step == 0` only when every direction component is zero (or NaN): nowhere to go.
+            if !(t_exit <= t1) || step[axis] == 0 {
                 return;
             }
             let c = cell[axis] as i64 + step[axis] as i64;
@@ -438,6 +439,21 @@ mod tests {
             .fold(f32::INFINITY, f32::min);
         assert_eq!(hit.map(|h| h.t).unwrap_or(f32::INFINITY), brute);
         let _ = PrimitiveKind::Triangle;
+    }
+
+    #[test]
+    fn degenerate_rays_terminate() {
+        let g = random_soup(200, 4);
+        let grid = Grid::build(&g);
+        for d in [
+            Vec3::ZERO,
+            Vec3::splat(f32::NAN),
+            Vec3::new(1e-45, 0.0, 0.0),
+        ] {
+            let r = Ray::new(Vec3::splat(5.0), d);
+            let _ = grid.intersect(&g, &r);
+            let _ = grid.occluded(&g, &r);
+        }
     }
 
     #[test]
