@@ -566,6 +566,7 @@ def main():
     ap.add_argument("--ref-spp", type=int, default=None)
     ap.add_argument("--subdiv", type=int, default=8, help="icosphere subdivisions of 'highpoly' (8: 1.3M tris)")
     ap.add_argument("--mitsuba-sampler", default="independent")
+    ap.add_argument("--trayecto-bin", default=None, help="use this trayecto binary instead of cargo build")
     ap.add_argument("--results", default=os.path.join(HERE, "results.md"))
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--scene", help=argparse.SUPPRESS)
@@ -593,7 +594,10 @@ def main():
         return 1
     import numpy as np
     llvm = ensure_libllvm()
-    args.trayecto = build_trayecto() if "trayecto" in renderers else None
+    if args.trayecto_bin:
+        args.trayecto = os.path.abspath(args.trayecto_bin)
+    else:
+        args.trayecto = build_trayecto() if "trayecto" in renderers else None
 
     t_start = time.time()
     load0 = os.getloadavg()
