@@ -46,6 +46,12 @@ pub struct SampleStream {
     sample: u32,
     spp: u32,
     dim: u32,
+    /// `mix64(sample ^ salt << 32)` for salts 0 and 1: the sample's half of every `random` hash,
+    /// the same for every dimension, so it is computed once per stream rather than per number.
+    sample_mix: [u64; 2],
+    /// The stratified 2D grid (`nx × ny ≥ spp` cells), fixed for the stream.
+    nx: u32,
+    ny: u32,
 }
 
 impl SampleStream {
@@ -56,12 +62,17 @@ impl SampleStream {
         sample: u32,
         spp: u32,
     ) -> SampleStream {
+        let spp = spp.max(1);
+        let nx = (spp as f32).sqrt().ceil() as u32;
         SampleStream {
             kind,
             pixel_key: hash_words(&[seed, pixel.0 as u64, pixel.1 as u64]),
             sample,
-            spp: spp.max(1),
+            spp,
             dim: 0,
+            sample_mix: [mix64(sample as u64), mix64((sample as u64) ^ (1 << 32))],
+            nx,
+            ny: spp.div_ceil(nx),
         }
     }
 
@@ -70,9 +81,16 @@ impl SampleStream {
         mix64(self.pixel_key ^ (dim as u64).wrapping_mul(0xA24BAED4963EE407))
     }
 
+    /// Hash of (pixel, dimension, sample, salt ∈ {0, 1}) mapped to [0, 1).
     #[inline]
-    fn random(&self, dim: u32, salt: u64) -> f32 {
-        let h = mix64(self.dim_hash(dim) ^ mix64((self.sample as u64) ^ (salt << 32)));
+    fn random(&self, dim: u32, salt: usize) -> f32 {
+        self.random_h(self.dim_hash(dim), salt)
+    }
+
+    /// [`Self::random`] given the dimension's hash, so callers that also need it hash it once.
+    #[inline]
+    fn random_h(&self, dim_hash: u64, salt: usize) -> f32 {
+        let h = mix64(dim_hash ^ self.sample_mix[salt]);
         u32_to_unit_f32(h as u32)
     }
 
@@ -87,8 +105,9 @@ impl SampleStream {
             }
             SamplerKind::Stratified | SamplerKind::PoissonDisk => {
                 let n = self.spp;
-                let stratum = permute(self.sample % n, n, self.dim_hash(d) as u32);
-                let jitter = self.random(d, 1);
+                let h = self.dim_hash(d);
+                let stratum = permute(self.sample % n, n, h as u32);
+                let jitter = self.random_h(h, 1);
                 ((stratum as f32 + jitter) / n as f32).min(ONE_MINUS_EPSILON)
             }
         }
@@ -122,12 +141,12 @@ impl SampleStream {
                 // An nx × ny grid with at least spp cells; the permutation spreads the samples over
                 // distinct cells.
                 let n = self.spp;
-                let nx = (n as f32).sqrt().ceil() as u32;
-                let ny = n.div_ceil(nx);
+                let (nx, ny) = (self.nx, self.ny);
                 let cells = nx * ny;
-                let cell = permute(self.sample % n, cells, self.dim_hash(d) as u32);
+                let h = self.dim_hash(d);
+                let cell = permute(self.sample % n, cells, h as u32);
                 let (cx, cy) = (cell % nx, cell / nx);
-                let jx = self.random(d, 1);
+                let jx = self.random_h(h, 1);
                 let jy = self.random(d + 1, 1);
                 Vec2::new(
                     ((cx as f32 + jx) / nx as f32).min(ONE_MINUS_EPSILON),

@@ -1,0 +1,707 @@
+#!/usr/bin/env python3
+"""Trayecto vs Mitsuba 3 (scalar_rgb, llvm_ad_rgb) vs Blender Cycles (CPU): time at equal spp and
+time to equal error, on the same scenes, machine and thread count.
+
+Usage (from the repository root; installs what it needs when missing):
+
+    python3 bench/compare.py --quick     # 64x64, spp ladder 4/16/64, references 1024 spp (~5 min)
+    python3 bench/compare.py             # 256x256, ladder 4/16/64/256, references 4096 spp
+    python3 bench/compare.py --scenes cornell --renderers trayecto,mitsuba_llvm
+
+Writes bench/results.md (the table, also printed) and everything generated into bench/out/ (scene
+exports, EXRs; gitignored). See BENCHMARKS.md for what every column means.
+
+What is timed (process start-up and scene loading are never included):
+  * trayecto: the `render` phase the CLI reports (after scene load and BVH build), one CLI run per
+    ladder point (`--threads N`, default stratified sampler).
+  * mitsuba_*: wall time of `mi.render(scene, spp=N, seed=S)` after `mi.load_dict` (which loads the
+    scene and builds the BVH). llvm_ad_rgb JIT-compiles its kernels: every ladder point is rendered
+    twice (different seed) and the second time is kept, so compile time is excluded.
+    `drjit.set_thread_count(N)`; sampler independent (Mitsuba's default) unless --mitsuba-sampler.
+  * cycles: wall time of `bpy.ops.render.render()` with persistent data on, after a 1-spp warm-up
+    render, so Cycles' scene sync / BVH build is (mostly) excluded. threads_mode FIXED, N threads.
+
+Error: relMSE = mean over pixels and channels of (x - ref)^2 / (ref^2 + 1e-2), where ref is that
+renderer's OWN high-spp reference (so it measures noise, not model differences). The references'
+mean RGB are compared with Trayecto's as a sanity check that the scenes are equivalent.
+Time to equal error: the target is Trayecto's relMSE at its largest ladder spp; every renderer's
+time to reach it is interpolated log-log between its ladder points (extrapolated with slope -1,
+i.e. error proportional to 1/time, outside the ladder; marked '~').
+
+Internally the script calls itself as a worker in subprocesses (`--worker ...`), one per renderer
+and scene, so a crash or missing feature in one renderer gives 'n/a (reason)' and the run goes on.
+"""
+import argparse
+import glob
+import json
+import math
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.normpath(os.path.join(HERE, ".."))
+OUT = os.path.join(HERE, "out")
+RENDERERS = ["trayecto", "mitsuba_scalar", "mitsuba_llvm", "cycles"]
+SCENES = ["cornell", "veach", "highpoly"]
+BPY_VERSION = "4.5.15"
+RESULT = "@@RESULT "
+
+# ---------------------------------------------------------------------------------------------
+# Set-up: packages the harness needs, installed through their ordinary clients when missing.
+
+
+def ensure_module(mod, pip_name):
+    try:
+        __import__(mod)
+        return True
+    except Exception:
+        pass
+    print(f"[setup] installing {pip_name} with pip", flush=True)
+    r = subprocess.run([sys.executable, "-m", "pip", "install", pip_name])
+    if r.returncode != 0:
+        r = subprocess.run([sys.executable, "-m", "pip", "install", "--break-system-packages", pip_name])
+    try:
+        __import__(mod)
+        return True
+    except Exception as e:
+        print(f"[setup] {pip_name} unavailable: {e}", flush=True)
+        return False
+
+
+def find_libllvm():
+    """A libLLVM >= 16 for drjit's LLVM backend (Debian's libLLVM-15 makes drjit abort)."""
+    if os.environ.get("DRJIT_LIBLLVM_PATH"):
+        return os.environ["DRJIT_LIBLLVM_PATH"]
+    best = None
+    for pat in ("/usr/lib/x86_64-linux-gnu/libLLVM.so.*", "/usr/lib/x86_64-linux-gnu/libLLVM-*.so*",
+                "/usr/lib/llvm-*/lib/libLLVM*.so*", "/usr/local/lib/libLLVM*.so*",
+                "/opt/homebrew/opt/llvm/lib/libLLVM.dylib"):
+        for c in glob.glob(pat):
+            nums = "".join(ch if ch.isdigit() else " " for ch in c).split()
+            major = max((int(d) for d in nums if 10 <= int(d) <= 40), default=0)
+            if major >= 16 and (best is None or major > best[0]):
+                best = (major, c)
+    return best[1] if best else None
+
+
+def ensure_libllvm():
+    lib = find_libllvm()
+    if lib is None and shutil.which("apt-get") and hasattr(os, "geteuid") and os.geteuid() == 0:
+        print("[setup] installing libllvm19 with apt-get", flush=True)
+        subprocess.run(["apt-get", "install", "-y", "libllvm19"])
+        lib = find_libllvm()
+    if lib:
+        os.environ["DRJIT_LIBLLVM_PATH"] = lib
+    return lib
+
+
+def build_trayecto():
+    print("[setup] cargo build --release", flush=True)
+    r = subprocess.run(["cargo", "build", "--release", "--bin", "trayecto"], cwd=ROOT)
+    exe = os.path.join(ROOT, "target", "release", "trayecto")
+    return exe if r.returncode == 0 and os.path.exists(exe) else None
+
+
+# ---------------------------------------------------------------------------------------------
+# Scenes built with bpy (Y is up in every scene, as in Mitsuba's Cornell box; Blender does not care).
+
+CORNELL_WHITE = (0.885809, 0.698859, 0.666422)
+CORNELL_RED = (0.570068, 0.0430135, 0.0443706)
+CORNELL_GREEN = (0.105421, 0.37798, 0.076425)
+CORNELL_LIGHT = (18.387, 13.9873, 6.75357)
+# mitsuba.cornell_box() to_world matrices (rows 0..2 of the 4x4; rectangle = [-1,1]^2 at z=0, normal
+# +z; cube = [-1,1]^3). See tests/references/cornell_box_dict.txt.
+CORNELL_RECTS = {
+    "floor": ([[1, 0, 0, 0], [0, 0, 1, -1], [0, -1, 0, 0]], "white"),
+    "ceiling": ([[1, 0, 0, 0], [0, 0, -1, 1], [0, 1, 0, 0]], "white"),
+    "back": ([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, -1]], "white"),
+    "green-wall": ([[0, 0, -1, 1], [0, 1, 0, 0], [1, 0, 0, 0]], "green"),
+    "red-wall": ([[0, 0, 1, -1], [0, 1, 0, 0], [-1, 0, 0, 0]], "red"),
+    "light": ([[0.23, 0, 0, 0], [0, 0, -0.19, 0.99], [0, 0.19, 0, 0.01]], "light"),
+}
+CORNELL_BOXES = {
+    "small-box": [[0.286891, 0, -0.0877115, 0.335], [0, 0.3, 0, -0.7], [0.0877115, 0, 0.286891, 0.38]],
+    "large-box": [[0.28491, 0, 0.0939491, -0.33], [0, 0.61, 0, -0.4], [-0.0939491, 0, 0.28491, -0.28]],
+}
+CORNELL_FOV = 39.3077
+
+
+def bpy_material(bpy, name, base=(0.8, 0.8, 0.8), metallic=0.0, roughness=1.0, specular=0.0,
+                 emission=None, strength=1.0):
+    """A Principled BSDF material (what the glTF exporter understands). specular=0 makes the
+    dielectric pure Lambertian (exported as KHR_materials_specular specularFactor 0)."""
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    p = m.node_tree.nodes["Principled BSDF"]
+    p.inputs["Base Color"].default_value = (*base, 1.0)
+    p.inputs["Metallic"].default_value = metallic
+    p.inputs["Roughness"].default_value = roughness
+    p.inputs["Specular IOR Level"].default_value = specular
+    if emission is not None:
+        p.inputs["Emission Color"].default_value = (*emission, 1.0)
+        p.inputs["Emission Strength"].default_value = strength
+    if hasattr(p, "distribution"):
+        p.distribution = "GGX"  # single-scatter GGX, as glTF / Mitsuba (not Cycles' multiscatter)
+    return m
+
+
+def bpy_mesh(bpy, name, verts, faces, mat, matrix=None, smooth=False):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(verts, [], faces)
+    me.update()
+    if smooth:
+        for poly in me.polygons:
+            poly.use_smooth = True
+    me.materials.append(mat)
+    ob = bpy.data.objects.new(name, me)
+    bpy.context.scene.collection.objects.link(ob)
+    if matrix is not None:
+        import mathutils
+        ob.matrix_world = mathutils.Matrix([list(r) for r in matrix] + [[0, 0, 0, 1]])
+    return ob
+
+
+def bpy_camera(bpy, location, look_at, vfov_deg):
+    import mathutils
+    cam = bpy.data.cameras.new("camera")
+    cam.sensor_fit = "VERTICAL"
+    cam.angle_y = math.radians(vfov_deg)
+    ob = bpy.data.objects.new("camera", cam)
+    bpy.context.scene.collection.objects.link(ob)
+    ob.location = location
+    d = mathutils.Vector(look_at) - mathutils.Vector(location)
+    # Blender cameras look down local -Z with local +Y up; world up is +Y in these scenes.
+    ob.rotation_euler = d.to_track_quat("-Z", "Y").to_euler()
+    bpy.context.scene.camera = ob
+    return ob
+
+
+def bpy_cornell(bpy, with_boxes=True):
+    mats = {
+        "white": bpy_material(bpy, "white", CORNELL_WHITE),
+        "red": bpy_material(bpy, "red", CORNELL_RED),
+        "green": bpy_material(bpy, "green", CORNELL_GREEN),
+    }
+    # The light: white diffuse + emission of the Cornell radiance. Cycles' Emission strength is
+    # radiance (strength 1 with colour c is seen as pixel value c), so colour = radiance, strength 1.
+    mats["light"] = bpy_material(bpy, "light", CORNELL_WHITE, emission=CORNELL_LIGHT, strength=1.0)
+    quad = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+    for name, (m, mat) in CORNELL_RECTS.items():
+        bpy_mesh(bpy, name, quad, [(0, 1, 2, 3)], mats[mat], m)
+    if with_boxes:
+        v = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+        # outward-facing quads of the cube (index = 4x + 2y + z with coordinates 0/1)
+        f = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+        for name, m in CORNELL_BOXES.items():
+            bpy_mesh(bpy, name, v, f, mats["white"], m)
+    bpy_camera(bpy, (0, 0, 3.9), (0, 0, 0), CORNELL_FOV)
+    return mats
+
+
+def uv_sphere(n_seg=48, n_ring=24):
+    verts = [(0, 1, 0)]
+    for i in range(1, n_ring):
+        th = math.pi * i / n_ring
+        for j in range(n_seg):
+            ph = 2 * math.pi * j / n_seg
+            verts.append((math.sin(th) * math.cos(ph), math.cos(th), -math.sin(th) * math.sin(ph)))
+    verts.append((0, -1, 0))
+    faces = []
+    last = len(verts) - 1
+    for j in range(n_seg):
+        faces.append((0, 1 + j, 1 + (j + 1) % n_seg))
+    for i in range(n_ring - 2):
+        a, b = 1 + i * n_seg, 1 + (i + 1) * n_seg
+        for j in range(n_seg):
+            k = (j + 1) % n_seg
+            faces.append((a + j, b + j, b + k, a + k))
+    base = 1 + (n_ring - 2) * n_seg
+    for j in range(n_seg):
+        faces.append((last, base + (j + 1) % n_seg, base + j))
+    return verts, faces
+
+
+def bpy_veach(bpy):
+    """Veach's MIS scene (thesis ch. 9 of Veach 1997): 4 metal plates of increasing roughness
+    reflecting 4 spheres of decreasing size and increasing radiance (equal power), plus a fill light
+    and a diffuse backdrop."""
+    cam_pos, cam_at = (0.0, 2.0, 15.0), (0.0, -2.0, 2.5)
+    bpy_camera(bpy, cam_pos, cam_at, 28.0)
+    back = bpy_material(bpy, "backdrop", (0.4, 0.4, 0.4))
+    bpy_mesh(bpy, "floor", [(-10, -4, -4), (10, -4, -4), (10, -4, 14), (-10, -4, 14)],
+             [(0, 3, 2, 1)], back)
+    bpy_mesh(bpy, "wall", [(-10, -4, -4), (10, -4, -4), (10, 10, -4), (-10, 10, -4)],
+             [(0, 1, 2, 3)], back)
+    light_at = (0.0, 1.0, 0.0)
+    for i, (y, z, rough) in enumerate([(-3.3, 4.0, 0.1), (-2.9, 2.7, 0.2), (-2.45, 1.4, 0.35),
+                                       (-1.9, 0.1, 0.55)]):
+        c = (0.0, y, z)
+        to_cam = _normalize(tuple(a - b for a, b in zip(cam_pos, c)))
+        to_light = _normalize(tuple(a - b for a, b in zip(light_at, c)))
+        n = _normalize(tuple(a + b for a, b in zip(to_cam, to_light)))
+        t = _normalize(_cross((1.0, 0.0, 0.0), n))  # plate depth direction, perpendicular to x and n
+        w, h = 4.0, 0.55
+        verts = [tuple(c[k] + sx * w * (1 if k == 0 else 0) + sy * h * t[k] for k in range(3))
+                 for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+        faces = [(0, 1, 2, 3)] if _dot(_cross(_sub(verts[1], verts[0]), _sub(verts[2], verts[0])), n) > 0 \
+            else [(0, 3, 2, 1)]
+        bpy_mesh(bpy, f"plate{i}", verts, faces,
+                 bpy_material(bpy, f"plate{i}", (0.8, 0.8, 0.8), metallic=1.0, roughness=rough,
+                              specular=0.5))
+    sv, sf = uv_sphere()
+    for i, (x, r, L) in enumerate([(-3.75, 0.0333, 901.803), (-1.25, 0.1, 100.0), (1.25, 0.3, 11.1111),
+                                   (3.75, 0.9, 1.23457)]):
+        m = [[r, 0, 0, x], [0, r, 0, 0.0], [0, 0, r, 0.0]]
+        bpy_mesh(bpy, f"sphere{i}", sv, sf,
+                 bpy_material(bpy, f"emit{i}", (0, 0, 0), emission=(1, 1, 1), strength=L), m, smooth=True)
+    bpy_mesh(bpy, "fill", sv, sf, bpy_material(bpy, "fill", (0, 0, 0), emission=(1, 1, 1), strength=20.0),
+             [[0.5, 0, 0, 0], [0, 0.5, 0, 8.0], [0, 0, 0.5, 8.0]], smooth=True)
+
+
+def bpy_highpoly(bpy, subdiv):
+    """The Cornell box with the boxes replaced by a displaced icosphere of 20·4^subdiv triangles
+    (subdiv 8: 1,310,720)."""
+    mats = bpy_cornell(bpy, with_boxes=False)
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=subdiv, radius=0.5, location=(0, -0.45, 0))
+    ob = bpy.context.active_object
+    ob.name = "blob"
+    tex = bpy.data.textures.new("clouds", "CLOUDS")
+    tex.noise_scale = 0.25
+    mod = ob.modifiers.new("displace", "DISPLACE")
+    mod.texture = tex
+    mod.strength = 0.12
+    bpy.context.view_layer.objects.active = ob
+    bpy.ops.object.modifier_apply(modifier="displace")
+    ob.data.materials.append(mats["white"])
+    return ob
+
+
+def _sub(a, b):
+    return tuple(x - y for x, y in zip(a, b))
+
+
+def _dot(a, b):
+    return sum(x * y for x, y in zip(a, b))
+
+
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _normalize(a):
+    n = math.sqrt(_dot(a, a))
+    return tuple(x / n for x in a)
+
+
+# ---------------------------------------------------------------------------------------------
+# Workers (run in subprocesses). Each prints one RESULT line of JSON on stdout.
+
+
+def worker_prepare(args):
+    """Builds a bpy scene, saves it as .blend (for Cycles), exports .glb (whole scene, for
+    Trayecto), one world-space .ply per object and a JSON description (for Mitsuba)."""
+    import bpy
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if args.scene == "cornell":
+        bpy_cornell(bpy)
+    elif args.scene == "veach":
+        bpy_veach(bpy)
+    else:
+        bpy_highpoly(bpy, args.subdiv)
+    d = os.path.join(OUT, args.scene)
+    os.makedirs(d, exist_ok=True)
+    bpy.context.view_layer.update()  # evaluates matrix_world of the objects built above
+    cam = bpy.context.scene.camera
+    desc = {"camera": {"matrix": [list(r) for r in cam.matrix_world],
+                       "vfov": math.degrees(cam.data.angle_y)}, "objects": []}
+    tris = 0
+    for ob in bpy.context.scene.objects:
+        if ob.type != "MESH":
+            continue
+        # Mitsuba's PLY reader takes triangles only; the exporters apply modifiers.
+        ob.modifiers.new("triangulate", "TRIANGULATE")
+        ob.data.calc_loop_triangles()
+        tris += len(ob.data.loop_triangles)
+        bpy.ops.object.select_all(action="DESELECT")
+        ob.select_set(True)
+        ply = os.path.join(d, f"{ob.name}.ply")
+        # forward Y / up Z: no axis conversion, world-space vertices (object transform applied).
+        bpy.ops.wm.ply_export(filepath=ply, export_selected_objects=True, forward_axis="Y", up_axis="Z",
+                              export_uv=False, export_colors="NONE", ascii_format=False)
+        p = ob.active_material.node_tree.nodes["Principled BSDF"]
+        g = lambda k: p.inputs[k].default_value
+        desc["objects"].append({
+            "name": ob.name, "ply": ply, "base": list(g("Base Color"))[:3], "metallic": g("Metallic"),
+            "roughness": g("Roughness"), "specular": g("Specular IOR Level"),
+            "emission": [c * g("Emission Strength") for c in list(g("Emission Color"))[:3]],
+        })
+    glb = os.path.join(d, f"{args.scene}.glb")
+    bpy.ops.object.select_all(action="SELECT")
+    bpy.ops.export_scene.gltf(filepath=glb, export_format="GLB", export_cameras=True, export_apply=True,
+                              export_yup=True)
+    with open(os.path.join(d, "scene.json"), "w") as f:
+        json.dump(desc, f, indent=1)
+    blend = os.path.join(d, f"{args.scene}.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    print(RESULT + json.dumps({"blend": blend, "glb": glb, "triangles": tris}), flush=True)
+
+
+def mitsuba_scene_dict(mi, scene, res, sampler):
+    if scene == "cornell":
+        d = mi.cornell_box()
+    else:
+        desc = json.load(open(os.path.join(OUT, scene, "scene.json")))
+        m = desc["camera"]["matrix"]
+        M = mi.ScalarTransform4f(m) @ mi.ScalarTransform4f().scale([-1, 1, -1])
+        d = {"type": "scene", "integrator": {"type": "path"},
+             "sensor": {"type": "perspective", "fov": desc["camera"]["vfov"], "fov_axis": "y", "to_world": M,
+                        "film": {"type": "hdrfilm"}}}
+        for o in desc["objects"]:
+            if o["metallic"] > 0.5:
+                bsdf = {"type": "principled", "base_color": {"type": "rgb", "value": o["base"]},
+                        "metallic": o["metallic"], "roughness": o["roughness"]}
+            else:
+                bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": o["base"]}}
+            shape = {"type": "ply", "filename": o["ply"], "bsdf": bsdf}
+            if max(o["emission"]) > 0:
+                shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": o["emission"]}}
+            d[o["name"]] = shape
+    film = d["sensor"]["film"]
+    film["width"] = res
+    film["height"] = res
+    film["rfilter"] = {"type": "box"}
+    d["sensor"]["sampler"] = {"type": sampler, "sample_count": 1}
+    d["integrator"] = {"type": "path", "max_depth": -1}
+    return d
+
+
+def worker_mitsuba(args):
+    variant = "llvm_ad_rgb" if args.worker == "mitsuba_llvm" else "scalar_rgb"
+    if variant == "llvm_ad_rgb" and not ensure_libllvm():
+        raise RuntimeError("no libLLVM >= 16 (apt-get install libllvm19)")
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+    mi.set_variant(variant)
+    dr.set_thread_count(args.threads)
+    scene = mi.load_dict(mitsuba_scene_dict(mi, args.scene, args.res, args.mitsuba_sampler))
+    out = []
+    for job in json.loads(args.jobs):
+        spp, seed, path = job["spp"], job["seed"], job["out"]
+        chunk = min(spp, max(1, (1 << 22) // (args.res * args.res))) if variant == "llvm_ad_rgb" else spp
+        acc, done, total_t = None, 0, 0.0
+        while done < spp:
+            n = min(chunk, spp - done)
+            if variant == "llvm_ad_rgb" and not job.get("reference"):
+                img = mi.render(scene, spp=n, seed=seed + 7919)  # warm-up: compile the kernels
+                dr.eval(img)
+                dr.sync_thread()
+            t = time.perf_counter()
+            img = mi.render(scene, spp=n, seed=seed + done)
+            arr = np.array(img, dtype=np.float64)  # forces evaluation
+            total_t += time.perf_counter() - t
+            acc = arr * n if acc is None else acc + arr * n
+            done += n
+        np.save(path, (acc / spp).astype(np.float32)[:, :, :3])
+        out.append({"spp": spp, "time": total_t, "out": path})
+    print(RESULT + json.dumps({"runs": out, "threads": dr.thread_count()}), flush=True)
+
+
+def worker_cycles(args):
+    import bpy
+    import numpy as np
+    blend = os.path.join(OUT, args.scene, f"{args.scene}.blend")
+    bpy.ops.wm.open_mainfile(filepath=blend)
+    sc = bpy.context.scene
+    sc.render.engine = "CYCLES"
+    cy = sc.cycles
+    cy.device = "CPU"
+    sc.render.threads_mode = "FIXED"
+    sc.render.threads = args.threads
+    sc.render.resolution_x = sc.render.resolution_y = args.res
+    sc.render.resolution_percentage = 100
+    sc.render.use_persistent_data = True  # keep the BVH between the ladder renders
+    cy.use_denoising = False
+    cy.use_adaptive_sampling = False
+    cy.pixel_filter_type = "BOX"
+    cy.filter_width = 1.0
+    # Unbiased settings equivalent to the other renderers: no clamping, no glossy blur, no light
+    # threshold, (practically) unlimited bounces. Light tree and MIS stay at their defaults (on).
+    cy.sample_clamp_direct = 0.0
+    cy.sample_clamp_indirect = 0.0
+    cy.blur_glossy = 0.0
+    cy.light_sampling_threshold = 0.0
+    cy.max_bounces = cy.diffuse_bounces = cy.glossy_bounces = cy.transmission_bounces = 64
+    cy.transparent_max_bounces = 64
+    cy.caustics_reflective = cy.caustics_refractive = True
+    sc.render.image_settings.file_format = "OPEN_EXR"
+    sc.render.image_settings.color_depth = "32"
+    sc.render.image_settings.color_mode = "RGB"
+    sc.view_settings.view_transform = "Standard"
+    # Emission one-sided, as Mitsuba's area emitters and glTF/Trayecto: Cycles meshes emit from both
+    # faces, and the back of the Cornell light (0.01 below the ceiling) would light the ceiling.
+    for mat in bpy.data.materials:
+        if not mat.use_nodes or "Principled BSDF" not in mat.node_tree.nodes:
+            continue
+        nodes, links = mat.node_tree.nodes, mat.node_tree.links
+        p = nodes["Principled BSDF"]
+        strength = p.inputs["Emission Strength"].default_value
+        if strength <= 0 or max(list(p.inputs["Emission Color"].default_value)[:3]) <= 0:
+            continue
+        geo = nodes.new("ShaderNodeNewGeometry")
+        front = nodes.new("ShaderNodeMath")
+        front.operation = "MULTIPLY_ADD"  # strength * (1 - backfacing) = backfacing * -strength + strength
+        front.inputs[1].default_value = -strength
+        front.inputs[2].default_value = strength
+        links.new(geo.outputs["Backfacing"], front.inputs[0])
+        links.new(front.outputs[0], p.inputs["Emission Strength"])
+
+    def render(spp, seed):
+        # A new file per render: Blender caches images loaded from the same path.
+        tmp = os.path.join(OUT, args.scene, f"cycles_{spp}_{seed}.exr")
+        cy.samples = spp
+        cy.seed = seed
+        sc.render.filepath = tmp
+        t = time.perf_counter()
+        bpy.ops.render.render(write_still=True)
+        el = time.perf_counter() - t
+        img = bpy.data.images.load(tmp, check_existing=False)
+        px = np.array(img.pixels[:], dtype=np.float32).reshape(args.res, args.res, img.channels)
+        bpy.data.images.remove(img)
+        return el, px[::-1, :, :3]  # Blender's pixel rows start at the bottom
+
+    render(1, 12345)  # warm-up: scene sync and BVH build
+    out = []
+    for job in json.loads(args.jobs):
+        el, px = render(job["spp"], job["seed"])
+        np.save(job["out"], px)
+        out.append({"spp": job["spp"], "time": el, "out": job["out"]})
+    print(RESULT + json.dumps({"runs": out, "threads": sc.render.threads}), flush=True)
+
+
+def worker_trayecto(args):
+    import numpy as np
+    import mitsuba as mi  # only to read the EXR
+    mi.set_variant("scalar_rgb")
+    scene = "cornell" if args.scene == "cornell" else os.path.join(OUT, args.scene, f"{args.scene}.glb")
+    out = []
+    for job in json.loads(args.jobs):
+        exr = job["out"][:-4] + ".exr"
+        cmd = [args.trayecto, "render", scene, "-o", exr, "--width", str(args.res), "--height", str(args.res),
+               "--spp", str(job["spp"]), "--threads", str(args.threads), "--seed", str(job["seed"])]
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
+        t = None
+        for line in r.stderr.splitlines():
+            if line.startswith("render "):
+                t = float(line.split()[1])
+        if t is None:
+            raise RuntimeError("the CLI did not report a render time")
+        bmp = mi.Bitmap(exr).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)
+        np.save(job["out"], np.array(bmp, dtype=np.float32))
+        out.append({"spp": job["spp"], "time": t, "out": job["out"]})
+    print(RESULT + json.dumps({"runs": out, "threads": args.threads}), flush=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# Orchestration.
+
+
+def run_worker(kind, scene, args, jobs=None, timeout=3600):
+    cmd = [sys.executable, os.path.abspath(__file__), "--worker", kind, "--scene", scene, "--res", str(args.res),
+           "--threads", str(args.threads), "--subdiv", str(args.subdiv), "--mitsuba-sampler", args.mitsuba_sampler,
+           "--trayecto", args.trayecto or "", "--jobs", json.dumps(jobs or [])]
+    try:
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=os.environ.copy())
+    except subprocess.TimeoutExpired:
+        return None, f"timeout after {timeout} s"
+    for line in r.stdout.splitlines():
+        if line.startswith(RESULT):
+            return json.loads(line[len(RESULT):]), None
+    lines = [ln for ln in (r.stderr + r.stdout).strip().splitlines() if ln.strip()]
+    reason = lines[-1] if lines else f"exit code {r.returncode}"
+    return None, reason.replace("|", "/")[:160]
+
+
+def rel_mse(x, ref):
+    import numpy as np
+    return float(np.mean((x.astype(np.float64) - ref) ** 2 / (ref.astype(np.float64) ** 2 + 1e-2)))
+
+
+def time_to_error(points, target):
+    """points: [(error, time)], error decreasing with time. Log-log interpolation; outside the
+    ladder, extrapolation with error ∝ 1/time (slope -1). Returns (time, extrapolated)."""
+    pts = sorted((e, t) for e, t in points if e > 0 and t > 0)
+    if not pts:
+        return None, False
+    for (e0, t0), (e1, t1) in zip(pts, pts[1:]):
+        if e0 <= target <= e1:
+            if e1 == e0:
+                return t0, False
+            a = (math.log(target) - math.log(e0)) / (math.log(e1) - math.log(e0))
+            return math.exp(math.log(t0) + a * (math.log(t1) - math.log(t0))), False
+    e, t = pts[0] if target < pts[0][0] else pts[-1]
+    return t * e / target, True
+
+
+def fmt_ratio(x, base):
+    if x is None or base is None:
+        return "n/a"
+    return f"{x / base:.2f}×"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="64x64, ladder 4/16/64, references 1024 spp")
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--renderers", default=",".join(RENDERERS))
+    ap.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="threads for every renderer")
+    ap.add_argument("--res", type=int, default=None)
+    ap.add_argument("--ladder", default=None, help="comma-separated spp ladder")
+    ap.add_argument("--ref-spp", type=int, default=None)
+    ap.add_argument("--subdiv", type=int, default=8, help="icosphere subdivisions of 'highpoly' (8: 1.3M tris)")
+    ap.add_argument("--mitsuba-sampler", default="independent")
+    ap.add_argument("--trayecto-bin", default=None, help="use this trayecto binary instead of cargo build")
+    ap.add_argument("--results", default=os.path.join(HERE, "results.md"))
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    ap.add_argument("--scene", help=argparse.SUPPRESS)
+    ap.add_argument("--jobs", help=argparse.SUPPRESS)
+    ap.add_argument("--trayecto", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+
+    if args.worker:
+        {"prepare": worker_prepare, "mitsuba_scalar": worker_mitsuba, "mitsuba_llvm": worker_mitsuba,
+         "cycles": worker_cycles, "trayecto": worker_trayecto}[args.worker](args)
+        return 0
+
+    args.res = args.res or (64 if args.quick else 256)
+    ladder = [int(s) for s in (args.ladder or ("4,16,64" if args.quick else "4,16,64,256")).split(",")]
+    ref_spp = args.ref_spp or (1024 if args.quick else 4096)
+    scenes = args.scenes.split(",")
+    renderers = args.renderers.split(",")
+    os.makedirs(OUT, exist_ok=True)
+
+    have_np = ensure_module("numpy", "numpy")
+    have_mi = ensure_module("mitsuba", "mitsuba")
+    have_bpy = ensure_module("bpy", f"bpy=={BPY_VERSION}")
+    if not (have_np and have_mi):
+        print("numpy and mitsuba are required (EXR reading and two of the renderers)")
+        return 1
+    import numpy as np
+    llvm = ensure_libllvm()
+    if args.trayecto_bin:
+        args.trayecto = os.path.abspath(args.trayecto_bin)
+    else:
+        args.trayecto = build_trayecto() if "trayecto" in renderers else None
+
+    t_start = time.time()
+    load0 = os.getloadavg()
+    results = {}  # (scene, renderer) -> dict or reason string
+    for scene in scenes:
+        prep_err = None
+        if scene != "cornell" or "cycles" in renderers:
+            if not have_bpy:
+                prep_err = "bpy unavailable"
+            else:
+                print(f"[{scene}] building the scene with bpy", flush=True)
+                prep, prep_err = run_worker("prepare", scene, args)
+                if prep:
+                    print(f"[{scene}] {prep['triangles']} triangles", flush=True)
+        for r in renderers:
+            if prep_err and (scene != "cornell" or r == "cycles"):
+                results[(scene, r)] = f"n/a (scene export failed: {prep_err})"
+                continue
+            if r == "trayecto" and not args.trayecto:
+                results[(scene, r)] = "n/a (cargo build failed)"
+                continue
+            if r == "mitsuba_llvm" and not llvm:
+                results[(scene, r)] = "n/a (no libLLVM >= 16)"
+                continue
+            jobs = [{"spp": ref_spp, "seed": 100000, "reference": True,
+                     "out": os.path.join(OUT, f"{scene}_{r}_ref.npy")}]
+            jobs += [{"spp": s, "seed": i + 1, "out": os.path.join(OUT, f"{scene}_{r}_{s}.npy")}
+                     for i, s in enumerate(ladder)]
+            print(f"[{scene}] {r}: reference {ref_spp} spp + ladder {ladder}", flush=True)
+            res, err = run_worker(r, scene, args, jobs)
+            if res is None:
+                results[(scene, r)] = f"n/a ({err})"
+                print(f"[{scene}] {r}: n/a ({err})", flush=True)
+                continue
+            ref = np.load(res["runs"][0]["out"]).astype(np.float64)
+            pts = []
+            for run in res["runs"][1:]:
+                img = np.load(run["out"])
+                pts.append({"spp": run["spp"], "time": run["time"], "relmse": rel_mse(img, ref)})
+            results[(scene, r)] = {"ladder": pts, "ref_time": res["runs"][0]["time"],
+                                   "ref_mean": ref.reshape(-1, 3).mean(0).tolist(), "threads": res["threads"]}
+            print(f"[{scene}] {r}: " + ", ".join(f"{p['spp']} spp {p['time']:.3f} s relMSE {p['relmse']:.3g}"
+                                                 for p in pts), flush=True)
+    load1 = os.getloadavg()
+    md = report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, time.time() - t_start)
+    with open(args.results, "w") as f:
+        f.write(md)
+    print(md)
+    print(f"wrote {args.results}")
+    return 0
+
+
+def report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, elapsed):
+    L = []
+    w = L.append
+    cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name")),
+               platform.processor()) if os.path.exists("/proc/cpuinfo") else platform.processor()
+    w(f"# Trayecto vs Mitsuba 3 vs Cycles ({'quick' if args.quick else 'full'} mode)")
+    w("")
+    w(f"- machine: {os.cpu_count()} logical CPUs, {cpu}; {args.threads} threads for every renderer")
+    w(f"- {args.res}×{args.res} pixels, ladder {ladder} spp, references {ref_spp} spp; run took {elapsed:.0f} s")
+    w(f"- load average at start {load0[0]:.2f} / end {load1[0]:.2f} (timings are only meaningful on a quiet machine)")
+    w(f"- command: `python3 bench/compare.py{' --quick' if args.quick else ''}`")
+    w("")
+    for scene in scenes:
+        w(f"## {scene}")
+        w("")
+        base = results.get((scene, "trayecto"))
+        base = base if isinstance(base, dict) else None
+        target = base["ladder"][-1]["relmse"] if base else None
+        w("| renderer | " + " | ".join(f"time @{s} spp" for s in ladder) + f" | time ratio @{ladder[-1]} spp | "
+          + " | ".join(f"relMSE @{s}" for s in ladder) + " | time to Trayecto's error | ratio | ref mean RGB "
+          "| ref mean / Trayecto's |")
+        w("|" + "---|" * (2 * len(ladder) + 6))
+        base_tte = None
+        if base:
+            base_tte, _ = time_to_error([(p["relmse"], p["time"]) for p in base["ladder"]], target)
+        for r in renderers:
+            res = results.get((scene, r))
+            if not isinstance(res, dict):
+                w(f"| {r} | {res} |" + " |" * (2 * len(ladder) + 4))
+                continue
+            by = {p["spp"]: p for p in res["ladder"]}
+            times = [f"{by[s]['time']:.3f} s" if s in by else "n/a" for s in ladder]
+            errs = [f"{by[s]['relmse']:.3g}" if s in by else "n/a" for s in ladder]
+            top = by.get(ladder[-1])
+            ratio = fmt_ratio(top["time"], base["ladder"][-1]["time"]) if (base and top) else "n/a"
+            if target is not None:
+                tte, extra = time_to_error([(p["relmse"], p["time"]) for p in res["ladder"]], target)
+                tte_s = f"{'~' if extra else ''}{tte:.3f} s" if tte else "n/a"
+                tte_r = fmt_ratio(tte, base_tte)
+            else:
+                tte_s, tte_r = "n/a (no Trayecto result)", "n/a"
+            mean = res["ref_mean"]
+            mean_s = "(" + ", ".join(f"{m:.4f}" for m in mean) + ")"
+            mean_r = ("(" + ", ".join(f"{m / b:.3f}" if b else "n/a" for m, b in zip(mean, base["ref_mean"])) + ")"
+                      if base else "n/a")
+            w(f"| {r} | " + " | ".join(times) + f" | {ratio} | " + " | ".join(errs)
+              + f" | {tte_s} | {tte_r} | {mean_s} | {mean_r} |")
+        w("")
+    w("Ratios are the renderer's time over Trayecto's (above 1: Trayecto is faster). '~': extrapolated "
+      "outside the renderer's ladder assuming error ∝ 1/time.")
+    return "\n".join(L) + "\n"
+
+
+if __name__ == "__main__":
+    sys.exit(main())
