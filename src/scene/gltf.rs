@@ -69,8 +69,18 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 /// file in messages. (Also the fuzzing entry point.)
 pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
     let err = |m: String| SceneError::invalid(label, m);
-    let gltf = gltf::Gltf::from_slice(bytes)
-        .map_err(|e| err(format!("not a valid glTF 2.0 file: {e}")))?;
+    // gltf-json 1.4's validation can index out of bounds on malformed meshes (found by
+    // tests/import_mutation.rs): contain that as an error rather than crash.
+    let parsed = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes));
+    let gltf = match parsed {
+        Ok(r) => r.map_err(|e| err(format!("not a valid glTF 2.0 file: {e}")))?,
+        Err(_) => {
+            return Err(err(
+                "not a valid glTF 2.0 file: its structure is inconsistent (the parser rejected it)"
+                    .into(),
+            ));
+        }
+    };
     let mut ld = Loader {
         doc: &gltf.document,
         dir,
