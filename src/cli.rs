@@ -291,10 +291,27 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
     );
     println!("materials   {}", scene.materials.len());
     for (i, m) in scene.materials.iter().enumerate() {
+        let textures = [
+            m.base_color_texture,
+            m.metallic_roughness_texture,
+            m.normal_texture,
+            m.occlusion_texture,
+            m.emissive_texture,
+            m.transmission_texture,
+        ]
+        .iter()
+        .flatten()
+        .count();
         println!(
-            "  {i}: '{}' {:?}{}",
+            "  {i}: '{}' {:?} base colour {}{}{}",
             m.name,
             m.model,
+            m.base_color,
+            if textures > 0 {
+                format!(", {textures} texture(s)")
+            } else {
+                String::new()
+            },
             if m.is_emissive() { " (emissive)" } else { "" }
         );
     }
@@ -305,11 +322,38 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
         world.area_light_count()
     );
     for l in &scene.lights {
-        println!("  '{}'", l.name());
+        use crate::scene::LightDesc as L;
+        let what = match l {
+            L::Point {
+                position: p,
+                intensity: i,
+                ..
+            } => format!("point at {p}, {i} W/sr"),
+            L::Spot {
+                position: p,
+                intensity: i,
+                ..
+            } => format!("spot at {p}, {i} W/sr"),
+            L::Directional {
+                direction: d,
+                irradiance: e,
+                ..
+            } => {
+                format!("directional towards {d}, {e} W/m²")
+            }
+            L::Ambient { radiance: r, .. } => format!("ambient, radiance {r}"),
+            L::Environment { path, .. } => format!("environment map {}", path.display()),
+        };
+        println!("  '{}' {what}", l.name());
     }
     println!("cameras     {}", scene.cameras.len());
     for (i, c) in scene.cameras.iter().enumerate() {
-        println!("  {i}: '{}' vfov {:.2}°", c.name, c.vfov_deg);
+        println!(
+            "  {i}: '{}' at {} vfov {:.2}°",
+            c.name,
+            c.camera_to_world.w_axis.truncate(),
+            c.vfov_deg
+        );
     }
     let warnings: Vec<&String> = scene.warnings.iter().chain(world.warnings.iter()).collect();
     println!("warnings    {}", warnings.len());

@@ -166,11 +166,14 @@ fn area_power(
     geometry: &GeometryStore,
     prim: PrimRef,
     material: &Material,
-    textures: &[Texture],
+    texture_averages: &[Vec3],
 ) -> f32 {
     let mut l = material.emissive;
     if let Some(t) = &material.emissive_texture {
-        l *= textures[t.texture].average().truncate();
+        l *= texture_averages
+            .get(t.texture)
+            .copied()
+            .unwrap_or(Vec3::ONE);
     }
     let sides = if material.double_sided { 2.0 } else { 1.0 };
     PI * sides * geometry.area(prim) * luminance(l)
@@ -186,12 +189,25 @@ impl LightSet {
     ) -> LightSet {
         let (scene_center, scene_radius) = bounds.bounding_sphere();
         let scene_radius = scene_radius.max(1e-3);
+        // Average of each emissive texture, once per texture rather than once per triangle.
+        let mut texture_averages = vec![Vec3::ONE; textures.len()];
+        for m in materials {
+            if let Some(t) = &m.emissive_texture
+                && let (Some(a), Some(tex)) =
+                    (texture_averages.get_mut(t.texture), textures.get(t.texture))
+            {
+                *a = tex.average().truncate();
+            }
+        }
         let powers: Vec<f32> = lights
             .iter()
             .map(|l| match l {
-                Light::Area { prim, material } => {
-                    area_power(geometry, *prim, &materials[*material as usize], textures)
-                }
+                Light::Area { prim, material } => area_power(
+                    geometry,
+                    *prim,
+                    &materials[*material as usize],
+                    &texture_averages,
+                ),
                 Light::Point { intensity, .. } => 4.0 * PI * luminance(*intensity),
                 Light::Spot {
                     intensity,

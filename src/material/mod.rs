@@ -73,6 +73,17 @@ pub struct Material {
     pub double_sided: bool,
     /// Phong parameters for the raycast/Whitted modes, when the file gives them.
     pub phong: Option<PhongParams>,
+    // Inputs the importers fill that the first BSDFs do not use yet (issue 8).
+    /// KHR_materials_specular: strength in A, colour (sRGB) in RGB.
+    pub specular_texture: Option<TextureRef>,
+    pub specular_color_texture: Option<TextureRef>,
+    /// KHR_materials_volume: thickness (object space; 0 = thin walled), Beer-Lambert attenuation
+    /// colour and distance (infinite = no absorption).
+    pub thickness: f32,
+    pub attenuation_color: Vec3,
+    pub attenuation_distance: f32,
+    /// Opacity map (OBJ `map_d`), first channel.
+    pub alpha_texture: Option<TextureRef>,
 }
 
 impl Default for Material {
@@ -102,6 +113,12 @@ impl Default for Material {
             specular_color: Vec3::ONE,
             double_sided: false,
             phong: None,
+            specular_texture: None,
+            specular_color_texture: None,
+            thickness: 0.0,
+            attenuation_color: Vec3::ONE,
+            attenuation_distance: f32::INFINITY,
+            alpha_texture: None,
         }
     }
 }
@@ -152,6 +169,9 @@ impl Material {
             &self.occlusion_texture,
             &self.emissive_texture,
             &self.transmission_texture,
+            &self.specular_texture,
+            &self.specular_color_texture,
+            &self.alpha_texture,
         ];
         for t in texs.into_iter().flatten() {
             if t.texture >= texture_count {

@@ -7,6 +7,11 @@ pub mod builtin;
 pub mod conventions;
 pub mod fbx;
 pub mod testscenes;
+pub mod gltf;
+pub mod image_io;
+pub mod obj;
+pub mod ply;
+pub mod toml_scene;
 
 use std::path::Path;
 
@@ -400,7 +405,6 @@ impl Scene {
 /// Loads a scene from a file path, or a built-in scene by name (`cornell`). The format follows the
 /// file's extension.
 // Loaders add their extensions to the match below as formats land.
-#[allow(clippy::match_single_binding)]
 pub fn load(spec: &str) -> Result<Scene, SceneError> {
     let path = Path::new(spec);
     if builtin::NAMES.contains(&spec) && !path.exists() {
@@ -427,6 +431,10 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
     }
     match ext.as_str() {
         "fbx" => fbx::load(path),
+        "gltf" | "glb" => gltf::load(path),
+        "obj" => obj::load(path),
+        "ply" => ply::load(path),
+        "toml" => toml_scene::load(path),
         other => Err(SceneError::invalid(
             spec,
             format!("unsupported scene format '.{other}'"),

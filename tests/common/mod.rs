@@ -60,6 +60,11 @@ pub fn shared_scene(rel: &str) -> PathBuf {
     p
 }
 
+/// A file under `shared/scenes/`, which must exist (same as [`shared_scene`]).
+pub fn scene_file(rel: &str) -> PathBuf {
+    shared_scene(rel)
+}
+
 /// Root-mean-square difference over all channels.
 pub fn rmse(a: &Image, b: &Image) -> f64 {
     assert_eq!((a.width, a.height), (b.width, b.height));

@@ -1,0 +1,526 @@
+//! Trayecto's native scene file (TOML), for writing scenes by hand (SPEC §3). The complete,
+//! commented reference is `scenes/example.toml` in the repository.
+//!
+//! Top level: `name`, `[[camera]]`, `[background]` (a uniform colour or an environment map),
+//! `[[material]]`, `[[object]]` (a mesh file — OBJ, PLY, glTF — or an analytic sphere, box or
+//! quad, §5.1.4–5.1.6) and `[[light]]` (point, spot, directional, ambient, environment). Light
+//! units are radiometric: W/sr for point and spot intensities, W/m² for directional irradiance,
+//! W/(m²·sr) for ambient radiance. Files are read only from the scene's folder; unknown keys are
+//! errors (so typos do not pass silently).
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use serde::Deserialize;
+
+use super::conventions::{ambient_light, apply_material_conventions, is_ambient_light_name};
+use super::image_io::{RefusedPath, is_missing_texture, load_texture_checked, resolve_in_dir};
+use super::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape};
+use crate::material::{AlphaMode, Material, MaterialModel, TextureRef};
+use crate::math::{Mat4, Vec3};
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct File {
+    name: Option<String>,
+    #[serde(default)]
+    camera: Vec<Camera>,
+    background: Option<Background>,
+    #[serde(default)]
+    material: Vec<MaterialSpec>,
+    #[serde(default)]
+    object: Vec<ObjectSpec>,
+    #[serde(default)]
+    light: Vec<LightSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Camera {
+    name: Option<String>,
+    eye: [f32; 3],
+    target: [f32; 3],
+    #[serde(default = "up")]
+    up: [f32; 3],
+    /// Vertical field of view in degrees.
+    #[serde(default = "fov")]
+    fov: f32,
+    #[serde(default)]
+    aperture: f32,
+    focus_distance: Option<f32>,
+}
+
+fn up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn fov() -> f32 {
+    39.6
+}
+fn one() -> f32 {
+    1.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Background {
+    color: Option<[f32; 3]>,
+    map: Option<String>,
+    #[serde(default = "one")]
+    strength: f32,
+    /// Rotation of the environment about +y, in degrees.
+    #[serde(default)]
+    rotation: f32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialSpec {
+    name: String,
+    /// diffuse, metallic-roughness, dielectric or mirror.
+    model: Option<String>,
+    base_color: Option<[f32; 3]>,
+    base_color_texture: Option<String>,
+    metallic: Option<f32>,
+    roughness: Option<f32>,
+    metallic_roughness_texture: Option<String>,
+    normal_texture: Option<String>,
+    emissive: Option<[f32; 3]>,
+    #[serde(default = "one")]
+    emissive_strength: f32,
+    emissive_texture: Option<String>,
+    ior: Option<f32>,
+    transmission: Option<f32>,
+    alpha: Option<f32>,
+    specular: Option<f32>,
+    #[serde(default)]
+    double_sided: bool,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectSpec {
+    name: Option<String>,
+    /// mesh, sphere, box or quad.
+    #[serde(rename = "type")]
+    kind: String,
+    /// Mesh file (OBJ, PLY, glTF) relative to the scene.
+    file: Option<String>,
+    /// Material name; for meshes it replaces the file's own materials.
+    material: Option<String>,
+    center: Option<[f32; 3]>,
+    radius: Option<f32>,
+    min: Option<[f32; 3]>,
+    max: Option<[f32; 3]>,
+    corner: Option<[f32; 3]>,
+    e1: Option<[f32; 3]>,
+    e2: Option<[f32; 3]>,
+    /// Applied as scale, then rotation (degrees about x, then y, then z), then translation.
+    translate: Option<[f32; 3]>,
+    rotate: Option<[f32; 3]>,
+    scale: Option<ScaleSpec>,
+    /// A row-major 4×4 matrix (16 numbers), instead of translate/rotate/scale.
+    matrix: Option<Vec<f32>>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum ScaleSpec {
+    Uniform(f32),
+    Axes([f32; 3]),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightSpec {
+    name: Option<String>,
+    /// point, spot, directional, ambient or environment.
+    #[serde(rename = "type")]
+    kind: String,
+    position: Option<[f32; 3]>,
+    direction: Option<[f32; 3]>,
+    #[serde(default = "white")]
+    color: [f32; 3],
+    /// W/sr (point, spot), W/m² (directional), W/(m²·sr) (ambient) per unit colour.
+    #[serde(default = "one")]
+    intensity: f32,
+    /// Spot cone half-angles in degrees.
+    inner_angle: Option<f32>,
+    outer_angle: Option<f32>,
+    file: Option<String>,
+    #[serde(default)]
+    rotation: f32,
+}
+
+fn white() -> [f32; 3] {
+    [1.0, 1.0, 1.0]
+}
+
+/// Loads a `.toml` scene file.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
+        path: path.display().to_string(),
+        source: e,
+    })?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut scene = load_from_bytes(&bytes, dir, &path.display().to_string())?;
+    if scene.name.is_empty() || scene.name == path.display().to_string() {
+        scene.name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+    }
+    scene.source = Some(path.to_path_buf());
+    Ok(scene)
+}
+
+/// Parses a TOML scene from memory; referenced files are read from `dir`. (Also the fuzzing
+/// entry point.)
+pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
+    let err = |m: String| SceneError::invalid(label, m);
+    let text = std::str::from_utf8(bytes).map_err(|_| err("the file is not UTF-8 text".into()))?;
+    let file: File = toml::from_str(text).map_err(|e| err(format!("{e}")))?;
+    let mut scene = Scene {
+        name: file.name.clone().unwrap_or_else(|| label.to_string()),
+        source: Some(label.into()),
+        ..Default::default()
+    };
+
+    let mut by_name: HashMap<String, MaterialId> = HashMap::new();
+    for m in &file.material {
+        let mat = material(m, dir, &mut scene)
+            .map_err(|RefusedPath(why)| err(format!("material '{}': {why}", m.name)))?
+            .map_err(|e| err(format!("material '{}': {e}", m.name)))?;
+        if by_name
+            .insert(m.name.clone(), scene.materials.len())
+            .is_some()
+        {
+            return Err(err(format!("material '{}' is defined twice", m.name)));
+        }
+        scene.add_material(mat);
+    }
+    let mut default_material = None;
+
+    for (i, o) in file.object.iter().enumerate() {
+        let name = o.name.clone().unwrap_or_else(|| format!("object {i}"));
+        let transform = transform(o).map_err(|e| err(format!("object '{name}': {e}")))?;
+        let mat = match &o.material {
+            Some(n) => Some(*by_name.get(n).ok_or_else(|| {
+                err(format!(
+                    "object '{name}' uses material '{n}', which is not defined"
+                ))
+            })?),
+            None => None,
+        };
+        let need = |v: Option<[f32; 3]>, key: &str| {
+            v.map(Vec3::from)
+                .ok_or_else(|| err(format!("object '{name}' ({}) needs '{key}'", o.kind)))
+        };
+        let shape = match o.kind.as_str() {
+            "mesh" => {
+                let f = o
+                    .file
+                    .as_deref()
+                    .ok_or_else(|| err(format!("object '{name}' (mesh) needs 'file'")))?;
+                add_mesh_file(&mut scene, dir, f, transform, mat)
+                    .map_err(|e| err(format!("object '{name}': {e}")))?;
+                continue;
+            }
+            "sphere" => Shape::Sphere {
+                center: need(o.center, "center")?,
+                radius: o
+                    .radius
+                    .ok_or_else(|| err(format!("object '{name}' (sphere) needs 'radius'")))?,
+            },
+            "box" => Shape::Cuboid {
+                min: need(o.min, "min")?,
+                max: need(o.max, "max")?,
+            },
+            "quad" => Shape::Quad {
+                corner: need(o.corner, "corner")?,
+                e1: need(o.e1, "e1")?,
+                e2: need(o.e2, "e2")?,
+            },
+            other => {
+                return Err(err(format!(
+                    "object '{name}': unknown type '{other}' (mesh, sphere, box or quad)"
+                )));
+            }
+        };
+        let material = match mat {
+            Some(m) => m,
+            None => *default_material.get_or_insert_with(|| {
+                scene.add_material(Material::diffuse("default", Vec3::splat(0.8)))
+            }),
+        };
+        scene.add_object(&name, shape, transform, material);
+    }
+
+    for (i, c) in file.camera.iter().enumerate() {
+        let name = c.name.clone().unwrap_or_else(|| format!("camera {i}"));
+        let (eye, target) = (Vec3::from(c.eye), Vec3::from(c.target));
+        if (eye - target).length_squared() == 0.0 || !eye.is_finite() || !target.is_finite() {
+            return Err(err(format!("camera '{name}': eye and target must differ")));
+        }
+        let mut cam = CameraDesc::look_at(&name, eye, target, Vec3::from(c.up), c.fov);
+        cam.aperture_radius = c.aperture;
+        if let Some(f) = c.focus_distance {
+            cam.focus_distance = f;
+        }
+        scene.cameras.push(cam);
+    }
+
+    for (i, l) in file.light.iter().enumerate() {
+        let name = l
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("{} light {i}", l.kind));
+        let power = Vec3::from(l.color) * l.intensity;
+        let shown = name.clone();
+        let need = |v: Option<[f32; 3]>, key: &str| {
+            v.map(Vec3::from)
+                .ok_or_else(|| err(format!("light '{shown}' ({}) needs '{key}'", l.kind)))
+        };
+        if is_ambient_light_name(&name) && l.kind != "ambient" {
+            scene.warnings.push(format!(
+                "convention: light '{name}' is an ambient light of its colour (name contains 'ambient')"
+            ));
+            scene.lights.push(ambient_light(&name, Vec3::from(l.color)));
+            continue;
+        }
+        let desc = match l.kind.as_str() {
+            "point" => LightDesc::Point {
+                name,
+                position: need(l.position, "position")?,
+                intensity: power,
+            },
+            "spot" => {
+                let outer = l.outer_angle.unwrap_or(45.0);
+                LightDesc::Spot {
+                    position: need(l.position, "position")?,
+                    direction: need(l.direction, "direction")?,
+                    intensity: power,
+                    inner_angle: l.inner_angle.unwrap_or(0.0).to_radians(),
+                    outer_angle: outer.to_radians(),
+                    name,
+                }
+            }
+            "directional" => LightDesc::Directional {
+                direction: need(l.direction, "direction")?,
+                irradiance: power,
+                name,
+            },
+            "ambient" => LightDesc::Ambient {
+                name,
+                radiance: power,
+            },
+            "environment" => {
+                let f = l
+                    .file
+                    .as_deref()
+                    .ok_or_else(|| err(format!("light '{name}' (environment) needs 'file'")))?;
+                let path =
+                    resolve_in_dir(dir, f).map_err(|e| err(format!("light '{name}': {e}")))?;
+                LightDesc::Environment {
+                    name,
+                    path,
+                    scale: power,
+                    transform: Mat4::from_rotation_y(l.rotation.to_radians()),
+                }
+            }
+            other => {
+                return Err(err(format!(
+                    "light '{name}': unknown type '{other}' (point, spot, directional, ambient or environment)"
+                )));
+            }
+        };
+        scene.lights.push(desc);
+    }
+
+    if let Some(bg) = &file.background {
+        match (&bg.color, &bg.map) {
+            (Some(c), None) => scene.lights.push(LightDesc::Ambient {
+                name: "background".into(),
+                radiance: Vec3::from(*c) * bg.strength,
+            }),
+            (None, Some(f)) => {
+                let path = resolve_in_dir(dir, f).map_err(|e| err(format!("background: {e}")))?;
+                scene.lights.push(LightDesc::Environment {
+                    name: "background".into(),
+                    path,
+                    scale: Vec3::splat(bg.strength),
+                    transform: Mat4::from_rotation_y(bg.rotation.to_radians()),
+                });
+            }
+            _ => {
+                return Err(err(
+                    "background needs exactly one of 'color' and 'map'".into()
+                ));
+            }
+        }
+    }
+
+    apply_material_conventions(&mut scene);
+    scene.validate()?;
+    Ok(scene)
+}
+
+fn transform(o: &ObjectSpec) -> Result<Mat4, String> {
+    if let Some(m) = &o.matrix {
+        if o.translate.is_some() || o.rotate.is_some() || o.scale.is_some() {
+            return Err("'matrix' cannot be combined with translate/rotate/scale".into());
+        }
+        let a: [f32; 16] = m
+            .as_slice()
+            .try_into()
+            .map_err(|_| format!("'matrix' needs 16 numbers, got {}", m.len()))?;
+        // Row-major in the file, column-major in glam.
+        return Ok(Mat4::from_cols_array(&a).transpose());
+    }
+    let s = match o.scale {
+        None => Vec3::ONE,
+        Some(ScaleSpec::Uniform(s)) => Vec3::splat(s),
+        Some(ScaleSpec::Axes(a)) => Vec3::from(a),
+    };
+    let r = o.rotate.map(Vec3::from).unwrap_or(Vec3::ZERO);
+    let rot = Mat4::from_rotation_z(r.z.to_radians())
+        * Mat4::from_rotation_y(r.y.to_radians())
+        * Mat4::from_rotation_x(r.x.to_radians());
+    let t = o.translate.map(Vec3::from).unwrap_or(Vec3::ZERO);
+    Ok(Mat4::from_translation(t) * rot * Mat4::from_scale(s))
+}
+
+type MatResult = Result<Result<Material, String>, RefusedPath>;
+
+fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
+    let model = match m.model.as_deref() {
+        None | Some("diffuse") => MaterialModel::Diffuse,
+        Some("metallic-roughness") => MaterialModel::MetallicRoughness,
+        Some("dielectric") => MaterialModel::Dielectric,
+        Some("mirror") => MaterialModel::Mirror,
+        Some(other) => {
+            return Ok(Err(format!(
+                "unknown model '{other}' (diffuse, metallic-roughness, dielectric or mirror)"
+            )));
+        }
+    };
+    let mut mat = Material {
+        name: m.name.clone(),
+        model,
+        base_color: m.base_color.map(Vec3::from).unwrap_or(Vec3::splat(0.8)),
+        metallic: m.metallic.unwrap_or(0.0),
+        roughness: m.roughness.unwrap_or(if model == MaterialModel::Diffuse {
+            1.0
+        } else {
+            0.5
+        }),
+        emissive: m.emissive.map(Vec3::from).unwrap_or(Vec3::ZERO) * m.emissive_strength,
+        double_sided: m.double_sided,
+        ..Default::default()
+    };
+    if let Some(ior) = m.ior {
+        mat.ior = ior;
+    }
+    if model == MaterialModel::Dielectric {
+        mat.transmission = 1.0;
+        mat.roughness = m.roughness.unwrap_or(0.0);
+    }
+    if let Some(t) = m.transmission {
+        mat.transmission = t;
+    }
+    if let Some(a) = m.alpha {
+        mat.alpha = a;
+        if a < 1.0 {
+            mat.alpha_mode = AlphaMode::Blend;
+        }
+    }
+    if let Some(s) = m.specular {
+        mat.specular = s;
+    }
+    let mut tex = |f: &Option<String>, srgb: bool| -> Result<Option<TextureRef>, RefusedPath> {
+        let Some(f) = f else { return Ok(None) };
+        let t = load_texture_checked(dir, f, srgb, &mut scene.warnings)?;
+        let missing = is_missing_texture(&t);
+        scene.textures.push(t);
+        Ok((srgb || !missing).then(|| TextureRef::new(scene.textures.len() - 1)))
+    };
+    mat.base_color_texture = tex(&m.base_color_texture, true)?;
+    mat.metallic_roughness_texture = tex(&m.metallic_roughness_texture, false)?;
+    mat.normal_texture = tex(&m.normal_texture, false)?;
+    mat.emissive_texture = tex(&m.emissive_texture, true)?;
+    if mat.emissive_texture.is_some() && !mat.is_emissive() {
+        mat.emissive = Vec3::splat(m.emissive_strength);
+    }
+    Ok(Ok(mat))
+}
+
+/// Merges the contents of a mesh file (OBJ, PLY or glTF) into `scene`, under `transform`.
+fn add_mesh_file(
+    scene: &mut Scene,
+    dir: &Path,
+    file: &str,
+    transform: Mat4,
+    material: Option<MaterialId>,
+) -> Result<(), String> {
+    let path = resolve_in_dir(dir, file)?;
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default();
+    let sub = match ext.as_str() {
+        "obj" => super::obj::load(&path),
+        "ply" => super::ply::load(&path),
+        "gltf" | "glb" => super::gltf::load(&path),
+        other => {
+            return Err(format!(
+                "'{file}': meshes are read from .obj, .ply, .gltf or .glb, not '.{other}'"
+            ));
+        }
+    }
+    .map_err(|e| e.to_string())?;
+    let (m0, t0, mat0) = (
+        scene.meshes.len(),
+        scene.textures.len(),
+        scene.materials.len(),
+    );
+    scene
+        .warnings
+        .extend(sub.warnings.iter().map(|w| format!("{file}: {w}")));
+    scene.meshes.extend(sub.meshes);
+    if material.is_none() {
+        for mut m in sub.materials {
+            for t in [
+                &mut m.base_color_texture,
+                &mut m.metallic_roughness_texture,
+                &mut m.normal_texture,
+                &mut m.occlusion_texture,
+                &mut m.emissive_texture,
+                &mut m.transmission_texture,
+                &mut m.specular_texture,
+                &mut m.specular_color_texture,
+                &mut m.alpha_texture,
+            ]
+            .into_iter()
+            .flatten()
+            {
+                t.texture += t0;
+            }
+            scene.materials.push(m);
+        }
+        scene.textures.extend(sub.textures);
+    }
+    for o in sub.objects {
+        let shape = match o.shape {
+            Shape::Mesh(i) => Shape::Mesh(i + m0),
+            s => s,
+        };
+        let mat = material.unwrap_or(o.material + mat0);
+        scene.add_object(&o.name, shape, transform * o.transform, mat);
+    }
+    if !sub.lights.is_empty() || !sub.cameras.is_empty() {
+        scene.warnings.push(format!(
+            "{file}: its lights and cameras are ignored (only its geometry and materials are used)"
+        ));
+    }
+    Ok(())
+}

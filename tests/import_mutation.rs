@@ -1,0 +1,146 @@
+//! Deterministic mutation testing of every parser entry point (the in-CI stand-in for the
+//! `cargo fuzz` targets under `fuzz/`): truncations and byte corruptions of real sample files must
+//! give `Ok` or `Err`, never a panic. Runs on a fixed time budget.
+
+mod common;
+
+use std::panic::AssertUnwindSafe;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// Total wall-clock budget, split evenly between the inputs.
+const BUDGET: Duration = Duration::from_secs(10);
+
+/// xorshift64*: tiny, deterministic, good enough to pick positions and bytes.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+/// The i-th mutant of `data`: alternately a truncation, a burst of random bytes, a run of 0xff
+/// (huge counts and offsets), or a digit/keyword edit for text formats.
+fn mutate(data: &[u8], i: u64, rng: &mut Rng) -> Vec<u8> {
+    let mut d = data.to_vec();
+    match i % 4 {
+        0 => d.truncate(rng.below(d.len())),
+        1 => {
+            for _ in 0..1 + rng.below(8) {
+                let p = rng.below(d.len());
+                if let Some(b) = d.get_mut(p) {
+                    *b = rng.next() as u8;
+                }
+            }
+        }
+        2 => {
+            let p = rng.below(d.len());
+            for k in p..(p + 4).min(d.len()) {
+                d[k] = 0xff;
+            }
+        }
+        _ => {
+            // Replace a digit with another (text formats: counts, indices, offsets).
+            let digits: Vec<usize> = (0..d.len()).filter(|&k| d[k].is_ascii_digit()).collect();
+            if !digits.is_empty() {
+                let p = digits[rng.below(digits.len())];
+                d[p] = b"0123456789-9e"[rng.below(13)];
+            }
+        }
+    }
+    d
+}
+
+type Parser = fn(&[u8], &Path) -> bool;
+
+fn run(name: &str, file: &Path, parse: Parser, budget: Duration) -> u64 {
+    let data = std::fs::read(file).unwrap();
+    let dir = file.parent().unwrap().to_path_buf();
+    // The unmodified file must load.
+    assert!(
+        parse(&data, &dir),
+        "{name}: the original file does not load"
+    );
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15 ^ data.len() as u64);
+    let start = Instant::now();
+    let mut i = 0u64;
+    while start.elapsed() < budget && i < 20_000 {
+        let m = mutate(&data, i, &mut rng);
+        let r = std::panic::catch_unwind(AssertUnwindSafe(|| parse(&m, &dir)));
+        assert!(
+            r.is_ok(),
+            "{name}: mutant {i} panicked (len {} of {})",
+            m.len(),
+            data.len()
+        );
+        i += 1;
+    }
+    i
+}
+
+#[test]
+fn parsers_never_panic_on_mutated_inputs() {
+    let gltf: Parser = |b, d| trayecto::scene::gltf::load_from_bytes(b, d, "m.gltf").is_ok();
+    let obj: Parser = |b, d| trayecto::scene::obj::load_from_bytes(b, d, "m.obj").is_ok();
+    let ply: Parser = |b, _| trayecto::scene::ply::load_from_bytes(b, "m.ply").is_ok();
+    let toml: Parser = |b, d| trayecto::scene::toml_scene::load_from_bytes(b, d, "m.toml").is_ok();
+    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/example.toml");
+    let inputs: Vec<(&str, std::path::PathBuf, Parser)> = vec![
+        (
+            "Box.glb",
+            common::scene_file("gltf/Box/glTF-Binary/Box.glb"),
+            gltf,
+        ),
+        (
+            "Box.gltf",
+            common::scene_file("gltf/Box/glTF/Box.gltf"),
+            gltf,
+        ),
+        (
+            "BoxTextured.glb",
+            common::scene_file("gltf/BoxTextured/glTF-Binary/BoxTextured.glb"),
+            gltf,
+        ),
+        (
+            "TextureCoordinateTest.gltf",
+            common::scene_file("gltf/TextureCoordinateTest/glTF/TextureCoordinateTest.gltf"),
+            gltf,
+        ),
+        (
+            "cornell_box.obj",
+            common::scene_file("obj/cornell-box-original-data/cornell_box.obj"),
+            obj,
+        ),
+        (
+            "bun_zipper_res4.ply",
+            common::scene_file("ply/stanford-bunny/bun_zipper_res4.ply"),
+            ply,
+        ),
+        ("example.toml", example, toml),
+    ];
+    // Keep panics quiet while probing: they are reported by the assertion instead.
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    std::panic::set_hook(hook);
+    let hook = std::panic::take_hook();
+    // (panics print; the assertion says which mutant)
+    let per = BUDGET / inputs.len() as u32;
+    let mut total = 0;
+    let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
+        for (name, file, parse) in &inputs {
+            total += run(name, file, *parse, per);
+        }
+    }));
+    std::panic::set_hook(hook);
+    if let Err(e) = result {
+        std::panic::resume_unwind(e);
+    }
+    eprintln!("{total} mutants parsed without a panic");
+    assert!(total > 100);
+}
