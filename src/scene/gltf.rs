@@ -68,19 +68,20 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 /// Loads a glTF document from memory; external files are looked up in `dir`. `label` names the
 /// file in messages. (Also the fuzzing entry point.)
 pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
+    // The `gltf` crate (1.4) can index out of bounds on malformed documents that pass its own
+    // validation (found by tests/import_mutation.rs, both while validating meshes and in
+    // `Image::source`). Contain any such panic as an error naming the file.
+    super::contain_panics(
+        label,
+        "not a valid glTF 2.0 file: its structure is inconsistent",
+        || load_from_bytes_unguarded(bytes, dir, label),
+    )
+}
+
+fn load_from_bytes_unguarded(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
     let err = |m: String| SceneError::invalid(label, m);
-    // gltf-json 1.4's validation can index out of bounds on malformed meshes (found by
-    // tests/import_mutation.rs): contain that as an error rather than crash.
-    let parsed = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes));
-    let gltf = match parsed {
-        Ok(r) => r.map_err(|e| err(format!("not a valid glTF 2.0 file: {e}")))?,
-        Err(_) => {
-            return Err(err(
-                "not a valid glTF 2.0 file: its structure is inconsistent (the parser rejected it)"
-                    .into(),
-            ));
-        }
-    };
+    let gltf = gltf::Gltf::from_slice(bytes)
+        .map_err(|e| err(format!("not a valid glTF 2.0 file: {e}")))?;
     let mut ld = Loader {
         doc: &gltf.document,
         dir,

@@ -6,11 +6,11 @@
 pub mod builtin;
 pub mod conventions;
 pub mod fbx;
-pub mod testscenes;
 pub mod gltf;
 pub mod image_io;
 pub mod obj;
 pub mod ply;
+pub mod testscenes;
 pub mod toml_scene;
 
 use std::path::Path;
@@ -439,5 +439,35 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
             spec,
             format!("unsupported scene format '.{other}'"),
         )),
+    }
+}
+
+thread_local! {
+    static SILENCE_PANICS: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs a loader step that calls into a third-party parser which may panic on hostile input
+/// (SPEC §7: never panic), turning a panic into a [`SceneError`] naming the file. The panic's
+/// own message is kept off the terminal: the error says what happened.
+pub(crate) fn contain_panics<T>(
+    label: &str,
+    message: &str,
+    f: impl FnOnce() -> Result<T, SceneError>,
+) -> Result<T, SceneError> {
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !SILENCE_PANICS.with(|s| s.get()) {
+                previous(info);
+            }
+        }));
+    });
+    SILENCE_PANICS.with(|s| s.set(true));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    SILENCE_PANICS.with(|s| s.set(false));
+    match result {
+        Ok(r) => r,
+        Err(_) => Err(SceneError::invalid(label, message)),
     }
 }
