@@ -105,6 +105,9 @@ pub struct RenderArgs {
     /// Render a scene without lights unlit instead of adding a white environment.
     #[arg(long)]
     pub no_default_light: bool,
+    /// Light the scene with an equirectangular environment map (.hdr or .exr).
+    #[arg(long, value_name = "FILE")]
+    pub env: Option<std::path::PathBuf>,
     /// Print only errors.
     #[arg(short, long)]
     pub quiet: bool,
@@ -150,6 +153,7 @@ impl RenderArgs {
             accel: self.accel,
             camera: self.camera.clone(),
             no_default_light: self.no_default_light,
+            env: self.env.clone(),
         }
     }
 }

@@ -10,10 +10,12 @@ use crate::geometry::quad::Quad;
 use crate::geometry::sphere::Sphere;
 use crate::geometry::triangle::TriangleVerts;
 use crate::geometry::{Bounds3, GeometryStore, PrimRef, PrimitiveKind, Ray};
-use crate::light::{Light, LightSet};
+use crate::light::{EnvMap, Light, LightSet};
 use crate::material::{Material, Texture};
 use crate::math::{Mat3, Vec3, Vec4, transform_normal};
 use crate::scene::{CameraDesc, LightDesc, Scene, SceneError, Shape};
+use std::path::Path;
+use std::sync::Arc;
 
 /// Options that shape the world but are not part of the scene file.
 #[derive(Clone, Debug, Default)]
@@ -23,6 +25,8 @@ pub struct WorldOptions {
     pub camera: Option<String>,
     /// `--no-default-light`: leave a scene without lights unlit.
     pub no_default_light: bool,
+    /// `--env FILE`: an equirectangular environment map lighting the scene.
+    pub env: Option<std::path::PathBuf>,
 }
 
 pub struct World {
@@ -203,16 +207,32 @@ impl World {
                 LightDesc::Ambient { radiance, .. } => lights.push(Light::Uniform {
                     radiance: *radiance,
                 }),
-                LightDesc::Environment { name, path, .. } => {
-                    return Err(SceneError::invalid(
-                        &label,
-                        format!(
-                            "environment light '{name}' ({}) needs environment-map support, which is not built yet",
-                            path.display()
-                        ),
-                    ));
+                LightDesc::Environment {
+                    name,
+                    path,
+                    scale,
+                    transform,
+                } => {
+                    // Relative paths are relative to the scene file.
+                    let path = match (&scene.source, path.is_relative()) {
+                        (Some(src), true) => src.parent().unwrap_or(Path::new(".")).join(path),
+                        _ => path.clone(),
+                    };
+                    let map =
+                        EnvMap::load(&path, *scale, Mat3::from_mat4(*transform)).map_err(|e| {
+                            SceneError::invalid(
+                                &label,
+                                format!("environment light '{name}' ({}): {e}", path.display()),
+                            )
+                        })?;
+                    lights.push(Light::Environment { map: Arc::new(map) });
                 }
             }
+        }
+        if let Some(path) = &options.env {
+            let map = EnvMap::load(path, Vec3::ONE, Mat3::IDENTITY)
+                .map_err(|e| SceneError::invalid(path.display(), e))?;
+            lights.push(Light::Environment { map: Arc::new(map) });
         }
         if lights.is_empty() {
             if options.no_default_light {

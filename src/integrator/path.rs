@@ -104,6 +104,7 @@ fn continue_path(
     let mut depth = 0u32;
     loop {
         let material = &world.materials[hit.material as usize];
+        crate::material::normal_map::apply_normal_map(material, &world.textures, &mut hit);
         let bsdf = Bsdf::from_material(material, &world.textures, &hit);
         let (ng, ns) = oriented_normals(&hit, wo, bsdf.is_transmissive());
         let frame = Frame::from_normal_tangent(ns, hit.tangent);

@@ -8,6 +8,10 @@ use crate::material::bsdf::emitted;
 use crate::material::{Material, Texture};
 use crate::math::{PI, Vec2, Vec3, luminance};
 use crate::sampling::{Distribution1D, warp};
+use std::sync::Arc;
+
+pub mod envmap;
+pub use envmap::EnvMap;
 
 #[derive(Clone, Debug)]
 pub enum Light {
@@ -37,12 +41,19 @@ pub enum Light {
     Uniform {
         radiance: Vec3,
     },
+    /// An importance-sampled equirectangular environment map.
+    Environment {
+        map: Arc<EnvMap>,
+    },
 }
 
 impl Light {
     /// True for lights at infinity, which rays that escape the scene can "hit".
     pub fn is_infinite(&self) -> bool {
-        matches!(self, Light::Uniform { .. } | Light::Directional { .. })
+        matches!(
+            self,
+            Light::Uniform { .. } | Light::Directional { .. } | Light::Environment { .. }
+        )
     }
 
     /// True for lights that no BSDF sample can hit (points, spots, directions).
@@ -221,6 +232,10 @@ impl LightSet {
                 Light::Uniform { radiance } => {
                     4.0 * PI * PI * scene_radius * scene_radius * luminance(*radiance)
                 }
+                // Like a uniform environment of the map's mean radiance.
+                Light::Environment { map } => {
+                    4.0 * PI * PI * scene_radius * scene_radius * map.mean_luminance
+                }
             })
             .collect();
         let infinite = lights
@@ -368,6 +383,21 @@ impl LightSet {
                     shadow,
                 })
             }
+            Light::Environment { map } => {
+                let (wi, li, pdf) = map.sample(u)?;
+                if li == Vec3::ZERO {
+                    return None;
+                }
+                let shadow = Ray::spawn(p, hit.p_error, n_offset, wi);
+                Some(LightSample {
+                    wi,
+                    li,
+                    pdf,
+                    pmf,
+                    delta: false,
+                    shadow,
+                })
+            }
         }
     }
 
@@ -400,12 +430,18 @@ impl LightSet {
         let mut l = Vec3::ZERO;
         let mut pdf = 0.0;
         for &i in &self.infinite {
-            if let Light::Uniform { radiance } = &self.lights[i as usize] {
-                l += *radiance;
-                pdf += self.pmf(i) * warp::UNIFORM_SPHERE_PDF;
+            match &self.lights[i as usize] {
+                Light::Uniform { radiance } => {
+                    l += *radiance;
+                    pdf += self.pmf(i) * warp::UNIFORM_SPHERE_PDF;
+                }
+                Light::Environment { map } => {
+                    l += map.eval(d);
+                    pdf += self.pmf(i) * map.pdf(d);
+                }
+                _ => {}
             }
         }
-        let _ = d;
         (l, pdf)
     }
 }

@@ -4,6 +4,7 @@
 
 pub mod bsdf;
 pub mod microfacet;
+pub mod normal_map;
 pub mod texture;
 
 pub use bsdf::Bsdf;

@@ -1,0 +1,104 @@
+//! Tangent-space normal mapping (glTF `normalTexture`; thesis §5.3.3): the shading frame at a hit
+//! is rebuilt from the texel, n' = normalize(T·x·s + B·y·s + N·z) with (x, y, z) = 2·texel − 1,
+//! s the normal scale, T the mesh tangent (or ∂p/∂u when the mesh has none) and
+//! B = (N × T)·w the bitangent with the tangent's handedness w.
+
+use super::Material;
+use super::Texture;
+use super::bsdf::sample_texture;
+use crate::geometry::SurfaceHit;
+use crate::math::Vec3;
+
+/// Replaces `hit.ns` and `hit.tangent` by the normal-mapped shading frame. Leaves the hit
+/// unchanged when the material has no normal map or the result would be degenerate or face away
+/// from the geometric normal (which would let light leak through the surface).
+#[inline]
+pub fn apply_normal_map(material: &Material, textures: &[Texture], hit: &mut SurfaceHit) {
+    let Some(t) = &material.normal_texture else {
+        return;
+    };
+    let c = sample_texture(textures, t, hit).truncate() * 2.0 - Vec3::ONE;
+    let c = Vec3::new(
+        c.x * material.normal_scale,
+        c.y * material.normal_scale,
+        c.z,
+    );
+    let n = hit.ns;
+    let tangent = (hit.tangent - n * n.dot(hit.tangent)).normalize_or_zero();
+    if tangent == Vec3::ZERO {
+        return;
+    }
+    let sign = if hit.bitangent_sign < 0.0 { -1.0 } else { 1.0 };
+    let bitangent = n.cross(tangent) * sign;
+    let p = (tangent * c.x + bitangent * c.y + n * c.z).normalize_or_zero();
+    if p == Vec3::ZERO || !p.is_finite() || p.dot(hit.ng) <= 0.0 {
+        return;
+    }
+    hit.ns = p;
+    hit.tangent = (tangent - p * p.dot(tangent)).normalize_or_zero();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{PrimRef, PrimitiveKind};
+    use crate::material::TextureRef;
+    use crate::math::{Vec2, Vec4};
+
+    fn hit() -> SurfaceHit {
+        SurfaceHit {
+            t: 1.0,
+            p: Vec3::ZERO,
+            p_error: Vec3::ZERO,
+            ng: Vec3::Z,
+            ns: Vec3::Z,
+            tangent: Vec3::X,
+            bitangent_sign: 1.0,
+            uv: [Vec2::ZERO; 2],
+            color: Vec4::ONE,
+            material: 0,
+            light: u32::MAX,
+            prim: PrimRef::new(PrimitiveKind::Sphere, 0),
+        }
+    }
+
+    fn material(texel: Vec4) -> (Material, Vec<Texture>) {
+        let m = Material {
+            normal_texture: Some(TextureRef::new(0)),
+            ..Default::default()
+        };
+        (m, vec![Texture::constant("n", texel)])
+    }
+
+    #[test]
+    fn flat_normal_map_is_identity() {
+        let (m, t) = material(Vec4::new(0.5, 0.5, 1.0, 1.0));
+        let mut h = hit();
+        apply_normal_map(&m, &t, &mut h);
+        assert!((h.ns - Vec3::Z).length() < 1e-6);
+    }
+
+    #[test]
+    fn tilted_texel_tilts_along_tangent_and_bitangent() {
+        // (x, y, z) = (0.6, 0, 0.8): tilted toward +T.
+        let (m, t) = material(Vec4::new(0.8, 0.5, 0.9, 1.0));
+        let mut h = hit();
+        apply_normal_map(&m, &t, &mut h);
+        assert!(
+            (h.ns - Vec3::new(0.6, 0.0, 0.8)).length() < 1e-5,
+            "{:?}",
+            h.ns
+        );
+        assert!(h.tangent.dot(h.ns).abs() < 1e-5);
+        // Negative handedness mirrors the bitangent.
+        let (m, t) = material(Vec4::new(0.5, 0.8, 0.9, 1.0));
+        let mut h = hit();
+        h.bitangent_sign = -1.0;
+        apply_normal_map(&m, &t, &mut h);
+        assert!(
+            (h.ns - Vec3::new(0.0, -0.6, 0.8)).length() < 1e-5,
+            "{:?}",
+            h.ns
+        );
+    }
+}
