@@ -39,7 +39,7 @@ fn rms(a: &Image, b: &Image) -> f64 {
 }
 
 #[test]
-#[ignore = "needs the glTF loader (issue 8); the lead enables it at merge"]
+
 fn fbx_and_glb_twins_render_the_same_image() {
     let fbx = shared_scene("fbx/cornell_seed_conventions.fbx");
     let glb = shared_scene("fbx/cornell_seed_conventions.glb");

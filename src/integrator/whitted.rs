@@ -256,6 +256,13 @@ pub fn shade_local(
                 l += surf.diffuse() * *radiance * surf.occlusion;
                 continue;
             }
+            // An environment map acts as an ambient term here, with the radiance the map has
+            // along the shading normal (a cheap stand-in for its irradiance: Whitted mode has no
+            // hemisphere integration).
+            Light::Environment { map } => {
+                l += surf.diffuse() * map.eval(ns) * surf.occlusion;
+                continue;
+            }
             Light::Point {
                 position,
                 intensity,
