@@ -78,23 +78,28 @@ impl EnvMap {
             .collect();
         let mut rows = Vec::with_capacity(h as usize);
         let mut row_weights = Vec::with_capacity(h as usize);
-        let mut total = 0.0f64;
+        // ∫ L dω with each row's exact solid angle Δφ·(cos θ0 − cos θ1) (the sampling weights
+        // below use sin θ at the row centre, which only needs to be proportional).
+        let mut integral = 0.0f64;
         for y in 0..h as usize {
+            let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
+            let row_omega = (2.0 * PI / w as f32) as f64 * (t0.cos() - t1.cos()) as f64;
             let sin_theta = (PI * (y as f32 + 0.5) / h as f32).sin();
             let weights: Vec<f32> = (0..w as usize)
                 .map(|x| luminance(texels[y * w as usize + x] * scale).max(0.0) * sin_theta)
                 .collect();
             let sum: f64 = weights.iter().map(|&v| v as f64).sum();
-            total += sum;
+            let lum_sum: f64 = (0..w as usize)
+                .map(|x| luminance(texels[y * w as usize + x] * scale).max(0.0) as f64)
+                .sum();
+            integral += lum_sum * row_omega;
             // The marginal needs each row's true mean, which Distribution1D replaces by 1 for an
             // all-zero row; compute it here.
             row_weights.push((sum / w as f64) as f32);
             rows.push(Distribution1D::new(&weights));
         }
         let marginal = Distribution1D::new(&row_weights);
-        // ∫ L dω ≈ Σ L sin θ Δθ Δφ, divided by 4π.
-        let d_omega = (PI / h as f32) * (2.0 * PI / w as f32);
-        let mean_luminance = (total as f32 * d_omega) / (4.0 * PI);
+        let mean_luminance = (integral / (4.0 * PI as f64)) as f32;
         let to_local = to_world.inverse();
         EnvMap {
             width: w,

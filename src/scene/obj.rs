@@ -150,6 +150,14 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
         scene.add_object(&model.name, Shape::Mesh(mesh), Mat4::IDENTITY, material);
     }
     apply_material_conventions(&mut scene);
+    if scene.triangle_count() == 0 {
+        // Plain text parses as an OBJ of unknown statements; a file without a single face is
+        // not a scene, and saying so beats rendering an empty image.
+        return Err(SceneError::invalid(
+            label,
+            "no faces found: this is not an OBJ mesh",
+        ));
+    }
     scene.validate()?;
     Ok(scene)
 }
