@@ -92,7 +92,8 @@ test("an invalid field shows its message, and fixing it clears it", async () => 
 
 test("a render shows a preview that refines before it finishes, then downloads as PNG", async () => {
   await openPage();
-  await fill({ scene: "cornell", output: "e2e-progressive", width: 64, height: 48, spp: 128,
+  // Large enough to take a few seconds even on a fast, idle machine, so several passes are seen.
+  await fill({ scene: "cornell", output: "e2e-progressive", width: 160, height: 120, spp: 1024,
     secondary: 1, max_depth: 8, exposure: 1 });
   await page.click("#start");
   const seen = [];
@@ -118,7 +119,7 @@ test("a render shows a preview that refines before it finishes, then downloads a
   const [download] = await Promise.all([page.waitForEvent("download"), page.click("#dl-png")]);
   assert.equal(download.suggestedFilename(), "e2e-progressive.png");
   const buf = fs.readFileSync(await download.path());
-  assert.deepEqual(pngSize(buf), [64, 48]);
+  assert.deepEqual(pngSize(buf), [160, 120]);
   // It is listed among the recent renders.
   await page.waitForSelector("#recent li:has-text('e2e-progressive')");
 });
