@@ -159,11 +159,7 @@ impl World {
                         std::mem::swap(&mut a, &mut b);
                     }
                     g.quads.push(AnalyticPrim {
-                        shape: Quad {
-                            corner: c,
-                            e1: a,
-                            e2: b,
-                        },
+                        shape: Quad::new(c, a, b),
                         material,
                         light: NO_LIGHT,
                     });

@@ -129,11 +129,7 @@ impl Cuboid {
         let (lo, hi) = (self.local.min, self.local.max);
         let m = &self.object_to_world;
         let p = |x: f32, y: f32, z: f32| m.transform_point3(Vec3::new(x, y, z));
-        let quad = |c: Vec3, a: Vec3, b: Vec3| super::quad::Quad {
-            corner: c,
-            e1: a - c,
-            e2: b - c,
-        };
+        let quad = |c: Vec3, a: Vec3, b: Vec3| super::quad::Quad::new(c, a - c, b - c);
         let mut faces = [
             quad(
                 p(lo.x, lo.y, lo.z),
@@ -169,7 +165,7 @@ impl Cuboid {
         // A mirroring transform flips e1 × e2 inwards; swap the edges to keep normals outward.
         if Mat3::from_mat4(*m).determinant() < 0.0 {
             for f in &mut faces {
-                std::mem::swap(&mut f.e1, &mut f.e2);
+                *f = super::quad::Quad::new(f.corner, f.e2, f.e1);
             }
         }
         faces

@@ -113,25 +113,9 @@ fn sample_area_point(geometry: &GeometryStore, prim: PrimRef, u: Vec2) -> Surfac
     match prim.kind() {
         PrimitiveKind::Triangle => {
             let (b1, b2) = warp::uniform_triangle(u);
-            let isect = crate::geometry::primitive::Intersection {
-                t: 0.0,
-                prim,
-                u: b1,
-                v: b2,
-            };
-            let ray = Ray::new(Vec3::ZERO, Vec3::Z);
-            hit = geometry.surface_hit(&ray, &isect);
+            geometry.emitter_point(prim, b1, b2, &mut hit);
         }
-        PrimitiveKind::Quad => {
-            let isect = crate::geometry::primitive::Intersection {
-                t: 0.0,
-                prim,
-                u: u.x,
-                v: u.y,
-            };
-            let ray = Ray::new(Vec3::ZERO, Vec3::Z);
-            hit = geometry.surface_hit(&ray, &isect);
-        }
+        PrimitiveKind::Quad => geometry.emitter_point(prim, u.x, u.y, &mut hit),
         PrimitiveKind::Sphere => {
             let s = &geometry.spheres[i].shape;
             let n = warp::uniform_sphere(u);
@@ -147,7 +131,7 @@ fn sample_area_point(geometry: &GeometryStore, prim: PrimRef, u: Vec2) -> Surfac
         PrimitiveKind::Cuboid => {
             // Pick a face in proportion to area, reusing u.x rescaled.
             let faces = geometry.cuboids[i].shape.faces();
-            let areas: Vec<f32> = faces.iter().map(|f| f.area()).collect();
+            let areas = faces.map(|f| f.area());
             let total: f32 = areas.iter().sum();
             let mut target = u.x * total;
             let mut k = 0;
