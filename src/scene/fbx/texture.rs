@@ -1,5 +1,5 @@
-//! Image files referenced by FBX textures (a local helper; the other loaders share
-//! `scene::image_io`, and the two are to be unified).
+//! Where FBX textures live. Decoding and the magenta fallback are shared with the other loaders
+//! (`scene::image_io`); what is FBX-specific is finding the file.
 //!
 //! FBX stores a texture's path twice: `FileName`, usually absolute on the author's machine, and
 //! `RelativeFilename`, relative to the .fbx. Both are tried, then the bare file name next to the
@@ -7,42 +7,17 @@
 //! `Content`) are decoded from memory. Colour maps are sRGB-decoded to linear; data maps (normal
 //! maps) stay linear.
 
-use crate::material::texture::{FilterMode, Texture, WrapMode, srgb_to_linear};
-use crate::math::Vec4;
+use crate::material::texture::Texture;
 use std::path::{Component, Path, PathBuf};
 
 /// What went wrong resolving a texture; the caller turns it into a warning and a fallback.
 pub type TextureResult = Result<Texture, String>;
 
-/// Decodes image bytes to a linear RGBA texture.
+/// Decodes image bytes (embedded or read from a file) to a linear RGBA texture, with the same
+/// size limits and colour handling as every other loader.
 pub fn decode(name: &str, bytes: &[u8], srgb: bool) -> TextureResult {
-    let img = image::load_from_memory(bytes).map_err(|e| format!("cannot decode '{name}': {e}"))?;
-    let float_source = matches!(
-        img.color(),
-        image::ColorType::Rgb32F | image::ColorType::Rgba32F
-    );
-    let rgba = img.to_rgba32f();
-    let (width, height) = rgba.dimensions();
-    let texels = rgba
-        .pixels()
-        .map(|p| {
-            let [r, g, b, a] = p.0;
-            if srgb && !float_source {
-                Vec4::new(srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a)
-            } else {
-                Vec4::new(r, g, b, a)
-            }
-        })
-        .collect();
-    Ok(Texture {
-        name: name.to_string(),
-        width,
-        height,
-        texels,
-        wrap_s: WrapMode::Repeat,
-        wrap_t: WrapMode::Repeat,
-        filter: FilterMode::Bilinear,
-    })
+    crate::scene::image_io::decode_texture(name, bytes, srgb)
+        .map_err(|e| format!("cannot decode '{name}': {e}"))
 }
 
 /// Lexically normalises a relative path; `None` if it climbs out of its base (`..` past the top)
@@ -149,14 +124,15 @@ pub fn load(
     decode(name, &bytes, srgb)
 }
 
-/// The visible stand-in for a missing colour texture: magenta, as in most renderers.
+/// The visible stand-in for a missing colour texture: the shared magenta fallback.
 pub fn missing(name: &str) -> Texture {
-    Texture::constant(&format!("{name} (missing)"), Vec4::new(1.0, 0.0, 1.0, 1.0))
+    crate::scene::image_io::missing_texture(name)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material::texture::srgb_to_linear;
 
     #[test]
     fn paths_escaping_the_scene_folder_are_refused() {
