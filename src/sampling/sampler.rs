@@ -154,7 +154,12 @@ impl SampleStream {
                 let cells = nx * ny;
                 let h = self.dim_hash(d);
                 let cell = permute_masked(self.sample_mod, cells, h as u32, self.mask_2d);
-                let (cx, cy) = (cell % nx, cell / nx);
+                // nx is a power of two for the usual square sample counts: shift, don't divide.
+                let (cx, cy) = if nx.is_power_of_two() {
+                    (cell & (nx - 1), cell >> nx.trailing_zeros())
+                } else {
+                    (cell % nx, cell / nx)
+                };
                 // One 64-bit hash gives both jitters (24 bits each).
                 let j = mix64(h ^ self.sample_mix[1]);
                 let jx = u32_to_unit_f32(j as u32);
@@ -217,7 +222,9 @@ fn permute_masked(mut i: u32, l: u32, p: u32, w: u32) -> u32 {
             break;
         }
     }
-    (i.wrapping_add(p)) % l
+    let j = i.wrapping_add(p);
+    // `w + 1 == l` exactly when l is a power of two: a mask instead of a division.
+    if w.wrapping_add(1) == l { j & w } else { j % l }
 }
 
 #[cfg(test)]
