@@ -358,8 +358,23 @@ fn select_camera(
     Ok(auto_camera(bounds))
 }
 
-/// A camera that frames `bounds` from the +z side with a 39.6° vertical field of view.
+/// The automatic camera, as model viewers frame a model (the Khronos sample viewer, Blender's
+/// glTF preview): it looks down −z at the centre of the bounds from the distance where the bounding
+/// sphere fits the vertical field of view of 39.6°. A model that is flat in y (a ground sheet such
+/// as TwoSidedPlane, extent in y under 1 % of its largest extent) would be seen edge-on from there,
+/// i.e. not at all, so it is seen from 30° above instead.
 pub fn auto_camera(bounds: Bounds3) -> CameraDesc {
+    let flat_in_y = !bounds.is_empty() && {
+        let e = bounds.max - bounds.min;
+        e.y <= 0.01 * e.max_element()
+    };
+    orbit_camera(bounds, 0.0, if flat_in_y { 30.0 } else { 0.0 })
+}
+
+/// A camera on the bounding sphere's fitting distance around the bounds' centre, `yaw_deg` about
+/// +y from +z (positive towards +x) and `pitch_deg` above the horizon, looking at the centre with
+/// +y up and a 39.6° vertical field of view. `orbit_camera(b, 0, 0)` looks down −z.
+pub fn orbit_camera(bounds: Bounds3, yaw_deg: f32, pitch_deg: f32) -> CameraDesc {
     let (center, radius) = if bounds.is_empty() {
         (Vec3::ZERO, 1.0)
     } else {
@@ -367,8 +382,18 @@ pub fn auto_camera(bounds: Bounds3) -> CameraDesc {
         (c, r.max(1e-4))
     };
     let vfov: f32 = 39.6;
+    // The sphere of radius r is tangent to the view cone at distance r / sin(fov/2); 5 % margin.
     let dist = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
-    let eye = center + Vec3::new(0.0, 0.0, dist);
+    let (yaw, pitch) = (
+        yaw_deg.to_radians(),
+        pitch_deg.clamp(-89.0, 89.0).to_radians(),
+    );
+    let dir = Vec3::new(
+        yaw.sin() * pitch.cos(),
+        pitch.sin(),
+        yaw.cos() * pitch.cos(),
+    );
+    let eye = center + dir * dist;
     let mut cam = CameraDesc::look_at("auto", eye, center, Vec3::Y, vfov);
     cam.focus_distance = dist;
     cam
