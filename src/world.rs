@@ -253,10 +253,13 @@ impl World {
         }
 
         let bounds = g.scene_bounds();
-        let camera = select_camera(scene, options, bounds, &label)?;
         let accel_start = std::time::Instant::now();
         let accel = Accel::build(options.accel, &g);
         let accel_build_time = accel_start.elapsed();
+        let mut camera = select_camera(scene, options, bounds, &label)?;
+        if scene.cameras.is_empty() && options.camera.is_none() {
+            camera = face_the_front(camera, bounds, &accel, &g);
+        }
         let lights = LightSet::new(lights, &g, &scene.materials, &scene.textures, bounds);
         Ok(World {
             geometry: g,
@@ -356,6 +359,61 @@ fn select_camera(
         return Ok(c.clone());
     }
     Ok(auto_camera(bounds))
+}
+
+/// The automatic camera sees the model from +z. Most models face +z (glTF's front), but a room
+/// modelled to be seen from −z, such as the original Cornell box data (camera at z = −800 mm,
+/// open side at z = 0), would show only the back of its back wall. So 9 × 9 rays of the automatic
+/// view are traced: if most of what they hit are back faces, the camera moves to the opposite side.
+fn face_the_front(
+    camera: CameraDesc,
+    bounds: Bounds3,
+    accel: &Accel,
+    g: &GeometryStore,
+) -> CameraDesc {
+    const N: usize = 9;
+    let count_back = |cam: &CameraDesc| {
+        let eye = cam.camera_to_world.transform_point3(Vec3::ZERO);
+        let (c, r) = bounds.bounding_sphere();
+        let right = cam
+            .camera_to_world
+            .transform_vector3(Vec3::X)
+            .normalize_or_zero();
+        let up = cam
+            .camera_to_world
+            .transform_vector3(Vec3::Y)
+            .normalize_or_zero();
+        let (mut back, mut hits) = (0, 0);
+        for i in 0..N {
+            for j in 0..N {
+                let s = (i as f32 + 0.5) / N as f32 * 2.0 - 1.0;
+                let t = (j as f32 + 0.5) / N as f32 * 2.0 - 1.0;
+                let target = c + (right * s + up * t) * (0.7 * r);
+                let ray = Ray::new(eye, target - eye);
+                if let Some(i) = accel.intersect(g, &ray) {
+                    let hit = g.surface_hit(&ray, &i);
+                    hits += 1;
+                    back += usize::from(hit.ng.dot(ray.d) > 0.0);
+                }
+            }
+        }
+        (back, hits)
+    };
+    if bounds.is_empty() {
+        return camera;
+    }
+    let (back, hits) = count_back(&camera);
+    if hits == 0 || back * 2 <= hits {
+        return camera;
+    }
+    let behind = orbit_camera(bounds, 180.0, 0.0);
+    let (back2, hits2) = count_back(&behind);
+    // Only if the other side is better: a closed model seen from anywhere shows front faces.
+    if back2 * hits < back * hits2 {
+        behind
+    } else {
+        camera
+    }
 }
 
 /// The automatic camera, as model viewers frame a model (the Khronos sample viewer, Blender's

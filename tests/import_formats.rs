@@ -48,16 +48,94 @@ fn obj_cornell_box_loads_with_its_materials_and_renders() {
     let red = scene.materials.iter().find(|m| m.name == "red").unwrap();
     assert_eq!(red.base_color, Vec3::new(1.0, 0.0, 0.0));
     assert!(scene.triangle_count() >= 30, "{}", scene.triangle_count());
-    // Its light uses Ka, which is not emission in MTL: said in a warning.
+    let b = scene.bounds();
+    assert!(b.max.x > 500.0 && b.max.y > 500.0, "millimetres: {b:?}");
+}
+
+/// The light of cornell_box.mtl is `Ka 20 20 20` with no `Ke` (the legacy convention): it emits,
+/// with a warning, and the box renders lit by it alone, seen through its open side (the automatic
+/// camera turns to −z, where the front faces are): the ceiling light is the brightest thing in
+/// view, the red wall on the left and the green wall on the right, as in the original photograph.
+#[test]
+fn obj_cornell_box_is_lit_by_its_own_light() {
+    let p = common::scene_file("obj/cornell-box-original-data/cornell_box.obj");
+    let scene = trayecto::scene::load(p.to_str().unwrap()).unwrap();
+    let light = scene.materials.iter().find(|m| m.name == "light").unwrap();
+    assert_eq!(light.emissive, Vec3::splat(20.0));
     assert!(
-        scene.warnings.iter().any(|w| w.contains("Ka")),
+        scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("Ka") && w.contains("emitted radiance")),
         "{:?}",
         scene.warnings
     );
-    let b = scene.bounds();
-    assert!(b.max.x > 500.0 && b.max.y > 500.0, "millimetres: {b:?}");
-    let img = render_small(&scene, 32, 2);
-    assert!(mean(&img).max_element() > 1e-3);
+    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    // Lit by its own light: no default environment was added.
+    assert!(
+        world.area_light_count() >= 2,
+        "{}",
+        world.area_light_count()
+    );
+    assert!(
+        !world.warnings.iter().any(|w| w.contains("no lights")),
+        "{:?}",
+        world.warnings
+    );
+    let n = 48usize;
+    let settings = RenderSettings {
+        width: n as u32,
+        height: n as u32,
+        spp: 16,
+        seed: 7,
+        ..Default::default()
+    };
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    let img = render(&world, &settings, &NoObserver, &cancel)
+        .unwrap()
+        .image;
+    let px = |x: usize, y: usize| img.data[y * n + x];
+    // The brightest pixel is the light (radiance 20), in the top third, near the middle.
+    let (bi, bv) = img
+        .data
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.x.total_cmp(&b.1.x))
+        .unwrap();
+    let (bx, by) = (bi % n, bi / n);
+    assert!(bv.min_element() > 10.0, "brightest {bv}");
+    assert!(
+        by < n / 3 && bx.abs_diff(n / 2) < n / 6,
+        "light seen at ({bx}, {by})"
+    );
+    // Walls at mid-height: the left strip is red, the right strip green.
+    let strip = |x0: usize, x1: usize| {
+        let mut s = Vec3::ZERO;
+        for y in n / 3..2 * n / 3 {
+            for x in x0..x1 {
+                s += px(x, y);
+            }
+        }
+        s / ((x1 - x0) * (n / 3)) as f32
+    };
+    // The box fills the middle of the frame (the camera fits its bounding sphere): its walls are
+    // the outer 12 % of the lit span of the middle row.
+    let lit: Vec<usize> = (0..n)
+        .filter(|&x| px(x, n / 2).max_element() > 0.0)
+        .collect();
+    let (x0, x1) = (lit[0], lit[lit.len() - 1] + 1);
+    let k = (x1 - x0) * 12 / 100;
+    let (left, right) = (strip(x0, x0 + k), strip(x1 - k, x1));
+    assert!(
+        left.x > 3.0 * left.y && left.x > 3.0 * left.z,
+        "left wall {left}"
+    );
+    assert!(
+        right.y > 3.0 * right.x && right.y > 3.0 * right.z,
+        "right wall {right}"
+    );
+    // Lit, but far from the light's radiance: the walls' level is set by the light alone.
+    assert!(left.x > 0.05 && left.x < 10.0, "left wall {left}");
 }
 
 #[test]
