@@ -539,3 +539,154 @@ fn every_sample_model_matches_its_screenshot() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// Writes a linear image as an sRGB PNG when `TRAYECTO_SAMPLES_DUMP` is set.
+fn dump_image(name: &str, img: &Image) {
+    let Some(d) = std::env::var_os("TRAYECTO_SAMPLES_DUMP").map(PathBuf::from) else {
+        return;
+    };
+    std::fs::create_dir_all(&d).unwrap();
+    let mut out = image::RgbImage::new(img.width, img.height);
+    for (i, c) in img.data.iter().enumerate() {
+        out.put_pixel(
+            i as u32 % img.width,
+            i as u32 / img.width,
+            image::Rgb([to_srgb8(c.x), to_srgb8(c.y), to_srgb8(c.z)]),
+        );
+    }
+    out.save(d.join(format!("{name}.png"))).unwrap();
+}
+
+fn sample_scene(model: &str) -> trayecto::scene::Scene {
+    let p = common::shared_scene(&format!("gltf/{model}/glTF/{model}.gltf"));
+    trayecto::scene::load(p.to_str().unwrap()).unwrap()
+}
+
+/// NormalTangentTest (README): "All of the test blocks show similar reflections": each pair of
+/// cells, real bumps on the left and a normal-mapped flat quad on the right, must look lit from
+/// the same direction. Lit by a directional light from above (and a little from the front), the
+/// upper half of every bump is brighter than its lower half, in every cell.
+#[test]
+fn normal_tangent_test_bumps_are_lit_from_the_same_side() {
+    bumps_are_lit_from_the_upper_right("NormalTangentTest");
+}
+
+fn bumps_are_lit_from_the_upper_right(model: &str) {
+    let mut scene = sample_scene(model);
+    // Matte everywhere, so a single light shows the shape of every bump (a metal would show only
+    // a highlight); the normal maps, what the model tests, are kept.
+    for m in &mut scene.materials {
+        m.metallic = 0.0;
+        m.roughness = 1.0;
+    }
+    scene.lights.push(trayecto::scene::LightDesc::Directional {
+        name: "sun".into(),
+        // Travelling down, left and into the scene: light from the upper right, in front.
+        direction: Vec3::new(-0.6, -1.0, -0.8).normalize(),
+        irradiance: Vec3::splat(3.0),
+    });
+    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    let settings = RenderSettings {
+        width: 240,
+        height: 240,
+        spp: 4,
+        // Direct light only: the directional light is a delta light, sampled exactly.
+        path: trayecto::integrator::path::PathSettings {
+            max_depth: 1,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let img = common::render_world(&world, &settings);
+    dump_image(&format!("{model}_lit"), &img);
+    let n = 240usize;
+    let lum = |x: usize, y: usize| {
+        let c = img.data[y * n + x];
+        0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+    };
+    // The panels: runs of lit columns and rows (the background is black), separated by gaps.
+    let runs = |count: &dyn Fn(usize) -> usize, min: usize| {
+        let mut out = Vec::new();
+        let mut start = None;
+        for i in 0..=n {
+            let on = i < n && count(i) >= min;
+            match (on, start) {
+                (true, None) => start = Some(i),
+                (false, Some(s)) => {
+                    out.push((s, i));
+                    start = None;
+                }
+                _ => {}
+            }
+        }
+        out
+    };
+    let lit = |x: usize, y: usize| lum(x, y) > 1e-3;
+    // Rows first (the label row under the panels is much narrower: at least 40 % of the widest).
+    let row_count = |y: usize| (0..n).filter(|&x| lit(x, y)).count();
+    let widest = (0..n).map(row_count).max().unwrap();
+    let rows: Vec<(usize, usize)> = runs(&row_count, widest * 2 / 5)
+        .into_iter()
+        .filter(|r| r.1 - r.0 > 4)
+        .collect();
+    let (y0, y1) = (rows[0].0, rows[rows.len() - 1].1);
+    let col_count = |x: usize| (y0..y1).filter(|&y| lit(x, y)).count();
+    // A panel's two cells may show a thin dark seam between them: runs closer than 4 pixels are
+    // one panel.
+    let mut cols: Vec<(usize, usize)> = Vec::new();
+    for r in runs(&col_count, (y1 - y0) / 3) {
+        match cols.last_mut() {
+            Some(last) if r.0 - last.1 < 4 => last.1 = r.1,
+            _ => cols.push(r),
+        }
+    }
+    assert_eq!(
+        (rows.len(), cols.len()),
+        (5, 3),
+        "rows {rows:?} columns {cols:?}"
+    );
+    let mut bad = Vec::new();
+    for (r, &(ry0, ry1)) in rows.iter().enumerate() {
+        for (c, &(cx0, cx1)) in cols.iter().enumerate() {
+            // Each panel: real bump on the left half, normal-mapped quad on the right half.
+            let half = (cx1 - cx0) / 2;
+            for (k, hx0) in [cx0, cx0 + half].into_iter().enumerate() {
+                // The bump fills the middle of its cell: compare the halves of the central 60 %.
+                let (w, h) = (half, ry1 - ry0);
+                let (bx0, bx1) = (hx0 + w / 5, hx0 + w * 4 / 5);
+                let (by0, by1) = (ry0 + h / 5, ry0 + h * 4 / 5);
+                let mean = |xa: usize, xb: usize, ya: usize, yb: usize| {
+                    let mut s = 0.0;
+                    for y in ya..yb {
+                        for x in xa..xb {
+                            s += lum(x, y);
+                        }
+                    }
+                    s / ((xb - xa) * (yb - ya)) as f32
+                };
+                let (mx, my) = ((bx0 + bx1) / 2, (by0 + by1) / 2);
+                let upper = mean(bx0, bx1, by0, my);
+                let lower = mean(bx0, bx1, my, by1);
+                let left = mean(bx0, mx, by0, by1);
+                let right = mean(mx, bx1, by0, by1);
+                let what = if k == 0 { "geometry" } else { "normal map" };
+                eprintln!(
+                    "row {r} column {c} {what:10}: upper/lower {:.2} right/left {:.2}",
+                    upper / lower,
+                    right / left
+                );
+                if !(upper > 1.15 * lower && right > 1.15 * left) {
+                    bad.push(format!(
+                        "row {r} column {c} ({what}): upper/lower {:.2}, right/left {:.2}",
+                        upper / lower,
+                        right / left
+                    ));
+                }
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "{model}: bumps not lit from the upper right: {bad:#?}"
+    );
+}
