@@ -690,3 +690,138 @@ fn bumps_are_lit_from_the_upper_right(model: &str) {
         "{model}: bumps not lit from the upper right: {bad:#?}"
     );
 }
+
+/// EmissiveStrengthTest (README): five cubes emit [0.1, 0.5, 0.9] × 1, 2, 4, 8, 16
+/// (`KHR_materials_emissive_strength`), "progressively brighter to the right". Seen with emitted
+/// light only (`max_depth` 0), each cube's radiance, left to right, must be in the ratios of the
+/// strengths the file gives, and of the file's colour.
+#[test]
+fn emissive_strength_test_cubes_brighten_in_the_files_ratios() {
+    let path = common::shared_scene("gltf/EmissiveStrengthTest/glTF/EmissiveStrengthTest.gltf");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    // The strengths the file gives its emissive materials (1 where the extension is absent).
+    let mut strengths: Vec<f32> = json["materials"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|m| m.get("emissiveFactor").is_some())
+        .map(|m| {
+            m["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"]
+                .as_f64()
+                .unwrap_or(1.0) as f32
+        })
+        .collect();
+    strengths.sort_by(f32::total_cmp);
+    assert_eq!(strengths, [1.0, 2.0, 4.0, 8.0, 16.0]);
+    let scene = trayecto::scene::load(path.to_str().unwrap()).unwrap();
+    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    let (w, h) = (160usize, 80usize);
+    let settings = RenderSettings {
+        width: w as u32,
+        height: h as u32,
+        spp: 4,
+        path: trayecto::integrator::path::PathSettings {
+            max_depth: 0,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let img = common::render_world(&world, &settings);
+    dump_image("EmissiveStrengthTest_emitted", &img);
+    // Emitters only: the cubes are the only non-black pixels. Group them into runs of columns.
+    let col_on = |x: usize| (0..h).any(|y| img.data[y * w + x].max_element() > 0.0);
+    let mut runs: Vec<(usize, usize)> = Vec::new();
+    for x in 0..w {
+        if col_on(x) {
+            match runs.last_mut() {
+                Some(r) if r.1 == x => r.1 = x + 1,
+                _ => runs.push((x, x + 1)),
+            }
+        }
+    }
+    assert_eq!(runs.len(), 5, "cubes seen at columns {runs:?}");
+    // The brightest pixel of each cube: one its face covers entirely (edge pixels are partly
+    // background; a pixel cannot exceed the face's radiance).
+    let cube = |(x0, x1): (usize, usize)| {
+        (0..h)
+            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+            .map(|(x, y)| img.data[y * w + x])
+            .max_by(|a, b| a.z.total_cmp(&b.z))
+            .unwrap()
+    };
+    let first = cube(runs[0]);
+    let base = Vec3::new(0.1, 0.5, 0.9);
+    for (i, r) in runs.iter().enumerate() {
+        let c = cube(*r);
+        let expect = base * strengths[i];
+        assert!(
+            (c - expect).abs().max_element() <= 0.01 * expect.max_element(),
+            "cube {i} from the left: radiance {c}, expected {expect} (first {first})"
+        );
+    }
+}
+
+/// DamagedHelmet lit by the studio HDR (`--env`): its emissive panels glow on their own (seen with
+/// emitted light only) and the whole helmet is lit by the environment.
+#[test]
+fn damaged_helmet_glows_and_is_lit_by_the_studio_hdr() {
+    let scene = sample_scene("DamagedHelmet");
+    let env = common::shared_scene("hdr/studio_small_03_1k.hdr");
+    let world = World::build(
+        &scene,
+        &WorldOptions {
+            env: Some(env),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        !world.warnings.iter().any(|w| w.contains("no lights")),
+        "{:?}",
+        world.warnings
+    );
+    let n = 64u32;
+    let on_helmet = raycast(&world, n, n, 1, Aov::Depth);
+    let helmet: Vec<usize> = (0..(n * n) as usize)
+        .filter(|&i| on_helmet.data[i].x > 0.0)
+        .collect();
+    assert!(
+        helmet.len() > (n * n / 10) as usize,
+        "{} pixels",
+        helmet.len()
+    );
+    let render = |max_depth: u32, spp: u32| {
+        let settings = RenderSettings {
+            width: n,
+            height: n,
+            spp,
+            path: trayecto::integrator::path::PathSettings {
+                max_depth,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        common::render_world(&world, &settings)
+    };
+    // Emitted light only: the emissive texture's panels (a few per cent of the helmet) glow.
+    let emitted = render(0, 1);
+    dump_image("DamagedHelmet_emitted", &emitted);
+    let glowing = helmet
+        .iter()
+        .filter(|&&i| emitted.data[i].max_element() > 0.1)
+        .count();
+    let frac = glowing as f32 / helmet.len() as f32;
+    assert!((0.01..0.5).contains(&frac), "glowing fraction {frac}");
+    // Fully lit: brighter than its own glow everywhere on average, and finite.
+    let lit = render(8, 8);
+    dump_image("DamagedHelmet_lit", &lit);
+    let mean =
+        |img: &Image| helmet.iter().map(|&i| img.data[i]).sum::<Vec3>() / helmet.len() as f32;
+    let (m_lit, m_emitted) = (mean(&lit), mean(&emitted));
+    assert!(m_lit.is_finite(), "{m_lit}");
+    assert!(
+        m_lit.element_sum() > 1.5 * m_emitted.element_sum() && m_lit.min_element() > 0.02,
+        "lit {m_lit}, emitted only {m_emitted}"
+    );
+}
