@@ -497,9 +497,11 @@ def worker_trayecto(args):
         if r.returncode != 0:
             raise RuntimeError((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
         t = None
+        # The phase report: "rendered (path)   15.265 ms   (done at ...)".
         for line in r.stderr.splitlines():
-            if line.startswith("render "):
-                t = float(line.split()[1])
+            words = line.split()
+            if line.startswith("rendered") and "ms" in words:
+                t = float(words[words.index("ms") - 1]) / 1000.0
         if t is None:
             raise RuntimeError("the CLI did not report a render time")
         bmp = mi.Bitmap(exr).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)

@@ -11,7 +11,7 @@ use crate::geometry::sphere::Sphere;
 use crate::geometry::triangle::TriangleVerts;
 use crate::geometry::{Bounds3, GeometryStore, PrimRef, PrimitiveKind, Ray};
 use crate::light::{EnvMap, Light, LightSet};
-use crate::material::{Material, Texture};
+use crate::material::{AlphaMode, Material, Texture};
 use crate::math::{Mat3, Vec3, Vec4, transform_normal};
 use crate::scene::{CameraDesc, LightDesc, Scene, SceneError, Shape};
 use std::path::Path;
@@ -41,7 +41,15 @@ pub struct World {
     pub warnings: Vec<String>,
     /// Time spent building the acceleration structure (for the phase report).
     pub accel_build_time: std::time::Duration,
+    /// Per material: true if its alpha mode is MASK or BLEND, so a hit on it may be a hole.
+    cutout: Vec<bool>,
+    /// True if any material is a cutout; opaque scenes skip the alpha test entirely.
+    has_cutouts: bool,
 }
+
+/// Rays pass through at most this many cut-out surfaces; beyond it the next surface counts as
+/// opaque, so a pathological stack of holes cannot loop for ever.
+const MAX_CUTOUT_LAYERS: u32 = 256;
 
 impl World {
     pub fn build(scene: &Scene, options: &WorldOptions) -> Result<World, SceneError> {
@@ -261,6 +269,12 @@ impl World {
             camera = face_the_front(camera, bounds, &accel, &g);
         }
         let lights = LightSet::new(lights, &g, &scene.materials, &scene.textures, bounds);
+        let cutout: Vec<bool> = scene
+            .materials
+            .iter()
+            .map(|m| m.alpha_mode != AlphaMode::Opaque)
+            .collect();
+        let has_cutouts = cutout.iter().any(|&c| c);
         Ok(World {
             geometry: g,
             accel,
@@ -271,23 +285,83 @@ impl World {
             bounds,
             warnings,
             accel_build_time,
+            cutout,
+            has_cutouts,
         })
     }
 
+    /// The first surface along `ray`, with its shading attributes. Cut-out (alpha) holes are
+    /// skipped, see [`World::intersect_raw`].
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
         self.intersect_raw(ray)
             .map(|i| self.geometry.surface_hit(ray, &i))
     }
 
+    /// The first surface along `ray` that is not a hole of an alpha-masked or alpha-blended
+    /// material. `t` is in the parameter of `ray` even when holes were passed through.
     #[inline]
     pub fn intersect_raw(&self, ray: &Ray) -> Option<Intersection> {
-        self.accel.intersect(&self.geometry, ray)
+        let isect = self.accel.intersect(&self.geometry, ray)?;
+        if !self.has_cutouts {
+            return Some(isect);
+        }
+        self.skip_cutouts(ray, isect)
     }
 
+    /// True if something opaque lies on `ray` before `ray.t_max`.
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        self.accel.occluded(&self.geometry, ray)
+        if !self.has_cutouts {
+            return self.accel.occluded(&self.geometry, ray);
+        }
+        // Any-hit traversal cannot evaluate textures, so walk the hits in order instead.
+        self.intersect_raw(ray).is_some()
+    }
+
+    /// Continues `ray` through cut-out holes until it meets a surface that is there.
+    ///
+    /// glTF alpha modes (glTF 2.0 §3.9.4): MASK keeps the surface where alpha ≥ alphaCutoff;
+    /// BLEND is rendered as stochastic transparency (Enderton et al. 2010): the surface is present
+    /// with probability alpha, decided by a hash of the ray and the hit so that the expected
+    /// radiance, and the expected shadow-ray transmittance 1 − alpha, are exact without keeping
+    /// per-ray sampler state here.
+    fn skip_cutouts(&self, ray: &Ray, mut isect: Intersection) -> Option<Intersection> {
+        let mut current = *ray;
+        // Parameter of `current`'s origin along the original ray.
+        let mut t_offset = 0.0f32;
+        let d2 = ray.d.length_squared();
+        for _ in 0..MAX_CUTOUT_LAYERS {
+            let material = self.geometry.material(isect.prim) as usize;
+            if !self.cutout[material] {
+                isect.t += t_offset;
+                return Some(isect);
+            }
+            let hit = self.geometry.surface_hit(&current, &isect);
+            let m = &self.materials[material];
+            let alpha = crate::material::bsdf::opacity(m, &self.textures, &hit);
+            let present = match m.alpha_mode {
+                AlphaMode::Mask => alpha >= m.alpha_cutoff,
+                _ => alpha >= 1.0 || cutout_hash(&current, isect.t) < alpha,
+            };
+            if present {
+                isect.t += t_offset;
+                return Some(isect);
+            }
+            // Step through the hole: respawn on the far side with the remaining extent.
+            let mut next = Ray::spawn(hit.p, hit.p_error, hit.ng, ray.d);
+            t_offset = (next.o - ray.o).dot(ray.d) / d2;
+            if ray.t_max.is_finite() {
+                next.t_max = ray.t_max - t_offset;
+                if !(next.t_max > 0.0) {
+                    return None;
+                }
+            }
+            current = next;
+            isect = self.accel.intersect(&self.geometry, &current)?;
+        }
+        isect.t += t_offset;
+        Some(isect)
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -455,4 +529,20 @@ pub fn orbit_camera(bounds: Bounds3, yaw_deg: f32, pitch_deg: f32) -> CameraDesc
     let mut cam = CameraDesc::look_at("auto", eye, center, Vec3::Y, vfov);
     cam.focus_distance = dist;
     cam
+}
+
+/// A uniform number in [0, 1) that is a pure function of the ray and the hit distance: the
+/// coin of stochastic transparency. Different samples have different rays, so the coins are
+/// independent across samples while the same ray always gets the same answer.
+#[inline]
+fn cutout_hash(ray: &Ray, t: f32) -> f32 {
+    let o = ray.o.to_array().map(f32::to_bits);
+    let d = ray.d.to_array().map(f32::to_bits);
+    let h = crate::sampling::rng::hash_words(&[
+        (o[0] as u64) << 32 | o[1] as u64,
+        (o[2] as u64) << 32 | d[0] as u64,
+        (d[1] as u64) << 32 | d[2] as u64,
+        t.to_bits() as u64,
+    ]);
+    crate::sampling::rng::u32_to_unit_f32((h >> 32) as u32)
 }

@@ -111,13 +111,28 @@ fn configs() -> Vec<(&'static str, PathSettings)> {
     ]
 }
 
+/// The image mean equals the closed form to within four standard errors, the standard error being
+/// estimated from the pixels (each pixel is an independent estimate); and the render must be
+/// precise enough for that to mean something: four standard errors at most `tol` of the value.
 fn assert_uniform(img: &Image, expected: f32, tol: f32, what: &str) {
-    let m = img.mean();
+    let n = img.data.len() as f64;
     for c in 0..3 {
+        let mean = img.data.iter().map(|p| p[c] as f64).sum::<f64>() / n;
+        let var = img
+            .data
+            .iter()
+            .map(|p| (p[c] as f64 - mean).powi(2))
+            .sum::<f64>()
+            / (n - 1.0);
+        let bound = 4.0 * (var / n).sqrt();
         assert!(
-            (m[c] - expected).abs() <= tol * expected,
-            "{what}: mean {} vs closed form {expected} (tolerance {tol})",
-            m[c]
+            bound <= (tol * expected) as f64,
+            "{what}: too noisy to test (4 standard errors = {bound:.4}, allowed {})",
+            tol * expected
+        );
+        assert!(
+            (mean - expected as f64).abs() <= bound.max(1e-5 * expected as f64),
+            "{what}: mean {mean:.4} vs closed form {expected} (4 standard errors = {bound:.4})"
         );
     }
 }
@@ -134,8 +149,13 @@ fn furnace_sphere_returns_le_over_one_minus_albedo() {
 #[test]
 fn furnace_box_returns_le_over_one_minus_albedo() {
     let scene = emissive_box_furnace(0.8, 0.5, false, true);
-    for (name, p) in configs() {
-        let img = render_scene(&scene, &with_path(base(24, 32), |s| *s = p));
+    // NEE without MIS is left out here (the sphere furnace above covers it): near the box's edges
+    // a light sample on the adjacent face has a geometry term cos·cos/d² that grows without bound,
+    // so that estimator's variance is infinite and its mean over a finite image swings by ±5 %
+    // from seed to seed (measured 2.45–2.55 for seeds 3–6). In the sphere the geometry term between
+    // two points of the sphere is the constant 1/(4R²), so there it is tested tightly.
+    for (name, p) in configs().into_iter().filter(|(n, _)| *n != "nee, no mis") {
+        let img = render_scene(&scene, &with_path(base(24, 48), |s| *s = p));
         assert_uniform(&img, 2.5, 0.015, name);
     }
 }

@@ -31,18 +31,38 @@ impl Cuboid {
         }
     }
 
+    /// The ray in object space (not renormalised, so distances are shared with world space).
     #[inline]
-    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<CuboidHit> {
-        let o = self.world_to_object.transform_point3(ray.o);
-        let d = self.world_to_object.transform_vector3(ray.d);
-        let local_ray = Ray { o, d, t_max };
-        let inv = RayInv::new(d);
-        let (t0, t1) = self.local.intersect_p(&local_ray, &inv)?;
+    fn local_ray(&self, ray: &Ray, t_max: f32) -> Ray {
+        Ray {
+            o: self.world_to_object.transform_point3(ray.o),
+            d: self.world_to_object.transform_vector3(ray.d),
+            t_max,
+        }
+    }
+
+    /// Distance to the hit only: what the accelerator needs. The face is found later, once, by
+    /// [`Cuboid::intersect`] for the closest hit (callgrind: snapping every candidate hit to its
+    /// face was a third of the box test's cost).
+    #[inline]
+    pub fn intersect_t(&self, ray: &Ray, t_max: f32) -> Option<f32> {
+        Self::slab_t(&self.local, &self.local_ray(ray, t_max), t_max)
+    }
+
+    #[inline]
+    fn slab_t(local: &Bounds3, local_ray: &Ray, t_max: f32) -> Option<f32> {
+        let inv = RayInv::new(local_ray.d);
+        let (t0, t1) = local.intersect_p(local_ray, &inv)?;
         // From outside the nearest face is at t0; from inside (t0 clipped to 0) it is the exit face.
         let t = if t0 > 0.0 { t0 } else { t1 };
-        if !(t > 0.0 && t < t_max) {
-            return None;
-        }
+        (t > 0.0 && t < t_max).then_some(t)
+    }
+
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<CuboidHit> {
+        let local_ray = self.local_ray(ray, t_max);
+        let t = Self::slab_t(&self.local, &local_ray, t_max)?;
+        let (o, d) = (local_ray.o, local_ray.d);
         let mut p = o + d * t;
         // Snap to the face that was hit: the coordinate closest (relative to size) to a face.
         let size = self.local.diagonal();

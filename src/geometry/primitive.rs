@@ -197,9 +197,9 @@ impl GeometryStore {
             PrimitiveKind::Cuboid => {
                 self.cuboids[i]
                     .shape
-                    .intersect(ray, t_max)
-                    .map(|h| Intersection {
-                        t: h.t,
+                    .intersect_t(ray, t_max)
+                    .map(|t| Intersection {
+                        t,
                         prim,
                         u: 0.0,
                         v: 0.0,

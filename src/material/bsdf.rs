@@ -78,7 +78,7 @@ impl Bsdf {
             metallic *= v.z;
         }
         let roughness = roughness.clamp(0.0, 1.0);
-        let metallic = metallic.clamp(0.0, 1.0);
+        let mut metallic = metallic.clamp(0.0, 1.0);
         let eta = if material.ior > 0.0 {
             material.ior
         } else {
@@ -89,13 +89,30 @@ impl Bsdf {
             MaterialModel::Mirror => Bsdf::Mirror { color: base },
             MaterialModel::Dielectric => Bsdf::dielectric(eta, roughness, Vec3::ONE),
             MaterialModel::MetallicRoughness => {
-                if material.transmission > 0.0 && metallic < 1.0 {
-                    // KHR_materials_transmission: the transmitted light is tinted by the base
-                    // colour. Partial transmission factors are treated as full (documented).
-                    if material.thin_walled {
-                        return Bsdf::ThinDielectric { eta, tint: base };
+                let mut transmission = material.transmission;
+                if transmission > 0.0
+                    && let Some(t) = &material.transmission_texture
+                {
+                    // KHR_materials_transmission: the factor is multiplied by the R channel.
+                    transmission *= sample_texture(textures, t, hit).x;
+                }
+                // KHR_materials_transmission replaces the diffuse lobe of the dielectric part:
+                //   mix(mix(dielectric(diffuse), transmissive, t), metal, metallic).
+                // The transmissive component (a dielectric interface tinted by the base colour,
+                // thin-walled without KHR_materials_volume) is chosen stochastically with
+                // probability (1 − metallic)·t, an unbiased one-sample estimate of the mixture
+                // (the coin is a hash of the hit, so NEE and BSDF sampling at this vertex see the
+                // same component). The rest is the metallic-roughness BRDF with the metallic
+                // weight renormalised: metallic' = metallic / (1 − (1 − metallic)·t).
+                let p_transmit = transmission.clamp(0.0, 1.0) * (1.0 - metallic);
+                if p_transmit > 0.0 {
+                    if p_transmit >= 1.0 || hit_coin(hit) < p_transmit {
+                        if material.thin_walled {
+                            return Bsdf::ThinDielectric { eta, tint: base };
+                        }
+                        return Bsdf::dielectric(eta, roughness, base);
                     }
-                    return Bsdf::dielectric(eta, roughness, base);
+                    metallic = (metallic / (1.0 - p_transmit)).min(1.0);
                 }
                 let r0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
                 Bsdf::MetallicRoughness {
@@ -507,6 +524,32 @@ pub fn base_color(material: &Material, textures: &[Texture], hit: &SurfaceHit) -
         c *= sample_texture(textures, t, hit).truncate();
     }
     c
+}
+
+/// A uniform number in [0, 1) that is a pure function of the hit (its position and ray
+/// distance): the coin that picks one component of a stochastic material mixture.
+#[inline]
+fn hit_coin(hit: &SurfaceHit) -> f32 {
+    let p = hit.p.to_array().map(f32::to_bits);
+    let h = crate::sampling::rng::hash_words(&[
+        (p[0] as u64) << 32 | p[1] as u64,
+        (p[2] as u64) << 32 | hit.t.to_bits() as u64,
+    ]);
+    crate::sampling::rng::u32_to_unit_f32((h >> 32) as u32)
+}
+
+/// Opacity at a hit (glTF: base colour factor alpha × texture alpha × vertex colour alpha; OBJ
+/// `d` × `map_d`), used by the alpha MASK and BLEND modes.
+#[inline]
+pub fn opacity(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> f32 {
+    let mut a = material.alpha * hit.color.w;
+    if let Some(t) = &material.base_color_texture {
+        a *= sample_texture(textures, t, hit).w;
+    }
+    if let Some(t) = &material.alpha_texture {
+        a *= sample_texture(textures, t, hit).x;
+    }
+    a
 }
 
 /// Reads a texture reference at a hit, applying its UV set and transform.

@@ -52,6 +52,12 @@ pub struct SampleStream {
     /// The stratified 2D grid (`nx × ny ≥ spp` cells), fixed for the stream.
     nx: u32,
     ny: u32,
+    /// `sample % spp`, the index the stratified permutations act on.
+    sample_mod: u32,
+    /// Power-of-two masks for `permute` over `spp` strata and over the `nx × ny` cells, computed
+    /// once per stream instead of once per number (callgrind: 8 % of the sampler's instructions).
+    mask_1d: u32,
+    mask_2d: u32,
 }
 
 impl SampleStream {
@@ -64,6 +70,7 @@ impl SampleStream {
     ) -> SampleStream {
         let spp = spp.max(1);
         let nx = (spp as f32).sqrt().ceil() as u32;
+        let ny = spp.div_ceil(nx);
         SampleStream {
             kind,
             pixel_key: hash_words(&[seed, pixel.0 as u64, pixel.1 as u64]),
@@ -72,7 +79,10 @@ impl SampleStream {
             dim: 0,
             sample_mix: [mix64(sample as u64), mix64((sample as u64) ^ (1 << 32))],
             nx,
-            ny: spp.div_ceil(nx),
+            ny,
+            sample_mod: sample % spp,
+            mask_1d: permute_mask(spp),
+            mask_2d: permute_mask(nx * ny),
         }
     }
 
@@ -106,7 +116,7 @@ impl SampleStream {
             SamplerKind::Stratified | SamplerKind::PoissonDisk => {
                 let n = self.spp;
                 let h = self.dim_hash(d);
-                let stratum = permute(self.sample % n, n, h as u32);
+                let stratum = permute_masked(self.sample_mod, n, h as u32, self.mask_1d);
                 let jitter = self.random_h(h, 1);
                 ((stratum as f32 + jitter) / n as f32).min(ONE_MINUS_EPSILON)
             }
@@ -140,14 +150,15 @@ impl SampleStream {
             SamplerKind::Stratified => {
                 // An nx × ny grid with at least spp cells; the permutation spreads the samples over
                 // distinct cells.
-                let n = self.spp;
                 let (nx, ny) = (self.nx, self.ny);
                 let cells = nx * ny;
                 let h = self.dim_hash(d);
-                let cell = permute(self.sample % n, cells, h as u32);
+                let cell = permute_masked(self.sample_mod, cells, h as u32, self.mask_2d);
                 let (cx, cy) = (cell % nx, cell / nx);
-                let jx = self.random_h(h, 1);
-                let jy = self.random(d + 1, 1);
+                // One 64-bit hash gives both jitters (24 bits each).
+                let j = mix64(h ^ self.sample_mix[1]);
+                let jx = u32_to_unit_f32(j as u32);
+                let jy = u32_to_unit_f32((j >> 32) as u32);
                 Vec2::new(
                     ((cx as f32 + jx) / nx as f32).min(ONE_MINUS_EPSILON),
                     ((cy as f32 + jy) / ny as f32).min(ONE_MINUS_EPSILON),
@@ -161,16 +172,28 @@ pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// A pseudo-random permutation of `[0, l)` selected by `p`, evaluated at `i` without storing the
 /// permutation (Kensler 2013, listing 3: cycle-walking over a hash restricted to the next power of two).
-pub fn permute(mut i: u32, l: u32, p: u32) -> u32 {
-    if l <= 1 {
-        return 0;
-    }
-    let mut w = l - 1;
+pub fn permute(i: u32, l: u32, p: u32) -> u32 {
+    permute_masked(i, l, p, permute_mask(l))
+}
+
+/// The all-ones mask covering `[0, l)`: the next power of two minus one.
+#[inline]
+fn permute_mask(l: u32) -> u32 {
+    let mut w = l.saturating_sub(1);
     w |= w >> 1;
     w |= w >> 2;
     w |= w >> 4;
     w |= w >> 8;
     w |= w >> 16;
+    w
+}
+
+/// [`permute`] with the mask of `l` precomputed.
+#[inline]
+fn permute_masked(mut i: u32, l: u32, p: u32, w: u32) -> u32 {
+    if l <= 1 {
+        return 0;
+    }
     loop {
         i ^= p;
         i = i.wrapping_mul(0xe170893d);

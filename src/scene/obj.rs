@@ -15,7 +15,7 @@ use std::path::Path;
 use super::conventions::apply_material_conventions;
 use super::image_io::{RefusedPath, is_missing_texture, load_texture_checked, resolve_in_dir};
 use super::{Mesh, Scene, SceneError, Shape};
-use crate::material::{Material, MaterialModel, PhongParams, TextureRef};
+use crate::material::{AlphaMode, Material, MaterialModel, PhongParams, TextureRef};
 use crate::math::{Mat4, Vec2, Vec3};
 
 /// Loads an `.obj` file (and the MTL files it names, from the same folder).
@@ -271,6 +271,10 @@ fn convert_material(
     }
     if let Some(f) = &m.dissolve_texture {
         mat.alpha_texture = tref(tex(f, false, scene)?);
+    }
+    // Dissolve on a non-glass material is opacity: rendered as stochastic transparency.
+    if mat.model != MaterialModel::Dielectric && (mat.alpha < 1.0 || mat.alpha_texture.is_some()) {
+        mat.alpha_mode = AlphaMode::Blend;
     }
     if let Some(f) = m.normal_texture.as_ref().or(unknown.get("norm")) {
         mat.normal_texture = tref(tex(f, false, scene)?);
