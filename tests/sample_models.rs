@@ -305,17 +305,18 @@ fn compare_silhouettes(shot: &Layer, render: &Layer, g: usize) -> Report {
     }
     let (mut worst, mut n) = (0.0f32, 0);
     for i in 0..g * g {
-        if a.cover[i] > 0.5 && b.cover[i] > 0.5 {
-            if let Some(d) = colour_diff(a.color[i], b.color[i]) {
-                if std::env::var_os("TRAYECTO_SAMPLES_DUMP").is_some() && d > 15.0 {
-                    eprintln!(
-                        "  cell {i}: shot {} render {} diff {d:.1}",
-                        a.color[i], b.color[i]
-                    );
-                }
-                worst = worst.max(d);
-                n += 1;
+        if a.cover[i] > 0.5
+            && b.cover[i] > 0.5
+            && let Some(d) = colour_diff(a.color[i], b.color[i])
+        {
+            if std::env::var_os("TRAYECTO_SAMPLES_DUMP").is_some() && d > 15.0 {
+                eprintln!(
+                    "  cell {i}: shot {} render {} diff {d:.1}",
+                    a.color[i], b.color[i]
+                );
             }
+            worst = worst.max(d);
+            n += 1;
         }
     }
     Report {
@@ -517,7 +518,7 @@ fn every_sample_model_matches_its_screenshot() {
             dump(d, &m.name, &shot, &render);
         }
         let listed = NOT_UNIFORM.iter().any(|n| n.0 == m.name);
-        if shot.uniform_background != !listed {
+        if shot.uniform_background == listed {
             failures.push(format!(
                 "{}: screenshot background uniform = {}, but NOT_UNIFORM says {}",
                 m.name, shot.uniform_background, !listed
