@@ -257,10 +257,13 @@ impl World {
         }
 
         let bounds = g.scene_bounds();
-        let camera = select_camera(scene, options, bounds, &label)?;
         let accel_start = std::time::Instant::now();
         let accel = Accel::build(options.accel, &g);
         let accel_build_time = accel_start.elapsed();
+        let mut camera = select_camera(scene, options, bounds, &label)?;
+        if scene.cameras.is_empty() && options.camera.is_none() {
+            camera = face_the_front(camera, bounds, &accel, &g);
+        }
         let lights = LightSet::new(lights, &g, &scene.materials, &scene.textures, bounds);
         let cutout: Vec<bool> = scene
             .materials
@@ -428,8 +431,78 @@ fn select_camera(
     Ok(auto_camera(bounds))
 }
 
-/// A camera that frames `bounds` from the +z side with a 39.6° vertical field of view.
+/// The automatic camera sees the model from +z. Most models face +z (glTF's front), but a room
+/// modelled to be seen from −z, such as the original Cornell box data (camera at z = −800 mm,
+/// open side at z = 0), would show only the back of its back wall. So 9 × 9 rays of the automatic
+/// view are traced: if most of what they hit are back faces, the camera moves to the opposite side.
+fn face_the_front(
+    camera: CameraDesc,
+    bounds: Bounds3,
+    accel: &Accel,
+    g: &GeometryStore,
+) -> CameraDesc {
+    const N: usize = 9;
+    let count_back = |cam: &CameraDesc| {
+        let eye = cam.camera_to_world.transform_point3(Vec3::ZERO);
+        let (c, r) = bounds.bounding_sphere();
+        let right = cam
+            .camera_to_world
+            .transform_vector3(Vec3::X)
+            .normalize_or_zero();
+        let up = cam
+            .camera_to_world
+            .transform_vector3(Vec3::Y)
+            .normalize_or_zero();
+        let (mut back, mut hits) = (0, 0);
+        for i in 0..N {
+            for j in 0..N {
+                let s = (i as f32 + 0.5) / N as f32 * 2.0 - 1.0;
+                let t = (j as f32 + 0.5) / N as f32 * 2.0 - 1.0;
+                let target = c + (right * s + up * t) * (0.7 * r);
+                let ray = Ray::new(eye, target - eye);
+                if let Some(i) = accel.intersect(g, &ray) {
+                    let hit = g.surface_hit(&ray, &i);
+                    hits += 1;
+                    back += usize::from(hit.ng.dot(ray.d) > 0.0);
+                }
+            }
+        }
+        (back, hits)
+    };
+    if bounds.is_empty() {
+        return camera;
+    }
+    let (back, hits) = count_back(&camera);
+    if hits == 0 || back * 2 <= hits {
+        return camera;
+    }
+    let behind = orbit_camera(bounds, 180.0, 0.0);
+    let (back2, hits2) = count_back(&behind);
+    // Only if the other side is better: a closed model seen from anywhere shows front faces.
+    if back2 * hits < back * hits2 {
+        behind
+    } else {
+        camera
+    }
+}
+
+/// The automatic camera, as model viewers frame a model (the Khronos sample viewer, Blender's
+/// glTF preview): it looks down −z at the centre of the bounds from the distance where the bounding
+/// sphere fits the vertical field of view of 39.6°. A model that is flat in y (a ground sheet such
+/// as TwoSidedPlane, extent in y under 1 % of its largest extent) would be seen edge-on from there,
+/// i.e. not at all, so it is seen from 30° above instead.
 pub fn auto_camera(bounds: Bounds3) -> CameraDesc {
+    let flat_in_y = !bounds.is_empty() && {
+        let e = bounds.max - bounds.min;
+        e.y <= 0.01 * e.max_element()
+    };
+    orbit_camera(bounds, 0.0, if flat_in_y { 30.0 } else { 0.0 })
+}
+
+/// A camera on the bounding sphere's fitting distance around the bounds' centre, `yaw_deg` about
+/// +y from +z (positive towards +x) and `pitch_deg` above the horizon, looking at the centre with
+/// +y up and a 39.6° vertical field of view. `orbit_camera(b, 0, 0)` looks down −z.
+pub fn orbit_camera(bounds: Bounds3, yaw_deg: f32, pitch_deg: f32) -> CameraDesc {
     let (center, radius) = if bounds.is_empty() {
         (Vec3::ZERO, 1.0)
     } else {
@@ -437,8 +510,18 @@ pub fn auto_camera(bounds: Bounds3) -> CameraDesc {
         (c, r.max(1e-4))
     };
     let vfov: f32 = 39.6;
+    // The sphere of radius r is tangent to the view cone at distance r / sin(fov/2); 5 % margin.
     let dist = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
-    let eye = center + Vec3::new(0.0, 0.0, dist);
+    let (yaw, pitch) = (
+        yaw_deg.to_radians(),
+        pitch_deg.clamp(-89.0, 89.0).to_radians(),
+    );
+    let dir = Vec3::new(
+        yaw.sin() * pitch.cos(),
+        pitch.sin(),
+        yaw.cos() * pitch.cos(),
+    );
+    let eye = center + dir * dist;
     let mut cam = CameraDesc::look_at("auto", eye, center, Vec3::Y, vfov);
     cam.focus_distance = dist;
     cam

@@ -48,16 +48,94 @@ fn obj_cornell_box_loads_with_its_materials_and_renders() {
     let red = scene.materials.iter().find(|m| m.name == "red").unwrap();
     assert_eq!(red.base_color, Vec3::new(1.0, 0.0, 0.0));
     assert!(scene.triangle_count() >= 30, "{}", scene.triangle_count());
-    // Its light uses Ka, which is not emission in MTL: said in a warning.
+    let b = scene.bounds();
+    assert!(b.max.x > 500.0 && b.max.y > 500.0, "millimetres: {b:?}");
+}
+
+/// The light of cornell_box.mtl is `Ka 20 20 20` with no `Ke` (the legacy convention): it emits,
+/// with a warning, and the box renders lit by it alone, seen through its open side (the automatic
+/// camera turns to −z, where the front faces are): the ceiling light is the brightest thing in
+/// view, the red wall on the left and the green wall on the right, as in the original photograph.
+#[test]
+fn obj_cornell_box_is_lit_by_its_own_light() {
+    let p = common::scene_file("obj/cornell-box-original-data/cornell_box.obj");
+    let scene = trayecto::scene::load(p.to_str().unwrap()).unwrap();
+    let light = scene.materials.iter().find(|m| m.name == "light").unwrap();
+    assert_eq!(light.emissive, Vec3::splat(20.0));
     assert!(
-        scene.warnings.iter().any(|w| w.contains("Ka")),
+        scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("Ka") && w.contains("emitted radiance")),
         "{:?}",
         scene.warnings
     );
-    let b = scene.bounds();
-    assert!(b.max.x > 500.0 && b.max.y > 500.0, "millimetres: {b:?}");
-    let img = render_small(&scene, 32, 2);
-    assert!(mean(&img).max_element() > 1e-3);
+    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    // Lit by its own light: no default environment was added.
+    assert!(
+        world.area_light_count() >= 2,
+        "{}",
+        world.area_light_count()
+    );
+    assert!(
+        !world.warnings.iter().any(|w| w.contains("no lights")),
+        "{:?}",
+        world.warnings
+    );
+    let n = 48usize;
+    let settings = RenderSettings {
+        width: n as u32,
+        height: n as u32,
+        spp: 16,
+        seed: 7,
+        ..Default::default()
+    };
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    let img = render(&world, &settings, &NoObserver, &cancel)
+        .unwrap()
+        .image;
+    let px = |x: usize, y: usize| img.data[y * n + x];
+    // The brightest pixel is the light (radiance 20), in the top third, near the middle.
+    let (bi, bv) = img
+        .data
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.x.total_cmp(&b.1.x))
+        .unwrap();
+    let (bx, by) = (bi % n, bi / n);
+    assert!(bv.min_element() > 10.0, "brightest {bv}");
+    assert!(
+        by < n / 3 && bx.abs_diff(n / 2) < n / 6,
+        "light seen at ({bx}, {by})"
+    );
+    // Walls at mid-height: the left strip is red, the right strip green.
+    let strip = |x0: usize, x1: usize| {
+        let mut s = Vec3::ZERO;
+        for y in n / 3..2 * n / 3 {
+            for x in x0..x1 {
+                s += px(x, y);
+            }
+        }
+        s / ((x1 - x0) * (n / 3)) as f32
+    };
+    // The box fills the middle of the frame (the camera fits its bounding sphere): its walls are
+    // the outer 12 % of the lit span of the middle row.
+    let lit: Vec<usize> = (0..n)
+        .filter(|&x| px(x, n / 2).max_element() > 0.0)
+        .collect();
+    let (x0, x1) = (lit[0], lit[lit.len() - 1] + 1);
+    let k = (x1 - x0) * 12 / 100;
+    let (left, right) = (strip(x0, x0 + k), strip(x1 - k, x1));
+    assert!(
+        left.x > 3.0 * left.y && left.x > 3.0 * left.z,
+        "left wall {left}"
+    );
+    assert!(
+        right.y > 3.0 * right.x && right.y > 3.0 * right.z,
+        "right wall {right}"
+    );
+    // Lit, but far from the light's radiance: the walls' level is set by the light alone.
+    assert!(left.x > 0.05 && left.x < 10.0, "left wall {left}");
 }
 
 #[test]
@@ -232,4 +310,131 @@ fn gltf_and_toml_twins_render_the_same_image() {
         (ma - mb).abs().max_element() <= 1e-3 * ma.max_element(),
         "{ma} vs {mb}"
     );
+}
+
+/// A TOML scene that includes a glTF gets the glTF's lights and cameras, moved by the object's
+/// transform (rotation and translation; the scale moves positions only), with the TOML's own
+/// cameras first and the included ones selectable by name or index.
+#[test]
+fn toml_includes_lights_and_cameras_of_mesh_files() {
+    use base64::Engine;
+    use trayecto::scene::LightDesc;
+    let dir = std::env::temp_dir().join(format!("trayecto_toml_incl_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // One white floor triangle (y = 0, facing +y), a camera 3 above it looking down, a point light 1
+    // above it and a spot pointing down −y (its default direction, −z, turned by −90° about x).
+    let mut buf = Vec::new();
+    for c in [-2.0f32, 0.0, 2.0, 2.0, 0.0, 2.0, 0.0, 0.0, -2.0] {
+        buf.extend(c.to_le_bytes());
+    }
+    let b64 = base64::engine::general_purpose::STANDARD.encode(&buf);
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let gltf = format!(
+        r#"{{"asset":{{"version":"2.0"}},"extensionsUsed":["KHR_lights_punctual"],
+ "extensions":{{"KHR_lights_punctual":{{"lights":[
+   {{"type":"point","intensity":683,"name":"bulb"}},
+   {{"type":"spot","intensity":683,"name":"spot","spot":{{"outerConeAngle":0.5}}}}]}}}},
+ "buffers":[{{"byteLength":36,"uri":"data:application/octet-stream;base64,{b64}"}}],
+ "bufferViews":[{{"buffer":0,"byteLength":36}}],
+ "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[-2,0,-2],"max":[2,0,2]}}],
+ "materials":[{{"pbrMetallicRoughness":{{"metallicFactor":0}}}}],
+ "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"material":0}}]}}],
+ "cameras":[{{"type":"perspective","name":"top","perspective":{{"yfov":0.8,"znear":0.1}}}}],
+ "nodes":[{{"mesh":0}},
+   {{"name":"top","camera":0,"translation":[0,3,0],"rotation":[{n},0,0,{s}]}},
+   {{"name":"bulb","translation":[0,1,0],"extensions":{{"KHR_lights_punctual":{{"light":0}}}}}},
+   {{"name":"spot","translation":[0,1,0],"rotation":[{n},0,0,{s}],"extensions":{{"KHR_lights_punctual":{{"light":1}}}}}}],
+ "scenes":[{{"nodes":[0,1,2,3]}}],"scene":0}}"#,
+        n = -s
+    );
+    std::fs::write(dir.join("lamp.gltf"), gltf).unwrap();
+    let toml = r#"
+[[camera]]
+name = "front"
+eye = [0.0, 1.0, 8.0]
+target = [0.0, 0.0, 0.0]
+fov = 40.0
+
+[[object]]
+name = "lamp"
+type = "mesh"
+file = "lamp.gltf"
+translate = [10.0, 0.0, 0.0]
+rotate = [0.0, 0.0, 90.0]
+scale = 2.0
+"#;
+    std::fs::write(dir.join("scene.toml"), toml).unwrap();
+    let scene = trayecto::scene::load(dir.join("scene.toml").to_str().unwrap()).unwrap();
+    assert!(
+        !scene.warnings.iter().any(|w| w.contains("ignored")),
+        "{:?}",
+        scene.warnings
+    );
+    // Rotating by 90° about z sends +y to −x; scale 2 then translate (10, 0, 0):
+    // the bulb at (0, 1, 0) ends at (8, 0, 0), and "down" (−y) becomes +x.
+    let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-4;
+    let bulb = scene.lights.iter().find(|l| l.name() == "bulb").unwrap();
+    match bulb {
+        LightDesc::Point {
+            position,
+            intensity,
+            ..
+        } => {
+            assert!(close(*position, Vec3::new(8.0, 0.0, 0.0)), "{position}");
+            // 683 cd / 683 lm/W; the scale does not change it.
+            assert!(close(*intensity, Vec3::ONE), "{intensity}");
+        }
+        other => panic!("{other:?}"),
+    }
+    match scene.lights.iter().find(|l| l.name() == "spot").unwrap() {
+        LightDesc::Spot {
+            position,
+            direction,
+            ..
+        } => {
+            assert!(close(*position, Vec3::new(8.0, 0.0, 0.0)), "{position}");
+            assert!(close(direction.normalize(), Vec3::X), "{direction}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // Cameras: the TOML's first, then the glTF's, moved: at (4, 0, 0) after the transform,
+    // looking along +x (its −y view turned by the rotation).
+    let names: Vec<&str> = scene.cameras.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["front", "top"]);
+    let top = &scene.cameras[1].camera_to_world;
+    assert!(close(
+        top.transform_point3(Vec3::ZERO),
+        Vec3::new(4.0, 0.0, 0.0)
+    ));
+    assert!(close(top.transform_vector3(-Vec3::Z), Vec3::X));
+    for sel in ["top", "1"] {
+        let world = World::build(
+            &scene,
+            &WorldOptions {
+                camera: Some(sel.into()),
+                no_default_light: true,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(world.camera.name, "top");
+        // Lit by the included lights only (unlit, it would be black): the white diffuse floor 2
+        // from the bulb and the spot (1 W/sr each) reflects about (1/4 + 1/4)/π = 0.159. The spot
+        // is picked for few light samples (lights are chosen by power), so the bounds are loose.
+        let settings = RenderSettings {
+            width: 8,
+            height: 8,
+            spp: 16,
+            ..Default::default()
+        };
+        let cancel = std::sync::atomic::AtomicBool::new(false);
+        let img = render(&world, &settings, &NoObserver, &cancel)
+            .unwrap()
+            .image;
+        let c = img.data[4 * 8 + 4];
+        assert!(
+            c.min_element() > 0.05 && c.max_element() < 0.3,
+            "centre {c}"
+        );
+    }
 }

@@ -437,8 +437,10 @@ impl GeometryStore {
                 let dpdv = (dp12 * duv02.x - dp02 * duv12.x) * inv;
                 if dpdu.length_squared() > 1e-20 && dpdu.is_finite() {
                     tangent = Some(dpdu.normalize());
-                    // Handedness of (T, B, N): B should align with ∂p/∂v.
-                    hit.bitangent_sign = if hit.ns.cross(dpdu).dot(dpdv) < 0.0 {
+                    // Handedness of (T, B, N): a normal map's +y (green) is "up" in the image
+                    // (glTF §3.9.3, the OpenGL convention), and glTF's v grows downwards, so B
+                    // must align with −∂p/∂v (as MikkTSpace gives for glTF's flipped v).
+                    hit.bitangent_sign = if hit.ns.cross(dpdu).dot(dpdv) > 0.0 {
                         -1.0
                     } else {
                         1.0

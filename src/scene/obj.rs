@@ -5,7 +5,8 @@
 //! `illum` 3/5 → mirror, 4/6/7 with `d` < 1 or `Ni` → dielectric; `map_Kd`/`map_Ke` (sRGB),
 //! `map_Ks` → specular colour texture, `map_d` → opacity texture, `bump`/`norm` → normal map;
 //! the PBR extension `Pr`/`Pm` → roughness/metallic (metallic-roughness model) with `map_Pr` and
-//! `map_Pm` packed into one glTF-layout texture. Other statements are named in warnings.
+//! `map_Pm` packed into one glTF-layout texture; `Ka` above 1 without `Ke` is emission (a legacy
+//! convention for lights). Other statements are named in warnings.
 //! Faces are triangulated as fans; missing MTL files and textures are warnings.
 
 use std::collections::{HashMap, HashSet};
@@ -196,12 +197,23 @@ fn convert_material(
         (None, Some(tr)) => 1.0 - tr,
         (None, None) => 1.0,
     };
+    // Legacy convention (the Cornell box MTL files of Embree, tinyobjloader and many course
+    // renderers): a light is marked by an ambient colour above 1 and no Ke. An ambient reflectance
+    // cannot exceed 1, so such a Ka can only mean emitted radiance.
     if let Some(ka) = m.ambient
         && Vec3::from(ka).max_element() > 1.0
     {
-        scene.warnings.push(format!(
-            "material '{name}': ambient Ka {ka:?} is ignored (use Ke for emission)"
-        ));
+        if m.emissive.is_none() && !unknown.contains_key("map_Ke") {
+            mat.emissive = Vec3::from(ka);
+            scene.warnings.push(format!(
+                "material '{name}': ambient Ka {ka:?} is greater than 1 and there is no Ke, so it is \
+                 taken as emitted radiance (a legacy MTL convention; write Ke to say so)"
+            ));
+        } else {
+            scene.warnings.push(format!(
+                "material '{name}': ambient Ka {ka:?} is ignored (the material has Ke)"
+            ));
+        }
     }
     // The PBR extension of MTL (Pr, Pm) selects the metallic-roughness model.
     let pr = scalar("Pr");

@@ -199,6 +199,8 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
         scene.add_material(mat);
     }
     let mut default_material = None;
+    // Cameras of included files come after the TOML's own.
+    let mut included_cameras = Vec::new();
 
     for (i, o) in file.object.iter().enumerate() {
         let name = o.name.clone().unwrap_or_else(|| format!("object {i}"));
@@ -221,7 +223,7 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
                     .file
                     .as_deref()
                     .ok_or_else(|| err(format!("object '{name}' (mesh) needs 'file'")))?;
-                add_mesh_file(&mut scene, dir, f, transform, mat)
+                add_mesh_file(&mut scene, dir, f, transform, mat, &mut included_cameras)
                     .map_err(|e| err(format!("object '{name}': {e}")))?;
                 continue;
             }
@@ -268,6 +270,7 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
         }
         scene.cameras.push(cam);
     }
+    scene.cameras.extend(included_cameras);
 
     for (i, l) in file.light.iter().enumerate() {
         let name = l
@@ -453,13 +456,16 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
     Ok(Ok(mat))
 }
 
-/// Merges the contents of a mesh file (OBJ, PLY or glTF) into `scene`, under `transform`.
+/// Merges the contents of a scene file (OBJ, PLY, glTF or FBX) into `scene`, under `transform`:
+/// its objects and materials, its lights (moved by `transform`) and its cameras (moved by
+/// `transform`, into `cameras`, which follow the TOML's own).
 fn add_mesh_file(
     scene: &mut Scene,
     dir: &Path,
     file: &str,
     transform: Mat4,
     material: Option<MaterialId>,
+    cameras: &mut Vec<CameraDesc>,
 ) -> Result<(), String> {
     let path = resolve_in_dir(dir, file)?;
     let ext = path
@@ -471,9 +477,10 @@ fn add_mesh_file(
         "obj" => super::obj::load(&path),
         "ply" => super::ply::load(&path),
         "gltf" | "glb" => super::gltf::load(&path),
+        "fbx" => super::fbx::load(&path),
         other => {
             return Err(format!(
-                "'{file}': meshes are read from .obj, .ply, .gltf or .glb, not '.{other}'"
+                "'{file}': meshes are read from .obj, .ply, .gltf, .glb or .fbx, not '.{other}'"
             ));
         }
     }
@@ -517,10 +524,69 @@ fn add_mesh_file(
         let mat = material.unwrap_or(o.material + mat0);
         scene.add_object(&o.name, shape, transform * o.transform, mat);
     }
-    if !sub.lights.is_empty() || !sub.cameras.is_empty() {
-        scene.warnings.push(format!(
-            "{file}: its lights and cameras are ignored (only its geometry and materials are used)"
-        ));
+    // Lights and cameras are rigid: they take the object's rotation and translation. A scale in
+    // the transform moves their positions but does not change a light's intensity (as Blender
+    // does when a light object is scaled) nor a camera's field of view.
+    let (_, rotation, _) = transform.to_scale_rotation_translation();
+    let sub_dir = path.parent().unwrap_or(Path::new("."));
+    for l in sub.lights {
+        scene.lights.push(match l {
+            LightDesc::Point {
+                name,
+                position,
+                intensity,
+            } => LightDesc::Point {
+                name,
+                position: transform.transform_point3(position),
+                intensity,
+            },
+            LightDesc::Spot {
+                name,
+                position,
+                direction,
+                intensity,
+                inner_angle,
+                outer_angle,
+            } => LightDesc::Spot {
+                name,
+                position: transform.transform_point3(position),
+                direction: (rotation * direction).normalize(),
+                intensity,
+                inner_angle,
+                outer_angle,
+            },
+            LightDesc::Directional {
+                name,
+                direction,
+                irradiance,
+            } => LightDesc::Directional {
+                name,
+                direction: (rotation * direction).normalize(),
+                irradiance,
+            },
+            a @ LightDesc::Ambient { .. } => a,
+            LightDesc::Environment {
+                name,
+                path,
+                scale,
+                transform: t,
+            } => LightDesc::Environment {
+                name,
+                // Relative to the included file, whose folder is inside ours.
+                path: if path.is_relative() {
+                    sub_dir.join(path)
+                } else {
+                    path
+                },
+                scale,
+                transform: Mat4::from_quat(rotation) * t,
+            },
+        });
+    }
+    for mut c in sub.cameras {
+        let (_, r, t) = (transform * c.camera_to_world).to_scale_rotation_translation();
+        c.camera_to_world = Mat4::from_rotation_translation(r, t);
+        cameras.push(c);
     }
     Ok(())
 }
