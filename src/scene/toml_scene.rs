@@ -16,8 +16,9 @@ use serde::Deserialize;
 use super::conventions::{ambient_light, apply_material_conventions, is_ambient_light_name};
 use super::image_io::{RefusedPath, is_missing_texture, load_texture_checked, resolve_in_dir};
 use super::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape};
+use crate::material::texture::UvTransform;
 use crate::material::{AlphaMode, Material, MaterialModel, TextureRef};
-use crate::math::{Mat4, Vec3};
+use crate::math::{Mat4, Vec2, Vec3};
 
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
@@ -94,6 +95,11 @@ struct MaterialSpec {
     specular: Option<f32>,
     #[serde(default)]
     double_sided: bool,
+    /// `KHR_texture_transform` of every texture of the material: uv' = T · R · S · uv, with the
+    /// rotation in degrees (counter-clockwise in glTF's v-down UV space).
+    uv_scale: Option<[f32; 2]>,
+    uv_offset: Option<[f32; 2]>,
+    uv_rotation: Option<f32>,
 }
 
 #[derive(Deserialize)]
@@ -439,12 +445,28 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
     if let Some(s) = m.specular {
         mat.specular = s;
     }
+    let uv_transform = (m.uv_scale.is_some() || m.uv_offset.is_some() || m.uv_rotation.is_some())
+        .then(|| UvTransform {
+            offset: m.uv_offset.map(Vec2::from).unwrap_or(Vec2::ZERO),
+            rotation: m.uv_rotation.unwrap_or(0.0).to_radians(),
+            scale: m.uv_scale.map(Vec2::from).unwrap_or(Vec2::ONE),
+        });
+    if let Some(t) = &uv_transform
+        && !(t.offset.is_finite() && t.rotation.is_finite() && t.scale.is_finite())
+    {
+        return Ok(Err(
+            "uv_scale, uv_offset and uv_rotation must be finite".into()
+        ));
+    }
     let mut tex = |f: &Option<String>, srgb: bool| -> Result<Option<TextureRef>, RefusedPath> {
         let Some(f) = f else { return Ok(None) };
         let t = load_texture_checked(dir, f, srgb, &mut scene.warnings)?;
         let missing = is_missing_texture(&t);
         scene.textures.push(t);
-        Ok((srgb || !missing).then(|| TextureRef::new(scene.textures.len() - 1)))
+        Ok((srgb || !missing).then(|| TextureRef {
+            transform: uv_transform,
+            ..TextureRef::new(scene.textures.len() - 1)
+        }))
     };
     mat.base_color_texture = tex(&m.base_color_texture, true)?;
     mat.metallic_roughness_texture = tex(&m.metallic_roughness_texture, false)?;
@@ -589,4 +611,46 @@ fn add_mesh_file(
         cameras.push(c);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uv_transform_applies_to_the_material_textures() {
+        let text = br#"
+[[material]]
+name = "floor"
+base_color_texture = "missing.png"
+uv_scale = [3.0, 2.0]
+uv_rotation = 90.0
+uv_offset = [0.1, 0.25]
+"#;
+        let scene = load_from_bytes(text, Path::new("."), "t.toml").unwrap();
+        let t = scene.materials[0]
+            .base_color_texture
+            .unwrap()
+            .transform
+            .expect("transform");
+        assert_eq!(t.scale, Vec2::new(3.0, 2.0));
+        assert_eq!(t.offset, Vec2::new(0.1, 0.25));
+        assert!((t.rotation - std::f32::consts::FRAC_PI_2).abs() < 1e-6);
+        // KHR_texture_transform: u' = cos·sx·u + sin·sy·v + ox.
+        let p = t.apply(Vec2::new(1.0, 0.0));
+        assert!((p - Vec2::new(0.1, 0.25 - 3.0)).length() < 1e-5, "{p}");
+
+        let plain = b"[[material]]\nname = \"m\"\nbase_color_texture = \"missing.png\"\n";
+        let scene = load_from_bytes(plain, Path::new("."), "t.toml").unwrap();
+        assert!(
+            scene.materials[0]
+                .base_color_texture
+                .unwrap()
+                .transform
+                .is_none()
+        );
+
+        let bad = b"[[material]]\nname = \"m\"\nuv_scale = [nan, 1.0]\n";
+        assert!(load_from_bytes(bad, Path::new("."), "t.toml").is_err());
+    }
 }
