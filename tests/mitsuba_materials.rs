@@ -11,7 +11,8 @@ mod common;
 use common::*;
 use trayecto::film::Image;
 use trayecto::film::output::read_exr;
-use trayecto::integrator::PathSettings;
+use trayecto::integrator::raycast::Aov;
+use trayecto::integrator::{IntegratorKind, PathSettings, ShadingModel};
 use trayecto::math::{Mat4, Vec3};
 use trayecto::render::RenderSettings;
 use trayecto::sampling::SamplerKind;
@@ -60,19 +61,42 @@ fn settings(width: u32, height: u32, spp: u32) -> RenderSettings {
     }
 }
 
-/// RMSE over the pixels whose reference is at most `max_ref` in every channel. The studio map's
-/// lamps, seen directly or in a mirror, are ~500 times brighter than the rest: the few pixels
-/// they partly cover hold almost all of the squared error (their anti-aliasing noise), which
-/// would hide everything else.
-fn rmse_below(img: &Image, reference: &Image, max_ref: f32) -> f64 {
+/// RMSE over the pixels that `mask` keeps.
+fn rmse_masked(img: &Image, reference: &Image, mask: &[bool]) -> f64 {
     let (mut s, mut n) = (0.0f64, 0usize);
-    for (p, q) in img.data.iter().zip(&reference.data) {
-        if q.max_element() <= max_ref {
+    for ((p, q), &keep) in img.data.iter().zip(&reference.data).zip(mask) {
+        if keep {
             s += (*p - *q).as_dvec3().length_squared();
             n += 3;
         }
     }
     (s / n as f64).sqrt()
+}
+
+/// Pixels entirely covered by geometry (all 4 × 4 sub-pixel rays of the raycast depth view hit).
+///
+/// Where the environment map is seen directly, the two renderers differ by design: Mitsuba's
+/// `envmap` puts texel rows at v = j/(h − 1), Trayecto at texel centres (j + ½)/h (README). Along
+/// the studio lamps' edges, ~500 times brighter than the rest, that half-texel shift is a per-pixel
+/// difference that no number of samples removes, so the convergence check leaves those pixels
+/// (and the silhouettes, partly background) out; the mean check keeps every pixel.
+fn covered_pixels(scene: &Scene, width: u32, height: u32) -> Vec<bool> {
+    const K: u32 = 4;
+    let mut s = settings(width * K, height * K, 1);
+    s.integrator = IntegratorKind::Raycast {
+        aov: Aov::Depth,
+        shading: ShadingModel::Pbr,
+    };
+    let depth = render_scene(scene, &s);
+    let mut hits = vec![0u32; (width * height) as usize];
+    for y in 0..height * K {
+        for x in 0..width * K {
+            if depth.get(x, y).x > 0.0 {
+                hits[((y / K) * width + x / K) as usize] += 1;
+            }
+        }
+    }
+    hits.into_iter().map(|n| n == K * K).collect()
 }
 
 /// Renders `name` at 4 and 64 spp; returns (64-spp image, reference, rmse at 4, rmse at 64).
@@ -83,9 +107,14 @@ fn render_pair(name: &str, width: u32, height: u32) -> (Image, Image, f64, f64) 
     let low = render_scene(&scene, &settings(width, height, 4));
     let high = render_scene(&scene, &settings(width, height, 64));
     let (e_low, e_high) = if name == "envmap" {
+        let mask = covered_pixels(&scene, width, height);
+        assert!(
+            mask.iter().filter(|&&m| m).count() > 500,
+            "the spheres should cover a good part of the image"
+        );
         (
-            rmse_below(&low, &reference, 10.0),
-            rmse_below(&high, &reference, 10.0),
+            rmse_masked(&low, &reference, &mask),
+            rmse_masked(&high, &reference, &mask),
         )
     } else {
         (rmse(&low, &reference), rmse(&high, &reference))
@@ -94,10 +123,17 @@ fn render_pair(name: &str, width: u32, height: u32) -> (Image, Image, f64, f64) 
 }
 
 fn agrees_and_converges(name: &str, width: u32, height: u32) {
-    let (high, reference, e_low, e_high) = render_pair(name, width, height);
+    let (mut high, reference, e_low, e_high) = render_pair(name, width, height);
+    if name == "envmap" {
+        // The lamps' highlights on the polished sphere are a handful of pixels ~300 times
+        // brighter than the image mean and hold a quarter of its sum; at 64 spp their
+        // anti-aliasing noise alone moves the mean by up to ±5 % between seeds (measured, seeds
+        // 11–15). The mean is therefore compared at 1024 spp (±1.2 %), where 2 % means something.
+        high = render_scene(&scene(name), &settings(width, height, 1024));
+    }
     let (m, r) = (high.mean(), reference.mean());
     println!(
-        "{name}: 64-spp mean {m} vs Mitsuba {r} (relative {:.4} {:.4} {:.4}); rmse {e_low:.4} at 4 spp, {e_high:.4} at 64 spp (ratio {:.2})",
+        "{name}: mean {m} vs Mitsuba {r} (relative {:.4} {:.4} {:.4}); rmse {e_low:.4} at 4 spp, {e_high:.4} at 64 spp (ratio {:.2})",
         m.x / r.x - 1.0,
         m.y / r.y - 1.0,
         m.z / r.z - 1.0,
