@@ -144,6 +144,10 @@ def bpy_material(bpy, name, base=(0.8, 0.8, 0.8), metallic=0.0, roughness=1.0, s
     if emission is not None:
         p.inputs["Emission Color"].default_value = (*emission, 1.0)
         p.inputs["Emission Strength"].default_value = strength
+        # Exported as glTF doubleSided = false, so Trayecto's emitters are one-sided like Mitsuba's
+        # (a double-sided Cornell light, 0.01 below the ceiling, lit the gap above it: +25 % red
+        # and a firefly wherever a path found its way in).
+        m.use_backface_culling = True
     if hasattr(p, "distribution"):
         p.distribution = "GGX"  # single-scatter GGX, as glTF / Mitsuba (not Cycles' multiscatter)
     return m
