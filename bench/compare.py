@@ -270,7 +270,8 @@ def bpy_highpoly(bpy, subdiv):
     """The Cornell box with the boxes replaced by a displaced icosphere of 20·4^subdiv triangles
     (subdiv 8: 1,310,720)."""
     mats = bpy_cornell(bpy, with_boxes=False)
-    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=subdiv, radius=0.5, location=(0, -0.45, 0))
+    # Blender counts the base icosahedron as subdivision 1: 20·4^(n−1) faces for `subdivisions=n`.
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=subdiv + 1, radius=0.5, location=(0, -0.45, 0))
     ob = bpy.context.active_object
     ob.name = "blob"
     tex = bpy.data.textures.new("clouds", "CLOUDS")
