@@ -144,6 +144,10 @@ def bpy_material(bpy, name, base=(0.8, 0.8, 0.8), metallic=0.0, roughness=1.0, s
     if emission is not None:
         p.inputs["Emission Color"].default_value = (*emission, 1.0)
         p.inputs["Emission Strength"].default_value = strength
+        # Exported as glTF doubleSided = false, so Trayecto's emitters are one-sided like Mitsuba's
+        # (a double-sided Cornell light, 0.01 below the ceiling, lit the gap above it: +25 % red
+        # and a firefly wherever a path found its way in).
+        m.use_backface_culling = True
     if hasattr(p, "distribution"):
         p.distribution = "GGX"  # single-scatter GGX, as glTF / Mitsuba (not Cycles' multiscatter)
     return m
@@ -266,7 +270,8 @@ def bpy_highpoly(bpy, subdiv):
     """The Cornell box with the boxes replaced by a displaced icosphere of 20·4^subdiv triangles
     (subdiv 8: 1,310,720)."""
     mats = bpy_cornell(bpy, with_boxes=False)
-    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=subdiv, radius=0.5, location=(0, -0.45, 0))
+    # Blender counts the base icosahedron as subdivision 1: 20·4^(n−1) faces for `subdivisions=n`.
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=subdiv + 1, radius=0.5, location=(0, -0.45, 0))
     ob = bpy.context.active_object
     ob.name = "blob"
     tex = bpy.data.textures.new("clouds", "CLOUDS")
