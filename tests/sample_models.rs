@@ -1072,7 +1072,8 @@ fn transmission_test_spheres_transmit_blur_and_cut_out_as_described() {
             eprintln!("{what}: {} inner pixels, channel {ch}", inner.len());
             let textured = mat.transmission_texture.is_some();
             let metal = mat.metallic_roughness_texture.is_some() && row == 2;
-            let masked = mat.alpha_mode == AlphaMode::Mask;
+            // The "w/ Opacity" columns (the labels say so, not the loaded material).
+            let masked = col == 1 || col == 3;
             if row == 0 && !textured {
                 // Smooth and uniformly transmissive: the backdrop's pattern, sharp, through the
                 // clear parts (textured spheres' back walls are striped, which lowers it).
