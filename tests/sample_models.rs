@@ -569,10 +569,30 @@ fn sample_scene(model: &str) -> trayecto::scene::Scene {
 /// upper half of every bump is brighter than its lower half, in every cell.
 #[test]
 fn normal_tangent_test_bumps_are_lit_from_the_same_side() {
-    bumps_are_lit_from_the_upper_right("NormalTangentTest");
+    bumps_are_lit_from_the_upper_right("NormalTangentTest", IntegratorKind::default());
 }
 
-fn bumps_are_lit_from_the_upper_right(model: &str) {
+/// The thesis's modes shade with the normal map too: the same check in the Whitted ray tracer
+/// and in the ray caster's `shaded` view (local shading with the directional light's hard
+/// shadow). Without normal mapping the flat right-hand cells are lit evenly and fail.
+#[test]
+fn normal_tangent_test_bumps_are_lit_from_the_same_side_in_the_thesis_modes() {
+    bumps_are_lit_from_the_upper_right(
+        "NormalTangentTest",
+        IntegratorKind::Whitted {
+            shading: ShadingModel::Pbr,
+        },
+    );
+    bumps_are_lit_from_the_upper_right(
+        "NormalTangentTest",
+        IntegratorKind::Raycast {
+            aov: Aov::Shaded,
+            shading: ShadingModel::Pbr,
+        },
+    );
+}
+
+fn bumps_are_lit_from_the_upper_right(model: &str, integrator: IntegratorKind) {
     let mut scene = sample_scene(model);
     // Matte everywhere, so a single light shows the shape of every bump (a metal would show only
     // a highlight); the normal maps, what the model tests, are kept.
@@ -591,6 +611,7 @@ fn bumps_are_lit_from_the_upper_right(model: &str) {
         width: 240,
         height: 240,
         spp: 4,
+        integrator,
         // Direct light only: the directional light is a delta light, sampled exactly.
         path: trayecto::integrator::path::PathSettings {
             max_depth: 1,
@@ -599,7 +620,7 @@ fn bumps_are_lit_from_the_upper_right(model: &str) {
         ..Default::default()
     };
     let img = common::render_world(&world, &settings);
-    dump_image(&format!("{model}_lit"), &img);
+    dump_image(&format!("{model}_lit_{}", integrator.name()), &img);
     let n = 240usize;
     let lum = |x: usize, y: usize| {
         let c = img.data[y * n + x];
