@@ -480,15 +480,23 @@ fn every_sample_model_matches_its_screenshot() {
             .join("glTF-Binary");
         if let Some(glb) = first_with_ext(&glb, &["glb"]) {
             match trayecto::scene::load(glb.to_str().unwrap()) {
-                Ok(b) if b.triangle_count() == scene.triangle_count() => {}
+                Ok(b)
+                    if b.triangle_count() == scene.triangle_count()
+                        && b.materials.len() == scene.materials.len() => {}
                 Ok(b) => failures.push(format!(
-                    "{}: the .glb has {} triangles, the .gltf {}",
+                    "{}: the .glb has {} triangles and {} materials, the .gltf {} and {}",
                     m.name,
                     b.triangle_count(),
-                    scene.triangle_count()
+                    b.materials.len(),
+                    scene.triangle_count(),
+                    scene.materials.len()
                 )),
                 Err(e) => failures.push(format!("{}: the .glb does not load: {e}", m.name)),
             }
+        }
+        if scene.triangle_count() == 0 {
+            failures.push(format!("{}: no triangles", m.name));
+            continue;
         }
         let mut world = World::build(&scene, &WorldOptions::default()).unwrap();
         // The path tracer with the default lighting (or the file's lights) renders it: finite and
@@ -876,24 +884,6 @@ fn slope(a: &[f32], b: &[f32], idx: &[usize]) -> f32 {
     (sab / sbb.max(1e-30)) as f32
 }
 
-/// Box blur of radius `r` pixels (a square of side 2r + 1, clamped at the borders).
-fn box_blur(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
-    let mut out = vec![0.0; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let (mut s, mut n) = (0.0, 0.0);
-            for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
-                for xx in x.saturating_sub(r)..(x + r + 1).min(w) {
-                    s += v[yy * w + xx];
-                    n += 1.0;
-                }
-            }
-            out[y * w + x] = s / n;
-        }
-    }
-    out
-}
-
 /// TransmissionTest (README): "The grid of spheres demonstrate different combinations of uniform
 /// transmission and textured transmission and how they should render in conjunction with opacity
 /// (`baseColor.a`) and surface roughness/metalicity." Columns, left to right: transmission,
@@ -1185,4 +1175,103 @@ fn transmission_test_spheres_transmit_blur_and_cut_out_as_described() {
         }
     }
     assert!(failures.is_empty(), "TransmissionTest: {failures:#?}");
+}
+
+/// DamagedHelmet under the studio HDR: its smooth metal (the visor, the metal plates) mirrors the
+/// environment. At each pixel the mirror direction of the camera ray about the (normal-mapped)
+/// shading normal of the ray caster's `normals` view is looked up in the HDR: over the smooth
+/// metal, the rendered radiance follows that radiance (log-log correlation), while over the rough
+/// dielectric, which averages the environment over a hemisphere, it hardly does. Pixels are
+/// classed by the metallicRoughness texture at the ray caster's `uv`; glowing pixels (emissive
+/// texture) are left out.
+#[test]
+fn damaged_helmet_metal_mirrors_the_studio_hdr() {
+    use trayecto::light::EnvMap;
+    use trayecto::math::{Mat3, Vec2};
+    let scene = sample_scene("DamagedHelmet");
+    let env_path = common::shared_scene("hdr/studio_small_03_1k.hdr");
+    let map = EnvMap::load(&env_path, Vec3::ONE, Mat3::IDENTITY).unwrap();
+    let mut world = World::build(
+        &scene,
+        &WorldOptions {
+            env: Some(env_path),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    // Face on and closer than the automatic camera, which leaves most of the frame to the
+    // background.
+    let n = 128u32;
+    world.camera = orbit_camera(world.bounds, 0.0, 0.0);
+    world.camera.vfov_deg *= 0.6;
+    let settings = RenderSettings {
+        width: n,
+        height: n,
+        spp: 16,
+        path: trayecto::integrator::path::PathSettings {
+            max_depth: 6,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let img = common::render_world(&world, &settings);
+    dump_image("DamagedHelmet_hdr", &img);
+    let uv = raycast(&world, n, n, 1, Aov::Uv);
+    let normals = raycast(&world, n, n, 1, Aov::Normals);
+    let depth = raycast(&world, n, n, 1, Aov::Depth);
+    let camera = trayecto::camera::Camera::new(&world.camera, n, n);
+    let mat = &scene.materials[0];
+    let look = |r: &Option<trayecto::material::TextureRef>, i: usize| {
+        let p = uv.data[i];
+        scene.textures[r.as_ref().unwrap().texture].lookup(Vec2::new(p.x, p.y))
+    };
+    let lum = |c: Vec3| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+    // (ln rendered, ln HDR in the mirror direction) per class.
+    let (mut mirror, mut diffuse) = (Vec::new(), Vec::new());
+    for i in 0..(n * n) as usize {
+        if depth.data[i].x <= 0.0 || look(&mat.emissive_texture, i).truncate().max_element() > 0.02
+        {
+            continue;
+        }
+        let mr = look(&mat.metallic_roughness_texture, i);
+        let (rough, metal) = (mat.roughness * mr.y, mat.metallic * mr.z);
+        let film = Vec2::new((i as u32 % n) as f32 + 0.5, (i as u32 / n) as f32 + 0.5);
+        let d = camera.generate_ray(film, Vec2::splat(0.5)).d.normalize();
+        let mut ns = (normals.data[i] * 2.0 - Vec3::ONE).normalize();
+        if ns.dot(d) > 0.0 {
+            ns = -ns;
+        }
+        let r = d - ns * (2.0 * d.dot(ns));
+        let pair = (
+            (lum(img.data[i]) + 1e-3).ln(),
+            (lum(map.eval(r)) + 1e-3).ln(),
+        );
+        if metal > 0.8 && rough < 0.35 {
+            mirror.push(pair);
+        } else if metal < 0.2 && rough > 0.6 {
+            diffuse.push(pair);
+        }
+    }
+    let corr = |v: &[(f32, f32)]| {
+        let a: Vec<f32> = v.iter().map(|p| p.0).collect();
+        let b: Vec<f32> = v.iter().map(|p| p.1).collect();
+        let idx: Vec<usize> = (0..v.len()).collect();
+        correlation(&a, &b, &idx)
+    };
+    let (cm, cd) = (corr(&mirror), corr(&diffuse));
+    eprintln!(
+        "log-log correlation of radiance with the HDR in the mirror direction: {cm:.3} over {} smooth-metal pixels, {cd:.3} over {} rough-dielectric pixels",
+        mirror.len(),
+        diffuse.len()
+    );
+    assert!(
+        mirror.len() > 200 && diffuse.len() > 100,
+        "{} smooth-metal, {} rough-dielectric pixels",
+        mirror.len(),
+        diffuse.len()
+    );
+    assert!(
+        cm > 0.4 && cm > cd + 0.25,
+        "the smooth metal does not mirror the environment: correlation {cm:.3} (rough dielectric {cd:.3})"
+    );
 }
