@@ -250,7 +250,9 @@ fn transmissive_sheet(transmission: f32, metallic: f32) -> Material {
         model: MaterialModel::MetallicRoughness,
         base_color: Vec3::ONE,
         metallic,
-        roughness: 1.0,
+        // Smooth: the camera sees the background straight through (a rough thin sheet blurs it
+        // over a wide lobe, see `Bsdf::ThinDielectric`).
+        roughness: 0.0,
         transmission,
         thin_walled: true,
         ..Default::default()

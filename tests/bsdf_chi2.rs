@@ -316,6 +316,65 @@ fn rough_dielectric_sampling_matches_pdf() {
     }
 }
 
+/// The rough thin-walled sheet (glTF transmission without a volume): sampler against pdf from
+/// either side, and the transmitted lobe is centred on the straight-through direction −wo (a thin
+/// sheet blurs what is behind it but does not displace it), with the thin-slab share of energy.
+#[test]
+fn rough_thin_dielectric_sampling_matches_pdf() {
+    for (roughness, deg, below) in [
+        (0.3, 0.0, false),
+        (0.4, 40.0, false),
+        (0.4, 40.0, true),
+        (0.8, 70.0, false),
+        (1.0, 20.0, true),
+    ] {
+        let b = Bsdf::thin_dielectric(1.5, roughness, Vec3::ONE);
+        assert!(!b.is_specular() && b.is_transmissive());
+        let mut wo = wo_at(deg);
+        if below {
+            wo.z = -wo.z;
+        }
+        let name = format!("rough thin dielectric r{roughness} {deg}° below={below}");
+        let i = check_bsdf(&name, b, wo);
+        assert!(i <= 1.0 + 3e-3, "{name}: pdf integrates to {i}");
+    }
+    // A slightly rough sheet seen at 30°: transmitted samples cluster around −wo and carry the
+    // smooth sheet's transmittance on average.
+    let wo = wo_at(30.0);
+    let b = Bsdf::thin_dielectric(1.5, 0.1, Vec3::ONE);
+    let mut rng = Pcg32::new(5, 6);
+    let (mut n_t, mut mean_t, mut weight) = (0usize, Vec3::ZERO, 0.0f64);
+    let n = 100_000;
+    for _ in 0..n {
+        let u = Vec2::new(rng.next_f32(), rng.next_f32());
+        if let Some(s) = b.sample(wo, rng.next_f32(), u)
+            && s.wi.z < 0.0
+        {
+            n_t += 1;
+            mean_t += s.wi;
+            weight += (s.f.x * s.wi.z.abs() / s.pdf) as f64;
+        }
+    }
+    let mean_dir = mean_t.normalize();
+    assert!(
+        mean_dir.dot(-wo) > 0.995,
+        "mean transmitted direction {mean_dir:?}, −wo {:?}",
+        -wo
+    );
+    let smooth = Bsdf::thin_dielectric(1.5, 0.0, Vec3::ONE);
+    assert!(smooth.is_specular());
+    let t_smooth = 1.0 - {
+        let mut r = fresnel_dielectric(wo.z, 1.5);
+        r += (1.0 - r) * (1.0 - r) * r / (1.0 - r * r);
+        r
+    };
+    let t_rough = weight / n as f64;
+    assert!(
+        (t_rough - t_smooth as f64).abs() < 0.02,
+        "transmittance {t_rough} (from {n_t} samples) vs smooth sheet {t_smooth}"
+    );
+}
+
 /// Dirac lobes: directions are exact and the reflect/transmit choice follows Fresnel.
 #[test]
 fn specular_lobes_choose_by_fresnel() {

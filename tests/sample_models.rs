@@ -480,15 +480,23 @@ fn every_sample_model_matches_its_screenshot() {
             .join("glTF-Binary");
         if let Some(glb) = first_with_ext(&glb, &["glb"]) {
             match trayecto::scene::load(glb.to_str().unwrap()) {
-                Ok(b) if b.triangle_count() == scene.triangle_count() => {}
+                Ok(b)
+                    if b.triangle_count() == scene.triangle_count()
+                        && b.materials.len() == scene.materials.len() => {}
                 Ok(b) => failures.push(format!(
-                    "{}: the .glb has {} triangles, the .gltf {}",
+                    "{}: the .glb has {} triangles and {} materials, the .gltf {} and {}",
                     m.name,
                     b.triangle_count(),
-                    scene.triangle_count()
+                    b.materials.len(),
+                    scene.triangle_count(),
+                    scene.materials.len()
                 )),
                 Err(e) => failures.push(format!("{}: the .glb does not load: {e}", m.name)),
             }
+        }
+        if scene.triangle_count() == 0 {
+            failures.push(format!("{}: no triangles", m.name));
+            continue;
         }
         let mut world = World::build(&scene, &WorldOptions::default()).unwrap();
         // The path tracer with the default lighting (or the file's lights) renders it: finite and
@@ -569,10 +577,30 @@ fn sample_scene(model: &str) -> trayecto::scene::Scene {
 /// upper half of every bump is brighter than its lower half, in every cell.
 #[test]
 fn normal_tangent_test_bumps_are_lit_from_the_same_side() {
-    bumps_are_lit_from_the_upper_right("NormalTangentTest");
+    bumps_are_lit_from_the_upper_right("NormalTangentTest", IntegratorKind::default());
 }
 
-fn bumps_are_lit_from_the_upper_right(model: &str) {
+/// The thesis's modes shade with the normal map too: the same check in the Whitted ray tracer
+/// and in the ray caster's `shaded` view (local shading with the directional light's hard
+/// shadow). Without normal mapping the flat right-hand cells are lit evenly and fail.
+#[test]
+fn normal_tangent_test_bumps_are_lit_from_the_same_side_in_the_thesis_modes() {
+    bumps_are_lit_from_the_upper_right(
+        "NormalTangentTest",
+        IntegratorKind::Whitted {
+            shading: ShadingModel::Pbr,
+        },
+    );
+    bumps_are_lit_from_the_upper_right(
+        "NormalTangentTest",
+        IntegratorKind::Raycast {
+            aov: Aov::Shaded,
+            shading: ShadingModel::Pbr,
+        },
+    );
+}
+
+fn bumps_are_lit_from_the_upper_right(model: &str, integrator: IntegratorKind) {
     let mut scene = sample_scene(model);
     // Matte everywhere, so a single light shows the shape of every bump (a metal would show only
     // a highlight); the normal maps, what the model tests, are kept.
@@ -591,6 +619,7 @@ fn bumps_are_lit_from_the_upper_right(model: &str) {
         width: 240,
         height: 240,
         spp: 4,
+        integrator,
         // Direct light only: the directional light is a delta light, sampled exactly.
         path: trayecto::integrator::path::PathSettings {
             max_depth: 1,
@@ -599,7 +628,7 @@ fn bumps_are_lit_from_the_upper_right(model: &str) {
         ..Default::default()
     };
     let img = common::render_world(&world, &settings);
-    dump_image(&format!("{model}_lit"), &img);
+    dump_image(&format!("{model}_lit_{}", integrator.name()), &img);
     let n = 240usize;
     let lum = |x: usize, y: usize| {
         let c = img.data[y * n + x];
@@ -824,5 +853,425 @@ fn damaged_helmet_glows_and_is_lit_by_the_studio_hdr() {
     assert!(
         m_lit.element_sum() > 1.5 * m_emitted.element_sum() && m_lit.min_element() > 0.02,
         "lit {m_lit}, emitted only {m_emitted}"
+    );
+}
+
+/// Pearson correlation of `a` and `b` over `idx`.
+fn correlation(a: &[f32], b: &[f32], idx: &[usize]) -> f32 {
+    let n = idx.len() as f64;
+    let (ma, mb) = (
+        idx.iter().map(|&i| a[i] as f64).sum::<f64>() / n,
+        idx.iter().map(|&i| b[i] as f64).sum::<f64>() / n,
+    );
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for &i in idx {
+        let (x, y) = (a[i] as f64 - ma, b[i] as f64 - mb);
+        sab += x * y;
+        saa += x * x;
+        sbb += y * y;
+    }
+    (sab / (saa * sbb).sqrt().max(1e-30)) as f32
+}
+
+/// Least-squares slope of `a` against `b` through the origin over `idx`: how much of the pattern
+/// `b` shows up in `a`.
+fn slope(a: &[f32], b: &[f32], idx: &[usize]) -> f32 {
+    let (mut sab, mut sbb) = (0.0f64, 0.0f64);
+    for &i in idx {
+        sab += a[i] as f64 * b[i] as f64;
+        sbb += b[i] as f64 * b[i] as f64;
+    }
+    (sab / sbb.max(1e-30)) as f32
+}
+
+/// TransmissionTest (README): "The grid of spheres demonstrate different combinations of uniform
+/// transmission and textured transmission and how they should render in conjunction with opacity
+/// (`baseColor.a`) and surface roughness/metalicity." Columns, left to right: transmission,
+/// transmission with an alpha-masked base colour, transmissionTexture, both; rows, top to bottom:
+/// smooth, rough, metallic (the last two through metallicRoughness textures, in stripes). The
+/// labels are emissive text, the spheres stand before a checkered cloth backdrop.
+///
+/// What a sphere lets through is measured by swapping the backdrop's checker squares (its texture
+/// inverted about its mean, so the lighting barely changes): the difference D of the renders
+/// before and after the swap is the backdrop pattern as seen at each pixel, through whatever lies
+/// in front; D0, the same difference without the spheres, is the pattern itself. Both renders use
+/// the same random numbers, so most of their noise cancels. Per pixel, what the sphere's front
+/// surface is there (transmissive, opaque or metallic, or a hole) is read from the ray caster's
+/// `uv` and `depth` views of the sphere alone and the material's textures.
+///
+/// The file's lights are its emissive labels only (so no default environment is added, and the
+/// scene is dark, image mean ≈ 0.02); the viewer that made the screenshot lights it with an
+/// environment, so a uniform white one is added here.
+#[test]
+fn transmission_test_spheres_transmit_blur_and_cut_out_as_described() {
+    use trayecto::material::AlphaMode;
+    use trayecto::scene::LightDesc;
+    let mut scene = sample_scene("TransmissionTest");
+    scene.lights.push(LightDesc::Ambient {
+        name: "white environment".into(),
+        radiance: Vec3::ONE,
+    });
+    let mat_id = |name: &str| {
+        scene
+            .materials
+            .iter()
+            .position(|m| m.name == name)
+            .unwrap_or_else(|| panic!("no material {name}"))
+    };
+    let backdrop = mat_id("Cloth Backdrop");
+    let labels = mat_id("LabelMaterial");
+    // The backdrop's checker, inverted about its mean: dark squares become light and vice versa.
+    let mut swapped = scene.clone();
+    let tex = swapped.materials[backdrop]
+        .base_color_texture
+        .as_ref()
+        .unwrap()
+        .texture;
+    let t = &mut swapped.textures[tex];
+    let (lo, hi) = t.texels.iter().fold((f32::MAX, f32::MIN), |(lo, hi), c| {
+        (lo.min(c.x), hi.max(c.x))
+    });
+    assert!(
+        hi > 2.0 * lo,
+        "backdrop texture from {lo} to {hi}: not a checker"
+    );
+    for c in &mut t.texels {
+        let a = c.w;
+        *c = trayecto::math::Vec4::splat(lo + hi) - *c;
+        c.w = a;
+    }
+    let without_spheres = |s: &trayecto::scene::Scene| {
+        let mut s = s.clone();
+        s.objects
+            .retain(|o| o.material == backdrop || o.material == labels);
+        s
+    };
+    let (w, h) = (240usize, 180usize);
+    let settings = RenderSettings {
+        width: w as u32,
+        height: h as u32,
+        spp: 8,
+        path: trayecto::integrator::path::PathSettings {
+            max_depth: 8,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let render = |s: &trayecto::scene::Scene| {
+        let world = World::build(s, &WorldOptions::default()).unwrap();
+        common::render_world(&world, &settings)
+    };
+    // And with the backdrop black: what reaches the camera from the backdrop at all, blurred or not.
+    let mut black = scene.clone();
+    black.materials[backdrop].base_color = Vec3::ZERO;
+    let (a, b, c) = (render(&scene), render(&swapped), render(&black));
+    let (a0, b0) = (
+        render(&without_spheres(&scene)),
+        render(&without_spheres(&swapped)),
+    );
+    dump_image("TransmissionTest_lit", &a);
+    dump_image("TransmissionTest_swapped", &b);
+    let lum = |c: Vec3| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+    // Channel `ch` (3: luminance) of p − q.
+    let diff = |p: &Image, q: &Image, ch: usize| -> Vec<f32> {
+        p.data
+            .iter()
+            .zip(&q.data)
+            .map(|(x, y)| {
+                let d = *x - *y;
+                if ch < 3 { d[ch] } else { lum(d) }
+            })
+            .collect()
+    };
+    let d_ch: Vec<Vec<f32>> = (0..4).map(|ch| diff(&a, &b, ch)).collect();
+    let d0_ch: Vec<Vec<f32>> = (0..4).map(|ch| diff(&a0, &b0, ch)).collect();
+    let from_backdrop = diff(&a, &c, 3);
+    let grid: [[&str; 4]; 3] = [
+        [
+            "YellowTrans",
+            "GreenMask",
+            "RedTransTexture",
+            "BlueTransWithMask",
+        ],
+        [
+            "YellowTransRough",
+            "GreenMaskRough",
+            "RedTransTextureRough",
+            "BlueTransWithMask",
+        ],
+        [
+            "YellowTransMetal",
+            "GreenMaskMetal",
+            "RedTransTextureMetal",
+            "BlueTransWithMask",
+        ],
+    ];
+    // The three "BlueTransWithMask" materials, top to bottom (the file names them alike).
+    let blue: Vec<usize> = (0..scene.materials.len())
+        .filter(|&i| scene.materials[i].name == "BlueTransWithMask")
+        .collect();
+    assert_eq!(blue.len(), 3);
+    let mut failures = Vec::new();
+    let mut check = |ok: bool, what: String| {
+        eprintln!("{} {what}", if ok { "  ok  " } else { "FAILED" });
+        if !ok {
+            failures.push(what);
+        }
+    };
+    // Pattern slope and backdrop light of the smooth yellow sphere, for the rough one.
+    let mut yellow_smooth = (0.0, 0.0);
+    for (row, names) in grid.iter().enumerate() {
+        for (col, name) in names.iter().enumerate() {
+            let m = if col == 3 { blue[row] } else { mat_id(name) };
+            let mat = scene.materials[m].clone();
+            // The sphere alone: its disc and front-surface UVs with holes filled, and where rays
+            // pass through holes in both of its walls.
+            let mut alone = scene.clone();
+            alone.objects.retain(|o| o.material == m);
+            alone.lights.clear();
+            let world = World::build(&alone, &WorldOptions::default()).unwrap();
+            let holes_depth = raycast(&world, w as u32, h as u32, 1, Aov::Depth);
+            alone.materials[m].alpha_mode = AlphaMode::Opaque;
+            let world = World::build(&alone, &WorldOptions::default()).unwrap();
+            let disc_depth = raycast(&world, w as u32, h as u32, 1, Aov::Depth);
+            let uv = raycast(&world, w as u32, h as u32, 1, Aov::Uv);
+            // The inner 70 % of the disc's radius (the rim is mostly Fresnel reflection).
+            let disc: Vec<usize> = (0..w * h).filter(|&i| disc_depth.data[i].x > 0.0).collect();
+            let (cx, cy) = disc.iter().fold((0.0, 0.0), |(x, y), &i| {
+                (x + (i % w) as f32, y + (i / w) as f32)
+            });
+            let (cx, cy) = (cx / disc.len() as f32, cy / disc.len() as f32);
+            let radius = (disc.len() as f32 / std::f32::consts::PI).sqrt();
+            let inner: Vec<usize> = disc
+                .iter()
+                .copied()
+                .filter(|&i| {
+                    let (dx, dy) = ((i % w) as f32 - cx, (i / w) as f32 - cy);
+                    dx * dx + dy * dy < (0.7 * radius).powi(2)
+                })
+                .collect();
+            let look = |r: &Option<trayecto::material::TextureRef>, i: usize| {
+                r.as_ref().map_or(trayecto::math::Vec4::ONE, |r| {
+                    let p = uv.data[i];
+                    scene.textures[r.texture].lookup(trayecto::math::Vec2::new(p.x, p.y))
+                })
+            };
+            // The front surface at each pixel: there (alpha), transmitting ((1 − metallic)·t).
+            let present = |i: usize| {
+                mat.alpha_mode == AlphaMode::Opaque
+                    || mat.alpha * look(&mat.base_color_texture, i).w >= mat.alpha_cutoff
+            };
+            let transmit = |i: usize| {
+                let mr = look(&mat.metallic_roughness_texture, i);
+                mat.transmission
+                    * look(&mat.transmission_texture, i).x
+                    * (1.0 - mat.metallic * mr.z)
+            };
+            let select = |f: &dyn Fn(usize) -> bool| -> Vec<usize> {
+                inner.iter().copied().filter(|&i| f(i)).collect()
+            };
+            let clear = select(&|i| present(i) && transmit(i) > 0.9);
+            let opaque = select(&|i| present(i) && transmit(i) < 0.1);
+            let through = select(&|i| holes_depth.data[i].x == 0.0);
+            // Measured in the sphere's own colour channel (a red glass passes little green).
+            let ch = (0..3)
+                .max_by(|&p, &q| mat.base_color[p].total_cmp(&mat.base_color[q]))
+                .unwrap();
+            let (d, d0) = (&d_ch[ch], &d0_ch[ch]);
+            let what = format!("row {row} column {col} ({name})");
+            let n_min = inner.len() / 10;
+            eprintln!("{what}: {} inner pixels, channel {ch}", inner.len());
+            let textured = mat.transmission_texture.is_some();
+            let metal = mat.metallic_roughness_texture.is_some() && row == 2;
+            // The "w/ Opacity" columns (the labels say so, not the loaded material).
+            let masked = col == 1 || col == 3;
+            if row == 0 && !textured {
+                // Smooth and uniformly transmissive: the backdrop's pattern, sharp, through the
+                // clear parts (textured spheres' back walls are striped, which lowers it).
+                let (k, r) = (slope(d, d0, &clear), correlation(d, d0, &clear));
+                check(
+                    clear.len() >= n_min && k > 0.25 && r > 0.85,
+                    format!(
+                        "{what}: backdrop seen through the smooth clear parts ({} px): slope {k:.2} > 0.25, correlation {r:.2} > 0.85",
+                        clear.len()
+                    ),
+                );
+                if col == 0 {
+                    let mean =
+                        clear.iter().map(|&i| from_backdrop[i]).sum::<f32>() / clear.len() as f32;
+                    yellow_smooth = (slope(&d_ch[3], &d0_ch[3], &clear), mean);
+                }
+            }
+            if row == 1 && col == 0 {
+                // Rough: the pattern blurred away, but the backdrop's light still comes through.
+                let k = slope(&d_ch[3], &d0_ch[3], &clear);
+                let mean =
+                    clear.iter().map(|&i| from_backdrop[i]).sum::<f32>() / clear.len() as f32;
+                check(
+                    k < 0.35 * yellow_smooth.0 && mean > 0.5 * yellow_smooth.1,
+                    format!(
+                        "{what}: rough transmission blurs: pattern slope {k:.3} < 0.35 × smooth {:.3}; backdrop light {mean:.3} > 0.5 × smooth {:.3}",
+                        yellow_smooth.0, yellow_smooth.1
+                    ),
+                );
+            }
+            if (textured || metal) && row != 1 {
+                // transmissionTexture (R) and metalness (B) stripes: opaque where the texture is
+                // dark or the surface metallic, clear elsewhere. (An opaque metal front still
+                // mirrors other parts of the backdrop, which correlate a little by chance.)
+                let (kc, ko) = (slope(d, d0, &clear), slope(d, d0, &opaque));
+                if textured && metal {
+                    // Both stripe patterns: light passes only where both walls are clear, about a
+                    // quarter of the clear front pixels, too few here for a robust slope. The
+                    // opaque front must still hide the backdrop.
+                    check(
+                        opaque.len() >= n_min && ko.abs() < 0.1,
+                        format!(
+                            "{what}: hides the backdrop where opaque or metallic ({} px, |slope| {:.3} < 0.1)",
+                            opaque.len(),
+                            ko.abs()
+                        ),
+                    );
+                } else {
+                    check(
+                        clear.len() >= n_min
+                            && opaque.len() >= n_min
+                            && kc > 0.1
+                            && ko.abs() < 0.4 * kc,
+                        format!(
+                            "{what}: transmits where its texture lets it ({} px, slope {kc:.3} > 0.1), not elsewhere ({} px, |slope| {:.3} < 0.4 × that)",
+                            clear.len(),
+                            opaque.len(),
+                            ko.abs()
+                        ),
+                    );
+                }
+            }
+            if masked {
+                // Alpha MASK: where both walls are holes the backdrop shows untinted.
+                let per: Vec<f32> = (0..3)
+                    .map(|c| slope(&d_ch[c], &d0_ch[c], &through))
+                    .collect();
+                let r = correlation(&d_ch[3], &d0_ch[3], &through);
+                let (lo, hi) = per
+                    .iter()
+                    .fold((f32::MAX, 0.0f32), |(l, h), &v| (l.min(v), h.max(v)));
+                check(
+                    through.len() >= n_min && lo > 0.45 && lo > 0.6 * hi && r > 0.85,
+                    format!(
+                        "{what}: backdrop through the cut-out holes ({} px): slopes per channel {per:.2?} > 0.45, untinted (min/max > 0.6), correlation {r:.2} > 0.85",
+                        through.len()
+                    ),
+                );
+            } else {
+                check(
+                    through.is_empty(),
+                    format!(
+                        "{what}: opaque alpha mode, {} pixels see through",
+                        through.len()
+                    ),
+                );
+            }
+        }
+    }
+    assert!(failures.is_empty(), "TransmissionTest: {failures:#?}");
+}
+
+/// DamagedHelmet under the studio HDR: its smooth metal (the visor, the metal plates) mirrors the
+/// environment. At each pixel the mirror direction of the camera ray about the (normal-mapped)
+/// shading normal of the ray caster's `normals` view is looked up in the HDR: over the smooth
+/// metal, the rendered radiance follows that radiance (log-log correlation), while over the rough
+/// dielectric, which averages the environment over a hemisphere, it hardly does. Pixels are
+/// classed by the metallicRoughness texture at the ray caster's `uv`; glowing pixels (emissive
+/// texture) are left out.
+#[test]
+fn damaged_helmet_metal_mirrors_the_studio_hdr() {
+    use trayecto::light::EnvMap;
+    use trayecto::math::{Mat3, Vec2};
+    let scene = sample_scene("DamagedHelmet");
+    let env_path = common::shared_scene("hdr/studio_small_03_1k.hdr");
+    let map = EnvMap::load(&env_path, Vec3::ONE, Mat3::IDENTITY).unwrap();
+    let mut world = World::build(
+        &scene,
+        &WorldOptions {
+            env: Some(env_path),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    // Face on and closer than the automatic camera, which leaves most of the frame to the
+    // background.
+    let n = 128u32;
+    world.camera = orbit_camera(world.bounds, 0.0, 0.0);
+    world.camera.vfov_deg *= 0.6;
+    let settings = RenderSettings {
+        width: n,
+        height: n,
+        spp: 16,
+        path: trayecto::integrator::path::PathSettings {
+            max_depth: 6,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let img = common::render_world(&world, &settings);
+    dump_image("DamagedHelmet_hdr", &img);
+    let uv = raycast(&world, n, n, 1, Aov::Uv);
+    let normals = raycast(&world, n, n, 1, Aov::Normals);
+    let depth = raycast(&world, n, n, 1, Aov::Depth);
+    let camera = trayecto::camera::Camera::new(&world.camera, n, n);
+    let mat = &scene.materials[0];
+    let look = |r: &Option<trayecto::material::TextureRef>, i: usize| {
+        let p = uv.data[i];
+        scene.textures[r.as_ref().unwrap().texture].lookup(Vec2::new(p.x, p.y))
+    };
+    let lum = |c: Vec3| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+    // (ln rendered, ln HDR in the mirror direction) per class.
+    let (mut mirror, mut diffuse) = (Vec::new(), Vec::new());
+    for i in 0..(n * n) as usize {
+        if depth.data[i].x <= 0.0 || look(&mat.emissive_texture, i).truncate().max_element() > 0.02
+        {
+            continue;
+        }
+        let mr = look(&mat.metallic_roughness_texture, i);
+        let (rough, metal) = (mat.roughness * mr.y, mat.metallic * mr.z);
+        let film = Vec2::new((i as u32 % n) as f32 + 0.5, (i as u32 / n) as f32 + 0.5);
+        let d = camera.generate_ray(film, Vec2::splat(0.5)).d.normalize();
+        let mut ns = (normals.data[i] * 2.0 - Vec3::ONE).normalize();
+        if ns.dot(d) > 0.0 {
+            ns = -ns;
+        }
+        let r = d - ns * (2.0 * d.dot(ns));
+        let pair = (
+            (lum(img.data[i]) + 1e-3).ln(),
+            (lum(map.eval(r)) + 1e-3).ln(),
+        );
+        if metal > 0.8 && rough < 0.35 {
+            mirror.push(pair);
+        } else if metal < 0.2 && rough > 0.6 {
+            diffuse.push(pair);
+        }
+    }
+    let corr = |v: &[(f32, f32)]| {
+        let a: Vec<f32> = v.iter().map(|p| p.0).collect();
+        let b: Vec<f32> = v.iter().map(|p| p.1).collect();
+        let idx: Vec<usize> = (0..v.len()).collect();
+        correlation(&a, &b, &idx)
+    };
+    let (cm, cd) = (corr(&mirror), corr(&diffuse));
+    eprintln!(
+        "log-log correlation of radiance with the HDR in the mirror direction: {cm:.3} over {} smooth-metal pixels, {cd:.3} over {} rough-dielectric pixels",
+        mirror.len(),
+        diffuse.len()
+    );
+    assert!(
+        mirror.len() > 200 && diffuse.len() > 100,
+        "{} smooth-metal, {} rough-dielectric pixels",
+        mirror.len(),
+        diffuse.len()
+    );
+    assert!(
+        cm > 0.4 && cm > cd + 0.25,
+        "the smooth metal does not mirror the environment: correlation {cm:.3} (rough dielectric {cd:.3})"
     );
 }

@@ -79,7 +79,13 @@ pub fn radiance(
             _ => Vec3::ZERO,
         };
     };
-    let hit = world.geometry.surface_hit(ray, &isect);
+    let mut hit = world.geometry.surface_hit(ray, &isect);
+    // Shading and the `normals` view use the normal-mapped shading normal, as the path tracer.
+    crate::material::normal_map::apply_normal_map(
+        &world.materials[hit.material as usize],
+        &world.textures,
+        &mut hit,
+    );
     match aov {
         Aov::Shaded => {
             let wo = -ray.d.normalize();

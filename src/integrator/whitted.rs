@@ -421,11 +421,14 @@ fn trace(
 ) -> Vec3 {
     stats.rays += 1;
     let d = ray.d.normalize();
-    let Some(hit) = world.intersect(ray) else {
+    let Some(mut hit) = world.intersect(ray) else {
         return world.lights.escaped(d).0;
     };
     let wo = -d;
     let m = &world.materials[hit.material as usize];
+    // The shading normal of every lobe below (local shading, mirror and refraction directions)
+    // is the normal-mapped one, as in the path tracer.
+    crate::material::normal_map::apply_normal_map(m, &world.textures, &mut hit);
     let mut l = emitted(m, &world.textures, &hit, wo);
     let surf = LocalSurface::new(m, &world.textures, &hit);
     match surface_kind(m, &surf) {

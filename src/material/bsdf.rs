@@ -42,9 +42,16 @@ pub enum Bsdf {
         ggx: Option<Ggx>,
         tint: Vec3,
     },
-    /// An infinitely thin dielectric sheet (glTF transmission without a volume): light passes
-    /// straight through, with the inter-reflections inside the sheet summed in closed form.
-    ThinDielectric { eta: f32, tint: Vec3 },
+    /// An infinitely thin dielectric sheet (glTF transmission without a volume). Smooth (`ggx`
+    /// `None`): light passes straight through, with the inter-reflections inside the sheet summed
+    /// in closed form. Rough: the KHR_materials_transmission BTDF, the GGX reflection lobe mirrored
+    /// through the sheet (transmission half vector H_T = normalize(V + L − 2(N·L)N)), so the
+    /// transmitted image is blurred by the roughness but not displaced.
+    ThinDielectric {
+        eta: f32,
+        tint: Vec3,
+        ggx: Option<Ggx>,
+    },
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -108,7 +115,7 @@ impl Bsdf {
                 if p_transmit > 0.0 {
                     if p_transmit >= 1.0 || hit_coin(hit) < p_transmit {
                         if material.thin_walled {
-                            return Bsdf::ThinDielectric { eta, tint: base };
+                            return Bsdf::thin_dielectric(eta, roughness, base);
                         }
                         return Bsdf::dielectric(eta, roughness, base);
                     }
@@ -140,13 +147,23 @@ impl Bsdf {
         }
     }
 
+    /// A thin-walled sheet with glTF roughness `roughness`; smooth below the GGX floor.
+    pub fn thin_dielectric(eta: f32, roughness: f32, tint: Vec3) -> Bsdf {
+        let alpha = roughness * roughness;
+        Bsdf::ThinDielectric {
+            eta,
+            tint,
+            ggx: (alpha >= MIN_ALPHA).then(|| Ggx::new(alpha)),
+        }
+    }
+
     /// True if every lobe is a Dirac delta (light sampling is pointless).
     #[inline]
     pub fn is_specular(&self) -> bool {
         match self {
             Bsdf::Diffuse { .. } | Bsdf::MetallicRoughness { .. } => false,
-            Bsdf::Mirror { .. } | Bsdf::ThinDielectric { .. } => true,
-            Bsdf::Dielectric { ggx, .. } => ggx.is_none(),
+            Bsdf::Mirror { .. } => true,
+            Bsdf::Dielectric { ggx, .. } | Bsdf::ThinDielectric { ggx, .. } => ggx.is_none(),
         }
     }
 
@@ -172,10 +189,14 @@ impl Bsdf {
                 }
                 self.metal_rough_eval(wo, wi)
             }
-            Bsdf::Mirror { .. } | Bsdf::ThinDielectric { .. } => Vec3::ZERO,
+            Bsdf::Mirror { .. } => Vec3::ZERO,
             Bsdf::Dielectric { eta, ggx, tint } => match ggx {
                 None => Vec3::ZERO,
                 Some(g) => rough_dielectric_eval(g, eta, tint, wo, wi),
+            },
+            Bsdf::ThinDielectric { eta, tint, ggx } => match ggx {
+                None => Vec3::ZERO,
+                Some(g) => rough_thin_eval(g, eta, tint, wo, wi).0,
             },
         }
     }
@@ -199,10 +220,14 @@ impl Bsdf {
                 let spec = ggx.d_visible(wo, h) / (4.0 * wo.dot(h));
                 p_spec * spec + (1.0 - p_spec) * warp::cosine_hemisphere_pdf(wi.z)
             }
-            Bsdf::Mirror { .. } | Bsdf::ThinDielectric { .. } => 0.0,
+            Bsdf::Mirror { .. } => 0.0,
             Bsdf::Dielectric { eta, ggx, .. } => match ggx {
                 None => 0.0,
                 Some(g) => rough_dielectric_pdf(g, eta, wo, wi),
+            },
+            Bsdf::ThinDielectric { eta, tint, ggx } => match ggx {
+                None => 0.0,
+                Some(g) => rough_thin_eval(g, eta, tint, wo, wi).1,
             },
         }
     }
@@ -273,7 +298,16 @@ impl Bsdf {
                 None => smooth_dielectric_sample(eta, tint, wo, u_lobe),
                 Some(g) => rough_dielectric_sample(g, eta, tint, wo, u_lobe, u),
             },
-            Bsdf::ThinDielectric { eta, tint } => {
+            Bsdf::ThinDielectric {
+                eta,
+                tint,
+                ggx: Some(g),
+            } => rough_thin_sample(g, eta, tint, wo, u_lobe, u),
+            Bsdf::ThinDielectric {
+                eta,
+                tint,
+                ggx: None,
+            } => {
                 if wo.z == 0.0 {
                     return None;
                 }
@@ -378,6 +412,70 @@ fn thin_dielectric_rt(eta: f32, cos: f32) -> (f32, f32) {
         t = 1.0 - r;
     }
     (r, t)
+}
+
+/// The rough thin sheet's f and pdf. The sheet is symmetric, so both directions are first moved
+/// to the side `wo` is on; a transmitted `wi` is then mirrored back through the sheet, where the
+/// GGX reflection lobe gives its value (KHR_materials_transmission, "Transmission BTDF"). The
+/// lobe's energy is split by the thin-slab reflectance at the microfacet, R'(wo·h), as the smooth
+/// sheet splits it at the normal, so roughness → 0 gives the smooth sheet.
+#[inline]
+fn rough_thin_eval(g: Ggx, eta: f32, tint: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    if wo.z == 0.0 || wi.z == 0.0 {
+        return (Vec3::ZERO, 0.0);
+    }
+    let flip = if wo.z < 0.0 { -1.0 } else { 1.0 };
+    let (wo, wi) = (wo * flip, wi * flip);
+    let transmit = wi.z < 0.0;
+    let wr = Vec3::new(wi.x, wi.y, wi.z.abs());
+    let h = (wo + wr).normalize();
+    let (woh, wrh) = (wo.dot(h), wr.dot(h));
+    if !(woh > 0.0 && wrh > 0.0) {
+        return (Vec3::ZERO, 0.0);
+    }
+    let (r, t) = thin_dielectric_rt(eta, woh);
+    let spec = g.d(h) * g.g2(wo, wr) / (4.0 * wo.z * wr.z);
+    let lobe_pdf = g.d_visible(wo, h) / (4.0 * woh);
+    if transmit {
+        (tint * (t * spec), t * lobe_pdf)
+    } else {
+        (Vec3::splat(r * spec), r * lobe_pdf)
+    }
+}
+
+fn rough_thin_sample(
+    g: Ggx,
+    eta: f32,
+    tint: Vec3,
+    wo: Vec3,
+    u_lobe: f32,
+    u: Vec2,
+) -> Option<BsdfSample> {
+    if wo.z == 0.0 {
+        return None;
+    }
+    let flip = if wo.z < 0.0 { -1.0 } else { 1.0 };
+    let m = g.sample_visible(wo * flip, u);
+    let mut wr = reflect(wo * flip, m);
+    if wr.z <= 0.0 {
+        return None;
+    }
+    let (r, _) = thin_dielectric_rt(eta, (wo * flip).dot(m));
+    if u_lobe >= r {
+        wr.z = -wr.z;
+    }
+    let wi = wr * flip;
+    let (f, pdf) = rough_thin_eval(g, eta, tint, wo, wi);
+    if !(pdf > 0.0) {
+        return None;
+    }
+    Some(BsdfSample {
+        wi,
+        f,
+        pdf,
+        specular: false,
+        eta: 1.0,
+    })
 }
 
 fn smooth_dielectric_sample(eta: f32, tint: Vec3, wo: Vec3, u_lobe: f32) -> Option<BsdfSample> {
