@@ -72,8 +72,7 @@ fn incoherent_rays(n: usize) -> Vec<Ray> {
 }
 
 fn memory_per_triangle(g: &GeometryStore, bvh: &Bvh) -> f64 {
-    let bytes = bvh.nodes.len() * std::mem::size_of::<trayecto::accel::bvh::BvhNode>()
-        + bvh.prims.len() * 4
+    let bytes = bvh.heap_bytes()
         + g.triangles.len() * std::mem::size_of::<TriangleVerts>()
         + g.tri_mesh.len() * 8
         + g.tri_light.len() * 4;

@@ -10,7 +10,9 @@
 //! the traversal loop another 14 % (callgrind, see BENCHMARKS.md); a 4-wide node does the work of
 //! about three binary nodes for the cost of one.
 
+use crate::geometry::PrimitiveKind;
 use crate::geometry::primitive::Intersection;
+use crate::geometry::triangle::TriangleVerts;
 use crate::geometry::{Bounds3, GeometryStore, PrimRef, Ray, RayInv};
 use crate::math::{Vec3, gamma};
 
@@ -63,6 +65,12 @@ impl BvhNode {
 pub struct Bvh {
     pub nodes: Vec<BvhNode>,
     pub prims: Vec<PrimRef>,
+    /// The triangles' vertices again, in leaf order (`tri_verts[k]` belongs to `prims[k]`; other
+    /// primitive kinds leave a placeholder). A leaf's triangles are then read from consecutive
+    /// memory instead of from wherever the mesh put them: on a 1M-triangle mesh the indirection
+    /// into `GeometryStore::triangles` was a cache miss per triangle (BENCHMARKS.md). 36 bytes per
+    /// triangle.
+    tri_verts: Vec<TriangleVerts>,
     bounds: Bounds3,
 }
 
@@ -184,7 +192,42 @@ struct Entry {
 
 impl Bvh {
     pub fn build(geometry: &GeometryStore) -> Bvh {
-        Self::build_from(geometry.all_prims(), |p| geometry.bounds(p))
+        let mut bvh = Self::build_from(geometry.all_prims(), |p| geometry.bounds(p));
+        let placeholder = TriangleVerts {
+            p0: Vec3::ZERO,
+            p1: Vec3::ZERO,
+            p2: Vec3::ZERO,
+        };
+        bvh.tri_verts = bvh
+            .prims
+            .iter()
+            .map(|p| match p.kind() {
+                PrimitiveKind::Triangle => geometry.triangles[p.index()],
+                _ => placeholder,
+            })
+            .collect();
+        bvh
+    }
+
+    /// Tests primitive `k` of the leaf order.
+    #[inline(always)]
+    fn intersect_prim(
+        &self,
+        geometry: &GeometryStore,
+        k: usize,
+        ray: &Ray,
+        t_max: f32,
+    ) -> Option<Intersection> {
+        let prim = self.prims[k];
+        match (prim.kind(), self.tri_verts.get(k)) {
+            (PrimitiveKind::Triangle, Some(t)) => t.intersect(ray, t_max).map(|h| Intersection {
+                t: h.t,
+                prim,
+                u: h.b1,
+                v: h.b2,
+            }),
+            _ => geometry.intersect(prim, ray, t_max),
+        }
     }
 
     /// Builds over any set of primitives given their bounds. Primitives with empty or non-finite
@@ -206,6 +249,7 @@ impl Bvh {
             return Bvh {
                 nodes: Vec::new(),
                 prims: Vec::new(),
+                tri_verts: Vec::new(),
                 bounds: Bounds3::EMPTY,
             };
         }
@@ -222,12 +266,20 @@ impl Bvh {
         Bvh {
             nodes,
             prims: build.into_iter().map(|b| b.prim).collect(),
+            tri_verts: Vec::new(),
             bounds,
         }
     }
 
     pub fn bounds(&self) -> Bounds3 {
         self.bounds
+    }
+
+    /// Bytes held by the hierarchy (nodes, leaf order, the leaf-ordered triangle copy).
+    pub fn heap_bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<BvhNode>()
+            + self.prims.len() * std::mem::size_of::<PrimRef>()
+            + self.tri_verts.len() * std::mem::size_of::<TriangleVerts>()
     }
 
     pub fn stats(&self) -> BvhStats {
@@ -303,8 +355,8 @@ impl Bvh {
                     break;
                 }
                 let first = e.first as usize;
-                for &p in &self.prims[first..first + e.count as usize] {
-                    if let Some(h) = geometry.intersect(p, ray, t_max) {
+                for k in first..first + e.count as usize {
+                    if let Some(h) = self.intersect_prim(geometry, k, ray, t_max) {
                         t_max = h.t;
                         best = Some(h);
                     }
@@ -334,8 +386,8 @@ impl Bvh {
                     sp += 1;
                 } else {
                     let first = n.first[lane] as usize;
-                    for &p in &self.prims[first..first + n.count[lane] as usize] {
-                        if geometry.intersect(p, ray, t_max).is_some() {
+                    for k in first..first + n.count[lane] as usize {
+                        if self.intersect_prim(geometry, k, ray, t_max).is_some() {
                             return true;
                         }
                     }
