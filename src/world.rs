@@ -290,8 +290,19 @@ impl World {
     /// skipped, see [`World::intersect_raw`].
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
-        self.intersect_raw(ray)
-            .map(|i| self.geometry.surface_hit(ray, &i))
+        let isect = self.accel.intersect(&self.geometry, ray)?;
+        if !self.has_cutouts {
+            return Some(self.geometry.surface_hit(ray, &isect));
+        }
+        let (isect, alpha_tested) = self.skip_cutouts(ray, isect)?;
+        // A cut-out surface that turned out to be there was already expanded for its alpha test.
+        Some(match alpha_tested {
+            Some(mut hit) => {
+                hit.t = isect.t;
+                hit
+            }
+            None => self.geometry.surface_hit(ray, &isect),
+        })
     }
 
     /// The first surface along `ray` that is not a hole of an alpha-masked or alpha-blended
@@ -302,7 +313,7 @@ impl World {
         if !self.has_cutouts {
             return Some(isect);
         }
-        self.skip_cutouts(ray, isect)
+        self.skip_cutouts(ray, isect).map(|(isect, _)| isect)
     }
 
     /// True if something opaque lies on `ray` before `ray.t_max`.
@@ -322,7 +333,15 @@ impl World {
     /// with probability alpha, decided by a hash of the ray and the hit so that the expected
     /// radiance, and the expected shadow-ray transmittance 1 − alpha, are exact without keeping
     /// per-ray sampler state here.
-    fn skip_cutouts(&self, ray: &Ray, mut isect: Intersection) -> Option<Intersection> {
+    ///
+    /// Returns the hit with `t` in `ray`'s parameter and, when that surface is itself a cut-out
+    /// material, the shading attributes its alpha test computed (with `t` still along the last
+    /// continuation ray), so the caller need not compute them again.
+    fn skip_cutouts(
+        &self,
+        ray: &Ray,
+        mut isect: Intersection,
+    ) -> Option<(Intersection, Option<SurfaceHit>)> {
         let mut current = *ray;
         // Parameter of `current`'s origin along the original ray.
         let mut t_offset = 0.0f32;
@@ -331,7 +350,7 @@ impl World {
             let material = self.geometry.material(isect.prim) as usize;
             if !self.cutout[material] {
                 isect.t += t_offset;
-                return Some(isect);
+                return Some((isect, None));
             }
             let hit = self.geometry.surface_hit(&current, &isect);
             let m = &self.materials[material];
@@ -342,7 +361,7 @@ impl World {
             };
             if present {
                 isect.t += t_offset;
-                return Some(isect);
+                return Some((isect, Some(hit)));
             }
             // Step through the hole: respawn on the far side with the remaining extent.
             let mut next = Ray::spawn(hit.p, hit.p_error, hit.ng, ray.d);
@@ -357,7 +376,7 @@ impl World {
             isect = self.accel.intersect(&self.geometry, &current)?;
         }
         isect.t += t_offset;
-        Some(isect)
+        Some((isect, None))
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -532,13 +551,6 @@ pub fn orbit_camera(bounds: Bounds3, yaw_deg: f32, pitch_deg: f32) -> CameraDesc
 /// independent across samples while the same ray always gets the same answer.
 #[inline]
 fn cutout_hash(ray: &Ray, t: f32) -> f32 {
-    let o = ray.o.to_array().map(f32::to_bits);
-    let d = ray.d.to_array().map(f32::to_bits);
-    let h = crate::sampling::rng::hash_words(&[
-        (o[0] as u64) << 32 | o[1] as u64,
-        (o[2] as u64) << 32 | d[0] as u64,
-        (d[1] as u64) << 32 | d[2] as u64,
-        t.to_bits() as u64,
-    ]);
-    crate::sampling::rng::u32_to_unit_f32((h >> 32) as u32)
+    let (o, d) = (ray.o, ray.d);
+    crate::sampling::rng::hash_floats_to_unit(&[o.x, o.y, o.z, d.x, d.y, d.z, t])
 }

@@ -628,12 +628,7 @@ pub fn base_color(material: &Material, textures: &[Texture], hit: &SurfaceHit) -
 /// distance): the coin that picks one component of a stochastic material mixture.
 #[inline]
 fn hit_coin(hit: &SurfaceHit) -> f32 {
-    let p = hit.p.to_array().map(f32::to_bits);
-    let h = crate::sampling::rng::hash_words(&[
-        (p[0] as u64) << 32 | p[1] as u64,
-        (p[2] as u64) << 32 | hit.t.to_bits() as u64,
-    ]);
-    crate::sampling::rng::u32_to_unit_f32((h >> 32) as u32)
+    crate::sampling::rng::hash_floats_to_unit(&[hit.p.x, hit.p.y, hit.p.z, hit.t])
 }
 
 /// Opacity at a hit (glTF: base colour factor alpha × texture alpha × vertex colour alpha; OBJ

@@ -65,6 +65,24 @@ pub fn hash_words(words: &[u64]) -> u64 {
     h
 }
 
+/// A uniform number in [0, 1) that is a pure function of up to eight floats (their bit patterns,
+/// packed two per word): a reproducible coin for decisions that must not consume sampler
+/// dimensions, such as stochastic transparency and stochastic material mixtures.
+#[inline]
+pub fn hash_floats_to_unit(values: &[f32]) -> f32 {
+    debug_assert!(values.len() <= 8);
+    let mut words = [0u64; 4];
+    let n = values.len().div_ceil(2).min(4);
+    for (w, pair) in words.iter_mut().zip(values.chunks(2)) {
+        *w = match *pair {
+            [a, b] => (a.to_bits() as u64) << 32 | b.to_bits() as u64,
+            [a] => a.to_bits() as u64,
+            _ => 0,
+        };
+    }
+    u32_to_unit_f32((hash_words(&words[..n]) >> 32) as u32)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -656,7 +656,9 @@ impl<'a> Converter<'a> {
                     self.warn(format!(
                         "material '{material}': texture '{tname}' on '{prop}' could not be loaded ({e}); shown in magenta"
                     ));
-                    self.scene.textures.push(texture::missing(&tname));
+                    self.scene
+                        .textures
+                        .push(crate::scene::image_io::missing_texture(&tname));
                     Some(self.scene.textures.len() - 1)
                 } else {
                     self.warn(format!(

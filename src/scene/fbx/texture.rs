@@ -124,11 +124,6 @@ pub fn load(
     decode(name, &bytes, srgb)
 }
 
-/// The visible stand-in for a missing colour texture: the shared magenta fallback.
-pub fn missing(name: &str) -> Texture {
-    crate::scene::image_io::missing_texture(name)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
