@@ -52,13 +52,12 @@ import argparse
 import math
 import os
 import sys
-import time
 import tomllib
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 sys.path.insert(0, HERE)
-from make_references import pick_variant  # noqa: E402
+from make_references import pick_variant, render_chunked  # noqa: E402
 
 SCENE_DIR = os.path.join(ROOT, "scenes", "mitsuba")
 DEFAULT_OUT = os.path.join(ROOT, "tests", "references")
@@ -256,17 +255,7 @@ def scene_dict(mi, np, name, width, height, envmap):
 def render(mi, np, name, envmap, spp, chunk, out_dir):
     width, height = SCENES[name]
     scene = mi.load_dict(scene_dict(mi, np, name, width, height, envmap))
-    acc = np.zeros((height, width, 3), dtype=np.float64)
-    done, seed, t0 = 0, 0, time.time()
-    while done < spp:
-        n = min(chunk, spp - done)
-        img = np.array(mi.render(scene, spp=n, seed=seed), dtype=np.float64)
-        assert img.shape == (height, width, 3), img.shape
-        acc += img * n
-        done += n
-        seed += 1
-    elapsed = time.time() - t0
-    img = (acc / spp).astype(np.float32)
+    img, seed, elapsed = render_chunked(mi, np, scene, spp, chunk, width, height)
     path = os.path.join(out_dir, f"mitsuba_{name}.exr")
     mi.Bitmap(img, pixel_format=mi.Bitmap.PixelFormat.RGB).write(path)
     nonfinite = int((~np.isfinite(img)).sum())

@@ -78,21 +78,27 @@ def scene_dict(mi, max_depth):
     return d
 
 
-def render(mi, np, name, max_depth, spp, chunk, out_dir):
-    scene = mi.load_dict(scene_dict(mi, max_depth))
-    acc = np.zeros((SIZE, SIZE, 3), dtype=np.float64)
+def render_chunked(mi, np, scene, spp, chunk, width, height, name=None):
+    """Renders `spp` samples in chunks of `chunk` spp with seeds 0, 1, ..., averaged in float64
+    (shared with make_material_references.py). Returns (float32 image, chunks, seconds)."""
+    acc = np.zeros((height, width, 3), dtype=np.float64)
     done, seed, t0 = 0, 0, time.time()
     while done < spp:
         n = min(chunk, spp - done)
         img = np.array(mi.render(scene, spp=n, seed=seed), dtype=np.float64)
-        assert img.shape == (SIZE, SIZE, 3), img.shape
+        assert img.shape == (height, width, 3), img.shape
         acc += img * n
         done += n
         seed += 1
-        el = time.time() - t0
-        print(f"  [{name}] {done}/{spp} spp, {el:.1f} s, eta {el / done * (spp - done):.0f} s", flush=True)
-    elapsed = time.time() - t0
-    img = (acc / spp).astype(np.float32)
+        if name is not None:
+            el = time.time() - t0
+            print(f"  [{name}] {done}/{spp} spp, {el:.1f} s, eta {el / done * (spp - done):.0f} s", flush=True)
+    return (acc / spp).astype(np.float32), seed, time.time() - t0
+
+
+def render(mi, np, name, max_depth, spp, chunk, out_dir):
+    scene = mi.load_dict(scene_dict(mi, max_depth))
+    img, seed, elapsed = render_chunked(mi, np, scene, spp, chunk, SIZE, SIZE, name)
     nonfinite = int((~np.isfinite(img)).sum())
     path = os.path.join(out_dir, f"{name}.exr")
     mi.Bitmap(img, pixel_format=mi.Bitmap.PixelFormat.RGB).write(path)
