@@ -11,12 +11,12 @@ mod common;
 use common::*;
 use trayecto::film::Image;
 use trayecto::film::output::read_exr;
-use trayecto::integrator::raycast::Aov;
-use trayecto::integrator::{IntegratorKind, PathSettings, ShadingModel};
+use trayecto::integrator::PathSettings;
 use trayecto::math::{Mat4, Vec3};
 use trayecto::render::RenderSettings;
 use trayecto::sampling::SamplerKind;
 use trayecto::scene::{LightDesc, Scene};
+use trayecto::world::{World, WorldOptions};
 
 /// The environment map's rotation about +y, in degrees (the script uses the same).
 const ENVMAP_ROTATION_DEG: f32 = 90.0;
@@ -81,22 +81,11 @@ fn rmse_masked(img: &Image, reference: &Image, mask: &[bool]) -> f64 {
 /// difference that no number of samples removes, so the convergence check leaves those pixels
 /// (and the silhouettes, partly background) out; the mean check keeps every pixel.
 fn covered_pixels(scene: &Scene, width: u32, height: u32) -> Vec<bool> {
-    const K: u32 = 4;
-    let mut s = settings(width * K, height * K, 1);
-    s.integrator = IntegratorKind::Raycast {
-        aov: Aov::Depth,
-        shading: ShadingModel::Pbr,
-    };
-    let depth = render_scene(scene, &s);
-    let mut hits = vec![0u32; (width * height) as usize];
-    for y in 0..height * K {
-        for x in 0..width * K {
-            if depth.get(x, y).x > 0.0 {
-                hits[((y / K) * width + x / K) as usize] += 1;
-            }
-        }
-    }
-    hits.into_iter().map(|n| n == K * K).collect()
+    let world = World::build(scene, &WorldOptions::default()).expect("scene builds");
+    coverage(&world, width, height, &settings(width, height, 1))
+        .into_iter()
+        .map(|c| c == 1.0)
+        .collect()
 }
 
 /// Renders `name` at 4 and 64 spp; returns (64-spp image, reference, rmse at 4, rmse at 64).

@@ -177,20 +177,10 @@ fn raycast(world: &World, w: u32, h: u32, spp: u32, aov: Aov) -> Image {
 /// covered by the model, counted at 4 × 4 sub-pixels with the depth view (0 where a ray misses).
 fn render_layer(world: &World, w: u32, h: u32) -> Layer {
     let albedo = raycast(world, w, h, 4, Aov::Albedo);
-    const K: usize = 4;
-    let fine = raycast(world, w * K as u32, h * K as u32, 1, Aov::Depth);
-    let (w, h) = (w as usize, h as usize);
-    let mut mask = vec![0.0f32; w * h];
-    for y in 0..h * K {
-        for x in 0..w * K {
-            if fine.data[y * w * K + x].x > 0.0 {
-                mask[(y / K) * w + x / K] += 1.0 / (K * K) as f32;
-            }
-        }
-    }
+    let mask = common::coverage(world, w, h, &RenderSettings::default());
     Layer {
-        w,
-        h,
+        w: w as usize,
+        h: h as usize,
         color: albedo.data,
         mask,
         uniform_background: true,

@@ -89,3 +89,33 @@ pub fn assert_means_close(img: &Image, reference: &Image, rel: f32, what: &str) 
         );
     }
 }
+
+/// Fraction of each pixel covered by geometry: the ray caster's depth view (0 where a ray misses)
+/// at 4 × 4 sub-pixels, one ray each. `base` supplies the seed and sampler; its size, sample
+/// count and integrator are replaced.
+pub fn coverage(world: &World, width: u32, height: u32, base: &RenderSettings) -> Vec<f32> {
+    use trayecto::integrator::{Aov, IntegratorKind, ShadingModel};
+    const K: u32 = 4;
+    let settings = RenderSettings {
+        width: width * K,
+        height: height * K,
+        spp: 1,
+        integrator: IntegratorKind::Raycast {
+            aov: Aov::Depth,
+            shading: ShadingModel::Pbr,
+        },
+        ..base.clone()
+    };
+    let depth = render_world(world, &settings);
+    let mut hits = vec![0u32; (width * height) as usize];
+    for y in 0..height * K {
+        for x in 0..width * K {
+            if depth.get(x, y).x > 0.0 {
+                hits[((y / K) * width + x / K) as usize] += 1;
+            }
+        }
+    }
+    hits.into_iter()
+        .map(|n| n as f32 / (K * K) as f32)
+        .collect()
+}
