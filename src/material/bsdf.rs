@@ -313,14 +313,7 @@ impl Bsdf {
                 }
                 let (r, t) = thin_dielectric_rt(eta, wo.z.abs());
                 if u_lobe < r / (r + t) {
-                    let wi = Vec3::new(-wo.x, -wo.y, wo.z);
-                    Some(BsdfSample {
-                        wi,
-                        f: Vec3::splat(r / wi.z.abs()),
-                        pdf: r / (r + t),
-                        specular: true,
-                        eta: 1.0,
-                    })
+                    Some(fresnel_reflection_sample(wo, r, r / (r + t)))
                 } else {
                     let wi = -wo;
                     Some(BsdfSample {
@@ -478,6 +471,20 @@ fn rough_thin_sample(
     })
 }
 
+/// The Dirac reflection lobe of a smooth interface with reflectance `r`, chosen with
+/// probability `pdf` (shared by the thick and the thin-walled dielectric).
+#[inline]
+fn fresnel_reflection_sample(wo: Vec3, r: f32, pdf: f32) -> BsdfSample {
+    let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+    BsdfSample {
+        wi,
+        f: Vec3::splat(r / wi.z.abs()),
+        pdf,
+        specular: true,
+        eta: 1.0,
+    }
+}
+
 fn smooth_dielectric_sample(eta: f32, tint: Vec3, wo: Vec3, u_lobe: f32) -> Option<BsdfSample> {
     if wo.z == 0.0 {
         return None;
@@ -485,14 +492,7 @@ fn smooth_dielectric_sample(eta: f32, tint: Vec3, wo: Vec3, u_lobe: f32) -> Opti
     let r = fresnel_dielectric(wo.z, eta);
     let t = 1.0 - r;
     if u_lobe < r / (r + t) {
-        let wi = Vec3::new(-wo.x, -wo.y, wo.z);
-        Some(BsdfSample {
-            wi,
-            f: Vec3::splat(r / wi.z.abs()),
-            pdf: r / (r + t),
-            specular: true,
-            eta: 1.0,
-        })
+        Some(fresnel_reflection_sample(wo, r, r / (r + t)))
     } else {
         let (wi, etap) = refract(wo, Vec3::Z, eta)?;
         if wi.z == 0.0 {
