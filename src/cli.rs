@@ -90,6 +90,9 @@ pub struct RenderArgs {
     /// Bounces before Russian roulette starts.
     #[arg(long, default_value_t = 3)]
     pub rr_depth: u32,
+    /// Russian roulette keeps a path with probability min(1, scale × throughput); 1 is PBRT's rule.
+    #[arg(long, default_value_t = 3.0)]
+    pub rr_scale: f32,
     /// Random seed; the image is a pure function of the seed and the settings.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -133,6 +136,7 @@ impl RenderArgs {
             path: PathSettings {
                 max_depth: self.max_depth,
                 rr_depth: self.rr_depth,
+                rr_scale: self.rr_scale,
                 nee: !self.no_nee,
                 mis: !self.no_mis,
                 secondary: self.secondary,

@@ -95,6 +95,12 @@ impl RenderSettings {
                 self.path.secondary
             ));
         }
+        let rr = self.path.rr_scale;
+        if !(rr > 0.0 && rr <= 1000.0) {
+            return bad(format!(
+                "Russian roulette scale must be above 0 and at most 1000 (got {rr})"
+            ));
+        }
         if let Some(t) = self.threads
             && (t == 0 || t > 1024)
         {

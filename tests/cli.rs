@@ -77,6 +77,8 @@ fn bad_options_fail_cleanly_before_rendering() {
         (&["--exposure", "NaN"], "exposure"),
         (&["--threads", "0"], "threads"),
         (&["--secondary", "0"], "secondary"),
+        (&["--rr-scale", "0"], "Russian roulette scale"),
+        (&["--rr-scale", "NaN"], "Russian roulette scale"),
         (&["-o", "image.bmp"], "unsupported output format"),
         (&["-o", "no/such/dir/x.png"], "output folder does not exist"),
         (&["render", "no-such-scene"], "unknown built-in scene"),

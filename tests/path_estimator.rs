@@ -100,6 +100,14 @@ fn configs() -> Vec<(&'static str, PathSettings)> {
         ("no nee", PathSettings { nee: false, ..d }),
         ("rr from bounce 0", PathSettings { rr_depth: 0, ..d }),
         (
+            "rr from bounce 0, PBRT's q = max throughput",
+            PathSettings {
+                rr_depth: 0,
+                rr_scale: 1.0,
+                ..d
+            },
+        ),
+        (
             "no rr",
             PathSettings {
                 rr_depth: 1000,

@@ -122,12 +122,20 @@ impl Bsdf {
                     metallic = (metallic / (1.0 - p_transmit)).min(1.0);
                 }
                 let r0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
+                let f0_dielectric = (material.specular_color * r0).min(Vec3::ONE);
+                let specular = material.specular.clamp(0.0, 1.0);
+                if metallic == 0.0 && (specular == 0.0 || f0_dielectric == Vec3::ZERO) {
+                    // No specular lobe at all (Blender's "Specular IOR Level" 0, exported as
+                    // KHR_materials_specular 0): the mixture is exactly Lambertian, with the same
+                    // value, pdf and samples, so skip the GGX terms.
+                    return Bsdf::Diffuse { albedo: base };
+                }
                 Bsdf::MetallicRoughness {
                     base,
                     metallic,
                     ggx: Ggx::new(roughness * roughness),
-                    f0_dielectric: (material.specular_color * r0).min(Vec3::ONE),
-                    specular: material.specular.clamp(0.0, 1.0),
+                    f0_dielectric,
+                    specular,
                 }
             }
         }
@@ -165,6 +173,12 @@ impl Bsdf {
             Bsdf::Mirror { .. } => true,
             Bsdf::Dielectric { ggx, .. } | Bsdf::ThinDielectric { ggx, .. } => ggx.is_none(),
         }
+    }
+
+    /// True if `sample` ignores its lobe-choice number.
+    #[inline]
+    pub fn has_one_lobe(&self) -> bool {
+        matches!(self, Bsdf::Diffuse { .. } | Bsdf::Mirror { .. })
     }
 
     /// True if the BSDF transmits: its frame must keep the geometric orientation.

@@ -123,6 +123,13 @@ impl SampleStream {
         }
     }
 
+    /// Skips `n` dimensions whose numbers the caller would not use (the light choice with one
+    /// light, the lobe choice of a one-lobe BSDF), so later dimensions keep their meaning.
+    #[inline]
+    pub fn skip(&mut self, n: u32) {
+        self.dim += n;
+    }
+
     pub fn next_2d(&mut self) -> Vec2 {
         let d = self.dim;
         self.dim += 2;
