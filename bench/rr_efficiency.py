@@ -7,7 +7,7 @@ Usage (from the repository root):
     python3 bench/rr_efficiency.py --scene bench/out/veach/veach.glb   # (made by bench/compare.py)
     python3 bench/rr_efficiency.py --configs "--rr-scale 1" "--rr-scale 3" "--rr-depth 64"
 
-For each setting it renders the scene at 64x64, 64 spp, five seeds, and reports the mean relMSE
+For each setting it renders the scene at 64x64, 64 spp (--spp), five seeds, and reports the mean relMSE
 against a Trayecto reference of 8192 spp (made once per scene, cached in bench/out/), the rays
 traced per sample (the CLI's count: deterministic, unaffected by machine load), the median render
 time, and two efficiencies: 1 / (relMSE x rays per sample) and 1 / (relMSE x seconds). relMSE is the
@@ -51,6 +51,7 @@ def main():
     ap.add_argument("--scene", default="cornell")
     ap.add_argument("--configs", nargs="*", default=DEFAULT_CONFIGS)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--spp", type=int, default=SPP, help="samples per pixel of the compared renders")
     ap.add_argument("--trayecto-bin", default=None)
     args = ap.parse_args()
     if not (compare.ensure_module("numpy", "numpy") and compare.ensure_module("mitsuba", "mitsuba")):
@@ -71,16 +72,17 @@ def main():
                            os.path.join(compare.OUT, f"rr_ref_{tag}.exr"), args.threads)
         np.save(ref_path, ref)
     ref = np.load(ref_path)
-    print(f"| {tag}: setting | relMSE @{SPP} spp | rays / sample | time | 1/(relMSE x rays) | 1/(relMSE x s) |")
+    spp = args.spp
+    print(f"| {tag}: setting | relMSE @{spp} spp | rays / sample | time | 1/(relMSE x rays) | 1/(relMSE x s) |")
     print("|---|---|---|---|---|---|")
     for cfg in args.configs:
         errs, times, rays = [], [], []
         for seed in SEEDS:
-            img, t, n = render(exe, args.scene, SPP, seed, cfg.split(), os.path.join(compare.OUT, "rr_x.exr"),
+            img, t, n = render(exe, args.scene, spp, seed, cfg.split(), os.path.join(compare.OUT, "rr_x.exr"),
                                args.threads)
             errs.append(compare.rel_mse(img, ref))
             times.append(t)
-            rays.append(n / (RES * RES * SPP))
+            rays.append(n / (RES * RES * spp))
         e, r, t = float(np.mean(errs)), float(np.mean(rays)), float(np.median(times))
         print(f"| `{cfg}` | {e:.5f} | {r:.2f} | {t:.3f} s | {1 / (e * r):.1f} | {1 / (e * t):.0f} |", flush=True)
     return 0

@@ -110,7 +110,7 @@ impl SampleStream {
         match self.kind {
             SamplerKind::Independent => self.random(d, 0),
             SamplerKind::Sobol => {
-                let x = super::sobol::scrambled_1d(self.sample, self.dim_hash(d) as u32);
+                let x = super::sobol::scrambled_1d(self.sample, self.mask_1d, self.dim_hash(d));
                 u32_to_unit_f32(x)
             }
             SamplerKind::Stratified | SamplerKind::PoissonDisk => {
@@ -136,7 +136,8 @@ impl SampleStream {
         match self.kind {
             SamplerKind::Independent => Vec2::new(self.random(d, 0), self.random(d + 1, 0)),
             SamplerKind::Sobol => {
-                let (x, y) = super::sobol::scrambled_2d(self.sample, self.dim_hash(d) as u32);
+                let (x, y) =
+                    super::sobol::scrambled_2d(self.sample, self.mask_1d, self.dim_hash(d));
                 Vec2::new(u32_to_unit_f32(x), u32_to_unit_f32(y))
             }
             SamplerKind::PoissonDisk => {

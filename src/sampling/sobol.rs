@@ -87,26 +87,50 @@ pub fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
     laine_karras(x.reverse_bits(), seed).reverse_bits()
 }
 
+/// Dimension 1 of the Sobol sequence (the Pascal matrix: v₀ = 2³¹, v_k = v_{k−1} ⊕ v_{k−1} ≫ 1)
+/// without the direction table; as [`sobol`]`(index, 1)`.
 #[inline]
-fn hash_u32(a: u32, b: u32) -> u32 {
-    (super::rng::mix64(((a as u64) << 32) | b as u64) >> 32) as u32
+fn sobol_dim1(mut index: u32) -> u32 {
+    let mut v = 1u32 << 31;
+    let mut x = 0u32;
+    while index != 0 {
+        if index & 1 == 1 {
+            x ^= v;
+        }
+        index >>= 1;
+        v ^= v >> 1;
+    }
+    x
+}
+
+/// The index shuffle of a padded dimension. `mask` = 2^m − 1 with 2^m ≥ the pixel's sample count:
+/// indices below 2^m are permuted among themselves (an Owen scramble is a bijection on every
+/// aligned block), so a pixel's samples are exactly the first 2^m Sobol points, a (0, m, 2)-net,
+/// and the generator loop runs over m bits instead of 32. Indices beyond the mask are scrambled
+/// whole (still uniform, so still unbiased).
+#[inline]
+fn shuffle(index: u32, mask: u32, seed: u32) -> u32 {
+    let i = nested_uniform_scramble(index, seed);
+    if index <= mask { i & mask } else { i }
 }
 
 /// Shuffled, Owen-scrambled Sobol point `index` in dimensions (0, 1), as 32-bit fixed point.
+/// `seed` is the padded dimension's 64-bit hash; see [`shuffle`] for `mask`.
 #[inline]
-pub fn scrambled_2d(index: u32, seed: u32) -> (u32, u32) {
-    let i = nested_uniform_scramble(index, seed);
+pub fn scrambled_2d(index: u32, mask: u32, seed: u64) -> (u32, u32) {
+    let i = shuffle(index, mask, seed as u32);
+    let s = super::rng::mix64(seed);
     (
-        nested_uniform_scramble(sobol(i, 0), hash_u32(seed, 0)),
-        nested_uniform_scramble(sobol(i, 1), hash_u32(seed, 1)),
+        nested_uniform_scramble(i.reverse_bits(), s as u32),
+        nested_uniform_scramble(sobol_dim1(i), (s >> 32) as u32),
     )
 }
 
 /// Shuffled, Owen-scrambled 1D Sobol (van der Corput) point.
 #[inline]
-pub fn scrambled_1d(index: u32, seed: u32) -> u32 {
-    let i = nested_uniform_scramble(index, seed);
-    nested_uniform_scramble(sobol(i, 0), hash_u32(seed, 0))
+pub fn scrambled_1d(index: u32, mask: u32, seed: u64) -> u32 {
+    let i = shuffle(index, mask, seed as u32);
+    nested_uniform_scramble(i.reverse_bits(), (seed >> 32) as u32)
 }
 
 #[cfg(test)]
@@ -126,6 +150,27 @@ mod tests {
         for (i, e) in expect.iter().enumerate() {
             let x = sobol(i as u32, 2) as f64 / 4294967296.0;
             assert_eq!(x, *e, "index {i}");
+        }
+    }
+
+    #[test]
+    fn dimension_one_without_the_table_matches_it() {
+        for i in (0..5000u32).chain([u32::MAX, 0x8000_0000, 0x1234_5678]) {
+            assert_eq!(sobol_dim1(i), sobol(i, 1), "index {i}");
+        }
+    }
+
+    #[test]
+    fn the_shuffle_permutes_each_power_of_two_prefix() {
+        for seed in [0u32, 7, 0xdeadbeef] {
+            for n in [1u32, 2, 8, 64, 1024] {
+                let mut seen = vec![false; n as usize];
+                for i in 0..n {
+                    let j = shuffle(i, n - 1, seed) as usize;
+                    assert!(j < n as usize && !seen[j], "seed {seed} n {n}");
+                    seen[j] = true;
+                }
+            }
         }
     }
 
@@ -156,10 +201,11 @@ mod tests {
     #[test]
     fn scrambled_points_form_02_nets() {
         for seed in [0u32, 1, 0xdeadbeef, 12345] {
+            let seed = super::super::rng::mix64(seed as u64);
             for n in [4u32, 16, 64, 256] {
-                let pts: Vec<(u32, u32)> = (0..n).map(|i| scrambled_2d(i, seed)).collect();
+                let pts: Vec<(u32, u32)> = (0..n).map(|i| scrambled_2d(i, n - 1, seed)).collect();
                 assert!(is_02_net(&pts), "seed {seed} n {n}");
-                let xs: Vec<u32> = (0..n).map(|i| scrambled_1d(i, seed)).collect();
+                let xs: Vec<u32> = (0..n).map(|i| scrambled_1d(i, n - 1, seed)).collect();
                 let mut strata = vec![0; n as usize];
                 for x in xs {
                     strata[(x >> (32 - n.trailing_zeros())) as usize] += 1;
