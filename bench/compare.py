@@ -21,6 +21,12 @@ What is timed (process start-up and scene loading are never included):
   * cycles: wall time of `bpy.ops.render.render()` with persistent data on, after a 1-spp warm-up
     render, so Cycles' scene sync / BVH build is (mostly) excluded. threads_mode FIXED, N threads.
 
+Every timed ladder render is repeated --repeat times (default 3) and the fastest is kept (the
+machine's noise only ever adds time; the first repetition's image is the one scored). The ladders
+run in --rounds interleaved rounds (default 3: every renderer's ladder, then again), so a slow
+spell of a shared machine falls on all renderers; the table gives median times over the rounds and
+the lowest and highest per-round ratio. References are rendered once.
+
 Error: relMSE = mean over pixels and channels of (x - ref)^2 / (ref^2 + 1e-2), where ref is that
 renderer's OWN high-spp reference (so it measures noise, not model differences). The references'
 mean RGB are compared with Trayecto's as a sanity check that the scenes are equivalent.
@@ -399,16 +405,22 @@ def worker_mitsuba(args):
         spp, seed, path = job["spp"], job["seed"], job["out"]
         chunk = min(spp, max(1, (1 << 22) // (args.res * args.res))) if variant == "llvm_ad_rgb" else spp
         acc, done, total_t = None, 0, 0.0
+        repeats = 1 if job.get("reference") else args.repeat
         while done < spp:
             n = min(chunk, spp - done)
             if variant == "llvm_ad_rgb" and not job.get("reference"):
                 img = mi.render(scene, spp=n, seed=seed + 7919)  # warm-up: compile the kernels
                 dr.eval(img)
                 dr.sync_thread()
-            t = time.perf_counter()
-            img = mi.render(scene, spp=n, seed=seed + done)
-            arr = np.array(img, dtype=np.float64)  # forces evaluation
-            total_t += time.perf_counter() - t
+            best, arr = None, None
+            for _ in range(repeats):
+                t = time.perf_counter()
+                img = mi.render(scene, spp=n, seed=seed + done)
+                a = np.array(img, dtype=np.float64)  # forces evaluation
+                el = time.perf_counter() - t
+                best = el if best is None else min(best, el)
+                arr = a if arr is None else arr
+            total_t += best
             acc = arr * n if acc is None else acc + arr * n
             done += n
         np.save(path, (acc / spp).astype(np.float32)[:, :, :3])
@@ -483,6 +495,8 @@ def worker_cycles(args):
     out = []
     for job in json.loads(args.jobs):
         el, px = render(job["spp"], job["seed"])
+        for _ in range(1 if job.get("reference") else args.repeat - 1):
+            el = min(el, render(job["spp"], job["seed"])[0])
         np.save(job["out"], px)
         out.append({"spp": job["spp"], "time": el, "out": job["out"]})
     print(RESULT + json.dumps({"runs": out, "threads": sc.render.threads}), flush=True)
@@ -498,15 +512,19 @@ def worker_trayecto(args):
         exr = job["out"][:-4] + ".exr"
         cmd = [args.trayecto, "render", scene, "-o", exr, "--width", str(args.res), "--height", str(args.res),
                "--spp", str(job["spp"]), "--threads", str(args.threads), "--seed", str(job["seed"])]
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        if r.returncode != 0:
-            raise RuntimeError((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
         t = None
-        # The phase report: "rendered (path)   15.265 ms   (done at ...)".
-        for line in r.stderr.splitlines():
-            words = line.split()
-            if line.startswith("rendered") and "ms" in words:
-                t = float(words[words.index("ms") - 1]) / 1000.0
+        for rep in range(1 if job.get("reference") else args.repeat):
+            # Repetitions write elsewhere, so the scored image is the first one.
+            r = subprocess.run(cmd if rep == 0 else cmd[:4] + [exr + ".rep.exr"] + cmd[5:],
+                               capture_output=True, text=True)
+            if r.returncode != 0:
+                raise RuntimeError((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
+            # The phase report: "rendered (path)   15.265 ms   (done at ...)".
+            for line in r.stderr.splitlines():
+                words = line.split()
+                if line.startswith("rendered") and "ms" in words:
+                    el = float(words[words.index("ms") - 1]) / 1000.0
+                    t = el if t is None else min(t, el)
         if t is None:
             raise RuntimeError("the CLI did not report a render time")
         bmp = mi.Bitmap(exr).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)
@@ -522,6 +540,7 @@ def worker_trayecto(args):
 def run_worker(kind, scene, args, jobs=None, timeout=3600):
     cmd = [sys.executable, os.path.abspath(__file__), "--worker", kind, "--scene", scene, "--res", str(args.res),
            "--threads", str(args.threads), "--subdiv", str(args.subdiv), "--mitsuba-sampler", args.mitsuba_sampler,
+           "--repeat", str(args.repeat),
            "--trayecto", args.trayecto or "", "--jobs", json.dumps(jobs or [])]
     try:
         r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=os.environ.copy())
@@ -573,6 +592,9 @@ def main():
     ap.add_argument("--ref-spp", type=int, default=None)
     ap.add_argument("--subdiv", type=int, default=8, help="icosphere subdivisions of 'highpoly' (8: 1.3M tris)")
     ap.add_argument("--mitsuba-sampler", default="independent")
+    ap.add_argument("--repeat", type=int, default=3, help="timed renders per ladder point; the fastest counts")
+    ap.add_argument("--rounds", type=int, default=3,
+                    help="rounds of all renderers' ladders, interleaved; the table shows medians and spread")
     ap.add_argument("--trayecto-bin", default=None, help="use this trayecto binary instead of cargo build")
     ap.add_argument("--results", default=os.path.join(HERE, "results.md"))
     ap.add_argument("--worker", help=argparse.SUPPRESS)
@@ -619,35 +641,48 @@ def main():
                 prep, prep_err = run_worker("prepare", scene, args)
                 if prep:
                     print(f"[{scene}] {prep['triangles']} triangles", flush=True)
+        # Rounds interleave the renderers (reference + ladder of each, then the ladders again,
+        # round after round), so a slow spell of a shared machine hits all of them alike; the
+        # table reports each ladder point's median time over the rounds and the spread of the
+        # per-round time-to-error ratios.
+        live = []
         for r in renderers:
             if prep_err and (scene != "cornell" or r == "cycles"):
                 results[(scene, r)] = f"n/a (scene export failed: {prep_err})"
-                continue
-            if r == "trayecto" and not args.trayecto:
+            elif r == "trayecto" and not args.trayecto:
                 results[(scene, r)] = "n/a (cargo build failed)"
-                continue
-            if r == "mitsuba_llvm" and not llvm:
+            elif r == "mitsuba_llvm" and not llvm:
                 results[(scene, r)] = "n/a (no libLLVM >= 16)"
-                continue
-            jobs = [{"spp": ref_spp, "seed": 100000, "reference": True,
-                     "out": os.path.join(OUT, f"{scene}_{r}_ref.npy")}]
-            jobs += [{"spp": s, "seed": i + 1, "out": os.path.join(OUT, f"{scene}_{r}_{s}.npy")}
-                     for i, s in enumerate(ladder)]
-            print(f"[{scene}] {r}: reference {ref_spp} spp + ladder {ladder}", flush=True)
-            res, err = run_worker(r, scene, args, jobs)
-            if res is None:
-                results[(scene, r)] = f"n/a ({err})"
-                print(f"[{scene}] {r}: n/a ({err})", flush=True)
-                continue
-            ref = np.load(res["runs"][0]["out"]).astype(np.float64)
-            pts = []
-            for run in res["runs"][1:]:
-                img = np.load(run["out"])
-                pts.append({"spp": run["spp"], "time": run["time"], "relmse": rel_mse(img, ref)})
-            results[(scene, r)] = {"ladder": pts, "ref_time": res["runs"][0]["time"],
-                                   "ref_mean": ref.reshape(-1, 3).mean(0).tolist(), "threads": res["threads"]}
-            print(f"[{scene}] {r}: " + ", ".join(f"{p['spp']} spp {p['time']:.3f} s relMSE {p['relmse']:.3g}"
-                                                 for p in pts), flush=True)
+            else:
+                live.append(r)
+        for rnd in range(args.rounds):
+            for r in list(live):
+                jobs = [] if rnd else [{"spp": ref_spp, "seed": 100000, "reference": True,
+                                        "out": os.path.join(OUT, f"{scene}_{r}_ref.npy")}]
+                jobs += [{"spp": s, "seed": i + 1, "out": os.path.join(OUT, f"{scene}_{r}_{s}.npy")}
+                         for i, s in enumerate(ladder)]
+                what = (f"reference {ref_spp} spp + " if not rnd else "") + f"ladder {ladder}"
+                print(f"[{scene}] {r}: round {rnd + 1}/{args.rounds}: {what}", flush=True)
+                res, err = run_worker(r, scene, args, jobs)
+                if res is None:
+                    results[(scene, r)] = f"n/a ({err})"
+                    print(f"[{scene}] {r}: n/a ({err})", flush=True)
+                    live.remove(r)
+                    continue
+                runs = res["runs"]
+                if not rnd:
+                    ref = np.load(runs[0]["out"]).astype(np.float64)
+                    runs = runs[1:]
+                    pts = [{"spp": run["spp"], "relmse": rel_mse(np.load(run["out"]), ref)} for run in runs]
+                    results[(scene, r)] = {"ladder": pts, "round_times": [], "ref_time": res["runs"][0]["time"],
+                                           "ref_mean": ref.reshape(-1, 3).mean(0).tolist(),
+                                           "threads": res["threads"]}
+                entry = results[(scene, r)]
+                entry["round_times"].append([run["time"] for run in runs])
+                for k, p in enumerate(entry["ladder"]):
+                    p["time"] = float(np.median([times[k] for times in entry["round_times"]]))
+                print(f"[{scene}] {r}: " + ", ".join(f"{p['spp']} spp {run['time']:.3f} s relMSE {p['relmse']:.3g}"
+                                                     for p, run in zip(entry["ladder"], runs)), flush=True)
     load1 = os.getloadavg()
     md = report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, time.time() - t_start)
     with open(args.results, "w") as f:
@@ -665,9 +700,12 @@ def report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, elap
     w(f"# Trayecto vs Mitsuba 3 vs Cycles ({'quick' if args.quick else 'full'} mode)")
     w("")
     w(f"- machine: {os.cpu_count()} logical CPUs, {cpu}; {args.threads} threads for every renderer")
-    w(f"- {args.res}×{args.res} pixels, ladder {ladder} spp, references {ref_spp} spp; run took {elapsed:.0f} s")
+    w(f"- {args.res}×{args.res} pixels, ladder {ladder} spp, references {ref_spp} spp; {args.rounds} interleaved "
+      f"rounds, each timing a ladder point as the best of {args.repeat} renders; times are the rounds' medians, "
+      f"ratios in brackets the lowest and highest round; run took {elapsed:.0f} s")
     w(f"- load average at start {load0[0]:.2f} / end {load1[0]:.2f} (timings are only meaningful on a quiet machine)")
-    w(f"- command: `python3 bench/compare.py{' --quick' if args.quick else ''}`")
+    w(f"- command: `python3 bench/compare.py{' --quick' if args.quick else ''}"
+      f"{'' if args.scenes == ','.join(SCENES) else ' --scenes ' + args.scenes}`")
     w("")
     for scene in scenes:
         w(f"## {scene}")
@@ -696,6 +734,15 @@ def report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, elap
                 tte, extra = time_to_error([(p["relmse"], p["time"]) for p in res["ladder"]], target)
                 tte_s = f"{'~' if extra else ''}{tte:.3f} s" if tte else "n/a"
                 tte_r = fmt_ratio(tte, base_tte)
+                # The same ratio round by round (each round's times against Trayecto's of that round).
+                per_round = []
+                for mine, theirs in zip(res["round_times"], base["round_times"]):
+                    t_mine, _ = time_to_error([(p["relmse"], t) for p, t in zip(res["ladder"], mine)], target)
+                    t_base, _ = time_to_error([(p["relmse"], t) for p, t in zip(base["ladder"], theirs)], target)
+                    if t_mine and t_base:
+                        per_round.append(t_mine / t_base)
+                if len(per_round) > 1 and r != "trayecto":
+                    tte_r += f" ({min(per_round):.2f}–{max(per_round):.2f})"
             else:
                 tte_s, tte_r = "n/a (no Trayecto result)", "n/a"
             mean = res["ref_mean"]
