@@ -495,7 +495,7 @@ def worker_cycles(args):
     out = []
     for job in json.loads(args.jobs):
         el, px = render(job["spp"], job["seed"])
-        for _ in range(1 if job.get("reference") else args.repeat - 1):
+        for _ in range(0 if job.get("reference") else args.repeat - 1):
             el = min(el, render(job["spp"], job["seed"])[0])
         np.save(job["out"], px)
         out.append({"spp": job["spp"], "time": el, "out": job["out"]})
@@ -704,8 +704,9 @@ def report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, elap
       f"rounds, each timing a ladder point as the best of {args.repeat} renders; times are the rounds' medians, "
       f"ratios in brackets the lowest and highest round; run took {elapsed:.0f} s")
     w(f"- load average at start {load0[0]:.2f} / end {load1[0]:.2f} (timings are only meaningful on a quiet machine)")
-    w(f"- command: `python3 bench/compare.py{' --quick' if args.quick else ''}"
-      f"{'' if args.scenes == ','.join(SCENES) else ' --scenes ' + args.scenes}`")
+    opts = (" --quick" if args.quick else "") + ("" if args.scenes == ",".join(SCENES) else " --scenes " + args.scenes)
+    opts += "".join(f" --{k} {v}" for k, v, d in (("rounds", args.rounds, 3), ("repeat", args.repeat, 3)) if v != d)
+    w(f"- command: `python3 bench/compare.py{opts}`")
     w("")
     for scene in scenes:
         w(f"## {scene}")
