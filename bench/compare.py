@@ -502,33 +502,49 @@ def worker_cycles(args):
     print(RESULT + json.dumps({"runs": out, "threads": sc.render.threads}), flush=True)
 
 
+def run_trayecto(exe, scene, out, res, spp, seed, threads, extra=()):
+    """One CLI render to `out`; returns (render seconds from the phase report, rays traced)."""
+    cmd = [exe, "render", scene, "-o", out, "--width", str(res), "--height", str(res), "--spp", str(spp),
+           "--threads", str(threads), "--seed", str(seed), *extra]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
+    t = rays = None
+    for line in r.stderr.splitlines():
+        words = line.split()
+        # The phase report: "rendered (path)   15.265 ms   (done at ...)", then "rays   N (...)".
+        if line.startswith("rendered") and "ms" in words:
+            t = float(words[words.index("ms") - 1]) / 1000.0
+        elif line.startswith("rays") and len(words) > 1 and words[1].isdigit():
+            rays = int(words[1])
+    if t is None:
+        raise RuntimeError("the CLI did not report a render time")
+    return t, rays
+
+
+def read_exr_rgb(path):
+    """An EXR as a float32 (height, width, 3) array (Mitsuba's reader: no extra dependency)."""
+    import numpy as np
+    import mitsuba as mi
+    bmp = mi.Bitmap(path).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)
+    return np.array(bmp, dtype=np.float32)
+
+
 def worker_trayecto(args):
     import numpy as np
-    import mitsuba as mi  # only to read the EXR
+    import mitsuba as mi
     mi.set_variant("scalar_rgb")
     scene = "cornell" if args.scene == "cornell" else os.path.join(OUT, args.scene, f"{args.scene}.glb")
     out = []
     for job in json.loads(args.jobs):
         exr = job["out"][:-4] + ".exr"
-        cmd = [args.trayecto, "render", scene, "-o", exr, "--width", str(args.res), "--height", str(args.res),
-               "--spp", str(job["spp"]), "--threads", str(args.threads), "--seed", str(job["seed"])]
         t = None
         for rep in range(1 if job.get("reference") else args.repeat):
             # Repetitions write elsewhere, so the scored image is the first one.
-            r = subprocess.run(cmd if rep == 0 else cmd[:4] + [exr + ".rep.exr"] + cmd[5:],
-                               capture_output=True, text=True)
-            if r.returncode != 0:
-                raise RuntimeError((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
-            # The phase report: "rendered (path)   15.265 ms   (done at ...)".
-            for line in r.stderr.splitlines():
-                words = line.split()
-                if line.startswith("rendered") and "ms" in words:
-                    el = float(words[words.index("ms") - 1]) / 1000.0
-                    t = el if t is None else min(t, el)
-        if t is None:
-            raise RuntimeError("the CLI did not report a render time")
-        bmp = mi.Bitmap(exr).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)
-        np.save(job["out"], np.array(bmp, dtype=np.float32))
+            el, _ = run_trayecto(args.trayecto, scene, exr if rep == 0 else exr + ".rep.exr", args.res,
+                                 job["spp"], job["seed"], args.threads)
+            t = el if t is None else min(t, el)
+        np.save(job["out"], read_exr_rgb(exr))
         out.append({"spp": job["spp"], "time": t, "out": job["out"]})
     print(RESULT + json.dumps({"runs": out, "threads": args.threads}), flush=True)
 

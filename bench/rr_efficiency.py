@@ -15,7 +15,6 @@ same as bench/compare.py's. Every setting is unbiased; only variance and cost ch
 """
 import argparse
 import os
-import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -29,21 +28,8 @@ DEFAULT_CONFIGS = ["--rr-scale 1", "--rr-scale 1 --rr-depth 5", "--rr-scale 1 --
 
 def render(exe, scene, spp, seed, extra, out, threads):
     import numpy as np
-    import mitsuba as mi
-    cmd = [exe, "render", scene, "-o", out, "--width", str(RES), "--height", str(RES), "--spp", str(spp),
-           "--seed", str(seed), "--threads", str(threads)] + extra
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"{' '.join(cmd)} failed: {r.stderr.strip()}")
-    t = rays = None
-    for line in r.stderr.splitlines():
-        w = line.split()
-        if line.startswith("rendered") and "ms" in w:
-            t = float(w[w.index("ms") - 1]) / 1000.0
-        if line.startswith("rays") and len(w) > 1:
-            rays = int(w[1])
-    bmp = mi.Bitmap(out).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False)
-    return np.array(bmp, dtype=np.float64), t, rays
+    t, rays = compare.run_trayecto(exe, scene, out, RES, spp, seed, threads, extra)
+    return compare.read_exr_rgb(out).astype(np.float64), t, rays
 
 
 def main():

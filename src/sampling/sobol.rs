@@ -49,12 +49,19 @@ fn directions() -> &'static [[u32; 32]; DIMENSIONS] {
     })
 }
 
-/// The `index`-th Sobol point's coordinate in dimension `dim` as 32 fixed-point bits.
+/// The `index`-th Sobol point's coordinate in dimension `dim` as 32 fixed-point bits. The two
+/// dimensions the sampler uses need no table: 0 is the bit reversal, 1 the Pascal matrix.
 #[inline]
 pub fn sobol(index: u32, dim: usize) -> u32 {
-    if dim == 0 {
-        return index.reverse_bits();
+    match dim {
+        0 => index.reverse_bits(),
+        1 => sobol_dim1(index),
+        _ => sobol_from_table(index, dim),
     }
+}
+
+/// [`sobol`] from the generator matrix's direction numbers (any dimension).
+fn sobol_from_table(index: u32, dim: usize) -> u32 {
     let dirs = &directions()[dim.min(DIMENSIONS - 1)];
     let mut x = 0u32;
     let mut i = index;
@@ -88,7 +95,7 @@ pub fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
 }
 
 /// Dimension 1 of the Sobol sequence (the Pascal matrix: v₀ = 2³¹, v_k = v_{k−1} ⊕ v_{k−1} ≫ 1)
-/// without the direction table; as [`sobol`]`(index, 1)`.
+/// without the direction table.
 #[inline]
 fn sobol_dim1(mut index: u32) -> u32 {
     let mut v = 1u32 << 31;
@@ -121,8 +128,8 @@ pub fn scrambled_2d(index: u32, mask: u32, seed: u64) -> (u32, u32) {
     let i = shuffle(index, mask, seed as u32);
     let s = super::rng::mix64(seed);
     (
-        nested_uniform_scramble(i.reverse_bits(), s as u32),
-        nested_uniform_scramble(sobol_dim1(i), (s >> 32) as u32),
+        nested_uniform_scramble(sobol(i, 0), s as u32),
+        nested_uniform_scramble(sobol(i, 1), (s >> 32) as u32),
     )
 }
 
@@ -130,7 +137,7 @@ pub fn scrambled_2d(index: u32, mask: u32, seed: u64) -> (u32, u32) {
 #[inline]
 pub fn scrambled_1d(index: u32, mask: u32, seed: u64) -> u32 {
     let i = shuffle(index, mask, seed as u32);
-    nested_uniform_scramble(i.reverse_bits(), (seed >> 32) as u32)
+    nested_uniform_scramble(sobol(i, 0), (seed >> 32) as u32)
 }
 
 #[cfg(test)]
@@ -156,7 +163,7 @@ mod tests {
     #[test]
     fn dimension_one_without_the_table_matches_it() {
         for i in (0..5000u32).chain([u32::MAX, 0x8000_0000, 0x1234_5678]) {
-            assert_eq!(sobol_dim1(i), sobol(i, 1), "index {i}");
+            assert_eq!(sobol(i, 1), sobol_from_table(i, 1), "index {i}");
         }
     }
 
