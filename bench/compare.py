@@ -13,7 +13,10 @@ exports, EXRs; gitignored). See BENCHMARKS.md for what every column means.
 
 What is timed (process start-up and scene loading are never included):
   * trayecto: the `render` phase the CLI reports (after scene load and BVH build), one CLI run per
-    ladder point (`--threads N`, default stratified sampler).
+    ladder point (`--threads N`, default stratified sampler). The binary is the profile-guided
+    release build of scripts/pgo-build.sh (trained on the repository's and ../shared's scenes,
+    none of the benchmark's); --no-pgo times plain `cargo build --release` instead. The report
+    says which build ran.
   * mitsuba_*: wall time of `mi.render(scene, spp=N, seed=S)` after `mi.load_dict` (which loads the
     scene and builds the BVH). llvm_ad_rgb JIT-compiles its kernels: every ladder point is rendered
     twice (different seed) and the second time is kept, so compile time is excluded.
@@ -105,7 +108,26 @@ def ensure_libllvm():
     return lib
 
 
-def build_trayecto():
+# Which Trayecto build was timed, for the report: "profile-guided" (scripts/pgo-build.sh) or
+# "plain release" (cargo build --release), with the reason when PGO was asked for and not possible.
+TRAYECTO_BUILD = "plain release"
+
+
+def build_trayecto(pgo=False):
+    """Builds the trayecto binary and returns its path (None on failure). With pgo, the
+    profile-guided release build of scripts/pgo-build.sh, falling back to the plain release build
+    (and saying so in the report) when the script cannot run, e.g. without llvm-profdata."""
+    global TRAYECTO_BUILD
+    if pgo:
+        print("[setup] scripts/pgo-build.sh (profile-guided release build)", flush=True)
+        r = subprocess.run([os.path.join(ROOT, "scripts", "pgo-build.sh")], cwd=ROOT,
+                           stdout=subprocess.PIPE, text=True)
+        lines = r.stdout.strip().splitlines()
+        if r.returncode == 0 and lines and os.path.exists(lines[-1]):
+            TRAYECTO_BUILD = "profile-guided release (scripts/pgo-build.sh)"
+            return lines[-1]
+        TRAYECTO_BUILD = f"plain release (scripts/pgo-build.sh failed with exit code {r.returncode})"
+        print(f"[setup] {TRAYECTO_BUILD}", flush=True)
     print("[setup] cargo build --release", flush=True)
     r = subprocess.run(["cargo", "build", "--release", "--bin", "trayecto"], cwd=ROOT)
     exe = os.path.join(ROOT, "target", "release", "trayecto")
@@ -612,6 +634,8 @@ def main():
     ap.add_argument("--rounds", type=int, default=3,
                     help="rounds of all renderers' ladders, interleaved; the table shows medians and spread")
     ap.add_argument("--trayecto-bin", default=None, help="use this trayecto binary instead of cargo build")
+    ap.add_argument("--no-pgo", action="store_true",
+                    help="time the plain `cargo build --release` binary instead of the profile-guided build")
     ap.add_argument("--results", default=os.path.join(HERE, "results.md"))
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--scene", help=argparse.SUPPRESS)
@@ -639,10 +663,12 @@ def main():
         return 1
     import numpy as np
     llvm = ensure_libllvm()
+    global TRAYECTO_BUILD
     if args.trayecto_bin:
         args.trayecto = os.path.abspath(args.trayecto_bin)
+        TRAYECTO_BUILD = f"given binary {args.trayecto}"
     else:
-        args.trayecto = build_trayecto() if "trayecto" in renderers else None
+        args.trayecto = build_trayecto(pgo=not args.no_pgo) if "trayecto" in renderers else None
 
     t_start = time.time()
     load0 = os.getloadavg()
@@ -719,9 +745,12 @@ def report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, elap
     w(f"- {args.res}×{args.res} pixels, ladder {ladder} spp, references {ref_spp} spp; {args.rounds} interleaved "
       f"rounds, each timing a ladder point as the best of {args.repeat} renders; times are the rounds' medians, "
       f"ratios in brackets the lowest and highest round; run took {elapsed:.0f} s")
+    w(f"- Trayecto build: {TRAYECTO_BUILD}")
     w(f"- load average at start {load0[0]:.2f} / end {load1[0]:.2f} (timings are only meaningful on a quiet machine)")
     opts = (" --quick" if args.quick else "") + ("" if args.scenes == ",".join(SCENES) else " --scenes " + args.scenes)
     opts += "".join(f" --{k} {v}" for k, v, d in (("rounds", args.rounds, 3), ("repeat", args.repeat, 3)) if v != d)
+    opts += "".join(f" --{k} {v}" for k, v in (("renderers", args.renderers),) if v != ",".join(RENDERERS))
+    opts += " --no-pgo" if args.no_pgo else ""
     w(f"- command: `python3 bench/compare.py{opts}`")
     w("")
     for scene in scenes:
