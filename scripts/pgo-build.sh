@@ -45,8 +45,8 @@ find_profdata() {
     fi
 }
 profdata=$(find_profdata)
-if [[ -z "$profdata" ]]; then
-    echo "pgo-build: no llvm-profdata for LLVM $llvm_major (set LLVM_PROFDATA, or install rustup's llvm-tools or Debian's llvm-$llvm_major)" >&2
+if [[ -z "$profdata" || ! -x "$profdata" ]]; then
+    echo "pgo-build: no usable llvm-profdata for LLVM $llvm_major (${profdata:-none found}; set LLVM_PROFDATA, or install rustup's llvm-tools or Debian's llvm-$llvm_major)" >&2
     exit 2
 fi
 
