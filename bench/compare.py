@@ -108,30 +108,25 @@ def ensure_libllvm():
     return lib
 
 
-# Which Trayecto build was timed, for the report: "profile-guided" (scripts/pgo-build.sh) or
-# "plain release" (cargo build --release), with the reason when PGO was asked for and not possible.
-TRAYECTO_BUILD = "plain release"
-
-
 def build_trayecto(pgo=False):
-    """Builds the trayecto binary and returns its path (None on failure). With pgo, the
-    profile-guided release build of scripts/pgo-build.sh, falling back to the plain release build
-    (and saying so in the report) when the script cannot run, e.g. without llvm-profdata."""
-    global TRAYECTO_BUILD
+    """Builds the trayecto binary; returns its path (None on failure) and which build it is, for
+    the report. With pgo, the profile-guided release build of scripts/pgo-build.sh, falling back
+    to the plain release build (and saying why) when the script cannot run, e.g. without
+    llvm-profdata."""
+    build = "plain release"
     if pgo:
         print("[setup] scripts/pgo-build.sh (profile-guided release build)", flush=True)
         r = subprocess.run([os.path.join(ROOT, "scripts", "pgo-build.sh")], cwd=ROOT,
                            stdout=subprocess.PIPE, text=True)
         lines = r.stdout.strip().splitlines()
         if r.returncode == 0 and lines and os.path.exists(lines[-1]):
-            TRAYECTO_BUILD = "profile-guided release (scripts/pgo-build.sh)"
-            return lines[-1]
-        TRAYECTO_BUILD = f"plain release (scripts/pgo-build.sh failed with exit code {r.returncode})"
-        print(f"[setup] {TRAYECTO_BUILD}", flush=True)
+            return lines[-1], "profile-guided release (scripts/pgo-build.sh)"
+        build = f"plain release (scripts/pgo-build.sh failed with exit code {r.returncode})"
+        print(f"[setup] {build}", flush=True)
     print("[setup] cargo build --release", flush=True)
     r = subprocess.run(["cargo", "build", "--release", "--bin", "trayecto"], cwd=ROOT)
     exe = os.path.join(ROOT, "target", "release", "trayecto")
-    return exe if r.returncode == 0 and os.path.exists(exe) else None
+    return (exe if r.returncode == 0 and os.path.exists(exe) else None), build
 
 
 # ---------------------------------------------------------------------------------------------
@@ -663,12 +658,13 @@ def main():
         return 1
     import numpy as np
     llvm = ensure_libllvm()
-    global TRAYECTO_BUILD
     if args.trayecto_bin:
         args.trayecto = os.path.abspath(args.trayecto_bin)
-        TRAYECTO_BUILD = f"given binary {args.trayecto}"
+        args.trayecto_build = f"given binary {args.trayecto}"
+    elif "trayecto" in renderers:
+        args.trayecto, args.trayecto_build = build_trayecto(pgo=not args.no_pgo)
     else:
-        args.trayecto = build_trayecto(pgo=not args.no_pgo) if "trayecto" in renderers else None
+        args.trayecto, args.trayecto_build = None, "not run"
 
     t_start = time.time()
     load0 = os.getloadavg()
@@ -745,11 +741,11 @@ def report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, elap
     w(f"- {args.res}×{args.res} pixels, ladder {ladder} spp, references {ref_spp} spp; {args.rounds} interleaved "
       f"rounds, each timing a ladder point as the best of {args.repeat} renders; times are the rounds' medians, "
       f"ratios in brackets the lowest and highest round; run took {elapsed:.0f} s")
-    w(f"- Trayecto build: {TRAYECTO_BUILD}")
+    w(f"- Trayecto build: {args.trayecto_build}")
     w(f"- load average at start {load0[0]:.2f} / end {load1[0]:.2f} (timings are only meaningful on a quiet machine)")
     opts = (" --quick" if args.quick else "") + ("" if args.scenes == ",".join(SCENES) else " --scenes " + args.scenes)
     opts += "".join(f" --{k} {v}" for k, v, d in (("rounds", args.rounds, 3), ("repeat", args.repeat, 3)) if v != d)
-    opts += "".join(f" --{k} {v}" for k, v in (("renderers", args.renderers),) if v != ",".join(RENDERERS))
+    opts += "" if args.renderers == ",".join(RENDERERS) else " --renderers " + args.renderers
     opts += " --no-pgo" if args.no_pgo else ""
     w(f"- command: `python3 bench/compare.py{opts}`")
     w("")

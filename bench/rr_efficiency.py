@@ -45,7 +45,7 @@ def main():
     import numpy as np
     import mitsuba as mi
     mi.set_variant("scalar_rgb")
-    exe = os.path.abspath(args.trayecto_bin) if args.trayecto_bin else compare.build_trayecto()
+    exe = os.path.abspath(args.trayecto_bin) if args.trayecto_bin else compare.build_trayecto()[0]
     if not exe:
         return 1
     os.makedirs(compare.OUT, exist_ok=True)

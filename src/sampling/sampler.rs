@@ -236,7 +236,7 @@ fn permute_masked(mut i: u32, l: u32, p: u32, w: u32) -> u32 {
         return i.wrapping_add(p) & w;
     }
     // Otherwise the same rotation of [0, l) by an offset derived from p, without Kensler's
-    // `% l`: a 32-bit division was 11 % of all cycles at 32 spp (a 6×6 grid; perf), and most
+    // `% l`: a 32-bit division took 11 % of the sampler's cycles at 32 spp (a 6×6 grid; perf), and most
     // sample counts that are not a power of 4 (32, 128, 512) or not a power of two (100) take
     // this path. The offset is the high word of p·l (Lemire 2019, "Fast random integer
     // generation in an interval"), which lies in [0, l).
