@@ -6,7 +6,7 @@
 use crate::film::{Film, FilmBlock, Image};
 use crate::integrator::{IntegratorKind, PathSettings, RayStats, path, raycast, whitted};
 use crate::math::Vec2;
-use crate::sampling::{SampleStream, SamplerKind};
+use crate::sampling::{SampleStream, SamplerKind, SamplerSetup};
 use crate::world::World;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -191,6 +191,7 @@ fn render_in_pool(
     let tiles_done = AtomicU64::new(0);
     let mut film = Film::new(w, h);
     let mut stats = RayStats::default();
+    let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp);
     for &(s0, s1) in &passes {
         let blocks: Vec<(FilmBlock, RayStats)> = tiles
             .par_iter()
@@ -202,14 +203,9 @@ fn render_in_pool(
                 }
                 for y in y0..y0 + th {
                     for x in x0..x0 + tw {
+                        let pixel_key = sampler.pixel_key((x, y));
                         for s in s0..s1 {
-                            let mut stream = SampleStream::new(
-                                settings.sampler,
-                                settings.seed,
-                                (x, y),
-                                s,
-                                settings.spp,
-                            );
+                            let mut stream = sampler.stream(pixel_key, s);
                             let l =
                                 sample_pixel(world, &camera, settings, &mut stream, x, y, &mut st);
                             block.add(x, y, l);

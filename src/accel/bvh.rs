@@ -455,7 +455,17 @@ fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usize) -> Build
         first,
         count: n,
     };
-    if n <= 2 {
+    // Two triangles share a leaf (half the nodes on big meshes; on small ones the same work as
+    // splitting them). Other primitives are split down to one per leaf: a quad, box or sphere test
+    // costs two to three box tests, and the walls of a room have thin, barely overlapping boxes
+    // that the 4-wide node test culls, where a shared leaf would test every wall the leaf's
+    // combined box lets through (callgrind, built-in Cornell box: −14 % of all instructions).
+    if n <= 1
+        || (n == 2
+            && prims
+                .iter()
+                .all(|p| p.prim.kind() == PrimitiveKind::Triangle))
+    {
         return leaf();
     }
     let centroid_bounds = prims
@@ -608,6 +618,47 @@ mod tests {
             assert_eq!(bvh.occluded(&g, &ray), brute.occluded(&g, &ray));
         }
         assert!(hits > 200, "test rays should hit something: {hits}");
+    }
+
+    /// The six walls of a room and a light under its ceiling: every quad gets its own leaf, so
+    /// the 4-wide box test culls the walls a ray does not reach (a shared leaf's box would span
+    /// the room and every ray would test both walls). Hits agree with brute force.
+    #[test]
+    fn quads_of_a_room_get_a_leaf_each() {
+        use crate::geometry::primitive::AnalyticPrim;
+        use crate::geometry::quad::Quad;
+        let mut g = GeometryStore::default();
+        let (x, y, z) = (Vec3::X * 2.0, Vec3::Y * 2.0, Vec3::Z * 2.0);
+        let lo = Vec3::splat(-1.0);
+        let hi = Vec3::splat(1.0);
+        for (corner, e1, e2) in [
+            (lo, z, x),
+            (lo, x, y),
+            (lo, y, z),
+            (hi, -x, -z),
+            (hi, -y, -x),
+            (hi, -z, -y),
+            (Vec3::new(-0.2, 0.98, -0.2), Vec3::X * 0.4, Vec3::Z * 0.4),
+        ] {
+            g.quads.push(AnalyticPrim {
+                shape: Quad::new(corner, e1, e2),
+                material: 0,
+                light: crate::geometry::primitive::NO_LIGHT,
+            });
+        }
+        let bvh = Bvh::build(&g);
+        let s = bvh.stats();
+        assert_eq!((s.leaves, s.max_leaf_size), (7, 1), "{s:?}");
+        let brute = crate::accel::Accel::build(crate::accel::AccelKind::None, &g);
+        let mut rng = crate::sampling::rng::Pcg32::new(5, 1);
+        for _ in 0..2000 {
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 1.8 - 0.9;
+            let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+            let ray = Ray::new(o, d);
+            let (a, b) = (bvh.intersect(&g, &ray), brute.intersect(&g, &ray));
+            assert_eq!(a.map(|h| (h.t, h.prim)), b.map(|h| (h.t, h.prim)));
+            assert!(a.is_some(), "a ray inside a closed room hits a wall");
+        }
     }
 
     #[test]

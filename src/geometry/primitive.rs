@@ -213,6 +213,7 @@ impl GeometryStore {
     }
 
     /// Material index of a primitive.
+    #[inline]
     pub fn material(&self, prim: PrimRef) -> u32 {
         let i = prim.index();
         match prim.kind() {
@@ -224,6 +225,7 @@ impl GeometryStore {
     }
 
     /// Area light index attached to a primitive, or [`NO_LIGHT`].
+    #[inline]
     pub fn light(&self, prim: PrimRef) -> u32 {
         let i = prim.index();
         match prim.kind() {
@@ -320,7 +322,7 @@ impl GeometryStore {
                 hit.p_error = err;
                 hit.ng = n;
                 hit.ns = n;
-                hit.tangent = q.e1.normalize();
+                hit.tangent = q.tangent();
                 hit.uv = [Vec2::new(isect.u, isect.v); 2];
             }
         }

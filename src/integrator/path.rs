@@ -205,9 +205,7 @@ fn continue_path(
             } else if !set.mis {
                 0.0
             } else {
-                let pdf_light = world
-                    .lights
-                    .pdf_area(&world.geometry, next.light, hit.p, &next);
+                let pdf_light = world.lights.pdf_area(next.light, hit.p, &next);
                 power_heuristic(bs.pdf, pdf_light)
             };
             l += beta * le * weight;

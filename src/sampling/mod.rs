@@ -10,4 +10,4 @@ pub mod sobol;
 pub mod warp;
 
 pub use distribution::Distribution1D;
-pub use sampler::{SampleStream, SamplerKind};
+pub use sampler::{SampleStream, SamplerKind, SamplerSetup};

@@ -61,7 +61,68 @@ pub struct SampleStream {
     mask_2d: u32,
 }
 
+/// What every stream of a render shares: the sampler, the seed and the sample count's grid and
+/// masks. Built once per render, so a camera sample does not redo the square root, the divisions
+/// and the mask folding (callgrind: 1.9 % of the Cornell box's instructions went to building
+/// streams sample by sample).
+#[derive(Clone, Copy, Debug)]
+pub struct SamplerSetup {
+    kind: SamplerKind,
+    seed: u64,
+    spp: u32,
+    nx: u32,
+    ny: u32,
+    mask_1d: u32,
+    mask_2d: u32,
+}
+
+impl SamplerSetup {
+    pub fn new(kind: SamplerKind, seed: u64, spp: u32) -> SamplerSetup {
+        let spp = spp.max(1);
+        let nx = (spp as f32).sqrt().ceil() as u32;
+        let ny = spp.div_ceil(nx);
+        SamplerSetup {
+            kind,
+            seed,
+            spp,
+            nx,
+            ny,
+            mask_1d: permute_mask(spp),
+            mask_2d: permute_mask(nx * ny),
+        }
+    }
+
+    /// The hash of (seed, pixel) that [`Self::stream`] takes: once per pixel, not per sample.
+    #[inline]
+    pub fn pixel_key(&self, pixel: (u32, u32)) -> u64 {
+        hash_words(&[self.seed, pixel.0 as u64, pixel.1 as u64])
+    }
+
+    /// The stream of camera sample `sample` of the pixel whose [`Self::pixel_key`] is given.
+    #[inline]
+    pub fn stream(&self, pixel_key: u64, sample: u32) -> SampleStream {
+        SampleStream {
+            kind: self.kind,
+            pixel_key,
+            sample,
+            spp: self.spp,
+            dim: 0,
+            sample_mix: [mix64(sample as u64), mix64((sample as u64) ^ (1 << 32))],
+            nx: self.nx,
+            ny: self.ny,
+            sample_mod: if sample < self.spp {
+                sample
+            } else {
+                sample % self.spp
+            },
+            mask_1d: self.mask_1d,
+            mask_2d: self.mask_2d,
+        }
+    }
+}
+
 impl SampleStream {
+    /// One stream on its own; a render builds a [`SamplerSetup`] once and asks it per sample.
     pub fn new(
         kind: SamplerKind,
         seed: u64,
@@ -69,22 +130,8 @@ impl SampleStream {
         sample: u32,
         spp: u32,
     ) -> SampleStream {
-        let spp = spp.max(1);
-        let nx = (spp as f32).sqrt().ceil() as u32;
-        let ny = spp.div_ceil(nx);
-        SampleStream {
-            kind,
-            pixel_key: hash_words(&[seed, pixel.0 as u64, pixel.1 as u64]),
-            sample,
-            spp,
-            dim: 0,
-            sample_mix: [mix64(sample as u64), mix64((sample as u64) ^ (1 << 32))],
-            nx,
-            ny,
-            sample_mod: sample % spp,
-            mask_1d: permute_mask(spp),
-            mask_2d: permute_mask(nx * ny),
-        }
+        let setup = SamplerSetup::new(kind, seed, spp);
+        setup.stream(setup.pixel_key(pixel), sample)
     }
 
     #[inline]
@@ -248,6 +295,25 @@ fn permute_masked(mut i: u32, l: u32, p: u32, w: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Samples past `spp` (a render resumed beyond its count) repeat the strata of sample
+    /// `sample mod spp` with fresh jitter: the stream's index into the permutations wraps.
+    #[test]
+    fn samples_past_spp_reuse_the_strata() {
+        for spp in [12u32, 64] {
+            let setup = SamplerSetup::new(SamplerKind::Stratified, 9, spp);
+            let key = setup.pixel_key((5, 3));
+            for sample in 0..spp {
+                let mut a = setup.stream(key, sample);
+                let mut b = setup.stream(key, sample + 2 * spp);
+                for _ in 0..6 {
+                    let (x, y) = (a.next_1d(), b.next_1d());
+                    assert_eq!((x * spp as f32) as u32, (y * spp as f32) as u32);
+                    assert_ne!(x, y, "the jitter is the sample's own");
+                }
+            }
+        }
+    }
 
     #[test]
     fn permute_is_a_permutation() {
