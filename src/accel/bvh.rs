@@ -457,9 +457,10 @@ fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usize) -> Build
     };
     // Two triangles share a leaf (half the nodes on big meshes; on small ones the same work as
     // splitting them). Other primitives are split down to one per leaf: a quad, box or sphere test
-    // costs two to three box tests, and the walls of a room have thin, barely overlapping boxes
-    // that the 4-wide node test culls, where a shared leaf would test every wall the leaf's
-    // combined box lets through (callgrind, built-in Cornell box: −14 % of all instructions).
+    // (~100 instructions with its dispatch) costs about two 4-wide node tests, and the walls of a
+    // room have thin, barely overlapping boxes that the node test culls, where a shared leaf would
+    // test every wall its combined box lets through (callgrind, built-in Cornell box: primitive
+    // tests per closest-hit ray 3.17 → 1.09, −14 % of all instructions).
     if n <= 1
         || (n == 2
             && prims
