@@ -342,12 +342,7 @@ impl GeometryStore {
                 let (p, err) = tri.point(b1, b2);
                 hit.p = p;
                 hit.p_error = err;
-                let ng = tri.normal_unnormalized();
-                hit.ng = if ng.length_squared() > 0.0 {
-                    ng.normalize()
-                } else {
-                    Vec3::Z
-                };
+                hit.ng = tri.unit_normal();
                 hit.ns = hit.ng;
                 let (mesh_i, local) = self.tri_mesh[i];
                 let mesh = &self.meshes[mesh_i as usize];
@@ -380,12 +375,7 @@ impl GeometryStore {
         let (p, err) = tri.point(b1, b2);
         hit.p = p;
         hit.p_error = err;
-        let ng = tri.normal_unnormalized();
-        let ng = if ng.length_squared() > 0.0 {
-            ng.normalize()
-        } else {
-            Vec3::Z
-        };
+        let ng = tri.unit_normal();
         hit.ng = ng;
         let (mesh_i, local) = self.tri_mesh[i];
         let mesh = &self.meshes[mesh_i as usize];

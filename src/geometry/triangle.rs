@@ -72,6 +72,18 @@ impl TriangleVerts {
         (self.p1 - self.p0).cross(self.p2 - self.p0)
     }
 
+    /// Unit geometric normal (front face as in [`Self::normal_unnormalized`]); +z for a degenerate
+    /// triangle, which has no direction of its own, so shading and light sampling stay finite.
+    #[inline]
+    pub fn unit_normal(&self) -> Vec3 {
+        let n = self.normal_unnormalized();
+        if n.length_squared() > 0.0 {
+            n.normalize()
+        } else {
+            Vec3::Z
+        }
+    }
+
     #[inline]
     pub fn area(&self) -> f32 {
         0.5 * self.normal_unnormalized().length()

@@ -268,14 +268,7 @@ fn area_light_info(geometry: &GeometryStore, prim: PrimRef, material: &Material)
     let normal = match prim.kind() {
         PrimitiveKind::Quad => Some(geometry.quads[prim.index()].shape.normal()),
         // The same normal `GeometryStore::emitter_point` gives the light point.
-        PrimitiveKind::Triangle => {
-            let n = geometry.triangles[prim.index()].normal_unnormalized();
-            Some(if n.length_squared() > 0.0 {
-                n.normalize()
-            } else {
-                Vec3::Z
-            })
-        }
+        PrimitiveKind::Triangle => Some(geometry.triangles[prim.index()].unit_normal()),
         PrimitiveKind::Sphere | PrimitiveKind::Cuboid => None,
     };
     let flat = match normal {
@@ -295,12 +288,7 @@ fn area_light_info(geometry: &GeometryStore, prim: PrimRef, material: &Material)
 }
 
 /// Power of an area light's surface for light selection: π · A · L̄ (× 2 if it emits both ways).
-fn area_power(
-    geometry: &GeometryStore,
-    prim: PrimRef,
-    material: &Material,
-    texture_averages: &[Vec3],
-) -> f32 {
+fn area_power(area: f32, material: &Material, texture_averages: &[Vec3]) -> f32 {
     let mut l = material.emissive;
     if let Some(t) = &material.emissive_texture {
         l *= texture_averages
@@ -309,7 +297,7 @@ fn area_power(
             .unwrap_or(Vec3::ONE);
     }
     let sides = if material.double_sided { 2.0 } else { 1.0 };
-    PI * sides * geometry.area(prim) * luminance(l)
+    PI * sides * area * luminance(l)
 }
 
 impl LightSet {
@@ -332,15 +320,22 @@ impl LightSet {
                 *a = tex.average().truncate();
             }
         }
-        let powers: Vec<f32> = lights
+        let area_info = lights
             .iter()
             .map(|l| match l {
-                Light::Area { prim, material } => area_power(
-                    geometry,
-                    *prim,
-                    &materials[*material as usize],
-                    &texture_averages,
-                ),
+                Light::Area { prim, material } => {
+                    area_light_info(geometry, *prim, &materials[*material as usize])
+                }
+                _ => AreaLightInfo::default(),
+            })
+            .collect::<Vec<_>>();
+        let powers: Vec<f32> = lights
+            .iter()
+            .zip(&area_info)
+            .map(|(l, info)| match l {
+                Light::Area { material, .. } => {
+                    area_power(info.area, &materials[*material as usize], &texture_averages)
+                }
                 Light::Point { intensity, .. } => 4.0 * PI * luminance(*intensity),
                 Light::Spot {
                     intensity,
@@ -365,15 +360,6 @@ impl LightSet {
             .enumerate()
             .filter(|(_, l)| l.is_infinite())
             .map(|(i, _)| i as u32)
-            .collect();
-        let area_info = lights
-            .iter()
-            .map(|l| match l {
-                Light::Area { prim, material } => {
-                    area_light_info(geometry, *prim, &materials[*material as usize])
-                }
-                _ => AreaLightInfo::default(),
-            })
             .collect();
         LightSet {
             distribution: Distribution1D::new(&powers),
