@@ -10,7 +10,13 @@
 //! PBRT-v4 §9.5.2): the transmitted `f` includes that factor and `BsdfSample::eta` reports the
 //! relative IOR crossed so the integrator can undo it for Russian roulette.
 
-use super::microfacet::{Ggx, MIN_ALPHA, fresnel_dielectric, reflect, refract, schlick};
+use super::conductor::Conductor;
+use super::diffuse_transmission::DiffuseTransmission;
+use super::layered::{Base, Coat, Layered};
+use super::microfacet::{
+    AnisoGgx, Ggx, MIN_ALPHA, conductor_from_reflectance, fresnel_dielectric, reflect, refract,
+    schlick,
+};
 use super::{Material, MaterialModel, Texture};
 use crate::geometry::SurfaceHit;
 use crate::math::{INV_PI, Vec2, Vec3, luminance};
@@ -52,6 +58,12 @@ pub enum Bsdf {
         tint: Vec3,
         ggx: Option<Ggx>,
     },
+    /// pbrt-v4's conductor: exact complex Fresnel per channel, smooth or anisotropic GGX.
+    Conductor(Conductor),
+    /// Lambertian reflection + Lambertian transmission (pbrt-v4 `diffusetransmission`).
+    DiffuseTransmission(DiffuseTransmission),
+    /// pbrt-v4's stochastic layered BSDF (`coateddiffuse`, `coatedconductor`).
+    Layered(Layered),
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -91,7 +103,49 @@ impl Bsdf {
         } else {
             1.5
         };
+        let p = &material.pbrt;
+        let conductor = || {
+            let (eta, k) = if p.conductor_reflectance {
+                conductor_from_reflectance(base)
+            } else {
+                (p.conductor_eta, p.conductor_k)
+            };
+            Conductor::new(eta, k, p.conductor_alpha.x, p.conductor_alpha.y)
+        };
+        let coat = Coat {
+            eta: p.interface_eta,
+            dist: AnisoGgx::new(p.interface_alpha.x, p.interface_alpha.y),
+        };
+        let layered = |base: Base| Layered {
+            coat,
+            base,
+            thickness: p.thickness,
+            albedo: p.albedo,
+            g: p.g,
+            max_depth: p.max_depth,
+            n_samples: p.n_samples,
+        };
         match material.model {
+            MaterialModel::Conductor => return Bsdf::Conductor(conductor()),
+            MaterialModel::CoatedDiffuse => {
+                return Bsdf::Layered(layered(Base::Diffuse { reflectance: base }));
+            }
+            MaterialModel::CoatedConductor => {
+                return Bsdf::Layered(layered(Base::Conductor(conductor())));
+            }
+            MaterialModel::DiffuseTransmission => {
+                return Bsdf::DiffuseTransmission(DiffuseTransmission {
+                    reflectance: base,
+                    transmittance: p.transmittance,
+                });
+            }
+            _ => {}
+        }
+        match material.model {
+            MaterialModel::Conductor
+            | MaterialModel::CoatedDiffuse
+            | MaterialModel::CoatedConductor
+            | MaterialModel::DiffuseTransmission => unreachable!("handled above"),
             MaterialModel::Diffuse => Bsdf::Diffuse { albedo: base },
             MaterialModel::Mirror => Bsdf::Mirror { color: base },
             MaterialModel::Dielectric => Bsdf::dielectric(eta, roughness, Vec3::ONE),
@@ -172,19 +226,28 @@ impl Bsdf {
             Bsdf::Diffuse { .. } | Bsdf::MetallicRoughness { .. } => false,
             Bsdf::Mirror { .. } => true,
             Bsdf::Dielectric { ggx, .. } | Bsdf::ThinDielectric { ggx, .. } => ggx.is_none(),
+            Bsdf::Conductor(c) => c.is_specular(),
+            Bsdf::DiffuseTransmission(_) => false,
+            Bsdf::Layered(l) => l.is_specular(),
         }
     }
 
     /// True if `sample` ignores its lobe-choice number.
     #[inline]
     pub fn has_one_lobe(&self) -> bool {
-        matches!(self, Bsdf::Diffuse { .. } | Bsdf::Mirror { .. })
+        matches!(
+            self,
+            Bsdf::Diffuse { .. } | Bsdf::Mirror { .. } | Bsdf::Conductor(_)
+        )
     }
 
     /// True if the BSDF transmits: its frame must keep the geometric orientation.
     #[inline]
     pub fn is_transmissive(&self) -> bool {
-        matches!(self, Bsdf::Dielectric { .. } | Bsdf::ThinDielectric { .. })
+        matches!(
+            self,
+            Bsdf::Dielectric { .. } | Bsdf::ThinDielectric { .. } | Bsdf::DiffuseTransmission(_)
+        )
     }
 
     #[inline]
@@ -212,6 +275,9 @@ impl Bsdf {
                 None => Vec3::ZERO,
                 Some(g) => rough_thin_eval(g, eta, tint, wo, wi).0,
             },
+            Bsdf::Conductor(c) => c.eval(wo, wi),
+            Bsdf::DiffuseTransmission(d) => d.eval(wo, wi),
+            Bsdf::Layered(l) => l.eval(wo, wi),
         }
     }
 
@@ -243,6 +309,9 @@ impl Bsdf {
                 None => 0.0,
                 Some(g) => rough_thin_eval(g, eta, tint, wo, wi).1,
             },
+            Bsdf::Conductor(c) => c.pdf(wo, wi),
+            Bsdf::DiffuseTransmission(d) => d.pdf(wo, wi),
+            Bsdf::Layered(l) => l.pdf(wo, wi),
         }
     }
 
@@ -339,6 +408,9 @@ impl Bsdf {
                     })
                 }
             }
+            Bsdf::Conductor(c) => c.sample(wo, u),
+            Bsdf::DiffuseTransmission(d) => d.sample(wo, u_lobe, u),
+            Bsdf::Layered(l) => l.sample(wo, u_lobe, u),
         }
     }
 
@@ -349,6 +421,9 @@ impl Bsdf {
             Bsdf::MetallicRoughness { base, .. } => base,
             Bsdf::Mirror { color } => color,
             Bsdf::Dielectric { tint, .. } | Bsdf::ThinDielectric { tint, .. } => tint,
+            Bsdf::Conductor(c) => c.albedo(),
+            Bsdf::DiffuseTransmission(d) => d.reflectance + d.transmittance,
+            Bsdf::Layered(l) => l.albedo(),
         }
     }
 
