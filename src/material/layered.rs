@@ -449,7 +449,9 @@ impl Layered {
                         if w.z > 0.0 && !coat.is_specular() {
                             let f_exit = coat.f(-w, wi, true);
                             if f_exit > 0.0 {
-                                let exit_pdf = coat.pdf(-w, wi, Lobes::Transmission);
+                                // The density with which the virtual-light strategy (wis)
+                                // would have produced -w, in the same measure as p.
+                                let exit_pdf = coat.pdf(wi, -w, Lobes::Transmission);
                                 let wt = power_heuristic(p, exit_pdf);
                                 f += beta * (tr(zp - thick, w) * f_exit * wt);
                             }
@@ -497,7 +499,7 @@ impl Layered {
                             let wt = if base.is_specular() {
                                 1.0
                             } else {
-                                power_heuristic(bs.pdf, coat.pdf(-w, wi, Lobes::Transmission))
+                                power_heuristic(bs.pdf, coat.pdf(wi, -w, Lobes::Transmission))
                             };
                             f += beta * (tr(thick, bs.wi) * f_exit * wt);
                         }
