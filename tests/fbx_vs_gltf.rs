@@ -13,7 +13,7 @@ use trayecto::world::{World, WorldOptions};
 
 fn render_file(path: &str, seed: u64) -> Image {
     let s = scene::load(path).unwrap_or_else(|e| panic!("{e}"));
-    let world = World::build(&s, &WorldOptions::default()).unwrap();
+    let world = World::build(s.clone(), &WorldOptions::default()).unwrap();
     let settings = RenderSettings {
         width: 64,
         height: 64,

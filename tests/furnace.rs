@@ -48,7 +48,7 @@ fn furnace_mean(material: Material, spp: u32) -> f32 {
         )],
         ..Default::default()
     };
-    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
     let settings = RenderSettings {
         width: 32,
         height: 32,

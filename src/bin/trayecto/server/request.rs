@@ -3,15 +3,15 @@
 //! name is a plain file name, and every number is inside both the renderer's limits
 //! (`RenderSettings::validate`) and the server's own, tighter caps.
 
-use crate::film::tonemap::Tonemap;
-use crate::integrator::{IntegratorKind, PathSettings};
-use crate::render::{MAX_DEPTH, MAX_SECONDARY, RenderSettings};
-use crate::sampling::SamplerKind;
-use crate::scene::builtin;
 use serde_json::{Map, Value};
 use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
 use std::str::FromStr;
+use trayecto::film::tonemap::Tonemap;
+use trayecto::integrator::{IntegratorKind, PathSettings};
+use trayecto::render::{MAX_DEPTH, MAX_SECONDARY, RenderSettings};
+use trayecto::sampling::SamplerKind;
+use trayecto::scene::builtin;
 
 /// File extensions the scene picker lists (the formats `scene::load` reads or will read).
 pub const SCENE_EXTENSIONS: &[&str] = &["gltf", "glb", "obj", "ply", "fbx", "toml"];
