@@ -1,4 +1,4 @@
-//! SPEC §3 / issue 7: `cornell_seed_conventions.fbx` and its `.glb` twin (exported from the same
+//! docs/DESIGN.md §3 / issue 7: `cornell_seed_conventions.fbx` and its `.glb` twin (exported from the same
 //! Blender scene) render the same image for the same seed: the mean of each channel within 1%
 //! and the per-pixel difference within the noise of the estimator.
 

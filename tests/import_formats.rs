@@ -284,7 +284,7 @@ fn toml_errors_name_the_file_and_the_problem() {
     }
 }
 
-/// SPEC: a glTF and a TOML description of the same scene produce the same image for the same
+/// docs/DESIGN.md §8: a glTF and a TOML description of the same scene produce the same image for the same
 /// seed. The two differ only in how the camera matrix is computed (a node transform vs a
 /// look-at), i.e. by rounding, so nearly every pixel must agree to 1e-4 relative.
 #[test]

@@ -290,7 +290,7 @@ fn lights_punctual_lamp_is_lit_by_its_own_lights() {
         .filter(|l| matches!(l, LightDesc::Point { .. } | LightDesc::Spot { .. }))
         .collect();
     assert_eq!(punctual.len(), 5, "{:?}", scene.lights);
-    // Candela / 683 = W/sr (SPEC §4): no light is brighter than the file's largest intensity.
+    // Candela / 683 = W/sr (docs/DESIGN.md §4): no light is brighter than the file's largest intensity.
     for l in &punctual {
         if let LightDesc::Point { intensity, .. } | LightDesc::Spot { intensity, .. } = l {
             assert!(intensity.max_element() > 0.0 && intensity.max_element() < 1000.0 / 683.0);

@@ -54,7 +54,7 @@ impl Default for PathSettings {
 }
 
 /// Orients the geometric and shading normals for scattering. Opaque BSDFs see the side the ray
-/// came from (two-sided shading by flipping the normals, SPEC §4); transmissive ones keep the
+/// came from (two-sided shading by flipping the normals, docs/DESIGN.md §4); transmissive ones keep the
 /// surface's own orientation so they know whether the ray enters or leaves.
 #[inline]
 pub fn oriented_normals(hit: &SurfaceHit, wo: Vec3, transmissive: bool) -> (Vec3, Vec3) {

@@ -15,7 +15,7 @@
 //! Willems 1994; Akenine-Möller et al., *Real-Time Rendering* §9.8) and the Lambert term carries its
 //! `1/π`, so a diffuse scene lit by a point light shows the same radiance in every mode, path
 //! tracer included. Two-sided shading flips the normal to the viewer's side instead of taking
-//! `abs()` of cosines (SPEC §4).
+//! `abs()` of cosines (docs/DESIGN.md §4).
 //!
 //! Lights: point, spot (with the glTF cone falloff) and directional lights give hard shadows with
 //! one shadow ray each. Ambient lights (uniform radiance, incl. the default white environment) add

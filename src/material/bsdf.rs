@@ -2,7 +2,7 @@
 //! Each BSDF provides `eval` (f, without the cosine), `pdf` (solid angle) and `sample`, which must
 //! agree: the chi-square tests in `tests/bsdf_chi2.rs` check every sampler against its pdf.
 //!
-//! Two-sided shading (SPEC §4): for opaque materials the integrator builds the frame around the
+//! Two-sided shading (docs/DESIGN.md §4): for opaque materials the integrator builds the frame around the
 //! normal flipped to the side the ray arrived from, so `wo.z > 0` always and no `abs()` is taken.
 //! Transmissive BSDFs keep the geometric orientation: `wo.z < 0` means the ray arrives from inside.
 //!

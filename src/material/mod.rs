@@ -41,7 +41,7 @@ pub struct PhongParams {
     pub shininess: f32,
 }
 
-/// A material, in the glTF metallic-roughness vocabulary (SPEC §3–4). Colour factors are linear RGB.
+/// A material, in the glTF metallic-roughness vocabulary (docs/DESIGN.md §3–4). Colour factors are linear RGB.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     pub name: String,

@@ -1,5 +1,5 @@
 //! `trayecto serve`: the thesis's GUI (§5.5, Annex B) as a web page with a progressive preview
-//! (SPEC §2, web UI). An axum server on 127.0.0.1 by default serves the embedded page and a small
+//! (docs/DESIGN.md §2, web UI). An axum server on 127.0.0.1 by default serves the embedded page and a small
 //! JSON API (documented in the README); renders run on their own threads ([`jobs`]) and every
 //! request is checked before any work starts ([`request`]).
 //!
