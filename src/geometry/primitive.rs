@@ -257,11 +257,12 @@ impl GeometryStore {
         }
     }
 
-    /// Expands an accelerator's closest hit into full shading information.
-    pub fn surface_hit(&self, ray: &Ray, isect: &Intersection) -> SurfaceHit {
-        let i = isect.prim.index();
-        let mut hit = SurfaceHit {
-            t: isect.t,
+    /// A hit on `prim` at ray distance `t` with its material and light index set and every
+    /// geometric attribute at a neutral default, for the caller to fill in.
+    #[inline]
+    pub(crate) fn blank_hit(&self, prim: PrimRef, t: f32) -> SurfaceHit {
+        SurfaceHit {
+            t,
             p: Vec3::ZERO,
             p_error: Vec3::ZERO,
             ng: Vec3::Z,
@@ -270,10 +271,16 @@ impl GeometryStore {
             bitangent_sign: 1.0,
             uv: [Vec2::ZERO; 2],
             color: Vec4::ONE,
-            material: self.material(isect.prim),
-            light: self.light(isect.prim),
-            prim: isect.prim,
-        };
+            material: self.material(prim),
+            light: self.light(prim),
+            prim,
+        }
+    }
+
+    /// Expands an accelerator's closest hit into full shading information.
+    pub fn surface_hit(&self, ray: &Ray, isect: &Intersection) -> SurfaceHit {
+        let i = isect.prim.index();
+        let mut hit = self.blank_hit(isect.prim, isect.t);
         match isect.prim.kind() {
             PrimitiveKind::Triangle => self.triangle_hit(i, isect.u, isect.v, &mut hit),
             PrimitiveKind::Sphere => {

@@ -4,7 +4,7 @@
 //! solid-angle cone sampling of the visible cap yet); a box picks a face in proportion to area.
 
 use super::primitive::{GeometryStore, PrimRef, PrimitiveKind, SurfaceHit};
-use crate::math::{Vec2, Vec3, Vec4};
+use crate::math::{Vec2, Vec3};
 use crate::sampling::warp;
 
 impl GeometryStore {
@@ -14,20 +14,7 @@ impl GeometryStore {
     /// the geometric one and no tangent frame is built. Its area pdf is `1 / self.area(prim)`.
     pub fn sample_point(&self, prim: PrimRef, u: Vec2) -> SurfaceHit {
         let i = prim.index();
-        let mut hit = SurfaceHit {
-            t: 0.0,
-            p: Vec3::ZERO,
-            p_error: Vec3::ZERO,
-            ng: Vec3::Z,
-            ns: Vec3::Z,
-            tangent: Vec3::X,
-            bitangent_sign: 1.0,
-            uv: [Vec2::ZERO; 2],
-            color: Vec4::ONE,
-            material: self.material(prim),
-            light: self.light(prim),
-            prim,
-        };
+        let mut hit = self.blank_hit(prim, 0.0);
         match prim.kind() {
             PrimitiveKind::Triangle => {
                 let (b1, b2) = warp::uniform_triangle(u);

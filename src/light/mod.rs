@@ -74,12 +74,7 @@ impl Light {
                 position,
                 intensity,
             } => {
-                let to = *position - p;
-                let d2 = to.length_squared();
-                if !(d2 > 0.0) {
-                    return None;
-                }
-                let wi = to / d2.sqrt();
+                let (wi, d2) = toward(*position, p)?;
                 Some(LightSample {
                     wi,
                     li: *intensity / d2,
@@ -96,12 +91,7 @@ impl Light {
                 cos_inner,
                 cos_outer,
             } => {
-                let to = *position - p;
-                let d2 = to.length_squared();
-                if !(d2 > 0.0) {
-                    return None;
-                }
-                let wi = to / d2.sqrt();
+                let (wi, d2) = toward(*position, p)?;
                 let falloff = spot_falloff(direction.dot(-wi), *cos_inner, *cos_outer);
                 if falloff <= 0.0 {
                     return None;
@@ -134,6 +124,17 @@ impl Light {
             Light::Area { .. } | Light::Uniform { .. } | Light::Environment { .. } => None,
         }
     }
+}
+
+/// Unit direction from `p` to `position` and the squared distance; `None` if they coincide.
+#[inline]
+fn toward(position: Vec3, p: Vec3) -> Option<(Vec3, f32)> {
+    let to = position - p;
+    let d2 = to.length_squared();
+    if !(d2 > 0.0) {
+        return None;
+    }
+    Some((to / d2.sqrt(), d2))
 }
 
 /// A sampled light point as seen from a shading point.

@@ -12,15 +12,7 @@ impl Bsdf {
     /// Builds the BSDF of `material` at `hit`, reading its textures.
     pub fn from_material(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Bsdf {
         let base = base_color(material, textures, hit);
-        let (mut roughness, mut metallic) = (material.roughness, material.metallic);
-        if let Some(t) = &material.metallic_roughness_texture {
-            // glTF: roughness in G, metalness in B (linear).
-            let v = sample_texture(textures, t, hit);
-            roughness *= v.y;
-            metallic *= v.z;
-        }
-        let roughness = roughness.clamp(0.0, 1.0);
-        let mut metallic = metallic.clamp(0.0, 1.0);
+        let (roughness, mut metallic) = roughness_metallic(material, textures, hit);
         let eta = if material.ior > 0.0 {
             material.ior
         } else {
@@ -75,6 +67,23 @@ impl Bsdf {
             }
         }
     }
+}
+
+/// Roughness and metalness at a hit, factors × texture (glTF: roughness in G, metalness in B,
+/// linear), each clamped to [0, 1].
+#[inline]
+pub fn roughness_metallic(
+    material: &Material,
+    textures: &[Texture],
+    hit: &SurfaceHit,
+) -> (f32, f32) {
+    let (mut roughness, mut metallic) = (material.roughness, material.metallic);
+    if let Some(t) = &material.metallic_roughness_texture {
+        let v = sample_texture(textures, t, hit);
+        roughness *= v.y;
+        metallic *= v.z;
+    }
+    (roughness.clamp(0.0, 1.0), metallic.clamp(0.0, 1.0))
 }
 
 /// Base colour at a hit: factor × texture (sRGB-decoded) × vertex colour.

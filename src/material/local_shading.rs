@@ -14,7 +14,7 @@
 //! `1/π`, so a diffuse scene lit by a point light shows the same radiance in every mode, path
 //! tracer included. The direct-lighting loop that uses them is `integrator::direct::shade_local`.
 
-use super::eval::{base_color, sample_texture};
+use super::eval::{base_color, roughness_metallic, sample_texture};
 use super::microfacet::schlick;
 use super::{Material, MaterialModel, Texture};
 use crate::geometry::SurfaceHit;
@@ -73,13 +73,7 @@ pub struct LocalSurface {
 impl LocalSurface {
     pub fn new(m: &Material, textures: &[Texture], hit: &SurfaceHit) -> LocalSurface {
         let base = base_color(m, textures, hit);
-        let (mut metallic, mut roughness) = (m.metallic, m.roughness);
-        if let Some(t) = &m.metallic_roughness_texture {
-            let v = sample_texture(textures, t, hit);
-            roughness *= v.y;
-            metallic *= v.z;
-        }
-        let (metallic, roughness) = (metallic.clamp(0.0, 1.0), roughness.clamp(0.0, 1.0));
+        let (roughness, metallic) = roughness_metallic(m, textures, hit);
         let occlusion = match &m.occlusion_texture {
             Some(t) => {
                 let ao = sample_texture(textures, t, hit).x;
