@@ -166,7 +166,7 @@ impl World {
             }
             let hit = self.geometry.surface_hit(&current, &isect);
             let m = &self.materials[material];
-            let alpha = crate::material::bsdf::opacity(m, &self.textures, &hit);
+            let alpha = crate::material::eval::opacity(m, &self.textures, &hit);
             let present = match m.alpha_mode {
                 AlphaMode::Mask => alpha >= m.alpha_cutoff,
                 _ => alpha >= 1.0 || cutout_hash(&current, isect.t) < alpha,
@@ -607,3 +607,6 @@ fn cutout_hash(ray: &Ray, t: f32) -> f32 {
     let (o, d) = (ray.o, ray.d);
     crate::sampling::rng::hash_floats_to_unit(&[o.x, o.y, o.z, d.x, d.y, d.z, t])
 }
+
+/// The queries integrators ask of the world (lights, BSDFs, emission), in their own file.
+mod queries;

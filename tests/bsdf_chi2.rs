@@ -6,6 +6,7 @@
 //! tests. The Dirac lobes get a binomial test of their discrete choice instead.
 
 use trayecto::material::Bsdf;
+use trayecto::material::bxdf::Diffuse;
 use trayecto::material::microfacet::fresnel_dielectric;
 use trayecto::math::{PI, Vec2, Vec3};
 use trayecto::sampling::rng::Pcg32;
@@ -238,9 +239,9 @@ fn check_bsdf(name: &str, bsdf: Bsdf, wo: Vec3) -> f64 {
 
 #[test]
 fn diffuse_sampling_matches_pdf() {
-    let b = Bsdf::Diffuse {
+    let b = Bsdf::Diffuse(Diffuse {
         albedo: Vec3::splat(0.7),
-    };
+    });
     for deg in [0.0, 60.0] {
         let i = check_bsdf(&format!("diffuse {deg}"), b, wo_at(deg));
         assert!((i - 1.0).abs() < 2e-3, "diffuse pdf integrates to {i}");
@@ -790,10 +791,7 @@ fn sphere_light_samples_are_uniform_over_the_visible_cap() {
     let integral = chi2(
         "sphere light",
         |r| {
-            let s = world.lights.sample(
-                &world.geometry,
-                &world.materials,
-                &world.textures,
+            let s = world.sample_light(
                 &hit,
                 Vec3::Z,
                 r.next_f32(),
