@@ -12,8 +12,8 @@
 //! * reciprocity f(wo, wi) = f(wi, wo), in expectation.
 
 use trayecto::material::Bsdf;
-use trayecto::material::conductor::Conductor;
-use trayecto::material::layered::{Base, Coat, Layered};
+use trayecto::material::bxdf::Conductor;
+use trayecto::material::bxdf::layered::{Base, Coat, Layered};
 use trayecto::material::microfacet::{AnisoGgx, fresnel_dielectric};
 use trayecto::math::{PI, Vec2, Vec3};
 use trayecto::sampling::rng::Pcg32;

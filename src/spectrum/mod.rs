@@ -263,7 +263,10 @@ pub const METALS: [&str; 6] = [
     "metal-TiO2",
 ];
 
-fn metal_tables(metal: &str) -> Option<(&'static [(f32, f32)], &'static [(f32, f32)])> {
+/// A tabulated spectrum: (wavelength in nm, value) pairs in increasing wavelength.
+type Table = &'static [(f32, f32)];
+
+fn metal_tables(metal: &str) -> Option<(Table, Table)> {
     Some(match metal {
         "metal-Ag" => (&data::AG_ETA[..], &data::AG_K[..]),
         "metal-Al" => (&data::AL_ETA[..], &data::AL_K[..]),
@@ -355,7 +358,7 @@ mod tests {
     #[test]
     fn blackbody_is_planck_with_unit_peak() {
         for t in [2700.0f32, 6500.0] {
-            let peak = 2.897_772_1e-3 / t * 1e9;
+            let peak = 2.897_772e-3 / t * 1e9;
             assert!((blackbody(peak, t) - 1.0).abs() < 1e-4);
             assert!(blackbody(peak * 0.9, t) < 1.0 && blackbody(peak * 1.1, t) < 1.0);
         }

@@ -19,9 +19,9 @@
 //! opaque materials pbrt-v4 builds from it (`TwoSided` coat on top, base at the bottom): light that
 //! would be transmitted through the base does not exist, so only reflection is modelled.
 
-use super::bsdf::BsdfSample;
 use super::conductor::Conductor;
-use super::microfacet::{AnisoGgx, fresnel_dielectric, reflect, refract};
+use crate::material::bsdf::BsdfSample;
+use crate::material::microfacet::{AnisoGgx, fresnel_dielectric, reflect, refract};
 use crate::math::{Frame, INV_PI, PI, Vec2, Vec3};
 use crate::sampling::rng::{Pcg32, hash_words};
 use crate::sampling::warp;

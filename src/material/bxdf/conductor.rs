@@ -7,8 +7,8 @@
 //! anisotropy. The material is opaque and one-sided in the frame (the integrator flips the frame to
 //! the side the ray arrives from), so `wo.z > 0` is required.
 
-use super::bsdf::BsdfSample;
-use super::microfacet::{AnisoGgx, fresnel_conductor, reflect};
+use crate::material::bsdf::BsdfSample;
+use crate::material::microfacet::{AnisoGgx, fresnel_conductor, reflect};
 use crate::math::{Vec2, Vec3};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
