@@ -49,20 +49,24 @@ pub struct RenderArgs {
     #[arg(short = 'o', long = "output", default_value = "render.png")]
     pub output: PathBuf,
     /// Image width in pixels [resolución].
-    #[arg(long, default_value_t = 512)]
-    pub width: u32,
+    /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 512.)
+    #[arg(long)]
+    pub width: Option<u32>,
     /// Image height in pixels [resolución].
-    #[arg(long, default_value_t = 512)]
-    pub height: u32,
+    /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 512.)
+    #[arg(long)]
+    pub height: Option<u32>,
     /// Camera samples per pixel [sobremuestreo].
-    #[arg(long, default_value_t = 64)]
-    pub spp: u32,
+    /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 64.)
+    #[arg(long)]
+    pub spp: Option<u32>,
     /// Continuation paths split at the first hit [rayos secundarios].
     #[arg(long, default_value_t = 1)]
     pub secondary: u32,
     /// Maximum number of bounces: 0 shows emitters only, 1 is direct lighting [profundidad máxima].
-    #[arg(long, default_value_t = 64)]
-    pub max_depth: u32,
+    /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 64.)
+    #[arg(long)]
+    pub max_depth: Option<u32>,
     /// Linear multiplier applied before tone mapping [exposición].
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub exposure: f32,
@@ -125,16 +129,22 @@ pub struct InfoArgs {
 impl RenderArgs {
     /// The render settings these options describe, checked for absurd values.
     pub fn settings(&self) -> Result<RenderSettings> {
+        self.settings_for(&crate::scene::RenderHints::default())
+    }
+
+    /// The render settings with the scene file's own settings (`hints`) where the command line
+    /// gives none.
+    pub fn settings_for(&self, hints: &crate::scene::RenderHints) -> Result<RenderSettings> {
         let s = RenderSettings {
-            width: self.width,
-            height: self.height,
-            spp: self.spp,
+            width: self.width.or(hints.width).unwrap_or(512),
+            height: self.height.or(hints.height).unwrap_or(512),
+            spp: self.spp.or(hints.spp).unwrap_or(64),
             seed: self.seed,
             threads: self.threads,
             sampler: self.sampler,
             integrator: self.integrator.with_options(self.aov, self.shading),
             path: PathSettings {
-                max_depth: self.max_depth,
+                max_depth: self.max_depth.or(hints.max_depth).unwrap_or(64),
                 rr_depth: self.rr_depth,
                 rr_scale: self.rr_scale,
                 nee: !self.no_nee,
@@ -177,7 +187,8 @@ impl RenderObserver for Progress {
 }
 
 pub fn run_render(args: &RenderArgs) -> Result<()> {
-    let settings = args.settings()?;
+    // Absurd options fail before the scene is loaded; the scene's own settings come in below.
+    args.settings()?;
     Format::from_path(&args.output)?;
     if let Some(parent) = args.output.parent()
         && !parent.as_os_str().is_empty()
@@ -197,6 +208,8 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     let t0 = Instant::now();
     let scene = crate::scene::load(&args.scene)?;
     let load_time = t0.elapsed();
+    // The file's own resolution, samples and depth apply where the command line is silent.
+    let settings = args.settings_for(&scene.hints)?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
@@ -324,6 +337,19 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
         );
     }
     println!("textures    {}", scene.textures.len());
+    let h = &scene.hints;
+    if *h != crate::scene::RenderHints::default() {
+        let show = |v: Option<u32>| v.map_or("-".to_string(), |v| v.to_string());
+        println!(
+            "file asks   {}x{} pixels, {} spp, max depth {}{}",
+            show(h.width),
+            show(h.height),
+            show(h.spp),
+            show(h.max_depth),
+            h.crop
+                .map_or(String::new(), |c| format!(", crop window {c:?} (not applied)"))
+        );
+    }
     println!(
         "lights      {} ({} area)",
         world.lights.lights.len(),

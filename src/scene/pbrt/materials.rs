@@ -852,7 +852,7 @@ impl Loader {
 
 /// Reads and decodes one image (PNG, JPEG, TGA, HDR via the `image` crate; EXR via the loader
 /// shared with the environment maps; PFM by hand).
-fn decode_image(j: &ImageJob) -> Result<Texture, String> {
+pub(crate) fn decode_image(j: &ImageJob) -> Result<Texture, String> {
     let lower = j.name.to_ascii_lowercase();
     let mut t = if lower.ends_with(".exr") {
         decode_exr(&j.name, &j.path)?

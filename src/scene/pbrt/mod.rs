@@ -30,7 +30,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use crate::material::Material;
-use crate::math::{Mat4, Vec3, Vec4};
+use crate::math::{Mat4, Vec3};
 use crate::scene::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape};
 
 use materials::{MatSpec, TexNode};
@@ -861,22 +861,37 @@ impl Loader {
                         self.warn(format!("{at}: infinite light: \"illuminance\" with an image is not supported; the image is used unscaled"));
                     }
                     let path = self.resolve(&f, at)?;
-                    self.warn(format!(
-                        "{at}: infinite light \"{f}\": pbrt-v4's equal-area (octahedral) environment images are not supported yet; the image is read as an equirectangular map, so its directions are wrong"
-                    ));
-                    // pbrt's environment frame has +z up; Trayecto's has +y up.
-                    let frame = Mat4::from_cols(
-                        Vec4::new(1.0, 0.0, 0.0, 0.0),
-                        Vec4::new(0.0, 0.0, -1.0, 0.0),
-                        Vec4::new(0.0, 1.0, 0.0, 0.0),
-                        Vec4::W,
-                    );
-                    self.scene.lights.push(LightDesc::Environment {
-                        name,
+                    // pbrt-v4's image infinite lights use square equal-area (octahedral) maps,
+                    // every texel subtending the same solid angle, so the plain texel mean is the
+                    // mean radiance over the sphere. Until that parameterization lands, the light
+                    // is that mean as uniform radiance: exact for the total power it sends into
+                    // an open scene, not for its directions.
+                    let job = materials::ImageJob {
+                        texture: 0,
                         path,
-                        scale: Vec3::splat(s),
-                        transform: ctm * frame,
-                    });
+                        name: f.clone(),
+                        srgb: false,
+                        gamma: None,
+                        filter: crate::material::texture::FilterMode::Bilinear,
+                        wrap: crate::material::WrapMode::Repeat,
+                        at: at.to_string(),
+                        size_hint: 0,
+                    };
+                    match materials::decode_image(&job) {
+                        Ok(t) => {
+                            let mean = t.average().truncate();
+                            self.warn(format!(
+                                "{at}: infinite light \"{f}\": equal-area environment images are not supported yet; its mean radiance {mean} is used as a uniform environment"
+                            ));
+                            self.scene.lights.push(LightDesc::Ambient {
+                                name,
+                                radiance: mean * s,
+                            });
+                        }
+                        Err(e) => self.warn(format!(
+                            "{at}: infinite light \"{f}\" could not be read ({e}) and was left out"
+                        )),
+                    }
                 } else {
                     let rgb = match l {
                         Some(v) => self.illuminant_rgb(&v, at, "L").unwrap_or(Vec3::ONE),
