@@ -801,7 +801,7 @@ impl Loader {
                 let from = list.point3("from", Vec3::ZERO);
                 let to = list.point3("to", Vec3::new(0.0, 0.0, 1.0));
                 let cone = list.float("coneangle", 30.0).clamp(0.0, 90.0);
-                let delta = list.float("conedelta", 5.0).clamp(0.0, cone);
+                let delta = list.float("conedeltaangle", 5.0).clamp(0.0, cone);
                 let mut s = scale;
                 let power = list.float("power", -1.0);
                 if power > 0.0 {
