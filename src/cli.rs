@@ -346,8 +346,9 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
             show(h.height),
             show(h.spp),
             show(h.max_depth),
-            h.crop
-                .map_or(String::new(), |c| format!(", crop window {c:?} (not applied)"))
+            h.crop.map_or(String::new(), |c| format!(
+                ", crop window {c:?} (not applied)"
+            ))
         );
     }
     println!(

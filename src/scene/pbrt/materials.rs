@@ -19,8 +19,8 @@ use std::path::PathBuf;
 
 use rayon::prelude::*;
 
-use super::params::{ParamList, SpectrumValue, TexOr};
 use super::Loader;
+use super::params::{ParamList, SpectrumValue, TexOr};
 use crate::material::texture::{FilterMode, TextureRef, UvTransform};
 use crate::material::{Material, MaterialModel, Texture, WrapMode};
 use crate::math::{Vec2, Vec3, Vec4};
@@ -223,7 +223,9 @@ impl Loader {
             other => {
                 return Err(SceneError::invalid(
                     at,
-                    format!("Texture \"{name}\": unknown texture type '{other}' (float or spectrum)"),
+                    format!(
+                        "Texture \"{name}\": unknown texture type '{other}' (float or spectrum)"
+                    ),
                 ));
             }
         };
@@ -453,7 +455,9 @@ impl Loader {
                 Vec3::splat(0.5)
             }
             SpectrumValue::Sampled(v) => super::spectra::sampled_rgb(v).unwrap_or_else(|| {
-                self.warn(format!("{at}: \"{key}\": bad sampled spectrum; 0.5 is used"));
+                self.warn(format!(
+                    "{at}: \"{key}\": bad sampled spectrum; 0.5 is used"
+                ));
                 Vec3::splat(0.5)
             }),
             SpectrumValue::Blackbody(_) => {
@@ -574,7 +578,13 @@ impl Loader {
                     let mut s = 0.0;
                     for i in 0..16 {
                         for j in 0..16 {
-                            s += n.eval(&l.scene.textures, (i as f32 + 0.5) / 16.0, (j as f32 + 0.5) / 16.0).x;
+                            s += n
+                                .eval(
+                                    &l.scene.textures,
+                                    (i as f32 + 0.5) / 16.0,
+                                    (j as f32 + 0.5) / 16.0,
+                                )
+                                .x;
                         }
                     }
                     Some(s / 256.0)
@@ -656,7 +666,11 @@ impl Loader {
                 m.ior = eta;
                 let albedo = self.tex_param(p, "albedo", false, Vec3::ZERO, at);
                 let thickness = p.float("thickness", 0.01);
-                let (_g, _md, _ns) = (p.float("g", 0.0), p.int("maxdepth", 10), p.int("nsamples", 1));
+                let (_g, _md, _ns) = (
+                    p.float("g", 0.0),
+                    p.int("maxdepth", 10),
+                    p.int("nsamples", 1),
+                );
                 self.warn_once(
                     &format!("coateddiffuse {}", spec.name),
                     format!(
@@ -670,12 +684,18 @@ impl Loader {
                 );
             }
             "conductor" | "coatedconductor" => {
-                let pre = if spec.ty == "coatedconductor" { "conductor." } else { "" };
+                let pre = if spec.ty == "coatedconductor" {
+                    "conductor."
+                } else {
+                    ""
+                };
                 let rough = self.roughness(p, pre, at, &what);
                 let reflectance = p.spectrum_tex(&format!("{pre}reflectance"));
                 let base = if let Some(r) = reflectance {
                     let node = match r {
-                        TexOr::Value(s) => TexNode::Const(self.reflectance_rgb(&s, at, "reflectance")),
+                        TexOr::Value(s) => {
+                            TexNode::Const(self.reflectance_rgb(&s, at, "reflectance"))
+                        }
                         TexOr::Texture(t) => self.lookup_texture(&t, false, at),
                     };
                     let (c, t) = self.node_to_factor(&node);
@@ -697,7 +717,12 @@ impl Loader {
                     let _ = self.roughness(p, "interface.", at, &what);
                     let _ = p.float("interface.eta", 1.5);
                     let _ = p.spectrum("interface.eta");
-                    let _ = (p.float("thickness", 0.01), p.float("g", 0.0), p.int("maxdepth", 10), p.int("nsamples", 1));
+                    let _ = (
+                        p.float("thickness", 0.01),
+                        p.float("g", 0.0),
+                        p.int("maxdepth", 10),
+                        p.int("nsamples", 1),
+                    );
                     let _ = p.spectrum_tex("albedo");
                     self.warn_once(
                         &format!("coatedconductor {}", spec.name),
@@ -804,7 +829,9 @@ impl Loader {
         let e = match p.float_tex("eta") {
             Some(TexOr::Value(v)) => v,
             Some(TexOr::Texture(t)) => {
-                self.warn(format!("{at}: {what}: a textured eta (\"{t}\") is not supported; 1.5 is used"));
+                self.warn(format!(
+                    "{at}: {what}: a textured eta (\"{t}\") is not supported; 1.5 is used"
+                ));
                 1.5
             }
             None => match p.spectrum("eta") {
@@ -817,20 +844,26 @@ impl Loader {
                         e
                     }
                     None => {
-                        self.warn(format!("{at}: {what}: eta spectrum \"{n}\" is not known; 1.5 is used"));
+                        self.warn(format!(
+                            "{at}: {what}: eta spectrum \"{n}\" is not known; 1.5 is used"
+                        ));
                         1.5
                     }
                 },
                 Some(SpectrumValue::Rgb(c)) => (c.x + c.y + c.z) / 3.0,
                 Some(other) => {
-                    self.warn(format!("{at}: {what}: eta {other:?} is not supported; 1.5 is used"));
+                    self.warn(format!(
+                        "{at}: {what}: eta {other:?} is not supported; 1.5 is used"
+                    ));
                     1.5
                 }
                 None => 1.5,
             },
         };
         if !(e.is_finite() && e > 0.0) {
-            self.warn(format!("{at}: {what}: eta {e} is not positive; 1.5 is used"));
+            self.warn(format!(
+                "{at}: {what}: eta {e} is not positive; 1.5 is used"
+            ));
             return 1.5;
         }
         e
@@ -866,7 +899,12 @@ pub(crate) fn decode_image(j: &ImageJob) -> Result<Texture, String> {
     };
     if let Some(g) = j.gamma {
         for c in &mut t.texels {
-            *c = Vec4::new(c.x.max(0.0).powf(g), c.y.max(0.0).powf(g), c.z.max(0.0).powf(g), c.w);
+            *c = Vec4::new(
+                c.x.max(0.0).powf(g),
+                c.y.max(0.0).powf(g),
+                c.z.max(0.0).powf(g),
+                c.w,
+            );
         }
     }
     t.filter = j.filter;
@@ -920,7 +958,9 @@ pub fn decode_pfm(name: &str, bytes: &[u8]) -> Result<Texture, String> {
     let h: u32 = fields[2].parse().map_err(|_| "bad PFM height")?;
     let scale: f32 = fields[3].parse().map_err(|_| "bad PFM scale")?;
     if w == 0 || h == 0 || w > 16384 || h > 16384 || !scale.is_finite() || scale == 0.0 {
-        return Err(format!("PFM size {w}×{h} or scale {scale} is not supported"));
+        return Err(format!(
+            "PFM size {w}×{h} or scale {scale} is not supported"
+        ));
     }
     let n = w as usize * h as usize * channels;
     let data = bytes
@@ -936,7 +976,11 @@ pub fn decode_pfm(name: &str, bytes: &[u8]) -> Result<Texture, String> {
             for (k, ck) in c.iter_mut().enumerate().take(channels) {
                 let i = ((y * w as usize + x) * channels + k) * 4;
                 let b = [data[i], data[i + 1], data[i + 2], data[i + 3]];
-                let v = if little { f32::from_le_bytes(b) } else { f32::from_be_bytes(b) };
+                let v = if little {
+                    f32::from_le_bytes(b)
+                } else {
+                    f32::from_be_bytes(b)
+                };
                 *ck = if v.is_finite() { v } else { 0.0 };
             }
             if channels == 1 {
@@ -977,7 +1021,12 @@ mod tests {
         let n = TexNode::Checker {
             a: Box::new(TexNode::Const(Vec3::ONE)),
             b: Box::new(TexNode::Const(Vec3::ZERO)),
-            map: UvMap { su: 4.0, sv: 4.0, du: 0.0, dv: 0.0 },
+            map: UvMap {
+                su: 4.0,
+                sv: 4.0,
+                du: 0.0,
+                dv: 0.0,
+            },
         };
         assert_eq!(n.eval(&[], 0.1, 0.1), Vec3::ONE);
         assert_eq!(n.eval(&[], 0.3, 0.1), Vec3::ZERO);

@@ -111,7 +111,10 @@ fn read_text(path: &Path, label: &str) -> Result<String, SceneError> {
     String::from_utf8(bytes).map_err(|e| {
         SceneError::invalid(
             label,
-            format!("the file is not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
+            format!(
+                "the file is not UTF-8 text (byte {})",
+                e.utf8_error().valid_up_to()
+            ),
         )
     })
 }
@@ -354,7 +357,10 @@ impl Loader {
                 // pbrt lists the matrix column by column (it transposes the row-major array).
                 let m = Mat4::from_cols_array(&v);
                 if !crate::math::mat4_is_finite(&m) {
-                    return Err(SceneError::invalid(at, format!("{name}: non-finite matrix")));
+                    return Err(SceneError::invalid(
+                        at,
+                        format!("{name}: non-finite matrix"),
+                    ));
                 }
                 self.transform_directive(m, name == "Transform");
             }
@@ -384,7 +390,9 @@ impl Loader {
                     other => {
                         return Err(SceneError::invalid(
                             at,
-                            format!("ActiveTransform: unknown '{other}' (StartTime, EndTime or All)"),
+                            format!(
+                                "ActiveTransform: unknown '{other}' (StartTime, EndTime or All)"
+                            ),
                         ));
                     }
                 };
@@ -404,7 +412,10 @@ impl Loader {
             "ReverseOrientation" => self.gs.reverse = !self.gs.reverse,
             "AttributeBegin" | "TransformBegin" => {
                 if self.stack.len() >= MAX_ATTRIBUTE_DEPTH {
-                    return Err(SceneError::invalid(at, format!("{name}: nested too deeply")));
+                    return Err(SceneError::invalid(
+                        at,
+                        format!("{name}: nested too deeply"),
+                    ));
                 }
                 let frame = if name == "AttributeBegin" {
                     Frame::Attribute
@@ -434,7 +445,9 @@ impl Loader {
                 if frame != want {
                     return Err(SceneError::invalid(
                         at,
-                        format!("{name} closes the block opened at {opened}, which is of the other kind"),
+                        format!(
+                            "{name} closes the block opened at {opened}, which is of the other kind"
+                        ),
                     ));
                 }
                 if frame == Frame::Attribute {
@@ -489,7 +502,9 @@ impl Loader {
                     ));
                 }
                 if self.gs.ctm != self.gs.ctm_end {
-                    self.warn(format!("{at}: Camera: the moving camera is rendered at its start time"));
+                    self.warn(format!(
+                        "{at}: Camera: the moving camera is rendered at its start time"
+                    ));
                 }
                 // pbrt names the camera's coordinate system "camera".
                 if let Some(inv) = invert(&self.gs.ctm) {
@@ -572,7 +587,9 @@ impl Loader {
                     ));
                 }
                 if self.named_materials.contains_key(&n) {
-                    self.warn(format!("{at}: MakeNamedMaterial \"{n}\" redefines the material"));
+                    self.warn(format!(
+                        "{at}: MakeNamedMaterial \"{n}\" redefines the material"
+                    ));
                 }
                 self.named_materials.insert(
                     n.clone(),
@@ -651,13 +668,17 @@ impl Loader {
             "ObjectBegin" => {
                 let n = p.string(at)?;
                 if self.current_object.is_some() {
-                    return Err(SceneError::invalid(at, "ObjectBegin inside another ObjectBegin"));
+                    return Err(SceneError::invalid(
+                        at,
+                        "ObjectBegin inside another ObjectBegin",
+                    ));
                 }
                 if self.stack.len() >= MAX_ATTRIBUTE_DEPTH {
                     return Err(SceneError::invalid(at, "ObjectBegin: nested too deeply"));
                 }
                 // ObjectBegin implies AttributeBegin (pbrt-v4 scene.cpp).
-                self.stack.push((self.gs.clone(), Frame::Attribute, at.to_string()));
+                self.stack
+                    .push((self.gs.clone(), Frame::Attribute, at.to_string()));
                 self.current_object = Some((n, Vec::new()));
             }
             "ObjectEnd" => {
@@ -960,7 +981,12 @@ impl Loader {
     }
 
     /// RGB of a light spectrum (see [`spectra`]); None (with a warning) when it cannot be made.
-    pub(crate) fn illuminant_rgb(&mut self, s: &SpectrumValue, at: &str, key: &str) -> Option<Vec3> {
+    pub(crate) fn illuminant_rgb(
+        &mut self,
+        s: &SpectrumValue,
+        at: &str,
+        key: &str,
+    ) -> Option<Vec3> {
         let r = match s {
             SpectrumValue::Rgb(c) => Some(*c),
             SpectrumValue::Blackbody(t) => spectra::blackbody_rgb(*t),
@@ -1098,11 +1124,18 @@ impl Loader {
             Some(c) => c,
             None => {
                 self.warn("no Camera directive: pbrt's default camera (at the origin looking down +z, fov 90) is used".into());
-                (Mat4::IDENTITY, ParamList::default(), "default camera".into())
+                (
+                    Mat4::IDENTITY,
+                    ParamList::default(),
+                    "default camera".into(),
+                )
             }
         };
         let Some(world_from_camera) = invert(&camera_from_world) else {
-            return Err(SceneError::invalid(&at, "Camera: the camera transform is singular"));
+            return Err(SceneError::invalid(
+                &at,
+                "Camera: the camera transform is singular",
+            ));
         };
         let aspect = xres as f32 / yres as f32;
         let fov = list.float("fov", 90.0);
@@ -1129,14 +1162,20 @@ impl Loader {
                     self.warn(format!("{at}: Camera \"screenwindow\" has a different aspect ratio from the film; the film's is used"));
                 }
             } else {
-                return Err(SceneError::invalid(&at, "Camera: screenwindow needs 4 increasing values"));
+                return Err(SceneError::invalid(
+                    &at,
+                    "Camera: screenwindow needs 4 increasing values",
+                ));
             }
         }
         let vfov = 2.0 * half_h.atan().to_degrees();
         let lens = list.float("lensradius", 0.0);
         let focus = list.float("focaldistance", 1e6);
         if !(lens >= 0.0 && lens.is_finite() && focus > 0.0 && focus.is_finite()) {
-            return Err(SceneError::invalid(&at, "Camera: lensradius must be ≥ 0 and focaldistance > 0"));
+            return Err(SceneError::invalid(
+                &at,
+                "Camera: lensradius must be ≥ 0 and focaldistance > 0",
+            ));
         }
         for k in ["frameaspectratio", "shutteropen", "shutterclose"] {
             if list.has(k) {
@@ -1245,8 +1284,14 @@ impl<'a> Cursor<'a> {
                 kind: TokenKind::Str(s),
                 ..
             }) => Ok(s.clone()),
-            Some(t) => Err(self.err(at, format!("expected a quoted string, found {}", describe(t)))),
-            None => Err(SceneError::invalid(at, "the file ends where a quoted string was expected")),
+            Some(t) => Err(self.err(
+                at,
+                format!("expected a quoted string, found {}", describe(t)),
+            )),
+            None => Err(SceneError::invalid(
+                at,
+                "the file ends where a quoted string was expected",
+            )),
         }
     }
 
@@ -1269,7 +1314,10 @@ impl<'a> Cursor<'a> {
                 ..
             }) => Ok(s.clone()),
             Some(t) => Err(self.err(at, format!("expected a word, found {}", describe(t)))),
-            None => Err(SceneError::invalid(at, "the file ends where a word was expected")),
+            None => Err(SceneError::invalid(
+                at,
+                "the file ends where a word was expected",
+            )),
         }
     }
 
@@ -1289,7 +1337,10 @@ impl<'a> Cursor<'a> {
                 Ok(v)
             }
             Some(t) => Err(self.err(at, format!("expected a number, found {}", describe(t)))),
-            None => Err(SceneError::invalid(at, "the file ends where a number was expected")),
+            None => Err(SceneError::invalid(
+                at,
+                "the file ends where a number was expected",
+            )),
         }
     }
 
@@ -1344,7 +1395,9 @@ impl<'a> Cursor<'a> {
                 TokenKind::Str(s) => strs.push(s.clone()),
                 TokenKind::Word(w) if w == "true" || w == "false" => strs.push(w.clone()),
                 TokenKind::Word(w) => {
-                    let v: f64 = w.parse().map_err(|_| format!("'{}' is not a number", short(w)))?;
+                    let v: f64 = w
+                        .parse()
+                        .map_err(|_| format!("'{}' is not a number", short(w)))?;
                     nums.push(v);
                 }
                 _ => return Err("unexpected bracket".into()),
@@ -1355,14 +1408,22 @@ impl<'a> Cursor<'a> {
             Ok(())
         };
         match self.next() {
-            None => return Err(SceneError::invalid(at, "the file ends where a parameter value was expected")),
+            None => {
+                return Err(SceneError::invalid(
+                    at,
+                    "the file ends where a parameter value was expected",
+                ));
+            }
             Some(Token {
                 kind: TokenKind::Open,
                 ..
             }) => loop {
                 match self.next() {
                     None => {
-                        return Err(SceneError::invalid(at, "unterminated '[': the file ends inside a parameter's values"));
+                        return Err(SceneError::invalid(
+                            at,
+                            "unterminated '[': the file ends inside a parameter's values",
+                        ));
                     }
                     Some(Token {
                         kind: TokenKind::Close,
@@ -1391,4 +1452,3 @@ impl<'a> Cursor<'a> {
         })
     }
 }
-

@@ -38,8 +38,19 @@ pub struct Param {
 
 /// The types pbrt-v4 knows.
 pub const TYPES: &[&str] = &[
-    "float", "integer", "point2", "vector2", "point3", "vector3", "normal", "bool", "string", "rgb",
-    "spectrum", "blackbody", "texture",
+    "float",
+    "integer",
+    "point2",
+    "vector2",
+    "point3",
+    "vector3",
+    "normal",
+    "bool",
+    "string",
+    "rgb",
+    "spectrum",
+    "blackbody",
+    "texture",
 ];
 
 /// How many numbers one element of a type takes (1 for scalars).
@@ -345,7 +356,10 @@ mod tests {
             .unwrap();
         l.push(Param::new("rgb L", Values::Nums(vec![1.0, 2.0, 3.0])).unwrap())
             .unwrap();
-        assert!(l.push(Param::new("float fov", Values::Nums(vec![1.0])).unwrap()).is_err());
+        assert!(
+            l.push(Param::new("float fov", Values::Nums(vec![1.0])).unwrap())
+                .is_err()
+        );
         assert_eq!(l.float("fov", 90.0), 35.0);
         assert_eq!(l.unused(), vec!["\"rgb L\"".to_string()]);
         assert_eq!(

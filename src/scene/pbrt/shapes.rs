@@ -98,7 +98,10 @@ impl Loader {
                 if indices.len() % 3 != 0 {
                     return Err(SceneError::invalid(
                         at,
-                        format!("trianglemesh: {} indices is not a multiple of 3", indices.len()),
+                        format!(
+                            "trianglemesh: {} indices is not a multiple of 3",
+                            indices.len()
+                        ),
                     ));
                 }
                 let mut mesh = Mesh {
@@ -122,13 +125,19 @@ impl Loader {
                     Some(i) => i,
                     None if p.len() == 4 => vec![0, 1, 2, 3],
                     None => {
-                        return Err(SceneError::invalid(at, "bilinearmesh without \"integer indices\""));
+                        return Err(SceneError::invalid(
+                            at,
+                            "bilinearmesh without \"integer indices\"",
+                        ));
                     }
                 };
                 if indices.len() % 4 != 0 {
                     return Err(SceneError::invalid(
                         at,
-                        format!("bilinearmesh: {} indices is not a multiple of 4", indices.len()),
+                        format!(
+                            "bilinearmesh: {} indices is not a multiple of 4",
+                            indices.len()
+                        ),
                     ));
                 }
                 let idx = checked_indices(&indices, 4, p.len(), at)?;
@@ -145,7 +154,10 @@ impl Loader {
             }
             "plymesh" => {
                 let Some(file) = list.string("filename") else {
-                    return Err(SceneError::invalid(at, "plymesh without \"string filename\""));
+                    return Err(SceneError::invalid(
+                        at,
+                        "plymesh without \"string filename\"",
+                    ));
                 };
                 if list.has("displacement") {
                     let _ = list.texture("displacement");
@@ -247,17 +259,25 @@ impl Loader {
                     return Err(SceneError::invalid(at, "loopsubdiv without \"point3 P\""));
                 };
                 let Some(indices) = list.ints("indices") else {
-                    return Err(SceneError::invalid(at, "loopsubdiv without \"integer indices\""));
+                    return Err(SceneError::invalid(
+                        at,
+                        "loopsubdiv without \"integer indices\"",
+                    ));
                 };
                 if indices.len() % 3 != 0 {
-                    return Err(SceneError::invalid(at, "loopsubdiv: indices is not a multiple of 3"));
+                    return Err(SceneError::invalid(
+                        at,
+                        "loopsubdiv: indices is not a multiple of 3",
+                    ));
                 }
                 let idx: Vec<[u32; 3]> = checked_indices(&indices, 3, p.len(), at)?
                     .chunks_exact(3)
                     .map(|c| [c[0], c[1], c[2]])
                     .collect();
                 let levels = if levels > MAX_LOOP_LEVELS {
-                    self.warn(format!("{at}: {what}: {levels} levels capped at {MAX_LOOP_LEVELS}"));
+                    self.warn(format!(
+                        "{at}: {what}: {levels} levels capped at {MAX_LOOP_LEVELS}"
+                    ));
                     MAX_LOOP_LEVELS
                 } else {
                     levels.max(0)
@@ -265,7 +285,10 @@ impl Loader {
                 let (mut positions, mut tris) = (p, idx);
                 for _ in 0..levels {
                     if tris.len() > 8_000_000 {
-                        self.warn(format!("{at}: {what}: subdivision stopped at {} triangles", tris.len()));
+                        self.warn(format!(
+                            "{at}: {what}: subdivision stopped at {} triangles",
+                            tris.len()
+                        ));
                         break;
                     }
                     (positions, tris) = super::shapes::loop_subdivide(&positions, &tris);
@@ -281,7 +304,9 @@ impl Loader {
             }
             "curve" => self.curve(&list, &name, at, &what)?,
             other => {
-                self.warn(format!("{at}: Shape \"{other}\" is not supported and was left out"));
+                self.warn(format!(
+                    "{at}: Shape \"{other}\" is not supported and was left out"
+                ));
                 for q in &list.params {
                     q.used.set(true);
                 }
@@ -313,13 +338,21 @@ impl Loader {
         match self.float_textures.get(t) {
             Some(n) => n.clone(),
             None => {
-                self.warn(format!("{at}: alpha texture \"{t}\" is not defined; the shape is opaque"));
+                self.warn(format!(
+                    "{at}: alpha texture \"{t}\" is not defined; the shape is opaque"
+                ));
                 super::materials::TexNode::Const(Vec3::ONE)
             }
         }
     }
 
-    fn place_with_alpha(&mut self, shape: Shape, name: String, node: super::materials::TexNode, at: &str) {
+    fn place_with_alpha(
+        &mut self,
+        shape: Shape,
+        name: String,
+        node: super::materials::TexNode,
+        at: &str,
+    ) {
         // A copy of the current material with the cut-out: pbrt-v4 keeps a hit with
         // probability alpha (a stochastic test), which is Trayecto's `Blend` mode.
         let before = self.scene.objects.len();
@@ -352,11 +385,20 @@ impl Loader {
     }
 
     /// Normals, uvs and tangents of a trianglemesh or bilinearmesh.
-    fn mesh_attributes(&mut self, mesh: &mut Mesh, list: &ParamList, at: &str, what: &str) -> Result<(), SceneError> {
+    fn mesh_attributes(
+        &mut self,
+        mesh: &mut Mesh,
+        list: &ParamList,
+        at: &str,
+        what: &str,
+    ) -> Result<(), SceneError> {
         let n = mesh.positions.len();
         if let Some(normals) = list.point3s("N") {
             if normals.len() != n {
-                return Err(SceneError::invalid(at, format!("{what}: {} normals for {n} vertices", normals.len())));
+                return Err(SceneError::invalid(
+                    at,
+                    format!("{what}: {} normals for {n} vertices", normals.len()),
+                ));
             }
             mesh.normals = Some(normals);
         }
@@ -368,7 +410,10 @@ impl Loader {
         });
         if let Some(uv) = uv {
             if uv.len() != n {
-                return Err(SceneError::invalid(at, format!("{what}: {} uvs for {n} vertices", uv.len())));
+                return Err(SceneError::invalid(
+                    at,
+                    format!("{what}: {} uvs for {n} vertices", uv.len()),
+                ));
             }
             mesh.uv0 = Some(uv.into_iter().map(to_stored_uv).collect());
         }
@@ -382,7 +427,13 @@ impl Loader {
         Ok(())
     }
 
-    fn curve(&mut self, list: &ParamList, name: &str, at: &str, what: &str) -> Result<Option<Shape>, SceneError> {
+    fn curve(
+        &mut self,
+        list: &ParamList,
+        name: &str,
+        at: &str,
+        what: &str,
+    ) -> Result<Option<Shape>, SceneError> {
         let Some(p) = list.point3s("P") else {
             return Err(SceneError::invalid(at, "curve without \"point3 P\""));
         };
@@ -395,7 +446,10 @@ impl Loader {
         let _ = list.int("splitdepth", 3);
         let _ = list.point3s("N");
         if !(degree == 2 || degree == 3) {
-            return Err(SceneError::invalid(at, format!("curve: degree {degree} (2 or 3 expected)")));
+            return Err(SceneError::invalid(
+                at,
+                format!("curve: degree {degree} (2 or 3 expected)"),
+            ));
         }
         let d = degree as usize;
         // Control points of each segment, as Bézier control points.
@@ -403,7 +457,13 @@ impl Loader {
         match basis.as_str() {
             "bezier" => {
                 if p.len() < d + 1 || (p.len() - 1) % d != 0 {
-                    return Err(SceneError::invalid(at, format!("curve: {} control points do not make degree-{d} Bézier segments", p.len())));
+                    return Err(SceneError::invalid(
+                        at,
+                        format!(
+                            "curve: {} control points do not make degree-{d} Bézier segments",
+                            p.len()
+                        ),
+                    ));
                 }
                 let mut i = 0;
                 while i + d < p.len() {
@@ -413,7 +473,10 @@ impl Loader {
             }
             "bspline" => {
                 if p.len() < d + 1 {
-                    return Err(SceneError::invalid(at, "curve: too few B-spline control points"));
+                    return Err(SceneError::invalid(
+                        at,
+                        "curve: too few B-spline control points",
+                    ));
                 }
                 // Uniform B-spline to Bézier (pbrt-v4 shapes.cpp: the blossoming of each span).
                 for s in 0..p.len() - d {
@@ -431,7 +494,12 @@ impl Loader {
                     }
                 }
             }
-            other => return Err(SceneError::invalid(at, format!("curve: unknown basis '{other}'"))),
+            other => {
+                return Err(SceneError::invalid(
+                    at,
+                    format!("curve: unknown basis '{other}'"),
+                ));
+            }
         }
         self.warn_once(
             "curves",
@@ -455,7 +523,11 @@ impl Loader {
                 let t = k as f32 / PIECES as f32;
                 let pt = bezier(seg, t);
                 let dir = bezier_tangent(seg, t);
-                let dir = if dir.length_squared() > 0.0 { dir.normalize() } else { prev_dir };
+                let dir = if dir.length_squared() > 0.0 {
+                    dir.normalize()
+                } else {
+                    prev_dir
+                };
                 prev_dir = dir;
                 let g = (si * PIECES + k) as f32 / total as f32;
                 let radius = 0.5 * (w0 + (w1 - w0) * g);
@@ -493,7 +565,13 @@ impl Loader {
                     .map_err(|m| SceneError::invalid(&label, format!("PLY: {m}")))?;
                 mesh.name = j.name.clone();
                 orient(&mut mesh, j.reverse);
-                Ok((mesh, warnings.into_iter().map(|w| format!("{label}: {w}")).collect()))
+                Ok((
+                    mesh,
+                    warnings
+                        .into_iter()
+                        .map(|w| format!("{label}: {w}"))
+                        .collect(),
+                ))
             })
             .collect();
         for (j, r) in jobs.iter().zip(results) {
@@ -504,7 +582,10 @@ impl Loader {
         Ok(())
     }
 
-    pub(super) fn node_factor_pub(&mut self, node: &super::materials::TexNode) -> (Vec3, Option<crate::material::TextureRef>) {
+    pub(super) fn node_factor_pub(
+        &mut self,
+        node: &super::materials::TexNode,
+    ) -> (Vec3, Option<crate::material::TextureRef>) {
         self.node_to_factor_public(node)
     }
 }
@@ -522,7 +603,12 @@ fn read_maybe_gz(path: &std::path::Path) -> Result<Vec<u8>, String> {
     Ok(bytes)
 }
 
-fn checked_indices(indices: &[i64], _arity: usize, n: usize, at: &str) -> Result<Vec<u32>, SceneError> {
+fn checked_indices(
+    indices: &[i64],
+    _arity: usize,
+    n: usize,
+    at: &str,
+) -> Result<Vec<u32>, SceneError> {
     let mut out = Vec::with_capacity(indices.len());
     for (k, &i) in indices.iter().enumerate() {
         if i < 0 || i as usize >= n {
@@ -538,7 +624,11 @@ fn checked_indices(indices: &[i64], _arity: usize, n: usize, at: &str) -> Result
 
 fn is_similarity(m: &crate::math::Mat4) -> bool {
     let lin = glam::Mat3::from_mat4(*m);
-    let (sx, sy, sz) = (lin.x_axis.length(), lin.y_axis.length(), lin.z_axis.length());
+    let (sx, sy, sz) = (
+        lin.x_axis.length(),
+        lin.y_axis.length(),
+        lin.z_axis.length(),
+    );
     sx > 0.0
         && (sx - sy).abs() <= 1e-4 * sx
         && (sx - sz).abs() <= 1e-4 * sx
@@ -595,7 +685,12 @@ fn bilinear_to_triangles(src: &Mesh, idx: &[u32]) -> Mesh {
     let mut uvs = Vec::new();
     for q in idx.chunks_exact(4) {
         let [i00, i10, i01, i11] = [q[0], q[1], q[2], q[3]].map(|i| i as usize);
-        let p = [src.positions[i00], src.positions[i10], src.positions[i01], src.positions[i11]];
+        let p = [
+            src.positions[i00],
+            src.positions[i10],
+            src.positions[i01],
+            src.positions[i11],
+        ];
         // A planar patch is exactly two triangles; a curved one is refined.
         let planar = {
             let n = (p[1] - p[0]).cross(p[2] - p[0]);
@@ -603,19 +698,30 @@ fn bilinear_to_triangles(src: &Mesh, idx: &[u32]) -> Mesh {
         };
         let steps = if planar { 1 } else { 8 };
         let uvq = src.uv0.as_ref().map(|u| [u[i00], u[i10], u[i01], u[i11]]);
-        let nq = src.normals.as_ref().map(|n| [n[i00], n[i10], n[i01], n[i11]]);
+        let nq = src
+            .normals
+            .as_ref()
+            .map(|n| [n[i00], n[i10], n[i01], n[i11]]);
         let base = m.positions.len() as u32;
         for j in 0..=steps {
             for i in 0..=steps {
                 let (u, v) = (i as f32 / steps as f32, j as f32 / steps as f32);
-                let bl = |c: [Vec3; 4]| c[0] * (1.0 - u) * (1.0 - v) + c[1] * u * (1.0 - v) + c[2] * (1.0 - u) * v + c[3] * u * v;
+                let bl = |c: [Vec3; 4]| {
+                    c[0] * (1.0 - u) * (1.0 - v)
+                        + c[1] * u * (1.0 - v)
+                        + c[2] * (1.0 - u) * v
+                        + c[3] * u * v
+                };
                 m.positions.push(bl(p));
                 if let (Some(ns), Some(nq)) = (&mut normals, nq) {
                     ns.push(bl(nq).normalize_or_zero());
                 }
                 uvs.push(match uvq {
                     Some(t) => {
-                        let a = t[0] * (1.0 - u) * (1.0 - v) + t[1] * u * (1.0 - v) + t[2] * (1.0 - u) * v + t[3] * u * v;
+                        let a = t[0] * (1.0 - u) * (1.0 - v)
+                            + t[1] * u * (1.0 - v)
+                            + t[2] * (1.0 - u) * v
+                            + t[3] * u * v;
                         a
                     }
                     None => to_stored_uv(Vec2::new(u, v)),
@@ -692,7 +798,11 @@ pub fn loop_subdivide(p: &[Vec3], tris: &[[u32; 3]]) -> (Vec<Vec3>, Vec<[u32; 3]
             *v
         } else {
             let n = nbrs[i].len() as f32;
-            let beta = if nbrs[i].len() == 3 { 3.0 / 16.0 } else { 3.0 / (8.0 * n) };
+            let beta = if nbrs[i].len() == 3 {
+                3.0 / 16.0
+            } else {
+                3.0 / (8.0 * n)
+            };
             let sum: Vec3 = nbrs[i].iter().map(|&j| p[j as usize]).sum();
             *v * (1.0 - n * beta) + sum * beta
         };

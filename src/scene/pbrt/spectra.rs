@@ -82,7 +82,11 @@ pub fn blackbody_rgb(kelvin: f32) -> Option<Vec3> {
 /// normalised so that a constant spectrum of 1 gives luminance 1 (an approximation of pbrt-v4's
 /// spectral rendering of it).
 pub fn sampled_rgb(samples: &[(f32, f32)]) -> Option<Vec3> {
-    if samples.is_empty() || samples.iter().any(|(l, v)| !l.is_finite() || !v.is_finite()) {
+    if samples.is_empty()
+        || samples
+            .iter()
+            .any(|(l, v)| !l.is_finite() || !v.is_finite())
+    {
         return None;
     }
     let mut s: Vec<(f64, f64)> = samples.iter().map(|&(l, v)| (l as f64, v as f64)).collect();
@@ -117,11 +121,26 @@ pub fn named_metal(name: &str) -> Option<(Vec3, Vec3)> {
     let m = name.strip_prefix("metal-")?;
     let (metal, which) = m.rsplit_once('-')?;
     let (eta, k) = match metal {
-        "Ag" => (Vec3::new(0.155, 0.117, 0.138), Vec3::new(4.828, 3.122, 2.147)),
-        "Al" => (Vec3::new(1.657, 0.880, 0.521), Vec3::new(9.224, 6.270, 4.837)),
-        "Au" => (Vec3::new(0.143, 0.375, 1.442), Vec3::new(3.983, 2.386, 1.603)),
-        "Cu" => (Vec3::new(0.200, 0.924, 1.102), Vec3::new(3.913, 2.453, 2.142)),
-        "CuZn" => (Vec3::new(0.444, 0.527, 1.094), Vec3::new(3.695, 2.765, 1.829)),
+        "Ag" => (
+            Vec3::new(0.155, 0.117, 0.138),
+            Vec3::new(4.828, 3.122, 2.147),
+        ),
+        "Al" => (
+            Vec3::new(1.657, 0.880, 0.521),
+            Vec3::new(9.224, 6.270, 4.837),
+        ),
+        "Au" => (
+            Vec3::new(0.143, 0.375, 1.442),
+            Vec3::new(3.983, 2.386, 1.603),
+        ),
+        "Cu" => (
+            Vec3::new(0.200, 0.924, 1.102),
+            Vec3::new(3.913, 2.453, 2.142),
+        ),
+        "CuZn" => (
+            Vec3::new(0.444, 0.527, 1.094),
+            Vec3::new(3.695, 2.765, 1.829),
+        ),
         "MgO" => (Vec3::new(1.732, 1.737, 1.745), Vec3::ZERO),
         "TiO2" => (Vec3::new(2.745, 2.856, 3.082), Vec3::ZERO),
         _ => return None,
