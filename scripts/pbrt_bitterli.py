@@ -77,7 +77,12 @@ def main():
         r = downsample(ref, h, w)
         report(name, w, h, img, r, "Tungsten")
         if a.pbrt:
-            report(name, w, h, img, render_pbrt(os.path.join(shared, name), w, h, a.spp), "pbrt-v4")
+            try:
+                ref_pbrt = render_pbrt(os.path.join(shared, name), w, h, a.spp)
+            except subprocess.CalledProcessError:
+                print(f"{name + ' / pbrt-v4':30} pbrt-v4 refused the file (run it by hand for the message)")
+                continue
+            report(name, w, h, img, ref_pbrt, "pbrt-v4")
 
 
 def render_pbrt(scene_dir, w, h, spp):

@@ -190,7 +190,10 @@ fn cornell_box_agrees_with_its_tungsten_reference() {
     eprintln!("cornell-box vs Tungsten: mean {mean_err:.4}, worst 4x4 block {block_err:.4}");
     // The file limits paths to 4 bounces (Tungsten's render used more), which costs ~3 % of the
     // mean; the rest is noise at 64 spp.
-    assert!(mean_err < 0.06 && block_err < 0.15, "mean {mean_err}, block {block_err}");
+    assert!(
+        mean_err < 0.06 && block_err < 0.15,
+        "mean {mean_err}, block {block_err}"
+    );
 }
 
 #[test]

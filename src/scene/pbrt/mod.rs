@@ -655,8 +655,8 @@ impl Loader {
                 let inside = p.string(at)?;
                 // The second name is optional (one name sets both sides).
                 let outside = p.optional_string();
-                if !(inside.is_empty() && outside.as_deref().unwrap_or("").is_empty())
-                    && !self.media_warned
+                if !(self.media_warned
+                    || inside.is_empty() && outside.as_deref().unwrap_or("").is_empty())
                 {
                     self.media_warned = true;
                     self.warn(format!(

@@ -69,9 +69,6 @@ impl Loader {
         let what = format!("Shape \"{ty}\"");
         // Parameters every shape may have.
         let alpha = list.float_tex("alpha");
-        for k in ["emission", "medium"] {
-            let _ = k;
-        }
         if self.current_object.is_some() && self.gs.area_light.is_some() {
             self.warn_once(
                 &format!("instlight {at}"),
@@ -718,11 +715,10 @@ fn bilinear_to_triangles(src: &Mesh, idx: &[u32]) -> Mesh {
                 }
                 uvs.push(match uvq {
                     Some(t) => {
-                        let a = t[0] * (1.0 - u) * (1.0 - v)
+                        t[0] * (1.0 - u) * (1.0 - v)
                             + t[1] * u * (1.0 - v)
                             + t[2] * (1.0 - u) * v
-                            + t[3] * u * v;
-                        a
+                            + t[3] * u * v
                     }
                     None => to_stored_uv(Vec2::new(u, v)),
                 });
