@@ -46,29 +46,29 @@ const MAX_ATTRIBUTE_DEPTH: usize = 10_000;
 
 /// Loads a `.pbrt` file and everything it includes.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let label = path.display().to_string();
-    let dir = path
-        .parent()
-        .map(|p| {
-            if p.as_os_str().is_empty() {
-                PathBuf::from(".")
-            } else {
-                p.to_path_buf()
-            }
-        })
-        .unwrap_or_else(|| PathBuf::from("."));
-    let text = read_text(path, &label)?;
+    crate::scene::load_file(path)
+}
+
+/// The [`crate::scene::FORMATS`] entry: the main file's bytes, its folder (where includes and
+/// every file the scene names must stay) and its name for messages.
+pub fn load_from_file_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
+    let dir = if dir.as_os_str().is_empty() {
+        PathBuf::from(".")
+    } else {
+        dir.to_path_buf()
+    };
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        SceneError::invalid(
+            label,
+            format!("the file is not UTF-8 text (byte {})", e.valid_up_to()),
+        )
+    })?;
     let mut l = Loader::new(Some(dir));
-    if let Ok(c) = path.canonicalize() {
+    if let Ok(c) = Path::new(label).canonicalize() {
         l.include_stack.push(c);
     }
-    l.run_file(&text, &label, 0)?;
-    let mut scene = l.finish()?;
-    scene.name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "pbrt".into());
-    scene.source = Some(path.to_path_buf());
+    l.run_file(text, label, 0)?;
+    let scene = l.finish()?;
     scene.validate()?;
     Ok(scene)
 }
