@@ -41,7 +41,7 @@ pub enum Command {
 
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
-    /// Scene file (.gltf, .glb, .obj, .ply, .fbx, .toml) or built-in name.
+    /// Scene file (.gltf, .glb, .obj, .ply, .fbx, .pbrt, .toml) or built-in name.
     #[arg(default_value = "cornell")]
     pub scene: String,
     /// Output image; the format follows the extension (.png, .ppm, .exr, .hdr).
