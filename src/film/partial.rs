@@ -19,7 +19,7 @@
 //! wrong before allocating, and that every sum is within what its count of samples can reach.
 
 use super::{FRAC_BITS, Film, SAMPLE_LIMIT};
-use crate::render::{MAX_PIXELS, MAX_SPP, RenderSettings};
+use crate::render::{MAX_DIMENSION, MAX_PIXELS, MAX_SPP, RenderSettings};
 use crate::world::WorldOptions;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -278,7 +278,12 @@ impl Part {
             ));
         }
         let pixels = h.width as u64 * h.height as u64;
-        if h.width == 0 || h.height == 0 || pixels > MAX_PIXELS {
+        if h.width == 0
+            || h.height == 0
+            || h.width > MAX_DIMENSION
+            || h.height > MAX_DIMENSION
+            || pixels > MAX_PIXELS
+        {
             return Err(format_err(
                 path,
                 format!("image size {}x{} is out of range", h.width, h.height),
@@ -295,7 +300,9 @@ impl Part {
         let n = pixels as usize;
         let expected = n as u64 * (48 + 4);
         let mut z = flate2::read::ZlibDecoder::new(r).take(expected + 1);
-        let mut sum = Vec::with_capacity(n);
+        // Capacity grows with the data actually decompressed: a header that lies about the size
+        // cannot make us allocate gigabytes up front.
+        let mut sum = Vec::with_capacity(n.min(1 << 16));
         let mut word = [0u8; 16];
         let short = |_| format_err(path, "the pixel data is truncated or corrupt");
         for _ in 0..n {
@@ -306,7 +313,7 @@ impl Part {
             }
             sum.push(px);
         }
-        let mut count = Vec::with_capacity(n);
+        let mut count = Vec::with_capacity(n.min(1 << 16));
         let mut w4 = [0u8; 4];
         for _ in 0..n {
             z.read_exact(&mut w4).map_err(short)?;
