@@ -38,6 +38,25 @@ pub enum Command {
     Info(InfoArgs),
     /// Serve the web UI: render from the browser with a live preview.
     Serve(crate::server::ServeArgs),
+    /// Merge partial films (.trp) of one frame into an image (or a longer partial film).
+    Merge(MergeArgs),
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct MergeArgs {
+    /// Partial films written by `render --samples A..B -o part.trp`, in any order.
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// Output image (.exr, .hdr, .png, .ppm), or .trp for a merged partial film (which may then
+    /// cover only part of the frame, without gaps).
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
+    /// Linear multiplier applied before tone mapping.
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Tone mapping for .png/.ppm: clamp, gamma2.2, aces or agx.
+    #[arg(long, default_value = "clamp")]
+    pub tonemap: Tonemap,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -111,6 +130,19 @@ pub struct RenderArgs {
     /// Light the scene with an equirectangular environment map (.hdr or .exr).
     #[arg(long, value_name = "FILE")]
     pub env: Option<std::path::PathBuf>,
+    /// Render only sample indices A..B of the --spp frame (write a partial film: -o part.trp).
+    #[arg(long, value_name = "A..B")]
+    pub samples: Option<String>,
+    /// Save the film to FILE (a partial film) during the render and on Ctrl-C, to --resume later.
+    #[arg(long, value_name = "FILE")]
+    pub checkpoint: Option<PathBuf>,
+    /// Seconds between checkpoints (at the end of a pass; 0: after every pass).
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0)]
+    pub checkpoint_interval: f64,
+    /// Continue the render saved in FILE by --checkpoint (same scene and settings); the result is
+    /// identical to an uninterrupted render. Checkpoints go on to FILE unless --checkpoint says.
+    #[arg(long, value_name = "FILE")]
+    pub resume: Option<PathBuf>,
     /// Print only errors.
     #[arg(short, long)]
     pub quiet: bool,
@@ -176,9 +208,71 @@ impl RenderObserver for Progress {
     }
 }
 
+/// Set by Ctrl-C: the render stops after the pass in flight and saves a checkpoint.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+fn is_partial_output(path: &std::path::Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("trp"))
+}
+
+/// The exit code of a render stopped by Ctrl-C (128 + SIGINT, as shells report it).
+pub const EXIT_INTERRUPTED: u8 = 130;
+
+#[derive(Debug, thiserror::Error)]
+#[error("interrupted{}", .0.as_ref().map(|p| format!("; the render so far is saved in {} (continue it with --resume {})", p.display(), p.display())).unwrap_or_else(|| "; nothing saved (use --checkpoint FILE to be able to resume)".into()))]
+pub struct Interrupted(pub Option<PathBuf>);
+
 pub fn run_render(args: &RenderArgs) -> Result<()> {
     let settings = args.settings()?;
-    Format::from_path(&args.output)?;
+    let partial_output = is_partial_output(&args.output);
+    if !partial_output {
+        Format::from_path(&args.output)?;
+    }
+    let samples = args
+        .samples
+        .as_deref()
+        .map(crate::split::parse_range)
+        .transpose()
+        .map_err(|e| anyhow::anyhow!("invalid setting: --samples: {e}"))?;
+    if let Some(r) = &samples {
+        if r.end > settings.spp {
+            bail!(
+                "invalid setting: --samples {}..{} goes past the frame's {} samples per pixel (--spp)",
+                r.start,
+                r.end,
+                settings.spp
+            );
+        }
+        if !partial_output {
+            bail!(
+                "{}: a partial render (--samples) writes a partial film: use -o FILE.trp, then `trayecto merge`",
+                args.output.display()
+            );
+        }
+    }
+    if !(args.checkpoint_interval >= 0.0 && args.checkpoint_interval <= 1e9) {
+        bail!(
+            "invalid setting: --checkpoint-interval must be 0 or more seconds (got {})",
+            args.checkpoint_interval
+        );
+    }
+    for p in [Some(&args.output), args.checkpoint.as_ref()]
+        .into_iter()
+        .flatten()
+    {
+        if let Some(parent) = p.parent()
+            && !parent.as_os_str().is_empty()
+            && !parent.is_dir()
+        {
+            bail!("{}: the folder does not exist", p.display());
+        }
+    }
+    if let Some(r) = &args.resume
+        && !r.is_file()
+    {
+        bail!("{}: no such checkpoint file", r.display());
+    }
     if let Some(parent) = args.output.parent()
         && !parent.as_os_str().is_empty()
         && !parent.is_dir()
@@ -240,19 +334,57 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         None
     };
     let progress = Progress { bar };
-    let cancel = AtomicBool::new(false);
-    let out = crate::render::render(&world, &settings, &progress, &cancel)?;
+    let digest = crate::scene::digest::digest(&args.scene, &scene, args.env.as_deref())?;
+    let frame = crate::split::FrameId {
+        scene: args.scene.clone(),
+        digest,
+        settings: settings.clone(),
+        world: args.world_options(),
+    };
+    let opts = crate::split::SplitOptions {
+        samples,
+        checkpoint: args.checkpoint.clone().or_else(|| args.resume.clone()),
+        checkpoint_interval: std::time::Duration::from_secs_f64(args.checkpoint_interval),
+        resume: args.resume.clone(),
+    };
+    // Ctrl-C stops after the pass in flight and saves; a second Ctrl-C exits at once. Only one
+    // handler per process: a second render in the same process keeps the first.
+    let _ = ctrlc::set_handler(|| {
+        if INTERRUPTED.swap(true, std::sync::atomic::Ordering::SeqCst) {
+            std::process::exit(EXIT_INTERRUPTED as i32);
+        }
+    });
+    let split = crate::split::render_split(&world, &frame, &opts, &progress, &INTERRUPTED)?;
     if let Some(b) = &progress.bar {
         b.finish_and_clear();
     }
+    if split.render.cancelled {
+        return Err(Interrupted(split.checkpoint_written).into());
+    }
+    let discarded = split.render.film.discarded;
+    let out = crate::render::RenderOutput {
+        image: split.render.film.to_image(),
+        stats: split.render.stats,
+        discarded_samples: discarded,
+        render_time: split.render.render_time,
+    };
 
     let t3 = Instant::now();
-    write_image(&out.image, &args.output, args.exposure, args.tonemap)?;
+    if partial_output {
+        crate::film::partial::Part {
+            header: split.header,
+            film: split.render.film,
+        }
+        .write(&args.output)?;
+    } else {
+        write_image(&out.image, &args.output, args.exposure, args.tonemap)?;
+    }
     let write_time = t3.elapsed();
     if out.discarded_samples > 0 {
         eprintln!(
-            "warning: {} samples were NaN or infinite and were discarded",
-            out.discarded_samples
+            "warning: {} samples were NaN, infinite or beyond {:e} and were discarded",
+            out.discarded_samples,
+            crate::film::SAMPLE_LIMIT
         );
     }
     // The thesis's console log (Fig. 5.44–5.46): phase durations and the time at which each ended.
@@ -280,6 +412,44 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         say(line);
     }
     say(format!("wrote {}", args.output.display()));
+    Ok(())
+}
+
+pub fn run_merge(args: &MergeArgs) -> Result<()> {
+    use crate::film::partial::{Part, merge};
+    let partial_output = is_partial_output(&args.output);
+    if !partial_output {
+        Format::from_path(&args.output)?;
+    }
+    if !(args.exposure.is_finite() && args.exposure > 0.0) {
+        bail!(
+            "invalid setting: exposure must be a positive number (got {})",
+            args.exposure
+        );
+    }
+    let mut parts = Vec::with_capacity(args.parts.len());
+    for p in &args.parts {
+        parts.push((p.clone(), Part::read(p)?));
+    }
+    let merged = merge(parts, !partial_output).context("cannot merge")?;
+    if partial_output {
+        merged.write(&args.output)?;
+    } else {
+        write_image(
+            &merged.film.to_image(),
+            &args.output,
+            args.exposure,
+            args.tonemap,
+        )?;
+    }
+    eprintln!(
+        "merged {} parts (samples {}..{} of {} spp) into {}",
+        args.parts.len(),
+        merged.header.samples[0],
+        merged.header.samples[1],
+        merged.header.spp,
+        args.output.display()
+    );
     Ok(())
 }
 
@@ -377,10 +547,15 @@ pub fn main() -> ExitCode {
         Some(Command::Render(a)) => run_render(a),
         Some(Command::Info(a)) => run_info(a),
         Some(Command::Serve(a)) => crate::server::run(a),
+        Some(Command::Merge(a)) => run_merge(a),
         None => run_render(&cli.render),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<Interrupted>() => {
+            eprintln!("{e}");
+            ExitCode::from(EXIT_INTERRUPTED)
+        }
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE

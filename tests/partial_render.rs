@@ -96,11 +96,7 @@ fn merging_1_3_and_7_uneven_ranges_is_bit_identical_to_a_single_render() {
         .unwrap()
         .image;
         assert_eq!(reference.to_image(), image);
-        for cuts in [
-            &[0, SPP][..],
-            &[0, 2, 9, SPP],
-            &[0, 1, 3, 4, 8, 9, 12, SPP],
-        ] {
+        for cuts in [&[0, SPP][..], &[0, 2, 9, SPP], &[0, 1, 3, 4, 8, 9, 12, SPP]] {
             let m = merged(&world, &s, cuts, &format!("{sampler:?}-{}", cuts.len()));
             assert_eq!(m.header.samples, [0, SPP]);
             assert!(
@@ -130,7 +126,15 @@ fn merge_refuses_mismatched_overlapping_and_missing_parts() {
     let named = |n: &str, p: &Part| (PathBuf::from(n), p.clone());
 
     // Another seed: a different frame.
-    let other = part_of(&world, &RenderSettings { seed: 8, ..s.clone() }, 5, SPP);
+    let other = part_of(
+        &world,
+        &RenderSettings {
+            seed: 8,
+            ..s.clone()
+        },
+        5,
+        SPP,
+    );
     let m = merge_err(vec![named("a.trp", &a), named("b.trp", &other)], true);
     assert!(m.contains("b.trp") && m.contains("'seed'"), "{m}");
 

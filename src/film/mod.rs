@@ -155,7 +155,11 @@ impl Film {
             return Vec3::ZERO;
         }
         let s = self.sum[i];
-        Vec3::new(fixed_mean(s[0], n), fixed_mean(s[1], n), fixed_mean(s[2], n))
+        Vec3::new(
+            fixed_mean(s[0], n),
+            fixed_mean(s[1], n),
+            fixed_mean(s[2], n),
+        )
     }
 
     /// The current estimate as a row-major linear RGB image.
@@ -314,7 +318,8 @@ mod tests {
         let one = film_of(&[0..1000]);
         assert_eq!(one, film_of(&[0..1, 1..500, 500..999, 999..1000]));
         assert_eq!(one, film_of(&[0..333, 333..334, 334..1000]));
-        let f64_sum = |order: &mut dyn Iterator<Item = &f32>| order.fold(0.0f64, |a, &v| a + v as f64);
+        let f64_sum =
+            |order: &mut dyn Iterator<Item = &f32>| order.fold(0.0f64, |a, &v| a + v as f64);
         assert_ne!(
             f64_sum(&mut values.iter()),
             f64_sum(&mut values.iter().rev()),

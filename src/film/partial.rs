@@ -328,7 +328,10 @@ impl Part {
         // below the sample limit can reach, so merging parts of one frame cannot overflow.
         let limit = (SAMPLE_LIMIT as f64 * (1u64 << FRAC_BITS) as f64) as i128;
         for (i, (s, &c)) in sum.iter().zip(&count).enumerate() {
-            if c > b - a || s.iter().any(|v| v.unsigned_abs() > (limit * c as i128) as u128) {
+            if c > b - a
+                || s.iter()
+                    .any(|v| v.unsigned_abs() > (limit * c as i128) as u128)
+            {
                 return Err(format_err(
                     path,
                     format!(

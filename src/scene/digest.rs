@@ -127,11 +127,7 @@ pub fn digest(spec: &str, scene: &Scene, env: Option<&Path>) -> Result<String, S
     if let Some(env) = env {
         hash_file(&mut h, env)?;
     }
-    Ok(h
-        .finalize()
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect())
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
 }
 
 #[cfg(test)]
