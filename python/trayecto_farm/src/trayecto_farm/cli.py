@@ -39,11 +39,14 @@ def parse_args(argv):
     p.add_argument("--bundle-root", type=Path, help="folder to bundle (default: the scene file's folder)")
     p.add_argument("--retries", type=int, default=2, help="times a failed chunk is retried (a chunk whose worker dies is always rescheduled)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("render_args", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+    argv = list(argv)
+    # Everything after '--' goes to the renderer (split here: argparse would take it for scenes).
+    rest = []
+    if "--" in argv:
+        i = argv.index("--")
+        argv, rest = argv[:i], argv[i + 1 :]
     a = p.parse_args(argv)
-    # argparse leaves the '--' in REMAINDER.
-    if a.render_args and a.render_args[0] == "--":
-        a.render_args = a.render_args[1:]
+    a.render_args = rest
     return a
 
 
