@@ -19,15 +19,14 @@ fn dir(name: &str) -> PathBuf {
 const SIZE: [&str; 4] = ["--width", "24", "--height", "16"];
 
 fn render(extra: &[&str], out: &Path) -> std::process::Output {
-    let o = bin()
+    bin()
         .args(["render", "cornell", "-q", "--seed", "5"])
         .args(SIZE)
         .args(extra)
         .arg("-o")
         .arg(out)
         .output()
-        .unwrap();
-    o
+        .unwrap()
 }
 
 fn ok(o: std::process::Output) {
@@ -110,7 +109,10 @@ fn parts_rendered_by_separate_processes_merge_to_the_single_render() {
     // Bad options.
     for (args, want) in [
         (&["--spp", "11", "--samples", "5..3"][..], "empty"),
-        (&["--spp", "11", "--samples", "0..12"], "goes past"),
+        (
+            &["--spp", "11", "--samples", "0..12"],
+            "end at most at the frame's 11",
+        ),
         (&["--spp", "11", "--samples", "x"], "not a sample range"),
     ] {
         let o = render(args, &d.join("x.trp"));
@@ -118,7 +120,7 @@ fn parts_rendered_by_separate_processes_merge_to_the_single_render() {
         assert!(!o.status.success() && e.contains(want), "{args:?}: {e}");
     }
     let o = render(&["--spp", "11", "--samples", "0..3"], &d.join("x.png"));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("use -o FILE.trp"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("name the output FILE.trp"));
 }
 
 /// Sends SIGINT (what Ctrl-C sends) to a child process.

@@ -14,7 +14,7 @@ const SPP: u32 = 13;
 
 fn world() -> World {
     let scene = trayecto::scene::load("cornell").unwrap();
-    World::build(&scene, &WorldOptions::default()).unwrap()
+    World::build(scene, &WorldOptions::default()).unwrap()
 }
 
 fn settings(sampler: SamplerKind) -> RenderSettings {

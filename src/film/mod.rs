@@ -302,11 +302,11 @@ mod tests {
         let values: Vec<f32> = (0..1000)
             .map(|i| ((i as f32 * 0.618_034).fract() - 0.2) * 10f32.powi(i % 9 - 4))
             .collect();
-        let film_of = |groups: &[std::ops::Range<usize>]| {
+        let film_of = |cuts: &[usize]| {
             let mut f = Film::new(1, 1);
-            for g in groups.iter().rev() {
+            for g in cuts.windows(2).rev() {
                 let mut b = FilmBlock::new(0, 0, 1, 1);
-                for &v in &values[g.clone()] {
+                for &v in &values[g[0]..g[1]] {
                     b.add(0, 0, Vec3::splat(v));
                 }
                 let mut part = Film::new(1, 1);
@@ -315,9 +315,9 @@ mod tests {
             }
             f
         };
-        let one = film_of(&[0..1000]);
-        assert_eq!(one, film_of(&[0..1, 1..500, 500..999, 999..1000]));
-        assert_eq!(one, film_of(&[0..333, 333..334, 334..1000]));
+        let one = film_of(&[0, 1000]);
+        assert_eq!(one, film_of(&[0, 1, 500, 999, 1000]));
+        assert_eq!(one, film_of(&[0, 333, 334, 1000]));
         let f64_sum =
             |order: &mut dyn Iterator<Item = &f32>| order.fold(0.0f64, |a, &v| a + v as f64);
         assert_ne!(

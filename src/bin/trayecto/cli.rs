@@ -1,20 +1,23 @@
-//! The `trayecto` command line (SPEC §2): `render`, `info`. Errors are reported with their context
+//! The `trayecto` command line (docs/DESIGN.md §2): `render`, `info`. Errors are reported with their context
 //! and a non-zero exit code; nothing is rendered until every option has been checked.
 
-use crate::accel::AccelKind;
-use crate::film::output::{Format, write_image};
-use crate::film::tonemap::Tonemap;
-use crate::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
-use crate::render::{RenderObserver, RenderSettings};
-use crate::sampling::SamplerKind;
-use crate::world::{World, WorldOptions};
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
-use std::time::Instant;
+use trayecto::accel::AccelKind;
+use trayecto::film::output::{Format, write_image};
+use trayecto::film::tonemap::Tonemap;
+use trayecto::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
+use trayecto::pipeline::{
+    LogLine, OutputSpec, PipelineError, PipelineObserver, RenderJob, Stage, is_partial_film,
+};
+use trayecto::render::{RenderObserver, RenderSettings};
+use trayecto::sampling::SamplerKind;
+use trayecto::split::SplitOptions;
+use trayecto::world::{World, WorldOptions};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -155,9 +158,9 @@ pub struct InfoArgs {
 }
 
 impl RenderArgs {
-    /// The render settings these options describe, checked for absurd values.
-    pub fn settings(&self) -> Result<RenderSettings> {
-        let s = RenderSettings {
+    /// The render settings these options describe (checked by [`RenderJob::check`]).
+    pub fn settings(&self) -> RenderSettings {
+        RenderSettings {
             width: self.width,
             height: self.height,
             spp: self.spp,
@@ -173,15 +176,7 @@ impl RenderArgs {
                 mis: !self.no_mis,
                 secondary: self.secondary,
             },
-        };
-        s.validate()?;
-        if !(self.exposure.is_finite() && self.exposure > 0.0) {
-            bail!(
-                "invalid setting: exposure must be a positive number (got {})",
-                self.exposure
-            );
         }
-        Ok(s)
     }
 
     pub fn world_options(&self) -> WorldOptions {
@@ -192,14 +187,49 @@ impl RenderArgs {
             env: self.env.clone(),
         }
     }
+
+    /// The pipeline job these options describe.
+    pub fn job(&self) -> Result<RenderJob> {
+        let samples = self
+            .samples
+            .as_deref()
+            .map(trayecto::split::parse_range)
+            .transpose()
+            .map_err(|e| anyhow::anyhow!("invalid setting: --samples: {e}"))?;
+        if !(self.checkpoint_interval >= 0.0 && self.checkpoint_interval <= 1e9) {
+            bail!(
+                "invalid setting: --checkpoint-interval must be 0 or more seconds (got {})",
+                self.checkpoint_interval
+            );
+        }
+        Ok(RenderJob {
+            scene: self.scene.clone(),
+            world: self.world_options(),
+            settings: self.settings(),
+            outputs: vec![OutputSpec {
+                path: self.output.clone(),
+                exposure: self.exposure,
+                tonemap: self.tonemap,
+            }],
+            split: SplitOptions {
+                samples,
+                // A resumed render goes on saving into its checkpoint.
+                checkpoint: self.checkpoint.clone().or_else(|| self.resume.clone()),
+                checkpoint_interval: std::time::Duration::from_secs_f64(self.checkpoint_interval),
+                resume: self.resume.clone(),
+            },
+        })
+    }
 }
 
-/// Terminal progress bar (only when stderr is a terminal).
-struct Progress {
+/// The terminal's view of a render: warnings always, the summary and the phase report unless
+/// `--quiet`, a progress bar while rendering when stderr is a terminal.
+struct Console {
+    quiet: bool,
     bar: Option<indicatif::ProgressBar>,
 }
 
-impl RenderObserver for Progress {
+impl RenderObserver for Console {
     fn tile_done(&self, done: u64, total: u64) {
         if let Some(b) = &self.bar {
             b.set_length(total);
@@ -208,119 +238,34 @@ impl RenderObserver for Progress {
     }
 }
 
-/// Set by Ctrl-C: the render stops after the pass in flight and saves a checkpoint.
-static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+impl PipelineObserver for Console {
+    fn stage_finished(&self, stage: Stage, _took: std::time::Duration) {
+        if let (Stage::Render, Some(b)) = (stage, &self.bar) {
+            b.finish_and_clear();
+        }
+    }
 
-fn is_partial_output(path: &std::path::Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("trp"))
+    fn log(&self, line: LogLine) {
+        if !self.quiet || matches!(line, LogLine::Warning(_)) {
+            eprintln!("{line}");
+        }
+    }
 }
+
+/// Set by Ctrl-C: the render stops after the pass in flight and saves its checkpoint.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
 /// The exit code of a render stopped by Ctrl-C (128 + SIGINT, as shells report it).
 pub const EXIT_INTERRUPTED: u8 = 130;
 
+/// A render stopped by Ctrl-C: the message says what was saved.
 #[derive(Debug, thiserror::Error)]
-#[error("interrupted{}", .0.as_ref().map(|p| format!("; the render so far is saved in {} (continue it with --resume {})", p.display(), p.display())).unwrap_or_else(|| "; nothing saved (use --checkpoint FILE to be able to resume)".into()))]
-pub struct Interrupted(pub Option<PathBuf>);
+#[error("{0}")]
+pub struct Interrupted(String);
 
 pub fn run_render(args: &RenderArgs) -> Result<()> {
-    let settings = args.settings()?;
-    let partial_output = is_partial_output(&args.output);
-    if !partial_output {
-        Format::from_path(&args.output)?;
-    }
-    let samples = args
-        .samples
-        .as_deref()
-        .map(crate::split::parse_range)
-        .transpose()
-        .map_err(|e| anyhow::anyhow!("invalid setting: --samples: {e}"))?;
-    if let Some(r) = &samples {
-        if r.end > settings.spp {
-            bail!(
-                "invalid setting: --samples {}..{} goes past the frame's {} samples per pixel (--spp)",
-                r.start,
-                r.end,
-                settings.spp
-            );
-        }
-        if !partial_output {
-            bail!(
-                "{}: a partial render (--samples) writes a partial film: use -o FILE.trp, then `trayecto merge`",
-                args.output.display()
-            );
-        }
-    }
-    if !(args.checkpoint_interval >= 0.0 && args.checkpoint_interval <= 1e9) {
-        bail!(
-            "invalid setting: --checkpoint-interval must be 0 or more seconds (got {})",
-            args.checkpoint_interval
-        );
-    }
-    for p in [Some(&args.output), args.checkpoint.as_ref()]
-        .into_iter()
-        .flatten()
-    {
-        if let Some(parent) = p.parent()
-            && !parent.as_os_str().is_empty()
-            && !parent.is_dir()
-        {
-            bail!("{}: the folder does not exist", p.display());
-        }
-    }
-    if let Some(r) = &args.resume
-        && !r.is_file()
-    {
-        bail!("{}: no such checkpoint file", r.display());
-    }
-    if let Some(parent) = args.output.parent()
-        && !parent.as_os_str().is_empty()
-        && !parent.is_dir()
-    {
-        bail!(
-            "{}: the output folder does not exist",
-            args.output.display()
-        );
-    }
-    let say = |s: String| {
-        if !args.quiet {
-            eprintln!("{s}");
-        }
-    };
-
-    let t0 = Instant::now();
-    let scene = crate::scene::load(&args.scene)?;
-    let load_time = t0.elapsed();
-    for w in &scene.warnings {
-        eprintln!("warning: {w}");
-    }
-
-    let t1 = Instant::now();
-    let world = World::build(&scene, &args.world_options())?;
-    let build_time = t1.elapsed();
-    for w in &world.warnings {
-        eprintln!("warning: {w}");
-    }
-    say(format!(
-        "scene '{}': {} triangles, {} primitives, {} materials, {} lights ({} area), {} cameras",
-        scene.name,
-        world.triangle_count(),
-        world.primitive_count(),
-        world.materials.len(),
-        world.lights.lights.len(),
-        world.area_light_count(),
-        scene.cameras.len()
-    ));
-    say(format!(
-        "rendering {}x{} at {} spp, max depth {}, {} integrator, {} threads",
-        settings.width,
-        settings.height,
-        settings.spp,
-        settings.path.max_depth,
-        settings.integrator.name(),
-        settings.threads.unwrap_or_else(rayon::current_num_threads)
-    ));
-
+    let job = args.job()?;
+    job.check()?;
     let bar = if std::io::stderr().is_terminal() && !args.quiet {
         let b = indicatif::ProgressBar::new(1);
         b.set_style(
@@ -333,91 +278,31 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     } else {
         None
     };
-    let progress = Progress { bar };
-    let digest = crate::scene::digest::digest(&args.scene, &scene, args.env.as_deref())?;
-    let frame = crate::split::FrameId {
-        scene: args.scene.clone(),
-        digest,
-        settings: settings.clone(),
-        world: args.world_options(),
+    let console = Console {
+        quiet: args.quiet,
+        bar,
     };
-    let opts = crate::split::SplitOptions {
-        samples,
-        checkpoint: args.checkpoint.clone().or_else(|| args.resume.clone()),
-        checkpoint_interval: std::time::Duration::from_secs_f64(args.checkpoint_interval),
-        resume: args.resume.clone(),
-    };
-    // Ctrl-C stops after the pass in flight and saves; a second Ctrl-C exits at once. Only one
-    // handler per process: a second render in the same process keeps the first.
+    // Ctrl-C stops after the pass in flight and saves the checkpoint; a second Ctrl-C exits at
+    // once. One handler per process: a second render in the same process keeps the first.
     let _ = ctrlc::set_handler(|| {
         if INTERRUPTED.swap(true, std::sync::atomic::Ordering::SeqCst) {
             std::process::exit(EXIT_INTERRUPTED as i32);
         }
     });
-    let split = crate::split::render_split(&world, &frame, &opts, &progress, &INTERRUPTED)?;
-    if let Some(b) = &progress.bar {
-        b.finish_and_clear();
+    match job.run(&console, &INTERRUPTED) {
+        Ok(_) => Ok(()),
+        Err(e @ PipelineError::Interrupted(_)) => Err(Interrupted(e.to_string()).into()),
+        Err(PipelineError::Cancelled) => Err(Interrupted(
+            "interrupted; nothing saved (use --checkpoint FILE to be able to resume)".into(),
+        )
+        .into()),
+        Err(e) => Err(e.into()),
     }
-    if split.render.cancelled {
-        return Err(Interrupted(split.checkpoint_written).into());
-    }
-    let discarded = split.render.film.discarded;
-    let out = crate::render::RenderOutput {
-        image: split.render.film.to_image(),
-        stats: split.render.stats,
-        discarded_samples: discarded,
-        render_time: split.render.render_time,
-    };
-
-    let t3 = Instant::now();
-    if partial_output {
-        crate::film::partial::Part {
-            header: split.header,
-            film: split.render.film,
-        }
-        .write(&args.output)?;
-    } else {
-        write_image(&out.image, &args.output, args.exposure, args.tonemap)?;
-    }
-    let write_time = t3.elapsed();
-    if out.discarded_samples > 0 {
-        eprintln!(
-            "warning: {} samples were NaN, infinite or beyond {:e} and were discarded",
-            out.discarded_samples,
-            crate::film::SAMPLE_LIMIT
-        );
-    }
-    // The thesis's console log (Fig. 5.44–5.46): phase durations and the time at which each ended.
-    let mut report = crate::phases::PhaseReport::new();
-    report.phase("scene loaded", load_time);
-    report.phase(
-        "world compiled",
-        build_time.saturating_sub(world.accel_build_time),
-    );
-    report.phase("acceleration structure built", world.accel_build_time);
-    report.phase(
-        format!("rendered ({})", settings.integrator.name()),
-        out.render_time,
-    );
-    report.phase("image written", write_time);
-    report.note(format!("acceleration    {}", world.accel.describe()));
-    report.note(format!(
-        "rays            {} ({} camera/bounce/reflection/refraction, {} shadow), {:.2} Mrays/s",
-        out.stats.rays + out.stats.shadow_rays,
-        out.stats.rays,
-        out.stats.shadow_rays,
-        out.rays_per_second() / 1e6
-    ));
-    for line in report.lines() {
-        say(line);
-    }
-    say(format!("wrote {}", args.output.display()));
-    Ok(())
 }
 
 pub fn run_merge(args: &MergeArgs) -> Result<()> {
-    use crate::film::partial::{Part, merge};
-    let partial_output = is_partial_output(&args.output);
+    use trayecto::film::partial::{Part, merge};
+    let partial_output = is_partial_film(&args.output);
     if !partial_output {
         Format::from_path(&args.output)?;
     }
@@ -454,21 +339,25 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
 }
 
 pub fn run_info(args: &InfoArgs) -> Result<()> {
-    let scene = crate::scene::load(&args.scene)?;
-    let world = World::build(&scene, &WorldOptions::default())
+    let scene = trayecto::scene::load(&args.scene)?;
+    // The world takes the scene; keep what is printed that the world does not hold.
+    let (name, meshes, objects) = (scene.name.clone(), scene.meshes.len(), scene.objects.len());
+    let (lights, cameras) = (scene.lights.clone(), scene.cameras.clone());
+    let scene_warnings = scene.warnings.clone();
+    let world = World::build(scene, &WorldOptions::default())
         .with_context(|| format!("compiling {}", args.scene))?;
     let b = world.bounds;
-    println!("scene       {}", scene.name);
-    println!("meshes      {}", scene.meshes.len());
-    println!("objects     {}", scene.objects.len());
+    println!("scene       {name}");
+    println!("meshes      {meshes}");
+    println!("objects     {objects}");
     println!("triangles   {}", world.triangle_count());
     println!("primitives  {}", world.primitive_count());
     println!(
         "bounds      [{:.4}, {:.4}, {:.4}] – [{:.4}, {:.4}, {:.4}]",
         b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
     );
-    println!("materials   {}", scene.materials.len());
-    for (i, m) in scene.materials.iter().enumerate() {
+    println!("materials   {}", world.materials.len());
+    for (i, m) in world.materials.iter().enumerate() {
         let textures = [
             m.base_color_texture,
             m.metallic_roughness_texture,
@@ -493,14 +382,14 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
             if m.is_emissive() { " (emissive)" } else { "" }
         );
     }
-    println!("textures    {}", scene.textures.len());
+    println!("textures    {}", world.textures.len());
     println!(
         "lights      {} ({} area)",
         world.lights.lights.len(),
         world.area_light_count()
     );
-    for l in &scene.lights {
-        use crate::scene::LightDesc as L;
+    for l in &lights {
+        use trayecto::scene::LightDesc as L;
         let what = match l {
             L::Point {
                 position: p,
@@ -524,8 +413,8 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
         };
         println!("  '{}' {what}", l.name());
     }
-    println!("cameras     {}", scene.cameras.len());
-    for (i, c) in scene.cameras.iter().enumerate() {
+    println!("cameras     {}", cameras.len());
+    for (i, c) in cameras.iter().enumerate() {
         println!(
             "  {i}: '{}' at {} vfov {:.2}°",
             c.name,
@@ -533,7 +422,7 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
             c.vfov_deg
         );
     }
-    let warnings: Vec<&String> = scene.warnings.iter().chain(world.warnings.iter()).collect();
+    let warnings: Vec<&String> = scene_warnings.iter().chain(world.warnings.iter()).collect();
     println!("warnings    {}", warnings.len());
     for w in warnings {
         println!("  {w}");
