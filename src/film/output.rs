@@ -96,12 +96,19 @@ pub fn write_image(
                 .map_err(|e| werr(e.to_string()))
         }
         Format::Exr => {
+            use exr::prelude::*;
             let w = image.width as usize;
-            exr::prelude::write_rgb_file(path, w, image.height as usize, |x, y| {
-                let p = image.data[y * w + x];
+            let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
+                let p = image.data[pos.y() * w + pos.x()];
                 (p.x, p.y, p.z)
-            })
-            .map_err(|e| werr(e.to_string()))
+            });
+            // Blocks written in order (not in the order parallel compression finishes them), so
+            // the same image always gives the same bytes: renders can be compared with `cmp`.
+            Image::from_channels((w, image.height as usize), channels)
+                .write()
+                .non_parallel()
+                .to_file(path)
+                .map_err(|e| werr(e.to_string()))
         }
         Format::Hdr => {
             let pixels: Vec<image::Rgb<f32>> = image
