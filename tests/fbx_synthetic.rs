@@ -174,8 +174,9 @@ const VERTICES: [[f64; 3]; 9] = [
     [2., 2., 0.],
 ];
 const NORMALS: [[f64; 3]; 3] = [[0., 0., 1.], [0.6, 0., 0.8], [0., -0.8, 0.6]];
-/// Corner k (= control point k) → its normal in `NORMALS`.
-const NORMALS_INDEX: [i32; 9] = [0, 1, 2, 0, 1, 2, 0, 1, 2];
+/// Corner k (= control point k) → its normal in `NORMALS` (not k mod 3, so an index ignored in
+/// favour of the control point number is caught).
+const NORMALS_INDEX: [i32; 9] = [2, 0, 1, 1, 2, 0, 0, 2, 1];
 /// UV of control point i (ByVertice, Direct): (0.1 i, 0.1 i + 0.05), with v = 0 at the bottom.
 fn file_uv(i: usize) -> [f64; 2] {
     [0.1 * i as f64, 0.1 * i as f64 + 0.05]
