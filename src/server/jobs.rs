@@ -204,6 +204,8 @@ pub enum SubmitError {
     Busy(usize),
     /// A running job writes the same output name.
     NameInUse(String),
+    /// The output folder already holds files of that name (an earlier render's).
+    NameTaken(String),
 }
 
 /// Every job the server knows: the running ones and the last few finished ones.
@@ -255,6 +257,15 @@ impl Jobs {
             }
             if active.iter().any(|j| j.request.output == request.output) {
                 return Err(SubmitError::NameInUse(request.output));
+            }
+            // Files are never overwritten: a name an earlier render wrote (in this run of the
+            // server or before it) is refused rather than silently replaced.
+            if ["png", "exr"].iter().any(|ext| {
+                self.output_dir
+                    .join(format!("{}.{ext}", request.output))
+                    .exists()
+            }) {
+                return Err(SubmitError::NameTaken(request.output));
             }
             let job = Arc::new(Job {
                 id: self.next_id.fetch_add(1, Ordering::Relaxed),
