@@ -432,7 +432,7 @@ scale = 2.0
         let cancel = std::sync::atomic::AtomicBool::new(false);
         let mean = |scene: &trayecto::scene::Scene| {
             let world = World::build(
-                scene,
+                scene.clone(),
                 &WorldOptions {
                     camera: Some(sel.into()),
                     no_default_light: true,
