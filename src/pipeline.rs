@@ -44,6 +44,9 @@ pub struct RenderJob {
     pub scene: String,
     pub world: WorldOptions,
     pub settings: RenderSettings,
+    /// Which of `settings`' size, samples and depth the user gave; the others come from the
+    /// scene file when it has them (pbrt's Film, Sampler, Integrator: [`crate::scene::RenderHints`]).
+    pub given: GivenSettings,
     /// Outputs named `*.trp` get the partial film (the exact sums, to merge or resume).
     pub outputs: Vec<OutputSpec>,
     /// Render a sample range only, save checkpoints, resume (default: the whole frame, no files).
@@ -54,6 +57,25 @@ pub struct RenderJob {
 pub fn is_partial_film(path: &std::path::Path) -> bool {
     path.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("trp"))
+}
+
+/// Which render settings were given explicitly (and so win over the scene file's).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GivenSettings {
+    pub width: bool,
+    pub height: bool,
+    pub spp: bool,
+    pub max_depth: bool,
+}
+
+impl GivenSettings {
+    /// Every setting given: the scene file's hints are ignored.
+    pub const ALL: GivenSettings = GivenSettings {
+        width: true,
+        height: true,
+        spp: true,
+        max_depth: true,
+    };
 }
 
 /// The stages of a render, in order.
@@ -193,7 +215,9 @@ impl RenderJob {
             }
         }
         if let Some(r) = &split.samples
-            && !(r.start < r.end && r.end <= self.settings.spp)
+            // Without --spp the frame's count may come from the scene file: the render checks
+            // the range against it then.
+            && !(r.start < r.end && (!self.given.spp || r.end <= self.settings.spp))
         {
             return bad(format!(
                 "sample range {}..{} must be non-empty and end at most at the frame's {} samples per pixel",
@@ -216,11 +240,20 @@ impl RenderJob {
             || self.outputs.iter().any(|o| is_partial_film(&o.path))
     }
 
-    /// The settings to render `scene` with. This is where scene-provided defaults (resolution,
-    /// samples) will be merged under the job's explicit options; today the job's settings win
-    /// outright.
-    pub fn settings_for(&self, _scene: &Scene) -> RenderSettings {
-        self.settings.clone()
+    /// The settings to render `scene` with: the scene file's resolution, samples and depth
+    /// ([`Scene::hints`]) under the options the job was explicitly given.
+    pub fn settings_for(&self, scene: &Scene) -> RenderSettings {
+        let mut s = self.settings.clone();
+        let h = &scene.hints;
+        let pick = |given: bool, hint: Option<u32>, current: u32| match hint {
+            Some(v) if !given => v,
+            _ => current,
+        };
+        s.width = pick(self.given.width, h.width, s.width);
+        s.height = pick(self.given.height, h.height, s.height);
+        s.spp = pick(self.given.spp, h.spp, s.spp);
+        s.path.max_depth = pick(self.given.max_depth, h.max_depth, s.path.max_depth);
+        s
     }
 
     /// Runs the whole pipeline. `cancel` is polled between stages and by the render driver.
