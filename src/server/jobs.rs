@@ -368,8 +368,11 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
 
     job.set_state(JobState::Building);
     let t1 = Instant::now();
-    let world = World::build(&scene, &WorldOptions::default())
-        .map_err(|e| JobEnd::Failed(e.to_string()))?;
+    let options = WorldOptions {
+        default_light: r.default_light,
+        ..WorldOptions::default()
+    };
+    let world = World::build(&scene, &options).map_err(|e| JobEnd::Failed(e.to_string()))?;
     drop(scene);
     job.status()
         .timings
