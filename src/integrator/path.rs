@@ -114,11 +114,19 @@ fn continue_path(
     let mut depth = 0u32;
     loop {
         let material = &world.materials[hit.material as usize];
+        // KHR_materials_clearcoat: the coat's normal ignores the base's normal map.
+        let coat_normal = (material.clearcoat > 0.0)
+            .then(|| crate::material::bsdf::clearcoat_normal(material, &world.textures, &hit));
         crate::material::normal_map::apply_normal_map(material, &world.textures, &mut hit);
-        let bsdf = Bsdf::from_material(material, &world.textures, &hit);
+        let mut bsdf = Bsdf::from_material(material, &world.textures, &hit);
         let (ng, ns) = oriented_normals(&hit, wo, bsdf.is_transmissive());
         let frame = Frame::from_normal_tangent(ns, hit.tangent);
         let wo_local = frame.to_local(wo);
+        if let Some(n) = coat_normal {
+            // Flipped to the side the shading normal was flipped to (two-sided shading).
+            let n = if ns.dot(hit.ns) < 0.0 { -n } else { n };
+            bsdf.set_coat_normal(frame.to_local(n));
+        }
 
         // Next-event estimation: one light sample, shadow-tested.
         let u_light = if world.lights.lights.len() > 1 {

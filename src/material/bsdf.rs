@@ -10,6 +10,7 @@
 //! PBRT-v4 §9.5.2): the transmitted `f` includes that factor and `BsdfSample::eta` reports the
 //! relative IOR crossed so the integrator can undo it for Russian roulette.
 
+use super::clearcoat::Clearcoat;
 use super::microfacet::{Ggx, MIN_ALPHA, fresnel_dielectric, reflect, refract, schlick};
 use super::{Material, MaterialModel, Texture};
 use crate::geometry::SurfaceHit;
@@ -31,6 +32,9 @@ pub enum Bsdf {
         f0_dielectric: Vec3,
         /// KHR_materials_specular strength (1 without the extension; 0 is pure Lambertian).
         specular: f32,
+        /// KHR_materials_clearcoat layered on top (see [`Clearcoat`]): f = (1 − c·fr)·f_base +
+        /// f_coat. Its normal is +z until [`Bsdf::set_coat_normal`] places it in the frame.
+        coat: Option<Clearcoat>,
     },
     /// Perfect mirror with a tint.
     Mirror { color: Vec3 },
@@ -124,7 +128,11 @@ impl Bsdf {
                 let r0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
                 let f0_dielectric = (material.specular_color * r0).min(Vec3::ONE);
                 let specular = material.specular.clamp(0.0, 1.0);
-                if metallic == 0.0 && (specular == 0.0 || f0_dielectric == Vec3::ZERO) {
+                let coat = clearcoat(material, textures, hit);
+                if metallic == 0.0
+                    && (specular == 0.0 || f0_dielectric == Vec3::ZERO)
+                    && coat.is_none()
+                {
                     // No specular lobe at all (Blender's "Specular IOR Level" 0, exported as
                     // KHR_materials_specular 0): the mixture is exactly Lambertian, with the same
                     // value, pdf and samples, so skip the GGX terms.
@@ -136,8 +144,18 @@ impl Bsdf {
                     ggx: Ggx::new(roughness * roughness),
                     f0_dielectric,
                     specular,
+                    coat,
                 }
             }
+        }
+    }
+
+    /// Places the clearcoat's normal, given in the local shading frame (the integrator knows the
+    /// frame; see [`clearcoat_normal`]). No effect on BSDFs without a coat.
+    #[inline]
+    pub fn set_coat_normal(&mut self, local: Vec3) {
+        if let Bsdf::MetallicRoughness { coat: Some(c), .. } = self {
+            *c = Clearcoat::new(c.weight, 0.0, local).with_ggx(c.ggx);
         }
     }
 
@@ -197,11 +215,17 @@ impl Bsdf {
                     Vec3::ZERO
                 }
             }
-            Bsdf::MetallicRoughness { .. } => {
+            Bsdf::MetallicRoughness { coat, .. } => {
                 if wo.z <= 0.0 || wi.z <= 0.0 {
                     return Vec3::ZERO;
                 }
-                self.metal_rough_eval(wo, wi)
+                match coat {
+                    None => self.metal_rough_eval(wo, wi),
+                    Some(c) => {
+                        self.metal_rough_eval(wo, wi) * (1.0 - c.layer_weight(wo))
+                            + Vec3::splat(c.eval(wo, wi))
+                    }
+                }
             }
             Bsdf::Mirror { .. } => Vec3::ZERO,
             Bsdf::Dielectric { eta, ggx, tint } => match ggx {
@@ -225,14 +249,21 @@ impl Bsdf {
                     0.0
                 }
             }
-            Bsdf::MetallicRoughness { ggx, .. } => {
+            Bsdf::MetallicRoughness { ggx, coat, .. } => {
                 if wo.z <= 0.0 || wi.z <= 0.0 {
                     return 0.0;
                 }
                 let p_spec = self.metal_rough_spec_probability(wo);
                 let h = (wo + wi).normalize();
                 let spec = ggx.d_visible(wo, h) / (4.0 * wo.dot(h));
-                p_spec * spec + (1.0 - p_spec) * warp::cosine_hemisphere_pdf(wi.z)
+                let base = p_spec * spec + (1.0 - p_spec) * warp::cosine_hemisphere_pdf(wi.z);
+                match coat {
+                    None => base,
+                    Some(c) => {
+                        let p_coat = coat_probability(&c, wo);
+                        p_coat * c.pdf(wo, wi) + (1.0 - p_coat) * base
+                    }
+                }
             }
             Bsdf::Mirror { .. } => 0.0,
             Bsdf::Dielectric { eta, ggx, .. } => match ggx {
@@ -267,12 +298,26 @@ impl Bsdf {
                     eta: 1.0,
                 })
             }
-            Bsdf::MetallicRoughness { ggx, .. } => {
+            Bsdf::MetallicRoughness { ggx, coat, .. } => {
                 if wo.z <= 0.0 {
                     return None;
                 }
+                // The coat first, with probability p_coat; the rest of `u_lobe`, rescaled to
+                // [0, 1), chooses between the base's lobes.
+                let mut u_lobe = u_lobe;
+                let mut coat_wi = None;
+                if let Some(c) = coat {
+                    let p_coat = coat_probability(&c, wo);
+                    if u_lobe < p_coat {
+                        coat_wi = Some(c.sample(wo, u)?);
+                    } else {
+                        u_lobe = ((u_lobe - p_coat) / (1.0 - p_coat)).min(1.0 - f32::EPSILON);
+                    }
+                }
                 let p_spec = self.metal_rough_spec_probability(wo);
-                let wi = if u_lobe < p_spec {
+                let wi = if let Some(wi) = coat_wi {
+                    wi
+                } else if u_lobe < p_spec {
                     let m = ggx.sample_visible(wo, u);
                     reflect(wo, m)
                 } else {
@@ -289,7 +334,7 @@ impl Bsdf {
                 }
                 Some(BsdfSample {
                     wi,
-                    f: self.metal_rough_eval(wo, wi),
+                    f: self.eval(wo, wi),
                     pdf,
                     specular: false,
                     eta: 1.0,
@@ -361,6 +406,7 @@ impl Bsdf {
             ggx,
             f0_dielectric,
             specular,
+            ..
         } = *self
         else {
             return Vec3::ZERO;
@@ -406,6 +452,56 @@ impl Bsdf {
             (w_spec / (w_spec + w_diff)).clamp(0.05, 0.95)
         }
     }
+}
+
+/// Probability of sampling the clearcoat lobe: its Fresnel share c·fr(V) against what the base
+/// keeps, (1 − c·fr)·½, clamped so both stay reachable (the mixture pdf must cover f).
+#[inline]
+fn coat_probability(c: &Clearcoat, wo: Vec3) -> f32 {
+    let w = c.layer_weight(wo);
+    (w / (w + 0.5 * (1.0 - w))).clamp(0.05, 0.95)
+}
+
+/// The material's clearcoat at `hit` (KHR_materials_clearcoat: factor × texture R, roughness ×
+/// texture G), `None` when its weight is zero. Its normal is +z (the shading normal) until the
+/// integrator calls [`Bsdf::set_coat_normal`].
+fn clearcoat(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Option<Clearcoat> {
+    if !(material.clearcoat > 0.0) {
+        return None;
+    }
+    let mut weight = material.clearcoat;
+    if let Some(t) = &material.clearcoat_texture {
+        weight *= sample_texture(textures, t, hit).x;
+    }
+    let mut roughness = material.clearcoat_roughness;
+    if let Some(t) = &material.clearcoat_roughness_texture {
+        roughness *= sample_texture(textures, t, hit).y;
+    }
+    (weight > 0.0).then(|| Clearcoat::new(weight, roughness, Vec3::Z))
+}
+
+/// The clearcoat's world-space normal at `hit`, which must be called **before** the base's normal
+/// map is applied: the coat's own normal map (`clearcoatNormalTexture`, tangent space, with its
+/// scale) on the interpolated vertex normal, or that normal itself — the base's normal map does
+/// not apply to the coat (KHR_materials_clearcoat).
+pub fn clearcoat_normal(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Vec3 {
+    let n = hit.ns;
+    let Some(t) = &material.clearcoat_normal_texture else {
+        return n;
+    };
+    let c = sample_texture(textures, t, hit).truncate() * 2.0 - Vec3::ONE;
+    let s = material.clearcoat_normal_scale;
+    let tangent = (hit.tangent - n * n.dot(hit.tangent)).normalize_or_zero();
+    if tangent == Vec3::ZERO {
+        return n;
+    }
+    let sign = if hit.bitangent_sign < 0.0 { -1.0 } else { 1.0 };
+    let bitangent = n.cross(tangent) * sign;
+    let p = (tangent * (c.x * s) + bitangent * (c.y * s) + n * c.z).normalize_or_zero();
+    if p == Vec3::ZERO || !p.is_finite() || p.dot(hit.ng) <= 0.0 {
+        return n;
+    }
+    p
 }
 
 /// Reflectance and transmittance of a thin slab, summing the internal bounces:
