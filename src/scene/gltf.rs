@@ -81,8 +81,9 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
 
 fn load_from_bytes_unguarded(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
     let err = |m: String| SceneError::invalid(label, m);
-    let gltf = gltf::Gltf::from_slice(bytes)
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| err(format!("not a valid glTF 2.0 file: {e}")))?;
+    validate(&gltf.document).map_err(err)?;
     let mut ld = Loader {
         doc: &gltf.document,
         dir,
@@ -124,6 +125,49 @@ fn load_from_bytes_unguarded(bytes: &[u8], dir: &Path, label: &str) -> Result<Sc
     apply_material_conventions(&mut scene);
     scene.validate()?;
     Ok(scene)
+}
+
+/// The `gltf` crate's validation, except that a required extension is judged by what Trayecto
+/// reads (the crate refuses every `extensionsRequired` entry it does not parse itself, such as
+/// KHR_materials_clearcoat, which is read here from the raw JSON). A required extension that
+/// neither reads is an error naming it: the file cannot be rendered as its author meant.
+fn validate(doc: &gltf::Document) -> Result<(), String> {
+    use gltf::json::validation::{Error, Validate};
+    let root = doc.as_json();
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, error| {
+        let path = path();
+        if !(matches!(error, Error::Unsupported) && path.0.starts_with("extensionsRequired")) {
+            errors.push((path, error));
+        }
+    });
+    if !errors.is_empty() {
+        return Err(format!(
+            "not a valid glTF 2.0 file: {}",
+            gltf::Error::Validation(errors)
+        ));
+    }
+    let blocking: Vec<&str> = root
+        .extensions_required
+        .iter()
+        .map(String::as_str)
+        .filter(|e| {
+            !SUPPORTED_EXTENSIONS.contains(e)
+                && !gltf::json::extensions::ENABLED_EXTENSIONS.contains(e)
+        })
+        .collect();
+    if !blocking.is_empty() {
+        return Err(format!(
+            "the file requires glTF extension{} {} (extensionsRequired), which Trayecto does not support",
+            if blocking.len() > 1 { "s" } else { "" },
+            blocking
+                .iter()
+                .map(|e| format!("'{e}'"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    Ok(())
 }
 
 struct Loader<'a> {
