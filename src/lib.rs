@@ -12,7 +12,6 @@
 
 pub mod accel;
 pub mod camera;
-pub mod cli;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
@@ -20,8 +19,8 @@ pub mod light;
 pub mod material;
 pub mod math;
 pub mod phases;
+pub mod pipeline;
 pub mod render;
 pub mod sampling;
 pub mod scene;
-pub mod server;
 pub mod world;

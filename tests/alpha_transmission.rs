@@ -60,7 +60,7 @@ fn render_sheet(sheet: Material, textures: Vec<Texture>, spp: u32, max_depth: u3
         default_light: Some(trayecto::light::default_light::DefaultLight::Off),
         ..Default::default()
     };
-    let world = World::build(&scene, &options).unwrap();
+    let world = World::build(scene.clone(), &options).unwrap();
     let mut settings = RenderSettings {
         width: SIZE,
         height: SIZE,
@@ -214,7 +214,7 @@ fn shadow_rays_see_through_blend_holes() {
             )],
             ..Default::default()
         };
-        let world = World::build(&scene, &WorldOptions::default()).unwrap();
+        let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
         let mut settings = RenderSettings {
             width: SIZE,
             height: SIZE,

@@ -16,7 +16,7 @@ use trayecto::world::{World, WorldOptions};
 
 fn build(scene: &Scene, mode: Option<DefaultLight>) -> World {
     World::build(
-        scene,
+        scene.clone(),
         &WorldOptions {
             default_light: mode,
             ..Default::default()

@@ -102,7 +102,7 @@ fn clearcoat_is_read_and_files_requiring_it_load() {
 fn model_luminance(scene: &Scene, n: u32, spp: u32) -> f32 {
     use trayecto::integrator::IntegratorKind;
     use trayecto::integrator::{Aov, ShadingModel};
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
     let settings = |spp, integrator| RenderSettings {
         width: n,
         height: n,

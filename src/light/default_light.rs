@@ -41,7 +41,7 @@ use crate::math::{PI, Vec3, luminance};
 
 /// How the default environment is chosen (`--default-light`, the TOML `default_light` key, the
 /// web UI's "default light" choice).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum DefaultLight {
     /// Add it when the scene has no lights or only self-lit emitters (see the module docs).
@@ -69,6 +69,13 @@ impl DefaultLight {
             "off" => Some(DefaultLight::Off),
             _ => None,
         }
+    }
+}
+
+impl std::str::FromStr for DefaultLight {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        DefaultLight::parse(s).ok_or_else(|| format!("'{s}' is not one of: auto, on, off"))
     }
 }
 

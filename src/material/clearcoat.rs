@@ -44,10 +44,11 @@ impl Clearcoat {
         }
     }
 
-    /// The same coat with the microfacet distribution `ggx`.
+    /// The same coat with unit normal `normal` (local frame; +z when degenerate or below).
     #[inline]
-    pub fn with_ggx(mut self, ggx: Ggx) -> Clearcoat {
-        self.ggx = ggx;
+    pub fn with_normal(mut self, normal: Vec3) -> Clearcoat {
+        let n = normal.normalize_or_zero();
+        self.normal = if n.z > 0.0 { n } else { Vec3::Z };
         self
     }
 
