@@ -165,9 +165,10 @@ fn on_off_and_the_scene_file_key() {
     );
     assert!(has_default_light(&build(&scene, Some(DefaultLight::Auto))));
     let bad = "default_light = \"sometimes\"\n";
-    let err = trayecto::scene::toml_scene::load_from_bytes(bad.as_bytes(), &dir, "t.toml")
-        .err()
-        .expect("an unknown mode is an error");
+    let Err(err) = trayecto::scene::toml_scene::load_from_bytes(bad.as_bytes(), &dir, "t.toml")
+    else {
+        panic!("an unknown mode is an error");
+    };
     assert!(err.to_string().contains("default_light"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }

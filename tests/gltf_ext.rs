@@ -60,10 +60,10 @@ fn clearcoat_is_read_and_files_requiring_it_load() {
         r#"{"name":"m"}"#,
         r#","extensionsUsed":["EXT_made_up"],"extensionsRequired":["EXT_made_up"]"#,
     );
-    let msg = load(&json)
-        .err()
-        .expect("EXT_made_up blocks the file")
-        .to_string();
+    let Err(err) = load(&json) else {
+        panic!("EXT_made_up blocks the file");
+    };
+    let msg = err.to_string();
     assert!(
         msg.contains("test.gltf") && msg.contains("'EXT_made_up'") && msg.contains("requires"),
         "{msg}"

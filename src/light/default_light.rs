@@ -319,7 +319,7 @@ mod tests {
             position: Vec3::ZERO,
             intensity: Vec3::splat(0.1),
         };
-        assert!(!decide(DefaultLight::Auto, &[point.clone()], &empty).add);
+        assert!(!decide(DefaultLight::Auto, std::slice::from_ref(&point), &empty).add);
         assert!(decide(DefaultLight::On, &[point], &empty).add);
         let sky = Light::Uniform {
             radiance: Vec3::splat(0.3),

@@ -456,6 +456,7 @@ mod tests {
             },
             exposure: 1.0,
             tonemap: Default::default(),
+            default_light: None,
         };
         let wait = |job: &Arc<Job>| {
             let t0 = Instant::now();
