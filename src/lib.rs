@@ -19,6 +19,7 @@ pub mod integrator;
 pub mod light;
 pub mod material;
 pub mod math;
+pub mod medium;
 pub mod phases;
 pub mod render;
 pub mod sampling;

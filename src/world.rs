@@ -41,6 +41,8 @@ pub struct World {
     pub warnings: Vec<String>,
     /// Time spent building the acceleration structure (for the phase report).
     pub accel_build_time: std::time::Duration,
+    /// Participating media and the medium interfaces of surfaces (issue #18).
+    pub media: crate::medium::world::WorldMedia,
     /// Per material: true if its alpha mode is MASK or BLEND, so a hit on it may be a hole.
     cutout: Vec<bool>,
     /// True if any material is a cutout; opaque scenes skip the alpha test entirely.
@@ -60,10 +62,12 @@ impl World {
             .map(|p| p.display().to_string())
             .unwrap_or_else(|| scene.name.clone());
         let mut warnings = Vec::new();
+        // Objects that bound media get their own material index (see medium::world).
+        let (materials, object_material, media) = crate::medium::world::assign(scene)
+            .map_err(|e| SceneError::invalid(&label, format!("medium grid: {e}")))?;
         let mut g = GeometryStore::default();
-        for obj in &scene.objects {
+        for (obj, &material) in scene.objects.iter().zip(&object_material) {
             let m = obj.transform;
-            let material = obj.material as u32;
             match &obj.shape {
                 Shape::Mesh(mesh_id) => {
                     let mesh = &scene.meshes[*mesh_id];
@@ -171,7 +175,7 @@ impl World {
         let mut lights = Vec::new();
         for prim in g.all_prims() {
             let material = g.material(prim);
-            if scene.materials[material as usize].is_emissive() && g.area(prim) > 0.0 {
+            if materials[material as usize].is_emissive() && g.area(prim) > 0.0 {
                 g.set_light(prim, lights.len() as u32);
                 lights.push(Light::Area { prim, material });
             }
@@ -264,9 +268,8 @@ impl World {
         if scene.cameras.is_empty() && options.camera.is_none() {
             camera = face_the_front(camera, bounds, &accel, &g);
         }
-        let lights = LightSet::new(lights, &g, &scene.materials, &scene.textures, bounds);
-        let cutout: Vec<bool> = scene
-            .materials
+        let lights = LightSet::new(lights, &g, &materials, &scene.textures, bounds);
+        let cutout: Vec<bool> = materials
             .iter()
             .map(|m| m.alpha_mode != AlphaMode::Opaque)
             .collect();
@@ -274,7 +277,8 @@ impl World {
         Ok(World {
             geometry: g,
             accel,
-            materials: scene.materials.clone(),
+            materials,
+            media,
             textures: scene.textures.clone(),
             lights,
             camera,

@@ -3,6 +3,7 @@
 
 pub mod path;
 pub mod raycast;
+pub mod volpath;
 pub mod whitted;
 
 pub use path::PathSettings;

@@ -165,7 +165,8 @@ fn f0(base: Vec3, metallic: f32, m: &Material) -> Vec3 {
 pub fn surface_kind(m: &Material, s: &LocalSurface) -> SurfaceKind {
     match m.model {
         MaterialModel::Mirror => SurfaceKind::Mirror,
-        MaterialModel::Dielectric => SurfaceKind::Dielectric,
+        // An interface (ior 1) refracts straight through: the medium boundary is invisible.
+        MaterialModel::Dielectric | MaterialModel::Interface => SurfaceKind::Dielectric,
         _ if m.transmission > 0.5 => SurfaceKind::Dielectric,
         MaterialModel::MetallicRoughness if s.metallic > 0.9 && s.roughness < 0.05 => {
             SurfaceKind::Mirror

@@ -24,6 +24,11 @@ pub enum MaterialModel {
     Dielectric,
     /// Perfect mirror.
     Mirror,
+    /// No surface at all: an index-matched boundary that only separates participating media
+    /// (pbrt-v4's `interface` material, Mitsuba's `null` BSDF). The volumetric path tracer passes
+    /// rays straight through it without counting a bounce; the other integrators see it as an
+    /// index-matched (η = 1) smooth dielectric, which transmits every ray unchanged.
+    Interface,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
