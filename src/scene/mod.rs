@@ -12,6 +12,7 @@ pub mod obj;
 pub mod ply;
 pub mod testscenes;
 pub mod toml_scene;
+pub mod volume;
 
 use std::path::Path;
 
