@@ -193,7 +193,8 @@ pub fn radiance(
                                 break;
                             }
                             // Null collision: continue with the null-scattering weight.
-                            let sigma_n = (sigma_maj - props.sigma_a - props.sigma_s).max(Vec3::ZERO);
+                            let sigma_n =
+                                (sigma_maj - props.sigma_a - props.sigma_s).max(Vec3::ZERO);
                             let pdf = t_maj[channel] * sigma_n[channel];
                             if !(pdf > 0.0) {
                                 return l;

@@ -23,7 +23,9 @@ pub enum GridError {
     Channels(i32),
     #[error("invalid grid resolution {0} x {1} x {2}")]
     Resolution(i64, i64, i64),
-    #[error("the file is truncated or has trailing data: {expected} bytes of voxels expected, {found} found")]
+    #[error(
+        "the file is truncated or has trailing data: {expected} bytes of voxels expected, {found} found"
+    )]
     Size { expected: u64, found: u64 },
     #[error("the grid's bounding box is empty or not finite")]
     Bounds,

@@ -320,7 +320,12 @@ mod tests {
         // The T_maj returned for an event-free walk is the analytic transmittance of the rest.
         let absorbing = Medium::homogeneous("abs", Vec3::new(0.3, 0.9, 2.0), Vec3::ZERO, 0.0);
         let t = absorbing.analytic_transmittance(d);
-        assert!((t - (-Vec3::new(0.3, 0.9, 2.0) * d).exp()).abs().max_element() < 1e-6);
+        assert!(
+            (t - (-Vec3::new(0.3, 0.9, 2.0) * d).exp())
+                .abs()
+                .max_element()
+                < 1e-6
+        );
     }
 
     #[test]
@@ -364,7 +369,10 @@ mod tests {
             tau += (m.properties(p).sigma_a.x + m.properties(p).sigma_s.x) as f64 * dt as f64;
         }
         let want = (-tau).exp();
-        assert!(want > 0.05 && want < 0.9, "test needs a mid-range T, got {want}");
+        assert!(
+            want > 0.05 && want < 0.9,
+            "test needs a mid-range T, got {want}"
+        );
         let mut rng = Pcg32::new(3, 5);
         let n = 100_000;
         let (mut sum, mut sum2) = (0.0f64, 0.0f64);

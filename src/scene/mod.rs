@@ -236,7 +236,10 @@ impl MediumDesc {
             return Err("sigma_a and sigma_s must be finite and non-negative".into());
         }
         if !(self.scale.is_finite() && self.scale >= 0.0) {
-            return Err(format!("scale {} must be finite and non-negative", self.scale));
+            return Err(format!(
+                "scale {} must be finite and non-negative",
+                self.scale
+            ));
         }
         if !(self.g.is_finite() && self.g > -1.0 && self.g < 1.0) {
             return Err(format!("g {} must be in (-1, 1)", self.g));
@@ -266,7 +269,9 @@ impl MediumDesc {
                 .enumerate()
                 .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
             {
-                return Err(format!("density {i} is {v}; densities must be finite and >= 0"));
+                return Err(format!(
+                    "density {i} is {v}; densities must be finite and >= 0"
+                ));
             }
             if !(min.is_finite() && max.is_finite() && min.cmplt(*max).all()) {
                 return Err("the grid bounds must be finite with min < max".into());

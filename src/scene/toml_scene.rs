@@ -239,7 +239,9 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
     for m in &file.medium {
         let desc = medium(m, dir).map_err(|e| err(format!("medium '{}': {e}", m.name)))?;
         if m.name == "none" {
-            return Err(err("a medium cannot be called 'none' (it means vacuum)".into()));
+            return Err(err(
+                "a medium cannot be called 'none' (it means vacuum)".into()
+            ));
         }
         if media_by_name
             .insert(m.name.clone(), scene.add_medium(desc))
@@ -493,10 +495,12 @@ fn medium(m: &MediumSpec, dir: &Path) -> Result<super::MediumDesc, String> {
             }
         }
         Some("grid") => {
-            let f = m.file.as_deref().ok_or("a grid medium needs 'file' (a .vol grid)")?;
+            let f = m
+                .file
+                .as_deref()
+                .ok_or("a grid medium needs 'file' (a .vol grid)")?;
             let path = resolve_in_dir(dir, f)?;
-            let bytes =
-                std::fs::read(&path).map_err(|e| format!("'{}': {e}", path.display()))?;
+            let bytes = std::fs::read(&path).map_err(|e| format!("'{}': {e}", path.display()))?;
             let v = crate::medium::read_vol(&bytes)
                 .map_err(|e| format!("'{}': {e}", path.display()))?;
             desc.kind = super::MediumKind::Grid {
@@ -682,14 +686,15 @@ fn add_mesh_file(
         let mat = material.unwrap_or(o.material + mat0);
         scene.add_object(&o.name, shape, transform * o.transform, mat);
         let shift = |m: Option<usize>| m.map(|m| m + med0);
-        scene.objects.last_mut().expect("just added").medium = interface.or(if material.is_none() {
-            o.medium.map(|mi| super::MediumInterface {
-                inside: shift(mi.inside),
-                outside: shift(mi.outside),
-            })
-        } else {
-            None
-        });
+        scene.objects.last_mut().expect("just added").medium =
+            interface.or(if material.is_none() {
+                o.medium.map(|mi| super::MediumInterface {
+                    inside: shift(mi.inside),
+                    outside: shift(mi.outside),
+                })
+            } else {
+                None
+            });
     }
     // Lights and cameras are rigid: they take the object's rotation and translation. A scale in
     // the transform moves their positions but does not change a light's intensity (as Blender
