@@ -161,8 +161,9 @@ pub fn radiance(
                                 let pdf = t_maj[channel] * props.sigma_s[channel];
                                 st.beta *= t_maj * props.sigma_s / pdf;
                                 st.r_u *= t_maj * props.sigma_s / pdf;
-                                if !(st.beta.max_element() > 0.0 && st.r_u.max_element() > 0.0)
-                                    || !st.beta.is_finite()
+                                if !(st.beta.max_element() > 0.0
+                                    && st.r_u.max_element() > 0.0
+                                    && st.beta.is_finite())
                                 {
                                     return l;
                                 }
