@@ -27,7 +27,7 @@ fn run(scene: &trayecto::scene::Scene, accel: AccelKind, s: &RenderSettings, rep
     for _ in 0..reps.max(1) {
         let t = Instant::now();
         let world = World::build(
-            scene,
+            scene.clone(),
             &WorldOptions {
                 accel,
                 ..Default::default()

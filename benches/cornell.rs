@@ -15,8 +15,7 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(64);
     let t = Instant::now();
-    let world =
-        World::build(&builtin::cornell(), &WorldOptions::default()).expect("cornell builds");
+    let world = World::build(builtin::cornell(), &WorldOptions::default()).expect("cornell builds");
     let build = t.elapsed();
     let cancel = AtomicBool::new(false);
     let run = |threads: Option<usize>, spp: u32| {

@@ -12,7 +12,6 @@
 
 pub mod accel;
 pub mod camera;
-pub mod cli;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
@@ -21,8 +20,8 @@ pub mod material;
 pub mod math;
 pub mod medium;
 pub mod phases;
+pub mod pipeline;
 pub mod render;
 pub mod sampling;
 pub mod scene;
-pub mod server;
 pub mod world;

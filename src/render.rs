@@ -58,7 +58,7 @@ pub enum RenderError {
 }
 
 impl RenderSettings {
-    /// Refuses absurd values before any work starts (SPEC §7).
+    /// Refuses absurd values before any work starts (docs/DESIGN.md §7).
     pub fn validate(&self) -> Result<(), RenderError> {
         let bad = |m: String| Err(RenderError::InvalidSetting(m));
         if self.width == 0

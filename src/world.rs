@@ -54,7 +54,10 @@ pub struct World {
 const MAX_CUTOUT_LAYERS: u32 = 256;
 
 impl World {
-    pub fn build(scene: &Scene, options: &WorldOptions) -> Result<World, SceneError> {
+    /// Compiles `scene` for rendering. The scene is consumed: its materials and textures move
+    /// into the world instead of being copied. It is validated here, once, so hand-built scenes
+    /// are as safe as loaded ones.
+    pub fn build(mut scene: Scene, options: &WorldOptions) -> Result<World, SceneError> {
         scene.validate()?;
         let label = scene
             .source
@@ -62,213 +65,25 @@ impl World {
             .map(|p| p.display().to_string())
             .unwrap_or_else(|| scene.name.clone());
         let mut warnings = Vec::new();
-        // Objects that bound media get their own material index (see medium::world).
-        let (materials, object_material, media) = crate::medium::world::assign(scene)
+        // Objects that bound media get their own material index (see medium::world); scenes
+        // without medium interfaces are left exactly as they are.
+        let media = crate::medium::world::assign(&mut scene)
             .map_err(|e| SceneError::invalid(&label, format!("medium grid: {e}")))?;
-        let mut g = GeometryStore::default();
-        for (obj, &material) in scene.objects.iter().zip(&object_material) {
-            let m = obj.transform;
-            match &obj.shape {
-                Shape::Mesh(mesh_id) => {
-                    let mesh = &scene.meshes[*mesh_id];
-                    let inv = m.inverse();
-                    let flip = Mat3::from_mat4(m).determinant() < 0.0;
-                    let positions: Vec<Vec3> = mesh
-                        .positions
-                        .iter()
-                        .map(|&p| m.transform_point3(p))
-                        .collect();
-                    let mut attrs = MeshAttributes {
-                        indices: Vec::with_capacity(mesh.indices.len()),
-                        normals: mesh.normals.as_ref().map(|ns| {
-                            ns.iter()
-                                .map(|&n| transform_normal(&inv, n).normalize_or_zero())
-                                .collect()
-                        }),
-                        tangents: mesh.tangents.as_ref().map(|ts| {
-                            ts.iter()
-                                .map(|t| {
-                                    let v = m.transform_vector3(t.truncate()).normalize_or_zero();
-                                    // Mirroring flips the bitangent's handedness.
-                                    Vec4::new(v.x, v.y, v.z, if flip { -t.w } else { t.w })
-                                })
-                                .collect()
-                        }),
-                        uv0: mesh.uv0.clone(),
-                        uv1: mesh.uv1.clone(),
-                        colors: mesh.colors.clone(),
-                        material,
-                    };
-                    let mesh_index = g.meshes.len() as u32;
-                    for tri in &mesh.indices {
-                        // A negative-determinant transform mirrors the mesh: swap two vertices so the
-                        // counter-clockwise (front) winding is preserved.
-                        let tri = if flip { [tri[0], tri[2], tri[1]] } else { *tri };
-                        let verts = TriangleVerts {
-                            p0: positions[tri[0] as usize],
-                            p1: positions[tri[1] as usize],
-                            p2: positions[tri[2] as usize],
-                        };
-                        g.tri_mesh.push((mesh_index, attrs.indices.len() as u32));
-                        g.tri_light.push(NO_LIGHT);
-                        g.triangles.push(verts);
-                        attrs.indices.push(tri);
-                    }
-                    g.meshes.push(attrs);
-                }
-                Shape::Sphere { center, radius } => {
-                    let lin = Mat3::from_mat4(m);
-                    let sx = lin.x_axis.length();
-                    let (sy, sz) = (lin.y_axis.length(), lin.z_axis.length());
-                    let similar = (sx - sy).abs() <= 1e-4 * sx && (sx - sz).abs() <= 1e-4 * sx;
-                    let orthogonal = lin.x_axis.dot(lin.y_axis).abs() <= 1e-4 * sx * sy
-                        && lin.y_axis.dot(lin.z_axis).abs() <= 1e-4 * sy * sz
-                        && lin.x_axis.dot(lin.z_axis).abs() <= 1e-4 * sx * sz;
-                    if !(similar && orthogonal) {
-                        return Err(SceneError::invalid(
-                            &label,
-                            format!(
-                                "sphere '{}' has a non-uniform scale or shear, which is not supported",
-                                obj.name
-                            ),
-                        ));
-                    }
-                    g.spheres.push(AnalyticPrim {
-                        shape: Sphere {
-                            center: m.transform_point3(*center),
-                            radius: radius * sx,
-                        },
-                        material,
-                        light: NO_LIGHT,
-                    });
-                }
-                Shape::Cuboid { min, max } => {
-                    if Mat3::from_mat4(m).determinant() == 0.0 {
-                        warnings.push(format!(
-                            "box '{}' has a singular transform and was skipped",
-                            obj.name
-                        ));
-                        continue;
-                    }
-                    g.cuboids.push(AnalyticPrim {
-                        shape: Cuboid::new(Bounds3::new(*min, *max), m),
-                        material,
-                        light: NO_LIGHT,
-                    });
-                }
-                Shape::Quad { corner, e1, e2 } => {
-                    let c = m.transform_point3(*corner);
-                    let (mut a, mut b) = (m.transform_vector3(*e1), m.transform_vector3(*e2));
-                    if Mat3::from_mat4(m).determinant() < 0.0 {
-                        std::mem::swap(&mut a, &mut b);
-                    }
-                    g.quads.push(AnalyticPrim {
-                        shape: Quad::new(c, a, b),
-                        material,
-                        light: NO_LIGHT,
-                    });
-                }
-            }
-        }
-
-        // Area lights: every primitive with an emissive material and non-zero area.
-        let mut lights = Vec::new();
-        for prim in g.all_prims() {
-            let material = g.material(prim);
-            if materials[material as usize].is_emissive() && g.area(prim) > 0.0 {
-                g.set_light(prim, lights.len() as u32);
-                lights.push(Light::Area { prim, material });
-            }
-        }
-        for l in &scene.lights {
-            match l {
-                LightDesc::Point {
-                    position,
-                    intensity,
-                    ..
-                } => lights.push(Light::Point {
-                    position: *position,
-                    intensity: *intensity,
-                }),
-                LightDesc::Spot {
-                    position,
-                    direction,
-                    intensity,
-                    inner_angle,
-                    outer_angle,
-                    ..
-                } => lights.push(Light::Spot {
-                    position: *position,
-                    direction: direction.normalize(),
-                    intensity: *intensity,
-                    cos_inner: inner_angle.cos(),
-                    cos_outer: outer_angle.cos(),
-                }),
-                LightDesc::Directional {
-                    direction,
-                    irradiance,
-                    ..
-                } => lights.push(Light::Directional {
-                    direction: direction.normalize(),
-                    irradiance: *irradiance,
-                }),
-                LightDesc::Ambient { radiance, .. } => lights.push(Light::Uniform {
-                    radiance: *radiance,
-                }),
-                LightDesc::Environment {
-                    name,
-                    path,
-                    scale,
-                    transform,
-                } => {
-                    // Relative paths are relative to the scene file.
-                    let path = match (&scene.source, path.is_relative()) {
-                        (Some(src), true) => src.parent().unwrap_or(Path::new(".")).join(path),
-                        _ => path.clone(),
-                    };
-                    let map =
-                        EnvMap::load(&path, *scale, Mat3::from_mat4(*transform)).map_err(|e| {
-                            SceneError::invalid(
-                                &label,
-                                format!("environment light '{name}' ({}): {e}", path.display()),
-                            )
-                        })?;
-                    lights.push(Light::Environment { map: Arc::new(map) });
-                }
-            }
-        }
-        if let Some(path) = &options.env {
-            let map = EnvMap::load(path, Vec3::ONE, Mat3::IDENTITY)
-                .map_err(|e| SceneError::invalid(path.display(), e))?;
-            lights.push(Light::Environment { map: Arc::new(map) });
-        }
-        if lights.is_empty() {
-            if options.no_default_light {
-                warnings.push(
-                    "the scene has no lights and --no-default-light is set: it renders black"
-                        .into(),
-                );
-            } else {
-                warnings.push(
-                    "the scene has no lights: lighting it with a uniform white environment (radiance 1); \
-                     --no-default-light renders it unlit"
-                        .into(),
-                );
-                lights.push(Light::Uniform {
-                    radiance: Vec3::ONE,
-                });
-            }
-        }
-
+        let mut g = compile_geometry(&scene, &label, &mut warnings)?;
+        let mut lights = area_lights(&mut g, &scene.materials);
+        lights.extend(scene_lights(&scene, &label)?);
+        add_option_lights(&mut lights, options, &mut warnings)?;
         let bounds = g.scene_bounds();
         let accel_start = std::time::Instant::now();
         let accel = Accel::build(options.accel, &g);
         let accel_build_time = accel_start.elapsed();
-        let mut camera = select_camera(scene, options, bounds, &label)?;
-        if scene.cameras.is_empty() && options.camera.is_none() {
-            camera = face_the_front(camera, bounds, &accel, &g);
-        }
-        let lights = LightSet::new(lights, &g, &materials, &scene.textures, bounds);
+        let camera = choose_camera(&scene, options, bounds, &accel, &g, &label)?;
+        let Scene {
+            materials,
+            textures,
+            ..
+        } = scene;
+        let lights = LightSet::new(lights, &g, &materials, &textures, bounds);
         let cutout: Vec<bool> = materials
             .iter()
             .map(|m| m.alpha_mode != AlphaMode::Opaque)
@@ -278,9 +93,9 @@ impl World {
             geometry: g,
             accel,
             materials,
-            media,
-            textures: scene.textures.clone(),
+            textures,
             lights,
+            media,
             camera,
             bounds,
             warnings,
@@ -358,7 +173,7 @@ impl World {
             }
             let hit = self.geometry.surface_hit(&current, &isect);
             let m = &self.materials[material];
-            let alpha = crate::material::bsdf::opacity(m, &self.textures, &hit);
+            let alpha = crate::material::eval::opacity(m, &self.textures, &hit);
             let present = match m.alpha_mode {
                 AlphaMode::Mask => alpha >= m.alpha_cutoff,
                 _ => alpha >= 1.0 || cutout_hash(&current, isect.t) < alpha,
@@ -413,6 +228,247 @@ impl World {
     pub fn prim_ref(kind: PrimitiveKind, index: u32) -> PrimRef {
         PrimRef::new(kind, index)
     }
+}
+
+/// Step 1: every object's shape in world space (meshes transformed and flattened, analytic
+/// shapes placed), each tagged with its material.
+fn compile_geometry(
+    scene: &Scene,
+    label: &str,
+    warnings: &mut Vec<String>,
+) -> Result<GeometryStore, SceneError> {
+    let mut g = GeometryStore::default();
+    for obj in &scene.objects {
+        let m = obj.transform;
+        let material = obj.material as u32;
+        match &obj.shape {
+            Shape::Mesh(mesh_id) => {
+                let mesh = &scene.meshes[*mesh_id];
+                let inv = m.inverse();
+                let flip = Mat3::from_mat4(m).determinant() < 0.0;
+                let positions: Vec<Vec3> = mesh
+                    .positions
+                    .iter()
+                    .map(|&p| m.transform_point3(p))
+                    .collect();
+                let mut attrs = MeshAttributes {
+                    indices: Vec::with_capacity(mesh.indices.len()),
+                    normals: mesh.normals.as_ref().map(|ns| {
+                        ns.iter()
+                            .map(|&n| transform_normal(&inv, n).normalize_or_zero())
+                            .collect()
+                    }),
+                    tangents: mesh.tangents.as_ref().map(|ts| {
+                        ts.iter()
+                            .map(|t| {
+                                let v = m.transform_vector3(t.truncate()).normalize_or_zero();
+                                // Mirroring flips the bitangent's handedness.
+                                Vec4::new(v.x, v.y, v.z, if flip { -t.w } else { t.w })
+                            })
+                            .collect()
+                    }),
+                    uv0: mesh.uv0.clone(),
+                    uv1: mesh.uv1.clone(),
+                    colors: mesh.colors.clone(),
+                    material,
+                };
+                let mesh_index = g.meshes.len() as u32;
+                for tri in &mesh.indices {
+                    // A negative-determinant transform mirrors the mesh: swap two vertices so the
+                    // counter-clockwise (front) winding is preserved.
+                    let tri = if flip { [tri[0], tri[2], tri[1]] } else { *tri };
+                    let verts = TriangleVerts {
+                        p0: positions[tri[0] as usize],
+                        p1: positions[tri[1] as usize],
+                        p2: positions[tri[2] as usize],
+                    };
+                    g.tri_mesh.push((mesh_index, attrs.indices.len() as u32));
+                    g.tri_light.push(NO_LIGHT);
+                    g.triangles.push(verts);
+                    attrs.indices.push(tri);
+                }
+                g.meshes.push(attrs);
+            }
+            Shape::Sphere { center, radius } => {
+                let lin = Mat3::from_mat4(m);
+                let sx = lin.x_axis.length();
+                let (sy, sz) = (lin.y_axis.length(), lin.z_axis.length());
+                let similar = (sx - sy).abs() <= 1e-4 * sx && (sx - sz).abs() <= 1e-4 * sx;
+                let orthogonal = lin.x_axis.dot(lin.y_axis).abs() <= 1e-4 * sx * sy
+                    && lin.y_axis.dot(lin.z_axis).abs() <= 1e-4 * sy * sz
+                    && lin.x_axis.dot(lin.z_axis).abs() <= 1e-4 * sx * sz;
+                if !(similar && orthogonal) {
+                    return Err(SceneError::invalid(
+                        label,
+                        format!(
+                            "sphere '{}' has a non-uniform scale or shear, which is not supported",
+                            obj.name
+                        ),
+                    ));
+                }
+                g.spheres.push(AnalyticPrim {
+                    shape: Sphere {
+                        center: m.transform_point3(*center),
+                        radius: radius * sx,
+                    },
+                    material,
+                    light: NO_LIGHT,
+                });
+            }
+            Shape::Cuboid { min, max } => {
+                if Mat3::from_mat4(m).determinant() == 0.0 {
+                    warnings.push(format!(
+                        "box '{}' has a singular transform and was skipped",
+                        obj.name
+                    ));
+                    continue;
+                }
+                g.cuboids.push(AnalyticPrim {
+                    shape: Cuboid::new(Bounds3::new(*min, *max), m),
+                    material,
+                    light: NO_LIGHT,
+                });
+            }
+            Shape::Quad { corner, e1, e2 } => {
+                let c = m.transform_point3(*corner);
+                let (mut a, mut b) = (m.transform_vector3(*e1), m.transform_vector3(*e2));
+                if Mat3::from_mat4(m).determinant() < 0.0 {
+                    std::mem::swap(&mut a, &mut b);
+                }
+                g.quads.push(AnalyticPrim {
+                    shape: Quad::new(c, a, b),
+                    material,
+                    light: NO_LIGHT,
+                });
+            }
+        }
+    }
+    Ok(g)
+}
+
+/// Step 2: an area light for every primitive with an emissive material and non-zero area.
+fn area_lights(g: &mut GeometryStore, materials: &[Material]) -> Vec<Light> {
+    let mut lights = Vec::new();
+    for prim in g.all_prims() {
+        let material = g.material(prim);
+        if materials[material as usize].is_emissive() && g.area(prim) > 0.0 {
+            g.set_light(prim, lights.len() as u32);
+            lights.push(Light::Area { prim, material });
+        }
+    }
+    lights
+}
+
+/// Step 3: the scene's own lights (point, spot, directional, ambient, environment maps, whose
+/// relative paths are relative to the scene file).
+fn scene_lights(scene: &Scene, label: &str) -> Result<Vec<Light>, SceneError> {
+    let mut lights = Vec::new();
+    for l in &scene.lights {
+        match l {
+            LightDesc::Point {
+                position,
+                intensity,
+                ..
+            } => lights.push(Light::Point {
+                position: *position,
+                intensity: *intensity,
+            }),
+            LightDesc::Spot {
+                position,
+                direction,
+                intensity,
+                inner_angle,
+                outer_angle,
+                ..
+            } => lights.push(Light::Spot {
+                position: *position,
+                direction: direction.normalize(),
+                intensity: *intensity,
+                cos_inner: inner_angle.cos(),
+                cos_outer: outer_angle.cos(),
+            }),
+            LightDesc::Directional {
+                direction,
+                irradiance,
+                ..
+            } => lights.push(Light::Directional {
+                direction: direction.normalize(),
+                irradiance: *irradiance,
+            }),
+            LightDesc::Ambient { radiance, .. } => lights.push(Light::Uniform {
+                radiance: *radiance,
+            }),
+            LightDesc::Environment {
+                name,
+                path,
+                scale,
+                transform,
+            } => {
+                // Relative paths are relative to the scene file.
+                let path = match (&scene.source, path.is_relative()) {
+                    (Some(src), true) => src.parent().unwrap_or(Path::new(".")).join(path),
+                    _ => path.clone(),
+                };
+                let map =
+                    EnvMap::load(&path, *scale, Mat3::from_mat4(*transform)).map_err(|e| {
+                        SceneError::invalid(
+                            label,
+                            format!("environment light '{name}' ({}): {e}", path.display()),
+                        )
+                    })?;
+                lights.push(Light::Environment { map: Arc::new(map) });
+            }
+        }
+    }
+    Ok(lights)
+}
+
+/// Step 4: the lights the options add: `--env`, and a white environment for a scene with none
+/// (unless `--no-default-light`).
+fn add_option_lights(
+    lights: &mut Vec<Light>,
+    options: &WorldOptions,
+    warnings: &mut Vec<String>,
+) -> Result<(), SceneError> {
+    if let Some(path) = &options.env {
+        let map = EnvMap::load(path, Vec3::ONE, Mat3::IDENTITY)
+            .map_err(|e| SceneError::invalid(path.display(), e))?;
+        lights.push(Light::Environment { map: Arc::new(map) });
+    }
+    if lights.is_empty() {
+        if options.no_default_light {
+            warnings.push(
+                "the scene has no lights and --no-default-light is set: it renders black".into(),
+            );
+        } else {
+            warnings.push(
+                "the scene has no lights: lighting it with a uniform white environment (radiance 1); \
+                 --no-default-light renders it unlit"
+                    .into(),
+            );
+            lights.push(Light::Uniform {
+                radiance: Vec3::ONE,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Step 6 (after the accelerator): the camera `--camera` names, or the scene's first, or one
+/// framing the scene's bounds from the front.
+fn choose_camera(
+    scene: &Scene,
+    options: &WorldOptions,
+    bounds: Bounds3,
+    accel: &Accel,
+    g: &GeometryStore,
+    label: &str,
+) -> Result<CameraDesc, SceneError> {
+    let mut camera = select_camera(scene, options, bounds, label)?;
+    if scene.cameras.is_empty() && options.camera.is_none() {
+        camera = face_the_front(camera, bounds, accel, g);
+    }
+    Ok(camera)
 }
 
 /// The camera named by `--camera` (name or index), else the scene's first, else one that frames
@@ -558,3 +614,6 @@ fn cutout_hash(ray: &Ray, t: f32) -> f32 {
     let (o, d) = (ray.o, ray.d);
     crate::sampling::rng::hash_floats_to_unit(&[o.x, o.y, o.z, d.x, d.y, d.z, t])
 }
+
+/// The queries integrators ask of the world (lights, BSDFs, emission), in their own file.
+mod queries;

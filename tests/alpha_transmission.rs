@@ -61,7 +61,7 @@ fn render_sheet(sheet: Material, textures: Vec<Texture>, spp: u32, max_depth: u3
         no_default_light: true,
         ..Default::default()
     };
-    let world = World::build(&scene, &options).unwrap();
+    let world = World::build(scene.clone(), &options).unwrap();
     let mut settings = RenderSettings {
         width: SIZE,
         height: SIZE,
@@ -215,7 +215,7 @@ fn shadow_rays_see_through_blend_holes() {
             )],
             ..Default::default()
         };
-        let world = World::build(&scene, &WorldOptions::default()).unwrap();
+        let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
         let mut settings = RenderSettings {
             width: SIZE,
             height: SIZE,

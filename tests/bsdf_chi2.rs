@@ -6,6 +6,7 @@
 //! tests. The Dirac lobes get a binomial test of their discrete choice instead.
 
 use trayecto::material::Bsdf;
+use trayecto::material::bxdf::Diffuse;
 use trayecto::material::microfacet::fresnel_dielectric;
 use trayecto::math::{PI, Vec2, Vec3};
 use trayecto::sampling::rng::Pcg32;
@@ -238,9 +239,9 @@ fn check_bsdf(name: &str, bsdf: Bsdf, wo: Vec3) -> f64 {
 
 #[test]
 fn diffuse_sampling_matches_pdf() {
-    let b = Bsdf::Diffuse {
+    let b = Bsdf::Diffuse(Diffuse {
         albedo: Vec3::splat(0.7),
-    };
+    });
     for deg in [0.0, 60.0] {
         let i = check_bsdf(&format!("diffuse {deg}"), b, wo_at(deg));
         assert!((i - 1.0).abs() < 2e-3, "diffuse pdf integrates to {i}");
@@ -764,7 +765,7 @@ fn check_light_sampling(
 #[test]
 fn area_light_sampling_and_selection_by_power_match_pdf() {
     let (scene, lights, point_power) = light_test_scene();
-    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
     // Two triangles, two quads, a box and the point light: 6 lights.
     assert_eq!(world.lights.lights.len(), 6);
     for p in [Vec3::ZERO, Vec3::new(0.4, 0.3, 0.2)] {
@@ -782,7 +783,7 @@ fn sphere_light_samples_are_uniform_over_the_visible_cap() {
     m.emissive = Vec3::new(3.0, 2.0, 1.0);
     let id = scene.add_material(m);
     scene.add_object("bulb", Shape::Sphere { center, radius }, Mat4::IDENTITY, id);
-    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
     let p = Vec3::new(0.2, -0.1, 0.3);
     let mut hit = plain_hit();
     hit.p = p;
@@ -790,10 +791,7 @@ fn sphere_light_samples_are_uniform_over_the_visible_cap() {
     let integral = chi2(
         "sphere light",
         |r| {
-            let s = world.lights.sample(
-                &world.geometry,
-                &world.materials,
-                &world.textures,
+            let s = world.sample_light(
                 &hit,
                 Vec3::Z,
                 r.next_f32(),

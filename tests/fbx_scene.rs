@@ -189,7 +189,7 @@ fn conventions_scene_matches_its_gltf_twin() {
     assert_eq!(glass.ior, 1.4);
     let others = s.materials.iter().filter(|m| m.is_emissive()).count();
     assert_eq!(others, 1, "only the light emits");
-    // The sphere has smooth per-vertex normals and UVs; the box geometry matches SPEC §3.
+    // The sphere has smooth per-vertex normals and UVs; the box geometry matches docs/DESIGN.md §3.
     let ball = s.objects.iter().find(|o| o.name == "glass_ball").unwrap();
     let Shape::Mesh(b) = ball.shape else { panic!() };
     assert!(s.meshes[b].normals.is_some() && s.meshes[b].uv0.is_some());
@@ -232,7 +232,7 @@ fn lights_scene_loads_ambient_and_point_lights_in_radiometric_units() {
     assert!(close(*radiance, vec3(&gl_amb["color"]), 1e-7));
     assert!(close(*radiance, Vec3::splat(0.05), 1e-7));
     // `key_point`: Blender energy 20 W; FBX Intensity 2000 (watts × 100) → 20/(4π) W/sr; the glTF
-    // twin's 1087.03 cd / 683 lm/W is the same radiant intensity (SPEC §4).
+    // twin's 1087.03 cd / 683 lm/W is the same radiant intensity (docs/DESIGN.md §4).
     let key = s.lights.iter().find(|l| l.name() == "key_point").unwrap();
     let LightDesc::Point {
         position,

@@ -1,4 +1,4 @@
-//! SPEC §3 / issue 7: `cornell_seed_conventions.fbx` and its `.glb` twin (exported from the same
+//! docs/DESIGN.md §3 / issue 7: `cornell_seed_conventions.fbx` and its `.glb` twin (exported from the same
 //! Blender scene) render the same image for the same seed: the mean of each channel within 1%
 //! and the per-pixel difference within the noise of the estimator.
 
@@ -13,7 +13,7 @@ use trayecto::world::{World, WorldOptions};
 
 fn render_file(path: &str, seed: u64) -> Image {
     let s = scene::load(path).unwrap_or_else(|e| panic!("{e}"));
-    let world = World::build(&s, &WorldOptions::default()).unwrap();
+    let world = World::build(s.clone(), &WorldOptions::default()).unwrap();
     let settings = RenderSettings {
         width: 64,
         height: 64,

@@ -12,6 +12,7 @@
 //! and the render must match it.
 
 use std::sync::atomic::AtomicBool;
+use trayecto::material::bxdf::MetallicRoughness;
 use trayecto::material::{Bsdf, Material, MaterialModel};
 use trayecto::math::{Mat4, PI, Vec3};
 use trayecto::render::{NoObserver, RenderSettings, render};
@@ -49,7 +50,7 @@ fn furnace_mean(material: Material, spp: u32) -> f32 {
         )],
         ..Default::default()
     };
-    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
     let settings = RenderSettings {
         width: 32,
         height: 32,
@@ -125,13 +126,13 @@ fn metals_lose_exactly_their_single_scattering_deficit() {
     let hit_material = |r: f32| {
         let m = metal(r);
         // Evaluate the BSDF the renderer builds (no textures, so the hit does not matter).
-        Bsdf::MetallicRoughness {
+        Bsdf::MetallicRoughness(MetallicRoughness {
             base: Vec3::ONE,
             metallic: 1.0,
             ggx: trayecto::material::microfacet::Ggx::new(r * r),
             f0_dielectric: Vec3::splat(0.04),
             specular: m.specular,
-        }
+        })
     };
     for (roughness, spp) in [(0.0f32, 16u32), (0.5, 32), (1.0, 32)] {
         let e_avg = if roughness == 0.0 {

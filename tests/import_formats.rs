@@ -11,7 +11,7 @@ use trayecto::scene::Scene;
 use trayecto::world::{World, WorldOptions};
 
 fn render_small(scene: &Scene, size: u32, spp: u32) -> Vec<Vec3> {
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
     let settings = RenderSettings {
         width: size,
         height: size,
@@ -70,7 +70,7 @@ fn obj_cornell_box_is_lit_by_its_own_light() {
         "{:?}",
         scene.warnings
     );
-    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
     // Lit by its own light: no default environment was added.
     assert!(
         world.area_light_count() >= 2,
@@ -284,7 +284,7 @@ fn toml_errors_name_the_file_and_the_problem() {
     }
 }
 
-/// SPEC: a glTF and a TOML description of the same scene produce the same image for the same
+/// docs/DESIGN.md §8: a glTF and a TOML description of the same scene produce the same image for the same
 /// seed. The two differ only in how the camera matrix is computed (a node transform vs a
 /// look-at), i.e. by rounding, so nearly every pixel must agree to 1e-4 relative.
 #[test]
@@ -409,7 +409,7 @@ scale = 2.0
     assert!(close(top.transform_vector3(-Vec3::Z), Vec3::X));
     for sel in ["top", "1"] {
         let world = World::build(
-            &scene,
+            scene.clone(),
             &WorldOptions {
                 camera: Some(sel.into()),
                 no_default_light: true,

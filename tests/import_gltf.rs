@@ -66,7 +66,7 @@ fn load_str(json: &str, dir: &Path) -> Result<Scene, trayecto::scene::SceneError
 
 fn render_small(scene: &Scene, size: u32, spp: u32, no_default_light: bool) -> Vec<Vec3> {
     let world = World::build(
-        scene,
+        scene.clone(),
         &WorldOptions {
             no_default_light,
             ..Default::default()
@@ -95,7 +95,7 @@ fn node_transforms_compose_parent_then_child() {
  "scenes":[{{"nodes":[0]}}],"scene":0"#
     );
     let scene = load_str(&triangle_gltf(TRI, [0, 1, 2], &extra), Path::new(".")).unwrap();
-    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
     let expected = Mat4::from_translation(Vec3::new(1.0, 2.0, 3.0))
         * Mat4::from_scale_rotation_translation(
             Vec3::splat(2.0),
@@ -117,7 +117,7 @@ fn negative_scale_keeps_the_front_face() {
         r#"{PLAIN_MATERIAL},"nodes":[{{"mesh":0,"scale":[-1,1,1]}}],"scenes":[{{"nodes":[0]}}]"#
     );
     let scene = load_str(&triangle_gltf(TRI, [0, 1, 2], &extra), Path::new(".")).unwrap();
-    let world = World::build(&scene, &WorldOptions::default()).unwrap();
+    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
     let t = &world.geometry.triangles[0];
     let n = (t.p1 - t.p0).cross(t.p2 - t.p0);
     // The triangle faces +z; its mirror image in x still faces +z once the winding is flipped.
@@ -290,7 +290,7 @@ fn lights_punctual_lamp_is_lit_by_its_own_lights() {
         .filter(|l| matches!(l, LightDesc::Point { .. } | LightDesc::Spot { .. }))
         .collect();
     assert_eq!(punctual.len(), 5, "{:?}", scene.lights);
-    // Candela / 683 = W/sr (SPEC §4): no light is brighter than the file's largest intensity.
+    // Candela / 683 = W/sr (docs/DESIGN.md §4): no light is brighter than the file's largest intensity.
     for l in &punctual {
         if let LightDesc::Point { intensity, .. } | LightDesc::Spot { intensity, .. } = l {
             assert!(intensity.max_element() > 0.0 && intensity.max_element() < 1000.0 / 683.0);

@@ -17,7 +17,7 @@ use trayecto::world::{World, WorldOptions};
 
 fn world(scene: &Scene, accel: AccelKind) -> World {
     World::build(
-        scene,
+        scene.clone(),
         &WorldOptions {
             accel,
             ..Default::default()

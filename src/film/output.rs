@@ -1,4 +1,4 @@
-//! Image files. The format follows the extension (SPEC §5): `.png` (8-bit sRGB after exposure and
+//! Image files. The format follows the extension (docs/DESIGN.md §5): `.png` (8-bit sRGB after exposure and
 //! tone mapping), `.ppm` (plain-text P3, as the thesis wrote, §5.1.2), `.exr` (linear 32-bit float,
 //! the raw radiance) and `.hdr` (Radiance RGBE, linear). EXR and HDR ignore exposure and tone
 //! mapping: they hold the estimate itself.

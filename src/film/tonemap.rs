@@ -1,4 +1,4 @@
-//! Tone mapping from linear radiance (after exposure) to display values in [0, 1] (SPEC §5).
+//! Tone mapping from linear radiance (after exposure) to display values in [0, 1] (docs/DESIGN.md §5).
 
 use crate::math::Vec3;
 

@@ -7,6 +7,7 @@ pub mod bounds;
 pub mod cuboid;
 pub mod primitive;
 pub mod quad;
+pub mod sample;
 pub mod sphere;
 pub mod triangle;
 

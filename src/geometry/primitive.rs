@@ -257,11 +257,12 @@ impl GeometryStore {
         }
     }
 
-    /// Expands an accelerator's closest hit into full shading information.
-    pub fn surface_hit(&self, ray: &Ray, isect: &Intersection) -> SurfaceHit {
-        let i = isect.prim.index();
-        let mut hit = SurfaceHit {
-            t: isect.t,
+    /// A hit on `prim` at ray distance `t` with its material and light index set and every
+    /// geometric attribute at a neutral default, for the caller to fill in.
+    #[inline]
+    pub(crate) fn blank_hit(&self, prim: PrimRef, t: f32) -> SurfaceHit {
+        SurfaceHit {
+            t,
             p: Vec3::ZERO,
             p_error: Vec3::ZERO,
             ng: Vec3::Z,
@@ -270,10 +271,16 @@ impl GeometryStore {
             bitangent_sign: 1.0,
             uv: [Vec2::ZERO; 2],
             color: Vec4::ONE,
-            material: self.material(isect.prim),
-            light: self.light(isect.prim),
-            prim: isect.prim,
-        };
+            material: self.material(prim),
+            light: self.light(prim),
+            prim,
+        }
+    }
+
+    /// Expands an accelerator's closest hit into full shading information.
+    pub fn surface_hit(&self, ray: &Ray, isect: &Intersection) -> SurfaceHit {
+        let i = isect.prim.index();
+        let mut hit = self.blank_hit(isect.prim, isect.t);
         match isect.prim.kind() {
             PrimitiveKind::Triangle => self.triangle_hit(i, isect.u, isect.v, &mut hit),
             PrimitiveKind::Sphere => {
@@ -327,47 +334,6 @@ impl GeometryStore {
             }
         }
         hit
-    }
-
-    /// What light sampling needs of a point on a triangle or quad at (b1, b2): position, error
-    /// bound, geometric normal and texture coordinates (for emissive textures). Skips the shading
-    /// normal, vertex colour and tangent frame that [`GeometryStore::surface_hit`] builds, which
-    /// made a light sample on a UV-mapped mesh cost as much as a full hit (callgrind).
-    #[inline]
-    pub fn emitter_point(&self, prim: PrimRef, b1: f32, b2: f32, hit: &mut SurfaceHit) {
-        let i = prim.index();
-        match prim.kind() {
-            PrimitiveKind::Triangle => {
-                let tri = &self.triangles[i];
-                let (p, err) = tri.point(b1, b2);
-                hit.p = p;
-                hit.p_error = err;
-                hit.ng = tri.unit_normal();
-                hit.ns = hit.ng;
-                let (mesh_i, local) = self.tri_mesh[i];
-                let mesh = &self.meshes[mesh_i as usize];
-                if mesh.uv0.is_some() || mesh.uv1.is_some() {
-                    let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
-                    let b0 = 1.0 - b1 - b2;
-                    let lerp2 = |uv: &[Vec2]| uv[i0] * b0 + uv[i1] * b1 + uv[i2] * b2;
-                    if let Some(uv) = &mesh.uv0 {
-                        hit.uv[0] = lerp2(uv);
-                    }
-                    hit.uv[1] = mesh.uv1.as_deref().map_or(hit.uv[0], lerp2);
-                }
-            }
-            PrimitiveKind::Quad => {
-                let q = &self.quads[i].shape;
-                let (p, err) = q.point(b1, b2);
-                hit.p = p;
-                hit.p_error = err;
-                hit.ng = q.normal();
-                hit.ns = hit.ng;
-                hit.uv = [Vec2::new(b1, b2); 2];
-            }
-            // Spheres and boxes are sampled by their own code in `light`.
-            PrimitiveKind::Sphere | PrimitiveKind::Cuboid => {}
-        }
     }
 
     fn triangle_hit(&self, i: usize, b1: f32, b2: f32, hit: &mut SurfaceHit) {

@@ -12,11 +12,10 @@
 //! Depth counts bounces: `max_depth = 0` shows only emitters seen directly, 1 is direct lighting.
 
 use super::RayStats;
+use super::direct::{Vertex, sample_ld};
 use crate::geometry::Ray;
 use crate::geometry::primitive::{NO_LIGHT, SurfaceHit};
-use crate::material::Bsdf;
-use crate::material::bsdf::emitted;
-use crate::math::{Frame, Vec3};
+use crate::math::Vec3;
 use crate::sampling::SampleStream;
 use crate::sampling::warp::power_heuristic;
 use crate::world::World;
@@ -53,18 +52,6 @@ impl Default for PathSettings {
     }
 }
 
-/// Orients the geometric and shading normals for scattering. Opaque BSDFs see the side the ray
-/// came from (two-sided shading by flipping the normals, SPEC §4); transmissive ones keep the
-/// surface's own orientation so they know whether the ray enters or leaves.
-#[inline]
-pub fn oriented_normals(hit: &SurfaceHit, wo: Vec3, transmissive: bool) -> (Vec3, Vec3) {
-    if !transmissive && hit.ng.dot(wo) < 0.0 {
-        (-hit.ng, -hit.ns)
-    } else {
-        (hit.ng, hit.ns)
-    }
-}
-
 /// Radiance arriving at the camera along `ray`.
 pub fn radiance(
     world: &World,
@@ -75,15 +62,10 @@ pub fn radiance(
 ) -> Vec3 {
     stats.rays += 1;
     let Some(hit) = world.intersect(ray) else {
-        return world.lights.escaped(ray.d.normalize()).0;
+        return world.escaped(ray.d.normalize()).0;
     };
     let wo = -ray.d.normalize();
-    let mut l = emitted(
-        &world.materials[hit.material as usize],
-        &world.textures,
-        &hit,
-        wo,
-    );
+    let mut l = world.emitted(&hit, wo);
     if set.max_depth == 0 {
         return l;
     }
@@ -113,64 +95,22 @@ fn continue_path(
     let mut eta_scale = 1.0f32;
     let mut depth = 0u32;
     loop {
-        let material = &world.materials[hit.material as usize];
-        crate::material::normal_map::apply_normal_map(material, &world.textures, &mut hit);
-        let bsdf = Bsdf::from_material(material, &world.textures, &hit);
-        let (ng, ns) = oriented_normals(&hit, wo, bsdf.is_transmissive());
-        let frame = Frame::from_normal_tangent(ns, hit.tangent);
-        let wo_local = frame.to_local(wo);
-
-        // Next-event estimation: one light sample, shadow-tested.
-        let u_light = if world.lights.lights.len() > 1 {
-            s.next_1d()
-        } else {
-            s.skip(1);
-            0.0
-        };
-        let u_light2 = s.next_2d();
-        if !bsdf.is_specular()
-            && let Some(ls) = world.lights.sample(
-                &world.geometry,
-                &world.materials,
-                &world.textures,
-                &hit,
-                ng,
-                u_light,
-                u_light2,
-            )
-            && (set.nee || ls.delta)
-        {
-            let wi_local = frame.to_local(ls.wi);
-            // Shading and geometric normals must agree on the side of `wi`, or light would leak
-            // through the surface.
-            let consistent = ls.wi.dot(ng) * wi_local.z > 0.0;
-            let f = bsdf.eval(wo_local, wi_local);
-            if consistent && f != Vec3::ZERO {
-                stats.shadow_rays += 1;
-                if !world.occluded(&ls.shadow) {
-                    let weight = if ls.delta || !set.mis {
-                        1.0
-                    } else {
-                        power_heuristic(ls.pmf * ls.pdf, bsdf.pdf(wo_local, wi_local))
-                    };
-                    l += beta * f * wi_local.z.abs() * ls.li * (weight / (ls.pmf * ls.pdf));
-                }
-            }
-        }
+        let v = Vertex::new(world, hit, wo);
+        l += sample_ld(world, &v, beta, s, set, stats);
 
         // BSDF sampling: choose the next direction.
-        let u_lobe = if bsdf.has_one_lobe() {
+        let u_lobe = if v.bsdf.has_one_lobe() {
             s.skip(1);
             0.0
         } else {
             s.next_1d()
         };
         let u_dir = s.next_2d();
-        let Some(bs) = bsdf.sample(wo_local, u_lobe, u_dir) else {
+        let Some(bs) = v.bsdf.sample(v.wo_local, u_lobe, u_dir) else {
             break;
         };
-        let wi = frame.to_world(bs.wi);
-        if wi.dot(ng) * bs.wi.z <= 0.0 {
+        let wi = v.frame.to_world(bs.wi);
+        if wi.dot(v.ng) * bs.wi.z <= 0.0 {
             break;
         }
         beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
@@ -180,10 +120,10 @@ fn continue_path(
         }
         depth += 1;
 
-        let ray = Ray::spawn(hit.p, hit.p_error, ng, wi);
+        let ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
         stats.rays += 1;
         let Some(next) = world.intersect(&ray) else {
-            let (le, pdf_light) = world.lights.escaped(wi);
+            let (le, pdf_light) = world.escaped(wi);
             if le != Vec3::ZERO {
                 let weight = if bs.specular || !set.nee {
                     1.0
@@ -197,15 +137,14 @@ fn continue_path(
             break;
         };
         let wo_next = -wi;
-        let next_material = &world.materials[next.material as usize];
-        let le = emitted(next_material, &world.textures, &next, wo_next);
+        let le = world.emitted(&next, wo_next);
         if le != Vec3::ZERO {
             let weight = if bs.specular || !set.nee || next.light == NO_LIGHT {
                 1.0
             } else if !set.mis {
                 0.0
             } else {
-                let pdf_light = world.lights.pdf_area(next.light, hit.p, &next);
+                let pdf_light = world.emitter_pdf(v.hit.p, &next);
                 power_heuristic(bs.pdf, pdf_light)
             };
             l += beta * le * weight;

@@ -1,7 +1,7 @@
 //! The thesis's first stage: a ray caster (§5.1.3–5.1.12). One ray per camera sample finds the
 //! first hit, which is shown as one of several views (`--aov`):
 //!
-//! * `shaded` (default): emission plus the local shading of [`super::whitted::shade_local`] with the
+//! * `shaded` (default): emission plus the local shading of [`super::direct::shade_local`] with the
 //!   chosen `--shading` model, ambient term and shadow rays, but no reflection or refraction;
 //! * `normals`: the world-space shading normal of the front face mapped to colours, `(n + 1) / 2`;
 //! * `barycentric`: the triangle's barycentric coordinates as colour, `(r, g, b) = (u, v, w)` with
@@ -14,9 +14,9 @@
 //! Rays that miss show the background lights in `shaded` and black in every other view.
 
 use super::RayStats;
-use super::whitted::{ShadingModel, shade_local};
+use super::direct::shade_local;
+use super::whitted::ShadingModel;
 use crate::geometry::Ray;
-use crate::material::bsdf::{base_color, emitted};
 use crate::math::Vec3;
 use crate::sampling::SampleStream;
 use crate::world::World;
@@ -75,22 +75,17 @@ pub fn radiance(
     stats.rays += 1;
     let Some(isect) = world.intersect_raw(ray) else {
         return match aov {
-            Aov::Shaded => world.lights.escaped(ray.d.normalize()).0,
+            Aov::Shaded => world.escaped(ray.d.normalize()).0,
             _ => Vec3::ZERO,
         };
     };
-    let mut hit = world.geometry.surface_hit(ray, &isect);
+    let mut hit = world.surface_hit(ray, &isect);
     // Shading and the `normals` view use the normal-mapped shading normal, as the path tracer.
-    crate::material::normal_map::apply_normal_map(
-        &world.materials[hit.material as usize],
-        &world.textures,
-        &mut hit,
-    );
+    world.apply_normal_map(&mut hit);
     match aov {
         Aov::Shaded => {
             let wo = -ray.d.normalize();
-            let m = &world.materials[hit.material as usize];
-            emitted(m, &world.textures, &hit, wo) + shade_local(world, &hit, wo, model, s, stats)
+            world.emitted(&hit, wo) + shade_local(world, &hit, wo, model, s, stats)
         }
         Aov::Normals => (hit.ns + Vec3::ONE) * 0.5,
         Aov::Barycentric => {
@@ -103,11 +98,7 @@ pub fn radiance(
             Vec3::new(u, v, 1.0 - u - v)
         }
         Aov::Depth => Vec3::splat(isect.t * ray.d.length()),
-        Aov::Albedo => base_color(
-            &world.materials[hit.material as usize],
-            &world.textures,
-            &hit,
-        ),
+        Aov::Albedo => world.base_color(&hit),
         Aov::Uv => Vec3::new(hit.uv[0].x, hit.uv[0].y, 0.0),
     }
 }

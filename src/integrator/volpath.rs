@@ -32,11 +32,11 @@
 //! under MIS) as the surface path tracer uses β·η². `secondary` splitting is not used here.
 
 use super::RayStats;
-use super::path::{PathSettings, oriented_normals};
+use super::direct::Vertex;
+use super::path::PathSettings;
 use crate::geometry::Ray;
 use crate::geometry::primitive::{NO_LIGHT, SurfaceHit};
 use crate::material::Bsdf;
-use crate::material::bsdf::emitted;
 use crate::math::{Frame, Vec3};
 use crate::medium::{HenyeyGreenstein, Medium, TrackStep};
 use crate::sampling::SampleStream;
@@ -220,8 +220,8 @@ pub fn radiance(
         }
 
         // --- Escaped: lights at infinity.
-        let Some(mut hit) = hit else {
-            let (le, pdf_light) = world.lights.escaped(ray.d);
+        let Some(hit) = hit else {
+            let (le, pdf_light) = world.escaped(ray.d);
             if le != Vec3::ZERO {
                 l += emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set);
             }
@@ -230,14 +230,9 @@ pub fn radiance(
 
         // --- The surface.
         let wo = -ray.d;
-        let material = &world.materials[hit.material as usize];
-        let le = emitted(material, &world.textures, &hit, wo);
+        let le = world.emitted(&hit, wo);
         if le != Vec3::ZERO {
-            let pdf_light = if hit.light == NO_LIGHT {
-                0.0
-            } else {
-                world.lights.pdf_area(hit.light, prev_p, &hit)
-            };
+            let pdf_light = world.emitter_pdf(prev_p, &hit);
             l += emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set);
         }
         if media.is_passthrough(hit.material) {
@@ -255,11 +250,8 @@ pub fn radiance(
             return l;
         }
         depth += 1;
-        crate::material::normal_map::apply_normal_map(material, &world.textures, &mut hit);
-        let bsdf = Bsdf::from_material(material, &world.textures, &hit);
-        let (ng, ns) = oriented_normals(&hit, wo, bsdf.is_transmissive());
-        let frame = Frame::from_normal_tangent(ns, hit.tangent);
-        let wo_local = frame.to_local(wo);
+        let v = Vertex::new(world, hit, wo);
+        let (bsdf, ng, frame, wo_local, hit) = (&v.bsdf, v.ng, &v.frame, v.wo_local, &v.hit);
 
         if !bsdf.is_specular() {
             l += sample_ld(
@@ -268,8 +260,8 @@ pub fn radiance(
                 hit.p_error,
                 ng,
                 &Scatterer::Surface {
-                    bsdf: &bsdf,
-                    frame: &frame,
+                    bsdf,
+                    frame,
                     wo_local,
                     ng,
                     material: hit.material,
@@ -401,15 +393,7 @@ fn sample_ld(
         light: NO_LIGHT,
         prim: crate::geometry::PrimRef(0),
     };
-    let Some(ls) = world.lights.sample(
-        &world.geometry,
-        &world.materials,
-        &world.textures,
-        &here,
-        n_offset,
-        u_light,
-        u2,
-    ) else {
+    let Some(ls) = world.sample_light(&here, n_offset, u_light, u2) else {
         return Vec3::ZERO;
     };
     if !(set.nee || ls.delta) {

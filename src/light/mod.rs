@@ -4,7 +4,7 @@
 
 use crate::geometry::primitive::{PrimRef, PrimitiveKind, SurfaceHit};
 use crate::geometry::{Bounds3, GeometryStore, Ray};
-use crate::material::bsdf::emitted;
+use crate::material::eval::emitted;
 use crate::material::{Material, Texture};
 use crate::math::{PI, Vec2, Vec3, luminance};
 use crate::sampling::{Distribution1D, warp};
@@ -63,6 +63,78 @@ impl Light {
             Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. }
         )
     }
+
+    /// A light sample of a delta light (point, spot, directional) seen from `p` (error bound
+    /// `p_error`, shadow rays offset along `n_offset`): the direction to it, its intensity / d²
+    /// (with the spot falloff) or irradiance, pdf 1 and the shadow ray. `pmf` is 1, for the
+    /// caller to set. `None` for other lights and for points the light does not reach.
+    pub fn sample_delta(&self, p: Vec3, p_error: Vec3, n_offset: Vec3) -> Option<LightSample> {
+        match self {
+            Light::Point {
+                position,
+                intensity,
+            } => {
+                let (wi, d2) = toward(*position, p)?;
+                Some(LightSample {
+                    wi,
+                    li: *intensity / d2,
+                    pdf: 1.0,
+                    pmf: 1.0,
+                    delta: true,
+                    shadow: Ray::spawn_to(p, p_error, n_offset, *position, Vec3::ZERO, wi),
+                })
+            }
+            Light::Spot {
+                position,
+                direction,
+                intensity,
+                cos_inner,
+                cos_outer,
+            } => {
+                let (wi, d2) = toward(*position, p)?;
+                let falloff = spot_falloff(direction.dot(-wi), *cos_inner, *cos_outer);
+                if falloff <= 0.0 {
+                    return None;
+                }
+                Some(LightSample {
+                    wi,
+                    li: *intensity * (falloff / d2),
+                    pdf: 1.0,
+                    pmf: 1.0,
+                    delta: true,
+                    shadow: Ray::spawn_to(p, p_error, n_offset, *position, Vec3::ZERO, wi),
+                })
+            }
+            Light::Directional {
+                direction,
+                irradiance,
+            } => {
+                let wi = -*direction;
+                let mut shadow = Ray::spawn(p, p_error, n_offset, wi);
+                shadow.t_max = f32::INFINITY;
+                Some(LightSample {
+                    wi,
+                    li: *irradiance,
+                    pdf: 1.0,
+                    pmf: 1.0,
+                    delta: true,
+                    shadow,
+                })
+            }
+            Light::Area { .. } | Light::Uniform { .. } | Light::Environment { .. } => None,
+        }
+    }
+}
+
+/// Unit direction from `p` to `position` and the squared distance; `None` if they coincide.
+#[inline]
+fn toward(position: Vec3, p: Vec3) -> Option<(Vec3, f32)> {
+    let to = position - p;
+    let d2 = to.length_squared();
+    if !(d2 > 0.0) {
+        return None;
+    }
+    Some((to / d2.sqrt(), d2))
 }
 
 /// A sampled light point as seen from a shading point.
@@ -117,69 +189,6 @@ pub struct LightSet {
     pub scene_radius: f32,
 }
 
-/// Point on an area light with its shading attributes (for the emitted radiance).
-fn sample_area_point(geometry: &GeometryStore, prim: PrimRef, u: Vec2) -> SurfaceHit {
-    let i = prim.index();
-    let mut hit = SurfaceHit {
-        t: 0.0,
-        p: Vec3::ZERO,
-        p_error: Vec3::ZERO,
-        ng: Vec3::Z,
-        ns: Vec3::Z,
-        tangent: Vec3::X,
-        bitangent_sign: 1.0,
-        uv: [Vec2::ZERO; 2],
-        color: crate::math::Vec4::ONE,
-        material: geometry.material(prim),
-        light: geometry.light(prim),
-        prim,
-    };
-    match prim.kind() {
-        PrimitiveKind::Triangle => {
-            let (b1, b2) = warp::uniform_triangle(u);
-            geometry.emitter_point(prim, b1, b2, &mut hit);
-        }
-        PrimitiveKind::Quad => geometry.emitter_point(prim, u.x, u.y, &mut hit),
-        PrimitiveKind::Sphere => {
-            let s = &geometry.spheres[i].shape;
-            let n = warp::uniform_sphere(u);
-            let local = n * s.radius;
-            hit.p = s.center + local;
-            hit.p_error =
-                local.abs() * crate::math::gamma(5) + s.center.abs() * crate::math::gamma(1);
-            hit.ng = n;
-            hit.ns = n;
-            let (su, sv) = s.uv(n);
-            hit.uv = [Vec2::new(su, sv); 2];
-        }
-        PrimitiveKind::Cuboid => {
-            // Pick a face in proportion to area, reusing u.x rescaled.
-            let faces = geometry.cuboids[i].shape.faces();
-            let areas = faces.map(|f| f.area());
-            let total: f32 = areas.iter().sum();
-            let mut target = u.x * total;
-            let mut k = 0;
-            while k < 5 && target >= areas[k] {
-                target -= areas[k];
-                k += 1;
-            }
-            let ux = if areas[k] > 0.0 {
-                (target / areas[k]).clamp(0.0, 1.0)
-            } else {
-                0.5
-            };
-            let f = &faces[k];
-            let (p, err) = f.point(ux, u.y);
-            hit.p = p;
-            hit.p_error = err;
-            hit.ng = f.normal();
-            hit.ns = hit.ng;
-            hit.uv = [Vec2::new(ux, u.y); 2];
-        }
-    }
-    hit
-}
-
 /// [`LightSet::sample`] on a flat emitter of constant radiance: the same point, pdf and shadow ray
 /// as the general path (the same arithmetic, so images do not change), without building a
 /// [`SurfaceHit`] for the light point. `pmf` is left at 1 for the caller to set.
@@ -193,16 +202,8 @@ fn sample_flat(
     n_offset: Vec3,
     u: Vec2,
 ) -> Option<LightSample> {
-    let i = prim.index();
-    let (lp, lp_error) = match prim.kind() {
-        PrimitiveKind::Quad => geometry.quads[i].shape.point(u.x, u.y),
-        PrimitiveKind::Triangle => {
-            let (b1, b2) = warp::uniform_triangle(u);
-            geometry.triangles[i].point(b1, b2)
-        }
-        // `area_light_info` makes flat entries only for quads and triangles.
-        PrimitiveKind::Sphere | PrimitiveKind::Cuboid => return None,
-    };
+    // `area_light_info` makes flat entries only for quads and triangles.
+    let (lp, lp_error) = geometry.sample_flat_position(prim, u)?;
     let to = lp - hit.p;
     let d2 = to.length_squared();
     if !(d2 > 0.0) {
@@ -238,7 +239,7 @@ fn sample_area_general(
     n_offset: Vec3,
     u: Vec2,
 ) -> Option<LightSample> {
-    let lp = sample_area_point(geometry, prim, u);
+    let lp = geometry.sample_point(prim, u);
     let to = lp.p - hit.p;
     let d2 = to.length_squared();
     if !(d2 > 0.0) {
@@ -267,7 +268,7 @@ fn sample_area_general(
 fn area_light_info(geometry: &GeometryStore, prim: PrimRef, material: &Material) -> AreaLightInfo {
     let normal = match prim.kind() {
         PrimitiveKind::Quad => Some(geometry.quads[prim.index()].shape.normal()),
-        // The same normal `GeometryStore::emitter_point` gives the light point.
+        // The same normal `GeometryStore::sample_point` gives the light point.
         PrimitiveKind::Triangle => Some(geometry.triangles[prim.index()].unit_normal()),
         PrimitiveKind::Sphere | PrimitiveKind::Cuboid => None,
     };
@@ -419,66 +420,9 @@ impl LightSet {
                 };
                 sample.map(|ls| LightSample { pmf, ..ls })
             }
-            Light::Point {
-                position,
-                intensity,
-            } => {
-                let to = *position - p;
-                let d2 = to.length_squared();
-                if !(d2 > 0.0) {
-                    return None;
-                }
-                let wi = to / d2.sqrt();
-                Some(LightSample {
-                    wi,
-                    li: *intensity / d2,
-                    pdf: 1.0,
-                    pmf,
-                    delta: true,
-                    shadow: Ray::spawn_to(p, hit.p_error, n_offset, *position, Vec3::ZERO, wi),
-                })
-            }
-            Light::Spot {
-                position,
-                direction,
-                intensity,
-                cos_inner,
-                cos_outer,
-            } => {
-                let to = *position - p;
-                let d2 = to.length_squared();
-                if !(d2 > 0.0) {
-                    return None;
-                }
-                let wi = to / d2.sqrt();
-                let falloff = spot_falloff(direction.dot(-wi), *cos_inner, *cos_outer);
-                if falloff <= 0.0 {
-                    return None;
-                }
-                Some(LightSample {
-                    wi,
-                    li: *intensity * (falloff / d2),
-                    pdf: 1.0,
-                    pmf,
-                    delta: true,
-                    shadow: Ray::spawn_to(p, hit.p_error, n_offset, *position, Vec3::ZERO, wi),
-                })
-            }
-            Light::Directional {
-                direction,
-                irradiance,
-            } => {
-                let wi = -*direction;
-                let mut shadow = Ray::spawn(p, hit.p_error, n_offset, wi);
-                shadow.t_max = f32::INFINITY;
-                Some(LightSample {
-                    wi,
-                    li: *irradiance,
-                    pdf: 1.0,
-                    pmf,
-                    delta: true,
-                    shadow,
-                })
+            Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. } => {
+                let ls = self.lights[index].sample_delta(p, hit.p_error, n_offset)?;
+                Some(LightSample { pmf, ..ls })
             }
             Light::Uniform { radiance } => {
                 let wi = warp::uniform_sphere(u);

@@ -1,8 +1,13 @@
 //! Materials and textures: the surface description loaders produce (glTF metallic-roughness
-//! parameters plus the thesis's extra models) and, in [`bsdf`], the scattering functions built from
-//! it at each hit.
+//! parameters plus the thesis's extra models). [`eval`] evaluates a material at a hit (textures,
+//! opacity, emission, the [`Bsdf`]); [`bsdf`] dispatches to the scattering functions of [`bxdf`],
+//! one file per variant; [`local_shading`] holds the thesis's direct-lighting BRDFs of the raycast
+//! and Whitted modes.
 
 pub mod bsdf;
+pub mod bxdf;
+pub mod eval;
+pub mod local_shading;
 pub mod microfacet;
 pub mod normal_map;
 pub mod texture;
@@ -46,7 +51,7 @@ pub struct PhongParams {
     pub shininess: f32,
 }
 
-/// A material, in the glTF metallic-roughness vocabulary (SPEC §3–4). Colour factors are linear RGB.
+/// A material, in the glTF metallic-roughness vocabulary (docs/DESIGN.md §3–4). Colour factors are linear RGB.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     pub name: String,

@@ -5,7 +5,7 @@
 
 use super::Material;
 use super::Texture;
-use super::bsdf::sample_texture;
+use super::eval::sample_texture;
 use crate::geometry::SurfaceHit;
 use crate::math::Vec3;
 

@@ -49,45 +49,48 @@ impl WorldMedia {
     }
 }
 
-/// Gives every object with a medium interface its own material index (a copy of its material)
-/// and returns the materials, each object's material index and the compiled media.
-pub fn assign(scene: &Scene) -> Result<(Vec<Material>, Vec<u32>, WorldMedia), GridError> {
-    let mut materials = scene.materials.clone();
-    let mut interfaces: Vec<Option<MediumInterface>> = vec![None; materials.len()];
-    let mut object_material = Vec::with_capacity(scene.objects.len());
+/// Gives every object with a medium interface its own material index (a copy of its material,
+/// appended to `scene.materials`; the object is pointed at it) and compiles the media. Scenes
+/// without interfaces are not changed.
+pub fn assign(scene: &mut Scene) -> Result<WorldMedia, GridError> {
+    let mut interfaces: Vec<Option<MediumInterface>> = vec![None; scene.materials.len()];
     // Objects sharing a material and an interface share the copy.
-    let mut copies: std::collections::HashMap<(usize, MediumInterface), u32> =
+    let mut copies: std::collections::HashMap<(usize, MediumInterface), usize> =
         std::collections::HashMap::new();
-    for o in &scene.objects {
-        let idx = match o.medium {
-            None => o.material as u32,
-            Some(mi) => *copies.entry((o.material, mi)).or_insert_with(|| {
-                materials.push(scene.materials[o.material].clone());
-                interfaces.push(Some(mi));
-                (materials.len() - 1) as u32
-            }),
+    for i in 0..scene.objects.len() {
+        let Some(mi) = scene.objects[i].medium else {
+            continue;
         };
-        object_material.push(idx);
+        let material = scene.objects[i].material;
+        let idx = match copies.get(&(material, mi)) {
+            Some(&idx) => idx,
+            None => {
+                let copy: Material = scene.materials[material].clone();
+                scene.materials.push(copy);
+                interfaces.push(Some(mi));
+                let idx = scene.materials.len() - 1;
+                copies.insert((material, mi), idx);
+                idx
+            }
+        };
+        scene.objects[i].material = idx;
     }
     let media = scene
         .media
         .iter()
         .map(Medium::from_desc)
         .collect::<Result<Vec<_>, _>>()?;
-    let passthrough: Vec<bool> = materials
+    let passthrough: Vec<bool> = scene
+        .materials
         .iter()
         .map(|m| m.model == MaterialModel::Interface)
         .collect();
     let active = !media.is_empty() || passthrough.iter().any(|&p| p);
-    Ok((
-        materials,
-        object_material,
-        WorldMedia {
-            media,
-            interfaces,
-            passthrough,
-            camera_medium: scene.camera_medium,
-            active,
-        },
-    ))
+    Ok(WorldMedia {
+        media,
+        interfaces,
+        passthrough,
+        camera_medium: scene.camera_medium,
+        active,
+    })
 }

@@ -1,5 +1,5 @@
 //! Built-in scenes. `cornell` is geometrically identical to Mitsuba 3's `mitsuba.cornell_box()`
-//! (SPEC §3), so it can be compared with a Mitsuba reference image.
+//! (docs/DESIGN.md §3), so it can be compared with a Mitsuba reference image.
 
 use super::{CameraDesc, Scene, SceneError, Shape};
 use crate::material::Material;

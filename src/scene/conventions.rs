@@ -1,4 +1,4 @@
-//! The thesis's naming conventions (Annex B; SPEC §3), honoured by every loader:
+//! The thesis's naming conventions (Annex B; docs/DESIGN.md §3), honoured by every loader:
 //!
 //! * a material whose name contains `emissive` and has no emission of its own emits its diffuse
 //!   colour × 5 (the thesis's loader);

@@ -1,4 +1,4 @@
-//! glTF 2.0 loader (`.gltf` and `.glb`), SPEC §3.
+//! glTF 2.0 loader (`.gltf` and `.glb`), docs/DESIGN.md §3.
 //!
 //! The `gltf` crate parses and validates the JSON (references between objects are checked there);
 //! everything that touches binary data is done here with checked arithmetic, so a hostile file
@@ -9,7 +9,7 @@
 //! Mapping: nodes are flattened with their world transforms (a negative determinant flips the
 //! winding later, in `World::build`); each mesh primitive becomes one [`Mesh`], shared by every
 //! node that instantiates it; perspective cameras keep their order (the first is the default);
-//! `KHR_lights_punctual` intensities are divided by 683 lm/W (SPEC §4) to give W/sr (point, spot)
+//! `KHR_lights_punctual` intensities are divided by 683 lm/W (docs/DESIGN.md §4) to give W/sr (point, spot)
 //! and W/m² (directional). Every feature the file uses that Trayecto ignores is named in a warning.
 
 use std::collections::{HashMap, HashSet};
@@ -29,7 +29,7 @@ use crate::material::texture::{FilterMode, UvTransform};
 use crate::material::{AlphaMode, Material, MaterialModel, TextureRef, WrapMode};
 use crate::math::{Mat4, Vec2, Vec3, Vec4};
 
-/// Luminous efficacy used to turn photometric glTF light units into radiometric ones (SPEC §4,
+/// Luminous efficacy used to turn photometric glTF light units into radiometric ones (docs/DESIGN.md §4,
 /// Blender's convention).
 pub const LUMENS_PER_WATT: f32 = 683.0;
 
@@ -47,23 +47,6 @@ const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_specular",
     "KHR_texture_transform",
 ];
-
-/// Loads a `.gltf` or `.glb` file.
-pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
-        path: path.display().to_string(),
-        source: e,
-    })?;
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "gltf".into());
-    let mut scene = load_from_bytes(&bytes, dir, &path.display().to_string())?;
-    scene.name = name;
-    scene.source = Some(path.to_path_buf());
-    Ok(scene)
-}
 
 /// Loads a glTF document from memory; external files are looked up in `dir`. `label` names the
 /// file in messages. (Also the fuzzing entry point.)
@@ -427,7 +410,7 @@ impl<'a> Loader<'a> {
                 "occlusion",
             )?;
         }
-        // Emission is radiance: factor × KHR_materials_emissive_strength (SPEC §4).
+        // Emission is radiance: factor × KHR_materials_emissive_strength (docs/DESIGN.md §4).
         let strength = m.emissive_strength().unwrap_or(1.0);
         mat.emissive = Vec3::from(m.emissive_factor()) * strength;
         // The emissive texture only matters when the factor is non-zero (glTF multiplies them).
@@ -929,7 +912,7 @@ impl<'a> Loader<'a> {
                     .into(),
             );
         }
-        // SPEC §4: candela (lm/sr) and lux (lm/m²) / 683 lm/W → W/sr and W/m².
+        // docs/DESIGN.md §4: candela (lm/sr) and lux (lm/m²) / 683 lm/W → W/sr and W/m².
         let power = color * (light.intensity() / LUMENS_PER_WATT);
         let position = world.transform_point3(Vec3::ZERO);
         let direction = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();

@@ -3,7 +3,7 @@
 //! * Colour textures (base colour, emissive, diffuse maps) are stored sRGB-encoded and are decoded
 //!   to linear here; data textures (metallic-roughness, normal, occlusion) are read as they are.
 //! * A texture that is missing or cannot be decoded is a warning, and the material gets a visible
-//!   magenta fallback instead (SPEC §7), as model viewers do.
+//!   magenta fallback instead (docs/DESIGN.md §7), as model viewers do.
 //! * Paths are resolved against the scene's folder and must stay inside it: absolute paths, `..`
 //!   components, symbolic links that lead out and URIs with a scheme (`data:`, `http:`…) are
 //!   refused. Only glTF may embed images, as base64 `data:` URIs or buffer views, and it decodes

@@ -558,19 +558,94 @@ impl Scene {
     }
 }
 
+/// A loader: turns a file's bytes into a [`Scene`]. `dir` is the file's folder (referenced files
+/// are looked up inside it), `label` names the file in messages.
+pub type LoadFn = fn(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError>;
+
+/// A scene file format: the extensions it is recognised by and the loader that reads it.
+pub struct SceneFormat {
+    pub name: &'static str,
+    /// Lower-case, without the dot.
+    pub extensions: &'static [&'static str],
+    pub load: LoadFn,
+    /// Whether a TOML scene may include files of this format as meshes.
+    pub includable: bool,
+}
+
+fn load_ply(bytes: &[u8], _dir: &Path, label: &str) -> Result<Scene, SceneError> {
+    ply::load_from_bytes(bytes, label)
+}
+
+fn load_fbx(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    fbx::load_bytes(bytes, label, Some(dir))
+}
+
+/// The one table of scene formats: [`load`], the TOML include and the server's scene list all
+/// read it.
+pub const FORMATS: &[SceneFormat] = &[
+    SceneFormat {
+        name: "glTF 2.0",
+        extensions: &["gltf", "glb"],
+        load: gltf::load_from_bytes,
+        includable: true,
+    },
+    SceneFormat {
+        name: "Wavefront OBJ",
+        extensions: &["obj"],
+        load: obj::load_from_bytes,
+        includable: true,
+    },
+    SceneFormat {
+        name: "PLY",
+        extensions: &["ply"],
+        load: load_ply,
+        includable: true,
+    },
+    SceneFormat {
+        name: "FBX (binary)",
+        extensions: &["fbx"],
+        load: load_fbx,
+        includable: true,
+    },
+    SceneFormat {
+        name: "Trayecto TOML",
+        extensions: &["toml"],
+        load: toml_scene::load_from_bytes,
+        includable: false,
+    },
+];
+
+/// The format a path's extension names (case-insensitive), if any.
+pub fn format_for(path: &Path) -> Option<&'static SceneFormat> {
+    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+    FORMATS
+        .iter()
+        .find(|f| f.extensions.contains(&ext.as_str()))
+}
+
+/// Every extension of [`FORMATS`], as `.gltf, .glb, …` for messages.
+pub fn extension_list(includable_only: bool) -> String {
+    FORMATS
+        .iter()
+        .filter(|f| f.includable || !includable_only)
+        .flat_map(|f| f.extensions.iter().map(|e| format!(".{e}")))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Loads a scene from a file path, or a built-in scene by name (`cornell`). The format follows the
-/// file's extension.
-// Loaders add their extensions to the match below as formats land.
+/// file's extension ([`FORMATS`]).
 pub fn load(spec: &str) -> Result<Scene, SceneError> {
     let path = Path::new(spec);
     if builtin::NAMES.contains(&spec) && !path.exists() {
         return builtin::load(spec);
     }
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    let Some(ext) = ext else {
+    if path.extension().is_none() {
         if path.exists() {
             return Err(SceneError::invalid(
                 spec,
@@ -578,24 +653,42 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
             ));
         }
         return Err(SceneError::UnknownBuiltin(spec.to_string()));
-    };
+    }
     if !path.is_file() {
         return Err(SceneError::Io {
             path: spec.to_string(),
             source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
         });
     }
-    match ext.as_str() {
-        "fbx" => fbx::load(path),
-        "gltf" | "glb" => gltf::load(path),
-        "obj" => obj::load(path),
-        "ply" => ply::load(path),
-        "toml" => toml_scene::load(path),
-        other => Err(SceneError::invalid(
-            spec,
-            format!("unsupported scene format '.{other}'"),
-        )),
+    load_file(path)
+}
+
+/// Reads a scene file: the one place that reads the bytes, picks the loader from [`FORMATS`] and
+/// names the scene (the file's stem unless the file names itself) and its source. Loaders
+/// validate what they produce before returning it.
+pub fn load_file(path: &Path) -> Result<Scene, SceneError> {
+    let label = path.display().to_string();
+    let Some(format) = format_for(path) else {
+        let ext = path.extension().unwrap_or_default().to_string_lossy();
+        return Err(SceneError::invalid(
+            &label,
+            format!("unsupported scene format '.{ext}'"),
+        ));
+    };
+    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
+        path: label.clone(),
+        source: e,
+    })?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut scene = (format.load)(&bytes, dir, &label)?;
+    if scene.name.is_empty() || scene.name == label {
+        scene.name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| format.extensions[0].to_string());
     }
+    scene.source = Some(path.to_path_buf());
+    Ok(scene)
 }
 
 thread_local! {
@@ -603,7 +696,7 @@ thread_local! {
 }
 
 /// Runs a loader step that calls into a third-party parser which may panic on hostile input
-/// (SPEC §7: never panic), turning a panic into a [`SceneError`] naming the file. The panic's
+/// (docs/DESIGN.md §7: never panic), turning a panic into a [`SceneError`] naming the file. The panic's
 /// own message is kept off the terminal: the error says what happened.
 pub(crate) fn contain_panics<T>(
     label: &str,

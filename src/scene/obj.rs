@@ -1,4 +1,4 @@
-//! Wavefront OBJ/MTL loader (SPEC §3), on top of the `tobj` crate.
+//! Wavefront OBJ/MTL loader (docs/DESIGN.md §3), on top of the `tobj` crate.
 //!
 //! MTL mapping: `Kd` → base colour, `Ks`/`Ns` → Phong parameters of the raycast/Whitted modes
 //! (thesis §5.1.10), `Ke` → emitted radiance, `Ni` → IOR, `d` (or `Tr` = 1 − d) → opacity,
@@ -17,22 +17,6 @@ use super::image_io::{RefusedPath, is_missing_texture, load_texture_checked, res
 use super::{Mesh, Scene, SceneError, Shape};
 use crate::material::{AlphaMode, Material, MaterialModel, PhongParams, TextureRef};
 use crate::math::{Mat4, Vec2, Vec3};
-
-/// Loads an `.obj` file (and the MTL files it names, from the same folder).
-pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
-        path: path.display().to_string(),
-        source: e,
-    })?;
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let mut scene = load_from_bytes(&bytes, dir, &path.display().to_string())?;
-    scene.name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "obj".into());
-    scene.source = Some(path.to_path_buf());
-    Ok(scene)
-}
 
 /// Loads OBJ text from memory; MTL files and textures are looked up in `dir`. (Also the fuzzing
 /// entry point.)

@@ -1,4 +1,4 @@
-//! PLY mesh loader (ASCII, binary little- and big-endian), SPEC §3.
+//! PLY mesh loader (ASCII, binary little- and big-endian), docs/DESIGN.md §3.
 //!
 //! Written by hand: the available crates preallocate from the header's element counts, which a
 //! hostile file can set to billions. Here nothing is reserved beyond what the data can hold, every
@@ -7,8 +7,6 @@
 //! Read: `vertex` (x, y, z; nx, ny, nz; u/v, s/t or texture_u/texture_v; red, green, blue, alpha)
 //! and `face` (`vertex_indices` or `vertex_index` lists, fan-triangulated). Other elements and
 //! properties are skipped with a warning.
-
-use std::path::Path;
 
 use super::conventions::apply_material_conventions;
 use super::{Mesh, Scene, SceneError, Shape};
@@ -155,21 +153,6 @@ impl Body<'_> {
             Body::Binary { data, pos, .. } => data.len().saturating_sub(*pos),
         }
     }
-}
-
-/// Loads a `.ply` file.
-pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
-        path: path.display().to_string(),
-        source: e,
-    })?;
-    let mut scene = load_from_bytes(&bytes, &path.display().to_string())?;
-    scene.name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "ply".into());
-    scene.source = Some(path.to_path_buf());
-    Ok(scene)
 }
 
 /// Parses PLY bytes. `label` names the file in messages. (Also the fuzzing entry point.)

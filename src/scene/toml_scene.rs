@@ -1,4 +1,4 @@
-//! Trayecto's native scene file (TOML), for writing scenes by hand (SPEC §3). The complete,
+//! Trayecto's native scene file (TOML), for writing scenes by hand (docs/DESIGN.md §3). The complete,
 //! commented reference is `scenes/example.toml` in the repository.
 //!
 //! Top level: `name`, `[[camera]]`, `[background]` (a uniform colour or an environment map),
@@ -190,24 +190,6 @@ struct LightSpec {
 
 fn white() -> [f32; 3] {
     [1.0, 1.0, 1.0]
-}
-
-/// Loads a `.toml` scene file.
-pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
-        path: path.display().to_string(),
-        source: e,
-    })?;
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let mut scene = load_from_bytes(&bytes, dir, &path.display().to_string())?;
-    if scene.name.is_empty() || scene.name == path.display().to_string() {
-        scene.name = path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
-    }
-    scene.source = Some(path.to_path_buf());
-    Ok(scene)
 }
 
 /// Parses a TOML scene from memory; referenced files are read from `dir`. (Also the fuzzing
@@ -625,19 +607,13 @@ fn add_mesh_file(
     cameras: &mut Vec<CameraDesc>,
 ) -> Result<(), String> {
     let path = resolve_in_dir(dir, file)?;
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase())
-        .unwrap_or_default();
-    let sub = match ext.as_str() {
-        "obj" => super::obj::load(&path),
-        "ply" => super::ply::load(&path),
-        "gltf" | "glb" => super::gltf::load(&path),
-        "fbx" => super::fbx::load(&path),
-        other => {
+    let sub = match super::format_for(&path) {
+        Some(f) if f.includable => super::load_file(&path),
+        _ => {
+            let ext = path.extension().unwrap_or_default().to_string_lossy();
             return Err(format!(
-                "'{file}': meshes are read from .obj, .ply, .gltf, .glb or .fbx, not '.{other}'"
+                "'{file}': meshes are read from {}, not '.{ext}'",
+                super::extension_list(true)
             ));
         }
     }

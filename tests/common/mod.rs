@@ -10,7 +10,7 @@ use trayecto::world::{World, WorldOptions};
 
 /// Renders `scene` in-process and returns the linear image.
 pub fn render_scene(scene: &Scene, settings: &RenderSettings) -> Image {
-    let world = World::build(scene, &WorldOptions::default()).expect("scene builds");
+    let world = World::build(scene.clone(), &WorldOptions::default()).expect("scene builds");
     render_world(&world, settings)
 }
 

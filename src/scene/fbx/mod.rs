@@ -11,14 +11,14 @@
 //! Light intensities follow Blender's FBX convention (the exporter writes `Intensity` = watts ×
 //! 100): a point or spot light of `Intensity` I and `Color` c radiates `c · (I/100) / (4π)` W/sr
 //! (Blender's point light of P watts has radiant intensity P/4π); a directional light gives an
-//! irradiance of `c · I/100` W/m². (glTF's candela are divided by 683 lm/W instead, SPEC §4; the
+//! irradiance of `c · I/100` W/m². (glTF's candela are divided by 683 lm/W instead, docs/DESIGN.md §4; the
 //! two agree for files exported from the same Blender scene.)
 //!
 //! Materials follow Blender's FBX importer: `DiffuseColor·DiffuseFactor` is the base colour,
 //! `EmissiveColor·EmissiveFactor` the emitted radiance, `Opacity` the alpha; Phong materials are
 //! metallic-roughness with roughness `1 − √shininess / 10`, metallic `ReflectionFactor` and
 //! specular `4·SpecularFactor` (Blender writes half its specular level, whose 0.5 is glTF's 1);
-//! Lambert materials are purely diffuse. Surfaces are double-sided (SPEC §3).
+//! Lambert materials are purely diffuse. Surfaces are double-sided (docs/DESIGN.md §3).
 
 pub mod binary;
 mod mesh;
@@ -38,22 +38,6 @@ use super::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape};
 use crate::material::texture::TextureRef;
 use crate::material::{AlphaMode, Material, MaterialModel, PhongParams};
 use crate::math::Vec3;
-
-/// Loads a binary FBX file. Textures are looked up inside the file's folder.
-pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let label = path.display().to_string();
-    let data = std::fs::read(path).map_err(|e| SceneError::Io {
-        path: label.clone(),
-        source: e,
-    })?;
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => Path::new(".").to_path_buf(),
-    };
-    let mut scene = load_bytes(&data, &label, Some(&dir))?;
-    scene.source = Some(path.to_path_buf());
-    Ok(scene)
-}
 
 /// Reads an FBX file from memory. `label` names it in messages; textures are read from
 /// `scene_dir` (none when `None`).

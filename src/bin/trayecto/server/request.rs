@@ -1,20 +1,18 @@
-//! What a client may ask for, checked field by field before any work starts (SPEC §7): the scene
+//! What a client may ask for, checked field by field before any work starts (docs/DESIGN.md §7): the scene
 //! is a built-in name or a file that canonicalises to a path inside the scenes folder, the output
 //! name is a plain file name, and every number is inside both the renderer's limits
 //! (`RenderSettings::validate`) and the server's own, tighter caps.
 
-use crate::film::tonemap::Tonemap;
-use crate::integrator::{IntegratorKind, PathSettings};
-use crate::render::{MAX_DEPTH, MAX_SECONDARY, RenderSettings};
-use crate::sampling::SamplerKind;
-use crate::scene::builtin;
 use serde_json::{Map, Value};
 use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
 use std::str::FromStr;
+use trayecto::film::tonemap::Tonemap;
+use trayecto::integrator::{IntegratorKind, PathSettings};
+use trayecto::render::{MAX_DEPTH, MAX_SECONDARY, RenderSettings};
+use trayecto::sampling::SamplerKind;
+use trayecto::scene::builtin;
 
-/// File extensions the scene picker lists (the formats `scene::load` reads or will read).
-pub const SCENE_EXTENSIONS: &[&str] = &["gltf", "glb", "obj", "ply", "fbx", "toml"];
 /// Integrator and tone-mapping names offered to the page; only those the library parses are
 /// shown, so new modes appear by themselves when they land.
 const INTEGRATOR_NAMES: &[&str] = &["path", "whitted", "raycast"];
@@ -117,10 +115,7 @@ pub struct Policy {
 }
 
 fn has_scene_extension(p: &Path) -> bool {
-    p.extension()
-        .and_then(|e| e.to_str())
-        .map(|e| SCENE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
-        .unwrap_or(false)
+    trayecto::scene::format_for(p).is_some()
 }
 
 /// Resolves a scene name relative to the (canonical) scenes folder. Refuses absolute paths, any
@@ -151,8 +146,8 @@ pub fn resolve_scene(root: &Path, name: &str) -> Result<PathBuf, String> {
     }
     if !has_scene_extension(&canon) {
         return Err(format!(
-            "'{name}' is not a scene file (expected .{})",
-            SCENE_EXTENSIONS.join(", .")
+            "'{name}' is not a scene file (expected {})",
+            trayecto::scene::extension_list(false)
         ));
     }
     Ok(canon)

@@ -1,5 +1,5 @@
 //! `trayecto serve`: the thesis's GUI (§5.5, Annex B) as a web page with a progressive preview
-//! (SPEC §2, web UI). An axum server on 127.0.0.1 by default serves the embedded page and a small
+//! (docs/DESIGN.md §2, web UI). An axum server on 127.0.0.1 by default serves the embedded page and a small
 //! JSON API (documented in the README); renders run on their own threads ([`jobs`]) and every
 //! request is checked before any work starts ([`request`]).
 //!
@@ -28,9 +28,9 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-const INDEX_HTML: &str = include_str!("../../web/index.html");
-const APP_JS: &str = include_str!("../../web/app.js");
-const STYLE_CSS: &str = include_str!("../../web/style.css");
+const INDEX_HTML: &str = include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/web/index.html"));
+const APP_JS: &str = include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/web/app.js"));
+const STYLE_CSS: &str = include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/web/style.css"));
 /// Finished renders listed on the page (older ones are forgotten, their files stay on disk).
 const HISTORY: usize = 10;
 /// How much of an oversized body is read and dropped before answering 413.
@@ -90,16 +90,16 @@ impl ServeArgs {
         if self.max_jobs == 0 || self.max_jobs > 64 {
             return Err(ServeError::Option("--max-jobs must be 1 to 64".into()));
         }
-        if self.max_size == 0 || self.max_size > crate::render::MAX_DIMENSION {
+        if self.max_size == 0 || self.max_size > trayecto::render::MAX_DIMENSION {
             return Err(ServeError::Option(format!(
                 "--max-size must be 1 to {}",
-                crate::render::MAX_DIMENSION
+                trayecto::render::MAX_DIMENSION
             )));
         }
-        if self.max_spp == 0 || self.max_spp > crate::render::MAX_SPP {
+        if self.max_spp == 0 || self.max_spp > trayecto::render::MAX_SPP {
             return Err(ServeError::Option(format!(
                 "--max-spp must be 1 to {}",
-                crate::render::MAX_SPP
+                trayecto::render::MAX_SPP
             )));
         }
         if let Some(t) = self.threads
@@ -295,7 +295,7 @@ async fn options(State(st): State<Shared>) -> Response {
                 "max_output_name": request::MAX_OUTPUT_NAME,
             },
             "defaults": {
-                "scene": crate::scene::builtin::NAMES.first(),
+                "scene": trayecto::scene::builtin::NAMES.first(),
                 "output": D::OUTPUT,
                 "width": D::WIDTH,
                 "height": D::HEIGHT,
@@ -322,7 +322,7 @@ async fn scenes(State(st): State<Shared>) -> Response {
     };
     json_response(
         StatusCode::OK,
-        json!({ "builtin": crate::scene::builtin::NAMES, "files": files }),
+        json!({ "builtin": trayecto::scene::builtin::NAMES, "files": files }),
     )
 }
 

@@ -1,20 +1,19 @@
-//! The `trayecto` command line (SPEC §2): `render`, `info`. Errors are reported with their context
+//! The `trayecto` command line (docs/DESIGN.md §2): `render`, `info`. Errors are reported with their context
 //! and a non-zero exit code; nothing is rendered until every option has been checked.
 
-use crate::accel::AccelKind;
-use crate::film::output::{Format, write_image};
-use crate::film::tonemap::Tonemap;
-use crate::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
-use crate::render::{RenderObserver, RenderSettings};
-use crate::sampling::SamplerKind;
-use crate::world::{World, WorldOptions};
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
-use std::time::Instant;
+use trayecto::accel::AccelKind;
+use trayecto::film::tonemap::Tonemap;
+use trayecto::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
+use trayecto::pipeline::{LogLine, OutputSpec, PipelineObserver, RenderJob, Stage};
+use trayecto::render::{RenderObserver, RenderSettings};
+use trayecto::sampling::SamplerKind;
+use trayecto::world::{World, WorldOptions};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -123,9 +122,9 @@ pub struct InfoArgs {
 }
 
 impl RenderArgs {
-    /// The render settings these options describe, checked for absurd values.
-    pub fn settings(&self) -> Result<RenderSettings> {
-        let s = RenderSettings {
+    /// The render settings these options describe (checked by [`RenderJob::check`]).
+    pub fn settings(&self) -> RenderSettings {
+        RenderSettings {
             width: self.width,
             height: self.height,
             spp: self.spp,
@@ -141,15 +140,7 @@ impl RenderArgs {
                 mis: !self.no_mis,
                 secondary: self.secondary,
             },
-        };
-        s.validate()?;
-        if !(self.exposure.is_finite() && self.exposure > 0.0) {
-            bail!(
-                "invalid setting: exposure must be a positive number (got {})",
-                self.exposure
-            );
         }
-        Ok(s)
     }
 
     pub fn world_options(&self) -> WorldOptions {
@@ -160,14 +151,30 @@ impl RenderArgs {
             env: self.env.clone(),
         }
     }
+
+    /// The pipeline job these options describe.
+    pub fn job(&self) -> RenderJob {
+        RenderJob {
+            scene: self.scene.clone(),
+            world: self.world_options(),
+            settings: self.settings(),
+            outputs: vec![OutputSpec {
+                path: self.output.clone(),
+                exposure: self.exposure,
+                tonemap: self.tonemap,
+            }],
+        }
+    }
 }
 
-/// Terminal progress bar (only when stderr is a terminal).
-struct Progress {
+/// The terminal's view of a render: warnings always, the summary and the phase report unless
+/// `--quiet`, a progress bar while rendering when stderr is a terminal.
+struct Console {
+    quiet: bool,
     bar: Option<indicatif::ProgressBar>,
 }
 
-impl RenderObserver for Progress {
+impl RenderObserver for Console {
     fn tile_done(&self, done: u64, total: u64) {
         if let Some(b) = &self.bar {
             b.set_length(total);
@@ -176,57 +183,23 @@ impl RenderObserver for Progress {
     }
 }
 
-pub fn run_render(args: &RenderArgs) -> Result<()> {
-    let settings = args.settings()?;
-    Format::from_path(&args.output)?;
-    if let Some(parent) = args.output.parent()
-        && !parent.as_os_str().is_empty()
-        && !parent.is_dir()
-    {
-        bail!(
-            "{}: the output folder does not exist",
-            args.output.display()
-        );
-    }
-    let say = |s: String| {
-        if !args.quiet {
-            eprintln!("{s}");
+impl PipelineObserver for Console {
+    fn stage_finished(&self, stage: Stage, _took: std::time::Duration) {
+        if let (Stage::Render, Some(b)) = (stage, &self.bar) {
+            b.finish_and_clear();
         }
-    };
-
-    let t0 = Instant::now();
-    let scene = crate::scene::load(&args.scene)?;
-    let load_time = t0.elapsed();
-    for w in &scene.warnings {
-        eprintln!("warning: {w}");
     }
 
-    let t1 = Instant::now();
-    let world = World::build(&scene, &args.world_options())?;
-    let build_time = t1.elapsed();
-    for w in &world.warnings {
-        eprintln!("warning: {w}");
+    fn log(&self, line: LogLine) {
+        if !self.quiet || matches!(line, LogLine::Warning(_)) {
+            eprintln!("{line}");
+        }
     }
-    say(format!(
-        "scene '{}': {} triangles, {} primitives, {} materials, {} lights ({} area), {} cameras",
-        scene.name,
-        world.triangle_count(),
-        world.primitive_count(),
-        world.materials.len(),
-        world.lights.lights.len(),
-        world.area_light_count(),
-        scene.cameras.len()
-    ));
-    say(format!(
-        "rendering {}x{} at {} spp, max depth {}, {} integrator, {} threads",
-        settings.width,
-        settings.height,
-        settings.spp,
-        settings.path.max_depth,
-        settings.integrator.name(),
-        settings.threads.unwrap_or_else(rayon::current_num_threads)
-    ));
+}
 
+pub fn run_render(args: &RenderArgs) -> Result<()> {
+    let job = args.job();
+    job.check()?;
     let bar = if std::io::stderr().is_terminal() && !args.quiet {
         let b = indicatif::ProgressBar::new(1);
         b.set_style(
@@ -239,66 +212,34 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     } else {
         None
     };
-    let progress = Progress { bar };
-    let cancel = AtomicBool::new(false);
-    let out = crate::render::render(&world, &settings, &progress, &cancel)?;
-    if let Some(b) = &progress.bar {
-        b.finish_and_clear();
-    }
-
-    let t3 = Instant::now();
-    write_image(&out.image, &args.output, args.exposure, args.tonemap)?;
-    let write_time = t3.elapsed();
-    if out.discarded_samples > 0 {
-        eprintln!(
-            "warning: {} samples were NaN or infinite and were discarded",
-            out.discarded_samples
-        );
-    }
-    // The thesis's console log (Fig. 5.44–5.46): phase durations and the time at which each ended.
-    let mut report = crate::phases::PhaseReport::new();
-    report.phase("scene loaded", load_time);
-    report.phase(
-        "world compiled",
-        build_time.saturating_sub(world.accel_build_time),
-    );
-    report.phase("acceleration structure built", world.accel_build_time);
-    report.phase(
-        format!("rendered ({})", settings.integrator.name()),
-        out.render_time,
-    );
-    report.phase("image written", write_time);
-    report.note(format!("acceleration    {}", world.accel.describe()));
-    report.note(format!(
-        "rays            {} ({} camera/bounce/reflection/refraction, {} shadow), {:.2} Mrays/s",
-        out.stats.rays + out.stats.shadow_rays,
-        out.stats.rays,
-        out.stats.shadow_rays,
-        out.rays_per_second() / 1e6
-    ));
-    for line in report.lines() {
-        say(line);
-    }
-    say(format!("wrote {}", args.output.display()));
+    let console = Console {
+        quiet: args.quiet,
+        bar,
+    };
+    job.run(&console, &AtomicBool::new(false))?;
     Ok(())
 }
 
 pub fn run_info(args: &InfoArgs) -> Result<()> {
-    let scene = crate::scene::load(&args.scene)?;
-    let world = World::build(&scene, &WorldOptions::default())
+    let scene = trayecto::scene::load(&args.scene)?;
+    // The world takes the scene; keep what is printed that the world does not hold.
+    let (name, meshes, objects) = (scene.name.clone(), scene.meshes.len(), scene.objects.len());
+    let (lights, cameras) = (scene.lights.clone(), scene.cameras.clone());
+    let scene_warnings = scene.warnings.clone();
+    let world = World::build(scene, &WorldOptions::default())
         .with_context(|| format!("compiling {}", args.scene))?;
     let b = world.bounds;
-    println!("scene       {}", scene.name);
-    println!("meshes      {}", scene.meshes.len());
-    println!("objects     {}", scene.objects.len());
+    println!("scene       {name}");
+    println!("meshes      {meshes}");
+    println!("objects     {objects}");
     println!("triangles   {}", world.triangle_count());
     println!("primitives  {}", world.primitive_count());
     println!(
         "bounds      [{:.4}, {:.4}, {:.4}] – [{:.4}, {:.4}, {:.4}]",
         b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
     );
-    println!("materials   {}", scene.materials.len());
-    for (i, m) in scene.materials.iter().enumerate() {
+    println!("materials   {}", world.materials.len());
+    for (i, m) in world.materials.iter().enumerate() {
         let textures = [
             m.base_color_texture,
             m.metallic_roughness_texture,
@@ -323,14 +264,14 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
             if m.is_emissive() { " (emissive)" } else { "" }
         );
     }
-    println!("textures    {}", scene.textures.len());
+    println!("textures    {}", world.textures.len());
     println!(
         "lights      {} ({} area)",
         world.lights.lights.len(),
         world.area_light_count()
     );
-    for l in &scene.lights {
-        use crate::scene::LightDesc as L;
+    for l in &lights {
+        use trayecto::scene::LightDesc as L;
         let what = match l {
             L::Point {
                 position: p,
@@ -354,8 +295,8 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
         };
         println!("  '{}' {what}", l.name());
     }
-    println!("cameras     {}", scene.cameras.len());
-    for (i, c) in scene.cameras.iter().enumerate() {
+    println!("cameras     {}", cameras.len());
+    for (i, c) in cameras.iter().enumerate() {
         println!(
             "  {i}: '{}' at {} vfov {:.2}°",
             c.name,
@@ -363,7 +304,7 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
             c.vfov_deg
         );
     }
-    let warnings: Vec<&String> = scene.warnings.iter().chain(world.warnings.iter()).collect();
+    let warnings: Vec<&String> = scene_warnings.iter().chain(world.warnings.iter()).collect();
     println!("warnings    {}", warnings.len());
     for w in warnings {
         println!("  {w}");

@@ -1,18 +1,19 @@
-//! Render jobs: each runs on its own thread through the ordinary driver (`render::render`), with an
+//! Render jobs: each runs on its own thread through the library's pipeline (`pipeline::RenderJob`), with an
 //! observer that keeps the latest film snapshot for the preview and the tile counters for the
 //! progress bar. Cancelling sets the driver's flag; when the thread ends the world, the film and
 //! the preview are dropped, so a cancelled job holds no image memory.
 
 use super::request::RenderRequest;
-use crate::film::output::{to_rgb8, write_image};
-use crate::film::{Film, Image};
-use crate::render::{RenderError, RenderObserver};
-use crate::world::{World, WorldOptions};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use trayecto::film::output::to_rgb8;
+use trayecto::film::{Film, Image};
+use trayecto::pipeline::{LogLine, OutputSpec, PipelineError, PipelineObserver, RenderJob, Stage};
+use trayecto::render::RenderObserver;
+use trayecto::world::WorldOptions;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum JobState {
@@ -83,14 +84,6 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 impl Job {
     pub fn status(&self) -> MutexGuard<'_, JobStatus> {
         lock(&self.status)
-    }
-
-    fn set_state(&self, s: JobState) {
-        self.status().state = s;
-    }
-
-    fn log(&self, line: String) {
-        self.status().log.push(line);
     }
 
     /// The preview as PNG (encoded on demand, once per pass), if there is one.
@@ -194,6 +187,35 @@ impl RenderObserver for Observer<'_> {
     fn tile_done(&self, done: u64, total: u64) {
         self.0.tiles_total.store(total, Ordering::Relaxed);
         self.0.tiles_done.fetch_max(done, Ordering::Relaxed);
+    }
+}
+
+impl PipelineObserver for Observer<'_> {
+    fn stage_started(&self, stage: Stage) {
+        let mut st = self.0.status();
+        st.state = match stage {
+            Stage::Load => JobState::Loading,
+            Stage::Build => JobState::Building,
+            Stage::Render => {
+                st.render_started = Some(Instant::now());
+                JobState::Rendering
+            }
+            Stage::Write => JobState::Writing,
+        };
+    }
+
+    fn stage_finished(&self, stage: Stage, took: Duration) {
+        let name = match stage {
+            Stage::Load => "load",
+            Stage::Build => "build (accel)",
+            Stage::Render => "render",
+            Stage::Write => "write",
+        };
+        self.0.status().timings.push((name, took.as_secs_f64()));
+    }
+
+    fn log(&self, line: LogLine) {
+        self.0.status().log.push(line.to_string());
     }
 }
 
@@ -346,110 +368,41 @@ enum JobEnd {
     Failed(String),
 }
 
-fn secs(d: Duration) -> f64 {
-    d.as_secs_f64()
-}
-
-/// Load, build, render, write: the CLI's phases, timed and logged the same way.
+/// Runs the library's render pipeline for the job: the same stages, log and report as the CLI.
 fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
     let r = &job.request;
-    let cancelled = || job.cancel.load(Ordering::Relaxed);
-    let t0 = Instant::now();
-    let scene =
-        crate::scene::load(&r.source.load_spec()).map_err(|e| JobEnd::Failed(e.to_string()))?;
-    let load = t0.elapsed();
-    for w in &scene.warnings {
-        job.log(format!("warning: {w}"));
-    }
-    job.status().timings.push(("load", secs(load)));
-    if cancelled() {
-        return Err(JobEnd::Cancelled);
-    }
-
-    job.set_state(JobState::Building);
-    let t1 = Instant::now();
-    let world = World::build(&scene, &WorldOptions::default())
-        .map_err(|e| JobEnd::Failed(e.to_string()))?;
-    drop(scene);
-    job.status()
-        .timings
-        .push(("build (accel)", secs(t1.elapsed())));
-    for w in &world.warnings {
-        job.log(format!("warning: {w}"));
-    }
-    job.log(format!(
-        "scene '{}': {} triangles, {} primitives, {} materials, {} lights ({} area)",
-        r.scene,
-        world.triangle_count(),
-        world.primitive_count(),
-        world.materials.len(),
-        world.lights.lights.len(),
-        world.area_light_count(),
-    ));
-    let s = &r.settings;
-    job.log(format!(
-        "rendering {}x{} at {} spp, {} secondary, max depth {}, {} integrator",
-        s.width,
-        s.height,
-        s.spp,
-        s.path.secondary,
-        s.path.max_depth,
-        format!("{:?}", s.integrator).to_lowercase()
-    ));
-    if cancelled() {
-        return Err(JobEnd::Cancelled);
-    }
-
-    {
-        let mut st = job.status();
-        st.state = JobState::Rendering;
-        st.render_started = Some(Instant::now());
-    }
-    let out = match crate::render::render(&world, s, &Observer(job), &job.cancel) {
-        Ok(o) => o,
-        Err(RenderError::Cancelled) => return Err(JobEnd::Cancelled),
-        Err(e) => return Err(JobEnd::Failed(e.to_string())),
-    };
-    drop(world);
-    job.status().timings.push(("render", secs(out.render_time)));
-
-    job.set_state(JobState::Writing);
-    let t3 = Instant::now();
     let png = out_dir.join(format!("{}.png", r.output));
     let exr = out_dir.join(format!("{}.exr", r.output));
-    for p in [&png, &exr] {
-        write_image(&out.image, p, r.exposure, r.tonemap).map_err(|e| {
+    let output = |path: &PathBuf| OutputSpec {
+        path: path.clone(),
+        exposure: r.exposure,
+        tonemap: r.tonemap,
+    };
+    let render = RenderJob {
+        scene: r.source.load_spec(),
+        world: WorldOptions::default(),
+        settings: r.settings.clone(),
+        outputs: vec![output(&png), output(&exr)],
+    };
+    match render.run(&Observer(job), &job.cancel) {
+        Ok(_) => {}
+        Err(PipelineError::Cancelled) => return Err(JobEnd::Cancelled),
+        Err(PipelineError::Write { path, source }) => {
             // Report the name only, not the server's folder layout.
-            JobEnd::Failed(format!(
-                "could not write {}: {e}",
-                p.file_name()
+            return Err(JobEnd::Failed(format!(
+                "could not write {}: {source}",
+                path.file_name()
                     .map(|f| f.to_string_lossy())
                     .unwrap_or_default()
-            ))
-        })?;
+            )));
+        }
+        Err(e) => return Err(JobEnd::Failed(e.to_string())),
     }
-    let write = t3.elapsed();
-    {
-        let mut st = job.status();
-        st.timings.push(("write", secs(write)));
-        st.timings.push(("total", secs(job.created.elapsed())));
-        st.png = Some(png);
-        st.exr = Some(exr);
-        st.samples_done = s.spp;
-    }
-    if out.discarded_samples > 0 {
-        job.log(format!(
-            "warning: {} samples were NaN or infinite and were discarded",
-            out.discarded_samples
-        ));
-    }
-    job.log(format!(
-        "rays {} ({} camera/bounce, {} shadow), {:.2} Mrays/s",
-        out.stats.rays + out.stats.shadow_rays,
-        out.stats.rays,
-        out.stats.shadow_rays,
-        out.rays_per_second() / 1e6
-    ));
-    job.log(format!("wrote {0}.png and {0}.exr", r.output));
+    let mut st = job.status();
+    st.timings
+        .push(("total", job.created.elapsed().as_secs_f64()));
+    st.png = Some(png);
+    st.exr = Some(exr);
+    st.samples_done = r.settings.spp;
     Ok(())
 }

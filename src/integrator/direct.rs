@@ -1,0 +1,192 @@
+//! Direct lighting: next-event estimation at a path vertex ([`sample_ld`], one light sample
+//! combined with BSDF sampling by MIS), and the local shading of the raycast and Whitted modes
+//! ([`shade_local`], every analytic light plus [`AREA_SAMPLES`] area-light samples).
+
+use super::RayStats;
+use super::path::PathSettings;
+use crate::geometry::primitive::SurfaceHit;
+use crate::light::Light;
+use crate::material::Bsdf;
+use crate::material::local_shading::{ShadingModel, brdf};
+use crate::math::{Frame, Vec3};
+use crate::sampling::SampleStream;
+use crate::sampling::warp::power_heuristic;
+use crate::world::World;
+
+/// Light samples per shading point for area lights in [`shade_local`].
+pub const AREA_SAMPLES: u32 = 4;
+
+/// A scattering vertex of a path: the hit (normal-mapped), its BSDF, the normals oriented for
+/// scattering and the local shading frame with the outgoing direction in it. NEE and BSDF
+/// sampling at the vertex share it.
+pub struct Vertex {
+    pub hit: SurfaceHit,
+    pub bsdf: Bsdf,
+    /// Geometric normal oriented as [`oriented_normals`] says (the side rays are spawned from).
+    pub ng: Vec3,
+    pub frame: Frame,
+    /// Direction toward where the path came from, in `frame`.
+    pub wo_local: Vec3,
+}
+
+impl Vertex {
+    /// The vertex at `hit`, reached with direction `-wo`.
+    #[inline]
+    pub fn new(world: &World, mut hit: SurfaceHit, wo: Vec3) -> Vertex {
+        let bsdf = world.bsdf(&mut hit);
+        let (ng, ns) = oriented_normals(&hit, wo, bsdf.is_transmissive());
+        let frame = Frame::from_normal_tangent(ns, hit.tangent);
+        let wo_local = frame.to_local(wo);
+        Vertex {
+            hit,
+            bsdf,
+            ng,
+            frame,
+            wo_local,
+        }
+    }
+}
+
+/// Orients the geometric and shading normals for scattering. Opaque BSDFs see the side the ray
+/// came from (two-sided shading by flipping the normals, docs/DESIGN.md §4); transmissive ones keep the
+/// surface's own orientation so they know whether the ray enters or leaves.
+#[inline]
+pub fn oriented_normals(hit: &SurfaceHit, wo: Vec3, transmissive: bool) -> (Vec3, Vec3) {
+    if !transmissive && hit.ng.dot(wo) < 0.0 {
+        (-hit.ng, -hit.ns)
+    } else {
+        (hit.ng, hit.ns)
+    }
+}
+
+/// Next-event estimation at `v` (pbrt's `SampleLd`): one light sample, shadow-tested, weighted
+/// by the power heuristic against BSDF sampling (Veach 1997, ch. 9) unless MIS is off or the
+/// light is a delta light. Returns `beta` × the estimate. Always draws three numbers from `s`
+/// (light choice and point), so the sample stream does not depend on what the vertex is.
+#[inline]
+pub fn sample_ld(
+    world: &World,
+    v: &Vertex,
+    beta: Vec3,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+) -> Vec3 {
+    let u_light = if world.light_count() > 1 {
+        s.next_1d()
+    } else {
+        s.skip(1);
+        0.0
+    };
+    let u_light2 = s.next_2d();
+    if v.bsdf.is_specular() {
+        return Vec3::ZERO;
+    }
+    let Some(ls) = world.sample_light(&v.hit, v.ng, u_light, u_light2) else {
+        return Vec3::ZERO;
+    };
+    if !(set.nee || ls.delta) {
+        return Vec3::ZERO;
+    }
+    let wi_local = v.frame.to_local(ls.wi);
+    // Shading and geometric normals must agree on the side of `wi`, or light would leak
+    // through the surface.
+    let consistent = ls.wi.dot(v.ng) * wi_local.z > 0.0;
+    let f = v.bsdf.eval(v.wo_local, wi_local);
+    if !consistent || f == Vec3::ZERO {
+        return Vec3::ZERO;
+    }
+    stats.shadow_rays += 1;
+    if world.occluded(&ls.shadow) {
+        return Vec3::ZERO;
+    }
+    let weight = if ls.delta || !set.mis {
+        1.0
+    } else {
+        power_heuristic(ls.pmf * ls.pdf, v.bsdf.pdf(v.wo_local, wi_local))
+    };
+    beta * f * wi_local.z.abs() * ls.li * (weight / (ls.pmf * ls.pdf))
+}
+
+/// Local shading at `hit` seen from `wo` (unit, away from the surface): ambient plus direct light
+/// from every light, shadow-tested. Emission is not included.
+pub fn shade_local(
+    world: &World,
+    hit: &SurfaceHit,
+    wo: Vec3,
+    model: ShadingModel,
+    s: &mut SampleStream,
+    stats: &mut RayStats,
+) -> Vec3 {
+    let m = world.material(hit);
+    let surf = world.local_surface(hit);
+    // Two-sided shading: face the normals toward the viewer.
+    let (ng, ns) = if hit.ng.dot(wo) < 0.0 {
+        (-hit.ng, -hit.ns)
+    } else {
+        (hit.ng, hit.ns)
+    };
+    let mut l = Vec3::ZERO;
+    let lights = world.lights();
+    // World::build puts area lights first, so the analytic lights are the tail of the list.
+    for light in lights.iter().rev() {
+        let (wi, e_perp, shadow) = match light {
+            Light::Area { .. } => break,
+            Light::Uniform { radiance } => {
+                l += surf.diffuse() * *radiance * surf.occlusion;
+                continue;
+            }
+            // An environment map acts as an ambient term here, with the radiance the map has
+            // along the shading normal (a cheap stand-in for its irradiance: Whitted mode has no
+            // hemisphere integration).
+            Light::Environment { map } => {
+                l += surf.diffuse() * map.eval(ns) * surf.occlusion;
+                continue;
+            }
+            Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. } => {
+                match light.sample_delta(hit.p, hit.p_error, ng) {
+                    Some(ls) => (ls.wi, ls.li, ls.shadow),
+                    None => continue,
+                }
+            }
+        };
+        // The geometric normal must agree, or light would leak through the surface.
+        if wi.dot(ng) <= 0.0 {
+            continue;
+        }
+        let f = brdf(model, &surf, m, ns, wo, wi);
+        if f == Vec3::ZERO {
+            continue;
+        }
+        stats.shadow_rays += 1;
+        if !world.occluded(&shadow) {
+            l += f * e_perp * ns.dot(wi);
+        }
+    }
+    if matches!(lights.first(), Some(Light::Area { .. })) {
+        let mut sum = Vec3::ZERO;
+        for _ in 0..AREA_SAMPLES {
+            let u_light = s.next_1d();
+            let u = s.next_2d();
+            let Some(ls) = world.sample_light(hit, ng, u_light, u) else {
+                continue;
+            };
+            // Only area-light samples count here (the others are evaluated exactly above): they
+            // are the non-delta samples with a finite shadow segment. Dividing by the selection
+            // probability keeps the estimate of the area lights' sum unbiased.
+            if ls.delta || !ls.shadow.t_max.is_finite() || ls.wi.dot(ng) <= 0.0 {
+                continue;
+            }
+            let f = brdf(model, &surf, m, ns, wo, ls.wi);
+            if f == Vec3::ZERO {
+                continue;
+            }
+            stats.shadow_rays += 1;
+            if !world.occluded(&ls.shadow) {
+                sum += f * ls.li * (ns.dot(ls.wi) / (ls.pmf * ls.pdf));
+            }
+        }
+        l += sum / AREA_SAMPLES as f32;
+    }
+    l
+}

@@ -1,0 +1,43 @@
+//! The scattering functions, one file per [`Bsdf`](super::Bsdf) variant (PBRT-v4's `bxdfs.h`
+//! shape): each variant is a plain struct with `eval` (f, without the cosine), `pdf` (solid angle)
+//! and `sample`, all in the local shading frame where the shading normal is +z. They must agree:
+//! the chi-square tests in `tests/bsdf_chi2.rs` check every sampler against its pdf.
+//!
+//! To add a variant: write `bxdf/NAME.rs` with a `Copy` struct and those three methods, add a
+//! tuple variant `Bsdf::Name(Name)` in `bsdf.rs` and one arm to each of its dispatch `match`es
+//! (`eval`, `pdf`, `sample`, `is_specular`, `has_one_lobe`, `is_transmissive`, `albedo`), build
+//! it in `eval::Bsdf::from_material`, and add its chi-square test.
+
+pub mod dielectric;
+pub mod diffuse;
+pub mod metallic_roughness;
+pub mod mirror;
+pub mod thin_dielectric;
+
+pub use dielectric::Dielectric;
+pub use diffuse::Diffuse;
+pub use metallic_roughness::MetallicRoughness;
+pub use mirror::Mirror;
+pub use thin_dielectric::ThinDielectric;
+
+use super::bsdf::BsdfSample;
+use crate::math::Vec3;
+
+#[inline]
+pub(crate) fn same_hemisphere(a: Vec3, b: Vec3) -> bool {
+    a.z * b.z > 0.0
+}
+
+/// The Dirac reflection lobe of a smooth interface with reflectance `r`, chosen with
+/// probability `pdf` (shared by the thick and the thin-walled dielectric).
+#[inline]
+pub(crate) fn fresnel_reflection_sample(wo: Vec3, r: f32, pdf: f32) -> BsdfSample {
+    let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+    BsdfSample {
+        wi,
+        f: Vec3::splat(r / wi.z.abs()),
+        pdf,
+        specular: true,
+        eta: 1.0,
+    }
+}

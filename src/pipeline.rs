@@ -1,0 +1,296 @@
+//! The render pipeline every front end runs: load → build the world → render → write
+//! (docs/DESIGN.md §2). The command line and the web server only fill in a [`RenderJob`], watch it
+//! through a [`PipelineObserver`] and read the returned [`RenderReport`]; nothing of the flow is
+//! written twice.
+//!
+//! The stages are separate functions on purpose, so that a feature extends exactly one of them:
+//! - scene-provided defaults (a pbrt `Film`, a TOML `[render]` table) resolve in
+//!   [`RenderJob::settings_for`], after loading and before anything is sized;
+//! - a crop window or a partial render of a sample range belongs in [`RenderSettings`] and is
+//!   honoured by `render::render`; writing a partial film and merging belongs to [`write_outputs`];
+//! - AOVs are extra layers handed to [`write_outputs`] with the beauty image;
+//! - a denoiser is a stage between rendering and [`write_outputs`] ([`Stage`] grows a variant);
+//! - checkpoint/resume hooks into the observer's `pass_done`, which already sees the film.
+
+use crate::film::Image;
+use crate::film::output::{Format, OutputError, write_image};
+use crate::film::tonemap::Tonemap;
+use crate::integrator::RayStats;
+use crate::phases::PhaseReport;
+use crate::render::{RenderError, RenderObserver, RenderSettings};
+use crate::scene::{Scene, SceneError};
+use crate::world::{World, WorldOptions};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// One image file to write from the rendered film.
+#[derive(Clone, Debug)]
+pub struct OutputSpec {
+    /// The format follows the extension (.png, .ppm, .exr, .hdr).
+    pub path: PathBuf,
+    /// Linear multiplier applied before tone mapping (display formats only).
+    pub exposure: f32,
+    pub tonemap: Tonemap,
+}
+
+/// Everything a render needs: what to load, how to compile it, how to render it and where to
+/// write it. New options are new fields here (with defaults), not new parameters.
+#[derive(Clone, Debug)]
+pub struct RenderJob {
+    /// A scene file, or a built-in scene's name (see [`crate::scene::load`]).
+    pub scene: String,
+    pub world: WorldOptions,
+    pub settings: RenderSettings,
+    pub outputs: Vec<OutputSpec>,
+}
+
+/// The stages of a render, in order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    Load,
+    Build,
+    Render,
+    Write,
+}
+
+/// A line of the render's log.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum LogLine {
+    /// Something the user should know: unsupported data, a fallback, discarded samples.
+    Warning(String),
+    /// The summary lines and the phase report.
+    Info(String),
+}
+
+impl std::fmt::Display for LogLine {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LogLine::Warning(w) => write!(f, "warning: {w}"),
+            LogLine::Info(s) => f.write_str(s),
+        }
+    }
+}
+
+/// What a front end sees of a running pipeline. Every method has an empty default; the render
+/// driver's progress (passes, tiles) comes through the [`RenderObserver`] supertrait.
+pub trait PipelineObserver: RenderObserver {
+    fn stage_started(&self, _stage: Stage) {}
+    fn stage_finished(&self, _stage: Stage, _took: Duration) {}
+    fn log(&self, _line: LogLine) {}
+}
+
+/// An observer that ignores everything.
+pub struct Silent;
+impl RenderObserver for Silent {}
+impl PipelineObserver for Silent {}
+
+/// Why a pipeline stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error("invalid setting: {0}")]
+    InvalidSetting(String),
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    /// Writing `path` failed (kept apart so a front end can name the file its own way).
+    #[error("{source}")]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: OutputError,
+    },
+    #[error("render cancelled")]
+    Cancelled,
+}
+
+/// What a finished render reports.
+#[derive(Clone, Debug)]
+pub struct RenderReport {
+    pub scene_name: String,
+    /// The settings the render used (after scene defaults).
+    pub settings: RenderSettings,
+    /// The scene's and the world's warnings, and the render's own.
+    pub warnings: Vec<String>,
+    /// Phase timings, as the thesis's console log printed them.
+    pub phases: PhaseReport,
+    pub stats: RayStats,
+    pub discarded_samples: u64,
+    pub render_time: Duration,
+    pub rays_per_second: f64,
+    /// The files written, in the order of [`RenderJob::outputs`].
+    pub written: Vec<PathBuf>,
+}
+
+impl RenderJob {
+    /// Refuses absurd settings and unwritable outputs before any work starts.
+    pub fn check(&self) -> Result<(), PipelineError> {
+        self.settings.validate()?;
+        for o in &self.outputs {
+            if !(o.exposure.is_finite() && o.exposure > 0.0) {
+                return Err(PipelineError::InvalidSetting(format!(
+                    "exposure must be a positive number (got {})",
+                    o.exposure
+                )));
+            }
+            Format::from_path(&o.path)?;
+            if let Some(parent) = o.path.parent()
+                && !parent.as_os_str().is_empty()
+                && !parent.is_dir()
+            {
+                return Err(PipelineError::Output(OutputError::Write {
+                    path: o.path.clone(),
+                    message: "the output folder does not exist".into(),
+                }));
+            }
+        }
+        Ok(())
+    }
+
+    /// The settings to render `scene` with. This is where scene-provided defaults (resolution,
+    /// samples) will be merged under the job's explicit options; today the job's settings win
+    /// outright.
+    pub fn settings_for(&self, _scene: &Scene) -> RenderSettings {
+        self.settings.clone()
+    }
+
+    /// Runs the whole pipeline. `cancel` is polled between stages and by the render driver.
+    pub fn run(
+        &self,
+        observer: &dyn PipelineObserver,
+        cancel: &AtomicBool,
+    ) -> Result<RenderReport, PipelineError> {
+        self.check()?;
+        let cancelled = || cancel.load(Ordering::Relaxed);
+        let mut warnings = Vec::new();
+        let mut warn = |w: String| {
+            observer.log(LogLine::Warning(w.clone()));
+            warnings.push(w);
+        };
+        let info = |s: String| observer.log(LogLine::Info(s));
+
+        // Load.
+        observer.stage_started(Stage::Load);
+        let t = Instant::now();
+        let scene = crate::scene::load(&self.scene)?;
+        let load_time = t.elapsed();
+        observer.stage_finished(Stage::Load, load_time);
+        scene.warnings.iter().for_each(|w| warn(w.clone()));
+        if cancelled() {
+            return Err(PipelineError::Cancelled);
+        }
+        let settings = self.settings_for(&scene);
+        settings.validate()?;
+        let scene_name = scene.name.clone();
+        let camera_count = scene.cameras.len();
+
+        // Build.
+        observer.stage_started(Stage::Build);
+        let t = Instant::now();
+        let world = World::build(scene, &self.world)?;
+        let build_time = t.elapsed();
+        observer.stage_finished(Stage::Build, build_time);
+        world.warnings.iter().for_each(|w| warn(w.clone()));
+        info(format!(
+            "scene '{}': {} triangles, {} primitives, {} materials, {} lights ({} area), {} cameras",
+            scene_name,
+            world.triangle_count(),
+            world.primitive_count(),
+            world.materials.len(),
+            world.lights.lights.len(),
+            world.area_light_count(),
+            camera_count
+        ));
+        info(format!(
+            "rendering {}x{} at {} spp, {} secondary, max depth {}, {} integrator, {} threads",
+            settings.width,
+            settings.height,
+            settings.spp,
+            settings.path.secondary,
+            settings.path.max_depth,
+            settings.integrator.name(),
+            settings.threads.unwrap_or_else(rayon::current_num_threads)
+        ));
+        if cancelled() {
+            return Err(PipelineError::Cancelled);
+        }
+
+        // Render.
+        observer.stage_started(Stage::Render);
+        let out = match crate::render::render(&world, &settings, observer, cancel) {
+            Err(RenderError::Cancelled) => return Err(PipelineError::Cancelled),
+            r => r?,
+        };
+        observer.stage_finished(Stage::Render, out.render_time);
+        let accel_time = world.accel_build_time;
+        let accel_description = world.accel.describe();
+        // The world (geometry, textures) is not needed to write the image.
+        drop(world);
+
+        // Write.
+        observer.stage_started(Stage::Write);
+        let t = Instant::now();
+        let written = write_outputs(&out.image, &self.outputs)?;
+        let write_time = t.elapsed();
+        observer.stage_finished(Stage::Write, write_time);
+        if out.discarded_samples > 0 {
+            warn(format!(
+                "{} samples were NaN or infinite and were discarded",
+                out.discarded_samples
+            ));
+        }
+
+        // The thesis's console log (Fig. 5.44–5.46): phase durations and the time each ended.
+        let mut phases = PhaseReport::new();
+        phases.phase("scene loaded", load_time);
+        phases.phase("world compiled", build_time.saturating_sub(accel_time));
+        phases.phase("acceleration structure built", accel_time);
+        phases.phase(
+            format!("rendered ({})", settings.integrator.name()),
+            out.render_time,
+        );
+        phases.phase("image written", write_time);
+        phases.note(format!("acceleration    {accel_description}"));
+        phases.note(format!(
+            "rays            {} ({} camera/bounce/reflection/refraction, {} shadow), {:.2} Mrays/s",
+            out.stats.rays + out.stats.shadow_rays,
+            out.stats.rays,
+            out.stats.shadow_rays,
+            out.rays_per_second() / 1e6
+        ));
+        phases.lines().into_iter().for_each(info);
+        let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
+        info(format!("wrote {}", names.join(" and ")));
+
+        Ok(RenderReport {
+            scene_name,
+            settings,
+            warnings,
+            phases,
+            stats: out.stats,
+            discarded_samples: out.discarded_samples,
+            render_time: out.render_time,
+            rays_per_second: out.rays_per_second(),
+            written,
+        })
+    }
+}
+
+/// The output stage: writes the film to every requested file and returns their paths. Extra
+/// layers (AOVs) and partial films are written here when they land.
+pub fn write_outputs(image: &Image, outputs: &[OutputSpec]) -> Result<Vec<PathBuf>, PipelineError> {
+    let mut written = Vec::with_capacity(outputs.len());
+    for o in outputs {
+        write_image(image, &o.path, o.exposure, o.tonemap).map_err(|source| {
+            PipelineError::Write {
+                path: o.path.clone(),
+                source,
+            }
+        })?;
+        written.push(o.path.clone());
+    }
+    Ok(written)
+}

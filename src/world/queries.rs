@@ -1,0 +1,113 @@
+//! What integrators ask of the world, and all they may ask (Mitsuba's `Scene` interface, pbrt's
+//! `SurfaceInteraction::GetBSDF` and `SampleLd`): the material and BSDF at a hit, emitted and
+//! escaped radiance, a light sample seen from a hit and the pdf with which NEE would have chosen
+//! a point on an emitter. Integrators do not reach into the light set, materials or textures.
+
+use super::World;
+use crate::geometry::primitive::{Intersection, NO_LIGHT};
+use crate::geometry::{Ray, SurfaceHit};
+use crate::light::{Light, LightSample};
+use crate::material::local_shading::LocalSurface;
+use crate::material::{Bsdf, Material, eval, normal_map};
+use crate::math::{Vec2, Vec3};
+
+impl World {
+    /// Expands an intersection found on `ray` (by [`World::intersect_raw`]) into full shading
+    /// attributes.
+    #[inline]
+    pub fn surface_hit(&self, ray: &Ray, isect: &Intersection) -> SurfaceHit {
+        self.geometry.surface_hit(ray, isect)
+    }
+
+    /// The material of the surface at `hit`.
+    #[inline]
+    pub fn material(&self, hit: &SurfaceHit) -> &Material {
+        &self.materials[hit.material as usize]
+    }
+
+    /// Replaces the shading normal and tangent of `hit` by its material's normal map, if any.
+    #[inline]
+    pub fn apply_normal_map(&self, hit: &mut SurfaceHit) {
+        normal_map::apply_normal_map(self.material(hit), &self.textures, hit);
+    }
+
+    /// The BSDF at `hit` (pbrt's `GetBSDF`): applies the normal map to `hit`'s shading frame,
+    /// then evaluates the material's textures there.
+    #[inline]
+    pub fn bsdf(&self, hit: &mut SurfaceHit) -> Bsdf {
+        let material = self.material(hit);
+        normal_map::apply_normal_map(material, &self.textures, hit);
+        Bsdf::from_material(material, &self.textures, hit)
+    }
+
+    /// The parameters of the raycast/Whitted local shading models at `hit`.
+    #[inline]
+    pub fn local_surface(&self, hit: &SurfaceHit) -> LocalSurface {
+        LocalSurface::new(self.material(hit), &self.textures, hit)
+    }
+
+    /// Base colour at `hit` (factor × texture × vertex colour): the `albedo` view.
+    #[inline]
+    pub fn base_color(&self, hit: &SurfaceHit) -> Vec3 {
+        eval::base_color(self.material(hit), &self.textures, hit)
+    }
+
+    /// Radiance the surface at `hit` emits toward `wo` (unit, away from the surface).
+    #[inline]
+    pub fn emitted(&self, hit: &SurfaceHit, wo: Vec3) -> Vec3 {
+        eval::emitted(self.material(hit), &self.textures, hit, wo)
+    }
+
+    /// Radiance from the lights at infinity along an escaping ray's unit direction `d`, and the
+    /// solid-angle pdf with which NEE would have sampled `d` (selection included), for MIS.
+    #[inline]
+    pub fn escaped(&self, d: Vec3) -> (Vec3, f32) {
+        self.lights.escaped(d)
+    }
+
+    /// Next-event estimation from `hit` (Mitsuba's `sample_emitter_direction`, pbrt's
+    /// `SampleLd`): picks a light in proportion to its power with `u_light` and a point or
+    /// direction on it with `u`. The shadow ray leaves `hit` offset along `n_offset` (the
+    /// geometric normal on the side the light is sampled from); it is not traced here.
+    #[inline]
+    pub fn sample_light(
+        &self,
+        hit: &SurfaceHit,
+        n_offset: Vec3,
+        u_light: f32,
+        u: Vec2,
+    ) -> Option<LightSample> {
+        self.lights.sample(
+            &self.geometry,
+            &self.materials,
+            &self.textures,
+            hit,
+            n_offset,
+            u_light,
+            u,
+        )
+    }
+
+    /// Solid-angle pdf with which [`World::sample_light`] from `p` would have chosen the point
+    /// `emitter` (a hit on an area light, selection included), for MIS of a BSDF-sampled hit.
+    /// 0 if `emitter` is not on an area light.
+    #[inline]
+    pub fn emitter_pdf(&self, p: Vec3, emitter: &SurfaceHit) -> f32 {
+        if emitter.light == NO_LIGHT {
+            return 0.0;
+        }
+        self.lights.pdf_area(emitter.light, p, emitter)
+    }
+
+    /// Number of lights [`World::sample_light`] chooses from.
+    #[inline]
+    pub fn light_count(&self) -> usize {
+        self.lights.lights.len()
+    }
+
+    /// All lights; area lights come first (see `World::build`).
+    #[inline]
+    pub fn lights(&self) -> &[Light] {
+        &self.lights.lights
+    }
+}
