@@ -398,3 +398,74 @@ fn gltf_volume_absorption_matches_beer_lambert_and_the_fresnel_series() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Bad media in a TOML file are errors that name the file and the medium, never panics.
+#[test]
+fn hostile_media_in_toml_are_clear_errors() {
+    use trayecto::scene::toml_scene::load_from_bytes;
+    let dir = std::env::temp_dir().join(format!("trayecto-media-toml-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("bad.vol"), b"VOL\x03garbage").unwrap();
+    let base = |extra: &str| {
+        format!(
+            "{extra}\n[[material]]\nname = \"b\"\nmodel = \"interface\"\n\
+             [[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"b\"\n"
+        )
+    };
+    let cases = [
+        (
+            "fog = \"nowhere\"",
+            "fog uses medium 'nowhere', which is not defined",
+        ),
+        (
+            "[[medium]]\nname = \"m\"\nsigma_a = [-1, 0, 0]",
+            "non-negative",
+        ),
+        (
+            "[[medium]]\nname = \"m\"\nsigma_s = [1, 1, 1]\ng = 1.0",
+            "g 1 must be in (-1, 1)",
+        ),
+        (
+            "[[medium]]\nname = \"m\"\nsigma_a = [nan, 0, 0]",
+            "non-negative",
+        ),
+        ("[[medium]]\nname = \"m\"\ntype = \"grid\"", "needs 'file'"),
+        (
+            "[[medium]]\nname = \"m\"\ntype = \"grid\"\nfile = \"bad.vol\"",
+            "bad.vol",
+        ),
+        (
+            "[[medium]]\nname = \"m\"\ntype = \"grid\"\nfile = \"../../etc/passwd\"",
+            "medium 'm'",
+        ),
+        (
+            "[[medium]]\nname = \"m\"\ntype = \"voxels\"",
+            "unknown type 'voxels'",
+        ),
+        (
+            "[[medium]]\nname = \"m\"\n[[medium]]\nname = \"m\"",
+            "defined twice",
+        ),
+        ("[[medium]]\nname = \"none\"", "cannot be called 'none'"),
+    ];
+    for (extra, want) in cases {
+        let text = base(extra);
+        let e = load_from_bytes(text.as_bytes(), &dir, "hostile.toml")
+            .err()
+            .unwrap_or_else(|| panic!("accepted: {extra}"));
+        let msg = e.to_string();
+        assert!(
+            msg.contains("hostile.toml") && msg.contains(want),
+            "{extra}: message {msg:?} lacks {want:?}"
+        );
+    }
+    // An object naming a missing medium.
+    let text = "[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n\
+                medium_inside = \"ghost\"\n";
+    let msg = load_from_bytes(text.as_bytes(), &dir, "hostile.toml")
+        .err()
+        .expect("missing medium refused")
+        .to_string();
+    assert!(msg.contains("ghost"), "{msg}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -60,6 +60,8 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 1)]
     pub secondary: u32,
     /// Maximum number of bounces: 0 shows emitters only, 1 is direct lighting [profundidad máxima].
+    /// Scattering events in participating media count as bounces; crossing a medium boundary
+    /// (an interface surface) does not.
     #[arg(long, default_value_t = 64)]
     pub max_depth: u32,
     /// Linear multiplier applied before tone mapping [exposición].
