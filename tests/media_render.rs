@@ -463,8 +463,7 @@ fn hostile_media_in_toml_are_clear_errors() {
     let text = "[[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n\
                 medium_inside = \"ghost\"\n";
     let msg = load_from_bytes(text.as_bytes(), &dir, "hostile.toml")
-        .err()
-        .expect("missing medium refused")
+        .expect_err("missing medium refused")
         .to_string();
     assert!(msg.contains("ghost"), "{msg}");
     std::fs::remove_dir_all(&dir).ok();
