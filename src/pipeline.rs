@@ -42,7 +42,29 @@ pub struct RenderJob {
     pub scene: String,
     pub world: WorldOptions,
     pub settings: RenderSettings,
+    /// Which of `settings`' size, samples and depth the user gave; the others come from the
+    /// scene file when it has them (pbrt's Film, Sampler, Integrator: [`crate::scene::RenderHints`]).
+    pub given: GivenSettings,
     pub outputs: Vec<OutputSpec>,
+}
+
+/// Which render settings were given explicitly (and so win over the scene file's).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GivenSettings {
+    pub width: bool,
+    pub height: bool,
+    pub spp: bool,
+    pub max_depth: bool,
+}
+
+impl GivenSettings {
+    /// Every setting given: the scene file's hints are ignored.
+    pub const ALL: GivenSettings = GivenSettings {
+        width: true,
+        height: true,
+        spp: true,
+        max_depth: true,
+    };
 }
 
 /// The stages of a render, in order.
@@ -150,11 +172,20 @@ impl RenderJob {
         Ok(())
     }
 
-    /// The settings to render `scene` with. This is where scene-provided defaults (resolution,
-    /// samples) will be merged under the job's explicit options; today the job's settings win
-    /// outright.
-    pub fn settings_for(&self, _scene: &Scene) -> RenderSettings {
-        self.settings.clone()
+    /// The settings to render `scene` with: the scene file's resolution, samples and depth
+    /// ([`Scene::hints`]) under the options the job was explicitly given.
+    pub fn settings_for(&self, scene: &Scene) -> RenderSettings {
+        let mut s = self.settings.clone();
+        let h = &scene.hints;
+        let pick = |given: bool, hint: Option<u32>, current: u32| match hint {
+            Some(v) if !given => v,
+            _ => current,
+        };
+        s.width = pick(self.given.width, h.width, s.width);
+        s.height = pick(self.given.height, h.height, s.height);
+        s.spp = pick(self.given.spp, h.spp, s.spp);
+        s.path.max_depth = pick(self.given.max_depth, h.max_depth, s.path.max_depth);
+        s
     }
 
     /// Runs the whole pipeline. `cancel` is polled between stages and by the render driver.

@@ -90,6 +90,7 @@ fn parsers_never_panic_on_mutated_inputs() {
     let obj: Parser = |b, d| trayecto::scene::obj::load_from_bytes(b, d, "m.obj").is_ok();
     let ply: Parser = |b, _| trayecto::scene::ply::load_from_bytes(b, "m.ply").is_ok();
     let toml: Parser = |b, d| trayecto::scene::toml_scene::load_from_bytes(b, d, "m.toml").is_ok();
+    let pbrt: Parser = |b, _| trayecto::scene::pbrt::load_from_bytes(b, "m.pbrt").is_ok();
     let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/example.toml");
     let inputs: Vec<(&str, std::path::PathBuf, Parser)> = vec![
         (
@@ -123,6 +124,11 @@ fn parsers_never_panic_on_mutated_inputs() {
             ply,
         ),
         ("example.toml", example, toml),
+        (
+            "cornell-box/scene-v4.pbrt",
+            common::scene_file("pbrt/cornell-box/scene-v4.pbrt"),
+            pbrt,
+        ),
     ];
     // Keep panics quiet while probing: they are reported by the assertion instead.
     let hook = std::panic::take_hook();

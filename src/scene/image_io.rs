@@ -118,9 +118,7 @@ fn shorten(s: &str) -> String {
 /// Decodes an encoded image (PNG, JPEG, HDR) into a texture. `srgb` converts the colour channels
 /// from sRGB to linear; alpha is always linear.
 pub fn decode_texture(name: &str, bytes: &[u8], srgb: bool) -> Result<Texture, String> {
-    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| e.to_string())?;
+    let reader = reader_for(name, bytes)?;
     if reader.format().is_none() {
         return Err("unknown image format".into());
     }
@@ -128,9 +126,7 @@ pub fn decode_texture(name: &str, bytes: &[u8], srgb: bool) -> Result<Texture, S
     if w == 0 || h == 0 || w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE {
         return Err(format!("image size {w}×{h} is not supported"));
     }
-    let img = image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| e.to_string())?
+    let img = reader_for(name, bytes)?
         .decode()
         .map_err(|e| e.to_string())?;
     let (w, h) = (img.width(), img.height());
@@ -175,6 +171,23 @@ pub fn decode_texture(name: &str, bytes: &[u8], srgb: bool) -> Result<Texture, S
         wrap_t: WrapMode::Repeat,
         filter: FilterMode::Bilinear,
     })
+}
+
+/// An image reader with the format guessed from the bytes, or else from the name's extension
+/// (TGA has no signature to guess from).
+fn reader_for<'a>(
+    name: &str,
+    bytes: &'a [u8],
+) -> Result<image::ImageReader<std::io::Cursor<&'a [u8]>>, String> {
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?;
+    if reader.format().is_none()
+        && let Ok(f) = image::ImageFormat::from_path(name)
+    {
+        reader.set_format(f);
+    }
+    Ok(reader)
 }
 
 /// Why a texture path was refused (as opposed to merely missing).

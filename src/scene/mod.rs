@@ -9,6 +9,7 @@ pub mod fbx;
 pub mod gltf;
 pub mod image_io;
 pub mod obj;
+pub mod pbrt;
 pub mod ply;
 pub mod testscenes;
 pub mod toml_scene;
@@ -214,6 +215,20 @@ pub struct Scene {
     pub camera_medium: Option<MediumId>,
     /// Everything in the file that was not understood or not supported, by name.
     pub warnings: Vec<String>,
+    /// Render settings the file asks for (pbrt's Film, Sampler, Integrator); the command line
+    /// overrides each.
+    pub hints: RenderHints,
+}
+
+/// Render settings a scene file may carry. `None` leaves the front end's default.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RenderHints {
+    pub width: Option<u32>,
+    pub height: Option<u32>,
+    pub spp: Option<u32>,
+    pub max_depth: Option<u32>,
+    /// Crop window [x0, x1, y0, y1] in [0, 1] (pbrt's `cropwindow`), recorded, not applied.
+    pub crop: Option<[f32; 4]>,
 }
 
 impl MediumDesc {
@@ -611,6 +626,12 @@ pub const FORMATS: &[SceneFormat] = &[
         extensions: &["fbx"],
         load: load_fbx,
         includable: true,
+    },
+    SceneFormat {
+        name: "pbrt-v4",
+        extensions: &["pbrt"],
+        load: pbrt::load_from_file_bytes,
+        includable: false,
     },
     SceneFormat {
         name: "Trayecto TOML",

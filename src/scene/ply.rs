@@ -243,6 +243,11 @@ fn parse_header(bytes: &[u8]) -> Result<(Format, Vec<Element>, usize), String> {
     Ok((format, elements, pos))
 }
 
+/// Parses PLY bytes into one mesh (also used by the pbrt importer's `plymesh`).
+pub(crate) fn parse_mesh(bytes: &[u8], warnings: &mut Vec<String>) -> Result<Mesh, String> {
+    parse(bytes, warnings)
+}
+
 fn parse(bytes: &[u8], warnings: &mut Vec<String>) -> Result<Mesh, String> {
     let (format, elements, start) = parse_header(bytes)?;
     let data = &bytes[start..];

@@ -10,7 +10,7 @@ use std::sync::atomic::AtomicBool;
 use trayecto::accel::AccelKind;
 use trayecto::film::tonemap::Tonemap;
 use trayecto::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
-use trayecto::pipeline::{LogLine, OutputSpec, PipelineObserver, RenderJob, Stage};
+use trayecto::pipeline::{GivenSettings, LogLine, OutputSpec, PipelineObserver, RenderJob, Stage};
 use trayecto::render::{RenderObserver, RenderSettings};
 use trayecto::sampling::SamplerKind;
 use trayecto::world::{World, WorldOptions};
@@ -41,29 +41,33 @@ pub enum Command {
 
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
-    /// Scene file (.gltf, .glb, .obj, .ply, .fbx, .toml) or built-in name.
+    /// Scene file (.gltf, .glb, .obj, .ply, .fbx, .pbrt, .toml) or built-in name.
     #[arg(default_value = "cornell")]
     pub scene: String,
     /// Output image; the format follows the extension (.png, .ppm, .exr, .hdr).
     #[arg(short = 'o', long = "output", default_value = "render.png")]
     pub output: PathBuf,
     /// Image width in pixels [resolución].
-    #[arg(long, default_value_t = 512)]
-    pub width: u32,
+    /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 512.)
+    #[arg(long)]
+    pub width: Option<u32>,
     /// Image height in pixels [resolución].
-    #[arg(long, default_value_t = 512)]
-    pub height: u32,
+    /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 512.)
+    #[arg(long)]
+    pub height: Option<u32>,
     /// Camera samples per pixel [sobremuestreo].
-    #[arg(long, default_value_t = 64)]
-    pub spp: u32,
+    /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 64.)
+    #[arg(long)]
+    pub spp: Option<u32>,
     /// Continuation paths split at the first hit [rayos secundarios].
     #[arg(long, default_value_t = 1)]
     pub secondary: u32,
     /// Maximum number of bounces: 0 shows emitters only, 1 is direct lighting [profundidad máxima].
     /// Scattering events in participating media count as bounces; crossing a medium boundary
     /// (an interface surface) does not.
-    #[arg(long, default_value_t = 64)]
-    pub max_depth: u32,
+    /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 64.)
+    #[arg(long)]
+    pub max_depth: Option<u32>,
     /// Linear multiplier applied before tone mapping [exposición].
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub exposure: f32,
@@ -127,15 +131,15 @@ impl RenderArgs {
     /// The render settings these options describe (checked by [`RenderJob::check`]).
     pub fn settings(&self) -> RenderSettings {
         RenderSettings {
-            width: self.width,
-            height: self.height,
-            spp: self.spp,
+            width: self.width.unwrap_or(512),
+            height: self.height.unwrap_or(512),
+            spp: self.spp.unwrap_or(64),
             seed: self.seed,
             threads: self.threads,
             sampler: self.sampler,
             integrator: self.integrator.with_options(self.aov, self.shading),
             path: PathSettings {
-                max_depth: self.max_depth,
+                max_depth: self.max_depth.unwrap_or(64),
                 rr_depth: self.rr_depth,
                 rr_scale: self.rr_scale,
                 nee: !self.no_nee,
@@ -160,6 +164,14 @@ impl RenderArgs {
             scene: self.scene.clone(),
             world: self.world_options(),
             settings: self.settings(),
+            // Options left out take the scene file's own value (pbrt's Film, Sampler,
+            // Integrator), else the defaults above.
+            given: GivenSettings {
+                width: self.width.is_some(),
+                height: self.height.is_some(),
+                spp: self.spp.is_some(),
+                max_depth: self.max_depth.is_some(),
+            },
             outputs: vec![OutputSpec {
                 path: self.output.clone(),
                 exposure: self.exposure,
@@ -228,6 +240,7 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
     let (name, meshes, objects) = (scene.name.clone(), scene.meshes.len(), scene.objects.len());
     let (lights, cameras) = (scene.lights.clone(), scene.cameras.clone());
     let scene_warnings = scene.warnings.clone();
+    let hints = scene.hints.clone();
     let world = World::build(scene, &WorldOptions::default())
         .with_context(|| format!("compiling {}", args.scene))?;
     let b = world.bounds;
@@ -267,6 +280,19 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
         );
     }
     println!("textures    {}", world.textures.len());
+    if hints != trayecto::scene::RenderHints::default() {
+        let show = |v: Option<u32>| v.map_or("-".to_string(), |v| v.to_string());
+        println!(
+            "file asks   {}x{} pixels, {} spp, max depth {}{}",
+            show(hints.width),
+            show(hints.height),
+            show(hints.spp),
+            show(hints.max_depth),
+            hints.crop.map_or(String::new(), |c| format!(
+                ", crop window {c:?} (not applied)"
+            ))
+        );
+    }
     println!(
         "lights      {} ({} area)",
         world.lights.lights.len(),

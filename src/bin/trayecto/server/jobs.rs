@@ -11,7 +11,9 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use trayecto::film::output::to_rgb8;
 use trayecto::film::{Film, Image};
-use trayecto::pipeline::{LogLine, OutputSpec, PipelineError, PipelineObserver, RenderJob, Stage};
+use trayecto::pipeline::{
+    GivenSettings, LogLine, OutputSpec, PipelineError, PipelineObserver, RenderJob, Stage,
+};
 use trayecto::render::RenderObserver;
 use trayecto::world::WorldOptions;
 
@@ -382,6 +384,8 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
         scene: r.source.load_spec(),
         world: WorldOptions::default(),
         settings: r.settings.clone(),
+        // The web UI always sends its size, samples and depth.
+        given: GivenSettings::ALL,
         outputs: vec![output(&png), output(&exr)],
     };
     match render.run(&Observer(job), &job.cancel) {

@@ -1,0 +1,1051 @@
+//! pbrt-v4 materials and textures mapped onto Trayecto's.
+//!
+//! Textures become a small tree ([`TexNode`]) evaluated in pbrt's (u, v) convention (v up). A
+//! constant folds into the material's factor; an `imagemap` (optionally scaled) becomes an image
+//! texture reference with its `uscale/vscale/udelta/vdelta` as a UV transform; anything else
+//! (`checkerboard`, `mix`, `bilerp`, `scale` of two textures, `invert`…) is baked into an image
+//! over one period of the texture coordinates (documented in the README; exact for textures that
+//! repeat with period 1, as integer `uscale`/`vscale` checkerboards do).
+//!
+//! Material mapping, until the dedicated BSDFs land (branch `pbrt-bsdf`): `diffuse` → Lambertian;
+//! `dielectric` → dielectric (rough through `roughness`); `thindielectric` → thin-walled
+//! transmission; `conductor` → metallic GGX with F0 = the Fresnel reflectance of (η, k) at normal
+//! incidence; `coateddiffuse` → glTF's dielectric-over-diffuse metallic-roughness model with the
+//! coat's roughness and IOR; `coatedconductor` → the conductor under it; `diffusetransmission` →
+//! its reflection only; `mix` → the heavier of the two; `interface` → an index-matched boundary.
+//! Each approximation is a warning.
+
+use std::path::PathBuf;
+
+use rayon::prelude::*;
+
+use super::Loader;
+use super::params::{ParamList, SpectrumValue, TexOr};
+use crate::material::texture::{FilterMode, TextureRef, UvTransform};
+use crate::material::{Material, MaterialModel, Texture, WrapMode};
+use crate::math::{Vec2, Vec3, Vec4};
+use crate::scene::SceneError;
+
+/// A material as the file defines it.
+#[derive(Clone, Debug)]
+pub struct MatSpec {
+    pub name: String,
+    pub ty: String,
+    pub params: ParamList,
+    pub at: String,
+}
+
+/// pbrt's `uv` texture mapping: s = su·u + du, t = sv·v + dv.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvMap {
+    pub su: f32,
+    pub sv: f32,
+    pub du: f32,
+    pub dv: f32,
+}
+
+impl UvMap {
+    fn from_params(p: &ParamList) -> UvMap {
+        if let Some(m) = p.string("mapping")
+            && m != "uv"
+        {
+            // Reported by the caller through `unused`-style warnings is not possible for a value,
+            // so the caller checks `mapping` itself.
+        }
+        UvMap {
+            su: p.float("uscale", 1.0),
+            sv: p.float("vscale", 1.0),
+            du: p.float("udelta", 0.0),
+            dv: p.float("vdelta", 0.0),
+        }
+    }
+
+    fn apply(&self, u: f32, v: f32) -> (f32, f32) {
+        (self.su * u + self.du, self.sv * v + self.dv)
+    }
+
+    fn is_identity(&self) -> bool {
+        *self
+            == UvMap {
+                su: 1.0,
+                sv: 1.0,
+                du: 0.0,
+                dv: 0.0,
+            }
+    }
+}
+
+/// A texture, evaluated in pbrt's (u, v) (v = 0 at the bottom of images).
+#[derive(Clone, Debug)]
+pub enum TexNode {
+    Const(Vec3),
+    /// `scene.textures[texture]` (decoded after parsing), times `scale`, optionally inverted.
+    Image {
+        texture: usize,
+        scale: f32,
+        invert: bool,
+        map: UvMap,
+    },
+    Checker {
+        a: Box<TexNode>,
+        b: Box<TexNode>,
+        map: UvMap,
+    },
+    Scale(Box<TexNode>, Box<TexNode>),
+    Mix {
+        a: Box<TexNode>,
+        b: Box<TexNode>,
+        amount: Box<TexNode>,
+    },
+    Bilerp {
+        v: [Vec3; 4],
+        map: UvMap,
+    },
+}
+
+impl TexNode {
+    fn constant(&self) -> Option<Vec3> {
+        match self {
+            TexNode::Const(c) => Some(*c),
+            TexNode::Scale(a, b) => Some(a.constant()? * b.constant()?),
+            TexNode::Mix { a, b, amount } => {
+                let t = amount.constant()?.x;
+                Some(a.constant()? * (1.0 - t) + b.constant()? * t)
+            }
+            TexNode::Checker { a, b, .. } => {
+                let (a, b) = (a.constant()?, b.constant()?);
+                (a == b).then_some(a)
+            }
+            _ => None,
+        }
+    }
+
+    /// Value at pbrt (u, v).
+    fn eval(&self, textures: &[Texture], u: f32, v: f32) -> Vec3 {
+        match self {
+            TexNode::Const(c) => *c,
+            TexNode::Image {
+                texture,
+                scale,
+                invert,
+                map,
+            } => {
+                let (s, t) = map.apply(u, v);
+                let c = textures
+                    .get(*texture)
+                    .map(|tex| tex.lookup(Vec2::new(s, 1.0 - t)).truncate())
+                    .unwrap_or(Vec3::ZERO)
+                    * *scale;
+                if *invert {
+                    (Vec3::ONE - c).max(Vec3::ZERO)
+                } else {
+                    c
+                }
+            }
+            TexNode::Checker { a, b, map } => {
+                let (s, t) = map.apply(u, v);
+                if (s.floor() as i64 + t.floor() as i64).rem_euclid(2) == 0 {
+                    a.eval(textures, u, v)
+                } else {
+                    b.eval(textures, u, v)
+                }
+            }
+            TexNode::Scale(a, b) => a.eval(textures, u, v) * b.eval(textures, u, v),
+            TexNode::Mix { a, b, amount } => {
+                let t = amount.eval(textures, u, v).x;
+                a.eval(textures, u, v) * (1.0 - t) + b.eval(textures, u, v) * t
+            }
+            TexNode::Bilerp { v: c, map } => {
+                let (s, t) = map.apply(u, v);
+                let (s, t) = (s - s.floor(), t - t.floor());
+                c[0] * (1.0 - s) * (1.0 - t)
+                    + c[1] * s * (1.0 - t)
+                    + c[2] * (1.0 - s) * t
+                    + c[3] * s * t
+            }
+        }
+    }
+
+    /// The largest source image under this node (sets the bake resolution).
+    fn max_image(&self, jobs: &[ImageJob]) -> u32 {
+        match self {
+            TexNode::Image { texture, .. } => jobs
+                .iter()
+                .find(|j| j.texture == *texture)
+                .map_or(0, |j| j.size_hint),
+            TexNode::Checker { a, b, .. } => a.max_image(jobs).max(b.max_image(jobs)),
+            TexNode::Scale(a, b) => a.max_image(jobs).max(b.max_image(jobs)),
+            TexNode::Mix { a, b, amount } => a
+                .max_image(jobs)
+                .max(b.max_image(jobs))
+                .max(amount.max_image(jobs)),
+            _ => 0,
+        }
+    }
+}
+
+/// An image to decode after parsing.
+pub struct ImageJob {
+    pub texture: usize,
+    pub path: PathBuf,
+    pub name: String,
+    pub srgb: bool,
+    pub gamma: Option<f32>,
+    pub filter: FilterMode,
+    pub wrap: WrapMode,
+    pub at: String,
+    /// Bake resolution to use for nodes containing this image.
+    pub size_hint: u32,
+}
+
+/// A procedural texture to bake into `scene.textures[texture]` after images are decoded.
+pub struct BakeJob {
+    pub texture: usize,
+    pub node: TexNode,
+    pub size: u32,
+}
+
+/// Bake resolution for procedural textures without an image in them.
+const BAKE_SIZE: u32 = 512;
+
+impl Loader {
+    pub(super) fn texture_directive(
+        &mut self,
+        name: String,
+        ty: &str,
+        class: &str,
+        list: ParamList,
+        at: &str,
+    ) -> Result<(), SceneError> {
+        let is_float = match ty {
+            "float" => true,
+            "spectrum" | "color" | "rgb" => false,
+            other => {
+                return Err(SceneError::invalid(
+                    at,
+                    format!(
+                        "Texture \"{name}\": unknown texture type '{other}' (float or spectrum)"
+                    ),
+                ));
+            }
+        };
+        if let Some(m) = list.string("mapping")
+            && m != "uv"
+        {
+            self.warn(format!(
+                "{at}: Texture \"{name}\": mapping \"{m}\" is not supported; uv mapping is used"
+            ));
+        }
+        let map = UvMap::from_params(&list);
+        let node = match class {
+            "constant" => self.tex_param(&list, "value", is_float, Vec3::ONE, at),
+            "scale" => {
+                let t = self.tex_param(&list, "tex", is_float, Vec3::ONE, at);
+                let s = self.tex_param(&list, "scale", true, Vec3::ONE, at);
+                TexNode::Scale(Box::new(t), Box::new(s))
+            }
+            "mix" => {
+                let a = self.tex_param(&list, "tex1", is_float, Vec3::ZERO, at);
+                let b = self.tex_param(&list, "tex2", is_float, Vec3::ONE, at);
+                let amount = self.tex_param(&list, "amount", true, Vec3::splat(0.5), at);
+                TexNode::Mix {
+                    a: Box::new(a),
+                    b: Box::new(b),
+                    amount: Box::new(amount),
+                }
+            }
+            "checkerboard" => {
+                let dim = list.int("dimension", 2);
+                if dim != 2 {
+                    self.warn(format!(
+                        "{at}: Texture \"{name}\": 3D checkerboards are not supported; a 2D one is used"
+                    ));
+                }
+                let a = self.tex_param(&list, "tex1", is_float, Vec3::ONE, at);
+                let b = self.tex_param(&list, "tex2", is_float, Vec3::ZERO, at);
+                TexNode::Checker {
+                    a: Box::new(a),
+                    b: Box::new(b),
+                    map,
+                }
+            }
+            "bilerp" => {
+                let g = |l: &mut Loader, k: &str, d: f32| -> Vec3 {
+                    match l.tex_param(&list, k, is_float, Vec3::splat(d), at) {
+                        TexNode::Const(c) => c,
+                        _ => Vec3::splat(d),
+                    }
+                };
+                let v = [
+                    g(self, "v00", 0.0),
+                    g(self, "v10", 1.0),
+                    g(self, "v01", 0.0),
+                    g(self, "v11", 1.0),
+                ];
+                TexNode::Bilerp { v, map }
+            }
+            "imagemap" => self.imagemap(&name, &list, map, is_float, at)?,
+            other => {
+                self.warn(format!(
+                    "{at}: Texture \"{name}\" \"{other}\" is not supported; a constant 0.5 is used"
+                ));
+                TexNode::Const(Vec3::splat(0.5))
+            }
+        };
+        self.note_unused(&list, &format!("Texture \"{name}\" \"{class}\""), at);
+        let table = if is_float {
+            &mut self.float_textures
+        } else {
+            &mut self.spectrum_textures
+        };
+        table.insert(name, node);
+        Ok(())
+    }
+
+    fn imagemap(
+        &mut self,
+        name: &str,
+        list: &ParamList,
+        map: UvMap,
+        is_float: bool,
+        at: &str,
+    ) -> Result<TexNode, SceneError> {
+        let Some(file) = list.string("filename") else {
+            return Err(SceneError::invalid(
+                at,
+                format!("Texture \"{name}\": imagemap without \"filename\""),
+            ));
+        };
+        let scale = list.float("scale", 1.0);
+        let invert = list.bool("invert", false);
+        let filter = match list.string("filter").as_deref() {
+            Some("point") => FilterMode::Nearest,
+            _ => FilterMode::Bilinear,
+        };
+        let wrap = match list.string("wrap").as_deref() {
+            None | Some("repeat") => WrapMode::Repeat,
+            Some("clamp") => WrapMode::ClampToEdge,
+            Some(w) => {
+                self.warn(format!(
+                    "{at}: Texture \"{name}\": wrap \"{w}\" is not supported; clamp is used"
+                ));
+                WrapMode::ClampToEdge
+            }
+        };
+        let lower = file.to_ascii_lowercase();
+        let float_format = [".exr", ".pfm", ".hdr"].iter().any(|e| lower.ends_with(e));
+        let (srgb, gamma) = match list.string("encoding").as_deref() {
+            None => (!float_format, None),
+            Some("sRGB") => (!float_format, None),
+            Some("linear") => (false, None),
+            Some(g) if g.starts_with("gamma ") => match g[6..].trim().parse::<f32>() {
+                Ok(v) if v.is_finite() && v > 0.0 => (false, Some(v)),
+                _ => {
+                    return Err(SceneError::invalid(
+                        at,
+                        format!("Texture \"{name}\": bad encoding '{g}'"),
+                    ));
+                }
+            },
+            Some(other) => {
+                return Err(SceneError::invalid(
+                    at,
+                    format!("Texture \"{name}\": unknown encoding '{other}'"),
+                ));
+            }
+        };
+        let _ = is_float;
+        let path = match self.resolve(&file, at) {
+            Ok(p) => p,
+            Err(e) if self.in_memory() => {
+                self.warn(e.to_string());
+                return Ok(TexNode::Const(Vec3::splat(0.5)));
+            }
+            Err(e) => return Err(e),
+        };
+        let index = self.scene.textures.len();
+        self.scene
+            .textures
+            .push(crate::scene::image_io::missing_texture(&file));
+        let size_hint = image::image_dimensions(&path)
+            .map(|(w, h)| w.max(h).min(4096))
+            .unwrap_or(BAKE_SIZE);
+        self.image_jobs.push(ImageJob {
+            texture: index,
+            path,
+            name: file,
+            srgb,
+            gamma,
+            filter,
+            wrap,
+            at: at.to_string(),
+            size_hint,
+        });
+        Ok(TexNode::Image {
+            texture: index,
+            scale,
+            invert,
+            map,
+        })
+    }
+
+    pub(super) fn in_memory(&self) -> bool {
+        self.root_dir.is_none()
+    }
+
+    /// A texture-or-value parameter as a node. Float values are splatted.
+    fn tex_param(
+        &mut self,
+        list: &ParamList,
+        key: &str,
+        is_float: bool,
+        default: Vec3,
+        at: &str,
+    ) -> TexNode {
+        if is_float {
+            match list.float_tex(key) {
+                Some(TexOr::Value(v)) => TexNode::Const(Vec3::splat(v)),
+                Some(TexOr::Texture(t)) => self.lookup_texture(&t, true, at),
+                None => TexNode::Const(default),
+            }
+        } else {
+            match list.spectrum_tex(key) {
+                Some(TexOr::Value(s)) => TexNode::Const(self.reflectance_rgb(&s, at, key)),
+                Some(TexOr::Texture(t)) => self.lookup_texture(&t, false, at),
+                None => {
+                    // A float given where a spectrum is expected (e.g. "float tex1") is allowed.
+                    match list.floats(key) {
+                        Some(v) if !v.is_empty() => TexNode::Const(Vec3::splat(v[0])),
+                        _ => TexNode::Const(default),
+                    }
+                }
+            }
+        }
+    }
+
+    fn lookup_texture(&mut self, name: &str, is_float: bool, at: &str) -> TexNode {
+        let (first, second) = if is_float {
+            (&self.float_textures, &self.spectrum_textures)
+        } else {
+            (&self.spectrum_textures, &self.float_textures)
+        };
+        if let Some(n) = first.get(name).or_else(|| second.get(name)) {
+            return n.clone();
+        }
+        self.warn(format!(
+            "{at}: texture \"{name}\" is not defined; a constant 0.5 is used"
+        ));
+        TexNode::Const(Vec3::splat(0.5))
+    }
+
+    /// RGB of a reflectance-like spectrum (albedos, η, k).
+    fn reflectance_rgb(&mut self, s: &SpectrumValue, at: &str, key: &str) -> Vec3 {
+        match s {
+            SpectrumValue::Rgb(c) => *c,
+            SpectrumValue::Named(n) => {
+                if let Some(e) = super::spectra::named_glass_eta(n) {
+                    return Vec3::splat(e);
+                }
+                if let Some((eta, k)) = super::spectra::named_metal(n) {
+                    return if n.ends_with("-eta") { eta } else { k };
+                }
+                self.warn(format!(
+                    "{at}: \"{key}\": named spectrum \"{n}\" is not known; 0.5 is used"
+                ));
+                Vec3::splat(0.5)
+            }
+            SpectrumValue::Sampled(v) => super::spectra::sampled_rgb(v).unwrap_or_else(|| {
+                self.warn(format!(
+                    "{at}: \"{key}\": bad sampled spectrum; 0.5 is used"
+                ));
+                Vec3::splat(0.5)
+            }),
+            SpectrumValue::Blackbody(_) => {
+                self.warn(format!(
+                    "{at}: \"{key}\": a blackbody is not a reflectance; 0.5 is used"
+                ));
+                Vec3::splat(0.5)
+            }
+        }
+    }
+
+    /// A node as a material factor plus an optional texture reference.
+    fn node_to_factor(&mut self, node: &TexNode) -> (Vec3, Option<TextureRef>) {
+        if let Some(c) = node.constant() {
+            return (c, None);
+        }
+        if let TexNode::Image {
+            texture,
+            scale,
+            invert: false,
+            map,
+        } = node
+        {
+            // Trayecto's v runs down the image (mesh uvs are stored as (u, 1 − v)); pbrt's
+            // lookup of (su·u + du, sv·v + dv) with v up is, in stored coordinates,
+            // (su·u' + du, sv·v' + 1 − sv − dv).
+            let mut r = TextureRef::new(*texture);
+            if !map.is_identity() {
+                r.transform = Some(UvTransform {
+                    offset: Vec2::new(map.du, 1.0 - map.sv - map.dv),
+                    rotation: 0.0,
+                    scale: Vec2::new(map.su, map.sv),
+                });
+            }
+            return (Vec3::splat(*scale), Some(r));
+        }
+        let size = node.max_image(&self.image_jobs).clamp(BAKE_SIZE, 2048);
+        let index = self.scene.textures.len();
+        self.scene
+            .textures
+            .push(Texture::constant("pbrt baked texture", Vec4::ONE));
+        self.bake_jobs.push(BakeJob {
+            texture: index,
+            node: node.clone(),
+            size,
+        });
+        (Vec3::ONE, Some(TextureRef::new(index)))
+    }
+
+    pub(super) fn node_to_factor_public(&mut self, node: &TexNode) -> (Vec3, Option<TextureRef>) {
+        self.node_to_factor(node)
+    }
+
+    /// Decodes every image texture, in parallel.
+    pub(super) fn run_image_jobs(&mut self) {
+        let jobs = std::mem::take(&mut self.image_jobs);
+        let results: Vec<(usize, Result<Texture, String>)> = jobs
+            .par_iter()
+            .map(|j| (j.texture, decode_image(j)))
+            .collect();
+        for ((index, r), j) in results.into_iter().zip(&jobs) {
+            match r {
+                Ok(t) => self.scene.textures[index] = t,
+                Err(e) => self.warn(format!(
+                    "{}: texture \"{}\" could not be read ({e}): using a magenta fallback",
+                    j.at, j.name
+                )),
+            }
+        }
+        self.image_jobs = jobs;
+    }
+
+    /// Bakes procedural textures (after images are decoded), in parallel.
+    pub(super) fn run_bake_jobs(&mut self) {
+        let jobs = std::mem::take(&mut self.bake_jobs);
+        let textures = &self.scene.textures;
+        let baked: Vec<(usize, Texture)> = jobs
+            .par_iter()
+            .map(|j| {
+                let n = j.size.max(1);
+                let mut texels = Vec::with_capacity((n * n) as usize);
+                for row in 0..n {
+                    for col in 0..n {
+                        // Row 0 is the top of the image: pbrt's v = 1 there.
+                        let u = (col as f32 + 0.5) / n as f32;
+                        let v = 1.0 - (row as f32 + 0.5) / n as f32;
+                        texels.push(j.node.eval(textures, u, v).extend(1.0));
+                    }
+                }
+                (
+                    j.texture,
+                    Texture {
+                        name: "pbrt baked texture".into(),
+                        width: n,
+                        height: n,
+                        texels,
+                        wrap_s: WrapMode::Repeat,
+                        wrap_t: WrapMode::Repeat,
+                        filter: FilterMode::Bilinear,
+                    },
+                )
+            })
+            .collect();
+        for (i, t) in baked {
+            self.scene.textures[i] = t;
+        }
+    }
+
+    fn roughness(&mut self, p: &ParamList, prefix: &str, at: &str, what: &str) -> f32 {
+        let get = |l: &mut Loader, k: &str| -> Option<f32> {
+            match p.float_tex(&format!("{prefix}{k}")) {
+                Some(TexOr::Value(v)) => Some(v),
+                Some(TexOr::Texture(t)) => {
+                    let n = l.lookup_texture(&t, true, at);
+                    l.warn(format!(
+                        "{at}: {what}: a roughness texture (\"{t}\") is not supported; its mean over [0,1]² is used"
+                    ));
+                    let mut s = 0.0;
+                    for i in 0..16 {
+                        for j in 0..16 {
+                            s += n
+                                .eval(
+                                    &l.scene.textures,
+                                    (i as f32 + 0.5) / 16.0,
+                                    (j as f32 + 0.5) / 16.0,
+                                )
+                                .x;
+                        }
+                    }
+                    Some(s / 256.0)
+                }
+                None => None,
+            }
+        };
+        let r = get(self, "roughness");
+        let u = get(self, "uroughness");
+        let v = get(self, "vroughness");
+        let (u, v) = match (u, v, r) {
+            (Some(u), Some(v), _) => (u, v),
+            (Some(u), None, r) => (u, r.unwrap_or(0.0)),
+            (None, Some(v), r) => (r.unwrap_or(0.0), v),
+            (None, None, r) => (r.unwrap_or(0.0), r.unwrap_or(0.0)),
+        };
+        let remap = p.bool("remaproughness", true);
+        // pbrt-v4 TrowbridgeReitzDistribution::RoughnessToAlpha: α = √roughness when remapping.
+        let to_alpha = |x: f32| if remap { x.max(0.0).sqrt() } else { x.max(0.0) };
+        let (au, av) = (to_alpha(u), to_alpha(v));
+        if (au - av).abs() > 1e-6 * au.max(av) {
+            self.warn(format!(
+                "{at}: {what}: anisotropic roughness (α {au} × {av}) is rendered isotropic with α = √(αu·αv)"
+            ));
+        }
+        let alpha = (au * av).sqrt();
+        // Trayecto's materials use glTF's perceptual roughness: α = roughness².
+        alpha.sqrt().clamp(0.0, 1.0)
+    }
+
+    fn spectrum_factor(
+        &mut self,
+        p: &ParamList,
+        key: &str,
+        default: Vec3,
+        at: &str,
+    ) -> (Vec3, Option<TextureRef>) {
+        let node = self.tex_param(p, key, false, default, at);
+        self.node_to_factor(&node)
+    }
+
+    /// Converts a material. `depth` guards `mix` recursion.
+    pub(super) fn convert_material(&mut self, spec: &MatSpec, depth: u32) -> Material {
+        let p = &spec.params;
+        let at = spec.at.as_str();
+        let what = format!("material \"{}\" ({})", spec.name, spec.ty);
+        let mut m = Material {
+            name: spec.name.clone(),
+            ..Default::default()
+        };
+        // Parameters every material may have.
+        let _ = p.string("type");
+        if let Some(d) = p.texture("displacement") {
+            self.warn(format!(
+                "{at}: {what}: displacement (bump) texture \"{d}\" is not supported and is ignored"
+            ));
+        }
+        if let Some(n) = p.string("normalmap") {
+            self.warn(format!(
+                "{at}: {what}: normal map \"{n}\" is not supported yet and is ignored"
+            ));
+        }
+        match spec.ty.as_str() {
+            "diffuse" => {
+                let (c, t) = self.spectrum_factor(p, "reflectance", Vec3::splat(0.5), at);
+                m.model = MaterialModel::Diffuse;
+                m.base_color = c;
+                m.base_color_texture = t;
+            }
+            "coateddiffuse" => {
+                let (c, t) = self.spectrum_factor(p, "reflectance", Vec3::splat(0.5), at);
+                let rough = self.roughness(p, "", at, &what);
+                let eta = self.eta(p, at, &what);
+                // Light under the coat bounces between the base and the inside of the interface
+                // before it escapes: a Lambertian base of albedo R under a clear coat of relative
+                // index η returns R·(1 − F_dr)/(1 − R·F_dr) of what enters, F_dr being the
+                // interface's diffuse internal reflectance (Egan & Hilgeman's fit, as in Jensen et
+                // al. 2001, eq. 14: F_dr = −1.440/η² + 0.710/η + 0.668 + 0.0636η; 0.60 for 1.5).
+                // The glTF model has no such term, so the base colour carries it; without it the
+                // coffee scene renders 1.6× brighter than pbrt-v4.
+                let fdr =
+                    (-1.440 / (eta * eta) + 0.710 / eta + 0.668 + 0.0636 * eta).clamp(0.0, 0.99);
+                let r_eff = |r: Vec3| r * (1.0 - fdr) / (Vec3::ONE - r * fdr);
+                let base = if t.is_some() {
+                    // The ratio depends on R; for a texture it is taken at R = 0.5.
+                    c * r_eff(Vec3::splat(0.5)) / 0.5
+                } else {
+                    r_eff(c.clamp(Vec3::ZERO, Vec3::ONE))
+                };
+                m.model = MaterialModel::MetallicRoughness;
+                m.metallic = 0.0;
+                m.base_color = base;
+                m.base_color_texture = t;
+                m.roughness = rough;
+                m.ior = eta;
+                let albedo = self.tex_param(p, "albedo", false, Vec3::ZERO, at);
+                let thickness = p.float("thickness", 0.01);
+                let (_g, _md, _ns) = (
+                    p.float("g", 0.0),
+                    p.int("maxdepth", 10),
+                    p.int("nsamples", 1),
+                );
+                self.warn_once(
+                    &format!("coateddiffuse {}", spec.name),
+                    format!(
+                        "{at}: {what}: pbrt-v4's layered coated-diffuse BSDF is approximated by a dielectric specular layer over a Lambertian base (glTF model) whose albedo includes the coat's internal reflections{}",
+                        if albedo.constant() != Some(Vec3::ZERO) {
+                            format!("; the coat's absorbing medium (albedo, thickness {thickness}) is not modelled")
+                        } else {
+                            String::new()
+                        }
+                    ),
+                );
+            }
+            "conductor" | "coatedconductor" => {
+                let pre = if spec.ty == "coatedconductor" {
+                    "conductor."
+                } else {
+                    ""
+                };
+                let rough = self.roughness(p, pre, at, &what);
+                let reflectance = p.spectrum_tex(&format!("{pre}reflectance"));
+                let base = if let Some(r) = reflectance {
+                    let node = match r {
+                        TexOr::Value(s) => {
+                            TexNode::Const(self.reflectance_rgb(&s, at, "reflectance"))
+                        }
+                        TexOr::Texture(t) => self.lookup_texture(&t, false, at),
+                    };
+                    let (c, t) = self.node_to_factor(&node);
+                    m.base_color_texture = t;
+                    c
+                } else {
+                    let eta = self.spectrum_const(p, &format!("{pre}eta"), "metal-Cu-eta", at);
+                    let k = self.spectrum_const(p, &format!("{pre}k"), "metal-Cu-k", at);
+                    // Fresnel reflectance of a conductor at normal incidence:
+                    // F0 = ((η−1)² + k²) / ((η+1)² + k²) (Born & Wolf; PBRT §9.5.3 at cos θ = 1).
+                    let one = Vec3::ONE;
+                    ((eta - one) * (eta - one) + k * k) / ((eta + one) * (eta + one) + k * k)
+                };
+                m.model = MaterialModel::MetallicRoughness;
+                m.metallic = 1.0;
+                m.base_color = base;
+                m.roughness = rough;
+                if spec.ty == "coatedconductor" {
+                    let _ = self.roughness(p, "interface.", at, &what);
+                    let _ = p.float("interface.eta", 1.5);
+                    let _ = p.spectrum("interface.eta");
+                    let _ = (
+                        p.float("thickness", 0.01),
+                        p.float("g", 0.0),
+                        p.int("maxdepth", 10),
+                        p.int("nsamples", 1),
+                    );
+                    let _ = p.spectrum_tex("albedo");
+                    self.warn_once(
+                        &format!("coatedconductor {}", spec.name),
+                        format!("{at}: {what}: pbrt-v4's coated conductor is approximated by the bare conductor (metallic GGX, Schlick Fresnel from F0); the dielectric coat is not modelled"),
+                    );
+                } else {
+                    self.warn_once(
+                        "conductorF0",
+                        format!("{at}: {what}: conductors use the metallic GGX BRDF with Schlick's Fresnel from the normal-incidence reflectance of (η, k), until the complex-Fresnel conductor lands"),
+                    );
+                }
+            }
+            "dielectric" | "thindielectric" => {
+                let eta = self.eta(p, at, &what);
+                let rough = if spec.ty == "dielectric" {
+                    self.roughness(p, "", at, &what)
+                } else {
+                    0.0
+                };
+                m.ior = eta;
+                m.base_color = Vec3::ONE;
+                m.roughness = rough;
+                if spec.ty == "dielectric" {
+                    m.model = MaterialModel::Dielectric;
+                } else {
+                    m.model = MaterialModel::MetallicRoughness;
+                    m.metallic = 0.0;
+                    m.transmission = 1.0;
+                    m.thin_walled = true;
+                }
+            }
+            "diffusetransmission" => {
+                let (c, t) = self.spectrum_factor(p, "reflectance", Vec3::splat(0.25), at);
+                let tr = self.tex_param(p, "transmittance", false, Vec3::splat(0.25), at);
+                let _ = p.float("scale", 1.0);
+                m.model = MaterialModel::Diffuse;
+                m.base_color = c;
+                m.base_color_texture = t;
+                self.warn(format!(
+                    "{at}: {what}: diffuse transmission is not supported yet; only the reflection is rendered{}",
+                    if tr.constant() == Some(Vec3::ZERO) { "" } else { " (the transmitted light is lost)" }
+                ));
+            }
+            "mix" => {
+                let names = p.strings("materials").unwrap_or_default();
+                let amount = match p.float_tex("amount") {
+                    Some(TexOr::Value(v)) => v,
+                    Some(TexOr::Texture(t)) => {
+                        self.warn(format!("{at}: {what}: a textured mix amount (\"{t}\") is not supported; 0.5 is used"));
+                        0.5
+                    }
+                    None => 0.5,
+                };
+                if names.len() != 2 {
+                    self.warn(format!("{at}: {what}: \"materials\" must name two materials; the default material is used"));
+                    return Material::diffuse(&spec.name, Vec3::splat(0.5));
+                }
+                // pbrt-v4 MixMaterial picks materials[1] with probability `amount`.
+                let pick = if amount >= 0.5 { &names[1] } else { &names[0] };
+                if amount > 0.0 && amount < 1.0 {
+                    self.warn(format!(
+                        "{at}: {what}: a mix with amount {amount} is rendered as \"{pick}\" alone (stochastic material mixing is not supported)"
+                    ));
+                }
+                let Some(inner) = self.named_materials.get(pick).cloned() else {
+                    self.warn(format!("{at}: {what}: material \"{pick}\" is not defined; the default material is used"));
+                    return Material::diffuse(&spec.name, Vec3::splat(0.5));
+                };
+                if depth > 16 {
+                    self.warn(format!("{at}: {what}: mix materials nested too deeply"));
+                    return Material::diffuse(&spec.name, Vec3::splat(0.5));
+                }
+                let mut inner = self.convert_material(&inner, depth + 1);
+                inner.name = spec.name.clone();
+                self.note_unused(p, &what, at);
+                return inner;
+            }
+            "interface" => {
+                // A boundary that only separates media: index-matched, so light passes straight.
+                m.model = MaterialModel::Dielectric;
+                m.ior = 1.0;
+                m.roughness = 0.0;
+            }
+            other => {
+                let (c, t) = self.spectrum_factor(p, "reflectance", Vec3::splat(0.5), at);
+                m.model = MaterialModel::Diffuse;
+                m.base_color = c;
+                m.base_color_texture = t;
+                self.warn(format!(
+                    "{at}: {what}: material type \"{other}\" is not supported; a diffuse material{} is used",
+                    if p.has("reflectance") { " with its reflectance" } else { "" }
+                ));
+                // Its own parameters are covered by this warning.
+                for q in &p.params {
+                    q.used.set(true);
+                }
+            }
+        }
+        self.note_unused(p, &what, at);
+        m
+    }
+
+    fn eta(&mut self, p: &ParamList, at: &str, what: &str) -> f32 {
+        let e = match p.float_tex("eta") {
+            Some(TexOr::Value(v)) => v,
+            Some(TexOr::Texture(t)) => {
+                self.warn(format!(
+                    "{at}: {what}: a textured eta (\"{t}\") is not supported; 1.5 is used"
+                ));
+                1.5
+            }
+            None => match p.spectrum("eta") {
+                Some(SpectrumValue::Named(n)) => match super::spectra::named_glass_eta(&n) {
+                    Some(e) => {
+                        self.warn_once(
+                            &format!("disp {n}"),
+                            format!("{at}: {what}: spectrally varying eta \"{n}\" is rendered with its index at 587.6 nm ({e}); dispersion is not modelled"),
+                        );
+                        e
+                    }
+                    None => {
+                        self.warn(format!(
+                            "{at}: {what}: eta spectrum \"{n}\" is not known; 1.5 is used"
+                        ));
+                        1.5
+                    }
+                },
+                Some(SpectrumValue::Rgb(c)) => (c.x + c.y + c.z) / 3.0,
+                Some(other) => {
+                    self.warn(format!(
+                        "{at}: {what}: eta {other:?} is not supported; 1.5 is used"
+                    ));
+                    1.5
+                }
+                None => 1.5,
+            },
+        };
+        if !(e.is_finite() && e > 0.0) {
+            self.warn(format!(
+                "{at}: {what}: eta {e} is not positive; 1.5 is used"
+            ));
+            return 1.5;
+        }
+        e
+    }
+
+    /// A constant spectrum parameter with a named default (η and k of conductors).
+    fn spectrum_const(&mut self, p: &ParamList, key: &str, default: &str, at: &str) -> Vec3 {
+        match p.spectrum_tex(key) {
+            Some(TexOr::Value(s)) => self.reflectance_rgb(&s, at, key),
+            Some(TexOr::Texture(t)) => {
+                let n = self.lookup_texture(&t, false, at);
+                self.warn(format!("{at}: \"{key}\": a textured value (\"{t}\") is not supported; its value at the centre is used"));
+                n.eval(&self.scene.textures, 0.5, 0.5)
+            }
+            None => self.reflectance_rgb(&SpectrumValue::Named(default.into()), at, key),
+        }
+    }
+}
+
+/// Reads and decodes one image (PNG, JPEG, TGA, HDR via the `image` crate; EXR via the loader
+/// shared with the environment maps; PFM by hand).
+pub(crate) fn decode_image(j: &ImageJob) -> Result<Texture, String> {
+    let lower = j.name.to_ascii_lowercase();
+    let mut t = if lower.ends_with(".exr") {
+        decode_exr(&j.name, &j.path)?
+    } else {
+        let bytes = std::fs::read(&j.path).map_err(|e| e.to_string())?;
+        if lower.ends_with(".pfm") {
+            decode_pfm(&j.name, &bytes)?
+        } else {
+            crate::scene::image_io::decode_texture(&j.name, &bytes, j.srgb)?
+        }
+    };
+    if let Some(g) = j.gamma {
+        for c in &mut t.texels {
+            *c = Vec4::new(
+                c.x.max(0.0).powf(g),
+                c.y.max(0.0).powf(g),
+                c.z.max(0.0).powf(g),
+                c.w,
+            );
+        }
+    }
+    t.filter = j.filter;
+    t.wrap_s = j.wrap;
+    t.wrap_t = j.wrap;
+    Ok(t)
+}
+
+fn decode_exr(name: &str, path: &std::path::Path) -> Result<Texture, String> {
+    let img = crate::film::output::read_exr(path).map_err(|e| e.to_string())?;
+    let (w, h) = (img.width, img.height);
+    if w == 0 || h == 0 || w > 16384 || h > 16384 {
+        return Err(format!("image size {w}×{h} is not supported"));
+    }
+    Ok(Texture {
+        name: name.to_string(),
+        width: w,
+        height: h,
+        texels: img.data.iter().map(|c| c.extend(1.0)).collect(),
+        wrap_s: WrapMode::Repeat,
+        wrap_t: WrapMode::Repeat,
+        filter: FilterMode::Bilinear,
+    })
+}
+
+/// Portable float map: `PF` (RGB) or `Pf` (grey), width height, scale (negative = little
+/// endian), then rows bottom to top.
+pub fn decode_pfm(name: &str, bytes: &[u8]) -> Result<Texture, String> {
+    let mut fields = Vec::new();
+    let mut pos = 0;
+    while fields.len() < 4 {
+        while pos < bytes.len() && bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        let start = pos;
+        while pos < bytes.len() && !bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        if start == pos || pos - start > 32 {
+            return Err("truncated PFM header".into());
+        }
+        fields.push(String::from_utf8_lossy(&bytes[start..pos]).into_owned());
+    }
+    pos += 1; // the single whitespace byte after the scale
+    let channels = match fields[0].as_str() {
+        "PF" => 3,
+        "Pf" => 1,
+        _ => return Err("not a PFM file".into()),
+    };
+    let w: u32 = fields[1].parse().map_err(|_| "bad PFM width")?;
+    let h: u32 = fields[2].parse().map_err(|_| "bad PFM height")?;
+    let scale: f32 = fields[3].parse().map_err(|_| "bad PFM scale")?;
+    if w == 0 || h == 0 || w > 16384 || h > 16384 || !scale.is_finite() || scale == 0.0 {
+        return Err(format!(
+            "PFM size {w}×{h} or scale {scale} is not supported"
+        ));
+    }
+    let n = w as usize * h as usize * channels;
+    let data = bytes
+        .get(pos..pos + n * 4)
+        .ok_or("the PFM file is shorter than its header says")?;
+    let little = scale < 0.0;
+    let mut texels = vec![Vec4::ZERO; w as usize * h as usize];
+    for y in 0..h as usize {
+        // PFM rows run bottom to top; textures are stored top row first.
+        let dst_row = h as usize - 1 - y;
+        for x in 0..w as usize {
+            let mut c = [0.0f32; 3];
+            for (k, ck) in c.iter_mut().enumerate().take(channels) {
+                let i = ((y * w as usize + x) * channels + k) * 4;
+                let b = [data[i], data[i + 1], data[i + 2], data[i + 3]];
+                let v = if little {
+                    f32::from_le_bytes(b)
+                } else {
+                    f32::from_be_bytes(b)
+                };
+                *ck = if v.is_finite() { v } else { 0.0 };
+            }
+            if channels == 1 {
+                c = [c[0]; 3];
+            }
+            texels[dst_row * w as usize + x] = Vec4::new(c[0], c[1], c[2], 1.0);
+        }
+    }
+    Ok(Texture {
+        name: name.to_string(),
+        width: w,
+        height: h,
+        texels,
+        wrap_s: WrapMode::Repeat,
+        wrap_t: WrapMode::Repeat,
+        filter: FilterMode::Bilinear,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pfm_rows_are_flipped_and_truncation_is_an_error() {
+        let mut f = b"PF\n2 1\n-1.0\n".to_vec();
+        for v in [1.0f32, 2.0, 3.0, 4.0, 5.0, 6.0] {
+            f.extend_from_slice(&v.to_le_bytes());
+        }
+        let t = decode_pfm("x", &f).unwrap();
+        assert_eq!(t.texels[1], Vec4::new(4.0, 5.0, 6.0, 1.0));
+        assert!(decode_pfm("x", &f[..f.len() - 1]).is_err());
+        assert!(decode_pfm("x", b"PF\n999999 999999\n-1\n").is_err());
+    }
+
+    #[test]
+    fn checkerboard_alternates_in_pbrt_uv() {
+        let n = TexNode::Checker {
+            a: Box::new(TexNode::Const(Vec3::ONE)),
+            b: Box::new(TexNode::Const(Vec3::ZERO)),
+            map: UvMap {
+                su: 4.0,
+                sv: 4.0,
+                du: 0.0,
+                dv: 0.0,
+            },
+        };
+        assert_eq!(n.eval(&[], 0.1, 0.1), Vec3::ONE);
+        assert_eq!(n.eval(&[], 0.3, 0.1), Vec3::ZERO);
+        assert_eq!(n.eval(&[], 0.3, 0.3), Vec3::ONE);
+    }
+}

@@ -1,0 +1,866 @@
+//! pbrt-v4 shapes as Trayecto geometry. Triangle and bilinear meshes, PLY files, spheres, disks
+//! and cylinders (tessellated where Trayecto has no matching analytic shape), Loop subdivision
+//! surfaces (subdivided), and curves (approximated by thin prisms: a documented approximation).
+//!
+//! Front faces follow pbrt-v4 (`Triangle::InteractionFromIntersection`, the quadrics): a mesh
+//! with normals faces them, one without faces its counter-clockwise side; quadrics face outwards
+//! (+z for disks); `ReverseOrientation` flips all of these. Trayecto's front face is the
+//! counter-clockwise side (kept through mirroring transforms), so triangles are re-wound here.
+
+use std::io::Read;
+
+use rayon::prelude::*;
+
+use super::params::{ParamList, TexOr};
+use super::{Loader, PlyJob};
+use crate::material::AlphaMode;
+use crate::math::{Vec2, Vec3};
+use crate::scene::{Mesh, SceneError, Shape};
+
+/// Largest decompressed `.ply.gz` accepted, in bytes.
+const MAX_GUNZIP: u64 = 4 << 30;
+/// Most Loop subdivision levels applied (each multiplies the triangle count by 4).
+const MAX_LOOP_LEVELS: i64 = 6;
+/// Grid resolution of tessellated quadrics (around × along).
+const QUADRIC_STEPS: (usize, usize) = (96, 48);
+
+/// Winds every triangle so its counter-clockwise side is pbrt's front: towards the vertex
+/// normals when the mesh has them; then flips everything for `ReverseOrientation`.
+pub fn orient(mesh: &mut Mesh, reverse: bool) {
+    if let Some(n) = &mesh.normals {
+        for t in &mut mesh.indices {
+            let [a, b, c] = t.map(|i| i as usize);
+            let (Some(pa), Some(pb), Some(pc)) = (
+                mesh.positions.get(a),
+                mesh.positions.get(b),
+                mesh.positions.get(c),
+            ) else {
+                continue;
+            };
+            let ng = (*pb - *pa).cross(*pc - *pa);
+            let ns = n.get(a).copied().unwrap_or(Vec3::ZERO)
+                + n.get(b).copied().unwrap_or(Vec3::ZERO)
+                + n.get(c).copied().unwrap_or(Vec3::ZERO);
+            if ng.dot(ns) < 0.0 {
+                t.swap(1, 2);
+            }
+        }
+    }
+    if reverse {
+        for t in &mut mesh.indices {
+            t.swap(1, 2);
+        }
+        if let Some(n) = &mut mesh.normals {
+            for v in n.iter_mut() {
+                *v = -*v;
+            }
+        }
+    }
+}
+
+/// pbrt's (u, v), v up, stored the way Trayecto's meshes store texture coordinates (v down).
+fn to_stored_uv(uv: Vec2) -> Vec2 {
+    Vec2::new(uv.x, 1.0 - uv.y)
+}
+
+impl Loader {
+    pub(super) fn shape(&mut self, ty: &str, list: ParamList, at: &str) -> Result<(), SceneError> {
+        let name = format!("{ty} ({at})");
+        let what = format!("Shape \"{ty}\"");
+        // Parameters every shape may have.
+        let alpha = list.float_tex("alpha");
+        if self.current_object.is_some() && self.gs.area_light.is_some() {
+            self.warn_once(
+                &format!("instlight {at}"),
+                format!("{at}: {what}: area lights inside ObjectBegin are not supported by pbrt-v4 either; the instances emit anyway"),
+            );
+        }
+        let reverse = self.gs.reverse;
+        let shape: Option<Shape> = match ty {
+            "trianglemesh" => {
+                let p = list.point3s("P");
+                let Some(p) = p else {
+                    return Err(SceneError::invalid(at, "trianglemesh without \"point3 P\""));
+                };
+                let indices = match list.ints("indices") {
+                    Some(i) => i,
+                    None if p.len() == 3 => vec![0, 1, 2],
+                    None => {
+                        return Err(SceneError::invalid(
+                            at,
+                            "trianglemesh without \"integer indices\" (only a 3-vertex mesh may omit them)",
+                        ));
+                    }
+                };
+                if indices.len() % 3 != 0 {
+                    return Err(SceneError::invalid(
+                        at,
+                        format!(
+                            "trianglemesh: {} indices is not a multiple of 3",
+                            indices.len()
+                        ),
+                    ));
+                }
+                let mut mesh = Mesh {
+                    name: name.clone(),
+                    positions: p,
+                    ..Default::default()
+                };
+                mesh.indices = checked_indices(&indices, 3, mesh.positions.len(), at)?
+                    .chunks_exact(3)
+                    .map(|c| [c[0], c[1], c[2]])
+                    .collect();
+                self.mesh_attributes(&mut mesh, &list, at, &what)?;
+                orient(&mut mesh, reverse);
+                Some(Shape::Mesh(self.scene.add_mesh(mesh)))
+            }
+            "bilinearmesh" => {
+                let Some(p) = list.point3s("P") else {
+                    return Err(SceneError::invalid(at, "bilinearmesh without \"point3 P\""));
+                };
+                let indices = match list.ints("indices") {
+                    Some(i) => i,
+                    None if p.len() == 4 => vec![0, 1, 2, 3],
+                    None => {
+                        return Err(SceneError::invalid(
+                            at,
+                            "bilinearmesh without \"integer indices\"",
+                        ));
+                    }
+                };
+                if indices.len() % 4 != 0 {
+                    return Err(SceneError::invalid(
+                        at,
+                        format!(
+                            "bilinearmesh: {} indices is not a multiple of 4",
+                            indices.len()
+                        ),
+                    ));
+                }
+                let idx = checked_indices(&indices, 4, p.len(), at)?;
+                let mut src = Mesh {
+                    name: name.clone(),
+                    positions: p,
+                    ..Default::default()
+                };
+                self.mesh_attributes(&mut src, &list, at, &what)?;
+                let mesh = bilinear_to_triangles(&src, &idx);
+                let mut mesh = mesh;
+                orient(&mut mesh, reverse);
+                Some(Shape::Mesh(self.scene.add_mesh(mesh)))
+            }
+            "plymesh" => {
+                let Some(file) = list.string("filename") else {
+                    return Err(SceneError::invalid(
+                        at,
+                        "plymesh without \"string filename\"",
+                    ));
+                };
+                if list.has("displacement") {
+                    let _ = list.texture("displacement");
+                    let _ = list.float("edgelength", 1.0);
+                    self.warn(format!(
+                        "{at}: {what} \"{file}\": displacement is not supported; the mesh is rendered undisplaced"
+                    ));
+                } else if list.has("edgelength") {
+                    let _ = list.float("edgelength", 1.0);
+                }
+                if self.in_memory() {
+                    self.warn(format!(
+                        "{at}: {what} \"{file}\": files are not read when parsing text from memory"
+                    ));
+                    None
+                } else {
+                    let path = self.resolve(&file, at)?;
+                    let mesh = self.scene.add_mesh(Mesh {
+                        name: file.clone(),
+                        ..Default::default()
+                    });
+                    self.ply_jobs.push(PlyJob {
+                        mesh,
+                        path,
+                        name: file,
+                        location: at.to_string(),
+                        reverse,
+                    });
+                    Some(Shape::Mesh(mesh))
+                }
+            }
+            "sphere" => {
+                let r = list.float("radius", 1.0);
+                let zmin = list.float("zmin", -r).clamp(-r, r);
+                let zmax = list.float("zmax", r).clamp(-r, r);
+                let phimax = list.float("phimax", 360.0).clamp(0.0, 360.0);
+                if !(r > 0.0) || zmin >= zmax || phimax <= 0.0 {
+                    self.warn(format!("{at}: {what}: empty sphere (radius {r}, z [{zmin}, {zmax}], phimax {phimax}) left out"));
+                    None
+                } else {
+                    let full = zmin <= -r && zmax >= r && phimax >= 360.0;
+                    if full && !reverse && is_similarity(&self.gs.ctm) {
+                        Some(Shape::Sphere {
+                            center: Vec3::ZERO,
+                            radius: r,
+                        })
+                    } else {
+                        let mut m = tessellate(&name, QUADRIC_STEPS, |u, v| {
+                            let phi = u * phimax.to_radians();
+                            let z = zmin + (zmax - zmin) * v;
+                            let rho = (r * r - z * z).max(0.0).sqrt();
+                            let p = Vec3::new(rho * phi.cos(), rho * phi.sin(), z);
+                            (p, p.normalize_or_zero())
+                        });
+                        orient(&mut m, reverse);
+                        Some(Shape::Mesh(self.scene.add_mesh(m)))
+                    }
+                }
+            }
+            "cylinder" => {
+                let r = list.float("radius", 1.0);
+                let zmin = list.float("zmin", -1.0);
+                let zmax = list.float("zmax", 1.0);
+                let phimax = list.float("phimax", 360.0).clamp(0.0, 360.0);
+                if !(r > 0.0) || zmin == zmax || phimax <= 0.0 {
+                    self.warn(format!("{at}: {what}: empty cylinder left out"));
+                    None
+                } else {
+                    let mut m = tessellate(&name, (QUADRIC_STEPS.0, 1), |u, v| {
+                        let phi = u * phimax.to_radians();
+                        let p = Vec3::new(r * phi.cos(), r * phi.sin(), zmin + (zmax - zmin) * v);
+                        (p, Vec3::new(phi.cos(), phi.sin(), 0.0))
+                    });
+                    orient(&mut m, reverse);
+                    Some(Shape::Mesh(self.scene.add_mesh(m)))
+                }
+            }
+            "disk" => {
+                let h = list.float("height", 0.0);
+                let r = list.float("radius", 1.0);
+                let ri = list.float("innerradius", 0.0).max(0.0);
+                let phimax = list.float("phimax", 360.0).clamp(0.0, 360.0);
+                if !(r > ri) || phimax <= 0.0 {
+                    self.warn(format!("{at}: {what}: empty disk left out"));
+                    None
+                } else {
+                    let mut m = tessellate(&name, (QUADRIC_STEPS.0, 1), |u, v| {
+                        let phi = u * phimax.to_radians();
+                        let rho = r + (ri - r) * v;
+                        (Vec3::new(rho * phi.cos(), rho * phi.sin(), h), Vec3::Z)
+                    });
+                    orient(&mut m, reverse);
+                    Some(Shape::Mesh(self.scene.add_mesh(m)))
+                }
+            }
+            "loopsubdiv" => {
+                let levels = list.int("levels", 3);
+                let Some(p) = list.point3s("P") else {
+                    return Err(SceneError::invalid(at, "loopsubdiv without \"point3 P\""));
+                };
+                let Some(indices) = list.ints("indices") else {
+                    return Err(SceneError::invalid(
+                        at,
+                        "loopsubdiv without \"integer indices\"",
+                    ));
+                };
+                if indices.len() % 3 != 0 {
+                    return Err(SceneError::invalid(
+                        at,
+                        "loopsubdiv: indices is not a multiple of 3",
+                    ));
+                }
+                let idx: Vec<[u32; 3]> = checked_indices(&indices, 3, p.len(), at)?
+                    .chunks_exact(3)
+                    .map(|c| [c[0], c[1], c[2]])
+                    .collect();
+                let levels = if levels > MAX_LOOP_LEVELS {
+                    self.warn(format!(
+                        "{at}: {what}: {levels} levels capped at {MAX_LOOP_LEVELS}"
+                    ));
+                    MAX_LOOP_LEVELS
+                } else {
+                    levels.max(0)
+                };
+                let (mut positions, mut tris) = (p, idx);
+                for _ in 0..levels {
+                    if tris.len() > 8_000_000 {
+                        self.warn(format!(
+                            "{at}: {what}: subdivision stopped at {} triangles",
+                            tris.len()
+                        ));
+                        break;
+                    }
+                    (positions, tris) = super::shapes::loop_subdivide(&positions, &tris);
+                }
+                let mut mesh = Mesh {
+                    name: name.clone(),
+                    positions,
+                    indices: tris,
+                    ..Default::default()
+                };
+                orient(&mut mesh, reverse);
+                Some(Shape::Mesh(self.scene.add_mesh(mesh)))
+            }
+            "curve" => self.curve(&list, &name, at, &what)?,
+            other => {
+                self.warn(format!(
+                    "{at}: Shape \"{other}\" is not supported and was left out"
+                ));
+                for q in &list.params {
+                    q.used.set(true);
+                }
+                None
+            }
+        };
+        self.note_unused(&list, &what, at);
+        let Some(shape) = shape else {
+            return Ok(());
+        };
+        match alpha {
+            Some(TexOr::Value(a)) if a >= 1.0 => self.place(shape, name, at),
+            Some(TexOr::Value(a)) if a <= 0.0 => {
+                // Fully transparent: pbrt-v4 skips such shapes too (it never hits them).
+            }
+            None => self.place(shape, name, at),
+            Some(a) => {
+                let node = match a {
+                    TexOr::Value(v) => super::materials::TexNode::Const(Vec3::splat(v)),
+                    TexOr::Texture(t) => self.alpha_node(&t, at),
+                };
+                self.place_with_alpha(shape, name, node, at);
+            }
+        }
+        Ok(())
+    }
+
+    fn alpha_node(&mut self, t: &str, at: &str) -> super::materials::TexNode {
+        match self.float_textures.get(t) {
+            Some(n) => n.clone(),
+            None => {
+                self.warn(format!(
+                    "{at}: alpha texture \"{t}\" is not defined; the shape is opaque"
+                ));
+                super::materials::TexNode::Const(Vec3::ONE)
+            }
+        }
+    }
+
+    fn place_with_alpha(
+        &mut self,
+        shape: Shape,
+        name: String,
+        node: super::materials::TexNode,
+        at: &str,
+    ) {
+        // A copy of the current material with the cut-out: pbrt-v4 keeps a hit with
+        // probability alpha (a stochastic test), which is Trayecto's `Blend` mode.
+        let before = self.scene.objects.len();
+        let in_object = self.current_object.as_ref().map(|o| o.1.len());
+        self.place(shape, name, at);
+        let (factor, tex) = self.node_factor_pub(&node);
+        let mat_id = if let Some((_, parts)) = &self.current_object {
+            if Some(parts.len()) == in_object {
+                return;
+            }
+            parts.last().map(|p| p.material)
+        } else if self.scene.objects.len() > before {
+            self.scene.objects.last().map(|o| o.material)
+        } else {
+            None
+        };
+        let Some(mat_id) = mat_id else { return };
+        let mut m = self.scene.materials[mat_id].clone();
+        m.alpha = factor.x;
+        m.alpha_texture = tex;
+        m.alpha_mode = AlphaMode::Blend;
+        let id = self.scene.add_material(m);
+        if let Some((_, parts)) = &mut self.current_object {
+            if let Some(p) = parts.last_mut() {
+                p.material = id;
+            }
+        } else if let Some(o) = self.scene.objects.last_mut() {
+            o.material = id;
+        }
+    }
+
+    /// Normals, uvs and tangents of a trianglemesh or bilinearmesh.
+    fn mesh_attributes(
+        &mut self,
+        mesh: &mut Mesh,
+        list: &ParamList,
+        at: &str,
+        what: &str,
+    ) -> Result<(), SceneError> {
+        let n = mesh.positions.len();
+        if let Some(normals) = list.point3s("N") {
+            if normals.len() != n {
+                return Err(SceneError::invalid(
+                    at,
+                    format!("{what}: {} normals for {n} vertices", normals.len()),
+                ));
+            }
+            mesh.normals = Some(normals);
+        }
+        let uv = list.point2s("uv").or_else(|| {
+            // pbrt-v3 files write "float uv" (or "st") as a flat list.
+            list.floats("uv")
+                .or_else(|| list.floats("st"))
+                .map(|f| f.chunks_exact(2).map(|c| Vec2::new(c[0], c[1])).collect())
+        });
+        if let Some(uv) = uv {
+            if uv.len() != n {
+                return Err(SceneError::invalid(
+                    at,
+                    format!("{what}: {} uvs for {n} vertices", uv.len()),
+                ));
+            }
+            mesh.uv0 = Some(uv.into_iter().map(to_stored_uv).collect());
+        }
+        if list.has("S") {
+            let _ = list.point3s("S");
+            self.warn_once("tangentsS", format!("{at}: {what}: per-vertex tangents \"S\" are not used (Trayecto derives tangents from the uvs)"));
+        }
+        if list.has("faceIndices") {
+            let _ = list.ints("faceIndices");
+        }
+        Ok(())
+    }
+
+    fn curve(
+        &mut self,
+        list: &ParamList,
+        name: &str,
+        at: &str,
+        what: &str,
+    ) -> Result<Option<Shape>, SceneError> {
+        let Some(p) = list.point3s("P") else {
+            return Err(SceneError::invalid(at, "curve without \"point3 P\""));
+        };
+        let basis = list.string("basis").unwrap_or_else(|| "bezier".into());
+        let degree = list.int("degree", 3);
+        let ty = list.string("type").unwrap_or_else(|| "flat".into());
+        let w = list.float("width", 1.0);
+        let w0 = list.float("width0", w);
+        let w1 = list.float("width1", w);
+        let _ = list.int("splitdepth", 3);
+        let _ = list.point3s("N");
+        if !(degree == 2 || degree == 3) {
+            return Err(SceneError::invalid(
+                at,
+                format!("curve: degree {degree} (2 or 3 expected)"),
+            ));
+        }
+        let d = degree as usize;
+        // Control points of each segment, as Bézier control points.
+        let mut segments: Vec<Vec<Vec3>> = Vec::new();
+        match basis.as_str() {
+            "bezier" => {
+                if p.len() < d + 1 || (p.len() - 1) % d != 0 {
+                    return Err(SceneError::invalid(
+                        at,
+                        format!(
+                            "curve: {} control points do not make degree-{d} Bézier segments",
+                            p.len()
+                        ),
+                    ));
+                }
+                let mut i = 0;
+                while i + d < p.len() {
+                    segments.push(p[i..=i + d].to_vec());
+                    i += d;
+                }
+            }
+            "bspline" => {
+                if p.len() < d + 1 {
+                    return Err(SceneError::invalid(
+                        at,
+                        "curve: too few B-spline control points",
+                    ));
+                }
+                // Uniform B-spline to Bézier (pbrt-v4 shapes.cpp: the blossoming of each span).
+                for s in 0..p.len() - d {
+                    let q = &p[s..=s + d];
+                    if d == 3 {
+                        let b0 = (q[0] + q[1] * 4.0 + q[2]) / 6.0;
+                        let b1 = (q[1] * 2.0 + q[2]) / 3.0;
+                        let b2 = (q[1] + q[2] * 2.0) / 3.0;
+                        let b3 = (q[1] + q[2] * 4.0 + q[3]) / 6.0;
+                        segments.push(vec![b0, b1, b2, b3]);
+                    } else {
+                        let b0 = (q[0] + q[1]) * 0.5;
+                        let b2 = (q[1] + q[2]) * 0.5;
+                        segments.push(vec![b0, q[1], b2]);
+                    }
+                }
+            }
+            other => {
+                return Err(SceneError::invalid(
+                    at,
+                    format!("curve: unknown basis '{other}'"),
+                ));
+            }
+        }
+        self.warn_once(
+            "curves",
+            format!("{at}: {what}: curves (\"{ty}\") are approximated by triangular tubes following the curve (4 straight pieces per segment) with the curve's width, shaded by the curve's material; pbrt's flat ribbons always face the viewer"),
+        );
+        let nseg = segments.len().max(1);
+        let mut mesh = Mesh {
+            name: name.to_string(),
+            ..Default::default()
+        };
+        const PIECES: usize = 4;
+        const SIDES: usize = 3;
+        let total = nseg * PIECES;
+        let mut ring_index = 0usize;
+        let mut prev_dir = Vec3::Z;
+        for (si, seg) in segments.iter().enumerate() {
+            for k in 0..=PIECES {
+                if si > 0 && k == 0 {
+                    continue;
+                }
+                let t = k as f32 / PIECES as f32;
+                let pt = bezier(seg, t);
+                let dir = bezier_tangent(seg, t);
+                let dir = if dir.length_squared() > 0.0 {
+                    dir.normalize()
+                } else {
+                    prev_dir
+                };
+                prev_dir = dir;
+                let g = (si * PIECES + k) as f32 / total as f32;
+                let radius = 0.5 * (w0 + (w1 - w0) * g);
+                let (a, b) = dir.any_orthonormal_pair();
+                for s in 0..SIDES {
+                    let ang = s as f32 * std::f32::consts::TAU / SIDES as f32;
+                    let off = (a * ang.cos() + b * ang.sin()) * radius;
+                    mesh.positions.push(pt + off);
+                }
+                if ring_index > 0 {
+                    let base0 = ((ring_index - 1) * SIDES) as u32;
+                    let base1 = (ring_index * SIDES) as u32;
+                    for s in 0..SIDES as u32 {
+                        let s1 = (s + 1) % SIDES as u32;
+                        mesh.indices.push([base0 + s, base0 + s1, base1 + s1]);
+                        mesh.indices.push([base0 + s, base1 + s1, base1 + s]);
+                    }
+                }
+                ring_index += 1;
+            }
+        }
+        Ok(Some(Shape::Mesh(self.scene.add_mesh(mesh))))
+    }
+
+    /// Reads every `plymesh`, in parallel, into its reserved mesh slot.
+    pub(super) fn load_plys(&mut self) -> Result<(), SceneError> {
+        let jobs = std::mem::take(&mut self.ply_jobs);
+        let results: Vec<Result<(Mesh, Vec<String>), SceneError>> = jobs
+            .par_iter()
+            .map(|j| {
+                let label = format!("{} (plymesh at {})", j.path.display(), j.location);
+                let bytes = read_maybe_gz(&j.path).map_err(|e| SceneError::invalid(&label, e))?;
+                let mut warnings = Vec::new();
+                let mut mesh = crate::scene::ply::parse_mesh(&bytes, &mut warnings)
+                    .map_err(|m| SceneError::invalid(&label, format!("PLY: {m}")))?;
+                mesh.name = j.name.clone();
+                orient(&mut mesh, j.reverse);
+                Ok((
+                    mesh,
+                    warnings
+                        .into_iter()
+                        .map(|w| format!("{label}: {w}"))
+                        .collect(),
+                ))
+            })
+            .collect();
+        for (j, r) in jobs.iter().zip(results) {
+            let (mesh, warnings) = r?;
+            self.scene.meshes[j.mesh] = mesh;
+            self.scene.warnings.extend(warnings);
+        }
+        Ok(())
+    }
+
+    pub(super) fn node_factor_pub(
+        &mut self,
+        node: &super::materials::TexNode,
+    ) -> (Vec3, Option<crate::material::TextureRef>) {
+        self.node_to_factor_public(node)
+    }
+}
+
+fn read_maybe_gz(path: &std::path::Path) -> Result<Vec<u8>, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read the mesh: {e}"))?;
+    if bytes.starts_with(&[0x1f, 0x8b]) {
+        let mut out = Vec::new();
+        flate2::read::GzDecoder::new(&bytes[..])
+            .take(MAX_GUNZIP)
+            .read_to_end(&mut out)
+            .map_err(|e| format!("cannot decompress the mesh: {e}"))?;
+        return Ok(out);
+    }
+    Ok(bytes)
+}
+
+fn checked_indices(
+    indices: &[i64],
+    _arity: usize,
+    n: usize,
+    at: &str,
+) -> Result<Vec<u32>, SceneError> {
+    let mut out = Vec::with_capacity(indices.len());
+    for (k, &i) in indices.iter().enumerate() {
+        if i < 0 || i as usize >= n {
+            return Err(SceneError::invalid(
+                at,
+                format!("index {k} is {i}, but the mesh has {n} vertices"),
+            ));
+        }
+        out.push(i as u32);
+    }
+    Ok(out)
+}
+
+fn is_similarity(m: &crate::math::Mat4) -> bool {
+    let lin = glam::Mat3::from_mat4(*m);
+    let (sx, sy, sz) = (
+        lin.x_axis.length(),
+        lin.y_axis.length(),
+        lin.z_axis.length(),
+    );
+    sx > 0.0
+        && (sx - sy).abs() <= 1e-4 * sx
+        && (sx - sz).abs() <= 1e-4 * sx
+        && lin.x_axis.dot(lin.y_axis).abs() <= 1e-4 * sx * sy
+        && lin.y_axis.dot(lin.z_axis).abs() <= 1e-4 * sy * sz
+        && lin.x_axis.dot(lin.z_axis).abs() <= 1e-4 * sx * sz
+}
+
+/// A (steps.0 × steps.1) grid over (u, v) ∈ [0,1]², with normals from `f` (wound by `orient`).
+fn tessellate(name: &str, steps: (usize, usize), f: impl Fn(f32, f32) -> (Vec3, Vec3)) -> Mesh {
+    let (nu, nv) = steps;
+    let mut m = Mesh {
+        name: name.to_string(),
+        ..Default::default()
+    };
+    let mut normals = Vec::new();
+    let mut uvs = Vec::new();
+    for j in 0..=nv {
+        for i in 0..=nu {
+            let (u, v) = (i as f32 / nu as f32, j as f32 / nv as f32);
+            let (p, n) = f(u, v);
+            m.positions.push(p);
+            normals.push(n);
+            uvs.push(to_stored_uv(Vec2::new(u, v)));
+        }
+    }
+    let row = (nu + 1) as u32;
+    for j in 0..nv as u32 {
+        for i in 0..nu as u32 {
+            let a = j * row + i;
+            let (b, c, d) = (a + 1, a + row, a + row + 1);
+            m.indices.push([a, b, d]);
+            m.indices.push([a, d, c]);
+        }
+    }
+    // Degenerate triangles at the poles and the disk's centre have zero area: harmless, but drop
+    // them so light sampling never picks one.
+    let pos = &m.positions;
+    m.indices.retain(|t| {
+        let [a, b, c] = t.map(|i| pos[i as usize]);
+        (b - a).cross(c - a).length_squared() > 0.0
+    });
+    m.normals = Some(normals);
+    m.uv0 = Some(uvs);
+    m
+}
+
+fn bilinear_to_triangles(src: &Mesh, idx: &[u32]) -> Mesh {
+    let mut m = Mesh {
+        name: src.name.clone(),
+        ..Default::default()
+    };
+    let mut normals = src.normals.as_ref().map(|_| Vec::new());
+    let mut uvs = Vec::new();
+    for q in idx.chunks_exact(4) {
+        let [i00, i10, i01, i11] = [q[0], q[1], q[2], q[3]].map(|i| i as usize);
+        let p = [
+            src.positions[i00],
+            src.positions[i10],
+            src.positions[i01],
+            src.positions[i11],
+        ];
+        // A planar patch is exactly two triangles; a curved one is refined.
+        let planar = {
+            let n = (p[1] - p[0]).cross(p[2] - p[0]);
+            (p[3] - p[0]).dot(n).abs() <= 1e-6 * n.length() * (p[3] - p[0]).length().max(1e-30)
+        };
+        let steps = if planar { 1 } else { 8 };
+        let uvq = src.uv0.as_ref().map(|u| [u[i00], u[i10], u[i01], u[i11]]);
+        let nq = src
+            .normals
+            .as_ref()
+            .map(|n| [n[i00], n[i10], n[i01], n[i11]]);
+        let base = m.positions.len() as u32;
+        for j in 0..=steps {
+            for i in 0..=steps {
+                let (u, v) = (i as f32 / steps as f32, j as f32 / steps as f32);
+                let bl = |c: [Vec3; 4]| {
+                    c[0] * (1.0 - u) * (1.0 - v)
+                        + c[1] * u * (1.0 - v)
+                        + c[2] * (1.0 - u) * v
+                        + c[3] * u * v
+                };
+                m.positions.push(bl(p));
+                if let (Some(ns), Some(nq)) = (&mut normals, nq) {
+                    ns.push(bl(nq).normalize_or_zero());
+                }
+                uvs.push(match uvq {
+                    Some(t) => {
+                        t[0] * (1.0 - u) * (1.0 - v)
+                            + t[1] * u * (1.0 - v)
+                            + t[2] * (1.0 - u) * v
+                            + t[3] * u * v
+                    }
+                    None => to_stored_uv(Vec2::new(u, v)),
+                });
+            }
+        }
+        let row = steps + 1;
+        for j in 0..steps {
+            for i in 0..steps {
+                let a = base + j * row + i;
+                let (b, c, d) = (a + 1, a + row, a + row + 1);
+                // (p00, p10, p11) and (p00, p11, p01): counter-clockwise about ∂p/∂u × ∂p/∂v,
+                // pbrt's bilinear patch normal.
+                m.indices.push([a, b, d]);
+                m.indices.push([a, d, c]);
+            }
+        }
+    }
+    m.normals = normals;
+    m.uv0 = Some(uvs);
+    m
+}
+
+fn bezier(c: &[Vec3], t: f32) -> Vec3 {
+    let mut p: Vec<Vec3> = c.to_vec();
+    let n = p.len();
+    for r in 1..n {
+        for i in 0..n - r {
+            p[i] = p[i] * (1.0 - t) + p[i + 1] * t;
+        }
+    }
+    p[0]
+}
+
+fn bezier_tangent(c: &[Vec3], t: f32) -> Vec3 {
+    let d: Vec<Vec3> = c.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.len() == 1 {
+        return d[0];
+    }
+    bezier(&d, t)
+}
+
+/// One step of Loop subdivision (Loop 1987; the rules of PBRT 3rd ed. §3.8): every triangle
+/// splits in four; new edge points are 3/8·(ends) + 1/8·(opposite vertices) inside, midpoints on
+/// boundaries; old vertices move by the β rule inside and 1/8–3/4–1/8 on boundaries.
+pub fn loop_subdivide(p: &[Vec3], tris: &[[u32; 3]]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    use std::collections::HashMap;
+    let key = |a: u32, b: u32| if a < b { (a, b) } else { (b, a) };
+    // Edge → opposite vertices.
+    let mut edges: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+    for t in tris {
+        for e in 0..3 {
+            let (a, b, c) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
+            edges.entry(key(a, b)).or_default().push(c);
+        }
+    }
+    // Vertex neighbours and boundary flags.
+    let mut nbrs: Vec<Vec<u32>> = vec![Vec::new(); p.len()];
+    let mut boundary_nbrs: Vec<Vec<u32>> = vec![Vec::new(); p.len()];
+    for (&(a, b), opp) in &edges {
+        nbrs[a as usize].push(b);
+        nbrs[b as usize].push(a);
+        if opp.len() == 1 {
+            boundary_nbrs[a as usize].push(b);
+            boundary_nbrs[b as usize].push(a);
+        }
+    }
+    let mut out: Vec<Vec3> = Vec::with_capacity(p.len() + edges.len());
+    for (i, v) in p.iter().enumerate() {
+        let bn = &boundary_nbrs[i];
+        let moved = if bn.len() == 2 {
+            *v * 0.75 + (p[bn[0] as usize] + p[bn[1] as usize]) * 0.125
+        } else if !bn.is_empty() || nbrs[i].is_empty() {
+            *v
+        } else {
+            let n = nbrs[i].len() as f32;
+            let beta = if nbrs[i].len() == 3 {
+                3.0 / 16.0
+            } else {
+                3.0 / (8.0 * n)
+            };
+            let sum: Vec3 = nbrs[i].iter().map(|&j| p[j as usize]).sum();
+            *v * (1.0 - n * beta) + sum * beta
+        };
+        out.push(moved);
+    }
+    let mut edge_vertex: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut sorted: Vec<_> = edges.iter().collect();
+    sorted.sort_by_key(|(k, _)| **k);
+    for (&(a, b), opp) in sorted {
+        let (pa, pb) = (p[a as usize], p[b as usize]);
+        let e = if opp.len() == 2 {
+            (pa + pb) * 0.375 + (p[opp[0] as usize] + p[opp[1] as usize]) * 0.125
+        } else {
+            (pa + pb) * 0.5
+        };
+        edge_vertex.insert((a, b), out.len() as u32);
+        out.push(e);
+    }
+    let mut new_tris = Vec::with_capacity(tris.len() * 4);
+    for t in tris {
+        let m = |a: u32, b: u32| edge_vertex[&key(a, b)];
+        let (ab, bc, ca) = (m(t[0], t[1]), m(t[1], t[2]), m(t[2], t[0]));
+        new_tris.push([t[0], ab, ca]);
+        new_tris.push([ab, t[1], bc]);
+        new_tris.push([ca, bc, t[2]]);
+        new_tris.push([ab, bc, ca]);
+    }
+    (out, new_tris)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loop_subdivision_quadruples_and_shrinks_a_tetrahedron() {
+        let p = vec![
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(1.0, -1.0, -1.0),
+            Vec3::new(-1.0, 1.0, -1.0),
+            Vec3::new(-1.0, -1.0, 1.0),
+        ];
+        let t = vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
+        let (q, s) = loop_subdivide(&p, &t);
+        assert_eq!(s.len(), 16);
+        assert_eq!(q.len(), 4 + 6);
+        // A closed surface's vertices move towards the centroid.
+        assert!(q[0].length() < p[0].length());
+    }
+
+    #[test]
+    fn orientation_follows_normals_then_reverse() {
+        let mut m = Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            indices: vec![[0, 1, 2]],
+            normals: Some(vec![-Vec3::Z; 3]),
+            ..Default::default()
+        };
+        orient(&mut m, false);
+        assert_eq!(m.indices[0], [0, 2, 1]);
+        orient(&mut m, true);
+        assert_eq!(m.indices[0], [0, 1, 2]);
+        assert_eq!(m.normals.as_ref().unwrap()[0], Vec3::Z);
+    }
+}

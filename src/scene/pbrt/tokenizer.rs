@@ -1,0 +1,176 @@
+//! pbrt-v4's tokenizer (pbrt-v4 `parser.cpp`, "Tokenizer"): `#` comments to the end of the line,
+//! double-quoted strings with C escapes, `[` and `]`, and bare words (directive names, numbers,
+//! `true`/`false`) separated by whitespace, quotes or brackets.
+
+/// What a token is; quoted strings keep their quotes off and their escapes decoded.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TokenKind {
+    /// A double-quoted string, escapes decoded.
+    Str(String),
+    /// A bare word: a directive name, a number or `true`/`false`.
+    Word(String),
+    Open,
+    Close,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Token {
+    pub kind: TokenKind,
+    /// 1-based line of the token's first character.
+    pub line: u32,
+}
+
+/// Most tokens one file may hold. Each costs ~70 bytes here, so this bounds the memory a hostile
+/// file of one-character numbers can make the tokenizer use (~7 GB); real scenes keep large
+/// meshes in PLY files and stay far below it.
+pub const MAX_TOKENS: usize = 100_000_000;
+
+/// Splits `text` into tokens. Errors name the line (the caller adds the file).
+pub fn tokenize(text: &str) -> Result<Vec<Token>, (u32, String)> {
+    let b = text.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    let mut line: u32 = 1;
+    while i < b.len() {
+        if out.len() >= MAX_TOKENS {
+            return Err((
+                line,
+                format!(
+                    "more than {MAX_TOKENS} tokens in one file (split it with Include, or move meshes to PLY files)"
+                ),
+            ));
+        }
+        let c = b[i];
+        match c {
+            b'\n' => {
+                line = line.saturating_add(1);
+                i += 1;
+            }
+            b' ' | b'\t' | b'\r' | 0x0b | 0x0c => i += 1,
+            b'#' => {
+                while i < b.len() && b[i] != b'\n' {
+                    i += 1;
+                }
+            }
+            b'[' => {
+                out.push(Token {
+                    kind: TokenKind::Open,
+                    line,
+                });
+                i += 1;
+            }
+            b']' => {
+                out.push(Token {
+                    kind: TokenKind::Close,
+                    line,
+                });
+                i += 1;
+            }
+            b'"' => {
+                let start_line = line;
+                i += 1;
+                let mut s: Vec<u8> = Vec::new();
+                loop {
+                    let Some(&ch) = b.get(i) else {
+                        return Err((start_line, "unterminated string".into()));
+                    };
+                    match ch {
+                        b'"' => {
+                            i += 1;
+                            break;
+                        }
+                        b'\n' => {
+                            return Err((start_line, "new line inside a quoted string".into()));
+                        }
+                        b'\\' => {
+                            let Some(&e) = b.get(i + 1) else {
+                                return Err((start_line, "unterminated string".into()));
+                            };
+                            s.push(match e {
+                                b'b' => 8,
+                                b'f' => 12,
+                                b'n' => b'\n',
+                                b'r' => b'\r',
+                                b't' => b'\t',
+                                b'\\' => b'\\',
+                                b'\'' => b'\'',
+                                b'"' => b'"',
+                                other => {
+                                    return Err((
+                                        line,
+                                        format!(
+                                            "unknown escape sequence '\\{}' in a string",
+                                            char::from(other).escape_default()
+                                        ),
+                                    ));
+                                }
+                            });
+                            i += 2;
+                        }
+                        _ => {
+                            s.push(ch);
+                            i += 1;
+                        }
+                    }
+                }
+                // The input is UTF-8 and escapes only produce ASCII, so this cannot fail; lossy
+                // keeps it panic-free regardless.
+                out.push(Token {
+                    kind: TokenKind::Str(String::from_utf8_lossy(&s).into_owned()),
+                    line: start_line,
+                });
+            }
+            _ => {
+                let start = i;
+                while i < b.len()
+                    && !matches!(
+                        b[i],
+                        b' ' | b'\t' | b'\r' | b'\n' | 0x0b | 0x0c | b'"' | b'[' | b']' | b'#'
+                    )
+                {
+                    i += 1;
+                }
+                out.push(Token {
+                    kind: TokenKind::Word(String::from_utf8_lossy(&b[start..i]).into_owned()),
+                    line,
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn kinds(s: &str) -> Vec<TokenKind> {
+        tokenize(s).unwrap().into_iter().map(|t| t.kind).collect()
+    }
+
+    #[test]
+    fn tokens_comments_strings_and_brackets() {
+        use TokenKind::*;
+        assert_eq!(
+            kinds("Shape \"sphere\" # comment \"x\"\n \"float radius\" [2.5e1]"),
+            vec![
+                Word("Shape".into()),
+                Str("sphere".into()),
+                Str("float radius".into()),
+                Open,
+                Word("2.5e1".into()),
+                Close
+            ]
+        );
+        assert_eq!(kinds(r#""a\"b\\c\n""#), vec![Str("a\"b\\c\n".into())]);
+        let t = tokenize("A\n\nB").unwrap();
+        assert_eq!((t[0].line, t[1].line), (1, 3));
+    }
+
+    #[test]
+    fn unterminated_string_names_its_line() {
+        assert_eq!(tokenize("A\n\"abc").unwrap_err().0, 2);
+        assert!(tokenize("\"abc\\").is_err());
+        assert!(tokenize("\"a\\q\"").is_err());
+    }
+}
