@@ -34,6 +34,7 @@ fn furnace_mean(material: Material, spp: u32) -> f32 {
             },
             transform: Mat4::IDENTITY,
             material: 0,
+            medium: None,
         }],
         materials: vec![material],
         lights: vec![LightDesc::Ambient {
