@@ -439,6 +439,11 @@ impl Loader {
         TexNode::Const(Vec3::splat(0.5))
     }
 
+    /// RGB of an unbounded spectrum (medium coefficients): as a reflectance-like one.
+    pub(super) fn spectrum_as_rgb(&mut self, s: &SpectrumValue, at: &str, key: &str) -> Vec3 {
+        self.reflectance_rgb(s, at, key)
+    }
+
     /// RGB of a reflectance-like spectrum (albedos, η, k).
     fn reflectance_rgb(&mut self, s: &SpectrumValue, at: &str, key: &str) -> Vec3 {
         match s {
@@ -899,8 +904,8 @@ impl Loader {
                 return inner;
             }
             "interface" => {
-                // A boundary that only separates media: index-matched, so light passes straight.
-                m.model = MaterialModel::Dielectric;
+                // A boundary that only separates media (pbrt-v4 `interface`): no surface.
+                m.model = MaterialModel::Interface;
                 m.ior = 1.0;
                 m.roughness = 0.0;
             }
