@@ -25,4 +25,5 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod spectrum;
+pub mod split;
 pub mod world;
