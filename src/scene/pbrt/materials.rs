@@ -751,15 +751,15 @@ impl Loader {
     /// η or k of a conductor: named spectra through [`crate::spectrum`] (the conversion measured
     /// against pbrt-v4 in `scripts/references/pbrt_metal_patches.py`), RGB as given.
     fn conductor_spectrum(&mut self, p: &ParamList, key: &str, default: &str, at: &str) -> Vec3 {
-        if let Some(TexOr::Value(SpectrumValue::Named(n))) = p.spectrum_tex(key) {
-            if let Some(c) = crate::spectrum::named_spectrum_rgb(&n) {
-                return c;
-            }
+        if let Some(TexOr::Value(SpectrumValue::Named(n))) = p.spectrum_tex(key)
+            && let Some(c) = crate::spectrum::named_spectrum_rgb(&n)
+        {
+            return c;
         }
-        if !p.has(key) {
-            if let Some(c) = crate::spectrum::named_spectrum_rgb(default) {
-                return c;
-            }
+        if !p.has(key)
+            && let Some(c) = crate::spectrum::named_spectrum_rgb(default)
+        {
+            return c;
         }
         self.spectrum_const(p, key, default, at)
     }
