@@ -18,6 +18,7 @@ pub mod integrator;
 pub mod light;
 pub mod material;
 pub mod math;
+pub mod medium;
 pub mod phases;
 pub mod pipeline;
 pub mod render;

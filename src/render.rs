@@ -342,6 +342,11 @@ fn sample_pixel(
     let film = Vec2::new(x as f32 + jitter.x, y as f32 + jitter.y);
     let ray = camera.generate_ray(film, lens);
     match settings.integrator {
+        // Scenes with participating media or interface surfaces need the volumetric path tracer;
+        // all others keep the surface path tracer exactly as it was.
+        IntegratorKind::Path if world.media.active => {
+            crate::integrator::volpath::radiance(world, &ray, stream, &settings.path, stats)
+        }
         IntegratorKind::Path => path::radiance(world, &ray, stream, &settings.path, stats),
         IntegratorKind::Raycast { aov, shading } => {
             raycast::radiance(world, &ray, stream, aov, shading, stats)

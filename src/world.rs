@@ -43,6 +43,8 @@ pub struct World {
     pub warnings: Vec<String>,
     /// Time spent building the acceleration structure (for the phase report).
     pub accel_build_time: std::time::Duration,
+    /// Participating media and the medium interfaces of surfaces (issue #18).
+    pub media: crate::medium::world::WorldMedia,
     /// Per material: true if its alpha mode is MASK or BLEND, so a hit on it may be a hole.
     cutout: Vec<bool>,
     /// True if any material is a cutout; opaque scenes skip the alpha test entirely.
@@ -57,7 +59,7 @@ impl World {
     /// Compiles `scene` for rendering. The scene is consumed: its materials and textures move
     /// into the world instead of being copied. It is validated here, once, so hand-built scenes
     /// are as safe as loaded ones.
-    pub fn build(scene: Scene, options: &WorldOptions) -> Result<World, SceneError> {
+    pub fn build(mut scene: Scene, options: &WorldOptions) -> Result<World, SceneError> {
         scene.validate()?;
         let label = scene
             .source
@@ -65,6 +67,10 @@ impl World {
             .map(|p| p.display().to_string())
             .unwrap_or_else(|| scene.name.clone());
         let mut warnings = Vec::new();
+        // Objects that bound media get their own material index (see medium::world); scenes
+        // without medium interfaces are left exactly as they are.
+        let media = crate::medium::world::assign(&mut scene)
+            .map_err(|e| SceneError::invalid(&label, format!("medium grid: {e}")))?;
         let mut g = compile_geometry(&scene, &label, &mut warnings)?;
         let mut lights = area_lights(&mut g, &scene.materials);
         lights.extend(scene_lights(&scene, &label)?);
@@ -91,6 +97,7 @@ impl World {
             materials,
             textures,
             lights,
+            media,
             camera,
             bounds,
             warnings,

@@ -29,6 +29,7 @@ fn quad(name: &str, z: f32, half: f32, material: usize) -> Object {
         },
         transform: Mat4::IDENTITY,
         material,
+        medium: None,
     }
 }
 

@@ -39,6 +39,7 @@ fn furnace_mean_seed(material: Material, spp: u32, seed: u64) -> f32 {
             },
             transform: Mat4::IDENTITY,
             material: 0,
+            medium: None,
         }],
         materials: vec![material],
         lights: vec![LightDesc::Ambient {

@@ -4,6 +4,7 @@
 pub mod direct;
 pub mod path;
 pub mod raycast;
+pub mod volpath;
 pub mod whitted;
 
 pub use path::PathSettings;

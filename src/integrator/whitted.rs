@@ -41,7 +41,8 @@ pub enum SurfaceKind {
 pub fn surface_kind(m: &Material, s: &LocalSurface) -> SurfaceKind {
     match m.model {
         MaterialModel::Mirror => SurfaceKind::Mirror,
-        MaterialModel::Dielectric => SurfaceKind::Dielectric,
+        // An interface (ior 1) refracts straight through: the medium boundary is invisible.
+        MaterialModel::Dielectric | MaterialModel::Interface => SurfaceKind::Dielectric,
         _ if m.transmission > 0.5 => SurfaceKind::Dielectric,
         MaterialModel::MetallicRoughness | MaterialModel::Conductor
             if s.metallic > 0.9 && s.roughness < 0.05 =>

@@ -54,6 +54,7 @@ impl Bsdf {
             MaterialModel::Diffuse => Bsdf::Diffuse(Diffuse { albedo: base }),
             MaterialModel::Mirror => Bsdf::Mirror(Mirror { color: base }),
             MaterialModel::Dielectric => Bsdf::dielectric(eta, roughness, Vec3::ONE),
+            MaterialModel::Interface => Bsdf::dielectric(1.0, 0.0, Vec3::ONE),
             MaterialModel::MetallicRoughness => {
                 let mut transmission = material.transmission;
                 if transmission > 0.0

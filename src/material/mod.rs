@@ -41,6 +41,11 @@ pub enum MaterialModel {
     /// pbrt-v4 `diffusetransmission`: Lambertian reflection of the base colour and Lambertian
     /// transmission of [`PbrtParams::transmittance`].
     DiffuseTransmission,
+    /// No surface at all: an index-matched boundary that only separates participating media
+    /// (pbrt-v4's `interface` material, Mitsuba's `null` BSDF). The volumetric path tracer passes
+    /// rays straight through it without counting a bounce; the other integrators see it as an
+    /// index-matched (η = 1) smooth dielectric, which transmits every ray unchanged.
+    Interface,
 }
 
 /// Parameters of the pbrt-v4 models ([`MaterialModel::Conductor`], `CoatedDiffuse`,

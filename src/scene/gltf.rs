@@ -106,6 +106,7 @@ fn load_from_bytes_unguarded(bytes: &[u8], dir: &Path, label: &str) -> Result<Sc
     }
     let mut scene = ld.scene;
     apply_material_conventions(&mut scene);
+    super::volume::apply_volume_absorption(&mut scene);
     scene.validate()?;
     Ok(scene)
 }
@@ -475,17 +476,13 @@ impl<'a> Loader<'a> {
         }
         match m.volume() {
             Some(v) => {
-                mat.thin_walled = false;
+                // thicknessFactor 0 means thin-walled (extension text). The thickness and its
+                // texture are a rasteriser's estimate of the path length inside; a path tracer
+                // uses the real one, so neither is needed (scene::volume).
                 mat.thickness = v.thickness_factor();
+                mat.thin_walled = mat.transmission > 0.0 && mat.thickness <= 0.0;
                 mat.attenuation_color = Vec3::from(v.attenuation_color());
                 mat.attenuation_distance = v.attenuation_distance();
-                if v.thickness_texture().is_some() {
-                    self.warn_once(
-                        "thickness_texture",
-                        "KHR_materials_volume thickness textures are not supported (the factor is used)"
-                            .into(),
-                    );
-                }
             }
             None => mat.thin_walled = mat.transmission > 0.0,
         }

@@ -14,6 +14,7 @@ pub mod pbrt;
 pub mod ply;
 pub mod testscenes;
 pub mod toml_scene;
+pub mod volume;
 
 use std::path::Path;
 
@@ -23,6 +24,55 @@ use std::path::PathBuf;
 
 pub type MeshId = usize;
 pub type MaterialId = usize;
+/// Index into [`Scene::media`].
+pub type MediumId = usize;
+
+/// A participating medium (issue #18) in the file's own terms. Coefficients are RGB per unit
+/// world length and are multiplied by `scale` (pbrt-v4's `scale`, Mitsuba's `scale`): σa·scale,
+/// σs·scale. `g` is the Henyey–Greenstein asymmetry (−1 back, 0 isotropic, +1 forward; clamped to
+/// ±0.99).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MediumDesc {
+    pub name: String,
+    pub sigma_a: Vec3,
+    pub sigma_s: Vec3,
+    pub scale: f32,
+    pub g: f32,
+    pub kind: MediumKind,
+}
+
+/// How the coefficients vary in space.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MediumKind {
+    /// The same σa, σs everywhere.
+    Homogeneous,
+    /// σa, σs times a density from a grid of `nx·ny·nz` voxels (x fastest:
+    /// index (z·ny + y)·nx + x) spanning the box `[min, max]` of medium space, which `transform`
+    /// (world-from-medium) places in the world. Mitsuba's `.vol` files and pbrt-v4's
+    /// `uniformgrid` (`density`, `p0`, `p1` under the CTM of `MakeNamedMedium`) both map onto it;
+    /// lookups are trilinear between voxel centres (see [`crate::medium::grid`]).
+    Grid {
+        nx: usize,
+        ny: usize,
+        nz: usize,
+        density: Vec<f32>,
+        min: Vec3,
+        max: Vec3,
+        transform: Mat4,
+    },
+}
+
+/// The media on the two sides of an object's surface: `inside` is the side opposite the geometric
+/// normal (behind counter-clockwise faces; inside a closed outward-facing mesh, sphere or box),
+/// `outside` the side the normal points to. `None` is vacuum. A ray crossing the surface continues
+/// in the medium of the side it goes to. An object without an interface (`Object::medium` is
+/// `None`) does not change the medium a ray is in (pbrt-v4's rule for shapes whose interface is
+/// not a transition).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct MediumInterface {
+    pub inside: Option<MediumId>,
+    pub outside: Option<MediumId>,
+}
 
 /// A triangle mesh in object space.
 #[derive(Clone, Debug, Default)]
@@ -67,6 +117,10 @@ pub struct Object {
     pub shape: Shape,
     pub transform: Mat4,
     pub material: MaterialId,
+    /// The media this object's surface separates; `None` leaves a crossing ray's medium as it was.
+    /// A surface that only bounds a medium uses a material of model
+    /// [`crate::material::MaterialModel::Interface`] (no BSDF: rays pass straight through).
+    pub medium: Option<MediumInterface>,
 }
 
 /// A perspective camera. Camera space looks down −z with +y up (glTF convention).
@@ -156,6 +210,10 @@ pub struct Scene {
     pub textures: Vec<Texture>,
     pub lights: Vec<LightDesc>,
     pub cameras: Vec<CameraDesc>,
+    /// Participating media, referenced by [`MediumInterface`]s and `camera_medium`.
+    pub media: Vec<MediumDesc>,
+    /// The medium the camera sits in (a global fog when objects do not bound it), for every camera.
+    pub camera_medium: Option<MediumId>,
     /// Everything in the file that was not understood or not supported, by name.
     pub warnings: Vec<String>,
     /// The file's own choice of default lighting (TOML `default_light`); the command line wins.
@@ -174,6 +232,74 @@ pub struct RenderHints {
     pub max_depth: Option<u32>,
     /// Crop window [x0, x1, y0, y1] in [0, 1] (pbrt's `cropwindow`), recorded, not applied.
     pub crop: Option<[f32; 4]>,
+}
+
+impl MediumDesc {
+    /// A homogeneous medium.
+    pub fn homogeneous(name: &str, sigma_a: Vec3, sigma_s: Vec3, scale: f32, g: f32) -> Self {
+        MediumDesc {
+            name: name.to_string(),
+            sigma_a,
+            sigma_s,
+            scale,
+            g,
+            kind: MediumKind::Homogeneous,
+        }
+    }
+
+    /// Rejects coefficients that would make NaNs or negative probabilities.
+    pub fn validate(&self) -> Result<(), String> {
+        let nonneg = |v: Vec3| v.is_finite() && v.cmpge(Vec3::ZERO).all();
+        if !nonneg(self.sigma_a) || !nonneg(self.sigma_s) {
+            return Err("sigma_a and sigma_s must be finite and non-negative".into());
+        }
+        if !(self.scale.is_finite() && self.scale >= 0.0) {
+            return Err(format!(
+                "scale {} must be finite and non-negative",
+                self.scale
+            ));
+        }
+        if !(self.g.is_finite() && self.g > -1.0 && self.g < 1.0) {
+            return Err(format!("g {} must be in (-1, 1)", self.g));
+        }
+        if !nonneg(self.sigma_a * self.scale) || !nonneg(self.sigma_s * self.scale) {
+            return Err("sigma times scale overflows".into());
+        }
+        if let MediumKind::Grid {
+            nx,
+            ny,
+            nz,
+            density,
+            min,
+            max,
+            transform,
+        } = &self.kind
+        {
+            let n = nx.checked_mul(*ny).and_then(|v| v.checked_mul(*nz));
+            if n != Some(density.len()) || density.is_empty() {
+                return Err(format!(
+                    "the grid is {nx} x {ny} x {nz} but has {} densities",
+                    density.len()
+                ));
+            }
+            if let Some((i, v)) = density
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+            {
+                return Err(format!(
+                    "density {i} is {v}; densities must be finite and >= 0"
+                ));
+            }
+            if !(min.is_finite() && max.is_finite() && min.cmplt(*max).all()) {
+                return Err("the grid bounds must be finite with min < max".into());
+            }
+            if !crate::math::mat4_is_finite(transform) || !transform.determinant().is_normal() {
+                return Err("the grid transform must be finite and invertible".into());
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Errors of scene loading and validation. Every message names the file.
@@ -217,7 +343,18 @@ impl Scene {
             shape,
             transform,
             material,
+            medium: None,
         });
+    }
+
+    pub fn add_medium(&mut self, m: MediumDesc) -> MediumId {
+        self.media.push(m);
+        self.media.len() - 1
+    }
+
+    /// True if the scene has any participating medium (then the volumetric path tracer runs).
+    pub fn has_media(&self) -> bool {
+        !self.media.is_empty()
     }
 
     /// Number of triangles after instancing.
@@ -321,6 +458,25 @@ impl Scene {
             m.validate(self.textures.len()).map_err(|e| {
                 SceneError::invalid(&label, format!("material {i} '{}': {e}", m.name))
             })?;
+        }
+        for (i, m) in self.media.iter().enumerate() {
+            m.validate().map_err(|e| {
+                SceneError::invalid(&label, format!("medium {i} '{}': {e}", m.name))
+            })?;
+        }
+        let medium_ok = |m: Option<MediumId>| m.is_none_or(|m| m < self.media.len());
+        if !medium_ok(self.camera_medium) {
+            return err("the camera medium references a missing medium".into());
+        }
+        for (i, o) in self.objects.iter().enumerate() {
+            if let Some(mi) = o.medium
+                && !(medium_ok(mi.inside) && medium_ok(mi.outside))
+            {
+                return err(format!(
+                    "object {i} '{}' references a missing medium",
+                    o.name
+                ));
+            }
         }
         for (i, c) in self.cameras.iter().enumerate() {
             let ok = crate::math::mat4_is_finite(&c.camera_to_world)

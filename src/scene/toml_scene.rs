@@ -35,6 +35,32 @@ struct File {
     object: Vec<ObjectSpec>,
     #[serde(default)]
     light: Vec<LightSpec>,
+    #[serde(default)]
+    medium: Vec<MediumSpec>,
+    /// Name of the medium the camera is in: a global fog filling everything no object bounds.
+    fog: Option<String>,
+}
+
+/// A participating medium (issue #18). `sigma_a`, `sigma_s` per unit length, times `scale`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MediumSpec {
+    name: String,
+    /// homogeneous (default) or grid.
+    #[serde(rename = "type")]
+    kind: Option<String>,
+    #[serde(default)]
+    sigma_a: [f32; 3],
+    #[serde(default)]
+    sigma_s: [f32; 3],
+    #[serde(default = "one")]
+    scale: f32,
+    /// Henyey–Greenstein asymmetry in (−1, 1).
+    #[serde(default)]
+    g: f32,
+    /// grid: a Mitsuba `.vol` density file (single channel, float32), placed at the bounding box
+    /// the file gives (world units).
+    file: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -149,6 +175,11 @@ struct ObjectSpec {
     scale: Option<ScaleSpec>,
     /// A row-major 4×4 matrix (16 numbers), instead of translate/rotate/scale.
     matrix: Option<Vec<f32>>,
+    /// Media on the two sides of the surface (names, or "none" for vacuum): inside is behind the
+    /// surface's normal (inside a closed mesh, sphere or box). Giving either makes the surface a
+    /// medium boundary; the other side defaults to the global `fog` (or vacuum).
+    medium_inside: Option<String>,
+    medium_outside: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -210,6 +241,35 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
         }
         scene.add_material(mat);
     }
+    let mut media_by_name: HashMap<String, super::MediumId> = HashMap::new();
+    for m in &file.medium {
+        let desc = medium(m, dir).map_err(|e| err(format!("medium '{}': {e}", m.name)))?;
+        if m.name == "none" {
+            return Err(err(
+                "a medium cannot be called 'none' (it means vacuum)".into()
+            ));
+        }
+        if media_by_name
+            .insert(m.name.clone(), scene.add_medium(desc))
+            .is_some()
+        {
+            return Err(err(format!("medium '{}' is defined twice", m.name)));
+        }
+    }
+    let lookup_medium = |n: &str, what: &str| -> Result<Option<super::MediumId>, SceneError> {
+        if n == "none" {
+            return Ok(None);
+        }
+        media_by_name
+            .get(n)
+            .copied()
+            .map(Some)
+            .ok_or_else(|| err(format!("{what} uses medium '{n}', which is not defined")))
+    };
+    if let Some(f) = &file.fog {
+        scene.camera_medium = lookup_medium(f, "fog")?;
+    }
+    let fog = scene.camera_medium;
     let mut default_material = None;
     // Cameras of included files come after the TOML's own.
     let mut included_cameras = Vec::new();
@@ -229,14 +289,35 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
             v.map(Vec3::from)
                 .ok_or_else(|| err(format!("object '{name}' ({}) needs '{key}'", o.kind)))
         };
+        let what = format!("object '{name}'");
+        let interface = if o.medium_inside.is_some() || o.medium_outside.is_some() {
+            let side = |v: &Option<String>| match v {
+                Some(n) => lookup_medium(n, &what),
+                None => Ok(fog),
+            };
+            Some(super::MediumInterface {
+                inside: side(&o.medium_inside)?,
+                outside: side(&o.medium_outside)?,
+            })
+        } else {
+            None
+        };
         let shape = match o.kind.as_str() {
             "mesh" => {
                 let f = o
                     .file
                     .as_deref()
                     .ok_or_else(|| err(format!("object '{name}' (mesh) needs 'file'")))?;
-                add_mesh_file(&mut scene, dir, f, transform, mat, &mut included_cameras)
-                    .map_err(|e| err(format!("object '{name}': {e}")))?;
+                add_mesh_file(
+                    &mut scene,
+                    dir,
+                    f,
+                    transform,
+                    mat,
+                    interface,
+                    &mut included_cameras,
+                )
+                .map_err(|e| err(format!("object '{name}': {e}")))?;
                 continue;
             }
             "sphere" => Shape::Sphere {
@@ -267,6 +348,7 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
             }),
         };
         scene.add_object(&name, shape, transform, material);
+        scene.objects.last_mut().expect("just added").medium = interface;
     }
 
     for (i, c) in file.camera.iter().enumerate() {
@@ -404,6 +486,45 @@ fn transform(o: &ObjectSpec) -> Result<Mat4, String> {
     Ok(Mat4::from_translation(t) * rot * Mat4::from_scale(s))
 }
 
+fn medium(m: &MediumSpec, dir: &Path) -> Result<super::MediumDesc, String> {
+    let mut desc = super::MediumDesc::homogeneous(
+        &m.name,
+        Vec3::from(m.sigma_a),
+        Vec3::from(m.sigma_s),
+        m.scale,
+        m.g,
+    );
+    match m.kind.as_deref() {
+        None | Some("homogeneous") => {
+            if m.file.is_some() {
+                return Err("'file' is for grid media (type = \"grid\")".into());
+            }
+        }
+        Some("grid") => {
+            let f = m
+                .file
+                .as_deref()
+                .ok_or("a grid medium needs 'file' (a .vol grid)")?;
+            let path = resolve_in_dir(dir, f)?;
+            let bytes = std::fs::read(&path).map_err(|e| format!("'{}': {e}", path.display()))?;
+            let v = crate::medium::read_vol(&bytes)
+                .map_err(|e| format!("'{}': {e}", path.display()))?;
+            desc.kind = super::MediumKind::Grid {
+                nx: v.nx,
+                ny: v.ny,
+                nz: v.nz,
+                density: v.data,
+                min: v.bbox_min,
+                max: v.bbox_max,
+                transform: Mat4::IDENTITY,
+            };
+        }
+        Some(other) => return Err(format!("unknown type '{other}' (homogeneous or grid)")),
+    }
+    desc.validate()?;
+    Ok(desc)
+}
+
 type MatResult = Result<Result<Material, String>, RefusedPath>;
 
 fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
@@ -416,10 +537,11 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
         Some("coated-diffuse") => MaterialModel::CoatedDiffuse,
         Some("coated-conductor") => MaterialModel::CoatedConductor,
         Some("diffuse-transmission") => MaterialModel::DiffuseTransmission,
+        Some("interface") => MaterialModel::Interface,
         Some(other) => {
             return Ok(Err(format!(
                 "unknown model '{other}' (diffuse, metallic-roughness, dielectric, mirror, \
-                 conductor, coated-diffuse, coated-conductor or diffuse-transmission)"
+                 conductor, coated-diffuse, coated-conductor, diffuse-transmission or interface)"
             )));
         }
     };
@@ -486,6 +608,18 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
     if let Some(ior) = m.ior {
         mat.ior = ior;
     }
+    if model == MaterialModel::Interface {
+        // No surface: index-matched, so every integrator sees straight through it.
+        if m.ior.is_some_and(|i| i != 1.0) {
+            return Ok(Err(
+                "an interface material has no surface: its ior is 1 (use a dielectric to refract)"
+                    .into(),
+            ));
+        }
+        mat.ior = 1.0;
+        mat.transmission = 1.0;
+        mat.roughness = 0.0;
+    }
     if model == MaterialModel::Dielectric {
         mat.transmission = 1.0;
         mat.roughness = m.roughness.unwrap_or(0.0);
@@ -544,6 +678,7 @@ fn add_mesh_file(
     file: &str,
     transform: Mat4,
     material: Option<MaterialId>,
+    interface: Option<super::MediumInterface>,
     cameras: &mut Vec<CameraDesc>,
 ) -> Result<(), String> {
     let path = resolve_in_dir(dir, file)?;
@@ -558,11 +693,16 @@ fn add_mesh_file(
         }
     }
     .map_err(|e| e.to_string())?;
-    let (m0, t0, mat0) = (
+    let (m0, t0, mat0, med0) = (
         scene.meshes.len(),
         scene.textures.len(),
         scene.materials.len(),
+        scene.media.len(),
     );
+    // The file's own media (glTF KHR_materials_volume absorption) belong to its own materials.
+    if material.is_none() {
+        scene.media.extend(sub.media);
+    }
     scene
         .warnings
         .extend(sub.warnings.iter().map(|w| format!("{file}: {w}")));
@@ -596,6 +736,16 @@ fn add_mesh_file(
         };
         let mat = material.unwrap_or(o.material + mat0);
         scene.add_object(&o.name, shape, transform * o.transform, mat);
+        let shift = |m: Option<usize>| m.map(|m| m + med0);
+        scene.objects.last_mut().expect("just added").medium =
+            interface.or(if material.is_none() {
+                o.medium.map(|mi| super::MediumInterface {
+                    inside: shift(mi.inside),
+                    outside: shift(mi.outside),
+                })
+            } else {
+                None
+            });
     }
     // Lights and cameras are rigid: they take the object's rotation and translation. A scale in
     // the transform moves their positions but does not change a light's intensity (as Blender

@@ -88,6 +88,8 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 1)]
     pub secondary: u32,
     /// Maximum number of bounces: 0 shows emitters only, 1 is direct lighting [profundidad máxima].
+    /// Scattering events in participating media count as bounces; crossing a medium boundary
+    /// (an interface surface) does not.
     /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 64.)
     #[arg(long)]
     pub max_depth: Option<u32>,

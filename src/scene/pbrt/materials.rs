@@ -7,13 +7,13 @@
 //! over one period of the texture coordinates (documented in the README; exact for textures that
 //! repeat with period 1, as integer `uscale`/`vscale` checkerboards do).
 //!
-//! Material mapping, until the dedicated BSDFs land (branch `pbrt-bsdf`): `diffuse` → Lambertian;
-//! `dielectric` → dielectric (rough through `roughness`); `thindielectric` → thin-walled
-//! transmission; `conductor` → metallic GGX with F0 = the Fresnel reflectance of (η, k) at normal
-//! incidence; `coateddiffuse` → glTF's dielectric-over-diffuse metallic-roughness model with the
-//! coat's roughness and IOR; `coatedconductor` → the conductor under it; `diffusetransmission` →
-//! its reflection only; `mix` → the heavier of the two; `interface` → an index-matched boundary.
-//! Each approximation is a warning.
+//! Material mapping: `diffuse` → Lambertian; `dielectric` → dielectric (rough through
+//! `roughness`); `thindielectric` → thin-walled transmission; `conductor` → the pbrt-v4 conductor
+//! (complex Fresnel of RGB η, k or pbrt's `reflectance`, anisotropic GGX); `coateddiffuse` and
+//! `coatedconductor` → pbrt-v4's layered BSDF (coat roughness/η, thickness, albedo, g, maxdepth,
+//! nsamples); `diffusetransmission` → Lambertian reflection and transmission; `mix` → the heavier
+//! of the two (warned: Trayecto has no per-hit stochastic material selection); `interface` → an
+//! index-matched boundary. Textured roughness, η, albedo and transmittance use their mean (warned).
 
 use std::path::PathBuf;
 
@@ -21,6 +21,7 @@ use rayon::prelude::*;
 
 use super::Loader;
 use super::params::{ParamList, SpectrumValue, TexOr};
+use crate::material::microfacet::pbrt_roughness_to_alpha;
 use crate::material::texture::{FilterMode, TextureRef, UvTransform};
 use crate::material::{Material, MaterialModel, Texture, WrapMode};
 use crate::math::{Vec2, Vec3, Vec4};
@@ -438,6 +439,11 @@ impl Loader {
         TexNode::Const(Vec3::splat(0.5))
     }
 
+    /// RGB of an unbounded spectrum (medium coefficients): as a reflectance-like one.
+    pub(super) fn spectrum_as_rgb(&mut self, s: &SpectrumValue, at: &str, key: &str) -> Vec3 {
+        self.reflectance_rgb(s, at, key)
+    }
+
     /// RGB of a reflectance-like spectrum (albedos, η, k).
     fn reflectance_rgb(&mut self, s: &SpectrumValue, at: &str, key: &str) -> Vec3 {
         match s {
@@ -566,7 +572,10 @@ impl Loader {
         }
     }
 
-    fn roughness(&mut self, p: &ParamList, prefix: &str, at: &str, what: &str) -> f32 {
+    /// GGX α along u and v (pbrt's `uroughness`/`vroughness`, falling back to `roughness`),
+    /// remapped as pbrt-v4's `TrowbridgeReitzDistribution::RoughnessToAlpha` when
+    /// `remaproughness` is true (its default).
+    fn alpha_pair(&mut self, p: &ParamList, prefix: &str, at: &str, what: &str) -> Vec2 {
         let get = |l: &mut Loader, k: &str| -> Option<f32> {
             match p.float_tex(&format!("{prefix}{k}")) {
                 Some(TexOr::Value(v)) => Some(v),
@@ -575,19 +584,7 @@ impl Loader {
                     l.warn(format!(
                         "{at}: {what}: a roughness texture (\"{t}\") is not supported; its mean over [0,1]² is used"
                     ));
-                    let mut s = 0.0;
-                    for i in 0..16 {
-                        for j in 0..16 {
-                            s += n
-                                .eval(
-                                    &l.scene.textures,
-                                    (i as f32 + 0.5) / 16.0,
-                                    (j as f32 + 0.5) / 16.0,
-                                )
-                                .x;
-                        }
-                    }
-                    Some(s / 256.0)
+                    Some(l.mean_over_unit_square(&n).x)
                 }
                 None => None,
             }
@@ -602,17 +599,169 @@ impl Loader {
             (None, None, r) => (r.unwrap_or(0.0), r.unwrap_or(0.0)),
         };
         let remap = p.bool("remaproughness", true);
-        // pbrt-v4 TrowbridgeReitzDistribution::RoughnessToAlpha: α = √roughness when remapping.
-        let to_alpha = |x: f32| if remap { x.max(0.0).sqrt() } else { x.max(0.0) };
-        let (au, av) = (to_alpha(u), to_alpha(v));
+        let fix = |x: f32| if x.is_finite() { x.max(0.0) } else { 0.0 };
+        Vec2::new(
+            pbrt_roughness_to_alpha(fix(u), remap),
+            pbrt_roughness_to_alpha(fix(v), remap),
+        )
+    }
+
+    /// glTF perceptual roughness (α = roughness²) for the models that are isotropic
+    /// (dielectric): anisotropy is warned and rendered with α = √(αu·αv).
+    fn roughness(&mut self, p: &ParamList, prefix: &str, at: &str, what: &str) -> f32 {
+        let a = self.alpha_pair(p, prefix, at, what);
+        let (au, av) = (a.x, a.y);
         if (au - av).abs() > 1e-6 * au.max(av) {
             self.warn(format!(
                 "{at}: {what}: anisotropic roughness (α {au} × {av}) is rendered isotropic with α = √(αu·αv)"
             ));
         }
         let alpha = (au * av).sqrt();
-        // Trayecto's materials use glTF's perceptual roughness: α = roughness².
         alpha.sqrt().clamp(0.0, 1.0)
+    }
+
+    fn mean_over_unit_square(&self, n: &TexNode) -> Vec3 {
+        let mut s = Vec3::ZERO;
+        for i in 0..16 {
+            for j in 0..16 {
+                s += n.eval(
+                    &self.scene.textures,
+                    (i as f32 + 0.5) / 16.0,
+                    (j as f32 + 0.5) / 16.0,
+                );
+            }
+        }
+        s / 256.0
+    }
+
+    /// A spectrum parameter the pbrt-v4 models take as a constant (layer albedo, diffuse
+    /// transmittance): a texture is warned and replaced by its mean.
+    fn constant_spectrum(
+        &mut self,
+        p: &ParamList,
+        key: &str,
+        default: Vec3,
+        at: &str,
+        what: &str,
+    ) -> Vec3 {
+        let n = self.tex_param(p, key, false, default, at);
+        match n.constant() {
+            Some(c) => c,
+            None => {
+                self.warn(format!(
+                    "{at}: {what}: a textured \"{key}\" is not supported; its mean over [0,1]² is used"
+                ));
+                self.mean_over_unit_square(&n)
+            }
+        }
+    }
+
+    /// The coat's slab (pbrt-v4 `LayeredBxDF`): thickness, albedo, g, maxdepth, nsamples, put in
+    /// the ranges the BSDF accepts (out-of-range values are warned, not errors: pbrt-v4 takes
+    /// them without checking).
+    fn layer_params(&mut self, p: &ParamList, m: &mut Material, at: &str, what: &str) {
+        let thickness = p.float("thickness", 0.01);
+        let albedo = self.constant_spectrum(p, "albedo", Vec3::ZERO, at, what);
+        let g = p.float("g", 0.0);
+        let max_depth = p.int("maxdepth", 10);
+        let n_samples = p.int("nsamples", 1);
+        let pb = &mut m.pbrt;
+        pb.thickness = if thickness.is_finite() && thickness > 0.0 {
+            thickness
+        } else {
+            self.warn(format!(
+                "{at}: {what}: thickness {thickness} is not positive; 0.01 is used"
+            ));
+            0.01
+        };
+        let a = if albedo.is_finite() {
+            albedo.clamp(Vec3::ZERO, Vec3::ONE)
+        } else {
+            Vec3::ZERO
+        };
+        if a != albedo {
+            self.warn(format!(
+                "{at}: {what}: albedo {albedo:?} is clamped to [0, 1]"
+            ));
+        }
+        pb.albedo = a;
+        pb.g = if g.is_finite() && g.abs() < 1.0 {
+            g
+        } else {
+            self.warn(format!("{at}: {what}: g {g} is outside (-1, 1); 0 is used"));
+            0.0
+        };
+        let clamp_count = |l: &mut Loader, v: i64, name: &str, d: u32| -> u32 {
+            if (1..=1000).contains(&v) {
+                v as u32
+            } else {
+                l.warn(format!(
+                    "{at}: {what}: {name} {v} is outside 1..=1000; {d} is used"
+                ));
+                d
+            }
+        };
+        m.pbrt.max_depth = clamp_count(self, max_depth, "maxdepth", 10);
+        m.pbrt.n_samples = clamp_count(self, n_samples, "nsamples", 1);
+    }
+
+    /// Conductor η and k (pbrt `eta`/`k`, or `reflectance`) with prefix `pre` for the η/k keys.
+    fn conductor_params(
+        &mut self,
+        p: &ParamList,
+        pre: &str,
+        m: &mut Material,
+        at: &str,
+        what: &str,
+    ) {
+        m.pbrt.conductor_alpha = self.alpha_pair(p, pre, at, what);
+        let has_eta_k = p.has(&format!("{pre}eta")) || p.has(&format!("{pre}k"));
+        if let Some(r) = p.spectrum_tex("reflectance") {
+            if has_eta_k {
+                self.warn(format!("{at}: {what}: both \"reflectance\" and \"{pre}eta\"/\"{pre}k\" are given (pbrt-v4 refuses this); the reflectance is used"));
+                let _ = (
+                    p.spectrum_tex(&format!("{pre}eta")),
+                    p.spectrum_tex(&format!("{pre}k")),
+                );
+            }
+            let node = match r {
+                TexOr::Value(s) => TexNode::Const(self.reflectance_rgb(&s, at, "reflectance")),
+                TexOr::Texture(t) => self.lookup_texture(&t, false, at),
+            };
+            let (c, t) = self.node_to_factor(&node);
+            m.base_color = c;
+            m.base_color_texture = t;
+            m.pbrt.conductor_reflectance = true;
+        } else {
+            m.pbrt.conductor_eta =
+                self.conductor_spectrum(p, &format!("{pre}eta"), "metal-Cu-eta", at);
+            m.pbrt.conductor_k = self.conductor_spectrum(p, &format!("{pre}k"), "metal-Cu-k", at);
+            m.pbrt.conductor_reflectance = false;
+            let e = m.pbrt.conductor_eta;
+            let k = m.pbrt.conductor_k;
+            if !(e.is_finite() && k.is_finite()) || e.min_element() < 0.0 || k.min_element() < 0.0 {
+                self.warn(format!("{at}: {what}: eta {e:?} / k {k:?} are not finite and non-negative; metal-Cu is used"));
+                let d = crate::material::PbrtParams::default();
+                m.pbrt.conductor_eta = d.conductor_eta;
+                m.pbrt.conductor_k = d.conductor_k;
+            }
+        }
+    }
+
+    /// η or k of a conductor: named spectra through [`crate::spectrum`] (the conversion measured
+    /// against pbrt-v4 in `scripts/references/pbrt_metal_patches.py`), RGB as given.
+    fn conductor_spectrum(&mut self, p: &ParamList, key: &str, default: &str, at: &str) -> Vec3 {
+        if let Some(TexOr::Value(SpectrumValue::Named(n))) = p.spectrum_tex(key)
+            && let Some(c) = crate::spectrum::named_spectrum_rgb(&n)
+        {
+            return c;
+        }
+        if !p.has(key)
+            && let Some(c) = crate::spectrum::named_spectrum_rgb(default)
+        {
+            return c;
+        }
+        self.spectrum_const(p, key, default, at)
     }
 
     fn spectrum_factor(
@@ -655,101 +804,28 @@ impl Loader {
                 m.base_color_texture = t;
             }
             "coateddiffuse" => {
+                // pbrt-v4 CoatedDiffuseMaterial: a dielectric interface over a Lambertian base
+                // with a homogeneous slab between them (LayeredBxDF, stochastic evaluation).
                 let (c, t) = self.spectrum_factor(p, "reflectance", Vec3::splat(0.5), at);
-                let rough = self.roughness(p, "", at, &what);
-                let eta = self.eta(p, at, &what);
-                // Light under the coat bounces between the base and the inside of the interface
-                // before it escapes: a Lambertian base of albedo R under a clear coat of relative
-                // index η returns R·(1 − F_dr)/(1 − R·F_dr) of what enters, F_dr being the
-                // interface's diffuse internal reflectance (Egan & Hilgeman's fit, as in Jensen et
-                // al. 2001, eq. 14: F_dr = −1.440/η² + 0.710/η + 0.668 + 0.0636η; 0.60 for 1.5).
-                // The glTF model has no such term, so the base colour carries it; without it the
-                // coffee scene renders 1.6× brighter than pbrt-v4.
-                let fdr =
-                    (-1.440 / (eta * eta) + 0.710 / eta + 0.668 + 0.0636 * eta).clamp(0.0, 0.99);
-                let r_eff = |r: Vec3| r * (1.0 - fdr) / (Vec3::ONE - r * fdr);
-                let base = if t.is_some() {
-                    // The ratio depends on R; for a texture it is taken at R = 0.5.
-                    c * r_eff(Vec3::splat(0.5)) / 0.5
-                } else {
-                    r_eff(c.clamp(Vec3::ZERO, Vec3::ONE))
-                };
-                m.model = MaterialModel::MetallicRoughness;
-                m.metallic = 0.0;
-                m.base_color = base;
+                m.model = MaterialModel::CoatedDiffuse;
+                m.base_color = c;
                 m.base_color_texture = t;
-                m.roughness = rough;
-                m.ior = eta;
-                let albedo = self.tex_param(p, "albedo", false, Vec3::ZERO, at);
-                let thickness = p.float("thickness", 0.01);
-                let (_g, _md, _ns) = (
-                    p.float("g", 0.0),
-                    p.int("maxdepth", 10),
-                    p.int("nsamples", 1),
-                );
-                self.warn_once(
-                    &format!("coateddiffuse {}", spec.name),
-                    format!(
-                        "{at}: {what}: pbrt-v4's layered coated-diffuse BSDF is approximated by a dielectric specular layer over a Lambertian base (glTF model) whose albedo includes the coat's internal reflections{}",
-                        if albedo.constant() != Some(Vec3::ZERO) {
-                            format!("; the coat's absorbing medium (albedo, thickness {thickness}) is not modelled")
-                        } else {
-                            String::new()
-                        }
-                    ),
-                );
+                m.pbrt.interface_alpha = self.alpha_pair(p, "", at, &what);
+                m.pbrt.interface_eta = self.eta(p, at, &what);
+                self.layer_params(p, &mut m, at, &what);
             }
-            "conductor" | "coatedconductor" => {
-                let pre = if spec.ty == "coatedconductor" {
-                    "conductor."
-                } else {
-                    ""
-                };
-                let rough = self.roughness(p, pre, at, &what);
-                let reflectance = p.spectrum_tex(&format!("{pre}reflectance"));
-                let base = if let Some(r) = reflectance {
-                    let node = match r {
-                        TexOr::Value(s) => {
-                            TexNode::Const(self.reflectance_rgb(&s, at, "reflectance"))
-                        }
-                        TexOr::Texture(t) => self.lookup_texture(&t, false, at),
-                    };
-                    let (c, t) = self.node_to_factor(&node);
-                    m.base_color_texture = t;
-                    c
-                } else {
-                    let eta = self.spectrum_const(p, &format!("{pre}eta"), "metal-Cu-eta", at);
-                    let k = self.spectrum_const(p, &format!("{pre}k"), "metal-Cu-k", at);
-                    // Fresnel reflectance of a conductor at normal incidence:
-                    // F0 = ((η−1)² + k²) / ((η+1)² + k²) (Born & Wolf; PBRT §9.5.3 at cos θ = 1).
-                    let one = Vec3::ONE;
-                    ((eta - one) * (eta - one) + k * k) / ((eta + one) * (eta + one) + k * k)
-                };
-                m.model = MaterialModel::MetallicRoughness;
-                m.metallic = 1.0;
-                m.base_color = base;
-                m.roughness = rough;
-                if spec.ty == "coatedconductor" {
-                    let _ = self.roughness(p, "interface.", at, &what);
-                    let _ = p.float("interface.eta", 1.5);
-                    let _ = p.spectrum("interface.eta");
-                    let _ = (
-                        p.float("thickness", 0.01),
-                        p.float("g", 0.0),
-                        p.int("maxdepth", 10),
-                        p.int("nsamples", 1),
-                    );
-                    let _ = p.spectrum_tex("albedo");
-                    self.warn_once(
-                        &format!("coatedconductor {}", spec.name),
-                        format!("{at}: {what}: pbrt-v4's coated conductor is approximated by the bare conductor (metallic GGX, Schlick Fresnel from F0); the dielectric coat is not modelled"),
-                    );
-                } else {
-                    self.warn_once(
-                        "conductorF0",
-                        format!("{at}: {what}: conductors use the metallic GGX BRDF with Schlick's Fresnel from the normal-incidence reflectance of (η, k), until the complex-Fresnel conductor lands"),
-                    );
-                }
+            "conductor" => {
+                m.model = MaterialModel::Conductor;
+                self.conductor_params(p, "", &mut m, at, &what);
+            }
+            "coatedconductor" => {
+                // pbrt-v4 CoatedConductorMaterial: `interface.*` for the coat, `conductor.*` for
+                // the base, an unprefixed `reflectance` instead of conductor.eta/k.
+                m.model = MaterialModel::CoatedConductor;
+                self.conductor_params(p, "conductor.", &mut m, at, &what);
+                m.pbrt.interface_alpha = self.alpha_pair(p, "interface.", at, &what);
+                m.pbrt.interface_eta = self.prefixed_eta(p, "interface.", at, &what);
+                self.layer_params(p, &mut m, at, &what);
             }
             "dielectric" | "thindielectric" => {
                 let eta = self.eta(p, at, &what);
@@ -771,16 +847,27 @@ impl Loader {
                 }
             }
             "diffusetransmission" => {
+                // pbrt-v4 DiffuseTransmissionMaterial: Lambertian reflection and transmission,
+                // both multiplied by `scale`.
+                let scale = p.float("scale", 1.0);
+                let scale = if scale.is_finite() && scale >= 0.0 {
+                    scale
+                } else {
+                    self.warn(format!(
+                        "{at}: {what}: scale {scale} is not a non-negative number; 1 is used"
+                    ));
+                    1.0
+                };
                 let (c, t) = self.spectrum_factor(p, "reflectance", Vec3::splat(0.25), at);
-                let tr = self.tex_param(p, "transmittance", false, Vec3::splat(0.25), at);
-                let _ = p.float("scale", 1.0);
-                m.model = MaterialModel::Diffuse;
-                m.base_color = c;
+                let tr = self.constant_spectrum(p, "transmittance", Vec3::splat(0.25), at, &what);
+                m.model = MaterialModel::DiffuseTransmission;
+                m.base_color = c * scale;
                 m.base_color_texture = t;
-                self.warn(format!(
-                    "{at}: {what}: diffuse transmission is not supported yet; only the reflection is rendered{}",
-                    if tr.constant() == Some(Vec3::ZERO) { "" } else { " (the transmitted light is lost)" }
-                ));
+                m.pbrt.transmittance = if tr.is_finite() {
+                    tr.max(Vec3::ZERO) * scale
+                } else {
+                    Vec3::splat(0.25)
+                };
             }
             "mix" => {
                 let names = p.strings("materials").unwrap_or_default();
@@ -817,8 +904,8 @@ impl Loader {
                 return inner;
             }
             "interface" => {
-                // A boundary that only separates media: index-matched, so light passes straight.
-                m.model = MaterialModel::Dielectric;
+                // A boundary that only separates media (pbrt-v4 `interface`): no surface.
+                m.model = MaterialModel::Interface;
                 m.ior = 1.0;
                 m.roughness = 0.0;
             }
@@ -842,7 +929,12 @@ impl Loader {
     }
 
     fn eta(&mut self, p: &ParamList, at: &str, what: &str) -> f32 {
-        let e = match p.float_tex("eta") {
+        self.prefixed_eta(p, "", at, what)
+    }
+
+    fn prefixed_eta(&mut self, p: &ParamList, pre: &str, at: &str, what: &str) -> f32 {
+        let key = format!("{pre}eta");
+        let e = match p.float_tex(&key) {
             Some(TexOr::Value(v)) => v,
             Some(TexOr::Texture(t)) => {
                 self.warn(format!(
@@ -850,7 +942,7 @@ impl Loader {
                 ));
                 1.5
             }
-            None => match p.spectrum("eta") {
+            None => match p.spectrum(&key) {
                 Some(SpectrumValue::Named(n)) => match super::spectra::named_glass_eta(&n) {
                     Some(e) => {
                         self.warn_once(

@@ -152,6 +152,9 @@ struct GraphicsState {
     area_light: Option<AreaLight>,
     /// `Attribute "shape"|"light"|"material"|"medium"|"texture"` defaults.
     attributes: HashMap<String, Vec<Param>>,
+    /// `MediumInterface` names (pbrt's current inside/outside media; "" is vacuum).
+    medium_inside: String,
+    medium_outside: String,
 }
 
 impl Default for GraphicsState {
@@ -164,6 +167,8 @@ impl Default for GraphicsState {
             material: MatRef::Default,
             area_light: None,
             attributes: HashMap::new(),
+            medium_inside: String::new(),
+            medium_outside: String::new(),
         }
     }
 }
@@ -221,7 +226,10 @@ pub(crate) struct Loader {
     pub(crate) bake_jobs: Vec<materials::BakeJob>,
     world_begun: bool,
     warned_once: std::collections::HashSet<String>,
-    media_warned: bool,
+    /// Named media: `Some(id)` when mapped, `None` for a type Trayecto lacks (warned once).
+    media: HashMap<String, Option<crate::scene::MediumId>>,
+    /// The camera's medium name (pbrt's outside medium at `Camera`) and where it was set.
+    camera_medium: Option<(String, String)>,
 }
 
 /// `file:line` of a token.
@@ -251,7 +259,8 @@ impl Loader {
             bake_jobs: Vec::new(),
             world_begun: false,
             warned_once: Default::default(),
-            media_warned: false,
+            media: HashMap::new(),
+            camera_medium: None,
         }
     }
 
@@ -511,6 +520,10 @@ impl Loader {
                     self.named_coord.insert("camera".into(), inv);
                 }
                 self.settings.camera = Some((self.gs.ctm, list, at.to_string()));
+                // pbrt-v4: the camera sits in the current outside medium.
+                if !self.gs.medium_outside.is_empty() {
+                    self.camera_medium = Some((self.gs.medium_outside.clone(), at.to_string()));
+                }
             }
             "Film" => {
                 let ty = p.string(at)?;
@@ -646,24 +659,15 @@ impl Loader {
             "MakeNamedMedium" => {
                 let n = p.string(at)?;
                 let list = p.params(at)?;
-                let ty = list.string("type").unwrap_or_default();
-                self.warn(format!(
-                    "{at}: MakeNamedMedium \"{n}\" (\"{ty}\"): participating media are not supported yet; the medium is ignored"
-                ));
+                let list = self.with_attributes(list, "medium");
+                self.make_named_medium(&n, &list, at)?;
             }
             "MediumInterface" => {
                 let inside = p.string(at)?;
                 // The second name is optional (one name sets both sides).
-                let outside = p.optional_string();
-                if !(self.media_warned
-                    || inside.is_empty() && outside.as_deref().unwrap_or("").is_empty())
-                {
-                    self.media_warned = true;
-                    self.warn(format!(
-                        "{at}: MediumInterface \"{inside}\" \"{}\": participating media are not supported yet; surfaces are rendered in vacuum",
-                        outside.unwrap_or_default()
-                    ));
-                }
+                let outside = p.optional_string().unwrap_or_else(|| inside.clone());
+                self.gs.medium_inside = inside;
+                self.gs.medium_outside = outside;
             }
             "ObjectBegin" => {
                 let n = p.string(at)?;
@@ -1053,10 +1057,142 @@ impl Loader {
             });
         } else {
             self.scene.add_object(&name, shape, self.gs.ctm, material);
+            let mi = self.shape_medium_interface(at);
+            if let Some(o) = self.scene.objects.last_mut() {
+                o.medium = mi;
+            }
         }
     }
 
+    /// A named medium by name: `Ok(None)` for vacuum ("") or an unmapped type (warned where it
+    /// was made); an undefined name is warned here and rendered as vacuum.
+    fn medium_id(&mut self, name: &str, at: &str) -> Option<crate::scene::MediumId> {
+        if name.is_empty() {
+            return None;
+        }
+        match self.media.get(name) {
+            Some(id) => *id,
+            None => {
+                self.warn(format!(
+                    "{at}: medium \"{name}\" is not defined (MakeNamedMedium); vacuum is used"
+                ));
+                None
+            }
+        }
+    }
+
+    /// The shape's medium interface from the current `MediumInterface`. As in pbrt-v4's
+    /// `GeometricPrimitive`, a shape whose two sides name the same medium is not a transition and
+    /// leaves the ray's medium as it was (`None`).
+    fn shape_medium_interface(&mut self, at: &str) -> Option<crate::scene::MediumInterface> {
+        let (i, o) = (
+            self.gs.medium_inside.clone(),
+            self.gs.medium_outside.clone(),
+        );
+        if i == o {
+            return None;
+        }
+        let inside = self.medium_id(&i, at);
+        let outside = self.medium_id(&o, at);
+        Some(crate::scene::MediumInterface { inside, outside })
+    }
+
+    /// `MakeNamedMedium`: `homogeneous` and `uniformgrid` map onto [`crate::scene::MediumDesc`]
+    /// (pbrt-v4 defaults: σa = σs = 1, scale 1, g 0; the grid spans p0–p1 of the medium space
+    /// given by the CTM); other types and emission are warnings.
+    fn make_named_medium(&mut self, name: &str, p: &ParamList, at: &str) -> Result<(), SceneError> {
+        use crate::scene::{MediumDesc, MediumKind};
+        let ty = p.string("type").unwrap_or_default();
+        let what = format!("MakeNamedMedium \"{name}\" (\"{ty}\")");
+        if self.media.contains_key(name) {
+            self.warn(format!(
+                "{at}: {what}: redefines the medium; the new definition is used"
+            ));
+        }
+        if !matches!(ty.as_str(), "homogeneous" | "uniformgrid") {
+            self.warn(format!(
+                "{at}: {what}: medium type \"{ty}\" is not supported; the medium is ignored (vacuum)"
+            ));
+            for q in &p.params {
+                q.used.set(true);
+            }
+            self.media.insert(name.to_string(), None);
+            return Ok(());
+        }
+        if let Some(pr) = p.string("preset") {
+            self.warn(format!(
+                "{at}: {what}: preset \"{pr}\" (measured scattering coefficients) is not supported; sigma_a/sigma_s are used"
+            ));
+        }
+        let coef = |l: &mut Loader, key: &str| -> Vec3 {
+            match p.spectrum(key) {
+                Some(sv) => l.spectrum_as_rgb(&sv, at, key),
+                None => Vec3::ONE,
+            }
+        };
+        let sigma_a = coef(self, "sigma_a");
+        let sigma_s = coef(self, "sigma_s");
+        let scale = p.float("scale", 1.0);
+        let g = p.float("g", 0.0);
+        if p.has("Le") || p.has("Lescale") || p.has("temperature") || p.has("temperaturescale") {
+            let _ = (
+                p.spectrum("Le"),
+                p.float("Lescale", 1.0),
+                p.floats("temperature"),
+                p.float("temperaturescale", 1.0),
+            );
+            self.warn(format!(
+                "{at}: {what}: medium emission (Le/temperature) is not supported; it is ignored"
+            ));
+        }
+        let kind = if ty == "uniformgrid" {
+            let nx = p.int("nx", 1);
+            let ny = p.int("ny", 1);
+            let nz = p.int("nz", 1);
+            let density = p.floats("density").unwrap_or_default();
+            let n = (nx.max(0) as u128) * (ny.max(0) as u128) * (nz.max(0) as u128);
+            if nx < 1 || ny < 1 || nz < 1 || n != density.len() as u128 {
+                return Err(SceneError::invalid(
+                    at,
+                    format!(
+                        "{what}: \"density\" has {} values, not nx·ny·nz = {nx}·{ny}·{nz}",
+                        density.len()
+                    ),
+                ));
+            }
+            MediumKind::Grid {
+                nx: nx as usize,
+                ny: ny as usize,
+                nz: nz as usize,
+                density,
+                min: p.point3("p0", Vec3::ZERO),
+                max: p.point3("p1", Vec3::ONE),
+                transform: self.gs.ctm,
+            }
+        } else {
+            MediumKind::Homogeneous
+        };
+        let _ = p.string("type");
+        let desc = MediumDesc {
+            name: name.to_string(),
+            sigma_a,
+            sigma_s,
+            scale,
+            g,
+            kind,
+        };
+        desc.validate()
+            .map_err(|e| SceneError::invalid(at, format!("{what}: {e}")))?;
+        self.note_unused(p, &what, at);
+        let id = self.scene.add_medium(desc);
+        self.media.insert(name.to_string(), Some(id));
+        Ok(())
+    }
+
     fn finish(mut self) -> Result<Scene, SceneError> {
+        if let Some((n, at)) = self.camera_medium.take() {
+            self.scene.camera_medium = self.medium_id(&n, &at);
+        }
         if let Some((n, _)) = &self.current_object {
             return Err(SceneError::invalid(
                 "end of file",
