@@ -44,7 +44,9 @@ pub fn surface_kind(m: &Material, s: &LocalSurface) -> SurfaceKind {
         // An interface (ior 1) refracts straight through: the medium boundary is invisible.
         MaterialModel::Dielectric | MaterialModel::Interface => SurfaceKind::Dielectric,
         _ if m.transmission > 0.5 => SurfaceKind::Dielectric,
-        MaterialModel::MetallicRoughness if s.metallic > 0.9 && s.roughness < 0.05 => {
+        MaterialModel::MetallicRoughness | MaterialModel::Conductor
+            if s.metallic > 0.9 && s.roughness < 0.05 =>
+        {
             SurfaceKind::Mirror
         }
         _ => SurfaceKind::Opaque,

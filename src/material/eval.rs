@@ -2,8 +2,9 @@
 //! colour, opacity for the alpha modes, emitted radiance, and the [`Bsdf`] the path tracer
 //! scatters with (`Bsdf::from_material`).
 
-use super::bxdf::{Diffuse, MetallicRoughness, Mirror};
-use super::microfacet::Ggx;
+use super::bxdf::layered::{Base, Coat};
+use super::bxdf::{Conductor, Diffuse, DiffuseTransmission, Layered, MetallicRoughness, Mirror};
+use super::microfacet::{AnisoGgx, Ggx, conductor_from_reflectance};
 use super::{Bsdf, Material, MaterialModel, Texture, TextureRef};
 use crate::geometry::SurfaceHit;
 use crate::math::{Vec3, Vec4};
@@ -18,7 +19,37 @@ impl Bsdf {
         } else {
             1.5
         };
+        let p = &material.pbrt;
+        let conductor = || {
+            let (eta, k) = if p.conductor_reflectance {
+                conductor_from_reflectance(base)
+            } else {
+                (p.conductor_eta, p.conductor_k)
+            };
+            Conductor::new(eta, k, p.conductor_alpha.x, p.conductor_alpha.y)
+        };
+        let layered = |base: Base| {
+            Bsdf::Layered(Layered {
+                coat: Coat {
+                    eta: p.interface_eta,
+                    dist: AnisoGgx::new(p.interface_alpha.x, p.interface_alpha.y),
+                },
+                base,
+                thickness: p.thickness,
+                albedo: p.albedo,
+                g: p.g,
+                max_depth: p.max_depth,
+                n_samples: p.n_samples,
+            })
+        };
         match material.model {
+            MaterialModel::Conductor => Bsdf::Conductor(conductor()),
+            MaterialModel::CoatedDiffuse => layered(Base::Diffuse { reflectance: base }),
+            MaterialModel::CoatedConductor => layered(Base::Conductor(conductor())),
+            MaterialModel::DiffuseTransmission => Bsdf::DiffuseTransmission(DiffuseTransmission {
+                reflectance: base,
+                transmittance: p.transmittance,
+            }),
             MaterialModel::Diffuse => Bsdf::Diffuse(Diffuse { albedo: base }),
             MaterialModel::Mirror => Bsdf::Mirror(Mirror { color: base }),
             MaterialModel::Dielectric => Bsdf::dielectric(eta, roughness, Vec3::ONE),

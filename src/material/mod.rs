@@ -15,7 +15,7 @@ pub mod texture;
 pub use bsdf::Bsdf;
 pub use texture::{Texture, TextureRef, WrapMode};
 
-use crate::math::Vec3;
+use crate::math::{Vec2, Vec3};
 
 /// How the path tracer scatters light at the surface.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -34,6 +34,124 @@ pub enum MaterialModel {
     /// rays straight through it without counting a bounce; the other integrators see it as an
     /// index-matched (η = 1) smooth dielectric, which transmits every ray unchanged.
     Interface,
+    /// pbrt-v4 `conductor`: exact Fresnel of η + i k per channel ([`PbrtParams::conductor_eta`],
+    /// `conductor_k`, or the base colour as `reflectance` when `conductor_reflectance`), smooth or
+    /// anisotropic GGX with α = [`PbrtParams::conductor_alpha`].
+    Conductor,
+    /// pbrt-v4 `coateddiffuse`: a dielectric coat over a Lambertian base of the base colour.
+    CoatedDiffuse,
+    /// pbrt-v4 `coatedconductor`: a dielectric coat over the conductor of `Conductor`.
+    CoatedConductor,
+    /// pbrt-v4 `diffusetransmission`: Lambertian reflection of the base colour and Lambertian
+    /// transmission of [`PbrtParams::transmittance`].
+    DiffuseTransmission,
+}
+
+/// Parameters of the pbrt-v4 models ([`MaterialModel::Conductor`], `CoatedDiffuse`,
+/// `CoatedConductor`, `DiffuseTransmission`). Roughnesses are GGX α already (apply
+/// [`microfacet::pbrt_roughness_to_alpha`] for pbrt's `remaproughness`); x is along the tangent
+/// (pbrt's `uroughness`), y along the bitangent (`vroughness`). Defaults are pbrt-v4's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PbrtParams {
+    /// Conductor η and k per linear-sRGB channel (default: pbrt's `metal-Cu-eta`/`metal-Cu-k`
+    /// converted by [`crate::spectrum`]).
+    pub conductor_eta: Vec3,
+    pub conductor_k: Vec3,
+    /// Use the base colour (× texture) as pbrt's `reflectance` instead of η/k.
+    pub conductor_reflectance: bool,
+    pub conductor_alpha: Vec2,
+    /// The coat: relative IOR and GGX α (pbrt `interface.eta`/`interface.roughness` for
+    /// `coatedconductor`, `eta`/`roughness` for `coateddiffuse`).
+    pub interface_eta: f32,
+    pub interface_alpha: Vec2,
+    /// Slab between coat and base: thickness (σt = 1), medium albedo and HG asymmetry g.
+    pub thickness: f32,
+    pub albedo: Vec3,
+    pub g: f32,
+    /// Random-walk length and walks per evaluation of the layered BSDF.
+    pub max_depth: u32,
+    pub n_samples: u32,
+    /// Lambertian transmittance of `diffusetransmission`.
+    pub transmittance: Vec3,
+}
+
+impl Default for PbrtParams {
+    fn default() -> Self {
+        let (eta, k) =
+            crate::spectrum::named_conductor_rgb("metal-Cu").unwrap_or((Vec3::ONE, Vec3::ZERO));
+        PbrtParams {
+            conductor_eta: eta,
+            conductor_k: k,
+            conductor_reflectance: false,
+            conductor_alpha: Vec2::ZERO,
+            interface_eta: 1.5,
+            interface_alpha: Vec2::ZERO,
+            thickness: 0.01,
+            albedo: Vec3::ZERO,
+            g: 0.0,
+            max_depth: 10,
+            n_samples: 1,
+            transmittance: Vec3::splat(0.25),
+        }
+    }
+}
+
+impl PbrtParams {
+    fn validate(&self) -> Result<(), String> {
+        let vecs = [
+            self.conductor_eta,
+            self.conductor_k,
+            self.albedo,
+            self.transmittance,
+        ];
+        let scalars = [
+            self.conductor_alpha.x,
+            self.conductor_alpha.y,
+            self.interface_alpha.x,
+            self.interface_alpha.y,
+            self.interface_eta,
+            self.thickness,
+            self.g,
+        ];
+        if vecs.iter().any(|v| !v.is_finite()) || scalars.iter().any(|s| !s.is_finite()) {
+            return Err("has a non-finite pbrt parameter".into());
+        }
+        if vecs.iter().any(|v| v.min_element() < 0.0)
+            || self.conductor_alpha.min_element() < 0.0
+            || self.interface_alpha.min_element() < 0.0
+        {
+            return Err("has a negative eta, k, albedo, transmittance or roughness".into());
+        }
+        if self.interface_eta <= 0.0 {
+            return Err(format!(
+                "coat eta must be positive (got {})",
+                self.interface_eta
+            ));
+        }
+        if self.thickness <= 0.0 {
+            return Err(format!(
+                "layer thickness must be positive (got {})",
+                self.thickness
+            ));
+        }
+        if !(-1.0 < self.g && self.g < 1.0) {
+            return Err(format!("layer g must be in (-1, 1) (got {})", self.g));
+        }
+        if self.albedo.max_element() > 1.0 {
+            return Err("layer albedo must be at most 1".into());
+        }
+        if self.max_depth == 0
+            || self.max_depth > 1000
+            || self.n_samples == 0
+            || self.n_samples > 1000
+        {
+            return Err(format!(
+                "layer maxdepth and nsamples must be in 1..=1000 (got {}, {})",
+                self.max_depth, self.n_samples
+            ));
+        }
+        Ok(())
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -95,6 +213,8 @@ pub struct Material {
     pub attenuation_distance: f32,
     /// Opacity map (OBJ `map_d`), first channel.
     pub alpha_texture: Option<TextureRef>,
+    /// Parameters of the pbrt-v4 models (unused by the others).
+    pub pbrt: PbrtParams,
 }
 
 impl Default for Material {
@@ -130,6 +250,7 @@ impl Default for Material {
             attenuation_color: Vec3::ONE,
             attenuation_distance: f32::INFINITY,
             alpha_texture: None,
+            pbrt: PbrtParams::default(),
         }
     }
 }
@@ -167,6 +288,7 @@ impl Material {
         if self.base_color.min_element() < 0.0 || self.emissive.min_element() < 0.0 {
             return Err("has a negative colour".into());
         }
+        self.pbrt.validate()?;
         if self.ior <= 0.0 {
             return Err(format!(
                 "index of refraction must be positive (got {})",
