@@ -181,6 +181,7 @@ fn metals_lose_exactly_their_single_scattering_deficit() {
             ggx: trayecto::material::microfacet::Ggx::new(r * r),
             f0_dielectric: Vec3::splat(0.04),
             specular: m.specular,
+            coat: None,
         })
     };
     for (roughness, spp) in [(0.0f32, 16u32), (0.5, 32), (1.0, 32)] {

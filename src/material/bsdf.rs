@@ -53,6 +53,15 @@ impl Bsdf {
         Bsdf::ThinDielectric(ThinDielectric::new(eta, roughness, tint))
     }
 
+    /// Places the clearcoat's normal, given in the local shading frame (the integrator knows the
+    /// frame; see [`super::eval::clearcoat_normal`]). No effect on BSDFs without a coat.
+    #[inline]
+    pub fn set_coat_normal(&mut self, local: Vec3) {
+        if let Bsdf::MetallicRoughness(MetallicRoughness { coat: Some(c), .. }) = self {
+            *c = c.with_normal(local);
+        }
+    }
+
     /// True if every lobe is a Dirac delta (light sampling is pointless).
     #[inline]
     pub fn is_specular(&self) -> bool {

@@ -6,6 +6,7 @@
 
 pub mod bsdf;
 pub mod bxdf;
+pub mod clearcoat;
 pub mod eval;
 pub mod local_shading;
 pub mod microfacet;
@@ -215,6 +216,14 @@ pub struct Material {
     pub alpha_texture: Option<TextureRef>,
     /// Parameters of the pbrt-v4 models (unused by the others).
     pub pbrt: PbrtParams,
+    /// KHR_materials_clearcoat: layer weight (× texture R), roughness (× texture G) and the
+    /// coat's own normal map (without one, the coat follows the unmapped vertex normal).
+    pub clearcoat: f32,
+    pub clearcoat_texture: Option<TextureRef>,
+    pub clearcoat_roughness: f32,
+    pub clearcoat_roughness_texture: Option<TextureRef>,
+    pub clearcoat_normal_texture: Option<TextureRef>,
+    pub clearcoat_normal_scale: f32,
 }
 
 impl Default for Material {
@@ -251,6 +260,12 @@ impl Default for Material {
             attenuation_distance: f32::INFINITY,
             alpha_texture: None,
             pbrt: PbrtParams::default(),
+            clearcoat: 0.0,
+            clearcoat_texture: None,
+            clearcoat_roughness: 0.0,
+            clearcoat_roughness_texture: None,
+            clearcoat_normal_texture: None,
+            clearcoat_normal_scale: 1.0,
         }
     }
 }
@@ -281,6 +296,9 @@ impl Material {
             self.transmission,
             self.ior,
             self.specular,
+            self.clearcoat,
+            self.clearcoat_roughness,
+            self.clearcoat_normal_scale,
         ];
         if vecs.iter().any(|v| !v.is_finite()) || scalars.iter().any(|s| !s.is_finite()) {
             return Err("has a non-finite parameter".into());
@@ -305,6 +323,9 @@ impl Material {
             &self.specular_texture,
             &self.specular_color_texture,
             &self.alpha_texture,
+            &self.clearcoat_texture,
+            &self.clearcoat_roughness_texture,
+            &self.clearcoat_normal_texture,
         ];
         for t in texs.into_iter().flatten() {
             if t.texture >= texture_count {

@@ -24,6 +24,8 @@ use crate::math::{Mat4, Vec2, Vec3};
 #[serde(deny_unknown_fields)]
 struct File {
     name: Option<String>,
+    /// "auto", "on" or "off" (see `light::default_light`); `--default-light` overrides it.
+    default_light: Option<crate::light::default_light::DefaultLight>,
     #[serde(default)]
     camera: Vec<Camera>,
     background: Option<Background>,
@@ -222,6 +224,7 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
     let mut scene = Scene {
         name: file.name.clone().unwrap_or_else(|| label.to_string()),
         source: Some(label.into()),
+        default_light: file.default_light,
         ..Default::default()
     };
 
