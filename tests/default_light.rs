@@ -123,6 +123,7 @@ fn a_furnace_of_dim_emitters_is_not_a_decal() {
         },
         transform: Mat4::IDENTITY,
         material: m,
+        medium: None,
     });
     let world = build(&scene, None);
     assert!(!has_default_light(&world), "{:?}", world.warnings);
@@ -138,6 +139,7 @@ fn a_furnace_of_dim_emitters_is_not_a_decal() {
         },
         transform: Mat4::from_translation(Vec3::new(0.0, 0.0, -2.0)),
         material: grey,
+        medium: None,
     });
     assert!(has_default_light(&build(&decal_scene, None)));
 }
