@@ -16,5 +16,8 @@ echo "== cargo test"
 # `cargo bench`: their timings do not belong in the test suite.
 cargo test
 
+echo "== farm driver (Python, Dask LocalCluster)"
+./scripts/farm-test.sh
+
 echo "== browser end-to-end (web UI)"
 ./scripts/e2e.sh

@@ -23,4 +23,5 @@ pub mod pipeline;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod split;
 pub mod world;

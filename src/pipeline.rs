@@ -6,19 +6,21 @@
 //! The stages are separate functions on purpose, so that a feature extends exactly one of them:
 //! - scene-provided defaults (a pbrt `Film`, a TOML `[render]` table) resolve in
 //!   [`RenderJob::settings_for`], after loading and before anything is sized;
-//! - a crop window or a partial render of a sample range belongs in [`RenderSettings`] and is
-//!   honoured by `render::render`; writing a partial film and merging belongs to [`write_outputs`];
+//! - a partial render of a sample range, checkpoints and resuming are [`RenderJob::split`]
+//!   ([`crate::split`]); an output named `*.trp` is a partial film, written by [`write_outputs`];
 //! - AOVs are extra layers handed to [`write_outputs`] with the beauty image;
 //! - a denoiser is a stage between rendering and [`write_outputs`] ([`Stage`] grows a variant);
 //! - checkpoint/resume hooks into the observer's `pass_done`, which already sees the film.
 
 use crate::film::Image;
 use crate::film::output::{Format, OutputError, write_image};
+use crate::film::partial::{Part, PartError};
 use crate::film::tonemap::Tonemap;
 use crate::integrator::RayStats;
 use crate::phases::PhaseReport;
 use crate::render::{RenderError, RenderObserver, RenderSettings};
 use crate::scene::{Scene, SceneError};
+use crate::split::{FrameId, SplitError, SplitOptions};
 use crate::world::{World, WorldOptions};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -58,7 +60,16 @@ pub struct RenderJob {
     /// Which of `settings`' size, samples and depth the user gave; the others come from the
     /// scene file when it has them (pbrt's Film, Sampler, Integrator: [`crate::scene::RenderHints`]).
     pub given: GivenSettings,
+    /// Outputs named `*.trp` get the partial film (the exact sums, to merge or resume).
     pub outputs: Vec<OutputSpec>,
+    /// Render a sample range only, save checkpoints, resume (default: the whole frame, no files).
+    pub split: SplitOptions,
+}
+
+/// Whether `path` names a partial film (`.trp`) rather than an image.
+pub fn is_partial_film(path: &std::path::Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("trp"))
 }
 
 /// Which render settings were given explicitly (and so win over the scene file's).
@@ -137,6 +148,23 @@ pub enum PipelineError {
     Write { path: PathBuf, error: OutputError },
     #[error("render cancelled")]
     Cancelled,
+    /// Cancelled after saving the passes done to a checkpoint, to be resumed from.
+    #[error("interrupted; the render so far is saved in {0} (continue it with --resume {0})")]
+    Interrupted(PathBuf),
+    #[error(transparent)]
+    Part(#[from] PartError),
+    #[error(transparent)]
+    Split(SplitError),
+}
+
+impl From<SplitError> for PipelineError {
+    fn from(e: SplitError) -> Self {
+        match e {
+            SplitError::Render(r) => r.into(),
+            SplitError::Part(p) => p.into(),
+            other => PipelineError::Split(other),
+        }
+    }
 }
 
 /// What a finished render reports.
@@ -161,25 +189,65 @@ impl RenderJob {
     /// Refuses absurd settings and unwritable outputs before any work starts.
     pub fn check(&self) -> Result<(), PipelineError> {
         self.settings.validate()?;
+        let bad = |m: String| Err(PipelineError::InvalidSetting(m));
         for o in &self.outputs {
             if !(o.exposure.is_finite() && o.exposure > 0.0) {
-                return Err(PipelineError::InvalidSetting(format!(
+                return bad(format!(
                     "exposure must be a positive number (got {})",
                     o.exposure
-                )));
+                ));
             }
-            Format::from_path(&o.path)?;
-            if let Some(parent) = o.path.parent()
+            if !is_partial_film(&o.path) {
+                Format::from_path(&o.path)?;
+                if self.split.samples.is_some() {
+                    return bad(format!(
+                        "{}: a partial render (a sample range) writes a partial film: name the output FILE.trp, then merge the parts",
+                        o.path.display()
+                    ));
+                }
+            }
+        }
+        let split = &self.split;
+        for path in self
+            .outputs
+            .iter()
+            .map(|o| &o.path)
+            .chain(&split.checkpoint)
+        {
+            if let Some(parent) = path.parent()
                 && !parent.as_os_str().is_empty()
                 && !parent.is_dir()
             {
                 return Err(PipelineError::Output(OutputError::Write {
-                    path: o.path.clone(),
+                    path: path.clone(),
                     message: "the output folder does not exist".into(),
                 }));
             }
         }
+        if let Some(r) = &split.samples
+            // Without --spp the frame's count may come from the scene file: the render checks
+            // the range against it then.
+            && !(r.start < r.end && (!self.given.spp || r.end <= self.settings.spp))
+        {
+            return bad(format!(
+                "sample range {}..{} must be non-empty and end at most at the frame's {} samples per pixel",
+                r.start, r.end, self.settings.spp
+            ));
+        }
+        if let Some(r) = &split.resume
+            && !r.is_file()
+        {
+            return bad(format!("{}: no such checkpoint file", r.display()));
+        }
         Ok(())
+    }
+
+    /// Whether the render must know its frame's identity (a scene digest): it writes or reads
+    /// partial films.
+    fn writes_parts(&self) -> bool {
+        self.split.checkpoint.is_some()
+            || self.split.resume.is_some()
+            || self.outputs.iter().any(|o| is_partial_film(&o.path))
     }
 
     /// The settings to render `scene` with: the scene file's resolution, samples and depth
@@ -309,6 +377,19 @@ impl RenderJob {
         if let Some(n) = size_note {
             info(n);
         }
+        // The frame's identity for partial films: hashing a big scene costs time, so only when
+        // one is written or read.
+        let digest = if self.writes_parts() {
+            crate::scene::digest::digest(&self.scene, &scene, self.world.env.as_deref())?
+        } else {
+            String::new()
+        };
+        let frame = FrameId {
+            scene: self.scene.clone(),
+            digest,
+            settings: settings.clone(),
+            world: self.world.clone(),
+        };
         let scene_name = scene.name.clone();
         let camera_count = scene.cameras.len();
 
@@ -345,9 +426,22 @@ impl RenderJob {
 
         // Render.
         observer.stage_started(Stage::Render);
-        let out = match crate::render::render(&world, &settings, observer, cancel) {
-            Err(RenderError::Cancelled) => return Err(PipelineError::Cancelled),
-            r => r?,
+        let split = crate::split::render_split(&world, &frame, &self.split, observer, cancel)?;
+        if split.render.cancelled {
+            return Err(match split.checkpoint_written {
+                Some(p) => PipelineError::Interrupted(p),
+                None => PipelineError::Cancelled,
+            });
+        }
+        let out = crate::render::RenderOutput {
+            image: split.render.film.to_image(),
+            stats: split.render.stats,
+            discarded_samples: split.render.film.discarded,
+            render_time: split.render.render_time,
+        };
+        let part = Part {
+            header: split.header,
+            film: split.render.film,
         };
         observer.stage_finished(Stage::Render, out.render_time);
         let accel_time = world.accel_build_time;
@@ -358,13 +452,14 @@ impl RenderJob {
         // Write.
         observer.stage_started(Stage::Write);
         let t = Instant::now();
-        let written = write_outputs(&out.image, &self.outputs)?;
+        let written = write_outputs(&out.image, Some(&part), &self.outputs)?;
         let write_time = t.elapsed();
         observer.stage_finished(Stage::Write, write_time);
         if out.discarded_samples > 0 {
             warn(format!(
-                "{} samples were NaN or infinite and were discarded",
-                out.discarded_samples
+                "{} samples were NaN, infinite or beyond {:e} and were discarded",
+                out.discarded_samples,
+                crate::film::SAMPLE_LIMIT
             ));
         }
 
@@ -404,11 +499,26 @@ impl RenderJob {
     }
 }
 
-/// The output stage: writes the film to every requested file and returns their paths. Extra
-/// layers (AOVs) and partial films are written here when they land.
-pub fn write_outputs(image: &Image, outputs: &[OutputSpec]) -> Result<Vec<PathBuf>, PipelineError> {
+/// The output stage: writes the image (or, for `*.trp` outputs, the partial film `part`) to every
+/// requested file and returns their paths. Extra layers (AOVs) are written here when they land.
+pub fn write_outputs(
+    image: &Image,
+    part: Option<&Part>,
+    outputs: &[OutputSpec],
+) -> Result<Vec<PathBuf>, PipelineError> {
     let mut written = Vec::with_capacity(outputs.len());
     for o in outputs {
+        if is_partial_film(&o.path) {
+            let part = part.ok_or_else(|| {
+                PipelineError::InvalidSetting(format!(
+                    "{}: no partial film to write",
+                    o.path.display()
+                ))
+            })?;
+            part.write(&o.path)?;
+            written.push(o.path.clone());
+            continue;
+        }
         write_image(image, &o.path, o.exposure, o.tonemap).map_err(|source| {
             PipelineError::Write {
                 path: o.path.clone(),

@@ -55,6 +55,8 @@ pub enum RenderError {
     Cancelled,
     #[error("could not start {0} worker threads: {1}")]
     ThreadPool(usize, String),
+    #[error("cannot resume: {0}")]
+    Resume(String),
 }
 
 impl RenderSettings {
@@ -136,6 +138,26 @@ impl RenderOutput {
     }
 }
 
+/// The film of a render of a sample range, possibly stopped early.
+#[derive(Clone, Debug)]
+pub struct FilmRender {
+    pub film: Film,
+    /// Sample indices `start..done` of every pixel are in the film. When the render was
+    /// cancelled, `done` is the end of the last complete pass (a cancelled pass adds nothing).
+    pub start: u32,
+    pub done: u32,
+    pub cancelled: bool,
+    pub stats: RayStats,
+    pub render_time: Duration,
+}
+
+/// Where a render of sample indices `samples` (of a `settings.spp` frame) starts: from nothing, or
+/// from a film that holds `samples.start..resume_at` (a checkpoint).
+pub struct RangeStart {
+    pub samples: std::ops::Range<u32>,
+    pub resume: Option<(Film, u32)>,
+}
+
 /// The sample-index ranges of the progressive passes: 1, 1, 2, 4, … samples, at most 64 per pass.
 /// Depends only on `spp`, which keeps the accumulation order (and so the image) fixed.
 pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
@@ -159,8 +181,55 @@ pub fn render(
     observer: &dyn RenderObserver,
     cancel: &AtomicBool,
 ) -> Result<RenderOutput, RenderError> {
+    let start = RangeStart {
+        samples: 0..settings.spp,
+        resume: None,
+    };
+    let r = render_range(world, settings, start, observer, cancel)?;
+    if r.cancelled {
+        return Err(RenderError::Cancelled);
+    }
+    Ok(RenderOutput {
+        image: r.film.to_image(),
+        stats: r.stats,
+        discarded_samples: r.film.discarded,
+        render_time: r.render_time,
+    })
+}
+
+/// Renders sample indices `start.samples` of every pixel of a `settings.spp` frame (the sampler
+/// is set up for the whole frame, so sample `i` is the same number whichever range it is rendered
+/// in), continuing from `start.resume` if given. Cancelling returns the film of the passes done.
+pub fn render_range(
+    world: &World,
+    settings: &RenderSettings,
+    start: RangeStart,
+    observer: &dyn RenderObserver,
+    cancel: &AtomicBool,
+) -> Result<FilmRender, RenderError> {
     settings.validate()?;
-    let run = || render_in_pool(world, settings, observer, cancel);
+    let range = start.samples.clone();
+    if !(range.start < range.end && range.end <= settings.spp) {
+        return Err(RenderError::InvalidSetting(format!(
+            "sample range {}..{} must be non-empty and within 0..{} (the frame's samples per pixel)",
+            range.start, range.end, settings.spp
+        )));
+    }
+    if let Some((film, at)) = &start.resume {
+        if (film.width, film.height) != (settings.width, settings.height) {
+            return Err(RenderError::Resume(format!(
+                "the checkpoint is {}x{}, the render {}x{}",
+                film.width, film.height, settings.width, settings.height
+            )));
+        }
+        if !(range.start <= *at && *at <= range.end) {
+            return Err(RenderError::Resume(format!(
+                "the checkpoint holds samples {}..{at}, outside the range {}..{}",
+                range.start, range.start, range.end
+            )));
+        }
+    }
+    let run = || render_in_pool(world, settings, start, observer, cancel);
     match settings.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -174,9 +243,10 @@ pub fn render(
 fn render_in_pool(
     world: &World,
     settings: &RenderSettings,
+    range_start: RangeStart,
     observer: &dyn RenderObserver,
     cancel: &AtomicBool,
-) -> Result<RenderOutput, RenderError> {
+) -> Result<FilmRender, RenderError> {
     let start = Instant::now();
     let (w, h) = (settings.width, settings.height);
     let camera = crate::camera::Camera::new(&world.camera, w, h);
@@ -186,11 +256,21 @@ fn render_in_pool(
             tiles.push((x0, y0, TILE.min(w - x0), TILE.min(h - y0)));
         }
     }
-    let passes = pass_schedule(settings.spp);
+    let first = range_start.samples.start;
+    let (mut film, from) = match range_start.resume {
+        Some((film, at)) => (film, at),
+        None => (Film::new(w, h), first),
+    };
+    // Passes over the samples still to do. The film's sums are exact (see `film`), so how the
+    // samples are grouped into passes does not change the image.
+    let passes: Vec<(u32, u32)> = pass_schedule(range_start.samples.end - from)
+        .into_iter()
+        .map(|(a, b)| (a + from, b + from))
+        .collect();
     let total_tiles = (tiles.len() * passes.len()) as u64;
     let tiles_done = AtomicU64::new(0);
-    let mut film = Film::new(w, h);
     let mut stats = RayStats::default();
+    let mut done = from;
     let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp);
     for &(s0, s1) in &passes {
         let blocks: Vec<(FilmBlock, RayStats)> = tiles
@@ -218,18 +298,29 @@ fn render_in_pool(
             })
             .collect();
         if cancel.load(Ordering::Relaxed) {
-            return Err(RenderError::Cancelled);
+            // Tiles skipped after the flag was set make this pass incomplete: drop all of it.
+            return Ok(FilmRender {
+                film,
+                start: first,
+                done,
+                cancelled: true,
+                stats,
+                render_time: start.elapsed(),
+            });
         }
         for (b, st) in &blocks {
             film.add_block(b);
             stats += *st;
         }
+        done = s1;
         observer.pass_done(&film, s1, settings.spp);
     }
-    Ok(RenderOutput {
-        image: film.to_image(),
+    Ok(FilmRender {
+        film,
+        start: first,
+        done,
+        cancelled: false,
         stats,
-        discarded_samples: film.discarded,
         render_time: start.elapsed(),
     })
 }

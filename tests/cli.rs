@@ -109,3 +109,165 @@ fn info_describes_the_scene() {
     assert!(out.contains("lights      1 (1 area)"), "{out}");
     assert!(out.contains("'light'"), "{out}");
 }
+
+fn render_to(dir: &std::path::Path, out: &str, extra: &[&str]) {
+    let mut args = vec![
+        "render", "cornell", "-o", out, "--width", "16", "--height", "12", "--spp", "2", "--seed",
+        "5", "-q",
+    ];
+    args.extend_from_slice(extra);
+    let o = trayecto(&args, dir);
+    assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+}
+
+/// `--exposure` and `--tonemap` reach the 8-bit outputs, and only them: the same render (same
+/// seed) written as EXR is the raw radiance L; the PNG and PPM must decode to
+/// round(255 · tonemap(exposure · L)) in every pixel and channel (±1), the HDR to L itself.
+#[test]
+fn exposure_and_tonemap_shape_png_and_ppm_but_not_exr_and_hdr() {
+    use trayecto::film::tonemap::Tonemap;
+    let dir = temp_dir("exposure");
+    render_to(&dir, "raw.exr", &[]);
+    let raw = trayecto::film::output::read_exr(&dir.join("raw.exr")).unwrap();
+    assert_eq!((raw.width, raw.height), (16, 12));
+    let cases: &[(&str, f32, Tonemap)] = &[
+        ("clamp", 1.0, Tonemap::Clamp),
+        ("aces", 2.5, Tonemap::Aces),
+        ("agx", 0.6, Tonemap::Agx),
+        ("gamma2.2", 4.0, Tonemap::Gamma22),
+    ];
+    let mut pngs = Vec::new();
+    for &(name, exposure, tonemap) in cases {
+        let e = exposure.to_string();
+        let flags = ["--exposure", e.as_str(), "--tonemap", name];
+        for ext in ["png", "ppm", "exr", "hdr"] {
+            render_to(&dir, &format!("{name}.{ext}"), &flags);
+        }
+        // EXR: bit-identical to the default render; HDR: the same within RGBE precision.
+        let exr = trayecto::film::output::read_exr(&dir.join(format!("{name}.exr"))).unwrap();
+        assert_eq!(exr, raw, "{name}: EXR changed with exposure/tone mapping");
+        let hdr = image::open(dir.join(format!("{name}.hdr")))
+            .unwrap()
+            .to_rgb32f();
+        let png = image::open(dir.join(format!("{name}.png")))
+            .unwrap()
+            .to_rgb8();
+        let ppm: Vec<i32> = std::fs::read_to_string(dir.join(format!("{name}.ppm")))
+            .unwrap()
+            .split_whitespace()
+            .skip(4)
+            .map(|v| v.parse().unwrap())
+            .collect();
+        for y in 0..raw.height {
+            for x in 0..raw.width {
+                let l = raw.data[(y * raw.width + x) as usize];
+                let want = tonemap.apply(l * exposure);
+                for c in 0..3 {
+                    let want = (want[c] * 255.0).round() as i32;
+                    let got_png = png.get_pixel(x, y)[c] as i32;
+                    let got_ppm = ppm[((y * raw.width + x) * 3) as usize + c];
+                    assert!(
+                        (got_png - want).abs() <= 1 && (got_ppm - want).abs() <= 1,
+                        "{name} x{exposure} pixel ({x}, {y}) channel {c}: PNG {got_png}, PPM {got_ppm}, expected {want}"
+                    );
+                    let h = hdr.get_pixel(x, y)[c];
+                    assert!(
+                        (h - l[c]).abs() <= l.max_element() / 128.0,
+                        "{name}: HDR pixel ({x}, {y}) {h} vs radiance {}",
+                        l[c]
+                    );
+                }
+            }
+        }
+        pngs.push(png);
+    }
+    // And the options visibly change the PNG: no two of these settings give the same image.
+    for i in 0..pngs.len() {
+        for j in i + 1..pngs.len() {
+            assert_ne!(
+                pngs[i], pngs[j],
+                "{} and {} gave the same PNG",
+                cases[i].0, cases[j].0
+            );
+        }
+    }
+}
+
+/// `--env FILE` lights the scene with the map: a TOML scene without lights (which would get the
+/// default white environment of radiance 1) shows a constant map of radiance (0.25, 0.5, 1) in its
+/// background, and its white diffuse sphere (albedo 0.8, convex) reflects 0.8 × that.
+#[test]
+fn env_option_lights_the_scene_with_the_map() {
+    let dir = temp_dir("env");
+    // A 16×8 constant equirectangular map, written as Radiance HDR (exact in RGBE).
+    let px = vec![image::Rgb([0.25f32, 0.5, 1.0]); 16 * 8];
+    let f = std::fs::File::create(dir.join("sky.hdr")).unwrap();
+    image::codecs::hdr::HdrEncoder::new(std::io::BufWriter::new(f))
+        .encode(&px, 16, 8)
+        .unwrap();
+    std::fs::write(
+        dir.join("ball.toml"),
+        r#"
+[[camera]]
+eye = [0.0, 0.0, 5.0]
+target = [0.0, 0.0, 0.0]
+fov = 40.0
+
+[[material]]
+name = "white"
+base_color = [0.8, 0.8, 0.8]
+
+[[object]]
+name = "ball"
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "white"
+"#,
+    )
+    .unwrap();
+    let render = |out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            "ball.toml",
+            "-o",
+            out,
+            "--width",
+            "24",
+            "--height",
+            "24",
+            "--spp",
+            "64",
+            "-q",
+        ];
+        args.extend_from_slice(extra);
+        let o = trayecto(&args, &dir);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        trayecto::film::output::read_exr(&dir.join(out)).unwrap()
+    };
+    let lit = render("lit.exr", &["--env", "sky.hdr"]);
+    let plain = render("plain.exr", &[]);
+    let sky = trayecto::math::Vec3::new(0.25, 0.5, 1.0);
+    let close = |a: trayecto::math::Vec3, b: trayecto::math::Vec3, tol: f32| {
+        ((a - b) / b).abs().max_element() < tol
+    };
+    // Corner: the background.
+    assert!(
+        close(lit.get(0, 0), sky, 1e-3),
+        "background {}",
+        lit.get(0, 0)
+    );
+    assert!(
+        close(plain.get(0, 0), trayecto::math::Vec3::ONE, 1e-3),
+        "default background {}",
+        plain.get(0, 0)
+    );
+    // Centre 4×4: the sphere, 0.8 × the environment (to 3 %: noise of 64 spp × 16 pixels).
+    let mut centre = trayecto::math::Vec3::ZERO;
+    for y in 10..14 {
+        for x in 10..14 {
+            centre += lit.get(x, y) / 16.0;
+        }
+    }
+    assert!(close(centre, sky * 0.8, 0.03), "sphere {centre}");
+}

@@ -160,6 +160,28 @@ fn c(kind: &str, child: i64, parent: i64, prop: Option<&str>) -> N {
 
 /// A Z-up file in metres: a parent rotated about its pivot holding a mesh with a quad (slot 0)
 /// and a concave pentagon (slot 1); a spot light; a texture that points outside the folder.
+/// The control points of the test mesh (file units): a quad (0–3) and a concave pentagon (4–8),
+/// each polygon corner a different control point.
+const VERTICES: [[f64; 3]; 9] = [
+    [0., 0., 0.],
+    [1., 0., 0.],
+    [1., 1., 0.],
+    [0., 1., 0.],
+    [2., 0., 0.],
+    [4., 0., 0.],
+    [4., 2., 0.],
+    [3., 1., 0.],
+    [2., 2., 0.],
+];
+const NORMALS: [[f64; 3]; 3] = [[0., 0., 1.], [0.6, 0., 0.8], [0., -0.8, 0.6]];
+/// Corner k (= control point k) → its normal in `NORMALS` (not k mod 3, so an index ignored in
+/// favour of the control point number is caught).
+const NORMALS_INDEX: [i32; 9] = [2, 0, 1, 1, 2, 0, 0, 2, 1];
+/// UV of control point i (ByVertice, Direct): (0.1 i, 0.1 i + 0.05), with v = 0 at the bottom.
+fn file_uv(i: usize) -> [f64; 2] {
+    [0.1 * i as f64, 0.1 * i as f64 + 0.05]
+}
+
 fn scene(compress: bool) -> Vec<N> {
     let int = |name: &str, v: i32| p(name, "int", vec![P::I(v)]);
     let global = n(
@@ -181,18 +203,7 @@ fn scene(compress: bool) -> Vec<N> {
         "shape",
         "Mesh",
         vec![
-            n(
-                "Vertices",
-                vec![P::Di(
-                    vec![
-                        0., 0., 0., 1., 0., 0., 1., 1., 0., 0., 1., 0., // quad
-                        2., 0., 0., 4., 0., 0., 4., 2., 0., 3., 1., 0., 2., 2.,
-                        0., // pentagon
-                    ],
-                    compress,
-                )],
-                vec![],
-            ),
+            n("Vertices", vec![P::Di(VERTICES.concat(), compress)], vec![]),
             n(
                 "PolygonVertexIndex",
                 vec![P::Ii(vec![0, 1, 2, -4, 4, 5, 6, 7, -9], compress)],
@@ -208,6 +219,22 @@ fn scene(compress: bool) -> Vec<N> {
                 ],
             ),
             n(
+                // Three distinct unit normals, one per polygon corner through an index, so the
+                // test can tell which value each vertex got.
+                "LayerElementNormal",
+                vec![P::I(0)],
+                vec![
+                    n("MappingInformationType", vec![s("ByPolygonVertex")], vec![]),
+                    n("ReferenceInformationType", vec![s("IndexToDirect")], vec![]),
+                    n("Normals", vec![P::Di(NORMALS.concat(), compress)], vec![]),
+                    n(
+                        "NormalsIndex",
+                        vec![P::Ii(NORMALS_INDEX.to_vec(), compress)],
+                        vec![],
+                    ),
+                ],
+            ),
+            n(
                 "LayerElementUV",
                 vec![P::I(0)],
                 vec![
@@ -215,7 +242,7 @@ fn scene(compress: bool) -> Vec<N> {
                     n("ReferenceInformationType", vec![s("Direct")], vec![]),
                     n(
                         "UV",
-                        vec![P::Di((0..18).map(|i| i as f64 * 0.05).collect(), compress)],
+                        vec![P::Di((0..9).flat_map(file_uv).collect(), compress)],
                         vec![],
                     ),
                 ],
@@ -379,9 +406,37 @@ fn hierarchy_pivots_axes_units_slots_and_spot_light() {
         let n = (world[t[1] as usize] - world[t[0] as usize])
             .cross(world[t[2] as usize] - world[t[0] as usize]);
         assert!(n.normalize().dot(Vec3::Y) > 0.999, "{n}");
-        // UVs are flipped to v-down.
-        let uv = s.meshes[m].uv0.as_ref().unwrap();
-        assert!(uv.iter().all(|t| t.y <= 1.0 && t.y > 0.0));
+        // Every vertex of both sub-meshes carries its control point's exact values: the file's
+        // normal (through NormalsIndex) and UV with v flipped to v-down (glTF's convention),
+        // u unchanged. Vertices are matched to control points by their (local) position.
+        let mut seen = [false; 9];
+        for o in &s.objects {
+            let Shape::Mesh(m) = o.shape else { panic!() };
+            let mesh = &s.meshes[m];
+            let (normals, uv) = (mesh.normals.as_ref(), mesh.uv0.as_ref());
+            let (normals, uv) = (normals.expect("normals read"), uv.expect("UVs read"));
+            for (k, p) in mesh.positions.iter().enumerate() {
+                let i = VERTICES
+                    .iter()
+                    .position(|v| (p.as_dvec3() - glam::DVec3::from(*v)).length() < 1e-6)
+                    .unwrap_or_else(|| panic!("vertex {p} is no control point"));
+                seen[i] = true;
+                let [u, v] = file_uv(i);
+                let want_uv = glam::Vec2::new(u as f32, (1.0 - v) as f32);
+                assert!(
+                    (uv[k] - want_uv).abs().max_element() < 1e-6,
+                    "control point {i}: uv {} expected {want_uv} (file ({u}, {v}))",
+                    uv[k]
+                );
+                let want_n = Vec3::from(NORMALS[NORMALS_INDEX[i] as usize].map(|x| x as f32));
+                assert!(
+                    (normals[k] - want_n).abs().max_element() < 1e-6,
+                    "control point {i}: normal {} expected {want_n}",
+                    normals[k]
+                );
+            }
+        }
+        assert!(seen.iter().all(|&b| b), "{seen:?}");
         // The texture path escaping the folder is refused: a warning and the magenta fallback.
         let all = s.warnings.join("\n");
         assert!(all.contains("'stolen'") && all.contains("refused"), "{all}");

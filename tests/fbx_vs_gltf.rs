@@ -1,6 +1,6 @@
 //! docs/DESIGN.md §3 / issue 7: `cornell_seed_conventions.fbx` and its `.glb` twin (exported from the same
 //! Blender scene) render the same image for the same seed: the mean of each channel within 1%
-//! and the per-pixel difference within the noise of the estimator.
+//! and the per-pixel difference far below the noise of the estimator.
 
 mod common;
 
@@ -38,8 +38,15 @@ fn rms(a: &Image, b: &Image) -> f64 {
         .sqrt()
 }
 
-#[test]
+/// The largest accepted ratio of the twins' per-pixel RMS difference (same seed) to the RMS
+/// difference of two independent renders (seeds 7 and 8). Measured 0.251 (0.0206 / 0.0819): the
+/// same random numbers make most pixels agree to ~0.002, and the exporters' rounding of vertices
+/// sends a tail of paths (≈ 1 % of pixels) along different bounces. The renders are deterministic,
+/// so the ratio is a fixed number, not a random one; shifting the FBX geometry by 0.01 along x
+/// gives 0.343 and must fail.
+const TWIN_NOISE_RATIO: f64 = 0.30;
 
+#[test]
 fn fbx_and_glb_twins_render_the_same_image() {
     let fbx = shared_scene("fbx/cornell_seed_conventions.fbx");
     let glb = shared_scene("fbx/cornell_seed_conventions.glb");
@@ -55,12 +62,14 @@ fn fbx_and_glb_twins_render_the_same_image() {
             mb[c]
         );
     }
-    // Per pixel: the difference between the twins at the same seed must not exceed the
-    // difference between two independent renders of the same file (the noise level).
+    // Per pixel: the same seed and the same scene give the same random numbers per pixel, so the
+    // twins' difference is far below the difference between two independent renders of the same
+    // file (the noise level); only the exporters' rounding of vertices and values separates them.
     let c = render_file(fbx.to_str().unwrap(), 8);
     let (twin, noise) = (rms(&a, &b), rms(&a, &c));
+    println!("per-pixel RMS difference: twins {twin:.5}, independent seeds {noise:.5}");
     assert!(
-        twin <= 1.1 * noise,
+        twin <= TWIN_NOISE_RATIO * noise,
         "per-pixel RMS difference FBX vs glTF {twin:.5} exceeds the noise {noise:.5}"
     );
     // The ceiling light (emissive by name) is seen directly at the top centre.

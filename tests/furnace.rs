@@ -8,8 +8,9 @@
 //! F0 = 1, smooth glass) Ē = 1 and the image is uniformly 1. Rough GGX microfacets are single-
 //! scattering models and lose the energy of the light that would bounce between microfacets
 //! (Heitz et al. 2016, "Multiple-Scattering Microfacet BSDFs with the Smith Model"); that loss is
-//! computed here from `eval` by deterministic quadrature, independently of the sampling code,
-//! and the render must match it.
+//! computed here by deterministic quadrature of the GGX formulas written in this file (and checked
+//! against the code's `eval` and a numpy script), and the render must match it. Rough glass has
+//! no closed form: it is pinned to a Mitsuba 3 furnace of the same scene.
 
 use std::sync::atomic::AtomicBool;
 use trayecto::material::bxdf::MetallicRoughness;
@@ -23,6 +24,10 @@ const HALF_FRAME: f32 = 1.5;
 const DIST: f32 = 200.0;
 
 fn furnace_mean(material: Material, spp: u32) -> f32 {
+    furnace_mean_seed(material, spp, 0)
+}
+
+fn furnace_mean_seed(material: Material, spp: u32, seed: u64) -> f32 {
     let vfov = 2.0 * (HALF_FRAME / DIST).atan().to_degrees();
     let scene = Scene {
         name: "furnace".into(),
@@ -54,6 +59,7 @@ fn furnace_mean(material: Material, spp: u32) -> f32 {
         width: 32,
         height: 32,
         spp,
+        seed,
         ..Default::default()
     };
     let out = render(&world, &settings, &NoObserver, &AtomicBool::new(false)).unwrap();
@@ -80,6 +86,49 @@ fn mean_albedo(bsdf: &Bsdf) -> f64 {
             }
         }
         e *= (1.0 / n_c as f64) * (2.0 * std::f64::consts::PI / n_p as f64);
+        total += 2.0 * e * mu / n_mu as f64;
+    }
+    total
+}
+
+/// Ē of a white GGX metal (F = 1) from the formulas themselves, written here and integrated
+/// without the renderer's code: the height-correlated Smith G2 = 1 / (1 + Λ(o) + Λ(i)), Λ(ω) =
+/// (−1 + √(1 + α² tan²θ)) / 2 (Heitz 2014, eqs. 72 and 99) and the GGX D (Walter et al. 2007).
+/// Over half vectors h (dωi = 4 |o·h| dωh), E(o) = ∫ D(h) G2(o, i) (o·h) / cos θo dωh; the change
+/// of variables tan θh = α √(ξ / (1 − ξ)), for which D(h) cos θh dωh = dξ dφ / 2π, leaves a
+/// smooth integrand in (ξ, φ) that the midpoint rule integrates accurately — a different
+/// discretisation from `mean_albedo`'s grid in (cos θi, φi).
+fn mean_albedo_independent(alpha: f64) -> f64 {
+    let lambda = |cos: f64| {
+        let tan2 = (1.0 - cos * cos).max(0.0) / (cos * cos);
+        (-1.0 + (1.0 + alpha * alpha * tan2).sqrt()) / 2.0
+    };
+    let (n_mu, n_xi, n_phi) = (64, 512, 256);
+    let mut total = 0.0;
+    for a in 0..n_mu {
+        let mu = (a as f64 + 0.5) / n_mu as f64;
+        let o = [(1.0 - mu * mu).sqrt(), 0.0, mu];
+        let mut e = 0.0;
+        for b in 0..n_xi {
+            let xi = (b as f64 + 0.5) / n_xi as f64;
+            let tan_h = alpha * (xi / (1.0 - xi)).sqrt();
+            let cos_h = 1.0 / (1.0 + tan_h * tan_h).sqrt();
+            let sin_h = tan_h * cos_h;
+            for c in 0..n_phi {
+                let phi = std::f64::consts::PI * (c as f64 + 0.5) / n_phi as f64; // symmetric
+                let h = [sin_h * phi.cos(), sin_h * phi.sin(), cos_h];
+                let oh = o[0] * h[0] + o[1] * h[1] + o[2] * h[2];
+                let cos_i = 2.0 * oh * h[2] - o[2]; // i = 2 (o·h) h − o, its z
+                if oh <= 0.0 || cos_i <= 0.0 {
+                    continue;
+                }
+                let g2 = 1.0 / (1.0 + lambda(mu) + lambda(cos_i));
+                e += g2 * oh / (mu * cos_h);
+            }
+        }
+        // (1 / 2π) ∫ dξ dφ over φ ∈ [0, 2π): twice the half range.
+        e *= 2.0 * (1.0 / n_xi as f64) * (std::f64::consts::PI / n_phi as f64)
+            / (2.0 * std::f64::consts::PI);
         total += 2.0 * e * mu / n_mu as f64;
     }
     total
@@ -137,7 +186,25 @@ fn metals_lose_exactly_their_single_scattering_deficit() {
         let e_avg = if roughness == 0.0 {
             1.0 // α = 10⁻³: a mirror up to a loss far below the tolerance
         } else {
-            mean_albedo(&hit_material(roughness))
+            // The anchor: the formulas integrated independently of the code. The code's own
+            // `eval`, integrated on another grid, must agree with it.
+            let independent = mean_albedo_independent((roughness * roughness) as f64);
+            let from_eval = mean_albedo(&hit_material(roughness));
+            println!(
+                "metal roughness {roughness}: Ē independent {independent:.5}, from eval {from_eval:.5}"
+            );
+            // And both agree with scripts/references/ggx_metal_mean_albedo.py (numpy, a third
+            // discretisation): 0.88232 at roughness 0.5, 0.40915 at roughness 1.
+            let script = if roughness == 0.5 { 0.88232 } else { 0.40915 };
+            assert!(
+                (independent - script).abs() < 2e-4,
+                "roughness {roughness}: Ē {independent} vs the script's {script}"
+            );
+            assert!(
+                (independent - from_eval).abs() < 0.002,
+                "roughness {roughness}: Ē from the code's eval {from_eval} vs independent {independent}"
+            );
+            independent
         };
         let expected = expected_mean(e_avg);
         let got = furnace_mean(metal(roughness), spp);
@@ -156,15 +223,33 @@ fn metals_lose_exactly_their_single_scattering_deficit() {
     }
 }
 
+/// Rough glass loses energy to the light that would scatter between microfacets, and there is no
+/// closed form for how much (light bounces inside the sphere). The image mean is pinned to Mitsuba
+/// 3's `roughdielectric` furnace of the same scene (`scripts/references/furnace_rough_glass.py`,
+/// 64×64, 16384 spp, scalar_rgb): 0.98142 ± 0.00002 at roughness 0.3 and 0.92201 ± 0.00003 at
+/// roughness 0.5 (1σ over 32 chunks). Mitsuba masks with the uncorrelated G1(o)·G1(i), Trayecto
+/// with the height-correlated G2, which is never smaller (Heitz 2014, §6): Trayecto may be
+/// brighter by that model difference (measured, mean of 8 seeds at 128 spp: +0.00004 at 0.3,
+/// +0.0012 at 0.5), never darker. `MODEL` bounds it from above; `NOISE` is 4σ of the 128-spp image
+/// mean (σ = 0.0005 at both roughnesses, measured over 8 seeds).
 #[test]
-fn rough_dielectric_sphere_loses_a_bounded_fraction() {
-    let m = Material {
-        model: MaterialModel::Dielectric,
-        ior: 1.5,
-        roughness: 0.5,
-        ..Default::default()
-    };
-    let v = furnace_mean(m, 32);
-    println!("rough glass (roughness 0.5) furnace mean {v}");
-    assert!(v <= 1.005 && v > 0.9, "rough glass furnace mean {v}");
+fn rough_dielectric_sphere_matches_mitsuba() {
+    const NOISE: f32 = 0.002;
+    const MODEL: f32 = 0.002;
+    for (roughness, mitsuba) in [(0.3f32, 0.98142f32), (0.5, 0.92201)] {
+        let m = Material {
+            model: MaterialModel::Dielectric,
+            ior: 1.5,
+            roughness,
+            ..Default::default()
+        };
+        let v = furnace_mean(m, 128);
+        println!("rough glass (roughness {roughness}) furnace mean {v:.5}, Mitsuba {mitsuba}");
+        assert!(
+            v > mitsuba - NOISE && v < mitsuba + MODEL + NOISE,
+            "rough glass (roughness {roughness}) furnace mean {v}, Mitsuba 3 {mitsuba} (allowed {} to {})",
+            mitsuba - NOISE,
+            mitsuba + MODEL + NOISE
+        );
+    }
 }

@@ -418,23 +418,70 @@ scale = 2.0
         )
         .unwrap();
         assert_eq!(world.camera.name, "top");
-        // Lit by the included lights only (unlit, it would be black): the white diffuse floor 2
-        // from the bulb and the spot (1 W/sr each) reflects about (1/4 + 1/4)/π = 0.159. The spot
-        // is picked for few light samples (lights are chosen by power), so the bounds are loose.
+        // Lit by the included lights only (unlit, it would be black): the render must equal that
+        // of the same scene with the two lights written out here by hand (from the glTF values
+        // and the transform above), at the same seed. A light lost on the way from the file to
+        // the world darkens the image (on axis, each gives the floor 1/4 W/m²; the spot's cone
+        // covers less of the view).
         let settings = RenderSettings {
             width: 8,
             height: 8,
-            spp: 16,
+            spp: 64,
             ..Default::default()
         };
         let cancel = std::sync::atomic::AtomicBool::new(false);
-        let img = render(&world, &settings, &NoObserver, &cancel)
-            .unwrap()
-            .image;
-        let c = img.data[4 * 8 + 4];
-        assert!(
-            c.min_element() > 0.05 && c.max_element() < 0.3,
-            "centre {c}"
+        let mean = |scene: &trayecto::scene::Scene| {
+            let world = World::build(
+                scene.clone(),
+                &WorldOptions {
+                    camera: Some(sel.into()),
+                    no_default_light: true,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let img = render(&world, &settings, &NoObserver, &cancel)
+                .unwrap()
+                .image;
+            img.data.iter().copied().sum::<Vec3>() / img.data.len() as f32
+        };
+        assert_eq!(world.camera.name, "top");
+        let got = mean(&scene);
+        let mut by_hand = scene.clone();
+        let point = LightDesc::Point {
+            name: "bulb".into(),
+            position: Vec3::new(8.0, 0.0, 0.0),
+            intensity: Vec3::ONE,
+        };
+        let spot = LightDesc::Spot {
+            name: "spot".into(),
+            position: Vec3::new(8.0, 0.0, 0.0),
+            direction: Vec3::X,
+            intensity: Vec3::ONE,
+            inner_angle: 0.0,
+            outer_angle: 0.5,
+        };
+        by_hand.lights = vec![point.clone(), spot.clone()];
+        let expected = mean(&by_hand);
+        by_hand.lights = vec![point];
+        let bulb_only = mean(&by_hand);
+        by_hand.lights = vec![spot];
+        let spot_only = mean(&by_hand);
+        println!(
+            "included lights: image mean {got}, by hand {expected}; bulb only {bulb_only}, spot only {spot_only}"
         );
+        // Same seed, same scene: only the rounding of the include's transform separates the two.
+        let tolerance = 0.005;
+        assert!(
+            ((got - expected) / expected).abs().max_element() < tolerance,
+            "camera {sel}: image mean {got}, with the lights written by hand {expected}"
+        );
+        // The test can tell a missing light: each one's share of the image is far above that.
+        for alone in [bulb_only, spot_only] {
+            assert!(
+                (alone / expected).max_element() < 1.0 - 10.0 * tolerance,
+                "one light {alone} vs both {expected}"
+            );
+        }
     }
 }

@@ -149,14 +149,15 @@ fn raycast_normals_equal_the_analytic_sphere_normals() {
 fn raycast_views_barycentric_depth_albedo_uv() {
     // One triangle facing the camera at distance 5.
     let mut s = Scene::default();
-    s.textures.push(testscenes::checker(
-        "c",
-        2,
-        2,
-        Vec3::new(1.0, 0.0, 0.0),
-        Vec3::new(0.0, 0.0, 1.0),
-    ));
-    let mut mat = Material::diffuse("t", Vec3::ONE);
+    // A 2×2 checker, nearest filtering so every pixel away from the cell edges has one exact
+    // colour: texel (x, y) is red when x + y is odd, blue otherwise.
+    let (red, blue) = (Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 1.0));
+    let mut checker = testscenes::checker("c", 2, 2, red, blue);
+    checker.filter = trayecto::material::texture::FilterMode::Nearest;
+    s.textures.push(checker);
+    // A base colour factor that is not 1, so albedo = factor × texel is checked too.
+    let factor = Vec3::new(0.9, 0.5, 0.7);
+    let mut mat = Material::diffuse("t", factor);
     mat.base_color_texture = Some(TextureRef::new(0));
     let m = s.add_material(mat);
     let mesh = s.add_mesh(trayecto::scene::Mesh {
@@ -183,7 +184,7 @@ fn raycast_views_barycentric_depth_albedo_uv() {
         .into_iter()
         .map(|a| (a, run(&w, &settings(32, 32, 16, raycast(a)))))
         .collect();
-    let mut checked = 0;
+    let (mut checked, mut albedo_checked) = (0, 0);
     for y in 0..32 {
         for x in 0..32 {
             let inside = footprint(x, y).iter().all(|&f| {
@@ -216,12 +217,24 @@ fn raycast_views_barycentric_depth_albedo_uv() {
                 (uv - Vec3::new(b1, 1.0 - b2, 0.0)).length() < 0.02,
                 "uv {uv}"
             );
-            let albedo = px(&views[3].1, x, y);
-            assert!(albedo.min_element() >= 0.0 && albedo.max_element() <= 1.0 + 1e-5);
+            // The albedo view is the base colour: factor × the checker cell at (u, v), for the
+            // pixels whose footprint (±0.03 in u and v) stays inside one cell.
+            let (u, v) = (b1, 1.0 - b2);
+            if (u - 0.5).abs() > 0.06 && (v - 0.5).abs() > 0.06 {
+                let odd = ((2.0 * u).floor() as i32 + (2.0 * v).floor() as i32) % 2 == 1;
+                let expect = factor * if odd { red } else { blue };
+                let albedo = px(&views[3].1, x, y);
+                assert!(
+                    (albedo - expect).abs().max_element() < 1e-4,
+                    "({x},{y}) uv ({u:.3}, {v:.3}): albedo {albedo}, expected {expect}"
+                );
+                albedo_checked += 1;
+            }
             checked += 1;
         }
     }
     assert!(checked > 100, "{checked}");
+    assert!(albedo_checked > 80, "{albedo_checked}");
 }
 
 /// Floor at y = 0, a sphere of radius 0.5 at (0, 1, 0) and a point light above: the raycast

@@ -618,3 +618,246 @@ fn too_many_jobs_are_refused_and_cancel_frees_a_slot() {
     }
     assert_eq!(get(&s, "/api/renders").json()["active"], 0);
 }
+
+/// Runs one render through the server and waits for it; returns (PNG bytes, EXR image).
+fn server_render(s: &Server, body: &Value) -> (Vec<u8>, trayecto::film::Image) {
+    let r = post_json(s, "/api/renders", body);
+    assert_eq!(r.status, 201, "{body}: {}", r.text());
+    let id = r.json()["id"].as_u64().unwrap();
+    let j = wait_finished(s, id, Duration::from_secs(60));
+    assert_eq!(j["state"], "done", "{j}");
+    let png = get(s, j["png"].as_str().unwrap());
+    assert_eq!(png.status, 200);
+    let exr = get(s, j["exr"].as_str().unwrap());
+    assert_eq!(exr.status, 200);
+    let path = s.root.join(format!("fetched-{id}.exr"));
+    std::fs::write(&path, &exr.body).unwrap();
+    let img = trayecto::film::output::read_exr(&path).unwrap();
+    (png.body, img)
+}
+
+/// The same render by the command line (whose options are tested in tests/cli.rs).
+fn cli_render(dir: &Path, scene: &str, args: &[String]) -> (Vec<u8>, trayecto::film::Image) {
+    let mut out = Vec::new();
+    for ext in ["png", "exr"] {
+        let file = dir.join(format!("cli.{ext}"));
+        let o = Command::new(env!("CARGO_BIN_EXE_trayecto"))
+            .args(["render", scene, "-q", "-o"])
+            .arg(&file)
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        out.push(file);
+    }
+    (
+        std::fs::read(&out[0]).unwrap(),
+        trayecto::film::output::read_exr(&out[1]).unwrap(),
+    )
+}
+
+fn decode_png(bytes: &[u8]) -> Vec<u8> {
+    image::load_from_memory(bytes).unwrap().to_rgb8().into_raw()
+}
+
+/// Every render field with a non-default value reaches the render and the image: the server's
+/// PNG and EXR equal the command line's with the same settings (the image is a pure function of
+/// the settings), and changing one field from the base request changes the EXR (integrator,
+/// seed, secondary, max_depth) or only the PNG (exposure, tone map).
+#[test]
+fn every_render_field_reaches_the_image() {
+    let s = start();
+    let base = json!({"scene": "cornell", "width": 16, "height": 12, "spp": 2, "secondary": 1,
+                      "max_depth": 16, "exposure": 1.0, "integrator": "path",
+                      "tonemap": "clamp", "seed": 0});
+    let args = |v: &Value| -> Vec<String> {
+        let mut a = Vec::new();
+        for (flag, key) in [
+            ("--width", "width"),
+            ("--height", "height"),
+            ("--spp", "spp"),
+            ("--secondary", "secondary"),
+            ("--max-depth", "max_depth"),
+            ("--exposure", "exposure"),
+            ("--integrator", "integrator"),
+            ("--tonemap", "tonemap"),
+            ("--seed", "seed"),
+        ] {
+            a.push(flag.to_string());
+            a.push(match &v[key] {
+                Value::String(s) => s.clone(),
+                other => other.to_string(),
+            });
+        }
+        a
+    };
+    let variants: [(&str, Value, bool); 6] = [
+        ("integrator", json!("whitted"), true),
+        ("seed", json!(9), true),
+        ("secondary", json!(3), true),
+        ("max_depth", json!(1), true),
+        ("exposure", json!(2.5), false),
+        ("tonemap", json!("aces"), false),
+    ];
+    let mut body = base.clone();
+    body["output"] = json!("base");
+    let (base_png, base_exr) = server_render(&s, &body);
+    let cli = cli_render(&s.root, "cornell", &args(&base));
+    assert_eq!(
+        base_exr, cli.1,
+        "base request: server EXR differs from the CLI's"
+    );
+    assert_eq!(
+        decode_png(&base_png),
+        decode_png(&cli.0),
+        "base request: PNG"
+    );
+    for (key, value, changes_radiance) in variants {
+        let mut body = base.clone();
+        body[key] = value.clone();
+        let cli = cli_render(&s.root, "cornell", &args(&body));
+        body["output"] = json!(format!("with-{key}"));
+        let (png, exr) = server_render(&s, &body);
+        assert_eq!(
+            exr, cli.1,
+            "{key} = {value}: server EXR differs from the CLI's"
+        );
+        assert_eq!(decode_png(&png), decode_png(&cli.0), "{key} = {value}: PNG");
+        if changes_radiance {
+            assert_ne!(exr, base_exr, "{key} = {value} did not change the render");
+        } else {
+            assert_eq!(exr, base_exr, "{key} = {value} changed the raw radiance");
+            assert_ne!(
+                decode_png(&png),
+                decode_png(&base_png),
+                "{key} = {value} did not change the PNG"
+            );
+        }
+    }
+}
+
+/// A real scene file from `--scenes` renders, and gives the command line's image of that file.
+#[test]
+fn a_real_scene_file_from_the_scenes_folder_renders() {
+    let dir = std::env::temp_dir().join(format!("trayecto-serve-real-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("mitsuba")).unwrap();
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/mitsuba");
+    for f in ["textured.toml", "checker.png"] {
+        std::fs::copy(src.join(f), dir.join("mitsuba").join(f)).unwrap();
+    }
+    let s = start_with(Some(&dir), &[]);
+    let files = get(&s, "/api/scenes").json()["files"].clone();
+    assert_eq!(files, json!(["mitsuba/textured.toml"]));
+    let (png, exr) = server_render(
+        &s,
+        &json!({"scene": "mitsuba/textured.toml", "output": "real", "width": 24, "height": 16,
+                "spp": 2, "max_depth": 4, "seed": 3}),
+    );
+    let args: Vec<String> = [
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--spp",
+        "2",
+        "--max-depth",
+        "4",
+        "--seed",
+        "3",
+    ]
+    .iter()
+    .map(|a| a.to_string())
+    .collect();
+    let cli = cli_render(
+        &s.root,
+        dir.join("mitsuba/textured.toml").to_str().unwrap(),
+        &args,
+    );
+    assert_eq!(
+        exr, cli.1,
+        "the scene file renders differently through the server"
+    );
+    assert_eq!(decode_png(&png), decode_png(&cli.0));
+    // Not black: the textured plane is lit.
+    assert!(exr.mean().max_element() > 0.05, "{}", exr.mean());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Old jobs are evicted: each submission forgets the finished jobs beyond the 10 newest (the
+/// history), oldest first, and keeps the one it adds. After 12 jobs run one after another, the
+/// list is jobs 2–12 (10 finished at the last submission + that one), and job 1 is gone.
+#[test]
+fn old_jobs_are_evicted() {
+    let s = start();
+    let mut ids = Vec::new();
+    for i in 0..12 {
+        let r = post_json(
+            &s,
+            "/api/renders",
+            &json!({"scene": "cornell", "output": format!("job{i}"), "width": 8, "height": 8,
+                    "spp": 1, "max_depth": 2}),
+        );
+        assert_eq!(r.status, 201, "{}", r.text());
+        let id = r.json()["id"].as_u64().unwrap();
+        assert_eq!(
+            wait_finished(&s, id, Duration::from_secs(30))["state"],
+            "done"
+        );
+        ids.push(id);
+        let listed = get(&s, "/api/renders").json()["renders"]
+            .as_array()
+            .unwrap()
+            .len();
+        assert_eq!(listed, (i + 1).min(11), "after job {i}");
+    }
+    let listed: Vec<u64> = get(&s, "/api/renders").json()["renders"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|j| j["id"].as_u64().unwrap())
+        .collect();
+    let newest: Vec<u64> = ids[1..].iter().rev().copied().collect();
+    assert_eq!(listed, newest, "the newest, newest first");
+    assert_eq!(get(&s, &format!("/api/renders/{}", ids[0])).status, 404);
+    assert_eq!(get(&s, &format!("/api/renders/{}", ids[1])).status, 200);
+}
+
+/// Unknown fields (a typo would otherwise silently fall back to a default) are refused, named.
+#[test]
+fn unknown_fields_are_refused() {
+    let s = start();
+    for (field, body) in [
+        ("max-depth", json!({"scene": "cornell", "max-depth": 3})),
+        ("samples", json!({"scene": "cornell", "samples": 3})),
+        ("Width", json!({"scene": "cornell", "Width": 3})),
+    ] {
+        let r = post_json(&s, "/api/renders", &body);
+        assert_eq!(r.status, 400, "{body}: {}", r.text());
+        assert!(r.text().contains(field), "{body}: {}", r.text());
+    }
+    assert_eq!(get(&s, "/api/renders").json()["renders"], json!([]));
+}
+
+/// An output name that an earlier, finished render wrote is refused (409), not silently
+/// overwritten: its files stay as they were.
+#[test]
+fn reusing_a_finished_output_name_is_refused() {
+    let s = start();
+    let body = json!({"scene": "cornell", "output": "same", "width": 8, "height": 8, "spp": 1,
+                      "seed": 1});
+    let (png, _) = server_render(&s, &body);
+    let mut again = body.clone();
+    again["seed"] = json!(2);
+    let r = post_json(&s, "/api/renders", &again);
+    assert_eq!(r.status, 409, "{}", r.text());
+    assert!(r.text().contains("same"), "{}", r.text());
+    assert_eq!(std::fs::read(s.root.join("out/same.png")).unwrap(), png);
+    // A name used by nothing yet is accepted.
+    again["output"] = json!("other");
+    assert_eq!(post_json(&s, "/api/renders", &again).status, 201);
+}

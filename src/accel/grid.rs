@@ -443,16 +443,43 @@ mod tests {
 
     #[test]
     fn degenerate_rays_terminate() {
+        // They must end (the test would hang otherwise) and answer what brute force answers:
+        // nothing for a zero or NaN direction, nothing for one denormal step along +x (the hit
+        // distance overflows), and for +x with denormal y and z (the DDA's step per cell is then
+        // astronomically large in y and z) the triangle it is aimed at (or one before it).
         let g = random_soup(200, 4);
         let grid = Grid::build(&g);
-        for d in [
-            Vec3::ZERO,
-            Vec3::splat(f32::NAN),
-            Vec3::new(1e-45, 0.0, 0.0),
+        let prims = g.all_prims();
+        // From 5 units before the centroid of a triangle along −x: rays along +x meet it.
+        let t = &g.triangles[0];
+        let o = (t.p0 + t.p1 + t.p2) / 3.0 - Vec3::new(5.0, 0.0, 0.0);
+        for (d, expect_hit) in [
+            (Vec3::ZERO, Some(false)),
+            (Vec3::splat(f32::NAN), Some(false)),
+            (Vec3::new(f32::NAN, 1.0, 0.0), Some(false)),
+            (Vec3::new(1e-45, 0.0, 0.0), None), // t = 5 / 1e-45 overflows: no hit either way
+            (Vec3::new(1.0, 1e-45, -1e-45), Some(true)),
         ] {
-            let r = Ray::new(Vec3::splat(5.0), d);
-            let _ = grid.intersect(&g, &r);
-            let _ = grid.occluded(&g, &r);
+            let r = Ray::new(o, d);
+            let brute = prims
+                .iter()
+                .fold((None, r.t_max), |(best, t), &p| {
+                    match g.intersect(p, &r, t) {
+                        Some(h) => (Some(h), h.t),
+                        None => (best, t),
+                    }
+                })
+                .0;
+            let hit = grid.intersect(&g, &r);
+            assert_eq!(
+                hit.map(|h| (h.t, h.prim)),
+                brute.map(|h| (h.t, h.prim)),
+                "direction {d}"
+            );
+            assert_eq!(grid.occluded(&g, &r), brute.is_some(), "direction {d}");
+            if let Some(e) = expect_hit {
+                assert_eq!(hit.is_some(), e, "direction {d}");
+            }
         }
     }
 

@@ -1,17 +1,65 @@
-//! The film: linear radiance accumulated per pixel, and the image writers in [`output`].
+//! The film: linear radiance accumulated per pixel, the partial films of split and resumed renders
+//! in [`partial`], and the image writers in [`output`].
+//!
+//! Sums are exact: every sample is converted to a fixed-point integer with [`FRAC_BITS`] fraction
+//! bits and added as an `i128`. Integer addition is associative, so a pixel's sum does not depend
+//! on how its samples were grouped (passes, tiles, a render split into sample ranges on several
+//! machines, a render stopped and resumed): a merged or resumed film is bit-identical to a single
+//! run. A floating-point sum would not be (`(a + b) + c != a + (b + c)` in general).
 
 pub mod output;
+pub mod partial;
 pub mod tonemap;
 
 use crate::math::Vec3;
 
-/// Per-pixel sums of radiance samples and their counts. Sums are f64 so long renders do not lose
-/// precision; non-finite samples are discarded and counted.
-#[derive(Clone, Debug)]
+/// Fraction bits of the fixed-point sums: a sample is truncated (towards zero) to a multiple of
+/// 2⁻⁶⁰ ≈ 8.7·10⁻¹⁹, far below what an f32 image can show for any pixel value above ~10⁻¹¹.
+pub const FRAC_BITS: u32 = 60;
+
+/// Largest sample magnitude that is accumulated: 2⁴⁶ ≈ 7·10¹³. With at most 2²⁰ samples per pixel
+/// ([`crate::render::MAX_SPP`]) a sum stays below 2⁴⁶⁺⁶⁰⁺²⁰ = 2¹²⁶, inside an `i128`. Larger (and
+/// non-finite) samples are discarded and counted, like NaNs.
+pub const SAMPLE_LIMIT: f32 = (1u64 << 46) as f32;
+
+/// `v · 2^FRAC_BITS` truncated towards zero, exactly (from the float's bits: no rounding step
+/// whose result could depend on anything but `v`). `|v|` must be below [`SAMPLE_LIMIT`].
+#[inline]
+pub fn to_fixed(v: f32) -> i128 {
+    let bits = v.to_bits();
+    let exp = ((bits >> 23) & 0xff) as i32;
+    let frac = (bits & 0x7f_ffff) as i128;
+    // v = mant · 2^e (IEEE 754 binary32; exponent 0 is subnormal).
+    let (mant, e) = if exp == 0 {
+        (frac, -149)
+    } else {
+        (frac | 0x80_0000, exp - 150)
+    };
+    let shift = e + FRAC_BITS as i32;
+    let mag = if shift >= 0 {
+        mant << shift
+    } else if shift > -24 {
+        mant >> -shift
+    } else {
+        0
+    };
+    if bits >> 31 == 1 { -mag } else { mag }
+}
+
+/// A fixed-point sum divided by a sample count, as an f32 mean.
+#[inline]
+fn fixed_mean(sum: i128, n: u32) -> f32 {
+    // 2^-60 is exact in f64; `i128 as f64` rounds to nearest; both depend only on (sum, n).
+    (sum as f64 * (1.0 / (1u64 << FRAC_BITS) as f64) / n as f64) as f32
+}
+
+/// Per-pixel exact fixed-point sums of radiance samples and their counts; samples that are not
+/// finite or exceed [`SAMPLE_LIMIT`] are discarded and counted.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Film {
     pub width: u32,
     pub height: u32,
-    sum: Vec<[f64; 3]>,
+    sum: Vec<[i128; 3]>,
     count: Vec<u32>,
     pub discarded: u64,
 }
@@ -22,7 +70,7 @@ impl Film {
         Film {
             width,
             height,
-            sum: vec![[0.0; 3]; n],
+            sum: vec![[0; 3]; n],
             count: vec![0; n],
             discarded: 0,
         }
@@ -48,6 +96,56 @@ impl Film {
         self.discarded += block.discarded;
     }
 
+    /// Adds another film of the same size (another sample range of the same frame). Exact, so
+    /// the order in which parts are added does not change the result. Fails on a size mismatch or
+    /// if a sum or count would overflow (only possible for parts that do not belong together).
+    pub fn add_film(&mut self, other: &Film) -> Result<(), String> {
+        if (self.width, self.height) != (other.width, other.height) {
+            return Err(format!(
+                "film sizes differ: {}x{} and {}x{}",
+                self.width, self.height, other.width, other.height
+            ));
+        }
+        for (i, (s, o)) in self.sum.iter_mut().zip(&other.sum).enumerate() {
+            for c in 0..3 {
+                s[c] = s[c]
+                    .checked_add(o[c])
+                    .ok_or_else(|| format!("the sums of pixel {i} overflow"))?;
+            }
+        }
+        for (i, (n, o)) in self.count.iter_mut().zip(&other.count).enumerate() {
+            *n = n
+                .checked_add(*o)
+                .ok_or_else(|| format!("the sample count of pixel {i} overflows"))?;
+        }
+        self.discarded += other.discarded;
+        Ok(())
+    }
+
+    /// The raw accumulators (for writing a partial film): fixed-point sums and sample counts.
+    pub fn raw(&self) -> (&[[i128; 3]], &[u32]) {
+        (&self.sum, &self.count)
+    }
+
+    /// A film from raw accumulators (a partial film read back); `None` if the lengths do not
+    /// match the size.
+    pub fn from_raw(
+        width: u32,
+        height: u32,
+        sum: Vec<[i128; 3]>,
+        count: Vec<u32>,
+        discarded: u64,
+    ) -> Option<Film> {
+        let n = width as usize * height as usize;
+        (sum.len() == n && count.len() == n).then_some(Film {
+            width,
+            height,
+            sum,
+            count,
+            discarded,
+        })
+    }
+
     /// Mean radiance of a pixel (black if it has no samples yet).
     #[inline]
     pub fn pixel(&self, x: u32, y: u32) -> Vec3 {
@@ -58,9 +156,9 @@ impl Film {
         }
         let s = self.sum[i];
         Vec3::new(
-            (s[0] / n as f64) as f32,
-            (s[1] / n as f64) as f32,
-            (s[2] / n as f64) as f32,
+            fixed_mean(s[0], n),
+            fixed_mean(s[1], n),
+            fixed_mean(s[2], n),
         )
     }
 
@@ -87,7 +185,7 @@ pub struct FilmBlock {
     pub y0: u32,
     pub w: u32,
     pub h: u32,
-    pub sum: Vec<[f64; 3]>,
+    pub sum: Vec<[i128; 3]>,
     pub count: Vec<u32>,
     pub discarded: u64,
 }
@@ -100,23 +198,25 @@ impl FilmBlock {
             y0,
             w,
             h,
-            sum: vec![[0.0; 3]; n],
+            sum: vec![[0; 3]; n],
             count: vec![0; n],
             discarded: 0,
         }
     }
 
-    /// Adds one radiance sample for pixel (x, y) (image coordinates), discarding NaN/∞.
+    /// Adds one radiance sample for pixel (x, y) (image coordinates), discarding NaN/∞ and
+    /// samples beyond [`SAMPLE_LIMIT`].
     #[inline]
     pub fn add(&mut self, x: u32, y: u32, l: Vec3) {
         let j = ((y - self.y0) * self.w + (x - self.x0)) as usize;
-        if !l.is_finite() {
+        // `!(a < b)` also rejects NaN.
+        if !(l.x.abs() < SAMPLE_LIMIT && l.y.abs() < SAMPLE_LIMIT && l.z.abs() < SAMPLE_LIMIT) {
             self.discarded += 1;
             return;
         }
-        self.sum[j][0] += l.x as f64;
-        self.sum[j][1] += l.y as f64;
-        self.sum[j][2] += l.z as f64;
+        self.sum[j][0] += to_fixed(l.x);
+        self.sum[j][1] += to_fixed(l.y);
+        self.sum[j][2] += to_fixed(l.z);
         self.count[j] += 1;
     }
 }
@@ -164,5 +264,66 @@ mod tests {
         assert_eq!(f.discarded, 2);
         assert_eq!(f.pixel(0, 0), Vec3::splat(2.0));
         assert_eq!(f.pixel(1, 0), Vec3::ZERO);
+    }
+
+    /// The conversion is exact truncation of v·2⁶⁰: checked against f64 arithmetic (exact for
+    /// these magnitudes) on normal, subnormal, negative and tiny values.
+    #[test]
+    fn fixed_point_conversion_is_exact_truncation() {
+        let scale = (1u64 << FRAC_BITS) as f64;
+        for v in [
+            0.0f32,
+            -0.0,
+            1.0,
+            -1.0,
+            0.1,
+            -0.3,
+            1.5e-7,
+            3.0e9,
+            -7.0e13,
+            1e-18,
+            1e-19,
+            f32::MIN_POSITIVE,
+            1e-45,
+            0.999_999_94,
+        ] {
+            let want = (v as f64 * scale).trunc();
+            assert_eq!(to_fixed(v) as f64, want, "{v:e}");
+        }
+        assert_eq!(to_fixed(1.0), 1i128 << FRAC_BITS);
+        assert_eq!(to_fixed(0.75), 3i128 << (FRAC_BITS - 2));
+    }
+
+    /// Sums do not depend on how samples are grouped: any split of a sample sequence into blocks
+    /// added in any order gives the same film (the property merge and resume rely on), while the
+    /// same values summed in f64 in two groupings differ.
+    #[test]
+    fn sums_do_not_depend_on_grouping() {
+        let values: Vec<f32> = (0..1000)
+            .map(|i| ((i as f32 * 0.618_034).fract() - 0.2) * 10f32.powi(i % 9 - 4))
+            .collect();
+        let film_of = |cuts: &[usize]| {
+            let mut f = Film::new(1, 1);
+            for g in cuts.windows(2).rev() {
+                let mut b = FilmBlock::new(0, 0, 1, 1);
+                for &v in &values[g[0]..g[1]] {
+                    b.add(0, 0, Vec3::splat(v));
+                }
+                let mut part = Film::new(1, 1);
+                part.add_block(&b);
+                f.add_film(&part).unwrap();
+            }
+            f
+        };
+        let one = film_of(&[0, 1000]);
+        assert_eq!(one, film_of(&[0, 1, 500, 999, 1000]));
+        assert_eq!(one, film_of(&[0, 333, 334, 1000]));
+        let f64_sum =
+            |order: &mut dyn Iterator<Item = &f32>| order.fold(0.0f64, |a, &v| a + v as f64);
+        assert_ne!(
+            f64_sum(&mut values.iter()),
+            f64_sum(&mut values.iter().rev()),
+            "the f64 sums should show the problem the fixed point solves"
+        );
     }
 }

@@ -96,12 +96,19 @@ pub fn write_image(
                 .map_err(|e| werr(e.to_string()))
         }
         Format::Exr => {
+            use exr::prelude::*;
             let w = image.width as usize;
-            exr::prelude::write_rgb_file(path, w, image.height as usize, |x, y| {
-                let p = image.data[y * w + x];
+            let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
+                let p = image.data[pos.y() * w + pos.x()];
                 (p.x, p.y, p.z)
-            })
-            .map_err(|e| werr(e.to_string()))
+            });
+            // Blocks written in order (not in the order parallel compression finishes them), so
+            // the same image always gives the same bytes: renders can be compared with `cmp`.
+            Image::from_channels((w, image.height as usize), channels)
+                .write()
+                .non_parallel()
+                .to_file(path)
+                .map_err(|e| werr(e.to_string()))
         }
         Format::Hdr => {
             let pixels: Vec<image::Rgb<f32>> = image
@@ -195,6 +202,123 @@ mod tests {
             write_image(&gradient(), &dir.join("a.bmp"), 1.0, Tonemap::Clamp),
             Err(OutputError::UnknownFormat { .. })
         ));
+    }
+
+    /// Radiance from 0 to ~3 across x, different per channel and per row (so a transposed,
+    /// flipped or channel-swapped writer is caught).
+    fn ramp() -> Image {
+        let (w, h) = (16u32, 6u32);
+        let data = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                Vec3::new(
+                    x * 0.2 * (1.0 + y * 0.1),
+                    0.05 * y + 0.01 * x,
+                    3.0 - x * 0.19,
+                )
+            })
+            .collect();
+        Image {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+
+    /// The display value expected from each curve, written out here (not via `Tonemap::apply`)
+    /// for the two simple ones; ACES and AgX are pinned to their published curves in tonemap.rs.
+    fn expected_display(tonemap: Tonemap, l: f32) -> f32 {
+        let srgb = |c: f32| {
+            if c <= 0.0031308 {
+                12.92 * c
+            } else {
+                1.055 * c.powf(1.0 / 2.4) - 0.055
+            }
+        };
+        match tonemap {
+            Tonemap::Clamp => srgb(l.clamp(0.0, 1.0)),
+            Tonemap::Gamma22 => l.clamp(0.0, 1.0).powf(1.0 / 2.2),
+            other => other.apply(Vec3::splat(l)).x,
+        }
+    }
+
+    /// PNG and PPM decode to round(255 · tonemap(exposure · L)) per pixel and channel (±1 for the
+    /// rounding of values that land on a half step), rows top first.
+    #[test]
+    fn png_and_ppm_hold_the_tone_mapped_exposed_radiance() {
+        let dir = tempdir();
+        let img = ramp();
+        for (tonemap, exposure) in [
+            (Tonemap::Clamp, 1.0),
+            (Tonemap::Clamp, 0.37),
+            (Tonemap::Gamma22, 1.6),
+            (Tonemap::Aces, 2.5),
+            (Tonemap::Agx, 0.8),
+        ] {
+            let (png, ppm) = (dir.join("t.png"), dir.join("t.ppm"));
+            write_image(&img, &png, exposure, tonemap).unwrap();
+            write_image(&img, &ppm, exposure, tonemap).unwrap();
+            let png = image::open(&png).unwrap().to_rgb8();
+            assert_eq!((png.width(), png.height()), (img.width, img.height));
+            let text = std::fs::read_to_string(&ppm).unwrap();
+            let ppm: Vec<u32> = text
+                .split_whitespace()
+                .skip(4)
+                .map(|v| v.parse().unwrap())
+                .collect();
+            assert_eq!(ppm.len(), (img.width * img.height * 3) as usize);
+            for y in 0..img.height {
+                for x in 0..img.width {
+                    let l = img.data[(y * img.width + x) as usize] * exposure;
+                    for c in 0..3 {
+                        let want = if matches!(tonemap, Tonemap::Agx) {
+                            // AgX mixes channels: the whole colour through the curve.
+                            tonemap.apply(l)[c]
+                        } else {
+                            expected_display(tonemap, l[c])
+                        };
+                        let want = (want * 255.0).round() as i32;
+                        let got_png = png.get_pixel(x, y)[c] as i32;
+                        let got_ppm = ppm[((y * img.width + x) * 3) as usize + c] as i32;
+                        for (what, got) in [("PNG", got_png), ("PPM", got_ppm)] {
+                            assert!(
+                                (got - want).abs() <= 1,
+                                "{what} {tonemap:?} exposure {exposure} pixel ({x}, {y}) channel {c}: {got}, expected {want}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// EXR and HDR carry the raw radiance: exposure and tone mapping do not touch them.
+    #[test]
+    fn exr_and_hdr_hold_the_raw_radiance_and_ignore_exposure() {
+        let dir = tempdir();
+        let img = ramp();
+        let (exr, hdr) = (dir.join("raw.exr"), dir.join("raw.hdr"));
+        write_image(&img, &exr, 3.5, Tonemap::Aces).unwrap();
+        write_image(&img, &hdr, 3.5, Tonemap::Agx).unwrap();
+        assert_eq!(read_exr(&exr).unwrap(), img);
+        let back = image::open(&hdr).unwrap().to_rgb32f();
+        assert_eq!((back.width(), back.height()), (img.width, img.height));
+        for y in 0..img.height {
+            for x in 0..img.width {
+                let l = img.data[(y * img.width + x) as usize];
+                let p = back.get_pixel(x, y);
+                // RGBE: 8-bit mantissas under the largest channel's exponent.
+                let tol = l.max_element() / 128.0;
+                for c in 0..3 {
+                    assert!(
+                        (p[c] - l[c]).abs() <= tol,
+                        "HDR pixel ({x}, {y}) channel {c}: {}, radiance {}",
+                        p[c],
+                        l[c]
+                    );
+                }
+            }
+        }
     }
 
     fn tempdir() -> PathBuf {

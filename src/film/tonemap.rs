@@ -1,6 +1,6 @@
 //! Tone mapping from linear radiance (after exposure) to display values in [0, 1] (docs/DESIGN.md §5).
 
-use crate::math::Vec3;
+use crate::math::{Mat3, Vec3};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Tonemap {
@@ -11,7 +11,11 @@ pub enum Tonemap {
     Gamma22,
     /// ACES filmic fit (Narkowicz 2015, "ACES Filmic Tone Mapping Curve"), then sRGB.
     Aces,
-    /// A compact AgX-style sigmoid in log space (Troy Sobotka's AgX, simplified), then sRGB.
+    /// Troy Sobotka's AgX (Blender 4's default view transform) in B. Wrensch's published minimal
+    /// form: the AgX inset matrix, log2 encoding of −12.47 to +4.03 stops (middle grey 0.18 at
+    /// 10 of 16.5 stops), the 6th-order polynomial fit of the AgX base contrast sigmoid, and the
+    /// inverse inset matrix. The sigmoid's output is already display-encoded (middle grey lands
+    /// at ≈ 0.497, a 2.2-power display value), so no sRGB curve is applied after it.
     Agx,
 }
 
@@ -46,18 +50,43 @@ impl Tonemap {
                 srgb(m.clamp(Vec3::ZERO, Vec3::ONE))
             }
             Tonemap::Agx => {
-                // Log2 encoding over [-12.47, 4.03] stops around 0.18, then a sigmoid contrast curve.
-                let min_ev = -12.47393f32;
-                let max_ev = 4.026069f32;
-                let f = |x: f32| {
-                    let v = ((x.max(1e-10) / 0.18).log2() - min_ev) / (max_ev - min_ev);
-                    let v = v.clamp(0.0, 1.0);
-                    // Smooth S-curve through (0,0), (1,1) with a steeper middle.
-                    let s = v * v * (3.0 - 2.0 * v);
-                    let s = s * s * (3.0 - 2.0 * s);
-                    s.clamp(0.0, 1.0)
+                // B. Wrensch, "Minimal AgX Implementation" (iolite-engine.com, 2023), the form
+                // three.js, Godot and Filament follow; matrices column-major as published.
+                const INSET: Mat3 = Mat3::from_cols_array(&[
+                    0.842_479_06,
+                    0.042_328_242,
+                    0.042_375_655,
+                    0.078_433_6,
+                    0.878_468_6,
+                    0.078_433_6,
+                    0.079_223_745,
+                    0.079_166_13,
+                    0.879_143,
+                ]);
+                const OUTSET: Mat3 = Mat3::from_cols_array(&[
+                    1.196_879,
+                    -0.052_896_85,
+                    -0.052_971_635,
+                    -0.098_020_88,
+                    1.151_903_1,
+                    -0.098_043_45,
+                    -0.099_029_74,
+                    -0.098_961_18,
+                    1.151_073_7,
+                ]);
+                let (min_ev, max_ev) = (-12.47393f32, 4.026069f32);
+                let encode = |x: f32| {
+                    (x.max(1e-10).log2().clamp(min_ev, max_ev) - min_ev) / (max_ev - min_ev)
                 };
-                Vec3::new(f(c.x), f(c.y), f(c.z))
+                let v = INSET * c;
+                let v = Vec3::new(encode(v.x), encode(v.y), encode(v.z));
+                // The 6th-order polynomial fit of the AgX base contrast curve (mean error² 3.7e-6).
+                let (v2, v4) = (v * v, v * v * v * v);
+                let s = 15.5 * v4 * v2 - 40.14 * v4 * v + 31.96 * v4 - 6.868 * v2 * v
+                    + 0.4298 * v2
+                    + 0.1191 * v
+                    - Vec3::splat(0.00232);
+                (OUTSET * s).clamp(Vec3::ZERO, Vec3::ONE)
             }
         }
     }
@@ -97,5 +126,46 @@ mod tests {
         }
         assert!((Tonemap::Gamma22.apply(Vec3::splat(0.5)).x - 0.5f32.powf(1.0 / 2.2)).abs() < 1e-6);
         assert!(Tonemap::Clamp.apply(Vec3::splat(2.0)).min_element() > 0.99999);
+    }
+
+    /// Spot values of the published curves, computed with numpy from the published formulas
+    /// (not from this code): ACES = sRGB(Narkowicz's x(2.51x + 0.03) / (x(2.43x + 0.59) + 0.14)),
+    /// AgX = Wrensch's minimal AgX (inset matrix, log2 over [−12.47393, 4.026069], the 6th-order
+    /// polynomial, inverse inset matrix), display-encoded as it comes out of the sigmoid: an
+    /// sRGB curve applied after it would move middle grey from 0.497 to 0.73.
+    #[test]
+    fn aces_and_agx_match_the_published_curves() {
+        let aces = [
+            (0.0, 0.0),
+            (0.01, 0.048135),
+            (0.18, 0.553458),
+            (1.0, 0.908230),
+            (4.0, 0.988223),
+            (16.0, 1.0),
+        ];
+        for (x, want) in aces {
+            let got = Tonemap::Aces.apply(Vec3::splat(x));
+            assert!(
+                (got - Vec3::splat(want)).abs().max_element() < 2e-5,
+                "ACES({x}) = {got}, published {want}"
+            );
+        }
+        let agx = [
+            ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0]),
+            ([0.01; 3], [0.097700, 0.097704, 0.097705]),
+            ([0.18; 3], [0.496676, 0.496745, 0.496749]),
+            ([1.0; 3], [0.786745, 0.786885, 0.786893]),
+            ([4.0; 3], [0.934048, 0.934236, 0.934248]),
+            ([16.0; 3], [0.997610, 0.997816, 0.997829]),
+            ([1.0, 0.2, 0.05], [0.824097, 0.536011, 0.363437]),
+            ([0.02, 0.1, 0.5], [0.275006, 0.420440, 0.699123]),
+        ];
+        for (x, want) in agx {
+            let got = Tonemap::Agx.apply(Vec3::from(x));
+            assert!(
+                (got - Vec3::from(want)).abs().max_element() < 1e-4,
+                "AgX({x:?}) = {got}, published {want:?}"
+            );
+        }
     }
 }

@@ -207,11 +207,66 @@ mod tests {
     #[test]
     fn constant_map_has_uniform_pdf_and_mean() {
         let m = EnvMap::from_texels(8, 4, vec![Vec3::ONE; 32], Vec3::splat(2.0), Mat3::IDENTITY);
+        // Rows weighted by their exact solid angle: the mean is exact.
         assert!(
-            (m.mean_luminance - 2.0).abs() < 0.05,
+            (m.mean_luminance - 2.0).abs() < 1e-5,
             "{}",
             m.mean_luminance
         );
         assert!((m.eval(Vec3::X) - Vec3::splat(2.0)).length() < 1e-5);
+        // A constant map is sampled uniformly over the sphere: pdf 1/4π. Rows are weighted by
+        // sin θ at their centre, so at the row centres the pdf is h / (2π² Σ sin θ_y), which is
+        // 1/4π to 3·10⁻⁴ for 32 rows (the midpoint rule for ∫ sin θ dθ = 2).
+        let (w, h) = (64u32, 32u32);
+        let m = EnvMap::from_texels(
+            w,
+            h,
+            vec![Vec3::ONE; (w * h) as usize],
+            Vec3::splat(2.0),
+            Mat3::IDENTITY,
+        );
+        assert!((m.mean_luminance - 2.0).abs() < 1e-5);
+        let uniform = 1.0 / (4.0 * PI);
+        for y in 0..h {
+            for x in 0..w {
+                let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+                let d = EnvMap::uv_to_dir(uv);
+                let pdf = m.pdf(d);
+                assert!(
+                    (pdf / uniform - 1.0).abs() < 1e-3,
+                    "pdf at texel ({x}, {y}) = {pdf}, 1/4π = {uniform}"
+                );
+                assert!((m.eval(d) - Vec3::splat(2.0)).abs().max_element() < 1e-5);
+            }
+        }
+        // The pdf integrates to 1 over the sphere (midpoint rule in θ and φ, dω = sin θ dθ dφ;
+        // pdf · sin θ is constant over each row, so the rule is exact up to rounding), and
+        // `sample` reports the pdf that `pdf` gives for the direction it returns.
+        let n = 256;
+        let mut total = 0.0f64;
+        for i in 0..n {
+            let theta = PI * (i as f32 + 0.5) / n as f32;
+            let (st, ct) = theta.sin_cos();
+            for j in 0..2 * n {
+                let phi = PI * (j as f32 + 0.5) / n as f32;
+                let d = Vec3::new(st * phi.cos(), ct, st * phi.sin());
+                total += (m.pdf(d) * st) as f64;
+            }
+        }
+        total *= (PI as f64 / n as f64).powi(2);
+        assert!((total - 1.0).abs() < 1e-4, "∫ pdf dω = {total}");
+        for i in 0..16 {
+            for j in 0..16 {
+                let u = Vec2::new((i as f32 + 0.37) / 16.0, (j as f32 + 0.61) / 16.0);
+                let (d, l, pdf) = m.sample(u).expect("a sample");
+                assert!((d.length() - 1.0).abs() < 1e-5);
+                assert!((l - Vec3::splat(2.0)).abs().max_element() < 1e-5, "{l}");
+                assert!(
+                    (pdf / m.pdf(d) - 1.0).abs() < 1e-3,
+                    "sample pdf {pdf} vs pdf(d) {}",
+                    m.pdf(d)
+                );
+            }
+        }
     }
 }

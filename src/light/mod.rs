@@ -656,4 +656,44 @@ mod tests {
         let mid = spot_falloff(0.8, ci, co);
         assert!(mid > 0.0 && mid < 1.0);
     }
+
+    /// The formula itself, at the soft spot of `scenes/mitsuba/spot_soft.toml` (inner 10°, outer
+    /// 30°): glTF KHR_lights_punctual's reference, t = saturate((cos θ − cos outer) / (cos inner
+    /// − cos outer)), falloff t². Values computed by hand (Python) from that formula; the Mitsuba
+    /// comparison of `spot_soft` rests on it.
+    #[test]
+    fn spot_falloff_is_the_gltf_squared_ramp_in_cos() {
+        let (ci, co) = (10f32.to_radians().cos(), 30f32.to_radians().cos());
+        for (deg, want) in [
+            (5.0f32, 1.0f32),
+            (10.0, 1.0),
+            (15.0, 0.707344),
+            (20.0, 0.384631),
+            (25.0, 0.115008),
+            (29.9, 0.000054),
+            (30.0, 0.0),
+            (31.0, 0.0),
+            (90.0, 0.0),
+        ] {
+            let got = spot_falloff(deg.to_radians().cos(), ci, co);
+            assert!(
+                (got - want).abs() < 2e-5,
+                "falloff at {deg}° = {got}, glTF formula {want}"
+            );
+        }
+        // Its solid-angle integral: 2π [(1 − cos inner) + (cos inner − cos outer) / 3] for t².
+        let n = 200_000;
+        let mut sum = 0.0f64;
+        for i in 0..n {
+            let c = -1.0 + 2.0 * (i as f64 + 0.5) / n as f64;
+            sum += spot_falloff(c as f32, ci, co) as f64;
+        }
+        let integral = 2.0 * std::f64::consts::PI * sum * 2.0 / n as f64;
+        let (ci, co) = (ci as f64, co as f64);
+        let closed = 2.0 * std::f64::consts::PI * ((1.0 - ci) + (ci - co) / 3.0);
+        assert!(
+            (integral / closed - 1.0).abs() < 1e-3,
+            "∫ falloff dω = {integral}, closed form {closed}"
+        );
+    }
 }

@@ -5,6 +5,7 @@
 
 pub mod builtin;
 pub mod conventions;
+pub mod digest;
 pub mod fbx;
 pub mod gltf;
 pub mod image_io;

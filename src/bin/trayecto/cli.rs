@@ -1,18 +1,23 @@
 //! The `trayecto` command line (docs/DESIGN.md §2): `render`, `info`. Errors are reported with their context
 //! and a non-zero exit code; nothing is rendered until every option has been checked.
 
-use anyhow::Result;
+use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
 use trayecto::accel::AccelKind;
+use trayecto::film::output::{Format, write_image};
 use trayecto::film::tonemap::Tonemap;
 use trayecto::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
-use trayecto::pipeline::{GivenSettings, LogLine, OutputSpec, PipelineObserver, RenderJob, Stage};
+use trayecto::pipeline::{
+    GivenSettings, LogLine, OutputSpec, PipelineError, PipelineObserver, RenderJob, Stage,
+    is_partial_film,
+};
 use trayecto::render::{RenderObserver, RenderSettings};
 use trayecto::sampling::SamplerKind;
+use trayecto::split::SplitOptions;
 use trayecto::world::{World, WorldOptions};
 
 /// What `trayecto --help` leads with; the README shows the same lines (a test checks both).
@@ -48,11 +53,30 @@ pub enum Command {
     Info(InfoArgs),
     /// Serve the web UI: render from the browser with a live preview.
     Serve(crate::server::ServeArgs),
+    /// Merge partial films (.trp) of one frame into an image (or a longer partial film).
+    Merge(MergeArgs),
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct MergeArgs {
+    /// Partial films written by `render --samples A..B -o part.trp`, in any order.
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// Output image (.exr, .hdr, .png, .ppm), or .trp for a merged partial film (which may then
+    /// cover only part of the frame, without gaps).
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
+    /// Linear multiplier applied before tone mapping.
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Tone mapping for .png/.ppm: clamp, gamma2.2, aces or agx.
+    #[arg(long, default_value = "clamp")]
+    pub tonemap: Tonemap,
 }
 
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
-    /// Scene file (.gltf, .glb, .obj, .ply, .fbx, .toml) or built-in name.
+    /// Scene file (.gltf, .glb, .obj, .ply, .fbx, .pbrt, .toml) or built-in name.
     #[arg(default_value = "cornell")]
     pub scene: String,
     /// Output image; the format follows the extension (.png, .ppm, .exr, .hdr).
@@ -125,6 +149,19 @@ pub struct RenderArgs {
     /// Light the scene with an equirectangular environment map (.hdr or .exr).
     #[arg(long, value_name = "FILE")]
     pub env: Option<std::path::PathBuf>,
+    /// Render only sample indices A..B of the --spp frame (write a partial film: -o part.trp).
+    #[arg(long, value_name = "A..B")]
+    pub samples: Option<String>,
+    /// Save the film to FILE (a partial film) during the render and on Ctrl-C, to --resume later.
+    #[arg(long, value_name = "FILE")]
+    pub checkpoint: Option<PathBuf>,
+    /// Seconds between checkpoints (at the end of a pass; 0: after every pass).
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0)]
+    pub checkpoint_interval: f64,
+    /// Continue the render saved in FILE by --checkpoint (same scene and settings); the result is
+    /// identical to an uninterrupted render. Checkpoints go on to FILE unless --checkpoint says.
+    #[arg(long, value_name = "FILE")]
+    pub resume: Option<PathBuf>,
     /// Print only errors.
     #[arg(short, long)]
     pub quiet: bool,
@@ -168,8 +205,20 @@ impl RenderArgs {
     }
 
     /// The pipeline job these options describe.
-    pub fn job(&self) -> RenderJob {
-        RenderJob {
+    pub fn job(&self) -> Result<RenderJob> {
+        let samples = self
+            .samples
+            .as_deref()
+            .map(trayecto::split::parse_range)
+            .transpose()
+            .map_err(|e| anyhow::anyhow!("invalid setting: --samples: {e}"))?;
+        if !(self.checkpoint_interval >= 0.0 && self.checkpoint_interval <= 1e9) {
+            bail!(
+                "invalid setting: --checkpoint-interval must be 0 or more seconds (got {})",
+                self.checkpoint_interval
+            );
+        }
+        Ok(RenderJob {
             scene: self.scene.clone(),
             world: self.world_options(),
             settings: self.settings(),
@@ -186,7 +235,14 @@ impl RenderArgs {
                 exposure: self.exposure,
                 tonemap: self.tonemap,
             }],
-        }
+            split: SplitOptions {
+                samples,
+                // A resumed render goes on saving into its checkpoint.
+                checkpoint: self.checkpoint.clone().or_else(|| self.resume.clone()),
+                checkpoint_interval: std::time::Duration::from_secs_f64(self.checkpoint_interval),
+                resume: self.resume.clone(),
+            },
+        })
     }
 }
 
@@ -220,8 +276,19 @@ impl PipelineObserver for Console {
     }
 }
 
+/// Set by Ctrl-C: the render stops after the pass in flight and saves its checkpoint.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// The exit code of a render stopped by Ctrl-C (128 + SIGINT, as shells report it).
+pub const EXIT_INTERRUPTED: u8 = 130;
+
+/// A render stopped by Ctrl-C: the message says what was saved.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct Interrupted(String);
+
 pub fn run_render(args: &RenderArgs) -> Result<()> {
-    let job = args.job();
+    let job = args.job()?;
     job.check()?;
     let bar = if std::io::stderr().is_terminal() && !args.quiet {
         let b = indicatif::ProgressBar::new(1);
@@ -239,7 +306,59 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         quiet: args.quiet,
         bar,
     };
-    job.run(&console, &AtomicBool::new(false))?;
+    // Ctrl-C stops after the pass in flight and saves the checkpoint; a second Ctrl-C exits at
+    // once. One handler per process: a second render in the same process keeps the first.
+    let _ = ctrlc::set_handler(|| {
+        if INTERRUPTED.swap(true, std::sync::atomic::Ordering::SeqCst) {
+            std::process::exit(EXIT_INTERRUPTED as i32);
+        }
+    });
+    match job.run(&console, &INTERRUPTED) {
+        Ok(_) => Ok(()),
+        Err(e @ PipelineError::Interrupted(_)) => Err(Interrupted(e.to_string()).into()),
+        Err(PipelineError::Cancelled) => Err(Interrupted(
+            "interrupted; nothing saved (use --checkpoint FILE to be able to resume)".into(),
+        )
+        .into()),
+        Err(e) => Err(e.into()),
+    }
+}
+
+pub fn run_merge(args: &MergeArgs) -> Result<()> {
+    use trayecto::film::partial::{Part, merge};
+    let partial_output = is_partial_film(&args.output);
+    if !partial_output {
+        Format::from_path(&args.output)?;
+    }
+    if !(args.exposure.is_finite() && args.exposure > 0.0) {
+        bail!(
+            "invalid setting: exposure must be a positive number (got {})",
+            args.exposure
+        );
+    }
+    let mut parts = Vec::with_capacity(args.parts.len());
+    for p in &args.parts {
+        parts.push((p.clone(), Part::read(p)?));
+    }
+    let merged = merge(parts, !partial_output).context("cannot merge")?;
+    if partial_output {
+        merged.write(&args.output)?;
+    } else {
+        write_image(
+            &merged.film.to_image(),
+            &args.output,
+            args.exposure,
+            args.tonemap,
+        )?;
+    }
+    eprintln!(
+        "merged {} parts (samples {}..{} of {} spp) into {}",
+        args.parts.len(),
+        merged.header.samples[0],
+        merged.header.samples[1],
+        merged.header.spp,
+        args.output.display()
+    );
     Ok(())
 }
 
@@ -354,10 +473,15 @@ pub fn main() -> ExitCode {
         Some(Command::Render(a)) => run_render(a),
         Some(Command::Info(a)) => run_info(a),
         Some(Command::Serve(a)) => crate::server::run(a),
+        Some(Command::Merge(a)) => run_merge(a),
         None => run_render(&cli.render),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<Interrupted>() => {
+            eprintln!("{e}");
+            ExitCode::from(EXIT_INTERRUPTED)
+        }
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
@@ -382,8 +506,7 @@ mod readme {
             if long == "help" || long == "version" {
                 continue;
             }
-            let takes_value = a.get_num_args().is_some_and(|n| n.takes_values())
-                && !matches!(a.get_action(), clap::ArgAction::SetTrue);
+            let takes_value = a.get_action().takes_values();
             let mut flag = match a.get_short() {
                 Some(c) => format!("`-{c}`, `--{long}`"),
                 None => format!("`--{long}`"),

@@ -20,6 +20,11 @@ pub struct Token {
     pub line: u32,
 }
 
+/// Most tokens one file may hold. Each costs ~70 bytes here, so this bounds the memory a hostile
+/// file of one-character numbers can make the tokenizer use (~7 GB); real scenes keep large
+/// meshes in PLY files and stay far below it.
+pub const MAX_TOKENS: usize = 100_000_000;
+
 /// Splits `text` into tokens. Errors name the line (the caller adds the file).
 pub fn tokenize(text: &str) -> Result<Vec<Token>, (u32, String)> {
     let b = text.as_bytes();
@@ -27,6 +32,14 @@ pub fn tokenize(text: &str) -> Result<Vec<Token>, (u32, String)> {
     let mut i = 0;
     let mut line: u32 = 1;
     while i < b.len() {
+        if out.len() >= MAX_TOKENS {
+            return Err((
+                line,
+                format!(
+                    "more than {MAX_TOKENS} tokens in one file (split it with Include, or move meshes to PLY files)"
+                ),
+            ));
+        }
         let c = b[i];
         match c {
             b'\n' => {

@@ -228,6 +228,8 @@ pub enum SubmitError {
     Busy(usize),
     /// A running job writes the same output name.
     NameInUse(String),
+    /// The output folder already holds files of that name (an earlier render's).
+    NameTaken(String),
 }
 
 /// Every job the server knows: the running ones and the last few finished ones.
@@ -279,6 +281,15 @@ impl Jobs {
             }
             if active.iter().any(|j| j.request.output == request.output) {
                 return Err(SubmitError::NameInUse(request.output));
+            }
+            // Files are never overwritten: a name an earlier render wrote (in this run of the
+            // server or before it) is refused rather than silently replaced.
+            if ["png", "exr"].iter().any(|ext| {
+                self.output_dir
+                    .join(format!("{}.{ext}", request.output))
+                    .exists()
+            }) {
+                return Err(SubmitError::NameTaken(request.output));
             }
             let job = Arc::new(Job {
                 id: self.next_id.fetch_add(1, Ordering::Relaxed),
@@ -373,6 +384,12 @@ enum JobEnd {
 /// Runs the library's render pipeline for the job: the same stages, log and report as the CLI.
 fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
     let r = &job.request;
+    // Test seam, compiled into unit-test builds only: a renderer panic, to check that the job
+    // fails cleanly (`a_renderer_panic_becomes_a_failed_job`).
+    #[cfg(test)]
+    if r.output == "panic-in-renderer" {
+        panic!("deliberate panic in the renderer (test)");
+    }
     let png = out_dir.join(format!("{}.png", r.output));
     let exr = out_dir.join(format!("{}.exr", r.output));
     let output = |path: &PathBuf| OutputSpec {
@@ -387,6 +404,7 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
         // The web UI always sends its size, samples and depth.
         given: GivenSettings::ALL,
         outputs: vec![output(&png), output(&exr)],
+        split: Default::default(),
     };
     match render.run(&Observer(job), &job.cancel) {
         Ok(_) => {}
@@ -421,4 +439,53 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
     st.exr = Some(exr);
     st.samples_done = r.settings.spp;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::server::request::SceneSource;
+
+    /// A panic in the renderer becomes a failed job with an error, the job stops counting as
+    /// running, and its slot takes the next job (max_active = 1).
+    #[test]
+    fn a_renderer_panic_becomes_a_failed_job() {
+        let dir = std::env::temp_dir().join(format!("trayecto-jobs-panic-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let jobs = Jobs::new(1, 10, dir.clone());
+        let request = |output: &str| RenderRequest {
+            scene: "cornell".into(),
+            source: SceneSource::Builtin("cornell".into()),
+            output: output.into(),
+            settings: trayecto::render::RenderSettings {
+                width: 8,
+                height: 8,
+                spp: 1,
+                ..Default::default()
+            },
+            exposure: 1.0,
+            tonemap: Default::default(),
+        };
+        let wait = |job: &Arc<Job>| {
+            let t0 = Instant::now();
+            while job.status().state.is_active() {
+                assert!(t0.elapsed() < Duration::from_secs(30), "job still running");
+                std::thread::sleep(Duration::from_millis(10));
+            }
+        };
+        let job = jobs.submit(request("panic-in-renderer")).unwrap();
+        wait(&job);
+        {
+            let st = job.status();
+            assert_eq!(st.state, JobState::Failed);
+            let e = st.error.as_deref().unwrap_or("");
+            assert!(e.contains("panicked"), "error: {e:?}");
+            assert!(st.png.is_none() && st.exr.is_none());
+        }
+        assert_eq!(jobs.active_count(), 0);
+        let next = jobs.submit(request("after-the-panic")).unwrap();
+        wait(&next);
+        assert_eq!(next.status().state, JobState::Done);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

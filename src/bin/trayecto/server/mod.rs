@@ -454,6 +454,15 @@ async fn create_render(State(st): State<Shared>, headers: HeaderMap, body: Body)
                 "fields": { "output": format!("'{n}' is being written by a running render") }
             }),
         ),
+        Err(SubmitError::NameTaken(n)) => json_response(
+            StatusCode::CONFLICT,
+            json!({
+                "error": "an earlier render wrote this output name",
+                "fields": {
+                    "output": format!("'{n}' already exists in the output folder (files are never overwritten): choose another name")
+                }
+            }),
+        ),
     }
 }
 

@@ -1,0 +1,338 @@
+//! Split renders (issue #20): sample ranges rendered apart and merged, and renders stopped and
+//! resumed, give the film of a single run bit for bit; merge refuses parts that do not belong
+//! together, overlap or leave gaps; hostile partial films are refused with a message.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use trayecto::film::Film;
+use trayecto::film::partial::{Part, PartError, PartHeader, merge};
+use trayecto::render::{RangeStart, RenderObserver, RenderSettings, render, render_range};
+use trayecto::sampling::SamplerKind;
+use trayecto::world::{World, WorldOptions};
+
+const SPP: u32 = 13;
+
+fn world() -> World {
+    let scene = trayecto::scene::load("cornell").unwrap();
+    World::build(scene, &WorldOptions::default()).unwrap()
+}
+
+fn settings(sampler: SamplerKind) -> RenderSettings {
+    RenderSettings {
+        width: 20,
+        height: 14,
+        spp: SPP,
+        seed: 7,
+        sampler,
+        threads: Some(2),
+        ..RenderSettings::default()
+    }
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("trayecto-partial-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+fn part_of(world: &World, s: &RenderSettings, a: u32, b: u32) -> Part {
+    let r = render_range(
+        world,
+        s,
+        RangeStart {
+            samples: a..b,
+            resume: None,
+        },
+        &trayecto::render::NoObserver,
+        &AtomicBool::new(false),
+    )
+    .unwrap();
+    assert!(!r.cancelled && r.done == b && r.start == a);
+    let header = PartHeader::new(
+        "cornell",
+        "digest",
+        s,
+        &WorldOptions::default(),
+        [a, b],
+        r.film.discarded,
+    );
+    Part {
+        header,
+        film: r.film,
+    }
+}
+
+fn single(world: &World, s: &RenderSettings) -> Film {
+    part_of(world, s, 0, s.spp).film
+}
+
+/// Parts written to disk and read back, in a scrambled order, merge to the single run's film.
+fn merged(world: &World, s: &RenderSettings, cuts: &[u32], tag: &str) -> Part {
+    let mut parts = Vec::new();
+    for w in cuts.windows(2) {
+        let p = part_of(world, s, w[0], w[1]);
+        let path = tmp(&format!("{tag}-{}-{}.trp", w[0], w[1]));
+        p.write(&path).unwrap();
+        parts.push((path.clone(), Part::read(&path).unwrap()));
+    }
+    parts.reverse();
+    let half = parts.len() / 2;
+    parts.rotate_left(half);
+    merge(parts, true).unwrap()
+}
+
+#[test]
+fn merging_1_3_and_7_uneven_ranges_is_bit_identical_to_a_single_render() {
+    let world = world();
+    for sampler in [SamplerKind::Stratified, SamplerKind::Sobol] {
+        let s = settings(sampler);
+        let reference = single(&world, &s);
+        let image = render(
+            &world,
+            &s,
+            &trayecto::render::NoObserver,
+            &AtomicBool::new(false),
+        )
+        .unwrap()
+        .image;
+        assert_eq!(reference.to_image(), image);
+        for cuts in [&[0, SPP][..], &[0, 2, 9, SPP], &[0, 1, 3, 4, 8, 9, 12, SPP]] {
+            let m = merged(&world, &s, cuts, &format!("{sampler:?}-{}", cuts.len()));
+            assert_eq!(m.header.samples, [0, SPP]);
+            assert!(
+                m.film == reference,
+                "{sampler:?}: {} parts differ from the single render",
+                cuts.len() - 1
+            );
+            assert_eq!(m.film.to_image(), image);
+        }
+    }
+}
+
+fn merge_err(parts: Vec<(PathBuf, Part)>, complete: bool) -> String {
+    match merge(parts, complete) {
+        Err(PartError::Merge(m)) => m,
+        Err(e) => panic!("unexpected error kind: {e}"),
+        Ok(p) => panic!("merge accepted bad parts: {:?}", p.header.samples),
+    }
+}
+
+#[test]
+fn merge_refuses_mismatched_overlapping_and_missing_parts() {
+    let world = world();
+    let s = settings(SamplerKind::Stratified);
+    let a = part_of(&world, &s, 0, 5);
+    let b = part_of(&world, &s, 5, SPP);
+    let named = |n: &str, p: &Part| (PathBuf::from(n), p.clone());
+
+    // Another seed: a different frame.
+    let other = part_of(
+        &world,
+        &RenderSettings {
+            seed: 8,
+            ..s.clone()
+        },
+        5,
+        SPP,
+    );
+    let m = merge_err(vec![named("a.trp", &a), named("b.trp", &other)], true);
+    assert!(m.contains("b.trp") && m.contains("'seed'"), "{m}");
+
+    // Other scene content, other size, other frame spp, other version.
+    let mut h = b.clone();
+    h.header.scene_digest = "0123456789abcdef".into();
+    let m = merge_err(vec![named("a.trp", &a), named("b.trp", &h)], true);
+    assert!(m.contains("scene content"), "{m}");
+    let mut h = b.clone();
+    h.header.spp = 26;
+    let m = merge_err(vec![named("a.trp", &a), named("b.trp", &h)], true);
+    assert!(m.contains("samples per pixel"), "{m}");
+    let mut h = b.clone();
+    h.header.trayecto_version = "0.0.1".into();
+    let m = merge_err(vec![named("a.trp", &a), named("b.trp", &h)], true);
+    assert!(m.contains("version"), "{m}");
+
+    // Overlap: 0..5 and 4..13.
+    let c = part_of(&world, &s, 4, SPP);
+    let m = merge_err(vec![named("a.trp", &a), named("c.trp", &c)], true);
+    assert!(m.contains("overlap on samples 4..5"), "{m}");
+    // The same part twice.
+    let m = merge_err(
+        vec![named("a.trp", &a), named("a2.trp", &a), named("b.trp", &b)],
+        true,
+    );
+    assert!(m.contains("overlap"), "{m}");
+
+    // Gaps: inside, at the start, at the end.
+    let d = part_of(&world, &s, 6, SPP);
+    let m = merge_err(vec![named("a.trp", &a), named("d.trp", &d)], true);
+    assert!(m.contains("samples 5..6 are missing"), "{m}");
+    let m = merge_err(vec![named("b.trp", &b)], true);
+    assert!(m.contains("samples 0..5 are missing"), "{m}");
+    let m = merge_err(vec![named("a.trp", &a)], true);
+    assert!(m.contains("samples 5..13 are missing"), "{m}");
+    assert!(merge_err(vec![], true).contains("no parts"));
+
+    // An incomplete but contiguous merge is allowed when asked for (a longer part).
+    let ab = merge(vec![named("a.trp", &a), named("b.trp", &b)], false).unwrap();
+    assert_eq!(ab.header.samples, [0, SPP]);
+}
+
+#[test]
+fn hostile_partial_films_are_refused_with_a_message() {
+    let world = world();
+    let s = settings(SamplerKind::Stratified);
+    let p = part_of(&world, &s, 0, 3);
+    let good = tmp("good.trp");
+    p.write(&good).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    let check = |name: &str, data: &[u8], want: &str| {
+        let path = tmp(name);
+        std::fs::write(&path, data).unwrap();
+        let e = Part::read(&path).unwrap_err().to_string();
+        assert!(e.contains(name) && e.contains(want), "{name}: {e}");
+    };
+    check("empty.trp", b"", "too short");
+    check("magic.trp", b"NOTAPARTxxxxxxxxxxxx", "TRAYPART");
+    let mut huge = b"TRAYPART".to_vec();
+    huge.extend_from_slice(&u32::MAX.to_le_bytes());
+    check("huge.trp", &huge, "header is");
+    check("cut.trp", &bytes[..bytes.len() - 9], "truncated or corrupt");
+    let mut extra = bytes.clone();
+    let n = extra.len();
+    extra[n - 20] ^= 0x55;
+    check("flipped.trp", &extra, "corrupt");
+    // A header that lies: a sample range past the frame, a size too big for the data.
+    let hlen = u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize;
+    let header = std::str::from_utf8(&bytes[12..12 + hlen]).unwrap();
+    let rewrite = |from: &str, to: &str| {
+        let h = header.replacen(from, to, 1);
+        assert_ne!(h, header, "{from} not in header");
+        let mut out = b"TRAYPART".to_vec();
+        out.extend_from_slice(&(h.len() as u32).to_le_bytes());
+        out.extend_from_slice(h.as_bytes());
+        out.extend_from_slice(&bytes[12 + hlen..]);
+        out
+    };
+    check(
+        "range.trp",
+        &rewrite("\"samples\":[0,3]", "\"samples\":[0,99]"),
+        "sample range",
+    );
+    check(
+        "size.trp",
+        &rewrite("\"width\":20", "\"width\":21"),
+        "truncated or corrupt",
+    );
+    check(
+        "giant.trp",
+        &rewrite("\"width\":20", "\"width\":1000000"),
+        "out of range",
+    );
+    // Counts beyond the range: claim the part holds one sample while pixels have three.
+    check(
+        "counts.trp",
+        &rewrite("\"samples\":[0,3]", "\"samples\":[2,3]"),
+        "impossible values",
+    );
+}
+
+/// Sets the cancel flag after `stop_after` passes: a real interruption through the public API.
+struct StopAfter<'a> {
+    passes: std::sync::atomic::AtomicU32,
+    stop_after: u32,
+    cancel: &'a AtomicBool,
+}
+
+impl RenderObserver for StopAfter<'_> {
+    fn pass_done(&self, _film: &Film, _done: u32, _spp: u32) {
+        if self.passes.fetch_add(1, Ordering::Relaxed) + 1 == self.stop_after {
+            self.cancel.store(true, Ordering::Relaxed);
+        }
+    }
+}
+
+#[test]
+fn a_resumed_render_equals_an_uninterrupted_one() {
+    let world = world();
+    let s = RenderSettings {
+        spp: 40,
+        ..settings(SamplerKind::Stratified)
+    };
+    let reference = single(&world, &s);
+    for stop_after in [1, 3, 4] {
+        let cancel = AtomicBool::new(false);
+        let obs = StopAfter {
+            passes: 0.into(),
+            stop_after,
+            cancel: &cancel,
+        };
+        let start = RangeStart {
+            samples: 0..s.spp,
+            resume: None,
+        };
+        let stopped = render_range(&world, &s, start, &obs, &cancel).unwrap();
+        assert!(stopped.cancelled);
+        // Passes are 1, 1, 2, 4, ... samples: the film holds the passes before the stop.
+        let expect_done = [1, 2, 4, 8][stop_after as usize - 1];
+        assert_eq!(stopped.done, expect_done);
+        // Through a checkpoint file, as the command line does it.
+        let path = tmp(&format!("checkpoint-{stop_after}.trp"));
+        let header = PartHeader::new(
+            "cornell",
+            "d",
+            &s,
+            &WorldOptions::default(),
+            [0, stopped.done],
+            stopped.film.discarded,
+        );
+        Part {
+            header,
+            film: stopped.film,
+        }
+        .write(&path)
+        .unwrap();
+        let cp = Part::read(&path).unwrap();
+        let resumed = render_range(
+            &world,
+            &s,
+            RangeStart {
+                samples: 0..s.spp,
+                resume: Some((cp.film, cp.header.samples[1])),
+            },
+            &trayecto::render::NoObserver,
+            &AtomicBool::new(false),
+        )
+        .unwrap();
+        assert!(!resumed.cancelled && resumed.done == s.spp);
+        assert!(
+            resumed.film == reference,
+            "stopped after {stop_after} passes"
+        );
+    }
+}
+
+#[test]
+fn render_range_refuses_bad_ranges() {
+    let world = world();
+    let s = settings(SamplerKind::Stratified);
+    let run = |a: u32, b: u32, resume: Option<(Film, u32)>| {
+        render_range(
+            &world,
+            &s,
+            RangeStart {
+                samples: a..b,
+                resume,
+            },
+            &trayecto::render::NoObserver,
+            &AtomicBool::new(false),
+        )
+        .map(|_| ())
+        .unwrap_err()
+        .to_string()
+    };
+    assert!(run(3, 3, None).contains("sample range 3..3"));
+    assert!(run(0, SPP + 1, None).contains("within 0..13"));
+    assert!(run(4, 8, Some((Film::new(20, 14), 2))).contains("outside"));
+    assert!(run(0, 8, Some((Film::new(3, 3), 2))).contains("3x3"));
+}
