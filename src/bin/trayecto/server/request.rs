@@ -409,6 +409,7 @@ pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
             spp: false,
             max_depth: false,
         },
+        split: Default::default(),
         outputs: vec![],
     };
     let (s, note) = job.resolve(&scene);
