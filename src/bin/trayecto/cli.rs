@@ -617,7 +617,9 @@ mod readme {
     #[test]
     fn help_and_readme_lead_with_the_two_commands_and_examples() {
         let help = Cli::command().render_help().to_string();
-        assert!(help.starts_with(super::HELP_START), "{help}");
+        // The start lines come before the usage line.
+        let usage = help.find("Usage:").expect("usage line");
+        assert!(help[..usage].contains(super::HELP_START), "{help}");
         let readme =
             std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
         for line in super::HELP_START.lines().filter(|l| l.starts_with("  ")) {
