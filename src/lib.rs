@@ -23,5 +23,6 @@ pub mod pipeline;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod spectrum;
 pub mod split;
 pub mod world;

@@ -10,6 +10,7 @@ use crate::geometry::quad::Quad;
 use crate::geometry::sphere::Sphere;
 use crate::geometry::triangle::TriangleVerts;
 use crate::geometry::{Bounds3, GeometryStore, PrimRef, PrimitiveKind, Ray};
+use crate::light::default_light::{self, DefaultLight};
 use crate::light::{EnvMap, Light, LightSet};
 use crate::material::{AlphaMode, Material, Texture};
 use crate::math::{Mat3, Vec3, Vec4, transform_normal};
@@ -23,8 +24,9 @@ pub struct WorldOptions {
     pub accel: AccelKind,
     /// `--camera NAME|INDEX`.
     pub camera: Option<String>,
-    /// `--no-default-light`: leave a scene without lights unlit.
-    pub no_default_light: bool,
+    /// `--default-light auto|on|off`; `None` defers to the scene file (TOML `default_light`),
+    /// then to `auto`. The rule is in [`crate::light::default_light`].
+    pub default_light: Option<DefaultLight>,
     /// `--env FILE`: an equirectangular environment map lighting the scene.
     pub env: Option<std::path::PathBuf>,
 }
@@ -66,7 +68,7 @@ impl World {
         let mut g = compile_geometry(&scene, &label, &mut warnings)?;
         let mut lights = area_lights(&mut g, &scene.materials);
         lights.extend(scene_lights(&scene, &label)?);
-        add_option_lights(&mut lights, options, &mut warnings)?;
+        add_option_lights(&mut lights, &scene, &g, options, &mut warnings)?;
         let bounds = g.scene_bounds();
         let accel_start = std::time::Instant::now();
         let accel = Accel::build(options.accel, &g);
@@ -416,10 +418,12 @@ fn scene_lights(scene: &Scene, label: &str) -> Result<Vec<Light>, SceneError> {
     Ok(lights)
 }
 
-/// Step 4: the lights the options add: `--env`, and a white environment for a scene with none
-/// (unless `--no-default-light`).
+/// Step 4: the lights the options add: `--env`, and the default white environment when the
+/// default-light rule ([`default_light`]) calls for it.
 fn add_option_lights(
     lights: &mut Vec<Light>,
+    scene: &Scene,
+    g: &GeometryStore,
     options: &WorldOptions,
     warnings: &mut Vec<String>,
 ) -> Result<(), SceneError> {
@@ -428,21 +432,29 @@ fn add_option_lights(
             .map_err(|e| SceneError::invalid(path.display(), e))?;
         lights.push(Light::Environment { map: Arc::new(map) });
     }
-    if lights.is_empty() {
-        if options.no_default_light {
-            warnings.push(
-                "the scene has no lights and --no-default-light is set: it renders black".into(),
-            );
-        } else {
-            warnings.push(
-                "the scene has no lights: lighting it with a uniform white environment (radiance 1); \
-                 --no-default-light renders it unlit"
-                    .into(),
-            );
-            lights.push(Light::Uniform {
-                radiance: Vec3::ONE,
-            });
-        }
+    let mode = options
+        .default_light
+        .or(scene.default_light)
+        .unwrap_or_default();
+    let area_of = |i: usize| match &lights[i] {
+        Light::Area { prim, .. } => g.area(*prim),
+        _ => 0.0,
+    };
+    let emitters = default_light::emitter_stats(
+        lights,
+        &scene.materials,
+        &scene.textures,
+        area_of,
+        g.scene_bounds().bounding_sphere().1,
+    );
+    let decision = default_light::decide(mode, lights, &emitters);
+    if !decision.reason.is_empty() {
+        warnings.push(decision.reason);
+    }
+    if decision.add {
+        lights.push(Light::Uniform {
+            radiance: Vec3::ONE,
+        });
     }
     Ok(())
 }

@@ -57,7 +57,7 @@ fn render_sheet(sheet: Material, textures: Vec<Texture>, spp: u32, max_depth: u3
         ..Default::default()
     };
     let options = WorldOptions {
-        no_default_light: true,
+        default_light: Some(trayecto::light::default_light::DefaultLight::Off),
         ..Default::default()
     };
     let world = World::build(scene.clone(), &options).unwrap();

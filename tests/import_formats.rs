@@ -412,7 +412,7 @@ scale = 2.0
             scene.clone(),
             &WorldOptions {
                 camera: Some(sel.into()),
-                no_default_light: true,
+                default_light: Some(trayecto::light::default_light::DefaultLight::Off),
                 ..Default::default()
             },
         )
@@ -435,7 +435,7 @@ scale = 2.0
                 scene.clone(),
                 &WorldOptions {
                     camera: Some(sel.into()),
-                    no_default_light: true,
+                    default_light: Some(trayecto::light::default_light::DefaultLight::Off),
                     ..Default::default()
                 },
             )

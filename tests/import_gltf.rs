@@ -68,7 +68,8 @@ fn render_small(scene: &Scene, size: u32, spp: u32, no_default_light: bool) -> V
     let world = World::build(
         scene.clone(),
         &WorldOptions {
-            no_default_light,
+            default_light: no_default_light
+                .then_some(trayecto::light::default_light::DefaultLight::Off),
             ..Default::default()
         },
     )

@@ -4,7 +4,7 @@
 "use strict";
 
 const FIELDS = ["scene", "output", "width", "height", "spp", "secondary", "max_depth",
-  "exposure", "integrator", "tonemap"];
+  "exposure", "integrator", "tonemap", "default_light"];
 const $ = (id) => document.getElementById(id);
 let options = null;
 let current = null;       // id of the job the page is following
@@ -69,6 +69,8 @@ function readForm() {
   body.exposure = ex;
   body.integrator = $("integrator").value;
   body.tonemap = $("tonemap").value;
+  // "" = as the scene file says (auto unless a TOML scene sets default_light).
+  body.default_light = $("default_light").value || null;
   if (!errors.spp && body.width && body.height && body.spp && body.secondary) {
     const samples = body.width * body.height * body.spp * body.secondary;
     if (samples > L.max_samples) {
@@ -111,9 +113,11 @@ async function init() {
   const d = options.defaults;
   fillSelect($("integrator"), options.integrators);
   fillSelect($("tonemap"), options.tonemaps);
+  fillSelect($("default_light"), [""].concat(options.default_lights || []));
+  $("default_light").options[0].textContent = "as the scene says (auto)";
   await loadScenes(d.scene);
   for (const f of ["output", "width", "height", "spp", "secondary", "max_depth", "exposure",
-    "integrator", "tonemap"]) {
+    "integrator", "tonemap", "default_light"]) {
     $(f).value = d[f];
   }
   $("width").max = $("height").max = options.limits.max_size;

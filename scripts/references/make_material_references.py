@@ -30,6 +30,8 @@ Translation (Trayecto -> Mitsuba):
                                            (alpha = roughness^2 and Schlick Fresnel on both sides;
                                            Mitsuba's Smith masking is the uncorrelated G1*G1,
                                            Trayecto's the height-correlated form)
+  conductor eta, k (RGB), conductor_alpha a -> conductor (a = 0) / roughconductor (ggx, alpha a,
+                                           isotropic only), eta and k per channel
   dielectric ior, roughness r           -> dielectric / roughdielectric (ggx, alpha = r^2),
                                            int_ior = ior, ext_ior = 1 (exact Fresnel on both)
   base_color_texture + uv_*             -> bitmap (sRGB decoded, bilinear, repeat), to_uv = the
@@ -65,6 +67,7 @@ DEFAULT_OUT = os.path.join(ROOT, "tests", "references")
 # name -> (width, height); the test renders at the same sizes.
 SCENES = {
     "metals": (96, 64),
+    "conductors": (96, 64),
     "glass": (96, 64),
     "textured": (64, 64),
     "point": (64, 64),
@@ -121,7 +124,8 @@ def uv_matrix(np, mat):
 def bsdf(mi, np, mat, scene_dir):
     model = mat.get("model", "diffuse")
     allowed = {"name", "model", "base_color", "base_color_texture", "metallic", "roughness", "ior",
-               "emissive", "uv_scale", "uv_offset", "uv_rotation"}
+               "emissive", "uv_scale", "uv_offset", "uv_rotation", "eta", "k", "conductor_alpha",
+               "conductor_alpha_v"}
     extra = set(mat) - allowed
     if extra:
         raise ValueError(f"material {mat['name']}: keys not translated: {extra}")
@@ -150,6 +154,18 @@ def bsdf(mi, np, mat, scene_dir):
             return {"type": "dielectric", "int_ior": ior, "ext_ior": 1.0}
         return {"type": "roughdielectric", "distribution": "ggx", "alpha": r * r,
                 "int_ior": ior, "ext_ior": 1.0}
+    if model == "conductor":
+        # pbrt-v4's conductor with RGB eta/k (exact complex Fresnel per channel on both sides).
+        if "eta" not in mat or "k" not in mat:
+            raise ValueError("only conductors with explicit RGB eta and k are translated")
+        ax = float(mat.get("conductor_alpha", 0.0))
+        ay = float(mat.get("conductor_alpha_v", ax))
+        if ax != ay:
+            raise ValueError("anisotropic conductors are not translated (tangent conventions differ)")
+        if ax < 1e-3:
+            return {"type": "conductor", "eta": rgb(mat["eta"]), "k": rgb(mat["k"])}
+        return {"type": "roughconductor", "distribution": "ggx", "alpha": ax,
+                "sample_visible": True, "eta": rgb(mat["eta"]), "k": rgb(mat["k"])}
     raise ValueError(f"model {model} not translated")
 
 

@@ -19,6 +19,7 @@
 //! wrong before allocating, and that every sum is within what its count of samples can reach.
 
 use super::{FRAC_BITS, Film, SAMPLE_LIMIT};
+use crate::light::default_light::DefaultLight;
 use crate::render::{MAX_DIMENSION, MAX_PIXELS, MAX_SPP, RenderSettings};
 use crate::world::WorldOptions;
 use serde::{Deserialize, Serialize};
@@ -103,7 +104,12 @@ pub fn image_settings(s: &RenderSettings, w: &WorldOptions) -> BTreeMap<String, 
     put("secondary", s.path.secondary.to_string());
     put("accel", format!("{:?}", w.accel));
     put("camera", format!("{:?}", w.camera));
-    put("no_default_light", w.no_default_light.to_string());
+    put(
+        "default_light",
+        w.default_light
+            .map_or("file", DefaultLight::name)
+            .to_string(),
+    );
     put("env_map", w.env.is_some().to_string());
     m
 }

@@ -33,10 +33,16 @@ impl Vertex {
     /// The vertex at `hit`, reached with direction `-wo`.
     #[inline]
     pub fn new(world: &World, mut hit: SurfaceHit, wo: Vec3) -> Vertex {
-        let bsdf = world.bsdf(&mut hit);
+        let coat_normal = world.clearcoat_normal(&hit);
+        let mut bsdf = world.bsdf(&mut hit);
         let (ng, ns) = oriented_normals(&hit, wo, bsdf.is_transmissive());
         let frame = Frame::from_normal_tangent(ns, hit.tangent);
         let wo_local = frame.to_local(wo);
+        if let Some(n) = coat_normal {
+            // Flipped with the shading normal (two-sided shading), then into the local frame.
+            let n = if ns.dot(hit.ns) < 0.0 { -n } else { n };
+            bsdf.set_coat_normal(frame.to_local(n));
+        }
         Vertex {
             hit,
             bsdf,

@@ -43,7 +43,9 @@ pub fn surface_kind(m: &Material, s: &LocalSurface) -> SurfaceKind {
         MaterialModel::Mirror => SurfaceKind::Mirror,
         MaterialModel::Dielectric => SurfaceKind::Dielectric,
         _ if m.transmission > 0.5 => SurfaceKind::Dielectric,
-        MaterialModel::MetallicRoughness if s.metallic > 0.9 && s.roughness < 0.05 => {
+        MaterialModel::MetallicRoughness | MaterialModel::Conductor
+            if s.metallic > 0.9 && s.roughness < 0.05 =>
+        {
             SurfaceKind::Mirror
         }
         _ => SurfaceKind::Opaque,

@@ -10,6 +10,7 @@ use crate::math::{PI, Vec2, Vec3, luminance};
 use crate::sampling::{Distribution1D, warp};
 use std::sync::Arc;
 
+pub mod default_light;
 pub mod envmap;
 pub use envmap::EnvMap;
 

@@ -7,7 +7,10 @@
 //! normal flipped to the side the ray arrived from, so `wo.z > 0` always and no `abs()` is taken.
 //! Transmissive BSDFs keep the geometric orientation: `wo.z < 0` means the ray arrives from inside.
 
-use super::bxdf::{Dielectric, Diffuse, MetallicRoughness, Mirror, ThinDielectric};
+use super::bxdf::{
+    Conductor, Dielectric, Diffuse, DiffuseTransmission, Layered, MetallicRoughness, Mirror,
+    ThinDielectric,
+};
 use crate::math::{Vec2, Vec3};
 
 #[derive(Clone, Copy, Debug)]
@@ -17,6 +20,12 @@ pub enum Bsdf {
     Mirror(Mirror),
     Dielectric(Dielectric),
     ThinDielectric(ThinDielectric),
+    /// pbrt-v4's conductor: exact complex Fresnel per channel, smooth or anisotropic GGX.
+    Conductor(Conductor),
+    /// Lambertian reflection + Lambertian transmission (pbrt-v4 `diffusetransmission`).
+    DiffuseTransmission(DiffuseTransmission),
+    /// pbrt-v4's stochastic layered BSDF (`coateddiffuse`, `coatedconductor`).
+    Layered(Layered),
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -44,6 +53,15 @@ impl Bsdf {
         Bsdf::ThinDielectric(ThinDielectric::new(eta, roughness, tint))
     }
 
+    /// Places the clearcoat's normal, given in the local shading frame (the integrator knows the
+    /// frame; see [`super::eval::clearcoat_normal`]). No effect on BSDFs without a coat.
+    #[inline]
+    pub fn set_coat_normal(&mut self, local: Vec3) {
+        if let Bsdf::MetallicRoughness(MetallicRoughness { coat: Some(c), .. }) = self {
+            *c = c.with_normal(local);
+        }
+    }
+
     /// True if every lobe is a Dirac delta (light sampling is pointless).
     #[inline]
     pub fn is_specular(&self) -> bool {
@@ -52,19 +70,28 @@ impl Bsdf {
             Bsdf::Mirror(_) => true,
             Bsdf::Dielectric(b) => b.ggx.is_none(),
             Bsdf::ThinDielectric(b) => b.ggx.is_none(),
+            Bsdf::Conductor(b) => b.is_specular(),
+            Bsdf::DiffuseTransmission(_) => false,
+            Bsdf::Layered(b) => b.is_specular(),
         }
     }
 
     /// True if `sample` ignores its lobe-choice number.
     #[inline]
     pub fn has_one_lobe(&self) -> bool {
-        matches!(self, Bsdf::Diffuse(_) | Bsdf::Mirror(_))
+        matches!(
+            self,
+            Bsdf::Diffuse(_) | Bsdf::Mirror(_) | Bsdf::Conductor(_)
+        )
     }
 
     /// True if the BSDF transmits: its frame must keep the geometric orientation.
     #[inline]
     pub fn is_transmissive(&self) -> bool {
-        matches!(self, Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_))
+        matches!(
+            self,
+            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::DiffuseTransmission(_)
+        )
     }
 
     /// f(wo, wi), without the cosine.
@@ -76,6 +103,9 @@ impl Bsdf {
             Bsdf::Mirror(b) => b.eval(wo, wi),
             Bsdf::Dielectric(b) => b.eval(wo, wi),
             Bsdf::ThinDielectric(b) => b.eval(wo, wi),
+            Bsdf::Conductor(b) => b.eval(wo, wi),
+            Bsdf::DiffuseTransmission(b) => b.eval(wo, wi),
+            Bsdf::Layered(b) => b.eval(wo, wi),
         }
     }
 
@@ -88,6 +118,9 @@ impl Bsdf {
             Bsdf::Mirror(b) => b.pdf(wo, wi),
             Bsdf::Dielectric(b) => b.pdf(wo, wi),
             Bsdf::ThinDielectric(b) => b.pdf(wo, wi),
+            Bsdf::Conductor(b) => b.pdf(wo, wi),
+            Bsdf::DiffuseTransmission(b) => b.pdf(wo, wi),
+            Bsdf::Layered(b) => b.pdf(wo, wi),
         }
     }
 
@@ -100,6 +133,9 @@ impl Bsdf {
             Bsdf::Mirror(b) => b.sample(wo),
             Bsdf::Dielectric(b) => b.sample(wo, u_lobe, u),
             Bsdf::ThinDielectric(b) => b.sample(wo, u_lobe, u),
+            Bsdf::Conductor(b) => b.sample(wo, u),
+            Bsdf::DiffuseTransmission(b) => b.sample(wo, u_lobe, u),
+            Bsdf::Layered(b) => b.sample(wo, u_lobe, u),
         }
     }
 
@@ -111,6 +147,9 @@ impl Bsdf {
             Bsdf::Mirror(b) => b.color,
             Bsdf::Dielectric(b) => b.tint,
             Bsdf::ThinDielectric(b) => b.tint,
+            Bsdf::Conductor(b) => b.albedo(),
+            Bsdf::DiffuseTransmission(b) => b.reflectance + b.transmittance,
+            Bsdf::Layered(b) => b.albedo(),
         }
     }
 }

@@ -2,8 +2,10 @@
 //! colour, opacity for the alpha modes, emitted radiance, and the [`Bsdf`] the path tracer
 //! scatters with (`Bsdf::from_material`).
 
-use super::bxdf::{Diffuse, MetallicRoughness, Mirror};
-use super::microfacet::Ggx;
+use super::bxdf::layered::{Base, Coat};
+use super::bxdf::{Conductor, Diffuse, DiffuseTransmission, Layered, MetallicRoughness, Mirror};
+use super::clearcoat::Clearcoat;
+use super::microfacet::{AnisoGgx, Ggx, conductor_from_reflectance};
 use super::{Bsdf, Material, MaterialModel, Texture, TextureRef};
 use crate::geometry::SurfaceHit;
 use crate::math::{Vec3, Vec4};
@@ -18,7 +20,37 @@ impl Bsdf {
         } else {
             1.5
         };
+        let p = &material.pbrt;
+        let conductor = || {
+            let (eta, k) = if p.conductor_reflectance {
+                conductor_from_reflectance(base)
+            } else {
+                (p.conductor_eta, p.conductor_k)
+            };
+            Conductor::new(eta, k, p.conductor_alpha.x, p.conductor_alpha.y)
+        };
+        let layered = |base: Base| {
+            Bsdf::Layered(Layered {
+                coat: Coat {
+                    eta: p.interface_eta,
+                    dist: AnisoGgx::new(p.interface_alpha.x, p.interface_alpha.y),
+                },
+                base,
+                thickness: p.thickness,
+                albedo: p.albedo,
+                g: p.g,
+                max_depth: p.max_depth,
+                n_samples: p.n_samples,
+            })
+        };
         match material.model {
+            MaterialModel::Conductor => Bsdf::Conductor(conductor()),
+            MaterialModel::CoatedDiffuse => layered(Base::Diffuse { reflectance: base }),
+            MaterialModel::CoatedConductor => layered(Base::Conductor(conductor())),
+            MaterialModel::DiffuseTransmission => Bsdf::DiffuseTransmission(DiffuseTransmission {
+                reflectance: base,
+                transmittance: p.transmittance,
+            }),
             MaterialModel::Diffuse => Bsdf::Diffuse(Diffuse { albedo: base }),
             MaterialModel::Mirror => Bsdf::Mirror(Mirror { color: base }),
             MaterialModel::Dielectric => Bsdf::dielectric(eta, roughness, Vec3::ONE),
@@ -51,7 +83,11 @@ impl Bsdf {
                 let r0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
                 let f0_dielectric = (material.specular_color * r0).min(Vec3::ONE);
                 let specular = material.specular.clamp(0.0, 1.0);
-                if metallic == 0.0 && (specular == 0.0 || f0_dielectric == Vec3::ZERO) {
+                let coat = clearcoat(material, textures, hit);
+                if metallic == 0.0
+                    && (specular == 0.0 || f0_dielectric == Vec3::ZERO)
+                    && coat.is_none()
+                {
                     // No specular lobe at all (Blender's "Specular IOR Level" 0, exported as
                     // KHR_materials_specular 0): the mixture is exactly Lambertian, with the same
                     // value, pdf and samples, so skip the GGX terms.
@@ -63,10 +99,53 @@ impl Bsdf {
                     ggx: Ggx::new(roughness * roughness),
                     f0_dielectric,
                     specular,
+                    coat,
                 })
             }
         }
     }
+}
+
+/// The material's clearcoat at `hit` (KHR_materials_clearcoat: factor × texture R, roughness ×
+/// texture G), `None` when its weight is zero. Its normal is +z (the shading normal) until the
+/// integrator calls [`Bsdf::set_coat_normal`] with [`clearcoat_normal`].
+fn clearcoat(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Option<Clearcoat> {
+    if !(material.clearcoat > 0.0) {
+        return None;
+    }
+    let mut weight = material.clearcoat;
+    if let Some(t) = &material.clearcoat_texture {
+        weight *= sample_texture(textures, t, hit).x;
+    }
+    let mut roughness = material.clearcoat_roughness;
+    if let Some(t) = &material.clearcoat_roughness_texture {
+        roughness *= sample_texture(textures, t, hit).y;
+    }
+    (weight > 0.0).then(|| Clearcoat::new(weight, roughness, Vec3::Z))
+}
+
+/// The clearcoat's world-space normal at `hit`, which must be taken **before** the base's normal
+/// map is applied: the coat's own normal map (`clearcoatNormalTexture`, tangent space, with its
+/// scale) on the interpolated vertex normal, or that normal itself — the base's normal map does
+/// not apply to the coat (KHR_materials_clearcoat).
+pub fn clearcoat_normal(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Vec3 {
+    let n = hit.ns;
+    let Some(t) = &material.clearcoat_normal_texture else {
+        return n;
+    };
+    let c = sample_texture(textures, t, hit).truncate() * 2.0 - Vec3::ONE;
+    let s = material.clearcoat_normal_scale;
+    let tangent = (hit.tangent - n * n.dot(hit.tangent)).normalize_or_zero();
+    if tangent == Vec3::ZERO {
+        return n;
+    }
+    let sign = if hit.bitangent_sign < 0.0 { -1.0 } else { 1.0 };
+    let bitangent = n.cross(tangent) * sign;
+    let p = (tangent * (c.x * s) + bitangent * (c.y * s) + n * c.z).normalize_or_zero();
+    if p == Vec3::ZERO || !p.is_finite() || p.dot(hit.ng) <= 0.0 {
+        return n;
+    }
+    p
 }
 
 /// Roughness and metalness at a hit, factors × texture (glTF: roughness in G, metalness in B,

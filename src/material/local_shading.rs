@@ -73,7 +73,42 @@ pub struct LocalSurface {
 impl LocalSurface {
     pub fn new(m: &Material, textures: &[Texture], hit: &SurfaceHit) -> LocalSurface {
         let base = base_color(m, textures, hit);
-        let (roughness, metallic) = roughness_metallic(m, textures, hit);
+        let (mut roughness, mut metallic) = roughness_metallic(m, textures, hit);
+        let mut base = base;
+        // The pbrt-v4 models in the local-shading vocabulary: a conductor is a metal of its
+        // normal-incidence Fresnel colour, a coat a glossy dielectric over its base, and
+        // diffuse transmission its reflection only. GGX α becomes glTF roughness √α.
+        let p = &m.pbrt;
+        let rough_of = |a: crate::math::Vec2| (0.5 * (a.x + a.y)).max(0.0).sqrt().min(1.0);
+        let conductor_f0 = |base: Vec3| {
+            let (eta, k) = if p.conductor_reflectance {
+                crate::material::microfacet::conductor_from_reflectance(base)
+            } else {
+                (p.conductor_eta, p.conductor_k)
+            };
+            crate::material::microfacet::fresnel_conductor(1.0, eta, k)
+        };
+        match m.model {
+            MaterialModel::Conductor => {
+                base = conductor_f0(base);
+                metallic = 1.0;
+                roughness = rough_of(p.conductor_alpha);
+            }
+            MaterialModel::CoatedConductor => {
+                base = conductor_f0(base);
+                metallic = 1.0;
+                roughness = rough_of(p.interface_alpha).max(rough_of(p.conductor_alpha));
+            }
+            MaterialModel::CoatedDiffuse => {
+                metallic = 0.0;
+                roughness = rough_of(p.interface_alpha);
+            }
+            MaterialModel::DiffuseTransmission => {
+                metallic = 0.0;
+                roughness = 1.0;
+            }
+            _ => {}
+        }
         let occlusion = match &m.occlusion_texture {
             Some(t) => {
                 let ao = sample_texture(textures, t, hit).x;
@@ -81,7 +116,10 @@ impl LocalSurface {
             }
             None => 1.0,
         };
-        let glossy = m.model != MaterialModel::Diffuse || m.phong.is_some();
+        let glossy = !matches!(
+            m.model,
+            MaterialModel::Diffuse | MaterialModel::DiffuseTransmission
+        ) || m.phong.is_some();
         let (spec, shininess) = match (&m.phong, glossy) {
             (Some(p), _) => (p.specular, p.shininess.max(0.0)),
             (None, false) => (Vec3::ZERO, 1.0),

@@ -6,6 +6,7 @@
 
 pub mod bsdf;
 pub mod bxdf;
+pub mod clearcoat;
 pub mod eval;
 pub mod local_shading;
 pub mod microfacet;
@@ -15,7 +16,7 @@ pub mod texture;
 pub use bsdf::Bsdf;
 pub use texture::{Texture, TextureRef, WrapMode};
 
-use crate::math::Vec3;
+use crate::math::{Vec2, Vec3};
 
 /// How the path tracer scatters light at the surface.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -29,6 +30,124 @@ pub enum MaterialModel {
     Dielectric,
     /// Perfect mirror.
     Mirror,
+    /// pbrt-v4 `conductor`: exact Fresnel of η + i k per channel ([`PbrtParams::conductor_eta`],
+    /// `conductor_k`, or the base colour as `reflectance` when `conductor_reflectance`), smooth or
+    /// anisotropic GGX with α = [`PbrtParams::conductor_alpha`].
+    Conductor,
+    /// pbrt-v4 `coateddiffuse`: a dielectric coat over a Lambertian base of the base colour.
+    CoatedDiffuse,
+    /// pbrt-v4 `coatedconductor`: a dielectric coat over the conductor of `Conductor`.
+    CoatedConductor,
+    /// pbrt-v4 `diffusetransmission`: Lambertian reflection of the base colour and Lambertian
+    /// transmission of [`PbrtParams::transmittance`].
+    DiffuseTransmission,
+}
+
+/// Parameters of the pbrt-v4 models ([`MaterialModel::Conductor`], `CoatedDiffuse`,
+/// `CoatedConductor`, `DiffuseTransmission`). Roughnesses are GGX α already (apply
+/// [`microfacet::pbrt_roughness_to_alpha`] for pbrt's `remaproughness`); x is along the tangent
+/// (pbrt's `uroughness`), y along the bitangent (`vroughness`). Defaults are pbrt-v4's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PbrtParams {
+    /// Conductor η and k per linear-sRGB channel (default: pbrt's `metal-Cu-eta`/`metal-Cu-k`
+    /// converted by [`crate::spectrum`]).
+    pub conductor_eta: Vec3,
+    pub conductor_k: Vec3,
+    /// Use the base colour (× texture) as pbrt's `reflectance` instead of η/k.
+    pub conductor_reflectance: bool,
+    pub conductor_alpha: Vec2,
+    /// The coat: relative IOR and GGX α (pbrt `interface.eta`/`interface.roughness` for
+    /// `coatedconductor`, `eta`/`roughness` for `coateddiffuse`).
+    pub interface_eta: f32,
+    pub interface_alpha: Vec2,
+    /// Slab between coat and base: thickness (σt = 1), medium albedo and HG asymmetry g.
+    pub thickness: f32,
+    pub albedo: Vec3,
+    pub g: f32,
+    /// Random-walk length and walks per evaluation of the layered BSDF.
+    pub max_depth: u32,
+    pub n_samples: u32,
+    /// Lambertian transmittance of `diffusetransmission`.
+    pub transmittance: Vec3,
+}
+
+impl Default for PbrtParams {
+    fn default() -> Self {
+        let (eta, k) =
+            crate::spectrum::named_conductor_rgb("metal-Cu").unwrap_or((Vec3::ONE, Vec3::ZERO));
+        PbrtParams {
+            conductor_eta: eta,
+            conductor_k: k,
+            conductor_reflectance: false,
+            conductor_alpha: Vec2::ZERO,
+            interface_eta: 1.5,
+            interface_alpha: Vec2::ZERO,
+            thickness: 0.01,
+            albedo: Vec3::ZERO,
+            g: 0.0,
+            max_depth: 10,
+            n_samples: 1,
+            transmittance: Vec3::splat(0.25),
+        }
+    }
+}
+
+impl PbrtParams {
+    fn validate(&self) -> Result<(), String> {
+        let vecs = [
+            self.conductor_eta,
+            self.conductor_k,
+            self.albedo,
+            self.transmittance,
+        ];
+        let scalars = [
+            self.conductor_alpha.x,
+            self.conductor_alpha.y,
+            self.interface_alpha.x,
+            self.interface_alpha.y,
+            self.interface_eta,
+            self.thickness,
+            self.g,
+        ];
+        if vecs.iter().any(|v| !v.is_finite()) || scalars.iter().any(|s| !s.is_finite()) {
+            return Err("has a non-finite pbrt parameter".into());
+        }
+        if vecs.iter().any(|v| v.min_element() < 0.0)
+            || self.conductor_alpha.min_element() < 0.0
+            || self.interface_alpha.min_element() < 0.0
+        {
+            return Err("has a negative eta, k, albedo, transmittance or roughness".into());
+        }
+        if self.interface_eta <= 0.0 {
+            return Err(format!(
+                "coat eta must be positive (got {})",
+                self.interface_eta
+            ));
+        }
+        if self.thickness <= 0.0 {
+            return Err(format!(
+                "layer thickness must be positive (got {})",
+                self.thickness
+            ));
+        }
+        if !(-1.0 < self.g && self.g < 1.0) {
+            return Err(format!("layer g must be in (-1, 1) (got {})", self.g));
+        }
+        if self.albedo.max_element() > 1.0 {
+            return Err("layer albedo must be at most 1".into());
+        }
+        if self.max_depth == 0
+            || self.max_depth > 1000
+            || self.n_samples == 0
+            || self.n_samples > 1000
+        {
+            return Err(format!(
+                "layer maxdepth and nsamples must be in 1..=1000 (got {}, {})",
+                self.max_depth, self.n_samples
+            ));
+        }
+        Ok(())
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -90,6 +209,16 @@ pub struct Material {
     pub attenuation_distance: f32,
     /// Opacity map (OBJ `map_d`), first channel.
     pub alpha_texture: Option<TextureRef>,
+    /// Parameters of the pbrt-v4 models (unused by the others).
+    pub pbrt: PbrtParams,
+    /// KHR_materials_clearcoat: layer weight (× texture R), roughness (× texture G) and the
+    /// coat's own normal map (without one, the coat follows the unmapped vertex normal).
+    pub clearcoat: f32,
+    pub clearcoat_texture: Option<TextureRef>,
+    pub clearcoat_roughness: f32,
+    pub clearcoat_roughness_texture: Option<TextureRef>,
+    pub clearcoat_normal_texture: Option<TextureRef>,
+    pub clearcoat_normal_scale: f32,
 }
 
 impl Default for Material {
@@ -125,6 +254,13 @@ impl Default for Material {
             attenuation_color: Vec3::ONE,
             attenuation_distance: f32::INFINITY,
             alpha_texture: None,
+            pbrt: PbrtParams::default(),
+            clearcoat: 0.0,
+            clearcoat_texture: None,
+            clearcoat_roughness: 0.0,
+            clearcoat_roughness_texture: None,
+            clearcoat_normal_texture: None,
+            clearcoat_normal_scale: 1.0,
         }
     }
 }
@@ -155,6 +291,9 @@ impl Material {
             self.transmission,
             self.ior,
             self.specular,
+            self.clearcoat,
+            self.clearcoat_roughness,
+            self.clearcoat_normal_scale,
         ];
         if vecs.iter().any(|v| !v.is_finite()) || scalars.iter().any(|s| !s.is_finite()) {
             return Err("has a non-finite parameter".into());
@@ -162,6 +301,7 @@ impl Material {
         if self.base_color.min_element() < 0.0 || self.emissive.min_element() < 0.0 {
             return Err("has a negative colour".into());
         }
+        self.pbrt.validate()?;
         if self.ior <= 0.0 {
             return Err(format!(
                 "index of refraction must be positive (got {})",
@@ -178,6 +318,9 @@ impl Material {
             &self.specular_texture,
             &self.specular_color_texture,
             &self.alpha_texture,
+            &self.clearcoat_texture,
+            &self.clearcoat_roughness_texture,
+            &self.clearcoat_normal_texture,
         ];
         for t in texs.into_iter().flatten() {
             if t.texture >= texture_count {

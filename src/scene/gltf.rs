@@ -45,6 +45,7 @@ const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_ior",
     "KHR_materials_volume",
     "KHR_materials_specular",
+    "KHR_materials_clearcoat",
     "KHR_texture_transform",
 ];
 
@@ -63,8 +64,9 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
 
 fn load_from_bytes_unguarded(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
     let err = |m: String| SceneError::invalid(label, m);
-    let gltf = gltf::Gltf::from_slice(bytes)
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| err(format!("not a valid glTF 2.0 file: {e}")))?;
+    validate(&gltf.document).map_err(err)?;
     let mut ld = Loader {
         doc: &gltf.document,
         dir,
@@ -106,6 +108,49 @@ fn load_from_bytes_unguarded(bytes: &[u8], dir: &Path, label: &str) -> Result<Sc
     apply_material_conventions(&mut scene);
     scene.validate()?;
     Ok(scene)
+}
+
+/// The `gltf` crate's validation, except that a required extension is judged by what Trayecto
+/// reads (the crate refuses every `extensionsRequired` entry it does not parse itself, such as
+/// KHR_materials_clearcoat, which is read here from the raw JSON). A required extension that
+/// neither reads is an error naming it: the file cannot be rendered as its author meant.
+fn validate(doc: &gltf::Document) -> Result<(), String> {
+    use gltf::json::validation::{Error, Validate};
+    let root = doc.as_json();
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, error| {
+        let path = path();
+        if !(matches!(error, Error::Unsupported) && path.0.starts_with("extensionsRequired")) {
+            errors.push((path, error));
+        }
+    });
+    if !errors.is_empty() {
+        return Err(format!(
+            "not a valid glTF 2.0 file: {}",
+            gltf::Error::Validation(errors)
+        ));
+    }
+    let blocking: Vec<&str> = root
+        .extensions_required
+        .iter()
+        .map(String::as_str)
+        .filter(|e| {
+            !SUPPORTED_EXTENSIONS.contains(e)
+                && !gltf::json::extensions::ENABLED_EXTENSIONS.contains(e)
+        })
+        .collect();
+    if !blocking.is_empty() {
+        return Err(format!(
+            "the file requires glTF extension{} {} (extensionsRequired), which Trayecto does not support",
+            if blocking.len() > 1 { "s" } else { "" },
+            blocking
+                .iter()
+                .map(|e| format!("'{e}'"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    Ok(())
 }
 
 struct Loader<'a> {
@@ -451,6 +496,9 @@ impl<'a> Loader<'a> {
             mat.specular_color_texture =
                 self.tex_ref(s.specular_color_texture(), true, false, "specularColor")?;
         }
+        if let Some(cc) = m.extension_value("KHR_materials_clearcoat") {
+            self.clearcoat(&mut mat, cc)?;
+        }
         if m.unlit() {
             self.scene.warnings.push(format!(
                 "material '{name}': KHR_materials_unlit is not supported; it is shaded as a lit material"
@@ -462,6 +510,73 @@ impl<'a> Loader<'a> {
             ));
         }
         Ok(mat)
+    }
+
+    /// KHR_materials_clearcoat, read from the raw extension JSON (the `gltf` crate does not parse
+    /// it): factors (default 0), the weight (R), roughness (G) and normal textures (all linear).
+    fn clearcoat(&mut self, mat: &mut Material, v: &gltf::json::Value) -> Result<(), SceneError> {
+        let num = |key: &str, default: f32| -> Result<f32, SceneError> {
+            match v.get(key) {
+                None => Ok(default),
+                Some(x) => x
+                    .as_f64()
+                    .map(|x| x as f32)
+                    .filter(|x| x.is_finite() && (0.0..=1.0).contains(x))
+                    .ok_or_else(|| {
+                        SceneError::invalid(
+                            self.label,
+                            format!(
+                                "material '{}': KHR_materials_clearcoat {key} must be a number in [0, 1]",
+                                mat.name
+                            ),
+                        )
+                    }),
+            }
+        };
+        mat.clearcoat = num("clearcoatFactor", 0.0)?;
+        mat.clearcoat_roughness = num("clearcoatRoughnessFactor", 0.0)?;
+        mat.clearcoat_texture = self.raw_tex_ref(v.get("clearcoatTexture"), "clearcoat")?;
+        mat.clearcoat_roughness_texture =
+            self.raw_tex_ref(v.get("clearcoatRoughnessTexture"), "clearcoatRoughness")?;
+        if let Some(n) = v.get("clearcoatNormalTexture") {
+            mat.clearcoat_normal_scale = n
+                .get("scale")
+                .and_then(|x| x.as_f64())
+                .map(|x| x as f32)
+                .filter(|x| x.is_finite())
+                .unwrap_or(1.0);
+            mat.clearcoat_normal_texture = self.raw_tex_ref(Some(n), "clearcoatNormal")?;
+        }
+        Ok(())
+    }
+
+    /// A `textureInfo` given as raw extension JSON (`index`, `texCoord`, KHR_texture_transform),
+    /// decoded linearly. A missing or out-of-range index is an error naming the file.
+    fn raw_tex_ref(
+        &mut self,
+        info: Option<&gltf::json::Value>,
+        what: &str,
+    ) -> Result<Option<TextureRef>, SceneError> {
+        let Some(info) = info else { return Ok(None) };
+        let texture = info
+            .get("index")
+            .and_then(|i| i.as_u64())
+            .and_then(|i| self.doc.textures().nth(i.min(usize::MAX as u64) as usize))
+            .ok_or_else(|| {
+                SceneError::invalid(
+                    self.label,
+                    format!("{what} texture: 'index' is missing or names no texture"),
+                )
+            })?;
+        let tex_coord = info
+            .get("texCoord")
+            .and_then(|t| t.as_u64())
+            .unwrap_or(0)
+            .min(u32::MAX as u64) as u32;
+        let transform = info
+            .get("extensions")
+            .and_then(|e| e.get("KHR_texture_transform"));
+        self.special_tex_ref(texture, tex_coord, transform, what)
     }
 
     fn default_material(&mut self) -> MaterialId {

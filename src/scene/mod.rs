@@ -172,6 +172,8 @@ pub struct Scene {
     pub cameras: Vec<CameraDesc>,
     /// Everything in the file that was not understood or not supported, by name.
     pub warnings: Vec<String>,
+    /// The file's own choice of default lighting (TOML `default_light`); the command line wins.
+    pub default_light: Option<crate::light::default_light::DefaultLight>,
     /// Render settings the file asks for (pbrt's Film, Sampler, Integrator); the command line
     /// overrides each.
     pub hints: RenderHints,

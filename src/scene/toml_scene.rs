@@ -24,6 +24,8 @@ use crate::math::{Mat4, Vec2, Vec3};
 #[serde(deny_unknown_fields)]
 struct File {
     name: Option<String>,
+    /// "auto", "on" or "off" (see `light::default_light`); `--default-light` overrides it.
+    default_light: Option<crate::light::default_light::DefaultLight>,
     #[serde(default)]
     camera: Vec<Camera>,
     background: Option<Background>,
@@ -111,6 +113,27 @@ struct MaterialSpec {
     uv_scale: Option<[f32; 2]>,
     uv_offset: Option<[f32; 2]>,
     uv_rotation: Option<f32>,
+    /// pbrt-v4 models (conductor, coated-diffuse, coated-conductor, diffuse-transmission).
+    /// Roughnesses are GGX α (pbrt's `remaproughness false`); `roughness_v` makes them
+    /// anisotropic.
+    /// Conductor: a named metal ("metal-Cu", …) or `eta` + `k`, or `reflectance` = base_color.
+    metal: Option<String>,
+    eta: Option<[f32; 3]>,
+    k: Option<[f32; 3]>,
+    #[serde(default)]
+    reflectance: bool,
+    conductor_alpha: Option<f32>,
+    conductor_alpha_v: Option<f32>,
+    /// The coat: IOR (`ior`), GGX α, layer thickness, medium albedo and g, walk depth/samples.
+    coat_alpha: Option<f32>,
+    coat_alpha_v: Option<f32>,
+    thickness: Option<f32>,
+    albedo: Option<[f32; 3]>,
+    g: Option<f32>,
+    max_depth: Option<u32>,
+    n_samples: Option<u32>,
+    /// diffuse-transmission: transmittance (reflectance is base_color).
+    transmittance: Option<[f32; 3]>,
 }
 
 #[derive(Deserialize)]
@@ -181,6 +204,7 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
     let mut scene = Scene {
         name: file.name.clone().unwrap_or_else(|| label.to_string()),
         source: Some(label.into()),
+        default_light: file.default_light,
         ..Default::default()
     };
 
@@ -411,12 +435,62 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
         Some("metallic-roughness") => MaterialModel::MetallicRoughness,
         Some("dielectric") => MaterialModel::Dielectric,
         Some("mirror") => MaterialModel::Mirror,
+        Some("conductor") => MaterialModel::Conductor,
+        Some("coated-diffuse") => MaterialModel::CoatedDiffuse,
+        Some("coated-conductor") => MaterialModel::CoatedConductor,
+        Some("diffuse-transmission") => MaterialModel::DiffuseTransmission,
         Some(other) => {
             return Ok(Err(format!(
-                "unknown model '{other}' (diffuse, metallic-roughness, dielectric or mirror)"
+                "unknown model '{other}' (diffuse, metallic-roughness, dielectric, mirror, \
+                 conductor, coated-diffuse, coated-conductor or diffuse-transmission)"
             )));
         }
     };
+    let mut pbrt = crate::material::PbrtParams::default();
+    if let Some(metal) = &m.metal {
+        let Some((eta, k)) = crate::spectrum::named_conductor_rgb(metal) else {
+            return Ok(Err(format!(
+                "unknown metal '{metal}' ({})",
+                crate::spectrum::METALS.join(", ")
+            )));
+        };
+        (pbrt.conductor_eta, pbrt.conductor_k) = (eta, k);
+    }
+    match (m.eta, m.k) {
+        (Some(e), Some(k)) if m.metal.is_none() => {
+            (pbrt.conductor_eta, pbrt.conductor_k) = (Vec3::from(e), Vec3::from(k))
+        }
+        (None, None) => {}
+        _ => return Ok(Err("'eta' and 'k' go together, and not with 'metal'".into())),
+    }
+    pbrt.conductor_reflectance = m.reflectance;
+    if let Some(a) = m.conductor_alpha {
+        pbrt.conductor_alpha = Vec2::new(a, m.conductor_alpha_v.unwrap_or(a));
+    }
+    if let Some(a) = m.coat_alpha {
+        pbrt.interface_alpha = Vec2::new(a, m.coat_alpha_v.unwrap_or(a));
+    }
+    if let Some(ior) = m.ior {
+        pbrt.interface_eta = ior;
+    }
+    if let Some(t) = m.thickness {
+        pbrt.thickness = t;
+    }
+    if let Some(a) = m.albedo {
+        pbrt.albedo = Vec3::from(a);
+    }
+    if let Some(g) = m.g {
+        pbrt.g = g;
+    }
+    if let Some(d) = m.max_depth {
+        pbrt.max_depth = d;
+    }
+    if let Some(n) = m.n_samples {
+        pbrt.n_samples = n;
+    }
+    if let Some(t) = m.transmittance {
+        pbrt.transmittance = Vec3::from(t);
+    }
     let mut mat = Material {
         name: m.name.clone(),
         model,
@@ -429,6 +503,7 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
         }),
         emissive: m.emissive.map(Vec3::from).unwrap_or(Vec3::ZERO) * m.emissive_strength,
         double_sided: m.double_sided,
+        pbrt,
         ..Default::default()
     };
     if let Some(ior) = m.ior {
@@ -615,6 +690,71 @@ fn add_mesh_file(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pbrt_models_read_their_keys() {
+        let text = br#"
+[[material]]
+name = "cu"
+model = "conductor"
+metal = "metal-Cu"
+conductor_alpha = 0.1
+conductor_alpha_v = 0.3
+
+[[material]]
+name = "coat"
+model = "coated-conductor"
+eta = [0.2, 0.9, 1.1]
+k = [3.9, 2.4, 2.2]
+ior = 1.3
+coat_alpha = 0.2
+thickness = 0.05
+albedo = [0.5, 0.5, 0.5]
+g = 0.2
+max_depth = 20
+n_samples = 4
+
+[[material]]
+name = "sheet"
+model = "diffuse-transmission"
+base_color = [0.3, 0.3, 0.3]
+transmittance = [0.6, 0.5, 0.4]
+"#;
+        let scene = load_from_bytes(text, Path::new("."), "t.toml").unwrap();
+        let [cu, coat, sheet] = &scene.materials[..] else {
+            panic!("three materials")
+        };
+        assert_eq!(cu.model, MaterialModel::Conductor);
+        let (eta, k) = crate::spectrum::named_conductor_rgb("metal-Cu").unwrap();
+        assert_eq!((cu.pbrt.conductor_eta, cu.pbrt.conductor_k), (eta, k));
+        assert_eq!(cu.pbrt.conductor_alpha, Vec2::new(0.1, 0.3));
+        assert_eq!(coat.model, MaterialModel::CoatedConductor);
+        assert_eq!(coat.pbrt.conductor_k, Vec3::new(3.9, 2.4, 2.2));
+        assert_eq!(coat.pbrt.interface_eta, 1.3);
+        assert_eq!(coat.pbrt.interface_alpha, Vec2::splat(0.2));
+        assert_eq!((coat.pbrt.max_depth, coat.pbrt.n_samples), (20, 4));
+        assert_eq!((coat.pbrt.thickness, coat.pbrt.g), (0.05, 0.2));
+        assert_eq!(sheet.pbrt.transmittance, Vec3::new(0.6, 0.5, 0.4));
+
+        for (bad, why) in [
+            (
+                "model = \"conductor\"\nmetal = \"metal-Xx\"",
+                "unknown metal",
+            ),
+            ("model = \"conductor\"\neta = [1, 1, 1]", "go together"),
+            ("model = \"coated-diffuse\"\ng = 1.0", "g must be"),
+            ("model = \"coated-diffuse\"\nthickness = 0.0", "thickness"),
+            ("model = \"coated-diffuse\"\nn_samples = 0", "nsamples"),
+            ("model = \"conductor\"\nconductor_alpha = -1.0", "negative"),
+        ] {
+            let text = format!("[[material]]\nname = \"m\"\n{bad}\n");
+            let e = load_from_bytes(text.as_bytes(), Path::new("."), "t.toml")
+                .err()
+                .unwrap_or_else(|| panic!("{bad} accepted"))
+                .to_string();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+    }
 
     #[test]
     fn uv_transform_applies_to_the_material_textures() {

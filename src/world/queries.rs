@@ -40,6 +40,14 @@ impl World {
         Bsdf::from_material(material, &self.textures, hit)
     }
 
+    /// KHR_materials_clearcoat: the coat's world-space normal at `hit`, `None` without a coat.
+    /// Must be asked before [`World::bsdf`] applies the base's normal map, which the coat ignores.
+    #[inline]
+    pub fn clearcoat_normal(&self, hit: &SurfaceHit) -> Option<Vec3> {
+        let material = self.material(hit);
+        (material.clearcoat > 0.0).then(|| eval::clearcoat_normal(material, &self.textures, hit))
+    }
+
     /// The parameters of the raycast/Whitted local shading models at `hit`.
     #[inline]
     pub fn local_surface(&self, hit: &SurfaceHit) -> LocalSurface {

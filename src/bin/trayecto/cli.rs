@@ -11,6 +11,7 @@ use trayecto::accel::AccelKind;
 use trayecto::film::output::{Format, write_image};
 use trayecto::film::tonemap::Tonemap;
 use trayecto::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
+use trayecto::light::default_light::DefaultLight;
 use trayecto::pipeline::{
     GivenSettings, LogLine, OutputSpec, PipelineError, PipelineObserver, RenderJob, Stage,
     is_partial_film,
@@ -143,8 +144,13 @@ pub struct RenderArgs {
     /// Camera to render, by name or index (default: the first).
     #[arg(long)]
     pub camera: Option<String>,
-    /// Render a scene without lights unlit instead of adding a white environment.
-    #[arg(long)]
+    /// When to add the default white environment: auto (no lights, or only self-lit emissive
+    /// surfaces such as decals and labels with radiance <= 1), on (unless the scene has an
+    /// environment) or off. Default: the scene file's `default_light`, else auto.
+    #[arg(long, value_name = "MODE")]
+    pub default_light: Option<DefaultLight>,
+    /// Same as `--default-light off` (kept for older scripts).
+    #[arg(long, conflicts_with = "default_light")]
     pub no_default_light: bool,
     /// Light the scene with an equirectangular environment map (.hdr or .exr).
     #[arg(long, value_name = "FILE")]
@@ -199,7 +205,11 @@ impl RenderArgs {
         WorldOptions {
             accel: self.accel,
             camera: self.camera.clone(),
-            no_default_light: self.no_default_light,
+            default_light: if self.no_default_light {
+                Some(DefaultLight::Off)
+            } else {
+                self.default_light
+            },
             env: self.env.clone(),
         }
     }

@@ -1,6 +1,7 @@
 //! The glTF 2.0 metallic-roughness BRDF (glTF spec, appendix B).
 
 use crate::material::bsdf::BsdfSample;
+use crate::material::clearcoat::Clearcoat;
 use crate::material::microfacet::{Ggx, reflect, schlick};
 use crate::math::{INV_PI, Vec2, Vec3, luminance};
 use crate::sampling::warp;
@@ -16,6 +17,9 @@ pub struct MetallicRoughness {
     pub f0_dielectric: Vec3,
     /// KHR_materials_specular strength (1 without the extension; 0 is pure Lambertian).
     pub specular: f32,
+    /// KHR_materials_clearcoat layered on top (see [`Clearcoat`]): f = (1 − c·fr(V))·f_base +
+    /// f_coat. Its normal is +z until [`crate::material::Bsdf::set_coat_normal`] places it.
+    pub coat: Option<Clearcoat>,
 }
 
 impl MetallicRoughness {
@@ -24,7 +28,18 @@ impl MetallicRoughness {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return Vec3::ZERO;
         }
-        self.eval_above(wo, wi)
+        self.eval_coated(wo, wi)
+    }
+
+    /// The base, scaled by what the coat leaves of it, plus the coat (both directions above).
+    #[inline]
+    fn eval_coated(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        match &self.coat {
+            None => self.eval_above(wo, wi),
+            Some(c) => {
+                self.eval_above(wo, wi) * (1.0 - c.layer_weight(wo)) + Vec3::splat(c.eval(wo, wi))
+            }
+        }
     }
 
     #[inline]
@@ -35,7 +50,14 @@ impl MetallicRoughness {
         let p_spec = self.spec_probability(wo);
         let h = (wo + wi).normalize();
         let spec = self.ggx.d_visible(wo, h) / (4.0 * wo.dot(h));
-        p_spec * spec + (1.0 - p_spec) * warp::cosine_hemisphere_pdf(wi.z)
+        let base = p_spec * spec + (1.0 - p_spec) * warp::cosine_hemisphere_pdf(wi.z);
+        match &self.coat {
+            None => base,
+            Some(c) => {
+                let p_coat = coat_probability(c, wo);
+                p_coat * c.pdf(wo, wi) + (1.0 - p_coat) * base
+            }
+        }
     }
 
     /// Picks the specular lobe (visible normals, Heitz 2018) or the diffuse one with `u_lobe`.
@@ -44,8 +66,22 @@ impl MetallicRoughness {
         if wo.z <= 0.0 {
             return None;
         }
+        // The coat first, with probability p_coat; the rest of `u_lobe`, rescaled to [0, 1),
+        // chooses between the base's lobes.
+        let mut u_lobe = u_lobe;
+        let mut coat_wi = None;
+        if let Some(c) = &self.coat {
+            let p_coat = coat_probability(c, wo);
+            if u_lobe < p_coat {
+                coat_wi = Some(c.sample(wo, u)?);
+            } else {
+                u_lobe = ((u_lobe - p_coat) / (1.0 - p_coat)).min(1.0 - f32::EPSILON);
+            }
+        }
         let p_spec = self.spec_probability(wo);
-        let wi = if u_lobe < p_spec {
+        let wi = if let Some(wi) = coat_wi {
+            wi
+        } else if u_lobe < p_spec {
             let m = self.ggx.sample_visible(wo, u);
             reflect(wo, m)
         } else {
@@ -62,7 +98,7 @@ impl MetallicRoughness {
         }
         Some(BsdfSample {
             wi,
-            f: self.eval_above(wo, wi),
+            f: self.eval_coated(wo, wi),
             pdf,
             specular: false,
             eta: 1.0,
@@ -104,4 +140,12 @@ impl MetallicRoughness {
             (w_spec / (w_spec + w_diff)).clamp(0.05, 0.95)
         }
     }
+}
+
+/// Probability of sampling the clearcoat lobe: its Fresnel share c·fr(V) against what the base
+/// keeps, (1 − c·fr)·½, clamped so both stay reachable (the mixture pdf must cover f).
+#[inline]
+fn coat_probability(c: &Clearcoat, wo: Vec3) -> f32 {
+    let w = c.layer_weight(wo);
+    (w / (w + 0.5 * (1.0 - w))).clamp(0.05, 0.95)
 }

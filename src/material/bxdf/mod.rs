@@ -8,14 +8,20 @@
 //! (`eval`, `pdf`, `sample`, `is_specular`, `has_one_lobe`, `is_transmissive`, `albedo`), build
 //! it in `eval::Bsdf::from_material`, and add its chi-square test.
 
+pub mod conductor;
 pub mod dielectric;
 pub mod diffuse;
+pub mod diffuse_transmission;
+pub mod layered;
 pub mod metallic_roughness;
 pub mod mirror;
 pub mod thin_dielectric;
 
+pub use conductor::Conductor;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
+pub use diffuse_transmission::DiffuseTransmission;
+pub use layered::Layered;
 pub use metallic_roughness::MetallicRoughness;
 pub use mirror::Mirror;
 pub use thin_dielectric::ThinDielectric;

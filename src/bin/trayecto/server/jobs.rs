@@ -399,7 +399,10 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
     };
     let render = RenderJob {
         scene: r.source.load_spec(),
-        world: WorldOptions::default(),
+        world: WorldOptions {
+            default_light: r.default_light,
+            ..WorldOptions::default()
+        },
         settings: r.settings.clone(),
         // The web UI always sends its size, samples and depth.
         given: GivenSettings::ALL,
@@ -465,6 +468,7 @@ mod tests {
             },
             exposure: 1.0,
             tonemap: Default::default(),
+            default_light: None,
         };
         let wait = |job: &Arc<Job>| {
             let t0 = Instant::now();

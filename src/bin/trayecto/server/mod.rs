@@ -306,9 +306,11 @@ async fn options(State(st): State<Shared>) -> Response {
                 "exposure": D::EXPOSURE,
                 "integrator": "path",
                 "tonemap": "clamp",
+                "default_light": "",
             },
             "integrators": request::integrator_names(),
             "tonemaps": request::tonemap_names(),
+            "default_lights": request::DEFAULT_LIGHT_NAMES,
         }),
     )
 }

@@ -9,6 +9,7 @@ use std::path::{Component, Path, PathBuf};
 use std::str::FromStr;
 use trayecto::film::tonemap::Tonemap;
 use trayecto::integrator::{IntegratorKind, PathSettings};
+use trayecto::light::default_light::DefaultLight;
 use trayecto::render::{MAX_DEPTH, MAX_SECONDARY, RenderSettings};
 use trayecto::sampling::SamplerKind;
 use trayecto::scene::builtin;
@@ -66,6 +67,9 @@ pub fn tonemap_names() -> Vec<&'static str> {
         .collect()
 }
 
+/// The `default_light` values a request may give (absent or null: as the scene file says).
+pub const DEFAULT_LIGHT_NAMES: [&str; 3] = ["auto", "on", "off"];
+
 /// Where the scene comes from once resolved.
 #[derive(Clone, Debug, PartialEq)]
 pub enum SceneSource {
@@ -95,6 +99,8 @@ pub struct RenderRequest {
     pub settings: RenderSettings,
     pub exposure: f32,
     pub tonemap: Tonemap,
+    /// `None`: as the scene file says (else auto).
+    pub default_light: Option<DefaultLight>,
 }
 
 /// Why a request was refused: the body is not a JSON object, or some fields are wrong (field →
@@ -449,6 +455,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         "integrator",
         "tonemap",
         "seed",
+        "default_light",
     ];
     for k in obj.keys() {
         if !known.contains(&k.as_str()) {
@@ -568,6 +575,16 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             Tonemap::default()
         }),
     };
+    let default_light = string_field(&obj, "default_light", 32, &mut errors).and_then(|s| {
+        let parsed = DefaultLight::parse(s);
+        if parsed.is_none() {
+            errors.insert(
+                "default_light".into(),
+                format!("must be one of: {}", DEFAULT_LIGHT_NAMES.join(", ")),
+            );
+        }
+        parsed
+    });
 
     let samples = width as u64 * height as u64 * spp as u64 * secondary as u64;
     if !errors.contains_key("spp") && samples > lim.max_samples {
@@ -607,6 +624,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             settings,
             exposure,
             tonemap,
+            default_light,
         }),
         _ => Err(RequestError::Fields(errors)),
     }

@@ -1,0 +1,422 @@
+//! Spectral data and its conversion to the linear-sRGB values Trayecto renders with, the way
+//! pbrt-v4 sees spectra in its default sRGB colour space.
+//!
+//! Conventions (pbrt-v4 `spectrum.cpp`, `colorspace.cpp`, `lights.cpp`):
+//! * XYZ of a spectrum s: X = Σλ x̄(λ) s(λ) / Σλ ȳ(λ) over 360–830 nm at 1 nm (so a constant 1 has
+//!   Y = 1); linear sRGB from XYZ with the sRGB/D65 matrix (IEC 61966-2-1).
+//! * A *reflectance-like* spectrum r(λ) (albedo, η, k) is seen under the colour space's illuminant,
+//!   D65 normalised to Y = 1: rgb = sRGB(XYZ(r · D65ₙ)). A constant 1 maps to (1, 1, 1).
+//! * An *illuminant* (a light's `L`): pbrt-v4 divides a light's `scale` by the spectrum's
+//!   photometric value (`scale /= SpectrumToPhotometric(L)`; for an RGB `L` only its illuminant
+//!   part, D65ₙ, counts), so an `rgb L` renders as that RGB and any other spectrum (a `blackbody`,
+//!   a named illuminant) as its sRGB chromaticity with luminance Y = 1 before `scale`
+//!   ([`illuminant_to_rgb`]). `blackbody` is Planck's law normalised to peak 1 (which the
+//!   photometric division then cancels).
+//! * A conductor's η(λ), k(λ) become one (η, k) per channel, each projected as a reflectance-like
+//!   spectrum ([`named_conductor_rgb`]); [`conductor_rgb_error`] measures what that costs against
+//!   the spectral Fresnel reflectance pbrt-v4 integrates, and `tests` bound it.
+//! * A named glass (`glass-BK7`, …) becomes one IOR, the D65ₙ·ȳ-weighted mean of η(λ) (pbrt-v4
+//!   disperses; Trayecto's RGB dielectric cannot).
+
+mod data;
+
+use crate::material::microfacet::fresnel_complex;
+use crate::math::Vec3;
+
+const LAMBDA_MIN: f32 = 360.0;
+const LAMBDA_MAX: f32 = 830.0;
+
+/// The CIE 1931 2° colour matching functions at `lambda` nm (0 outside 360–830 nm).
+pub fn cie_xyz(lambda: f32) -> Vec3 {
+    if !(LAMBDA_MIN..=LAMBDA_MAX).contains(&lambda) {
+        return Vec3::ZERO;
+    }
+    let x = lambda - LAMBDA_MIN;
+    let i = (x as usize).min(469);
+    let t = x - i as f32;
+    let lerp = |a: &[f32; 471]| a[i] * (1.0 - t) + a[i + 1] * t;
+    Vec3::new(lerp(&data::CIE_X), lerp(&data::CIE_Y), lerp(&data::CIE_Z))
+}
+
+/// Σ ȳ over the 1 nm grid (pbrt-v4's `CIE_Y_integral` for this table).
+fn cie_y_integral() -> f32 {
+    data::CIE_Y.iter().sum()
+}
+
+/// CIE D65 relative power at `lambda` (linear between the 5 nm samples), unnormalised.
+fn d65_raw(lambda: f32) -> f32 {
+    if !(LAMBDA_MIN..=LAMBDA_MAX).contains(&lambda) {
+        return 0.0;
+    }
+    let x = (lambda - LAMBDA_MIN) / 5.0;
+    let i = (x as usize).min(data::D65.len() - 2);
+    let t = x - i as f32;
+    data::D65[i] * (1.0 - t) + data::D65[i + 1] * t
+}
+
+/// D65 scaled to luminance Y = 1 (pbrt-v4's `stdillum-D65`, the sRGB colour space's illuminant).
+pub fn d65(lambda: f32) -> f32 {
+    static NORM: std::sync::OnceLock<f32> = std::sync::OnceLock::new();
+    let norm = *NORM.get_or_init(|| {
+        let y: f32 = (360..=830)
+            .map(|l| d65_raw(l as f32) * cie_xyz(l as f32).y)
+            .sum();
+        cie_y_integral() / y
+    });
+    d65_raw(lambda) * norm
+}
+
+/// XYZ of a spectrum (pbrt-v4 `SpectrumToXYZ`): Σ x̄ s / Σ ȳ at 1 nm.
+pub fn spectrum_to_xyz(s: impl Fn(f32) -> f32) -> Vec3 {
+    let mut xyz = Vec3::ZERO;
+    for l in 360..=830 {
+        let l = l as f32;
+        xyz += cie_xyz(l) * s(l);
+    }
+    xyz / cie_y_integral()
+}
+
+/// Linear sRGB (D65 white) from CIE XYZ.
+pub fn xyz_to_linear_srgb(xyz: Vec3) -> Vec3 {
+    Vec3::new(
+        3.240_454_2 * xyz.x - 1.537_138_5 * xyz.y - 0.498_531_4 * xyz.z,
+        -0.969_266 * xyz.x + 1.876_010_8 * xyz.y + 0.041_556 * xyz.z,
+        0.055_643_4 * xyz.x - 0.204_025_9 * xyz.y + 1.057_225_2 * xyz.z,
+    )
+}
+
+/// A reflectance-like spectrum (albedo, η, k) as linear sRGB: seen under D65ₙ.
+pub fn reflectance_to_rgb(s: impl Fn(f32) -> f32) -> Vec3 {
+    xyz_to_linear_srgb(spectrum_to_xyz(|l| s(l) * d65(l)))
+}
+
+/// A light's emission spectrum as the linear-sRGB radiance pbrt-v4 renders for `scale` 1: its
+/// chromaticity at luminance Y = 1 (pbrt-v4 `scale /= SpectrumToPhotometric(L)`). Zero for a
+/// spectrum without luminance.
+pub fn illuminant_to_rgb(s: impl Fn(f32) -> f32) -> Vec3 {
+    let xyz = spectrum_to_xyz(s);
+    if !(xyz.y > 0.0) {
+        return Vec3::ZERO;
+    }
+    xyz_to_linear_srgb(xyz / xyz.y)
+}
+
+/// Planck's law: spectral radiance of a blackbody at `lambda` nm and temperature `t` K
+/// (W·sr⁻¹·m⁻³).
+pub fn planck(lambda: f32, t: f32) -> f32 {
+    if t <= 0.0 {
+        return 0.0;
+    }
+    let (c, h, kb) = (299_792_458.0f64, 6.626_069_57e-34f64, 1.380_648_8e-23f64);
+    let l = lambda as f64 * 1e-9;
+    ((2.0 * h * c * c) / (l.powi(5) * (((h * c) / (l * kb * t as f64)).exp() - 1.0))) as f32
+}
+
+/// pbrt-v4's `blackbody` spectrum: Planck normalised to 1 at its peak (Wien: λmax = b / T).
+pub fn blackbody(lambda: f32, t: f32) -> f32 {
+    if t <= 0.0 {
+        return 0.0;
+    }
+    let peak = 2.897_772_1e-3 / t as f64 * 1e9;
+    planck(lambda, t) / planck(peak as f32, t)
+}
+
+/// The linear-sRGB emission of pbrt-v4's `"blackbody L" [T]` for `scale` 1 (luminance 1).
+pub fn blackbody_rgb(t: f32) -> Vec3 {
+    illuminant_to_rgb(|l| blackbody(l, t))
+}
+
+/// A piecewise-linear tabulated spectrum; 0 outside its range (pbrt-v4 `PiecewiseLinearSpectrum`).
+fn table(tab: &[(f32, f32)], lambda: f32) -> f32 {
+    let (Some(first), Some(last)) = (tab.first(), tab.last()) else {
+        return 0.0;
+    };
+    if lambda < first.0 || lambda > last.0 {
+        return 0.0;
+    }
+    let i = tab
+        .partition_point(|p| p.0 <= lambda)
+        .clamp(1, tab.len() - 1)
+        - 1;
+    let (a, b) = (tab[i], tab[i + 1]);
+    a.1 + (b.1 - a.1) * (lambda - a.0) / (b.0 - a.0)
+}
+
+/// Schott Sellmeier coefficients (B1, B2, B3, C1, C2, C3 in µm²) of pbrt-v4's named glasses;
+/// n²(λ) = 1 + Σ Bᵢ λ² / (λ² − Cᵢ), λ in µm.
+const GLASSES: [(&str, [f64; 6]); 7] = [
+    (
+        "glass-BK7",
+        [
+            1.039_612_12,
+            0.231_792_344,
+            1.010_469_45,
+            0.006_000_698_67,
+            0.020_017_914_4,
+            103.560_653,
+        ],
+    ),
+    (
+        "glass-BAF10",
+        [
+            1.585_149_5,
+            0.143_559_385,
+            1.085_212_69,
+            0.009_266_812_82,
+            0.042_448_980_5,
+            105.613_573,
+        ],
+    ),
+    (
+        "glass-FK51A",
+        [
+            0.971_247_817,
+            0.216_901_417,
+            0.904_651_666,
+            0.004_723_019_95,
+            0.015_357_561_2,
+            168.681_33,
+        ],
+    ),
+    (
+        "glass-LASF9",
+        [
+            2.000_295_47,
+            0.298_926_886,
+            1.806_918_43,
+            0.012_142_601_7,
+            0.053_873_623_6,
+            156.530_829,
+        ],
+    ),
+    (
+        "glass-F5",
+        [
+            1.524_818_89,
+            0.187_085_527,
+            1.427_290_15,
+            0.011_254_756,
+            0.058_899_539_2,
+            129.141_675,
+        ],
+    ),
+    (
+        "glass-F10",
+        [
+            1.621_539_02,
+            0.256_287_842,
+            1.644_475_52,
+            0.012_224_145_7,
+            0.059_573_677_5,
+            147.468_793,
+        ],
+    ),
+    (
+        "glass-F11",
+        [
+            1.737_596_95,
+            0.313_747_346,
+            1.898_781_01,
+            0.013_188_707,
+            0.062_306_814_2,
+            155.236_29,
+        ],
+    ),
+];
+
+fn sellmeier(c: &[f64; 6], lambda_nm: f32) -> f32 {
+    let l2 = (lambda_nm as f64 * 1e-3).powi(2);
+    let n2 = 1.0 + c[0] * l2 / (l2 - c[3]) + c[1] * l2 / (l2 - c[4]) + c[2] * l2 / (l2 - c[5]);
+    n2.sqrt() as f32
+}
+
+/// η(λ) of a named glass (`glass-BK7`, `glass-BAF10`, `glass-FK51A`, `glass-LASF9`, `glass-F5`,
+/// `glass-F10`, `glass-F11`).
+pub fn glass_eta(name: &str, lambda: f32) -> Option<f32> {
+    GLASSES
+        .iter()
+        .find(|g| g.0 == name)
+        .map(|g| sellmeier(&g.1, lambda))
+}
+
+/// The single IOR Trayecto uses for a named glass: η weighted by D65ₙ ȳ over the visible range.
+pub fn named_glass_ior(name: &str) -> Option<f32> {
+    glass_eta(name, 550.0)?;
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for l in 360..=830 {
+        let l = l as f32;
+        let w = (d65(l) * cie_xyz(l).y) as f64;
+        num += w * glass_eta(name, l)? as f64;
+        den += w;
+    }
+    Some((num / den) as f32)
+}
+
+/// The metals pbrt-v4 names `metal-<X>-eta` / `metal-<X>-k` that Trayecto has tables for.
+/// (pbrt-v4 also has `metal-CuZn`, not included: a scene using it gets a warning from the importer.)
+pub const METALS: [&str; 6] = [
+    "metal-Ag",
+    "metal-Al",
+    "metal-Au",
+    "metal-Cu",
+    "metal-MgO",
+    "metal-TiO2",
+];
+
+/// A tabulated spectrum: (wavelength in nm, value) pairs in increasing wavelength.
+type Table = &'static [(f32, f32)];
+
+fn metal_tables(metal: &str) -> Option<(Table, Table)> {
+    Some(match metal {
+        "metal-Ag" => (&data::AG_ETA[..], &data::AG_K[..]),
+        "metal-Al" => (&data::AL_ETA[..], &data::AL_K[..]),
+        "metal-Au" => (&data::AU_ETA[..], &data::AU_K[..]),
+        "metal-Cu" => (&data::CU_ETA[..], &data::CU_K[..]),
+        "metal-MgO" => (&data::MGO_ETA[..], &data::MGO_K[..]),
+        "metal-TiO2" => (&data::TIO2_ETA[..], &data::TIO2_K[..]),
+        _ => return None,
+    })
+}
+
+/// Value at `lambda` of a pbrt-v4 named spectrum: `metal-X-eta`, `metal-X-k`, `glass-*`,
+/// `stdillum-D65`. None for a name Trayecto does not have.
+pub fn named_spectrum(name: &str, lambda: f32) -> Option<f32> {
+    if name == "stdillum-D65" {
+        return Some(d65(lambda));
+    }
+    if let Some(eta) = glass_eta(name, lambda) {
+        return Some(eta);
+    }
+    let (metal, part) = name.rsplit_once('-')?;
+    let (eta, k) = metal_tables(metal)?;
+    match part {
+        "eta" => Some(table(eta, lambda)),
+        "k" => Some(table(k, lambda)),
+        _ => None,
+    }
+}
+
+/// True if `name` is a spectrum [`named_spectrum`] knows.
+pub fn is_named_spectrum(name: &str) -> bool {
+    named_spectrum(name, 550.0).is_some()
+}
+
+/// A named spectrum as a reflectance-like RGB (how η, k, albedo spectra become RGB).
+pub fn named_spectrum_rgb(name: &str) -> Option<Vec3> {
+    is_named_spectrum(name).then(|| reflectance_to_rgb(|l| named_spectrum(name, l).unwrap_or(0.0)))
+}
+
+/// RGB η and k of a named metal (`metal-Cu`, …): each spectrum projected as a reflectance-like
+/// spectrum under D65ₙ.
+pub fn named_conductor_rgb(metal: &str) -> Option<(Vec3, Vec3)> {
+    let (eta, k) = metal_tables(metal)?;
+    Some((
+        reflectance_to_rgb(|l| table(eta, l)),
+        reflectance_to_rgb(|l| table(k, l)),
+    ))
+}
+
+/// The RGB of the spectral Fresnel reflectance of η(λ) + i k(λ) at incidence cosine `cos`, seen
+/// under D65ₙ: what pbrt-v4 renders for a smooth patch of that metal lit by white (rgb 1) light.
+pub fn spectral_conductor_reflectance_rgb(
+    eta: impl Fn(f32) -> f32,
+    k: impl Fn(f32) -> f32,
+    cos: f32,
+) -> Vec3 {
+    reflectance_to_rgb(|l| fresnel_complex(cos, eta(l), k(l)))
+}
+
+/// Largest per-channel absolute difference, over incidence angles 0–85°, between the spectral
+/// reflectance of a named metal and the RGB Fresnel of its converted (η, k).
+pub fn conductor_rgb_error(metal: &str) -> Option<f32> {
+    let (eta, k) = metal_tables(metal)?;
+    let (e_rgb, k_rgb) = named_conductor_rgb(metal)?;
+    let mut worst = 0.0f32;
+    for deg in (0..=85).step_by(5) {
+        let c = (deg as f32).to_radians().cos();
+        let spectral = spectral_conductor_reflectance_rgb(|l| table(eta, l), |l| table(k, l), c);
+        let rgb = crate::material::microfacet::fresnel_conductor(c, e_rgb, k_rgb);
+        worst = worst.max((spectral - rgb).abs().max_element());
+    }
+    Some(worst)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn white_maps_to_white() {
+        let w = reflectance_to_rgb(|_| 1.0);
+        assert!((w - Vec3::ONE).abs().max_element() < 2e-3, "{w:?}");
+        let d = illuminant_to_rgb(d65);
+        assert!((d - Vec3::ONE).abs().max_element() < 2e-3, "{d:?}");
+        // Equal-energy white has Y = 1 by the normalisation.
+        assert!((spectrum_to_xyz(|_| 1.0).y - 1.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn blackbody_is_planck_with_unit_peak() {
+        for t in [2700.0f32, 6500.0] {
+            let peak = 2.897_772e-3 / t * 1e9;
+            assert!((blackbody(peak, t) - 1.0).abs() < 1e-4);
+            assert!(blackbody(peak * 0.9, t) < 1.0 && blackbody(peak * 1.1, t) < 1.0);
+        }
+        // 2700 K is orange (r > g > b), 6500 K close to D65's white, 10000 K bluish.
+        let warm = blackbody_rgb(2700.0);
+        assert!(warm.x > warm.y && warm.y > warm.z, "{warm:?}");
+        let d = blackbody_rgb(6504.0);
+        assert!((d - Vec3::ONE).abs().max_element() < 0.06, "{d:?}");
+        let cool = blackbody_rgb(10000.0);
+        assert!(cool.z > cool.x, "{cool:?}");
+    }
+
+    #[test]
+    fn glasses_match_their_catalogue_nd() {
+        // Schott catalogue n_d at the helium d line, 587.56 nm.
+        for (name, nd) in [
+            ("glass-BK7", 1.5168),
+            ("glass-BAF10", 1.6700),
+            ("glass-FK51A", 1.4866),
+            ("glass-LASF9", 1.8503),
+            ("glass-F5", 1.6727),
+            ("glass-F10", 1.7283),
+            ("glass-F11", 1.7847),
+        ] {
+            let n = glass_eta(name, 587.56).unwrap();
+            assert!((n - nd).abs() < 2e-4, "{name}: {n} vs {nd}");
+            let ior = named_glass_ior(name).unwrap();
+            assert!((ior - nd).abs() < 0.01, "{name}: {ior}");
+        }
+        assert!(glass_eta("glass-nope", 500.0).is_none());
+    }
+
+    #[test]
+    fn named_metals_are_known_and_plausible() {
+        for m in METALS {
+            assert!(is_named_spectrum(&format!("{m}-eta")) && is_named_spectrum(&format!("{m}-k")));
+        }
+        // Copper and gold reflect red more than blue; silver and aluminium are nearly neutral.
+        for m in ["metal-Cu", "metal-Au"] {
+            let (e, k) = named_conductor_rgb(m).unwrap();
+            let f0 = crate::material::microfacet::fresnel_conductor(1.0, e, k);
+            assert!(f0.x > f0.y && f0.y > f0.z && f0.x > 0.85, "{m}: {f0:?}");
+        }
+        let (e, k) = named_conductor_rgb("metal-Ag").unwrap();
+        let f0 = crate::material::microfacet::fresnel_conductor(1.0, e, k);
+        assert!(f0.min_element() > 0.85, "{f0:?}");
+        assert!(named_conductor_rgb("metal-CuZn").is_none());
+    }
+
+    #[test]
+    fn conductor_conversion_error_is_bounded() {
+        for m in METALS {
+            let e = conductor_rgb_error(m).unwrap();
+            println!("{m}: max |spectral - rgb| reflectance = {e:.4}");
+        }
+        for m in ["metal-Cu", "metal-Au", "metal-Ag", "metal-Al"] {
+            let e = conductor_rgb_error(m).unwrap();
+            assert!(e < 0.05, "{m}: {e}");
+        }
+    }
+}
