@@ -24,7 +24,7 @@ impl Camera {
             camera_to_world: desc.camera_to_world,
             width,
             height,
-            tan_half_v: (desc.vfov_deg.to_radians() * 0.5).tan(),
+            tan_half_v: desc.fitted_tan_half_v(width as f32 / height as f32),
             aspect: width as f32 / height as f32,
             aperture_radius: desc.aperture_radius,
             focus_distance: desc.focus_distance,

@@ -26,6 +26,19 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+/// The image height when only the camera's aspect ratio is known.
+pub const DEFAULT_HEIGHT: u32 = 512;
+
+/// A derived side in pixels: rounded, at least 1 and at most [`crate::render::MAX_DIMENSION`]
+/// (an extreme aspect ratio then shows as a disagreement with the camera, which is reported).
+fn clamp_side(v: f64) -> u32 {
+    if v.is_finite() {
+        v.round().clamp(1.0, crate::render::MAX_DIMENSION as f64) as u32
+    } else {
+        1
+    }
+}
+
 /// One image file to write from the rendered film.
 #[derive(Clone, Debug)]
 pub struct OutputSpec {
@@ -130,12 +143,9 @@ pub enum PipelineError {
     #[error(transparent)]
     Output(#[from] OutputError),
     /// Writing `path` failed (kept apart so a front end can name the file its own way).
-    #[error("{source}")]
-    Write {
-        path: PathBuf,
-        #[source]
-        source: OutputError,
-    },
+    /// `error` already names the file; it is not also a `source()`, so `{:#}` says it once.
+    #[error("{error}")]
+    Write { path: PathBuf, error: OutputError },
     #[error("render cancelled")]
     Cancelled,
     /// Cancelled after saving the passes done to a checkpoint, to be resumed from.
@@ -241,19 +251,100 @@ impl RenderJob {
     }
 
     /// The settings to render `scene` with: the scene file's resolution, samples and depth
-    /// ([`Scene::hints`]) under the options the job was explicitly given.
+    /// ([`Scene::hints`]) under the options the job was explicitly given, and the image's shape
+    /// from the camera (see [`RenderJob::resolve`]).
     pub fn settings_for(&self, scene: &Scene) -> RenderSettings {
+        self.resolve(scene).0
+    }
+
+    /// [`RenderJob::settings_for`], with a line saying where the image size came from when it
+    /// was not given in full or disagrees with the camera's shape.
+    ///
+    /// The size, in order of precedence: the sides the job was given; the file's own resolution
+    /// ([`crate::scene::RenderHints`]: pbrt `Film`, TOML `[render]`), with one given side
+    /// deriving the other from the file's aspect ratio; the selected camera's aspect ratio (glTF
+    /// `aspectRatio`, FBX film aspect): [`DEFAULT_HEIGHT`] pixels high, or one given side
+    /// deriving the other; else the job's defaults (square). When the final size disagrees with
+    /// the camera's aspect ratio the view is fitted as Blender's sensor fit `AUTO` does
+    /// ([`crate::scene::CameraDesc::fitted_tan_half_v`]) and the line says so.
+    pub fn resolve(&self, scene: &Scene) -> (RenderSettings, Option<String>) {
         let mut s = self.settings.clone();
         let h = &scene.hints;
         let pick = |given: bool, hint: Option<u32>, current: u32| match hint {
             Some(v) if !given => v,
             _ => current,
         };
-        s.width = pick(self.given.width, h.width, s.width);
-        s.height = pick(self.given.height, h.height, s.height);
         s.spp = pick(self.given.spp, h.spp, s.spp);
         s.path.max_depth = pick(self.given.max_depth, h.max_depth, s.path.max_depth);
-        s
+
+        let camera = scene.camera_by(self.world.camera.as_deref());
+        let cam_aspect = camera
+            .and_then(|c| c.aspect)
+            .filter(|a| a.is_finite() && *a > 0.0);
+        let (gw, gh) = (self.given.width, self.given.height);
+        // Derives one side from the other at aspect ratio `a` = width / height.
+        let from_w = |w: u32, a: f32| clamp_side(w as f64 / a as f64);
+        let from_h = |hh: u32, a: f32| clamp_side(hh as f64 * a as f64);
+        let mut source = "";
+        match (gw, gh, h.width, h.height) {
+            (true, true, ..) => {}
+            (false, false, Some(w), Some(hh)) => {
+                (s.width, s.height) = (w, hh);
+                source = "the scene file's resolution";
+            }
+            (true, false, Some(w), Some(hh)) => {
+                s.height = from_w(s.width, w as f32 / hh as f32);
+                source = "--width and the scene file's aspect ratio";
+            }
+            (false, true, Some(w), Some(hh)) => {
+                s.width = from_h(s.height, w as f32 / hh as f32);
+                source = "--height and the scene file's aspect ratio";
+            }
+            _ => match cam_aspect {
+                Some(a) if !gw && !gh => {
+                    s.height = DEFAULT_HEIGHT;
+                    s.width = from_h(DEFAULT_HEIGHT, a);
+                    source = "the camera's aspect ratio";
+                }
+                Some(a) if gw => {
+                    s.height = from_w(s.width, a);
+                    source = "--width and the camera's aspect ratio";
+                }
+                Some(a) => {
+                    s.width = from_h(s.height, a);
+                    source = "--height and the camera's aspect ratio";
+                }
+                None => {
+                    s.width = pick(gw, h.width, s.width);
+                    s.height = pick(gh, h.height, s.height);
+                }
+            },
+        }
+        let mut note = (!source.is_empty()).then(|| {
+            format!(
+                "image size {}x{} from {source} (give --width/--height to change it)",
+                s.width, s.height
+            )
+        });
+        if let (Some(c), Some(a)) = (camera, cam_aspect)
+            && (s.width as f64 - s.height as f64 * a as f64).abs() > 1.0
+        {
+            let larger = if s.width >= s.height {
+                "width"
+            } else {
+                "height"
+            };
+            note = Some(format!(
+                "camera '{}' has aspect ratio {a:.3} but the image is {}x{} ({:.3}): the view is \
+                 fitted as Blender does (sensor fit auto), the camera's wider field of view spans \
+                 the image's {larger}",
+                c.name,
+                s.width,
+                s.height,
+                s.width as f64 / s.height as f64
+            ));
+        }
+        (s, note)
     }
 
     /// Runs the whole pipeline. `cancel` is polled between stages and by the render driver.
@@ -281,8 +372,11 @@ impl RenderJob {
         if cancelled() {
             return Err(PipelineError::Cancelled);
         }
-        let settings = self.settings_for(&scene);
+        let (settings, size_note) = self.resolve(&scene);
         settings.validate()?;
+        if let Some(n) = size_note {
+            info(n);
+        }
         // The frame's identity for partial films: hashing a big scene costs time, so only when
         // one is written or read.
         let digest = if self.writes_parts() {
@@ -428,7 +522,7 @@ pub fn write_outputs(
         write_image(image, &o.path, o.exposure, o.tonemap).map_err(|source| {
             PipelineError::Write {
                 path: o.path.clone(),
-                source,
+                error: source,
             }
         })?;
         written.push(o.path.clone());

@@ -492,11 +492,7 @@ fn select_camera(
     label: &str,
 ) -> Result<CameraDesc, SceneError> {
     if let Some(sel) = &options.camera {
-        let found = match sel.parse::<usize>() {
-            Ok(i) => scene.cameras.get(i),
-            Err(_) => scene.cameras.iter().find(|c| c.name == *sel),
-        };
-        return found.cloned().ok_or_else(|| {
+        return scene.camera_by(Some(sel)).cloned().ok_or_else(|| {
             let names: Vec<String> = scene
                 .cameras
                 .iter()

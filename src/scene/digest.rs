@@ -13,7 +13,7 @@ use std::path::Path;
 fn hash_file(h: &mut Sha256, path: &Path) -> Result<(), SceneError> {
     let io = |source| SceneError::Io {
         path: path.display().to_string(),
-        source,
+        error: source,
     };
     let mut f = std::fs::File::open(path).map_err(io)?;
     std::io::copy(&mut f, h).map_err(io)?;

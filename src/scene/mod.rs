@@ -138,6 +138,20 @@ pub struct CameraDesc {
 }
 
 impl CameraDesc {
+    /// tan(vfov/2) for an image of aspect ratio `image_aspect` (width / height), fitted as
+    /// Blender's sensor fit `AUTO`: the camera's field of view across the larger side of its
+    /// own frame (vertical `vfov_deg` × `aspect` when the frame is wide) spans the larger side of
+    /// the image. Equal aspect ratios, or a camera without one, keep `vfov_deg`.
+    pub fn fitted_tan_half_v(&self, image_aspect: f32) -> f32 {
+        let t = (self.vfov_deg.to_radians() * 0.5).tan();
+        match self.aspect.filter(|a| a.is_finite() && *a > 0.0) {
+            Some(a) if image_aspect.is_finite() && image_aspect > 0.0 => {
+                t * a.max(1.0) / image_aspect.max(1.0)
+            }
+            _ => t,
+        }
+    }
+
     pub fn look_at(name: &str, eye: Vec3, target: Vec3, up: Vec3, vfov_deg: f32) -> CameraDesc {
         let view = Mat4::look_at_rh(eye, target, up);
         CameraDesc {
@@ -307,14 +321,23 @@ impl MediumDesc {
 pub enum SceneError {
     #[error("{path}: {message}")]
     Invalid { path: String, message: String },
-    #[error("{path}: {source}")]
-    Io {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
+    /// The cause is in the message and not also a `source()`, so `{:#}` chains say it once.
+    #[error("{path}: {}", io_message(error))]
+    Io { path: String, error: std::io::Error },
     #[error("unknown built-in scene '{0}' (available: {list})", list = builtin::NAMES.join(", "))]
     UnknownBuiltin(String),
+}
+
+/// An I/O error in words a user can act on.
+fn io_message(e: &std::io::Error) -> String {
+    match e.kind() {
+        std::io::ErrorKind::NotFound => "no such file".into(),
+        std::io::ErrorKind::PermissionDenied => {
+            "permission denied (check the file's permissions)".into()
+        }
+        std::io::ErrorKind::IsADirectory => "is a folder, not a scene file".into(),
+        _ => e.to_string(),
+    }
 }
 
 impl SceneError {
@@ -355,6 +378,18 @@ impl Scene {
     /// True if the scene has any participating medium (then the volumetric path tracer runs).
     pub fn has_media(&self) -> bool {
         !self.media.is_empty()
+    }
+
+    /// The camera `--camera` names (an index or a name), else the first; `None` when the scene
+    /// has none or the selection matches nothing (the world then reports it).
+    pub fn camera_by(&self, selection: Option<&str>) -> Option<&CameraDesc> {
+        match selection {
+            Some(sel) => match sel.parse::<usize>() {
+                Ok(i) => self.cameras.get(i),
+                Err(_) => self.cameras.iter().find(|c| c.name == sel),
+            },
+            None => self.cameras.first(),
+        }
     }
 
     /// Number of triangles after instancing.
@@ -588,6 +623,8 @@ pub struct SceneFormat {
     pub load: LoadFn,
     /// Whether a TOML scene may include files of this format as meshes.
     pub includable: bool,
+    /// A mesh format (no cameras, lights or materials of its own): listed after scene files.
+    pub mesh_only: bool,
 }
 
 fn load_ply(bytes: &[u8], _dir: &Path, label: &str) -> Result<Scene, SceneError> {
@@ -611,36 +648,42 @@ pub const FORMATS: &[SceneFormat] = &[
         extensions: &["gltf", "glb"],
         load: gltf::load_from_bytes,
         includable: true,
+        mesh_only: false,
     },
     SceneFormat {
         name: "Wavefront OBJ",
         extensions: &["obj"],
         load: obj::load_from_bytes,
         includable: true,
+        mesh_only: false,
     },
     SceneFormat {
         name: "PLY",
         extensions: &["ply"],
         load: load_ply,
         includable: true,
+        mesh_only: true,
     },
     SceneFormat {
         name: "FBX (binary)",
         extensions: &["fbx"],
         load: load_fbx,
         includable: true,
+        mesh_only: false,
     },
     SceneFormat {
         name: "pbrt-v4",
         extensions: &["pbrt"],
         load: pbrt::load_from_file_bytes,
         includable: false,
+        mesh_only: false,
     },
     SceneFormat {
         name: "Trayecto TOML",
         extensions: &["toml"],
         load: toml_scene::load_from_bytes,
         includable: false,
+        mesh_only: false,
     },
 ];
 
@@ -679,10 +722,19 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
         return Err(SceneError::UnknownBuiltin(spec.to_string()));
     }
     if !path.is_file() {
-        return Err(SceneError::Io {
-            path: spec.to_string(),
-            source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
-        });
+        let what = if path.is_dir() {
+            "is a folder; give a scene file inside it"
+        } else {
+            "no such file"
+        };
+        return Err(SceneError::invalid(
+            spec,
+            format!(
+                "{what} (scene files: {}; built-in scenes: {})",
+                extension_list(false),
+                builtin::NAMES.join(", ")
+            ),
+        ));
     }
     load_file(path)
 }
@@ -701,7 +753,7 @@ pub fn load_file(path: &Path) -> Result<Scene, SceneError> {
     };
     let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
         path: label.clone(),
-        source: e,
+        error: e,
     })?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let mut scene = (format.load)(&bytes, dir, &label)?;

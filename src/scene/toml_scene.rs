@@ -39,6 +39,17 @@ struct File {
     medium: Vec<MediumSpec>,
     /// Name of the medium the camera is in: a global fog filling everything no object bounds.
     fog: Option<String>,
+    /// Render settings the scene asks for; the command line overrides each.
+    render: Option<RenderSpec>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RenderSpec {
+    width: Option<u32>,
+    height: Option<u32>,
+    spp: Option<u32>,
+    max_depth: Option<u32>,
 }
 
 /// A participating medium (issue #18). `sigma_a`, `sigma_s` per unit length, times `scale`.
@@ -227,6 +238,18 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
         default_light: file.default_light,
         ..Default::default()
     };
+
+    if let Some(r) = &file.render {
+        for (key, v) in [("width", r.width), ("height", r.height), ("spp", r.spp)] {
+            if v == Some(0) {
+                return Err(err(format!("[render] {key} must be at least 1")));
+            }
+        }
+        scene.hints.width = r.width;
+        scene.hints.height = r.height;
+        scene.hints.spp = r.spp;
+        scene.hints.max_depth = r.max_depth;
+    }
 
     let mut by_name: HashMap<String, MaterialId> = HashMap::new();
     for m in &file.material {

@@ -21,11 +21,22 @@ use trayecto::sampling::SamplerKind;
 use trayecto::split::SplitOptions;
 use trayecto::world::{World, WorldOptions};
 
+/// What `trayecto --help` leads with; the README shows the same lines (a test checks both).
+pub const HELP_START: &str = "\
+Start here (in a checkout):
+  cargo run --release                     # renders the built-in Cornell box to render.png
+  ./scripts/test.sh                       # runs the whole test suite (what CI runs)
+One example per front end:
+  trayecto render scene.gltf -o out.png   # render a scene file; its camera sets the image's shape
+  trayecto info scene.gltf                # what a scene contains and every warning about it
+  trayecto serve --scenes DIR             # the web UI on http://127.0.0.1:8080";
+
 #[derive(Parser, Debug)]
 #[command(
     name = "trayecto",
     version,
     about = "Trayecto: a physically based path tracer. With no subcommand it renders (the built-in Cornell box by default).",
+    before_help = HELP_START,
     args_conflicts_with_subcommands = true
 )]
 pub struct Cli {
@@ -72,12 +83,12 @@ pub struct RenderArgs {
     /// Output image; the format follows the extension (.png, .ppm, .exr, .hdr).
     #[arg(short = 'o', long = "output", default_value = "render.png")]
     pub output: PathBuf,
-    /// Image width in pixels [resolución].
-    /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 512.)
+    /// Image width in pixels [resolución]. Default: the scene file's resolution (pbrt Film, TOML
+    /// [render]), else from the height and the camera's aspect ratio, else 512.
     #[arg(long)]
     pub width: Option<u32>,
-    /// Image height in pixels [resolución].
-    /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 512.)
+    /// Image height in pixels [resolución]. Default: the scene file's resolution, else from the
+    /// width and the camera's aspect ratio, else 512.
     #[arg(long)]
     pub height: Option<u32>,
     /// Camera samples per pixel [sobremuestreo].
@@ -370,8 +381,7 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
     let (lights, cameras) = (scene.lights.clone(), scene.cameras.clone());
     let scene_warnings = scene.warnings.clone();
     let hints = scene.hints.clone();
-    let world = World::build(scene, &WorldOptions::default())
-        .with_context(|| format!("compiling {}", args.scene))?;
+    let world = World::build(scene, &WorldOptions::default())?;
     let b = world.bounds;
     println!("scene       {name}");
     println!("meshes      {meshes}");
@@ -488,5 +498,152 @@ pub fn main() -> ExitCode {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// The README's options tables, generated from clap's own definitions (`scripts/readme-options.sh`
+/// rewrites them; the test below fails when they drift).
+#[cfg(test)]
+mod readme {
+    use super::Cli;
+    use clap::CommandFactory;
+
+    /// The markdown table of one subcommand's options: flag, default, help.
+    fn table(sub: &str) -> String {
+        let cmd = Cli::command();
+        let cmd = cmd.find_subcommand(sub).expect("subcommand");
+        let mut t = String::from("| option | default | meaning |\n|---|---|---|\n");
+        for a in cmd.get_arguments() {
+            let Some(long) = a.get_long() else { continue };
+            if long == "help" || long == "version" {
+                continue;
+            }
+            let takes_value = a.get_action().takes_values();
+            let mut flag = match a.get_short() {
+                Some(c) => format!("`-{c}`, `--{long}`"),
+                None => format!("`--{long}`"),
+            };
+            if takes_value {
+                let v = a
+                    .get_value_names()
+                    .and_then(|v| v.first().map(|s| s.to_string()))
+                    .unwrap_or_else(|| long.to_ascii_uppercase().replace('-', "_"));
+                flag = flag.replacen(&format!("`--{long}`"), &format!("`--{long} {v}`"), 1);
+            }
+            let defaults: Vec<String> = a
+                .get_default_values()
+                .iter()
+                .map(|d| d.to_string_lossy().into_owned())
+                .collect();
+            let default = if !defaults.is_empty() {
+                format!("`{}`", defaults.join(" "))
+            } else if takes_value {
+                "see meaning".to_string()
+            } else {
+                "off".to_string()
+            };
+            let help = a
+                .get_long_help()
+                .or(a.get_help())
+                .map(|h| h.to_string())
+                .unwrap_or_default()
+                .replace('\n', " ")
+                .replace('|', "\\|");
+            t.push_str(&format!("| {flag} | {default} | {help} |\n"));
+        }
+        t
+    }
+
+    fn section(readme: &str, sub: &str) -> Option<(usize, usize)> {
+        let begin = format!("<!-- options:{sub} begin (scripts/readme-options.sh) -->\n");
+        let end = format!("<!-- options:{sub} end -->");
+        let b = readme.find(&begin)? + begin.len();
+        let e = b + readme[b..].find(&end)?;
+        Some((b, e))
+    }
+
+    const SUBCOMMANDS: [&str; 2] = ["render", "serve"];
+
+    #[test]
+    fn readme_options_tables_match_clap() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/README.md");
+        let mut readme = std::fs::read_to_string(path).unwrap();
+        let regenerate = std::env::var_os("TRAYECTO_REGENERATE_README").is_some();
+        for sub in SUBCOMMANDS {
+            let (b, e) = section(&readme, sub)
+                .unwrap_or_else(|| panic!("README.md has no options:{sub} markers"));
+            let want = table(sub);
+            if regenerate {
+                readme.replace_range(b..e, &want);
+                continue;
+            }
+            let have = &readme[b..e];
+            // Every clap option, with its default, is a row of the table: the same text.
+            for (h, w) in have.lines().zip(want.lines()) {
+                assert_eq!(
+                    h, w,
+                    "README.md's {sub} options table differs from clap; run scripts/readme-options.sh"
+                );
+            }
+            assert_eq!(
+                have, want,
+                "README.md's {sub} options table differs from clap; run scripts/readme-options.sh"
+            );
+        }
+        if regenerate {
+            std::fs::write(path, readme).unwrap();
+        }
+    }
+
+    #[test]
+    fn every_option_is_listed_with_its_default() {
+        // Independent of the generator: each long option and each clap default appears.
+        let readme =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+        for sub in SUBCOMMANDS {
+            let (b, e) = section(&readme, sub).unwrap();
+            let rows = &readme[b..e];
+            let cmd = Cli::command();
+            for a in cmd.find_subcommand(sub).unwrap().get_arguments() {
+                let Some(long) = a.get_long() else { continue };
+                if long == "help" {
+                    continue;
+                }
+                let row = rows
+                    .lines()
+                    .find(|l| {
+                        l.contains(&format!("`--{long}`")) || l.contains(&format!("`--{long} "))
+                    })
+                    .unwrap_or_else(|| panic!("--{long} ({sub}) is not in README.md's table"));
+                for d in a.get_default_values() {
+                    let d = format!("`{}`", d.to_string_lossy());
+                    assert!(
+                        row.contains(&d),
+                        "--{long}: default {d} missing in README row {row}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn help_and_readme_lead_with_the_two_commands_and_examples() {
+        let help = Cli::command().render_help().to_string();
+        // The start lines come before the usage line.
+        let usage = help.find("Usage:").expect("usage line");
+        assert!(help[..usage].contains(super::HELP_START), "{help}");
+        let readme =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+        for line in super::HELP_START.lines().filter(|l| l.starts_with("  ")) {
+            // The command (the comment may be worded differently).
+            let command = line.split('#').next().unwrap_or("").trim();
+            assert!(
+                readme.contains(command),
+                "README.md lacks the help's command {command:?}"
+            );
+        }
+        // The two commands come before any other section of the README.
+        let first_section = readme.find("\n## ").unwrap();
+        assert!(readme[first_section..].starts_with("\n## The two commands"));
     }
 }

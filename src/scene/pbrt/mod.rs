@@ -99,14 +99,14 @@ pub fn load_from_bytes(bytes: &[u8], label: &str) -> Result<Scene, SceneError> {
 fn read_text(path: &Path, label: &str) -> Result<String, SceneError> {
     let meta = std::fs::metadata(path).map_err(|e| SceneError::Io {
         path: label.to_string(),
-        source: e,
+        error: e,
     })?;
     if meta.len() > MAX_FILE_BYTES {
         return Err(SceneError::invalid(label, "the file is larger than 2 GiB"));
     }
     let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
         path: label.to_string(),
-        source: e,
+        error: e,
     })?;
     String::from_utf8(bytes).map_err(|e| {
         SceneError::invalid(
@@ -755,7 +755,7 @@ impl Loader {
         let path = self.resolve(f, at)?;
         let canon = path.canonicalize().map_err(|e| SceneError::Io {
             path: format!("{at}: Include \"{f}\""),
-            source: e,
+            error: e,
         })?;
         if self.include_stack.contains(&canon) {
             return Err(SceneError::invalid(

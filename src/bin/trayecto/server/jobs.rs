@@ -3,7 +3,7 @@
 //! progress bar. Cancelling sets the driver's flag; when the thread ends the world, the film and
 //! the preview are dropped, so a cancelled job holds no image memory.
 
-use super::request::RenderRequest;
+use super::request::{RenderRequest, SceneSource};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -412,16 +412,28 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
     match render.run(&Observer(job), &job.cancel) {
         Ok(_) => {}
         Err(PipelineError::Cancelled) => return Err(JobEnd::Cancelled),
-        Err(PipelineError::Write { path, source }) => {
-            // Report the name only, not the server's folder layout.
+        Err(PipelineError::Write { path, error }) => {
+            // Report the name only, not the server's folder layout (the error names the path).
+            let why = match error {
+                trayecto::film::output::OutputError::Write { message, .. }
+                | trayecto::film::output::OutputError::Read { message, .. } => message,
+                e @ trayecto::film::output::OutputError::UnknownFormat { .. } => e.to_string(),
+            };
             return Err(JobEnd::Failed(format!(
-                "could not write {}: {source}",
+                "could not write {}: {why}",
                 path.file_name()
                     .map(|f| f.to_string_lossy())
                     .unwrap_or_default()
             )));
         }
-        Err(e) => return Err(JobEnd::Failed(e.to_string())),
+        // Scene errors name the file by its canonical path; show the name the page used.
+        Err(e) => {
+            let mut m = e.to_string();
+            if let SceneSource::File(p) = &r.source {
+                m = m.replace(&*p.to_string_lossy(), &r.scene);
+            }
+            return Err(JobEnd::Failed(m));
+        }
     }
     let mut st = job.status();
     st.timings

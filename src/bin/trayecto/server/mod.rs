@@ -15,7 +15,7 @@ pub mod request;
 
 use axum::Router;
 use axum::body::Body;
-use axum::extract::{Path as UrlPath, Request, State};
+use axum::extract::{Path as UrlPath, Query, Request, State};
 use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
@@ -165,6 +165,7 @@ pub fn router(policy: Policy, loopback: bool) -> Router {
         )
         .route("/api/options", get(options))
         .route("/api/scenes", get(scenes))
+        .route("/api/scene-defaults", get(scene_defaults))
         .route("/api/renders", get(list_renders).post(create_render))
         .route("/api/renders/{id}", get(render_status))
         .route("/api/renders/{id}/cancel", post(cancel_render))
@@ -314,18 +315,45 @@ async fn options(State(st): State<Shared>) -> Response {
     )
 }
 
-async fn scenes(State(st): State<Shared>) -> Response {
+/// `?all=true` also lists the meshes another scene file under the folder refers to.
+async fn scenes(
+    State(st): State<Shared>,
+    Query(q): Query<std::collections::HashMap<String, String>>,
+) -> Response {
+    let all = q
+        .get("all")
+        .is_some_and(|v| matches!(v.as_str(), "true" | "1" | "on" | "yes"));
     let dir = st.policy.scenes_dir.clone();
-    let files = match dir {
-        Some(d) => tokio::task::spawn_blocking(move || request::list_scenes(&d))
+    let (files, hidden) = match dir {
+        Some(d) => tokio::task::spawn_blocking(move || request::scene_list(&d, all))
             .await
             .unwrap_or_default(),
-        None => Vec::new(),
+        None => (Vec::new(), 0),
     };
     json_response(
         StatusCode::OK,
-        json!({ "builtin": trayecto::scene::builtin::NAMES, "files": files }),
+        json!({ "builtin": trayecto::scene::builtin::NAMES, "files": files, "hidden": hidden }),
     )
+}
+
+/// `?scene=NAME`: the size, samples and depth a render of NAME gets from the file (the page
+/// prefills them).
+async fn scene_defaults(
+    State(st): State<Shared>,
+    Query(q): Query<std::collections::HashMap<String, String>>,
+) -> Response {
+    let Some(name) = q.get("scene").cloned() else {
+        return error(StatusCode::BAD_REQUEST, "give ?scene=NAME");
+    };
+    if name.len() > request::MAX_SCENE_NAME {
+        return error(StatusCode::BAD_REQUEST, "the scene name is too long");
+    }
+    let policy = st.policy.clone();
+    match tokio::task::spawn_blocking(move || request::scene_defaults(&name, &policy)).await {
+        Ok(Ok(v)) => json_response(StatusCode::OK, v),
+        Ok(Err(m)) => error(StatusCode::BAD_REQUEST, m),
+        Err(_) => error(StatusCode::INTERNAL_SERVER_ERROR, "internal error"),
+    }
 }
 
 async fn list_renders(State(st): State<Shared>) -> Response {

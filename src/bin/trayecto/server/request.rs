@@ -159,6 +159,78 @@ pub fn resolve_scene(root: &Path, name: &str) -> Result<PathBuf, String> {
     Ok(canon)
 }
 
+/// The page's scene list: scene files first (pbrt, glTF, FBX, TOML, OBJ, by path), then
+/// standalone meshes (PLY); meshes that a pbrt or TOML file under the folder refers to only when
+/// `all` (else they are counted in `hidden`).
+pub fn scene_list(root: &Path, all: bool) -> (Vec<String>, usize) {
+    let files = list_scenes(root);
+    let referenced = referenced_files(root, &files);
+    let rank = |f: &str| {
+        let is_ref = referenced.contains(f);
+        let mesh = trayecto::scene::format_for(Path::new(f)).is_some_and(|x| x.mesh_only);
+        (is_ref as u8, mesh as u8)
+    };
+    let mut out: Vec<String> = files;
+    let before = out.len();
+    if !all {
+        out.retain(|f| !referenced.contains(f));
+    }
+    let hidden = before - out.len();
+    out.sort_by(|a, b| rank(a).cmp(&rank(b)).then_with(|| a.cmp(b)));
+    (out, hidden)
+}
+
+/// Files of `files` that a pbrt or TOML scene among them names (as a quoted string, relative to
+/// its own folder). Each scene file is read up to 16 MiB; a mention that is not a real reference
+/// (a comment) only hides a mesh behind the "show all files" toggle.
+fn referenced_files(root: &Path, files: &[String]) -> std::collections::HashSet<String> {
+    const MAX_READ: u64 = 16 << 20;
+    let listed: std::collections::HashSet<&str> = files.iter().map(|s| s.as_str()).collect();
+    let mut out = std::collections::HashSet::new();
+    for f in files {
+        let ext = Path::new(f)
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        if !matches!(ext.as_deref(), Some("pbrt" | "toml")) {
+            continue;
+        }
+        let path = root.join(f);
+        if std::fs::metadata(&path).map_or(true, |m| m.len() > MAX_READ) {
+            continue;
+        }
+        let Ok(text) = std::fs::read_to_string(&path) else {
+            continue;
+        };
+        let dir = Path::new(f).parent().unwrap_or(Path::new(""));
+        for quoted in text.split('"').skip(1).step_by(2) {
+            if quoted.is_empty() || quoted.len() > MAX_SCENE_NAME || quoted.contains('\\') {
+                continue;
+            }
+            // Normalise "a/./b" and "a/../b" lexically; stay inside the folder.
+            let mut parts: Vec<&str> = dir
+                .to_str()
+                .unwrap_or("")
+                .split('/')
+                .filter(|p| !p.is_empty())
+                .collect();
+            let mut inside = true;
+            for c in quoted.split('/') {
+                match c {
+                    "" | "." => {}
+                    ".." => inside &= parts.pop().is_some(),
+                    c => parts.push(c),
+                }
+            }
+            let rel = parts.join("/");
+            if inside && &rel != f && listed.contains(rel.as_str()) {
+                out.insert(rel);
+            }
+        }
+    }
+    out
+}
+
 /// Scene files under the (canonical) scenes folder, as '/'-separated relative paths, sorted.
 /// Hidden entries are skipped; symlinks are listed only if they are files that resolve inside
 /// the folder (symlinked folders are not followed, so loops cannot occur).
@@ -296,6 +368,68 @@ impl Defaults {
     pub const MAX_DEPTH: u64 = 16;
     pub const EXPOSURE: f64 = 1.0;
     pub const OUTPUT: &str = "render";
+}
+
+/// Resolves a scene name the page sent: a built-in or a file inside the scenes folder.
+pub fn scene_source(name: &str, policy: &Policy) -> Result<SceneSource, String> {
+    if builtin::NAMES.contains(&name) {
+        return Ok(SceneSource::Builtin(name.to_string()));
+    }
+    match &policy.scenes_dir {
+        None => Err(format!(
+            "unknown scene (built-ins: {}; start the server with --scenes DIR for files)",
+            builtin::NAMES.join(", ")
+        )),
+        Some(root) => resolve_scene(root, name).map(SceneSource::File),
+    }
+}
+
+/// What a render of `name` gets when its size, samples and depth are not given: the file's own
+/// resolution, else its camera's shape (the pipeline's rule, [`trayecto::pipeline::RenderJob::resolve`]),
+/// scaled down to fit the server's `max_size`. Loads the scene.
+pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
+    let source = scene_source(name, policy)?;
+    let scene = trayecto::scene::load(&source.load_spec()).map_err(|e| {
+        let m = e.to_string();
+        match &source {
+            SceneSource::File(p) => m.replace(&*p.to_string_lossy(), name),
+            SceneSource::Builtin(_) => m,
+        }
+    })?;
+    let job = trayecto::pipeline::RenderJob {
+        scene: name.to_string(),
+        world: trayecto::world::WorldOptions::default(),
+        settings: RenderSettings {
+            width: Defaults::WIDTH as u32,
+            height: Defaults::HEIGHT as u32,
+            spp: Defaults::SPP as u32,
+            path: PathSettings {
+                max_depth: Defaults::MAX_DEPTH as u32,
+                ..PathSettings::default()
+            },
+            ..RenderSettings::default()
+        },
+        given: trayecto::pipeline::GivenSettings {
+            width: false,
+            height: false,
+            spp: false,
+            max_depth: false,
+        },
+        split: Default::default(),
+        outputs: vec![],
+    };
+    let (s, note) = job.resolve(&scene);
+    let l = &policy.limits;
+    let (mut w, mut h) = (s.width as f64, s.height as f64);
+    let scale = (l.max_size as f64 / w.max(h)).min(1.0);
+    (w, h) = ((w * scale).round().max(1.0), (h * scale).round().max(1.0));
+    Ok(serde_json::json!({
+        "width": w as u32,
+        "height": h as u32,
+        "spp": s.spp.min(l.max_spp),
+        "max_depth": s.path.max_depth.min(l.max_depth),
+        "note": note,
+    }))
 }
 
 /// Parses and checks a JSON render request. Every wrong field is reported, not only the first.
