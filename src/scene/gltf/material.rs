@@ -1,0 +1,356 @@
+//! glTF materials and textures: the metallic-roughness inputs, texture references with their
+//! coordinate sets and transforms, and the KHR material extensions Trayecto reads.
+
+use super::*;
+
+impl Loader<'_> {
+    /// The scene texture for glTF texture `t` decoded as sRGB or linear.
+    pub(super) fn texture(&mut self, t: &gltf::Texture, srgb: bool) -> Result<usize, SceneError> {
+        if let Some(&i) = self.textures.get(&(t.index(), srgb)) {
+            return Ok(i);
+        }
+        let img = t.source();
+        let name = img
+            .name()
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("image {}", img.index()));
+        let mut tex = match img.source() {
+            gltf::image::Source::View { view, .. } => {
+                let bytes = self.view_bytes(&view)?;
+                match decode_texture(&name, bytes, srgb) {
+                    Ok(t) => t,
+                    Err(e) => {
+                        self.scene.warnings.push(format!(
+                            "embedded image {} ('{name}') could not be decoded ({e}): using a magenta fallback",
+                            img.index()
+                        ));
+                        missing_texture(&name)
+                    }
+                }
+            }
+            gltf::image::Source::Uri { uri, .. } => {
+                if uri.starts_with("data:") {
+                    let bytes = self.read_uri(uri, "image", img.index())?;
+                    match decode_texture(&name, &bytes, srgb) {
+                        Ok(t) => t,
+                        Err(e) => {
+                            self.scene.warnings.push(format!(
+                                "image {} could not be decoded ({e}): using a magenta fallback",
+                                img.index()
+                            ));
+                            missing_texture(&name)
+                        }
+                    }
+                } else {
+                    let rel = crate::scene::image_io::percent_decode(uri);
+                    load_texture_checked(self.dir, &rel, srgb, &mut self.scene.warnings).map_err(
+                        |RefusedPath(why)| self.err(format!("image {}: {why}", img.index())),
+                    )?
+                }
+            }
+        };
+        let s = t.sampler();
+        let wrap = |w: gltf::texture::WrappingMode| match w {
+            gltf::texture::WrappingMode::ClampToEdge => WrapMode::ClampToEdge,
+            gltf::texture::WrappingMode::MirroredRepeat => WrapMode::MirroredRepeat,
+            gltf::texture::WrappingMode::Repeat => WrapMode::Repeat,
+        };
+        tex.wrap_s = wrap(s.wrap_s());
+        tex.wrap_t = wrap(s.wrap_t());
+        tex.filter = match s.mag_filter() {
+            Some(gltf::texture::MagFilter::Nearest) => FilterMode::Nearest,
+            _ => FilterMode::Bilinear,
+        };
+        let missing = is_missing_texture(&tex);
+        self.scene.textures.push(tex);
+        let i = self.scene.textures.len() - 1;
+        if missing {
+            self.missing.insert(i);
+        }
+        self.textures.insert((t.index(), srgb), i);
+        Ok(i)
+    }
+
+    pub(super) fn texcoord_set(&mut self, set: u32, what: &str) -> u32 {
+        if set > 1 {
+            self.warn_once(
+                &format!("texcoord{set}"),
+                format!(
+                    "texture-coordinate set {set} ({what}) is not supported (only 0 and 1): set 0 is used"
+                ),
+            );
+            0
+        } else {
+            set
+        }
+    }
+
+    /// A texture reference from a `textureInfo`; `colour` textures are decoded as sRGB. Missing
+    /// data textures are dropped (the factor alone applies); missing colour textures stay magenta.
+    pub(super) fn tex_ref(
+        &mut self,
+        info: Option<gltf::texture::Info>,
+        srgb: bool,
+        keep_missing: bool,
+        what: &str,
+    ) -> Result<Option<TextureRef>, SceneError> {
+        let Some(info) = info else { return Ok(None) };
+        let texture = self.texture(&info.texture(), srgb)?;
+        if self.missing.contains(&texture) && !keep_missing {
+            return Ok(None);
+        }
+        let mut texcoord = info.tex_coord();
+        let transform = info.texture_transform().map(|t| {
+            if let Some(tc) = t.tex_coord() {
+                texcoord = tc;
+            }
+            UvTransform {
+                offset: Vec2::from(t.offset()),
+                rotation: t.rotation(),
+                scale: Vec2::from(t.scale()),
+            }
+        });
+        let texcoord = self.texcoord_set(texcoord, what);
+        Ok(Some(TextureRef {
+            texture,
+            texcoord,
+            transform,
+        }))
+    }
+
+    /// Normal and occlusion textures are not `textureInfo`s in the crate, so their
+    /// KHR_texture_transform is read from the raw extension JSON.
+    pub(super) fn special_tex_ref(
+        &mut self,
+        texture: gltf::Texture,
+        tex_coord: u32,
+        ext: Option<&gltf::json::Value>,
+        what: &str,
+    ) -> Result<Option<TextureRef>, SceneError> {
+        let index = self.texture(&texture, false)?;
+        if self.missing.contains(&index) {
+            return Ok(None);
+        }
+        let mut texcoord = tex_coord;
+        let transform = ext.map(|v| {
+            let pair = |key: &str, default: f32| -> Vec2 {
+                v.get(key)
+                    .and_then(|a| a.as_array())
+                    .map(|a| {
+                        Vec2::new(
+                            a.first().and_then(|x| x.as_f64()).unwrap_or(default as f64) as f32,
+                            a.get(1).and_then(|x| x.as_f64()).unwrap_or(default as f64) as f32,
+                        )
+                    })
+                    .unwrap_or(Vec2::splat(default))
+            };
+            if let Some(tc) = v.get("texCoord").and_then(|x| x.as_u64()) {
+                texcoord = tc.min(u32::MAX as u64) as u32;
+            }
+            UvTransform {
+                offset: pair("offset", 0.0),
+                rotation: v.get("rotation").and_then(|x| x.as_f64()).unwrap_or(0.0) as f32,
+                scale: pair("scale", 1.0),
+            }
+        });
+        let texcoord = self.texcoord_set(texcoord, what);
+        Ok(Some(TextureRef {
+            texture: index,
+            texcoord,
+            transform,
+        }))
+    }
+
+    pub(super) fn material(&mut self, m: &gltf::Material) -> Result<Material, SceneError> {
+        let name = m
+            .name()
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("material {}", m.index().unwrap_or(0)));
+        let pbr = m.pbr_metallic_roughness();
+        let bc = pbr.base_color_factor();
+        let mut mat = Material {
+            name: name.clone(),
+            model: MaterialModel::MetallicRoughness,
+            base_color: Vec3::new(bc[0], bc[1], bc[2]),
+            alpha: bc[3],
+            metallic: pbr.metallic_factor(),
+            roughness: pbr.roughness_factor(),
+            double_sided: m.double_sided(),
+            alpha_cutoff: m.alpha_cutoff().unwrap_or(0.5),
+            alpha_mode: match m.alpha_mode() {
+                gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+                gltf::material::AlphaMode::Mask => AlphaMode::Mask,
+                gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+            },
+            ..Default::default()
+        };
+        mat.base_color_texture = self.tex_ref(pbr.base_color_texture(), true, true, "baseColor")?;
+        mat.metallic_roughness_texture = self.tex_ref(
+            pbr.metallic_roughness_texture(),
+            false,
+            false,
+            "metallicRoughness",
+        )?;
+        if let Some(n) = m.normal_texture() {
+            mat.normal_scale = n.scale();
+            mat.normal_texture = self.special_tex_ref(
+                n.texture(),
+                n.tex_coord(),
+                n.extension_value("KHR_texture_transform"),
+                "normal",
+            )?;
+        }
+        if let Some(o) = m.occlusion_texture() {
+            mat.occlusion_strength = o.strength();
+            mat.occlusion_texture = self.special_tex_ref(
+                o.texture(),
+                o.tex_coord(),
+                o.extension_value("KHR_texture_transform"),
+                "occlusion",
+            )?;
+        }
+        // Emission is radiance: factor × KHR_materials_emissive_strength (docs/DESIGN.md §4).
+        let strength = m.emissive_strength().unwrap_or(1.0);
+        mat.emissive = Vec3::from(m.emissive_factor()) * strength;
+        // The emissive texture only matters when the factor is non-zero (glTF multiplies them).
+        if mat.emissive.max_element() > 0.0 {
+            mat.emissive_texture = self.tex_ref(m.emissive_texture(), true, false, "emissive")?;
+        } else if m.emissive_texture().is_some() {
+            self.scene.warnings.push(format!(
+                "material '{name}': emissive texture with a zero emissive factor emits nothing"
+            ));
+        }
+        if let Some(t) = m.transmission() {
+            mat.transmission = t.transmission_factor();
+            mat.transmission_texture =
+                self.tex_ref(t.transmission_texture(), false, false, "transmission")?;
+        }
+        if let Some(ior) = m.ior() {
+            mat.ior = ior;
+        }
+        match m.volume() {
+            Some(v) => {
+                // thicknessFactor 0 means thin-walled (extension text). The thickness and its
+                // texture are a rasteriser's estimate of the path length inside; a path tracer
+                // uses the real one, so neither is needed (scene::volume).
+                mat.thickness = v.thickness_factor();
+                mat.thin_walled = mat.transmission > 0.0 && mat.thickness <= 0.0;
+                mat.attenuation_color = Vec3::from(v.attenuation_color());
+                mat.attenuation_distance = v.attenuation_distance();
+            }
+            None => mat.thin_walled = mat.transmission > 0.0,
+        }
+        if let Some(s) = m.specular() {
+            mat.specular = s.specular_factor();
+            mat.specular_color = Vec3::from(s.specular_color_factor());
+            mat.specular_texture = self.tex_ref(s.specular_texture(), false, false, "specular")?;
+            mat.specular_color_texture =
+                self.tex_ref(s.specular_color_texture(), true, false, "specularColor")?;
+        }
+        if let Some(cc) = m.extension_value("KHR_materials_clearcoat") {
+            self.clearcoat(&mut mat, cc)?;
+        }
+        if m.unlit() {
+            self.scene.warnings.push(format!(
+                "material '{name}': KHR_materials_unlit is not supported; it is shaded as a lit material"
+            ));
+        }
+        if m.pbr_specular_glossiness().is_some() {
+            self.scene.warnings.push(format!(
+                "material '{name}': KHR_materials_pbrSpecularGlossiness is not supported; the metallic-roughness fallback is used"
+            ));
+        }
+        Ok(mat)
+    }
+
+    /// KHR_materials_clearcoat, read from the raw extension JSON (the `gltf` crate does not parse
+    /// it): factors (default 0), the weight (R), roughness (G) and normal textures (all linear).
+    pub(super) fn clearcoat(
+        &mut self,
+        mat: &mut Material,
+        v: &gltf::json::Value,
+    ) -> Result<(), SceneError> {
+        let num = |key: &str, default: f32| -> Result<f32, SceneError> {
+            match v.get(key) {
+                None => Ok(default),
+                Some(x) => x
+                    .as_f64()
+                    .map(|x| x as f32)
+                    .filter(|x| x.is_finite() && (0.0..=1.0).contains(x))
+                    .ok_or_else(|| {
+                        SceneError::invalid(
+                            self.label,
+                            format!(
+                                "material '{}': KHR_materials_clearcoat {key} must be a number in [0, 1]",
+                                mat.name
+                            ),
+                        )
+                    }),
+            }
+        };
+        mat.clearcoat = num("clearcoatFactor", 0.0)?;
+        mat.clearcoat_roughness = num("clearcoatRoughnessFactor", 0.0)?;
+        mat.clearcoat_texture = self.raw_tex_ref(v.get("clearcoatTexture"), "clearcoat")?;
+        mat.clearcoat_roughness_texture =
+            self.raw_tex_ref(v.get("clearcoatRoughnessTexture"), "clearcoatRoughness")?;
+        if let Some(n) = v.get("clearcoatNormalTexture") {
+            mat.clearcoat_normal_scale = n
+                .get("scale")
+                .and_then(|x| x.as_f64())
+                .map(|x| x as f32)
+                .filter(|x| x.is_finite())
+                .unwrap_or(1.0);
+            mat.clearcoat_normal_texture = self.raw_tex_ref(Some(n), "clearcoatNormal")?;
+        }
+        Ok(())
+    }
+
+    /// A `textureInfo` given as raw extension JSON (`index`, `texCoord`, KHR_texture_transform),
+    /// decoded linearly. A missing or out-of-range index is an error naming the file.
+    pub(super) fn raw_tex_ref(
+        &mut self,
+        info: Option<&gltf::json::Value>,
+        what: &str,
+    ) -> Result<Option<TextureRef>, SceneError> {
+        let Some(info) = info else { return Ok(None) };
+        let texture = info
+            .get("index")
+            .and_then(|i| i.as_u64())
+            .and_then(|i| self.doc.textures().nth(i.min(usize::MAX as u64) as usize))
+            .ok_or_else(|| {
+                SceneError::invalid(
+                    self.label,
+                    format!("{what} texture: 'index' is missing or names no texture"),
+                )
+            })?;
+        let tex_coord = info
+            .get("texCoord")
+            .and_then(|t| t.as_u64())
+            .unwrap_or(0)
+            .min(u32::MAX as u64) as u32;
+        let transform = info
+            .get("extensions")
+            .and_then(|e| e.get("KHR_texture_transform"));
+        self.special_tex_ref(texture, tex_coord, transform, what)
+    }
+
+    pub(super) fn default_material(&mut self) -> MaterialId {
+        if let Some(m) = self.default_material {
+            return m;
+        }
+        // The glTF default material: white, metallic 1, roughness 1.
+        let m = Material {
+            name: "glTF default".into(),
+            model: MaterialModel::MetallicRoughness,
+            base_color: Vec3::ONE,
+            metallic: 1.0,
+            roughness: 1.0,
+            ..Default::default()
+        };
+        let id = self.scene.add_material(m);
+        self.default_material = Some(id);
+        id
+    }
+
+    // ---------------------------------------------------------------- binary data
+}

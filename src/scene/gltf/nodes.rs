@@ -1,0 +1,154 @@
+//! The node hierarchy flattened with world transforms, perspective cameras and
+//! `KHR_lights_punctual` lights.
+
+use super::*;
+
+impl Loader<'_> {
+    pub(super) fn nodes(&mut self) -> Result<(), SceneError> {
+        let doc = self.doc;
+        let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+            Some(s) => s.nodes().collect(),
+            None => {
+                // No scene: render every node that is nobody's child.
+                let children: HashSet<usize> = doc
+                    .nodes()
+                    .flat_map(|n| n.children().map(|c| c.index()).collect::<Vec<_>>())
+                    .collect();
+                doc.nodes()
+                    .filter(|n| !children.contains(&n.index()))
+                    .collect()
+            }
+        };
+        if doc.scenes().count() > 1 {
+            self.scene.warnings.push(format!(
+                "the file has {} scenes; only the default one is rendered",
+                doc.scenes().count()
+            ));
+        }
+        let mut visited = HashSet::new();
+        let mut stack: Vec<(gltf::Node, Mat4)> = roots
+            .into_iter()
+            .rev()
+            .map(|n| (n, Mat4::IDENTITY))
+            .collect();
+        while let Some((node, parent)) = stack.pop() {
+            if !visited.insert(node.index()) {
+                // A node reached twice is a cycle or a shared child, both invalid glTF.
+                self.warn_once(
+                    "revisit",
+                    format!(
+                        "node {} is reached more than once (invalid hierarchy); later visits are ignored",
+                        node.index()
+                    ),
+                );
+                continue;
+            }
+            let local = Mat4::from_cols_array_2d(&node.transform().matrix());
+            let world = parent * local;
+            let node_name = node
+                .name()
+                .map(str::to_string)
+                .unwrap_or_else(|| format!("node {}", node.index()));
+            if let Some(mesh) = node.mesh() {
+                for prim in mesh.primitives() {
+                    if let Some((mesh_id, material)) = self.primitive(&mesh, &prim)? {
+                        self.scene
+                            .add_object(&node_name, Shape::Mesh(mesh_id), world, material);
+                    }
+                }
+            }
+            if let Some(cam) = node.camera() {
+                self.camera(&cam, &node_name, world);
+            }
+            if let Some(light) = node.light() {
+                self.light(&light, &node_name, world);
+            }
+            for c in node.children().collect::<Vec<_>>().into_iter().rev() {
+                stack.push((c, world));
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn camera(&mut self, cam: &gltf::Camera, node_name: &str, world: Mat4) {
+        let name = cam.name().unwrap_or(node_name).to_string();
+        match cam.projection() {
+            gltf::camera::Projection::Perspective(p) => {
+                // Cameras ignore scale: keep the rotation and the position only.
+                let rigid = Mat4::from_cols(
+                    world.x_axis.truncate().normalize_or_zero().extend(0.0),
+                    world.y_axis.truncate().normalize_or_zero().extend(0.0),
+                    world.z_axis.truncate().normalize_or_zero().extend(0.0),
+                    world.w_axis,
+                );
+                self.scene.cameras.push(CameraDesc {
+                    name,
+                    camera_to_world: rigid,
+                    vfov_deg: p.yfov().to_degrees(),
+                    aspect: p.aspect_ratio(),
+                    aperture_radius: 0.0,
+                    focus_distance: 1.0,
+                });
+            }
+            gltf::camera::Projection::Orthographic(_) => {
+                self.scene.warnings.push(format!(
+                    "camera '{name}' is orthographic, which is not supported; it is skipped"
+                ));
+            }
+        }
+    }
+
+    pub(super) fn light(
+        &mut self,
+        light: &gltf::khr_lights_punctual::Light,
+        node_name: &str,
+        world: Mat4,
+    ) {
+        use gltf::khr_lights_punctual::Kind;
+        let name = light.name().unwrap_or(node_name).to_string();
+        let color = Vec3::from(light.color());
+        if is_ambient_light_name(&name) || is_ambient_light_name(node_name) {
+            // The thesis's convention (Annex B): an ambient light of that light's colour.
+            self.scene.lights.push(ambient_light(&name, color));
+            self.scene.warnings.push(format!(
+                "convention: light '{name}' is an ambient light of its colour (name contains 'ambient')"
+            ));
+            return;
+        }
+        if light.range().is_some() {
+            self.warn_once(
+                "range",
+                "KHR_lights_punctual 'range' is ignored: lights fall off with the inverse square of distance"
+                    .into(),
+            );
+        }
+        // docs/DESIGN.md §4: candela (lm/sr) and lux (lm/m²) / 683 lm/W → W/sr and W/m².
+        let power = color * (light.intensity() / LUMENS_PER_WATT);
+        let position = world.transform_point3(Vec3::ZERO);
+        let direction = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
+        let desc = match light.kind() {
+            Kind::Point => LightDesc::Point {
+                name,
+                position,
+                intensity: power,
+            },
+            Kind::Directional => LightDesc::Directional {
+                name,
+                direction,
+                irradiance: power,
+            },
+            Kind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => LightDesc::Spot {
+                name,
+                position,
+                direction,
+                intensity: power,
+                inner_angle: inner_cone_angle,
+                outer_angle: outer_cone_angle,
+            },
+        };
+        self.scene.lights.push(desc);
+    }
+}
