@@ -33,4 +33,4 @@ fi
     exit 1
 }
 cargo build --profile test --bin trayecto
-TRAYECTO_BIN="$PWD/target/debug/trayecto" "$VENV/bin/python" -m pytest -q -p no:cacheprovider python/trayecto_farm/tests
+TRAYECTO_BIN="$(cd "${CARGO_TARGET_DIR:-target}" && pwd)/debug/trayecto" "$VENV/bin/python" -m pytest -q -p no:cacheprovider python/trayecto_farm/tests

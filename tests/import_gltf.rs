@@ -261,14 +261,14 @@ fn truncated_glb_is_an_error_naming_the_file() {
 #[test]
 fn unsupported_features_are_named_in_warnings() {
     let extra = format!(
-        r#"{PLAIN_MATERIAL},"extensionsUsed":["KHR_materials_clearcoat"],
+        r#"{PLAIN_MATERIAL},"extensionsUsed":["KHR_materials_sheen"],
  "cameras":[{{"type":"orthographic","orthographic":{{"xmag":1,"ymag":1,"znear":0.1,"zfar":10}}}},
             {{"name":"persp","type":"perspective","perspective":{{"yfov":0.5,"znear":0.1}}}}],
  "nodes":[{{"mesh":0}},{{"camera":0}},{{"camera":1,"translation":[0,0,5]}}],"scenes":[{{"nodes":[0,1,2]}}]"#
     );
     let scene = load_str(&triangle_gltf(TRI, [0, 1, 2], &extra), Path::new(".")).unwrap();
     let all = scene.warnings.join("\n");
-    assert!(all.contains("KHR_materials_clearcoat"), "{all}");
+    assert!(all.contains("KHR_materials_sheen"), "{all}");
     assert!(all.contains("orthographic"), "{all}");
     assert_eq!(scene.cameras.len(), 1);
     assert_eq!(scene.cameras[0].name, "persp");
