@@ -174,27 +174,32 @@ fn encode_png(rgb: &[u8], w: u32, h: u32) -> Option<Vec<u8>> {
 }
 
 /// Feeds the driver's progress into the job.
-struct Observer<'a>(&'a Job);
+/// The job's observer; `out_dir` is the server's output folder, which log lines show as bare file
+/// names (the page and the API never reveal the server's folders).
+struct Observer<'a> {
+    job: &'a Job,
+    out_dir: String,
+}
 
 impl RenderObserver for Observer<'_> {
     fn pass_done(&self, film: &Film, samples_done: u32, _spp: u32) {
         // The copy is made outside the lock; the lock is held only to swap it in.
         let image = Arc::new(film.to_image());
-        let mut st = self.0.status();
+        let mut st = self.job.status();
         st.preview = Some(image);
         st.preview_version += 1;
         st.samples_done = samples_done;
     }
 
     fn tile_done(&self, done: u64, total: u64) {
-        self.0.tiles_total.store(total, Ordering::Relaxed);
-        self.0.tiles_done.fetch_max(done, Ordering::Relaxed);
+        self.job.tiles_total.store(total, Ordering::Relaxed);
+        self.job.tiles_done.fetch_max(done, Ordering::Relaxed);
     }
 }
 
 impl PipelineObserver for Observer<'_> {
     fn stage_started(&self, stage: Stage) {
-        let mut st = self.0.status();
+        let mut st = self.job.status();
         st.state = match stage {
             Stage::Load => JobState::Loading,
             Stage::Build => JobState::Building,
@@ -213,11 +218,12 @@ impl PipelineObserver for Observer<'_> {
             Stage::Render => "render",
             Stage::Write => "write",
         };
-        self.0.status().timings.push((name, took.as_secs_f64()));
+        self.job.status().timings.push((name, took.as_secs_f64()));
     }
 
     fn log(&self, line: LogLine) {
-        self.0.status().log.push(line.to_string());
+        let line = line.to_string().replace(&self.out_dir, "");
+        self.job.status().log.push(line);
     }
 }
 
@@ -409,7 +415,11 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
         outputs: vec![output(&png), output(&exr)],
         split: Default::default(),
     };
-    match render.run(&Observer(job), &job.cancel) {
+    let observer = Observer {
+        job,
+        out_dir: format!("{}{}", out_dir.display(), std::path::MAIN_SEPARATOR),
+    };
+    match render.run(&observer, &job.cancel) {
         Ok(_) => {}
         Err(PipelineError::Cancelled) => return Err(JobEnd::Cancelled),
         Err(PipelineError::Write { path, error }) => {
