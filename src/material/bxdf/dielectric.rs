@@ -84,7 +84,7 @@ fn smooth_sample(eta: f32, tint: Vec3, wo: Vec3, u_lobe: f32) -> Option<BsdfSamp
 /// The generalised half vector of Walter et al. 2007 (eq. 16), oriented up; `None` for
 /// configurations no microfacet can produce.
 #[inline]
-fn half_vector(eta: f32, wo: Vec3, wi: Vec3) -> Option<(Vec3, f32, bool)> {
+pub(super) fn half_vector(eta: f32, wo: Vec3, wi: Vec3) -> Option<(Vec3, f32, bool)> {
     if wo.z == 0.0 || wi.z == 0.0 {
         return None;
     }

@@ -119,33 +119,10 @@ impl Coat {
         self.eta == 1.0 || self.dist.effectively_smooth()
     }
 
-    /// Generalised half vector (Walter et al. 2007 eq. 16), facing up; None if no microfacet can
-    /// connect the two directions.
+    /// Generalised half vector of the coat's interface (the dielectric's, Walter et al. 2007).
     #[inline]
     fn half_vector(&self, wo: Vec3, wi: Vec3) -> Option<(Vec3, f32, bool)> {
-        if wo.z == 0.0 || wi.z == 0.0 {
-            return None;
-        }
-        let reflect = wo.z * wi.z > 0.0;
-        let etap = if reflect {
-            1.0
-        } else if wo.z > 0.0 {
-            self.eta
-        } else {
-            1.0 / self.eta
-        };
-        let wm = wi * etap + wo;
-        if wm.length_squared() == 0.0 {
-            return None;
-        }
-        let mut wm = wm.normalize();
-        if wm.z < 0.0 {
-            wm = -wm;
-        }
-        if wm.dot(wi) * wi.z < 0.0 || wm.dot(wo) * wo.z < 0.0 {
-            return None;
-        }
-        Some((wm, etap, reflect))
+        super::dielectric::half_vector(self.eta, wo, wi)
     }
 
     /// f of the rough interface; `radiance` applies the 1/η² of radiance transport (PBRT-v4
