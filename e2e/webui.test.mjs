@@ -36,11 +36,17 @@ async function openPage() {
   await page.goto(BASE + "/");
   // The form is ready once the options and scenes have arrived.
   await page.waitForSelector("#scene option[value=cornell]", { state: "attached" });
+  // ... and the chosen scene's size has been filled in.
+  await page.waitForFunction(() => document.getElementById("scene").dataset.prefilled);
 }
 
 async function fill(values) {
   for (const [k, v] of Object.entries(values)) {
-    if (k === "scene") await page.selectOption("#scene", v);
+    if (k === "scene") {
+      await page.selectOption("#scene", v);
+      // Choosing a scene fills in its size: wait for it before setting ours.
+      await page.waitForFunction((name) => document.getElementById("scene").dataset.prefilled === name, v);
+    }
     else await page.fill("#" + k, String(v));
   }
 }
@@ -145,12 +151,323 @@ test("Cancel stops a long render", async () => {
   assert.equal(job.png, null);
 });
 
+test("three renders with --max-jobs 1 wait in the queue and complete in order", async () => {
+  await openPage();
+  const names = ["e2e-q1", "e2e-q2", "e2e-q3"];
+  // The first is long enough that the other two are submitted while it renders.
+  await fill({ scene: "cornell", output: names[0], width: 128, height: 128, spp: 1024, max_depth: 6 });
+  await page.click("#start");
+  for (const n of names.slice(1)) {
+    await fill({ output: n, width: 32, height: 32, spp: 16 });
+    await page.click("#start");
+  }
+  // The page follows the last one, which waits behind the other two.
+  await page.waitForFunction(() => /position 2 in the queue/.test(document.getElementById("queue").textContent));
+  await page.waitForSelector("#recent li:has-text('queued, position 1')");
+  // A reload shows the same queue: the state is on the server.
+  await page.reload();
+  await page.waitForSelector("#recent li[data-state=queued]");
+  const done = [];
+  const t0 = Date.now();
+  while (done.length < 3) {
+    const r = await (await fetch(BASE + "/api/renders")).json();
+    const running = r.renders.filter((j) => j.active && j.state !== "queued");
+    assert.ok(running.length <= 1, JSON.stringify(running));
+    // The list is newest first. Jobs that finished between two polls cannot be ordered by
+    // watching, so those are taken oldest first; the order across polls is what is observed.
+    for (const j of [...r.renders].reverse()) {
+      if (names.includes(j.output) && j.state === "done" && !done.includes(j.output)) done.push(j.output);
+    }
+    // Only a guard against a hang: a loaded machine can be 10x slower than CI's idle 2 cores.
+    assert.ok(Date.now() - t0 < 300_000, "the queued renders did not finish: " + done);
+    await new Promise((res) => setTimeout(res, 30));
+  }
+  assert.deepEqual(done, names);
+  await page.waitForFunction(() => document.getElementById("state").textContent === "done");
+});
+
+test("a model uploaded from the page is offered and selected", async () => {
+  await openPage();
+  const glb = path.resolve("../shared/scenes/gltf/Box/glTF-Binary/Box.glb");
+  await page.setInputFiles("#upload", glb);
+  await page.waitForFunction(() => /^uploaded Box\.glb/.test(document.getElementById("upload-status").textContent));
+  assert.equal(await page.inputValue("#scene"), "uploads/Box.glb");
+  // A second upload of the same name is refused with the reason.
+  await page.setInputFiles("#upload", glb);
+  await page.waitForFunction(() => /already uploaded/.test(document.getElementById("upload-status").textContent));
+});
+
+test("a server on 127.0.0.2 refuses the page without its token, and opens with it", async () => {
+  const bare = process.env.TRAYECTO_TOKEN_SERVER;
+  const withToken = process.env.TRAYECTO_TOKEN_URL;
+  assert.ok(bare && withToken && withToken.includes("?token="), "the token server's addresses");
+  const p = await context.newPage();
+  try {
+    const refused = await p.goto(bare + "/");
+    assert.equal(refused.status(), 401);
+    assert.match(await p.textContent("body"), /access token/);
+    const api = await fetch(bare + "/api/options");
+    assert.equal(api.status, 401);
+    await p.goto(withToken);
+    // Redirected to the bare page, which now works through its cookie (API calls included).
+    assert.equal(p.url(), bare + "/");
+    await p.waitForSelector("#scene option[value=cornell]", { state: "attached" });
+  } finally {
+    await p.close();
+  }
+});
+
+/** The viewport canvas: its dataset (generation, version, samples, state) and a checksum. */
+async function viewport() {
+  return page.evaluate(() => {
+    const c = document.getElementById("viewport");
+    const d = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+    let sum = 0;
+    for (let i = 0; i < d.length; i++) sum = (sum * 31 + d[i]) >>> 0;
+    return { generation: Number(c.dataset.generation || 0), version: Number(c.dataset.version || 0),
+      samples: Number(c.dataset.samples || -1), state: c.dataset.state || "", size: c.dataset.size || "",
+      sum };
+  });
+}
+
+/** Waits until the viewport shows an image of a generation after `g` (a new view). */
+async function waitNewView(g) {
+  await page.waitForFunction((g0) => {
+    const c = document.getElementById("viewport");
+    return Number(c.dataset.generation) > g0 && c.dataset.version && c.dataset.state !== "loading"
+      && c.dataset.state !== "rendering";
+  }, g);
+}
+
+/** Watches the viewport until its image reaches `spp` samples; returns the sample counts seen. */
+async function watchRefine(spp) {
+  let seen = [];
+  let generation = -1;
+  const t0 = Date.now();
+  for (;;) {
+    const v = await viewport();
+    const latest = await page.evaluate(() => !vp.sending && !vp.dirty && vp.generation);
+    // Only the newest view counts (a drag may send several).
+    if (v.generation !== generation) { seen = []; generation = v.generation; }
+    if (!seen.length || seen[seen.length - 1] !== v.samples) seen.push(v.samples);
+    if (latest === v.generation && v.samples >= spp && v.state === "done") return seen;
+    assert.ok(Date.now() - t0 < 120_000, "the viewport did not refine: " + JSON.stringify(seen));
+    await new Promise((r) => setTimeout(r, 15));
+  }
+}
+
+/** Waits until the newest view has been sent and its image refined to `spp` samples. */
+async function settle(spp) {
+  await page.waitForFunction((n) => {
+    const c = document.getElementById("viewport");
+    return !vp.sending && !vp.dirty && Number(c.dataset.generation) === vp.generation
+      && c.dataset.state === "done" && Number(c.dataset.samples) >= n;
+  }, spp, { timeout: 120_000 });
+}
+
+async function openViewport(values, spp) {
+  await openPage();
+  if (values) await fill(values);
+  // A view with every value filled in (fill types, which does not send views).
+  await page.dispatchEvent("#width", "change");
+  // The scene's own view arrives with the first image; then the orbit is ready.
+  await page.waitForFunction(() => document.getElementById("viewport").dataset.orbit === "ready");
+  await settle(spp);
+}
+
+test("the viewport orbits and dollies with the mouse, restarts and refines while still", async () => {
+  await openViewport({ scene: "cornell", width: 200, height: 200, max_depth: 4, view_spp: 64 }, 64);
+  const box = await page.locator("#viewport").boundingBox();
+  const cx = box.x + box.width / 2, cy = box.y + box.height / 2;
+  let before = await viewport();
+  const t0 = Date.now();
+  await page.mouse.move(cx, cy);
+  await page.mouse.down();
+  await page.mouse.move(cx + 60, cy + 10, { steps: 6 });
+  await page.mouse.up();
+  await waitNewView(before.generation);
+  console.log(`orbit: first new image on the page after ${Date.now() - t0} ms`);
+  let after = await viewport();
+  assert.notEqual(after.sum, before.sum, "the orbit did not change the image");
+  // While still, the preview refines: more samples in later images, up to the view's 64.
+  const seen = await watchRefine(64);
+  assert.ok(seen.length >= 2, "no refinement seen: " + JSON.stringify(seen));
+  for (let i = 1; i < seen.length; i++) assert.ok(seen[i] > seen[i - 1], JSON.stringify(seen));
+  assert.equal((await viewport()).size, "200x200");
+  console.log("viewport timings: " + await page.textContent("#vp-time"));
+  // The wheel dollies.
+  before = await viewport();
+  await page.mouse.move(cx, cy);
+  await page.mouse.wheel(0, 400);
+  await waitNewView(before.generation);
+  await settle(64);
+  after = await viewport();
+  assert.notEqual(after.sum, before.sum, "the wheel did not change the image");
+  // Shift-drag pans.
+  before = after;
+  await page.keyboard.down("Shift");
+  await page.mouse.move(cx, cy);
+  await page.mouse.down();
+  await page.mouse.move(cx + 30, cy, { steps: 3 });
+  await page.mouse.up();
+  await page.keyboard.up("Shift");
+  await waitNewView(before.generation);
+  await settle(64);
+  assert.notEqual((await viewport()).sum, before.sum, "shift-drag did not change the image");
+});
+
+test("the keyboard orbits a focused, labelled viewport", async () => {
+  await openViewport({ scene: "cornell", width: 64, height: 64, max_depth: 3, view_spp: 4 }, 4);
+  assert.match(await page.getAttribute("#viewport", "aria-label"), /orbit/);
+  assert.equal(await page.getAttribute("#viewport", "tabindex"), "0");
+  await page.focus("#viewport");
+  for (const key of ["ArrowLeft", "Equal", "Shift+ArrowUp"]) {
+    const before = await viewport();
+    const orbit = await page.evaluate(() => JSON.stringify(vp.orbit));
+    await page.keyboard.press(key);
+    assert.notEqual(await page.evaluate(() => JSON.stringify(vp.orbit)), orbit, key);
+    await settle(4);
+    assert.notEqual((await viewport()).sum, before.sum, `${key} did not change the image`);
+  }
+});
+
+test("Render final renders the framed view, the same image the viewport refined to", async () => {
+  await openViewport({ scene: "cornell", output: "e2e-final", width: 48, height: 40, spp: 8,
+    max_depth: 4, view_spp: 8, exposure: 1 }, 8);
+  await page.selectOption("#tonemap", "clamp");
+  await page.focus("#viewport");
+  await page.keyboard.press("ArrowRight");
+  await page.keyboard.press("ArrowDown");
+  await page.keyboard.press("-");
+  await settle(8);
+  const camera = await page.evaluate(() => orbitCamera(vp.orbit));
+  await page.click("#render-final");
+  await page.waitForFunction(() => {
+    const f = document.getElementById("final");
+    return document.getElementById("state").textContent === "done" && !f.hidden
+      && f.dataset.job === String(current);
+  });
+  const r = await (await fetch(BASE + "/api/renders")).json();
+  const job = r.renders.find((j) => j.output === "e2e-final");
+  for (const k of ["eye", "target", "up"]) {
+    job.camera[k].forEach((x, i) => assert.ok(Math.abs(x - camera[k][i]) < 1e-4, `${k}: ${job.camera[k]} vs ${camera[k]}`));
+  }
+  // Same view, size, samples and settings: the final image is the viewport's, pixel for pixel.
+  const same = await page.evaluate(() => {
+    const a = document.getElementById("viewport"), b = document.getElementById("final");
+    const da = a.getContext("2d").getImageData(0, 0, a.width, a.height).data;
+    const db = b.getContext("2d").getImageData(0, 0, b.width, b.height).data;
+    if (a.width !== b.width || a.height !== b.height) return `sizes ${a.width}x${a.height} vs ${b.width}x${b.height}`;
+    let n = 0;
+    for (let i = 0; i < da.length; i++) if (da[i] !== db[i]) n++;
+    return n;
+  });
+  assert.equal(same, 0, "the final image differs from the viewport's");
+});
+
+test("exposure and tone mapping apply on the page and match the server's PNG within 1/255", async () => {
+  await openPage();
+  const tonemaps = await page.$$eval("#tonemap option", (os) => os.map((o) => o.value));
+  assert.ok(tonemaps.length >= 4, tonemaps.join());
+  for (const [i, tm] of tonemaps.entries()) {
+    await fill({ scene: "cornell", output: `e2e-tm-${i}`, width: 40, height: 30, spp: 4, max_depth: 4,
+      exposure: 2.5 });
+    await page.selectOption("#tonemap", tm);
+    await page.click("#start");
+    await page.waitForFunction((name) => {
+      const c = document.getElementById("final");
+      return document.getElementById("state").textContent === "done" && !c.hidden
+        && c.dataset.layer === "beauty" && c.dataset.job === String(current) && document.getElementById("dl-png").href.includes("/image.png")
+        && document.getElementById("dl-png").download === name + ".png";
+    }, `e2e-tm-${i}`);
+    const worst = await page.evaluate(async () => {
+      const png = document.getElementById("dl-png").href;
+      const img = new Image();
+      img.src = png;
+      await img.decode();
+      const c = document.createElement("canvas");
+      c.width = img.naturalWidth; c.height = img.naturalHeight;
+      c.getContext("2d").drawImage(img, 0, 0);
+      const a = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+      const f = document.getElementById("final");
+      const b = f.getContext("2d").getImageData(0, 0, f.width, f.height).data;
+      if (a.length !== b.length) return 999;
+      let worst = 0;
+      for (let i = 0; i < a.length; i++) worst = Math.max(worst, Math.abs(a[i] - b[i]));
+      return worst;
+    });
+    assert.ok(worst <= 1, `${tm}: the page's tone mapping differs from the server's PNG by ${worst}/255`);
+  }
+  // Changing the exposure re-displays the image without a new render.
+  const count = (await (await fetch(BASE + "/api/renders")).json()).renders.length;
+  const sum = () => page.evaluate(() => {
+    const f = document.getElementById("final");
+    const d = f.getContext("2d").getImageData(0, 0, f.width, f.height).data;
+    let s = 0; for (let i = 0; i < d.length; i++) s = (s * 31 + d[i]) >>> 0; return s;
+  });
+  const s0 = await sum();
+  await page.fill("#exposure", "0.25");
+  await page.waitForFunction((s) => {
+    const f = document.getElementById("final");
+    const d = f.getContext("2d").getImageData(0, 0, f.width, f.height).data;
+    let x = 0; for (let i = 0; i < d.length; i++) x = (x * 31 + d[i]) >>> 0; return x !== s;
+  }, s0);
+  assert.notEqual(await sum(), s0);
+  assert.equal((await (await fetch(BASE + "/api/renders")).json()).renders.length, count);
+});
+
+test("the layer toggle shows the albedo and normal AOVs of a final render", async () => {
+  await openPage();
+  await fill({ scene: "cornell", output: "e2e-aov", width: 32, height: 32, spp: 2, max_depth: 3 });
+  await page.check("#aovs");
+  await page.click("#start");
+  await page.waitForFunction(() => !document.getElementById("layers").hidden
+    && document.getElementById("final").dataset.layer === "beauty" && !document.getElementById("final").hidden
+    && document.getElementById("final").dataset.job === String(current));
+  assert.ok(await page.isHidden("#layers [data-layer=denoised]"));
+  const sums = {};
+  for (const layer of ["albedo", "normal", "beauty"]) {
+    await page.click(`#layers [data-layer=${layer}]`);
+    await page.waitForFunction((l) => document.getElementById("final").dataset.layer === l, layer);
+    assert.equal(await page.getAttribute(`#layers [data-layer=${layer}]`, "aria-pressed"), "true");
+    sums[layer] = await page.evaluate(() => {
+      const f = document.getElementById("final");
+      const d = f.getContext("2d").getImageData(0, 0, f.width, f.height).data;
+      let s = 0; for (let i = 0; i < d.length; i++) s = (s * 31 + d[i]) >>> 0; return s;
+    });
+  }
+  assert.equal(new Set(Object.values(sums)).size, 3, JSON.stringify(sums));
+  await page.uncheck("#aovs");
+});
+
+test("Save camera downloads a TOML camera the CLI reads", async () => {
+  await openViewport({ scene: "cornell", width: 64, height: 64, view_spp: 1 }, 1);
+  const [download] = await Promise.all([page.waitForEvent("download"), page.click("#save-camera")]);
+  const text = fs.readFileSync(await download.path(), "utf8");
+  assert.match(text, /^\[\[camera\]\]\neye = \[.*\]\ntarget = \[.*\]\nup = \[.*\]\nfov = [\d.]+\n$/);
+});
+
 test("screenshot for the README", { skip: !process.env.WEBUI_SCREENSHOT }, async () => {
   await openPage();
-  await fill({ scene: "cornell", output: "cornell", width: 256, height: 256, spp: 48, max_depth: 8 });
-  await page.click("#start");
-  await page.waitForFunction(() => document.getElementById("state").textContent === "done",
+  const glb = path.resolve("../shared/scenes/gltf/DamagedHelmet/glTF-Binary/DamagedHelmet.glb");
+  await page.setInputFiles("#upload", glb);
+  await page.waitForFunction(() => /^uploaded DamagedHelmet\.glb/.test(document.getElementById("upload-status").textContent));
+  await page.waitForFunction(() => document.getElementById("scene").dataset.prefilled === "uploads/DamagedHelmet.glb");
+  await page.selectOption("#environment", "studio_small_03_1k.hdr");
+  await fill({ width: 400, height: 400, max_depth: 6, view_spp: 32 });
+  await page.selectOption("#tonemap", "agx");
+  await page.dispatchEvent("#environment", "change");
+  await page.waitForFunction(() => document.getElementById("viewport").dataset.orbit === "ready",
     null, { timeout: 300_000 });
-  await page.waitForFunction(() => document.getElementById("preview").complete);
+  const box = await page.locator("#viewport").boundingBox();
+  const cx = box.x + box.width / 2, cy = box.y + box.height / 2;
+  const g = (await viewport()).generation;
+  await page.mouse.move(cx, cy);
+  await page.mouse.down();
+  await page.mouse.move(cx + 70, cy + 25, { steps: 5 });
+  await waitNewView(g);
+  await page.waitForFunction(() => Number(document.getElementById("viewport").dataset.samples) >= 8,
+    null, { timeout: 300_000 });
   await page.screenshot({ path: process.env.WEBUI_SCREENSHOT });
+  await page.mouse.up();
 });

@@ -10,6 +10,9 @@ cargo fmt --all -- --check
 echo "== cargo clippy -D warnings"
 cargo clippy --all-targets -- -D warnings
 
+echo "== Open Image Denoise (run-time library for --denoise and its tests)"
+./scripts/install-oidn.sh
+
 echo "== cargo test"
 # Library, binary and integration tests, built with the `test` profile (opt-level 3, no LTO: fast
 # to compile, fast to run). Benchmarks are type-checked by clippy above; running them is

@@ -6,6 +6,164 @@ use crate::math::{Mat4, Vec2, Vec3};
 use crate::sampling::warp::concentric_disk;
 use crate::scene::CameraDesc;
 
+/// A camera given by where it stands and what it looks at: the web viewport's `camera` request
+/// field, `--camera-from` on the command line and the TOML `[[camera]]` table all use it.
+/// [`CameraSpec::validate`] refuses what cannot frame a view (NaN, the eye on the target, an up
+/// vector along the view, a field of view outside (0°, 179°]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraSpec {
+    pub eye: Vec3,
+    pub target: Vec3,
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub fov: f32,
+}
+
+/// Coordinates beyond this are refused: `look_at` squares distances, which overflows f32 near 1e19.
+pub const MAX_CAMERA_COORD: f32 = 1e9;
+
+impl CameraSpec {
+    /// The field of view TOML cameras default to (Blender's 50 mm lens on a 36 mm sensor).
+    pub const DEFAULT_FOV: f32 = 39.6;
+
+    pub fn validate(&self) -> Result<(), String> {
+        for (name, v) in [("eye", self.eye), ("target", self.target), ("up", self.up)] {
+            if !v.is_finite() || v.abs().max_element() > MAX_CAMERA_COORD {
+                return Err(format!(
+                    "camera {name} must be three finite numbers of at most {MAX_CAMERA_COORD:e} (got {v})"
+                ));
+            }
+        }
+        let view = self.target - self.eye;
+        let scale = self
+            .eye
+            .abs()
+            .max_element()
+            .max(self.target.abs().max_element())
+            .max(1.0);
+        if view.length() <= 1e-6 * scale {
+            return Err(
+                "camera eye and target are the same point: there is no view direction".into(),
+            );
+        }
+        let up = self.up.normalize_or_zero();
+        if up == Vec3::ZERO || view.normalize().cross(up).length() < 1e-4 {
+            return Err(format!(
+                "camera up {} is zero or along the view direction: it cannot say which way is up",
+                self.up
+            ));
+        }
+        if !(self.fov.is_finite() && self.fov > 0.0 && self.fov <= 179.0) {
+            return Err(format!(
+                "camera fov must be a vertical field of view above 0 and at most 179 degrees (got {})",
+                self.fov
+            ));
+        }
+        Ok(())
+    }
+
+    /// The scene camera this describes (a pinhole focused on the target). Validate first.
+    pub fn to_desc(&self, name: &str) -> CameraDesc {
+        CameraDesc::look_at(name, self.eye, self.target, self.up, self.fov)
+    }
+
+    /// The eye, target (at the focus distance along the view), up and vertical field of view of
+    /// a scene camera; the image's shape and the lens are not part of it.
+    pub fn from_desc(desc: &CameraDesc) -> CameraSpec {
+        let m = desc.camera_to_world;
+        let eye = m.transform_point3(Vec3::ZERO);
+        let forward = m.transform_vector3(-Vec3::Z).normalize_or_zero();
+        let up = m.transform_vector3(Vec3::Y).normalize_or_zero();
+        let dist = if desc.focus_distance.is_finite() && desc.focus_distance > 0.0 {
+            desc.focus_distance
+        } else {
+            1.0
+        };
+        CameraSpec {
+            eye,
+            target: eye + forward * dist,
+            up,
+            fov: desc.vfov_deg,
+        }
+    }
+
+    /// A TOML `[[camera]]` table for this view, as a scene file and `--camera-from` read it.
+    pub fn to_toml(&self) -> String {
+        let v = |v: Vec3| format!("[{}, {}, {}]", v.x, v.y, v.z);
+        format!(
+            "[[camera]]\neye = {}\ntarget = {}\nup = {}\nfov = {}\n",
+            v(self.eye),
+            v(self.target),
+            v(self.up),
+            self.fov
+        )
+    }
+
+    /// The first camera of a TOML text: a `[camera]` table or the first of `[[camera]]` tables,
+    /// with `eye` and `target` (and optionally `up`, default +y, and `fov`, default 39.6°).
+    /// Other keys of the file are not read (a whole TOML scene gives its first camera).
+    pub fn from_toml(text: &str) -> Result<CameraSpec, String> {
+        let doc: toml::Table = text
+            .parse()
+            .map_err(|e: toml::de::Error| e.message().to_string())?;
+        let table = match doc.get("camera") {
+            Some(toml::Value::Table(t)) => t,
+            Some(toml::Value::Array(a)) => match a.first() {
+                Some(toml::Value::Table(t)) => t,
+                _ => return Err("`camera` must be a table ([camera] or [[camera]])".into()),
+            },
+            Some(_) => return Err("`camera` must be a table ([camera] or [[camera]])".into()),
+            None => return Err("no [camera] table".into()),
+        };
+        for k in table.keys() {
+            if ![
+                "name",
+                "eye",
+                "target",
+                "up",
+                "fov",
+                "aperture",
+                "focus_distance",
+            ]
+            .contains(&k.as_str())
+            {
+                return Err(format!("camera: unknown key '{k}'"));
+            }
+        }
+        let vec3 = |key: &str, default: Option<Vec3>| -> Result<Vec3, String> {
+            match table.get(key) {
+                None => default.ok_or_else(|| format!("camera: `{key}` is missing")),
+                Some(toml::Value::Array(a)) if a.len() == 3 => {
+                    let mut v = [0f32; 3];
+                    for (o, x) in v.iter_mut().zip(a) {
+                        *o = match x {
+                            toml::Value::Float(f) => *f as f32,
+                            toml::Value::Integer(i) => *i as f32,
+                            _ => return Err(format!("camera: `{key}` must be three numbers")),
+                        };
+                    }
+                    Ok(Vec3::from(v))
+                }
+                Some(_) => Err(format!("camera: `{key}` must be three numbers")),
+            }
+        };
+        let fov = match table.get("fov") {
+            None => Self::DEFAULT_FOV,
+            Some(toml::Value::Float(f)) => *f as f32,
+            Some(toml::Value::Integer(i)) => *i as f32,
+            Some(_) => return Err("camera: `fov` must be a number (degrees)".into()),
+        };
+        let spec = CameraSpec {
+            eye: vec3("eye", None)?,
+            target: vec3("target", None)?,
+            up: vec3("up", Some(Vec3::Y))?,
+            fov,
+        };
+        spec.validate()?;
+        Ok(spec)
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct Camera {
     pub camera_to_world: Mat4,
@@ -111,5 +269,80 @@ mod tests {
         let pb = b.at(10.0 / -b.d.z);
         assert!((pa - pb).length() < 1e-4, "{pa} vs {pb}");
         assert!((a.o - b.o).length() > 0.01);
+    }
+
+    #[test]
+    fn camera_spec_refuses_what_cannot_frame_a_view_and_round_trips() {
+        let ok = CameraSpec {
+            eye: Vec3::new(1.0, 2.0, 5.0),
+            target: Vec3::new(0.0, 0.5, 0.0),
+            up: Vec3::Y,
+            fov: 40.0,
+        };
+        assert_eq!(ok.validate(), Ok(()));
+        let bad = [
+            CameraSpec {
+                eye: Vec3::new(f32::NAN, 0.0, 0.0),
+                ..ok
+            },
+            CameraSpec {
+                target: ok.eye,
+                ..ok
+            },
+            CameraSpec {
+                up: Vec3::ZERO,
+                ..ok
+            },
+            CameraSpec {
+                up: ok.target - ok.eye,
+                ..ok
+            },
+            CameraSpec { fov: 0.0, ..ok },
+            CameraSpec { fov: 180.0, ..ok },
+            CameraSpec {
+                fov: f32::INFINITY,
+                ..ok
+            },
+            CameraSpec {
+                eye: Vec3::splat(1e30),
+                ..ok
+            },
+        ];
+        for b in bad {
+            assert!(b.validate().is_err(), "{b:?} accepted");
+        }
+        // desc -> spec -> desc keeps the view (eye, direction, up, fov).
+        let d = ok.to_desc("v");
+        let back = CameraSpec::from_desc(&d);
+        assert!((back.eye - ok.eye).length() < 1e-5);
+        let dir = |s: &CameraSpec| (s.target - s.eye).normalize();
+        assert!((dir(&back) - dir(&ok)).length() < 1e-5);
+        assert!(
+            back.to_desc("w")
+                .camera_to_world
+                .abs_diff_eq(d.camera_to_world, 1e-5)
+        );
+        assert_eq!(back.fov, 40.0);
+        // The TOML snippet reads back as the same camera.
+        let t = CameraSpec::from_toml(&ok.to_toml()).unwrap();
+        assert_eq!(t, ok);
+        assert_eq!(
+            CameraSpec::from_toml("[camera]\neye = [0, 0, 3]\ntarget = [0, 0, 0]\n")
+                .unwrap()
+                .fov,
+            CameraSpec::DEFAULT_FOV
+        );
+        for bad in [
+            "",
+            "[camera]\neye = [0, 0, 3]\n",
+            "[camera]\neye = [0, 0, 3]\ntarget = [0, 0, 3]\n",
+            "[camera]\neye = [0, 0]\ntarget = [0, 0, 3]\n",
+            "[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 3]\nfov = 'wide'\n",
+            "[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 3]\nzoom = 2\n",
+            "camera = 3",
+            "not toml [",
+        ] {
+            assert!(CameraSpec::from_toml(bad).is_err(), "{bad:?} accepted");
+        }
     }
 }

@@ -12,6 +12,7 @@
 
 pub mod accel;
 pub mod camera;
+pub mod denoise;
 pub mod film;
 pub mod geometry;
 pub mod integrator;

@@ -8,11 +8,18 @@
 //!   [`RenderJob::settings_for`], after loading and before anything is sized;
 //! - a partial render of a sample range, checkpoints and resuming are [`RenderJob::split`]
 //!   ([`crate::split`]); an output named `*.trp` is a partial film, written by [`write_outputs`];
-//! - AOVs are extra layers handed to [`write_outputs`] with the beauty image;
-//! - a denoiser is a stage between rendering and [`write_outputs`] ([`Stage`] grows a variant);
+//! - AOVs ([`RenderJob::aovs`]) are traced after the beauty render by
+//!   [`crate::render::render_aovs`] and handed to [`write_outputs`] as [`Layer`]s with the beauty
+//!   image (one multi-layer EXR, or side files); layers computed from the film (sample counts,
+//!   variance) join the same list in [`RenderJob::run`];
+//! - denoising ([`RenderJob::denoise`], [`crate::denoise`]) is the [`Stage::Denoise`] between
+//!   rendering and [`write_outputs`]; the library is loaded before anything else, so a missing
+//!   one fails before the render;
 //! - checkpoint/resume hooks into the observer's `pass_done`, which already sees the film.
 
+use crate::denoise::{DenoiseError, DenoiseOptions, Oidn};
 use crate::film::Image;
+use crate::film::aov::{AovKind, Layer, side_path};
 use crate::film::output::{Format, OutputError, write_image};
 use crate::film::partial::{Part, PartError};
 use crate::film::tonemap::Tonemap;
@@ -64,6 +71,102 @@ pub struct RenderJob {
     pub outputs: Vec<OutputSpec>,
     /// Render a sample range only, save checkpoints, resume (default: the whole frame, no files).
     pub split: SplitOptions,
+    /// AOV layers to write with the image (`--aov`; empty: none). Not with partial films.
+    pub aovs: Vec<AovKind>,
+    /// `--denoise`: also write each image output denoised by Open Image Denoise, beside it
+    /// (`out.denoised.exr`); the raw image is written as always. Not with partial films.
+    pub denoise: Option<DenoiseOptions>,
+    /// Render only a window of the image (else the scene file's `cropwindow`/`pixelbounds`, if
+    /// any); resolved into [`RenderSettings::crop`] once the image size is known.
+    pub crop: Option<CropSpec>,
+}
+
+/// A crop window as the user gives it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CropSpec {
+    /// Fractions [x0, x1, y0, y1] of the image (pbrt's `cropwindow`).
+    Fractions([f32; 4]),
+    /// Pixel bounds [x0, x1, y0, y1], columns `x0..x1` and rows `y0..y1` (pbrt's `pixelbounds`).
+    Pixels([u32; 4]),
+}
+
+impl CropSpec {
+    /// The pixel window in a `width`×`height` image.
+    pub fn resolve(self, width: u32, height: u32) -> crate::render::Crop {
+        match self {
+            CropSpec::Fractions(f) => crate::render::Crop::from_fractions(f, width, height),
+            CropSpec::Pixels([x0, x1, y0, y1]) => crate::render::Crop { x0, x1, y0, y1 },
+        }
+    }
+
+    /// Parses `x0,x1,y0,y1` (four numbers; fractions or pixel bounds as `pixels` says).
+    pub fn parse(s: &str, pixels: bool) -> Result<CropSpec, String> {
+        let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+        if parts.len() != 4 {
+            return Err(format!(
+                "'{s}' is not a window: write x0,x1,y0,y1 (four numbers)"
+            ));
+        }
+        if pixels {
+            let mut v = [0u32; 4];
+            for (o, p) in v.iter_mut().zip(&parts) {
+                *o = p
+                    .parse()
+                    .map_err(|_| format!("'{p}' is not a pixel coordinate (a whole number)"))?;
+            }
+            if !(v[0] < v[1] && v[2] < v[3]) {
+                return Err(format!(
+                    "pixel bounds {s} are empty: x0 < x1 and y0 < y1 are needed"
+                ));
+            }
+            Ok(CropSpec::Pixels(v))
+        } else {
+            let mut v = [0f32; 4];
+            for (o, p) in v.iter_mut().zip(&parts) {
+                *o = p
+                    .parse::<f32>()
+                    .ok()
+                    .filter(|x| (0.0..=1.0).contains(x))
+                    .ok_or_else(|| format!("'{p}' is not a fraction of the image (0 to 1)"))?;
+            }
+            if !(v[0] < v[1] && v[2] < v[3]) {
+                return Err(format!(
+                    "crop window {s} is empty: x0 < x1 and y0 < y1 are needed"
+                ));
+            }
+            Ok(CropSpec::Fractions(v))
+        }
+    }
+}
+
+/// The camera `--camera-from FILE` names: a TOML file's `[camera]` (or first `[[camera]]`) table,
+/// or the first camera of any other scene file (glTF, pbrt, FBX, …), loaded as a render loads it.
+pub fn camera_from_file(
+    path: &std::path::Path,
+) -> Result<crate::camera::CameraSpec, PipelineError> {
+    use crate::camera::CameraSpec;
+    let bad =
+        |m: String| PipelineError::InvalidSetting(format!("--camera-from {}: {m}", path.display()));
+    let is_toml = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    if is_toml {
+        // A camera snippet is a few lines; a scene file is read only up to its camera table.
+        let meta = std::fs::metadata(path).map_err(|e| bad(e.to_string()))?;
+        if meta.len() > 16 << 20 {
+            return Err(bad("larger than 16 MiB: not a camera file".into()));
+        }
+        let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
+        return CameraSpec::from_toml(&text).map_err(bad);
+    }
+    let scene = crate::scene::load_file(path)?;
+    let desc = scene
+        .cameras
+        .first()
+        .ok_or_else(|| bad("the scene has no camera".into()))?;
+    let spec = CameraSpec::from_desc(desc);
+    spec.validate().map_err(bad)?;
+    Ok(spec)
 }
 
 /// Whether `path` names a partial film (`.trp`) rather than an image.
@@ -79,6 +182,8 @@ pub struct GivenSettings {
     pub height: bool,
     pub spp: bool,
     pub max_depth: bool,
+    /// The reconstruction filter (else the scene file's, e.g. pbrt's `PixelFilter`).
+    pub filter: bool,
 }
 
 impl GivenSettings {
@@ -88,6 +193,7 @@ impl GivenSettings {
         height: true,
         spp: true,
         max_depth: true,
+        filter: true,
     };
 }
 
@@ -97,6 +203,8 @@ pub enum Stage {
     Load,
     Build,
     Render,
+    /// Open Image Denoise (only with [`RenderJob::denoise`]).
+    Denoise,
     Write,
 }
 
@@ -154,6 +262,8 @@ pub enum PipelineError {
     #[error(transparent)]
     Part(#[from] PartError),
     #[error(transparent)]
+    Denoise(#[from] DenoiseError),
+    #[error(transparent)]
     Split(SplitError),
 }
 
@@ -183,6 +293,11 @@ pub struct RenderReport {
     pub rays_per_second: f64,
     /// The files written, in the order of [`RenderJob::outputs`].
     pub written: Vec<PathBuf>,
+    /// Samples per pixel of the last complete pass (less than `settings.spp` when adaptive
+    /// sampling or the time limit stopped early, or the render covered a sample range).
+    pub samples_done: u32,
+    /// Mean samples per pixel actually taken (below `samples_done` under adaptive sampling).
+    pub mean_samples: f64,
 }
 
 impl RenderJob {
@@ -190,6 +305,22 @@ impl RenderJob {
     pub fn check(&self) -> Result<(), PipelineError> {
         self.settings.validate()?;
         let bad = |m: String| Err(PipelineError::InvalidSetting(m));
+        if let Some(c) = &self.world.camera_override {
+            if let Err(e) = c.validate() {
+                return bad(e);
+            }
+            if let Some(name) = &self.world.camera {
+                return bad(format!(
+                    "choose the scene's camera '{name}' or give a camera view (--camera-from), not both"
+                ));
+            }
+        }
+        if !(self.world.env_rotation.is_finite() && self.world.env_rotation.abs() <= 1e6) {
+            return bad(format!(
+                "the environment rotation must be a number of degrees (got {})",
+                self.world.env_rotation
+            ));
+        }
         for o in &self.outputs {
             if !(o.exposure.is_finite() && o.exposure > 0.0) {
                 return bad(format!(
@@ -207,7 +338,37 @@ impl RenderJob {
                 }
             }
         }
+        let partial =
+            self.split.samples.is_some() || self.outputs.iter().any(|o| is_partial_film(&o.path));
+        if !self.aovs.is_empty() && partial {
+            return bad(
+                "--aov: AOVs are written with the image of a whole render, not into partial films \
+                 (.trp, --samples); render the AOVs with the whole frame's settings and an image \
+                 output, e.g. -o aovs.exr --aov albedo,normal"
+                    .into(),
+            );
+        }
+        if self.denoise.is_some() && partial {
+            return bad(
+                "--denoise: a partial film (.trp, --samples) holds raw sums; denoise the merged \
+                 image of the whole frame instead (render it to an image with --denoise)"
+                    .into(),
+            );
+        }
         let split = &self.split;
+        if self.settings.progressive()
+            && (split.samples.is_some()
+                || split.checkpoint.is_some()
+                || split.resume.is_some()
+                || self.outputs.iter().any(|o| is_partial_film(&o.path)))
+        {
+            return bad(
+                "--noise-threshold and --time-limit stop passes early, so the film depends \
+                 on every pass before it: they cannot be combined with sample ranges (--samples, \
+                 the farm), partial films (.trp), --checkpoint or --resume"
+                    .into(),
+            );
+        }
         for path in self
             .outputs
             .iter()
@@ -276,8 +437,17 @@ impl RenderJob {
         };
         s.spp = pick(self.given.spp, h.spp, s.spp);
         s.path.max_depth = pick(self.given.max_depth, h.max_depth, s.path.max_depth);
+        if !self.given.filter
+            && let Some(f) = h.filter
+        {
+            s.filter = f;
+        }
 
-        let camera = scene.camera_by(self.world.camera.as_deref());
+        // A camera override has no frame of its own: the image's shape is the job's.
+        let camera = match self.world.camera_override {
+            Some(_) => None,
+            None => scene.camera_by(self.world.camera.as_deref()),
+        };
         let cam_aspect = camera
             .and_then(|c| c.aspect)
             .filter(|a| a.is_finite() && *a > 0.0);
@@ -344,6 +514,16 @@ impl RenderJob {
                 s.width as f64 / s.height as f64
             ));
         }
+        // The crop window needs the final size: the job's, else the file's pixel bounds, else
+        // its crop window (pbrt-v4 uses `pixelbounds` only without `cropwindow`).
+        let crop = self.crop.or(match (h.crop, h.pixel_bounds) {
+            (Some(f), _) => Some(CropSpec::Fractions(f)),
+            (None, Some(p)) => Some(CropSpec::Pixels(p)),
+            _ => None,
+        });
+        s.crop = crop
+            .map(|c| c.resolve(s.width, s.height))
+            .filter(|c| (c.x0, c.x1, c.y0, c.y1) != (0, s.width, 0, s.height));
         (s, note)
     }
 
@@ -354,6 +534,11 @@ impl RenderJob {
         cancel: &AtomicBool,
     ) -> Result<RenderReport, PipelineError> {
         self.check()?;
+        // The denoiser is loaded first: without it, fail before any work.
+        let denoiser = match &self.denoise {
+            Some(d) => Some(Oidn::load(d.library.as_deref())?),
+            None => None,
+        };
         let cancelled = || cancel.load(Ordering::Relaxed);
         let mut warnings = Vec::new();
         let mut warn = |w: String| {
@@ -365,7 +550,10 @@ impl RenderJob {
         // Load.
         observer.stage_started(Stage::Load);
         let t = Instant::now();
-        let scene = crate::scene::load(&self.scene)?;
+        let mut scene = crate::scene::load(&self.scene)?;
+        if let Some(v) = &self.world.variant {
+            scene.select_variant(v)?;
+        }
         let load_time = t.elapsed();
         observer.stage_finished(Stage::Load, load_time);
         scene.warnings.iter().for_each(|w| warn(w.clone()));
@@ -410,8 +598,21 @@ impl RenderJob {
             world.area_light_count(),
             camera_count
         ));
+        let mut extras = String::new();
+        if !settings.filter.is_default_box() {
+            extras += &format!(", {} filter", settings.filter.describe());
+        }
+        if let Some(c) = settings.crop {
+            extras += &format!(", crop columns {}..{} rows {}..{}", c.x0, c.x1, c.y0, c.y1);
+        }
+        if let Some(t) = settings.noise_threshold {
+            extras += &format!(", noise threshold {t}");
+        }
+        if let Some(t) = settings.time_limit {
+            extras += &format!(", time limit {t} s");
+        }
         info(format!(
-            "rendering {}x{} at {} spp, {} secondary, max depth {}, {} integrator, {} threads",
+            "rendering {}x{} at {} spp, {} secondary, max depth {}, {} integrator, {} threads{extras}",
             settings.width,
             settings.height,
             settings.spp,
@@ -426,12 +627,50 @@ impl RenderJob {
 
         // Render.
         observer.stage_started(Stage::Render);
-        let split = crate::split::render_split(&world, &frame, &self.split, observer, cancel)?;
+        // The denoiser's guides are traced too when they were not asked for (and not written).
+        let mut traced = self.aovs.clone();
+        if denoiser.is_some() {
+            for k in [AovKind::Albedo, AovKind::Normal] {
+                if !traced.contains(&k) {
+                    traced.push(k);
+                }
+            }
+        }
+        // AOVs are recorded by the render's own paths where the integrator can
+        // (`render::aovs_in_loop`), else traced in a pass of their own below; either way the
+        // beauty image is the same.
+        let mut split = crate::split::render_split_aovs(
+            &world,
+            &frame,
+            &self.split,
+            !traced.is_empty(),
+            observer,
+            cancel,
+        )?;
         if split.render.cancelled {
             return Err(match split.checkpoint_written {
                 Some(p) => PipelineError::Interrupted(p),
                 None => PipelineError::Cancelled,
             });
+        }
+        let samples_done = split.render.done;
+        let counts = split.render.film.counts();
+        let mean_samples =
+            counts.iter().map(|&n| n as f64).sum::<f64>() / counts.len().max(1) as f64;
+        if split.render.stopped_early || settings.noise_threshold.is_some() {
+            let max = counts.iter().copied().max().unwrap_or(0);
+            let min = counts.iter().copied().min().unwrap_or(0);
+            let why = match (settings.noise_threshold, split.render.stopped_early) {
+                (Some(t), true) if samples_done < settings.spp && settings.time_limit.is_none() => {
+                    format!("every pixel reached relative error {t}")
+                }
+                (_, true) => "the time limit ended it".to_string(),
+                (_, false) => format!("{} samples per pixel were reached", settings.spp),
+            };
+            info(format!(
+                "progressive render stopped after sample {samples_done} of {} ({why}): {mean_samples:.1} samples per pixel on average (min {min}, max {max})",
+                settings.spp
+            ));
         }
         let out = crate::render::RenderOutput {
             image: split.render.film.to_image(),
@@ -443,16 +682,76 @@ impl RenderJob {
             header: split.header,
             film: split.render.film,
         };
-        observer.stage_finished(Stage::Render, out.render_time);
+        // AOVs not recorded in the render: their own pass over the same camera samples.
+        let t = Instant::now();
+        let win = settings.film_window();
+        let in_loop = split.render.aovs.take();
+        let mut layers = if traced.is_empty() {
+            Vec::new()
+        } else if let Some(acc) = &in_loop {
+            crate::render::aov_layers(&traced, win.width(), win.height(), acc)
+        } else {
+            match crate::render::render_aovs_samples(
+                &world,
+                &settings,
+                &traced,
+                samples_done,
+                cancel,
+            ) {
+                Ok(l) => l,
+                Err(RenderError::Cancelled) => return Err(PipelineError::Cancelled),
+                Err(e) => return Err(e.into()),
+            }
+        };
+        let aov_time = t.elapsed();
+        observer.stage_finished(Stage::Render, out.render_time + aov_time);
         let accel_time = world.accel_build_time;
         let accel_description = world.accel.describe();
         // The world (geometry, textures) is not needed to write the image.
         drop(world);
 
+        // Denoise.
+        let mut denoise_time = None;
+        let denoised = match &denoiser {
+            Some(oidn) => {
+                observer.stage_started(Stage::Denoise);
+                let t = Instant::now();
+                let guide = |k: AovKind| {
+                    layers
+                        .iter()
+                        .find(|l| l.name == k.name())
+                        .and_then(Layer::to_image)
+                        .expect("the guides were traced")
+                };
+                let d = oidn.denoise(
+                    &out.image,
+                    &guide(AovKind::Albedo),
+                    &guide(AovKind::Normal),
+                    settings.threads,
+                )?;
+                denoise_time = Some(t.elapsed());
+                observer.stage_finished(Stage::Denoise, t.elapsed());
+                info(format!(
+                    "denoised with Open Image Denoise ({})",
+                    oidn.path().display()
+                ));
+                Some(d)
+            }
+            None => None,
+        };
+        layers.retain(|l| self.aovs.iter().any(|k| k.name() == l.name));
+        // An adaptive render's per-pixel sample counts and variances, from the film.
+        if settings.noise_threshold.is_some() {
+            layers.extend(sample_stat_layers(&part.film));
+        }
+
         // Write.
         observer.stage_started(Stage::Write);
         let t = Instant::now();
-        let written = write_outputs(&out.image, Some(&part), &self.outputs)?;
+        let mut written = write_outputs(&out.image, Some(&part), &self.outputs, &layers)?;
+        if let Some(d) = &denoised {
+            written.extend(write_denoised(d, &self.outputs)?);
+        }
         let write_time = t.elapsed();
         observer.stage_finished(Stage::Write, write_time);
         if out.discarded_samples > 0 {
@@ -472,6 +771,12 @@ impl RenderJob {
             format!("rendered ({})", settings.integrator.name()),
             out.render_time,
         );
+        if !traced.is_empty() {
+            phases.phase("AOVs traced", aov_time);
+        }
+        if let Some(t) = denoise_time {
+            phases.phase("denoised", t);
+        }
         phases.phase("image written", write_time);
         phases.note(format!("acceleration    {accel_description}"));
         phases.note(format!(
@@ -495,17 +800,51 @@ impl RenderJob {
             render_time: out.render_time,
             rays_per_second: out.rays_per_second(),
             written,
+            samples_done,
+            mean_samples,
         })
     }
 }
 
+/// An adaptive render's per-pixel statistics as AOV layers: `samples` (the samples each pixel
+/// took, channel `samples.Y`) and `variance` (the unbiased variance s² of its samples' luminance,
+/// the variance of one sample; the mean's is s²/n; channel `variance.Y`). Written like every
+/// layer: into a multi-layer EXR output, else as side files `out.samples.png` and so on.
+pub fn sample_stat_layers(film: &crate::film::Film) -> Vec<Layer> {
+    let layer = |name: &str, data: Vec<f32>| Layer {
+        name: name.into(),
+        channels: vec![format!("{name}.Y")],
+        display: crate::film::aov::Display::Range,
+        width: film.width,
+        height: film.height,
+        data,
+    };
+    let n = film.counts().len();
+    vec![
+        layer("samples", film.counts().iter().map(|&c| c as f32).collect()),
+        layer(
+            "variance",
+            (0..n).map(|i| film.variance(i) as f32).collect(),
+        ),
+    ]
+}
+
 /// The output stage: writes the image (or, for `*.trp` outputs, the partial film `part`) to every
-/// requested file and returns their paths. Extra layers (AOVs) are written here when they land.
+/// requested file and returns their paths. `layers` (AOVs) go into an EXR output as extra
+/// channels (one multi-layer file, [`crate::film::output::write_exr_layers`]); beside any other
+/// format each is a side file `out.NAME.ext` ([`side_path`]) showing it for the eye
+/// ([`Layer::display_image`]); the raw values (negative normals, infinite depth) need the EXR,
+/// which RGBE (.hdr) cannot hold either.
 pub fn write_outputs(
     image: &Image,
     part: Option<&Part>,
     outputs: &[OutputSpec],
+    layers: &[Layer],
 ) -> Result<Vec<PathBuf>, PipelineError> {
+    let werr = |path: &std::path::Path, error: OutputError| PipelineError::Write {
+        path: path.to_path_buf(),
+        error,
+    };
     let mut written = Vec::with_capacity(outputs.len());
     for o in outputs {
         if is_partial_film(&o.path) {
@@ -519,13 +858,41 @@ pub fn write_outputs(
             written.push(o.path.clone());
             continue;
         }
-        write_image(image, &o.path, o.exposure, o.tonemap).map_err(|source| {
+        let format = Format::from_path(&o.path)?;
+        if format == Format::Exr && !layers.is_empty() {
+            crate::film::output::write_exr_layers(image, layers, &o.path)
+                .map_err(|e| werr(&o.path, e))?;
+            written.push(o.path.clone());
+            continue;
+        }
+        write_image(image, &o.path, o.exposure, o.tonemap).map_err(|e| werr(&o.path, e))?;
+        written.push(o.path.clone());
+        for l in layers {
+            let side = side_path(&o.path, &l.name);
+            write_image(&l.display_image(), &side, 1.0, Tonemap::Clamp)
+                .map_err(|e| werr(&side, e))?;
+            written.push(side);
+        }
+    }
+    Ok(written)
+}
+
+/// Writes the denoised image beside each image output (`out.png` → `out.denoised.png`, with the
+/// output's exposure and tone mapping); returns the paths.
+pub fn write_denoised(
+    denoised: &Image,
+    outputs: &[OutputSpec],
+) -> Result<Vec<PathBuf>, PipelineError> {
+    let mut written = Vec::new();
+    for o in outputs.iter().filter(|o| !is_partial_film(&o.path)) {
+        let path = side_path(&o.path, "denoised");
+        write_image(denoised, &path, o.exposure, o.tonemap).map_err(|error| {
             PipelineError::Write {
-                path: o.path.clone(),
-                error: source,
+                path: path.clone(),
+                error,
             }
         })?;
-        written.push(o.path.clone());
+        written.push(path);
     }
     Ok(written)
 }

@@ -3,9 +3,11 @@
 //! pure function of (seed, pixel, sample index), and the film adds tiles in a fixed order, so the
 //! image is bit-identical for any thread count.
 
+use crate::film::aov::{AovKind, Layer};
+use crate::film::filter::{Filter, FilterSampler};
 use crate::film::{Film, FilmBlock, Image};
+use crate::integrator::aov::{self, AovPath, PixelAovs};
 use crate::integrator::{IntegratorKind, PathSettings, RayStats, path, raycast, whitted};
-use crate::math::Vec2;
 use crate::sampling::{SampleStream, SamplerKind, SamplerSetup};
 use crate::world::World;
 use rayon::prelude::*;
@@ -30,7 +32,60 @@ pub struct RenderSettings {
     pub sampler: SamplerKind,
     pub integrator: IntegratorKind,
     pub path: PathSettings,
+    /// Pixel reconstruction filter, by filter importance sampling ([`crate::film::filter`]).
+    pub filter: Filter,
+    /// Adaptive sampling: a pixel stops once the relative standard error of its mean luminance is
+    /// below this (judged after each pass from the passes before it; see [`adaptive_mask`]).
+    pub noise_threshold: Option<f32>,
+    /// Progressive rendering: stop at the end of the last pass that finishes within this many
+    /// seconds (the first pass always completes).
+    pub time_limit: Option<f64>,
+    /// Render and write only this window of the image (pixel bounds, see [`Crop`]).
+    pub crop: Option<Crop>,
 }
+
+/// A window of the image in pixels: columns `x0..x1`, rows `y0..y1` (pbrt's `pixelbounds`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Crop {
+    pub x0: u32,
+    pub x1: u32,
+    pub y0: u32,
+    pub y1: u32,
+}
+
+impl Crop {
+    /// pbrt-v4's rule for a `cropwindow` of fractions [x0, x1] × [y0, y1] of a `width`×`height`
+    /// image: pixel bounds `ceil(width·x0)..ceil(width·x1)`, likewise for y (pbrt-v4
+    /// `FilmBaseParameters`), each fraction clamped to [0, 1]. The window may come out empty (a
+    /// sliver narrower than a pixel): [`RenderSettings::validate`] refuses it then.
+    pub fn from_fractions(f: [f32; 4], width: u32, height: u32) -> Crop {
+        let px = |v: f32, n: u32| {
+            let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+            // In f32, as pbrt computes it: 20 · 0.2f is exactly 4 there, 4.0000000596 in f64.
+            ((n as f32 * v).ceil() as u32).min(n)
+        };
+        Crop {
+            x0: px(f[0], width),
+            x1: px(f[1], width),
+            y0: px(f[2], height),
+            y1: px(f[3], height),
+        }
+    }
+
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+}
+
+/// Samples every pixel gets before adaptive sampling may stop it (the variance estimate of fewer
+/// samples is too unreliable: a pixel whose first samples all miss a small light would stop dark).
+pub const ADAPTIVE_MIN_SAMPLES: u32 = 16;
+/// Largest frame a `--time-limit` render plans when not given a sample count.
+pub const TIME_LIMIT_SPP: u32 = 1 << 16;
 
 impl Default for RenderSettings {
     fn default() -> Self {
@@ -43,6 +98,10 @@ impl Default for RenderSettings {
             sampler: SamplerKind::default(),
             integrator: IntegratorKind::default(),
             path: PathSettings::default(),
+            filter: Filter::default(),
+            noise_threshold: None,
+            time_limit: None,
+            crop: None,
         }
     }
 }
@@ -108,8 +167,81 @@ impl RenderSettings {
         {
             return bad(format!("threads must be 1 to 1024 (got {t})"));
         }
+        self.filter
+            .validate()
+            .map_err(RenderError::InvalidSetting)?;
+        if let Some(t) = self.noise_threshold
+            && !(t > 0.0 && t <= 100.0)
+        {
+            return bad(format!(
+                "noise threshold must be a relative error above 0 and at most 100 (got {t})"
+            ));
+        }
+        if let Some(t) = self.time_limit
+            && !(t > 0.0 && t <= 1e7)
+        {
+            return bad(format!(
+                "time limit must be above 0 and at most 10000000 seconds (got {t})"
+            ));
+        }
+        if let Some(c) = self.crop
+            && !(c.x0 < c.x1 && c.y0 < c.y1 && c.x1 <= self.width && c.y1 <= self.height)
+        {
+            return bad(format!(
+                "crop window columns {}..{}, rows {}..{} is empty or outside the {}x{} image",
+                c.x0, c.x1, c.y0, c.y1, self.width, self.height
+            ));
+        }
         Ok(())
     }
+
+    /// The film's size and its offset in the image: the crop window, else the whole image.
+    pub fn film_window(&self) -> Crop {
+        self.crop.unwrap_or(Crop {
+            x0: 0,
+            x1: self.width,
+            y0: 0,
+            y1: self.height,
+        })
+    }
+
+    /// Whether passes may stop early (adaptive sampling or a time limit), which makes the film
+    /// depend on more than its sample range: such renders cannot be split or resumed.
+    pub fn progressive(&self) -> bool {
+        self.noise_threshold.is_some() || self.time_limit.is_some()
+    }
+}
+
+/// Which pixels of `film` get the next pass: those with fewer than [`ADAPTIVE_MIN_SAMPLES`]
+/// samples or a relative error ([`Film::relative_error`]) above `threshold`, and their 8
+/// neighbours (so a noisy region's edge is not left behind by a lucky pixel). A function of the
+/// film only, so of the passes already done: the image stays a function of seed and settings.
+/// Returns the number of pixels left active.
+pub fn adaptive_mask(
+    film: &Film,
+    threshold: f32,
+    active: &mut [bool],
+    scratch: &mut [bool],
+) -> usize {
+    let (w, h) = (film.width as usize, film.height as usize);
+    let counts = film.counts();
+    for i in 0..w * h {
+        scratch[i] = counts[i] < ADAPTIVE_MIN_SAMPLES || film.relative_error(i) > threshold as f64;
+    }
+    let mut n = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let mut a = false;
+            for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                    a |= scratch[yy * w + xx];
+                }
+            }
+            active[y * w + x] = a;
+            n += a as usize;
+        }
+    }
+    n
 }
 
 /// Receives progress from the driver. Called from the driver's thread only.
@@ -147,8 +279,14 @@ pub struct FilmRender {
     pub start: u32,
     pub done: u32,
     pub cancelled: bool,
+    /// Adaptive sampling found every pixel clean, or the time limit ended the render, before
+    /// the last planned pass (pixels may then hold fewer samples than `done`).
+    pub stopped_early: bool,
     pub stats: RayStats,
     pub render_time: Duration,
+    /// The AOV accumulators of the film window's pixels (row-major), filled in the path loop
+    /// when [`render_range_aovs`] was asked for them and could (see there); `None` otherwise.
+    pub aovs: Option<Vec<PixelAovs>>,
 }
 
 /// Where a render of sample indices `samples` (of a `settings.spp` frame) starts: from nothing, or
@@ -173,6 +311,24 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
         }
     }
     passes
+}
+
+/// Settings the volumetric path tracer cannot honour are refused rather than ignored: it has no
+/// first-hit splitting (`secondary`; the first vertex may be in a medium), so a scene with media
+/// and `secondary > 1` is an error that says what to use instead.
+pub fn check_media_settings(world: &World, settings: &RenderSettings) -> Result<(), RenderError> {
+    if world.media.active
+        && matches!(settings.integrator, IntegratorKind::Path)
+        && settings.path.secondary > 1
+    {
+        return Err(RenderError::InvalidSetting(format!(
+            "secondary rays ({}) are not supported in scenes with participating media or medium \
+             interfaces (the volumetric path tracer renders them): use 1 and raise the samples \
+             per pixel instead",
+            settings.path.secondary
+        )));
+    }
+    Ok(())
 }
 
 pub fn render(
@@ -207,7 +363,32 @@ pub fn render_range(
     observer: &dyn RenderObserver,
     cancel: &AtomicBool,
 ) -> Result<FilmRender, RenderError> {
+    render_range_aovs(world, settings, start, false, observer, cancel)
+}
+
+/// Whether [`render_range_aovs`] records AOVs in the render's own paths for `settings` and
+/// `start`: the surface path tracer (the volumetric one, raycast and Whitted keep the separate
+/// pass of [`render_aovs_samples`]), from the first sample (a resumed film's earlier samples
+/// have no AOVs).
+pub fn aovs_in_loop(world: &World, settings: &RenderSettings, start: &RangeStart) -> bool {
+    settings.integrator == IntegratorKind::Path && !world.media.active && start.resume.is_none()
+}
+
+/// [`render_range`]; with `aovs`, and when [`aovs_in_loop`] says the integrator can, the path
+/// loop also records every sample's AOVs ([`path::radiance_aov`]) into
+/// [`FilmRender::aovs`]: over exactly the samples in the film (a dropped pass's are dropped
+/// too), each pixel's in sample order, so they do not depend on the thread count. The image is
+/// bit-identical with and without them.
+pub fn render_range_aovs(
+    world: &World,
+    settings: &RenderSettings,
+    start: RangeStart,
+    aovs: bool,
+    observer: &dyn RenderObserver,
+    cancel: &AtomicBool,
+) -> Result<FilmRender, RenderError> {
     settings.validate()?;
+    check_media_settings(world, settings)?;
     let range = start.samples.clone();
     if !(range.start < range.end && range.end <= settings.spp) {
         return Err(RenderError::InvalidSetting(format!(
@@ -216,10 +397,14 @@ pub fn render_range(
         )));
     }
     if let Some((film, at)) = &start.resume {
-        if (film.width, film.height) != (settings.width, settings.height) {
+        let win = settings.film_window();
+        if (film.width, film.height) != (win.width(), win.height()) {
             return Err(RenderError::Resume(format!(
                 "the checkpoint is {}x{}, the render {}x{}",
-                film.width, film.height, settings.width, settings.height
+                film.width,
+                film.height,
+                win.width(),
+                win.height()
             )));
         }
         if !(range.start <= *at && *at <= range.end) {
@@ -229,7 +414,8 @@ pub fn render_range(
             )));
         }
     }
-    let run = || render_in_pool(world, settings, start, observer, cancel);
+    let aovs = aovs && aovs_in_loop(world, settings, &start);
+    let run = || render_in_pool(world, settings, start, aovs, observer, cancel);
     match settings.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -244,22 +430,28 @@ fn render_in_pool(
     world: &World,
     settings: &RenderSettings,
     range_start: RangeStart,
+    record_aovs: bool,
     observer: &dyn RenderObserver,
     cancel: &AtomicBool,
 ) -> Result<FilmRender, RenderError> {
     let start = Instant::now();
     let (w, h) = (settings.width, settings.height);
     let camera = crate::camera::Camera::new(&world.camera, w, h);
+    // The film covers the crop window (the whole image by default); tiles are in film
+    // coordinates and samples in image coordinates, so a pixel is the same number whether or not
+    // it is rendered as part of a crop.
+    let win = settings.film_window();
+    let (fw, fh) = (win.width(), win.height());
     let mut tiles = Vec::new();
-    for y0 in (0..h).step_by(TILE as usize) {
-        for x0 in (0..w).step_by(TILE as usize) {
-            tiles.push((x0, y0, TILE.min(w - x0), TILE.min(h - y0)));
+    for y0 in (0..fh).step_by(TILE as usize) {
+        for x0 in (0..fw).step_by(TILE as usize) {
+            tiles.push((x0, y0, TILE.min(fw - x0), TILE.min(fh - y0)));
         }
     }
     let first = range_start.samples.start;
     let (mut film, from) = match range_start.resume {
         Some((film, at)) => (film, at),
-        None => (Film::new(w, h), first),
+        None => (Film::new(fw, fh), first),
     };
     // Passes over the samples still to do. The film's sums are exact (see `film`), so how the
     // samples are grouped into passes does not change the image.
@@ -271,46 +463,135 @@ fn render_in_pool(
     let tiles_done = AtomicU64::new(0);
     let mut stats = RayStats::default();
     let mut done = from;
-    let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp);
+    let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h);
+    let filter = FilterSampler::new(&settings.filter);
+    // Adaptive sampling: which pixels the next pass renders (decided between passes).
+    let track = settings.noise_threshold.is_some();
+    let pixels = (fw * fh) as usize;
+    // In-loop AOVs: one accumulator per film pixel; each pass's tiles fill blocks of their own,
+    // added here once the pass is complete (like the film's blocks).
+    let mut aov_film: Option<Vec<PixelAovs>> =
+        record_aovs.then(|| vec![PixelAovs::default(); (fw * fh) as usize]);
+    let (mut active, mut scratch) = if track {
+        (vec![true; pixels], vec![false; pixels])
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    let deadline = settings
+        .time_limit
+        .map(|t| start + Duration::from_secs_f64(t));
+    let timed_out = AtomicBool::new(false);
+    let mut stopped_early = false;
     for &(s0, s1) in &passes {
-        let blocks: Vec<(FilmBlock, RayStats)> = tiles
+        if let Some(t) = settings.noise_threshold
+            && done >= ADAPTIVE_MIN_SAMPLES
+            && adaptive_mask(&film, t, &mut active, &mut scratch) == 0
+        {
+            stopped_early = true;
+            break;
+        }
+        // The first pass always completes; later ones are abandoned whole when time runs out.
+        let may_time_out = deadline.filter(|_| done > from);
+        if may_time_out.is_some_and(|d| Instant::now() >= d) {
+            stopped_early = true;
+            break;
+        }
+        let active = &active;
+        type Tile = (FilmBlock, RayStats, Vec<PixelAovs>);
+        let blocks: Vec<Tile> = tiles
             .par_iter()
             .map(|&(x0, y0, tw, th)| {
-                let mut block = FilmBlock::new(x0, y0, tw, th);
+                let mut block = if track {
+                    FilmBlock::tracked(x0, y0, tw, th)
+                } else {
+                    FilmBlock::new(x0, y0, tw, th)
+                };
                 let mut st = RayStats::default();
+                let mut aov_block = Vec::new();
                 if cancel.load(Ordering::Relaxed) {
-                    return (block, st);
+                    return (block, st, aov_block);
                 }
-                for y in y0..y0 + th {
-                    for x in x0..x0 + tw {
+                if let Some(d) = may_time_out
+                    && (timed_out.load(Ordering::Relaxed) || Instant::now() >= d)
+                {
+                    timed_out.store(true, Ordering::Relaxed);
+                    return (block, st, aov_block);
+                }
+                if record_aovs {
+                    aov_block = vec![PixelAovs::default(); (tw * th) as usize];
+                }
+                for fy in y0..y0 + th {
+                    for fx in x0..x0 + tw {
+                        if track && !active[(fy * fw + fx) as usize] {
+                            continue;
+                        }
+                        let (x, y) = (fx + win.x0, fy + win.y0);
                         let pixel_key = sampler.pixel_key((x, y));
+                        let slot = ((fy - y0) * tw + (fx - x0)) as usize;
                         for s in s0..s1 {
                             let mut stream = sampler.stream(pixel_key, s);
-                            let l =
-                                sample_pixel(world, &camera, settings, &mut stream, x, y, &mut st);
-                            block.add(x, y, l);
+                            let l = if record_aovs {
+                                let mut rec = AovPath::new();
+                                let l = sample_pixel_aov(
+                                    world,
+                                    &camera,
+                                    &filter,
+                                    settings,
+                                    &mut stream,
+                                    (x, y),
+                                    &mut st,
+                                    &mut rec,
+                                );
+                                aov_block[slot].add(&rec.sample);
+                                l
+                            } else {
+                                sample_pixel(
+                                    world,
+                                    &camera,
+                                    &filter,
+                                    settings,
+                                    &mut stream,
+                                    x,
+                                    y,
+                                    &mut st,
+                                )
+                            };
+                            if track {
+                                block.add_tracked(fx, fy, l);
+                            } else {
+                                block.add(fx, fy, l);
+                            }
                         }
                     }
                 }
                 let done = tiles_done.fetch_add(1, Ordering::Relaxed) + 1;
                 observer.tile_done(done, total_tiles);
-                (block, st)
+                (block, st, aov_block)
             })
             .collect();
-        if cancel.load(Ordering::Relaxed) {
+        let cancelled = cancel.load(Ordering::Relaxed);
+        if cancelled || timed_out.load(Ordering::Relaxed) {
             // Tiles skipped after the flag was set make this pass incomplete: drop all of it.
             return Ok(FilmRender {
                 film,
                 start: first,
                 done,
-                cancelled: true,
+                cancelled,
+                stopped_early: !cancelled,
                 stats,
                 render_time: start.elapsed(),
+                aovs: aov_film,
             });
         }
-        for (b, st) in &blocks {
+        for (b, st, ab) in &blocks {
             film.add_block(b);
             stats += *st;
+            if let Some(af) = aov_film.as_mut() {
+                for (k, px) in ab.iter().enumerate() {
+                    let (fx, fy) = (b.x0 + k as u32 % b.w, b.y0 + k as u32 / b.w);
+                    af[(fy * fw + fx) as usize].merge(px);
+                }
+            }
         }
         done = s1;
         observer.pass_done(&film, s1, settings.spp);
@@ -320,28 +601,158 @@ fn render_in_pool(
         start: first,
         done,
         cancelled: false,
+        stopped_early,
         stats,
         render_time: start.elapsed(),
+        aovs: aov_film,
     })
 }
 
-/// One camera sample of pixel (x, y): a uniformly jittered film position (a box filter over the
-/// pixel, as the reference images use) and a lens position.
+/// The AOV layers `kinds` of a film window `width` × `height` from the accumulators
+/// [`render_range_aovs`] recorded.
+pub fn aov_layers(kinds: &[AovKind], width: u32, height: u32, acc: &[PixelAovs]) -> Vec<Layer> {
+    let rows: Vec<Vec<f32>> = acc
+        .chunks(width.max(1) as usize)
+        .map(|row| {
+            let mut out = Vec::new();
+            for px in row {
+                for &k in kinds {
+                    px.push(k, &mut out);
+                }
+            }
+            out
+        })
+        .collect();
+    aov::layers(kinds, width, height, &rows)
+}
+
+/// The camera ray of one sample of pixel (x, y) and its filter weight: the stream's first two
+/// numbers place the film position by the reconstruction filter (by default a uniform jitter over
+/// the pixel, a box filter, as the reference images use; [`FilterSampler::film_point`]), the next
+/// two place it on the lens. The AOV pass draws the same numbers, so it sees the same rays.
 #[inline]
+fn camera_ray(
+    camera: &crate::camera::Camera,
+    filter: &FilterSampler,
+    stream: &mut SampleStream,
+    x: u32,
+    y: u32,
+) -> (crate::geometry::Ray, f32) {
+    let jitter = stream.next_2d();
+    let lens = stream.next_2d();
+    let (film, weight) = filter.film_point(x, y, jitter);
+    (camera.generate_ray(film, lens), weight)
+}
+
+/// Traces the AOV layers `kinds` ([`crate::integrator::aov`]) over sample indices
+/// `0..settings.spp` of every pixel of the film window (the crop, else the image), with the
+/// camera rays of the beauty render's samples. See [`render_aovs_samples`].
+pub fn render_aovs(
+    world: &World,
+    settings: &RenderSettings,
+    kinds: &[AovKind],
+    cancel: &AtomicBool,
+) -> Result<Vec<Layer>, RenderError> {
+    render_aovs_samples(world, settings, kinds, settings.spp, cancel)
+}
+
+/// [`render_aovs`] over sample indices `0..samples` only (a time-limited or adaptive render
+/// traces its AOVs over the samples of its complete passes, not the planned frame). Each pixel
+/// is accumulated by one thread in sample order, so the layers are the same for any thread count.
+/// With a reconstruction filter the AOVs average their values at the filter's sample positions
+/// without its weights (ids and normals must not be weighted; for the positive filters this is
+/// the filtered value up to the sampler's table fit). Polls `cancel` between rows.
+pub fn render_aovs_samples(
+    world: &World,
+    settings: &RenderSettings,
+    kinds: &[AovKind],
+    samples: u32,
+    cancel: &AtomicBool,
+) -> Result<Vec<Layer>, RenderError> {
+    settings.validate()?;
+    let (w, h) = (settings.width, settings.height);
+    let camera = crate::camera::Camera::new(&world.camera, w, h);
+    // The beauty render's sampler, image size included (ZSobol's indices span it), so each AOV
+    // sample replays its beauty sample's camera ray.
+    let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h);
+    let filter = FilterSampler::new(&settings.filter);
+    let win = settings.film_window();
+    let samples = samples.clamp(1, settings.spp);
+    let run = || {
+        (win.y0..win.y1)
+            .into_par_iter()
+            .map(|y| {
+                let mut row = Vec::new();
+                if cancel.load(Ordering::Relaxed) {
+                    return row;
+                }
+                let mut acc = PixelAovs::default();
+                for x in win.x0..win.x1 {
+                    acc.clear();
+                    let pixel_key = sampler.pixel_key((x, y));
+                    for s in 0..samples {
+                        let mut stream = sampler.stream(pixel_key, s);
+                        let (ray, _) = camera_ray(&camera, &filter, &mut stream, x, y);
+                        acc.add(&aov::trace(world, &ray, &mut stream));
+                    }
+                    for &k in kinds {
+                        acc.push(k, &mut row);
+                    }
+                }
+                row
+            })
+            .collect::<Vec<Vec<f32>>>()
+    };
+    let rows = match settings.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|e| RenderError::ThreadPool(n, e.to_string()))?
+            .install(run),
+        None => run(),
+    };
+    if cancel.load(Ordering::Relaxed) {
+        return Err(RenderError::Cancelled);
+    }
+    Ok(aov::layers(kinds, win.width(), win.height(), &rows))
+}
+
+/// [`sample_pixel`] of the surface path tracer that also records the sample's AOVs into `aov`
+/// ([`path::radiance_aov`]; [`aovs_in_loop`] says when it is used).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn sample_pixel_aov(
+    world: &World,
+    camera: &crate::camera::Camera,
+    filter: &FilterSampler,
+    settings: &RenderSettings,
+    stream: &mut SampleStream,
+    (x, y): (u32, u32),
+    stats: &mut RayStats,
+    aov: &mut AovPath,
+) -> crate::math::Vec3 {
+    let (ray, weight) = camera_ray(camera, filter, stream, x, y);
+    let l = path::radiance_aov(world, &ray, stream, &settings.path, stats, aov);
+    // As in `sample_pixel`.
+    l * weight
+}
+
+/// One camera sample of pixel (x, y) (see [`camera_ray`]); the radiance is weighted by the
+/// filter's `f/pdf` (1 for box and tent).
+#[inline]
+#[allow(clippy::too_many_arguments)]
 fn sample_pixel(
     world: &World,
     camera: &crate::camera::Camera,
+    filter: &FilterSampler,
     settings: &RenderSettings,
     stream: &mut SampleStream,
     x: u32,
     y: u32,
     stats: &mut RayStats,
 ) -> crate::math::Vec3 {
-    let jitter = stream.next_2d();
-    let lens = stream.next_2d();
-    let film = Vec2::new(x as f32 + jitter.x, y as f32 + jitter.y);
-    let ray = camera.generate_ray(film, lens);
-    match settings.integrator {
+    let (ray, weight) = camera_ray(camera, filter, stream, x, y);
+    let l = match settings.integrator {
         // Scenes with participating media or interface surfaces need the volumetric path tracer;
         // all others keep the surface path tracer exactly as it was.
         IntegratorKind::Path if world.media.active => {
@@ -354,7 +765,9 @@ fn sample_pixel(
         IntegratorKind::Whitted { shading } => {
             whitted::radiance(world, &ray, stream, settings.path.max_depth, shading, stats)
         }
-    }
+    };
+    // ×1 is exact: box and tent samples are unchanged.
+    l * weight
 }
 
 #[cfg(test)]
@@ -372,6 +785,59 @@ mod tests {
             }
             assert!(p.iter().all(|(a, b)| b > a && b - a <= 64));
         }
+    }
+
+    /// The stopping rule: a pixel with 16 identical samples is clean, one with noisy samples is
+    /// not and keeps its 8 neighbours active; fewer than 16 samples keep a pixel active.
+    #[test]
+    fn adaptive_mask_stops_clean_pixels_and_keeps_noisy_neighbourhoods() {
+        use crate::math::Vec3;
+        let (w, h) = (5u32, 3u32);
+        let mut film = Film::new(w, h);
+        let mut b = FilmBlock::tracked(0, 0, w, h);
+        for y in 0..h {
+            for x in 0..w {
+                for k in 0..16 {
+                    let v = if (x, y) == (0, 1) {
+                        // Noisy: relative error ≈ 1/√16 · 1 = 0.25.
+                        if k % 2 == 0 { 0.0 } else { 2.0 }
+                    } else {
+                        0.5
+                    };
+                    b.add_tracked(x, y, Vec3::splat(v));
+                }
+            }
+        }
+        // One pixel has too few samples to judge.
+        b.add_tracked(4, 2, Vec3::ONE);
+        film.add_block(&b);
+        let mut tail = FilmBlock::tracked(0, 0, w, h);
+        tail.add_tracked(4, 0, Vec3::ONE);
+        let mut few = Film::new(w, h);
+        few.add_block(&tail);
+        let n = |f: &Film| {
+            let mut a = vec![false; 15];
+            let mut s = vec![false; 15];
+            let c = adaptive_mask(f, 0.1, &mut a, &mut s);
+            (a, c)
+        };
+        let (a, count) = n(&film);
+        let active = |x: usize, y: usize| a[y * 5 + x];
+        assert!(
+            (film.relative_error(5) - 0.258).abs() < 0.01,
+            "{}",
+            film.relative_error(5)
+        );
+        assert!(film.relative_error(2) < 1e-3);
+        // The noisy pixel (0, 1) and its neighbours x ≤ 1 stay; x ≥ 2 stop.
+        for y in 0..3 {
+            assert!(active(0, y) && active(1, y));
+            assert!(!active(2, y) && !active(3, y));
+        }
+        assert_eq!(count, 6);
+        // A pixel with under 16 samples is active, with its neighbours.
+        let (a, _) = n(&few);
+        assert!(a[4] && a[3] && a[9] && a[8]);
     }
 
     #[test]

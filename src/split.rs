@@ -150,6 +150,19 @@ pub fn render_split(
     observer: &dyn RenderObserver,
     cancel: &AtomicBool,
 ) -> Result<SplitOutcome, SplitError> {
+    render_split_aovs(world, frame, opts, false, observer, cancel)
+}
+
+/// [`render_split`], asking the render to record AOVs in its paths where it can
+/// ([`crate::render::render_range_aovs`]; `render.aovs` is `None` where it could not).
+pub fn render_split_aovs(
+    world: &World,
+    frame: &FrameId,
+    opts: &SplitOptions,
+    aovs: bool,
+    observer: &dyn RenderObserver,
+    cancel: &AtomicBool,
+) -> Result<SplitOutcome, SplitError> {
     let s = &frame.settings;
     let range = opts.samples.clone().unwrap_or(0..s.spp);
     let resume = match &opts.resume {
@@ -167,8 +180,10 @@ pub fn render_split(
                 start: range.start,
                 done: range.end,
                 cancelled: false,
+                stopped_early: false,
                 stats: Default::default(),
                 render_time: Duration::ZERO,
+                aovs: None,
             },
             header,
             checkpoint_written: None,
@@ -188,7 +203,7 @@ pub fn render_split(
         samples: range.clone(),
         resume,
     };
-    let render = crate::render::render_range(world, s, start, &obs, cancel)?;
+    let render = crate::render::render_range_aovs(world, s, start, aovs, &obs, cancel)?;
     if let Some(e) = obs.error.into_inner().unwrap_or_else(|e| e.into_inner()) {
         return Err(e.into());
     }

@@ -13,9 +13,8 @@ use crate::geometry::{Bounds3, GeometryStore, PrimRef, PrimitiveKind, Ray};
 use crate::light::default_light::{self, DefaultLight};
 use crate::light::{EnvMap, Light, LightSet};
 use crate::material::{AlphaMode, Material, Texture};
-use crate::math::{Mat3, Vec3, Vec4, transform_normal};
+use crate::math::{Mat3, Vec2, Vec3, Vec4, transform_normal};
 use crate::scene::{CameraDesc, LightDesc, Scene, SceneError, Shape};
-use std::path::Path;
 use std::sync::Arc;
 
 /// Options that shape the world but are not part of the scene file.
@@ -29,6 +28,18 @@ pub struct WorldOptions {
     pub default_light: Option<DefaultLight>,
     /// `--env FILE`: an equirectangular environment map lighting the scene.
     pub env: Option<std::path::PathBuf>,
+    /// `--env-rotation DEGREES`: the `--env` map turned about the up axis (+y), counter-clockwise
+    /// seen from above, as TOML `[background] rotation` does.
+    pub env_rotation: f32,
+    /// `--camera-from FILE`, the web viewport's `camera`: render from this view instead of the
+    /// scene's cameras (not with `camera`).
+    pub camera_override: Option<crate::camera::CameraSpec>,
+    /// `--variant NAME`: the glTF material variant to render (`KHR_materials_variants`), applied
+    /// to the loaded scene by [`crate::scene::Scene::select_variant`]; `None` is the file's
+    /// default materials.
+    pub variant: Option<String>,
+    /// `--light-sampler auto|power|bvh`: how next-event estimation chooses a light.
+    pub light_sampler: crate::light::LightSamplerKind,
 }
 
 pub struct World {
@@ -57,8 +68,8 @@ const MAX_CUTOUT_LAYERS: u32 = 256;
 
 impl World {
     /// Compiles `scene` for rendering. The scene is consumed: its materials and textures move
-    /// into the world instead of being copied. It is validated here, once, so hand-built scenes
-    /// are as safe as loaded ones.
+    /// into the world instead of being copied. `Scene::validate` runs on entry: loaded scenes were
+    /// checked by `scene::load_file` already, but scenes built in code must be just as safe.
     pub fn build(mut scene: Scene, options: &WorldOptions) -> Result<World, SceneError> {
         scene.validate()?;
         let label = scene
@@ -72,7 +83,7 @@ impl World {
         let media = crate::medium::world::assign(&mut scene)
             .map_err(|e| SceneError::invalid(&label, format!("medium grid: {e}")))?;
         let mut g = compile_geometry(&scene, &label, &mut warnings)?;
-        let mut lights = area_lights(&mut g, &scene.materials);
+        let (mut lights, footprint_means) = area_lights(&mut g, &scene.materials, &scene.textures);
         lights.extend(scene_lights(&scene, &label)?);
         add_option_lights(&mut lights, &scene, &g, options, &mut warnings)?;
         let bounds = g.scene_bounds();
@@ -85,7 +96,15 @@ impl World {
             textures,
             ..
         } = scene;
-        let lights = LightSet::new(lights, &g, &materials, &textures, bounds);
+        let lights = LightSet::new(
+            lights,
+            &g,
+            &materials,
+            &textures,
+            bounds,
+            &footprint_means,
+            options.light_sampler,
+        );
         let cutout: Vec<bool> = materials
             .iter()
             .map(|m| m.alpha_mode != AlphaMode::Opaque)
@@ -348,17 +367,62 @@ fn compile_geometry(
     Ok(g)
 }
 
-/// Step 2: an area light for every primitive with an emissive material and non-zero area.
-fn area_lights(g: &mut GeometryStore, materials: &[Material]) -> Vec<Light> {
+/// Step 2: an area light for every primitive with an emissive material, non-zero area and, for
+/// triangles with an emissive texture, a texture footprint that is not black
+/// ([`crate::light::emission`]). Returns the lights and, per light, the mean of its texture
+/// footprint when it was read (for its power).
+fn area_lights(
+    g: &mut GeometryStore,
+    materials: &[Material],
+    textures: &[Texture],
+) -> (Vec<Light>, Vec<Option<Vec3>>) {
+    use rayon::prelude::*;
+    // Triangles' texture footprints, read in parallel (ToyCar: 88 837 triangles).
+    let footprints: Vec<Option<Vec3>> = (0..g.triangles.len())
+        .into_par_iter()
+        .map(|i| {
+            let prim = PrimRef::new(PrimitiveKind::Triangle, i as u32);
+            let m = &materials[g.material(prim) as usize];
+            let t = m.emissive_texture.as_ref()?;
+            if !m.is_emissive() {
+                return None;
+            }
+            let texture = textures.get(t.texture)?;
+            let (mesh_i, local) = g.tri_mesh[i];
+            let mesh = &g.meshes[mesh_i as usize];
+            let idx = mesh.indices[local as usize].map(|x| x as usize);
+            let set = if t.texcoord >= 1 && mesh.uv1.is_some() {
+                &mesh.uv1
+            } else {
+                &mesh.uv0
+            };
+            // Without texture coordinates every lookup is at (0, 0).
+            let uvs = match set {
+                Some(uv) => idx.map(|k| uv[k]),
+                None => [Vec2::ZERO; 3],
+            };
+            crate::light::emission::footprint_mean(texture, t, uvs)
+        })
+        .collect();
     let mut lights = Vec::new();
+    let mut means = Vec::new();
     for prim in g.all_prims() {
         let material = g.material(prim);
-        if materials[material as usize].is_emissive() && g.area(prim) > 0.0 {
-            g.set_light(prim, lights.len() as u32);
-            lights.push(Light::Area { prim, material });
+        if !(materials[material as usize].is_emissive() && g.area(prim) > 0.0) {
+            continue;
         }
+        let mean = match prim.kind() {
+            PrimitiveKind::Triangle => footprints[prim.index()],
+            _ => None,
+        };
+        if mean == Some(Vec3::ZERO) {
+            continue;
+        }
+        g.set_light(prim, lights.len() as u32);
+        lights.push(Light::Area { prim, material });
+        means.push(mean);
     }
-    lights
+    (lights, means)
 }
 
 /// Step 3: the scene's own lights (point, spot, directional, ambient, environment maps, whose
@@ -404,15 +468,13 @@ fn scene_lights(scene: &Scene, label: &str) -> Result<Vec<Light>, SceneError> {
                 name,
                 path,
                 scale,
+                mapping,
                 transform,
             } => {
-                // Relative paths are relative to the scene file.
-                let path = match (&scene.source, path.is_relative()) {
-                    (Some(src), true) => src.parent().unwrap_or(Path::new(".")).join(path),
-                    _ => path.clone(),
-                };
-                let map =
-                    EnvMap::load(&path, *scale, Mat3::from_mat4(*transform)).map_err(|e| {
+                // The loaders resolve the file against the scene's folder (`resolve_in_dir`), so
+                // the path is used as given; joining the folder again read `dir/dir/map.hdr`.
+                let map = EnvMap::load_mapped(path, *scale, Mat3::from_mat4(*transform), *mapping)
+                    .map_err(|e| {
                         SceneError::invalid(
                             label,
                             format!("environment light '{name}' ({}): {e}", path.display()),
@@ -435,7 +497,17 @@ fn add_option_lights(
     warnings: &mut Vec<String>,
 ) -> Result<(), SceneError> {
     if let Some(path) = &options.env {
-        let map = EnvMap::load(path, Vec3::ONE, Mat3::IDENTITY)
+        if !options.env_rotation.is_finite() {
+            return Err(SceneError::invalid(
+                path.display(),
+                format!(
+                    "environment rotation must be a number of degrees (got {})",
+                    options.env_rotation
+                ),
+            ));
+        }
+        let rotation = Mat3::from_rotation_y(options.env_rotation.to_radians());
+        let map = EnvMap::load(path, Vec3::ONE, rotation)
             .map_err(|e| SceneError::invalid(path.display(), e))?;
         lights.push(Light::Environment { map: Arc::new(map) });
     }
@@ -454,7 +526,20 @@ fn add_option_lights(
         area_of,
         g.scene_bounds().bounding_sphere().1,
     );
-    let decision = default_light::decide(mode, lights, &emitters);
+    // An emissive medium is the author's lighting too: a scene lit only by glowing gas must not
+    // get the white environment that `auto` gives an unlit scene.
+    let medium_glows = scene
+        .media
+        .iter()
+        .any(|m| m.le.max_element() > 0.0 && (m.sigma_a * m.scale).max_element() > 0.0);
+    let decision = if medium_glows && matches!(mode, DefaultLight::Auto) {
+        default_light::Decision {
+            add: false,
+            reason: String::new(),
+        }
+    } else {
+        default_light::decide(mode, lights, &emitters)
+    };
     if !decision.reason.is_empty() {
         warnings.push(decision.reason);
     }
@@ -476,6 +561,10 @@ fn choose_camera(
     g: &GeometryStore,
     label: &str,
 ) -> Result<CameraDesc, SceneError> {
+    if let Some(spec) = &options.camera_override {
+        spec.validate().map_err(|e| SceneError::invalid(label, e))?;
+        return Ok(spec.to_desc("view"));
+    }
     let mut camera = select_camera(scene, options, bounds, label)?;
     if scene.cameras.is_empty() && options.camera.is_none() {
         camera = face_the_front(camera, bounds, accel, g);

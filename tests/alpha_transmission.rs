@@ -164,7 +164,7 @@ fn mask_follows_the_base_colour_texture_alpha() {
         name: "half".into(),
         width: 2,
         height: 1,
-        texels: vec![Vec4::new(0.0, 0.0, 0.0, 0.0), Vec4::new(0.0, 0.0, 0.0, 1.0)],
+        texels: vec![Vec4::new(0.0, 0.0, 0.0, 0.0), Vec4::new(0.0, 0.0, 0.0, 1.0)].into(),
         wrap_s: Default::default(),
         wrap_t: Default::default(),
         filter: FilterMode::Nearest,

@@ -442,7 +442,7 @@ fn hierarchy_pivots_axes_units_slots_and_spot_light() {
         assert!(all.contains("'stolen'") && all.contains("refused"), "{all}");
         let t = red.base_color_texture.expect("fallback texture");
         assert_eq!(
-            s.textures[t.texture].texels[0].truncate(),
+            s.textures[t.texture].texels.get(0).truncate(),
             Vec3::new(1.0, 0.0, 1.0)
         );
         // The spot light: 3 m up (file Z) is world +Y; FBX lights shine down local −Y, which is

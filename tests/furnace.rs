@@ -182,6 +182,7 @@ fn metals_lose_exactly_their_single_scattering_deficit() {
             f0_dielectric: Vec3::splat(0.04),
             specular: m.specular,
             coat: None,
+            ext: Default::default(),
         })
     };
     for (roughness, spp) in [(0.0f32, 16u32), (0.5, 32), (1.0, 32)] {

@@ -277,7 +277,7 @@ fn toml_errors_name_the_file_and_the_problem() {
         ("not toml at all [", ""),
     ];
     for (text, needle) in cases {
-        let e = trayecto::scene::toml_scene::load_from_bytes(text.as_bytes(), &dir, "bad.toml")
+        let e = trayecto::scene::load_bytes(text.as_bytes(), &dir, "bad.toml")
             .expect_err(text)
             .to_string();
         assert!(e.starts_with("bad.toml:") && e.contains(needle), "{e}");
@@ -484,4 +484,103 @@ scale = 2.0
             );
         }
     }
+}
+
+/// A TOML scene that includes glTF files shifts every texture index of the included materials,
+/// the KHR extensions' slots too (clearcoat, sheen, …): ClearcoatWicker included after a file with
+/// a texture of its own must reference the same images as ClearcoatWicker loaded alone.
+#[test]
+fn included_gltf_extension_textures_keep_their_images() {
+    let dir = std::env::temp_dir().join(format!("trayecto_include_tex_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    for (from, to) in [
+        ("gltf/BoxTextured/glTF", "box"),
+        ("gltf-ext/ClearcoatWicker/glTF", "wicker"),
+    ] {
+        let src = common::shared_dir().join("scenes").join(from);
+        std::fs::create_dir_all(dir.join(to)).unwrap();
+        for e in std::fs::read_dir(&src).unwrap() {
+            let e = e.unwrap();
+            std::fs::copy(e.path(), dir.join(to).join(e.file_name())).unwrap();
+        }
+    }
+    let toml = dir.join("both.toml");
+    std::fs::write(
+        &toml,
+        "[[object]]\ntype = \"mesh\"\nfile = \"box/BoxTextured.gltf\"\n\n\
+         [[object]]\ntype = \"mesh\"\nfile = \"wicker/ClearcoatWicker.gltf\"\n",
+    )
+    .unwrap();
+    let alone = trayecto::scene::load_file(&dir.join("wicker/ClearcoatWicker.gltf")).unwrap();
+    let both = trayecto::scene::load_file(&toml).unwrap();
+    let texels = |s: &trayecto::scene::Scene, t: &trayecto::material::TextureRef| {
+        let tex = &s.textures[t.texture];
+        (tex.width, tex.height, tex.texels.get(tex.texels.len() / 3))
+    };
+    let mut checked = 0;
+    for m in &alone.materials {
+        let Some(inc) = both.materials.iter().find(|b| b.name == m.name) else {
+            panic!("material '{}' missing from the TOML scene", m.name);
+        };
+        let (a, b): (Vec<_>, Vec<_>) = (m.texture_refs().collect(), inc.texture_refs().collect());
+        assert_eq!(a.len(), b.len(), "{}", m.name);
+        for (ta, tb) in a.iter().zip(&b) {
+            assert_eq!(texels(&alone, ta), texels(&both, tb), "{}", m.name);
+            checked += 1;
+        }
+        if m.clearcoat_normal_texture.is_some() {
+            assert!(
+                inc.clearcoat_normal_texture.unwrap().texture >= 1,
+                "not shifted"
+            );
+        }
+    }
+    assert!(
+        alone
+            .materials
+            .iter()
+            .any(|m| m.clearcoat_normal_texture.is_some()),
+        "ClearcoatWicker should have a clearcoat normal texture"
+    );
+    assert!(checked >= 4, "{checked}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A TOML scene opened by a relative path (`trayecto info d/x.toml`) finds its environment map
+/// beside it: the loader resolves the file against the scene's folder and the world used to join
+/// that folder again (`d/d/map.hdr`).
+#[test]
+fn environment_map_of_a_scene_opened_by_a_relative_path_is_found() {
+    let rel = Path::new("target")
+        .join("tmp")
+        .join(format!("env_relative_{}", std::process::id()));
+    let d = rel.join("d");
+    std::fs::create_dir_all(&d).unwrap();
+    std::fs::copy(
+        repo_file("../shared/scenes/hdr/studio_small_03_1k.hdr"),
+        d.join("map.hdr"),
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("x.toml"),
+        r#"[[light]]
+type = "environment"
+file = "map.hdr"
+
+[[object]]
+type = "sphere"
+center = [0, 0, -3]
+radius = 1
+"#,
+    )
+    .unwrap();
+    assert!(d.is_relative());
+    let scene = trayecto::scene::load_file(&d.join("x.toml")).unwrap();
+    let world = World::build(scene, &WorldOptions::default());
+    std::fs::remove_dir_all(&rel).unwrap();
+    let world = world.unwrap();
+    assert!(
+        matches!(world.lights(), [trayecto::light::Light::Environment { .. }]),
+        "the environment map is the one light"
+    );
 }

@@ -94,11 +94,17 @@ fn run(name: &str, file: &Path, parse: Parser) -> u64 {
 
 #[test]
 fn parsers_never_panic_on_mutated_inputs() {
-    let gltf: Parser = |b, d| trayecto::scene::gltf::load_from_bytes(b, d, "m.gltf").is_ok();
-    let obj: Parser = |b, d| trayecto::scene::obj::load_from_bytes(b, d, "m.obj").is_ok();
-    let ply: Parser = |b, _| trayecto::scene::ply::load_from_bytes(b, "m.ply").is_ok();
-    let toml: Parser = |b, d| trayecto::scene::toml_scene::load_from_bytes(b, d, "m.toml").is_ok();
-    let pbrt: Parser = |b, _| trayecto::scene::pbrt::load_from_bytes(b, "m.pbrt").is_ok();
+    // scene::load_bytes parses, names and validates exactly as loading a file does.
+    let gltf: Parser = |b, d| trayecto::scene::load_bytes(b, d, "m.gltf").is_ok();
+    let obj: Parser = |b, d| trayecto::scene::load_bytes(b, d, "m.obj").is_ok();
+    let ply: Parser = |b, d| trayecto::scene::load_bytes(b, d, "m.ply").is_ok();
+    let toml: Parser = |b, d| trayecto::scene::load_bytes(b, d, "m.toml").is_ok();
+    // pbrt from memory (no Include or plymesh read from disk), then the same validation.
+    let pbrt: Parser = |b, _| {
+        trayecto::scene::pbrt::load_from_bytes(b, "m.pbrt")
+            .and_then(|s| s.validate())
+            .is_ok()
+    };
     let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/example.toml");
     let inputs: Vec<(&str, std::path::PathBuf, Parser)> = vec![
         (
@@ -117,8 +123,32 @@ fn parsers_never_panic_on_mutated_inputs() {
             gltf,
         ),
         (
+            // EXT_meshopt_compression (octahedral and exponential filters), KHR_mesh_quantization
+            // and KHR_texture_transform: the meshopt decoders see corrupted streams and counts.
+            "box_meshopt_filters.glb",
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gltf-files/box_meshopt_filters.glb"),
+            gltf,
+        ),
+        (
+            // KHR_draco_mesh_compression: the Draco decoder sees corrupted streams.
+            "box_draco.glb",
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gltf-files/box_draco.glb"),
+            gltf,
+        ),
+        (
+            // KHR_texture_basisu: the KTX2 header checks and the UASTC/Zstandard transcoder.
+            "box_ktx2_uastc.glb",
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gltf-files/box_ktx2_uastc.glb"),
+            gltf,
+        ),
+        (
             "TextureCoordinateTest.gltf",
             common::scene_file("gltf/TextureCoordinateTest/glTF/TextureCoordinateTest.gltf"),
+            gltf,
+        ),
+        (
+            "gltf_bsdf_extensions.gltf",
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gltf_bsdf_extensions.gltf"),
             gltf,
         ),
         (

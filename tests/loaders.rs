@@ -24,7 +24,7 @@ fn grey_png(path: &Path, v: [u8; 4]) {
 fn assert_texels(t: &Texture, ch: usize, v: [u8; 4], what: &str) {
     assert_eq!((t.width, t.height), (2, 2), "{what}");
     for (i, &b) in v.iter().enumerate() {
-        let got = t.texels[i][ch];
+        let got = t.texels.get(i)[ch];
         assert!(
             (got - b as f32 / 255.0).abs() < 1e-6,
             "{what}: texel {i} channel {ch} = {got}, written {b}/255"

@@ -35,6 +35,7 @@ fn scene(name: &str) -> Scene {
             name: "studio".into(),
             path: shared_scene("hdr/studio_small_03_1k.hdr"),
             scale: Vec3::ONE,
+            mapping: Default::default(),
             transform: Mat4::from_rotation_y(ENVMAP_ROTATION_DEG.to_radians()),
         });
     }

@@ -5,11 +5,18 @@ use std::sync::atomic::AtomicBool;
 use trayecto::integrator::{Aov, IntegratorKind, ShadingModel};
 use trayecto::math::Vec2;
 use trayecto::render::{NoObserver, RenderSettings, render};
-use trayecto::sampling::{SampleStream, SamplerKind};
+use trayecto::sampling::{SampleStream, SamplerKind, SamplerSetup};
 use trayecto::scene::builtin;
 use trayecto::world::{World, WorldOptions};
 
-const KINDS: [SamplerKind; 2] = [SamplerKind::Sobol, SamplerKind::PoissonDisk];
+/// Stratified too: its 2D requests are multi-jittered (sub-strata by hashed permutations), so
+/// its uniformity is checked like the others'.
+const KINDS: [SamplerKind; 4] = [
+    SamplerKind::Stratified,
+    SamplerKind::Sobol,
+    SamplerKind::PoissonDisk,
+    SamplerKind::ZSobol,
+];
 
 /// Pearson's statistic of `counts` against a uniform expectation.
 fn chi2(counts: &[u32]) -> f64 {
@@ -69,6 +76,82 @@ fn sobol_pixel_samples_are_stratified() {
             assert!(seen.iter().all(|&c| c == 1), "{nx}x{ny}: {seen:?}");
         }
     }
+}
+
+/// ZSobol (Ahmed & Wonka 2020): one sequence over the image in Morton order. A pixel's
+/// power-of-two samples are stratified like Sobol's, and — the point of the Morton order — the
+/// samples of an aligned 2^k × 2^k block of pixels are together one (0, m, 2)-net: every
+/// elementary interval of the unit square holds exactly one of them, so neighbouring pixels do
+/// not repeat each other's sample positions. A broken Morton order or index scramble fails the
+/// block check; per-pixel random scrambles (plain `sobol`) fail it too.
+#[test]
+fn zsobol_pixels_and_pixel_blocks_are_stratified() {
+    let setup = |spp| SamplerSetup::new(SamplerKind::ZSobol, 4, spp).for_image(64, 48);
+    // Every (0, m, 2)-net elementary interval shape for n = 2^m points.
+    let is_net = |pts: &[Vec2]| {
+        let n = pts.len();
+        let m = n.trailing_zeros();
+        (0..=m).all(|bx| {
+            let (nx, ny) = (1usize << bx, 1usize << (m - bx));
+            let mut seen = vec![false; n];
+            pts.iter().all(|p| {
+                let c = (p.y * ny as f32) as usize * nx + (p.x * nx as f32) as usize;
+                !std::mem::replace(&mut seen[c], true)
+            })
+        })
+    };
+    let strata_1d = |us: &[f32]| {
+        let mut seen = vec![false; us.len()];
+        us.iter()
+            .all(|&u| !std::mem::replace(&mut seen[(u * us.len() as f32) as usize], true))
+    };
+    // One pixel, 16 and 8 samples (even and odd log2 spp), in the first and a later dimension.
+    for spp in [16u32, 8] {
+        let st = setup(spp);
+        for px in [(0u32, 0u32), (13, 7), (63, 47)] {
+            let key = st.pixel_key(px);
+            let draws: Vec<(Vec2, f32, Vec2)> = (0..spp)
+                .map(|s| {
+                    let mut z = st.stream(key, s);
+                    (z.next_2d(), z.next_1d(), z.next_2d())
+                })
+                .collect();
+            let a: Vec<Vec2> = draws.iter().map(|d| d.0).collect();
+            let u: Vec<f32> = draws.iter().map(|d| d.1).collect();
+            let b: Vec<Vec2> = draws.iter().map(|d| d.2).collect();
+            assert!(is_net(&a) && is_net(&b), "spp {spp} pixel {px:?}");
+            assert!(strata_1d(&u), "spp {spp} pixel {px:?} 1D");
+        }
+    }
+    // Aligned pixel blocks: 4×4 pixels at 1 spp (16 points), 2×2 pixels at 4 spp (16 points),
+    // 2×2 pixels at 2 spp (8 points, odd log2 spp).
+    for (spp, side) in [(1u32, 4u32), (4, 2), (2, 2)] {
+        let st = setup(spp);
+        for (bx, by) in [(0u32, 0u32), (8, 4), (20, 12)] {
+            let mut pts = Vec::new();
+            let mut us = Vec::new();
+            for y in by..by + side {
+                for x in bx..bx + side {
+                    let key = st.pixel_key((x, y));
+                    for s in 0..spp {
+                        let mut z = st.stream(key, s);
+                        z.skip(3);
+                        pts.push(z.next_2d());
+                        us.push(z.next_1d());
+                    }
+                }
+            }
+            assert!(is_net(&pts), "spp {spp} block at ({bx}, {by})");
+            assert!(strata_1d(&us), "spp {spp} block at ({bx}, {by}) 1D");
+        }
+    }
+    // Plain per-pixel Sobol has no such joint structure: the same 4×4 block at 1 spp is not a
+    // net (checked so the block test above means something).
+    let sobol = SamplerSetup::new(SamplerKind::Sobol, 4, 1);
+    let pts: Vec<Vec2> = (0..16)
+        .map(|i| sobol.stream(sobol.pixel_key((i % 4, i / 4)), 0).next_2d())
+        .collect();
+    assert!(!is_net(&pts));
 }
 
 #[test]

@@ -22,9 +22,13 @@ fn job(width: Option<u32>, height: Option<u32>) -> RenderJob {
             height: height.is_some(),
             spp: false,
             max_depth: false,
+            filter: false,
         },
         split: Default::default(),
+        aovs: Vec::new(),
+        denoise: None,
         outputs: vec![],
+        crop: None,
     }
 }
 

@@ -84,7 +84,11 @@ fn merged(world: &World, s: &RenderSettings, cuts: &[u32], tag: &str) -> Part {
 #[test]
 fn merging_1_3_and_7_uneven_ranges_is_bit_identical_to_a_single_render() {
     let world = world();
-    for sampler in [SamplerKind::Stratified, SamplerKind::Sobol] {
+    for sampler in [
+        SamplerKind::Stratified,
+        SamplerKind::Sobol,
+        SamplerKind::ZSobol,
+    ] {
         let s = settings(sampler);
         let reference = single(&world, &s);
         let image = render(

@@ -925,11 +925,11 @@ fn transmission_test_spheres_transmit_blur_and_cut_out_as_described() {
         hi > 2.0 * lo,
         "backdrop texture from {lo} to {hi}: not a checker"
     );
-    for c in &mut t.texels {
-        let a = c.w;
-        *c = trayecto::math::Vec4::splat(lo + hi) - *c;
-        c.w = a;
-    }
+    t.map_texels(|c| {
+        let mut s = trayecto::math::Vec4::splat(lo + hi) - c;
+        s.w = c.w;
+        s
+    });
     let without_spheres = |s: &trayecto::scene::Scene| {
         let mut s = s.clone();
         s.objects

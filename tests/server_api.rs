@@ -19,6 +19,8 @@ struct Server {
     child: Child,
     addr: SocketAddr,
     root: PathBuf,
+    /// The access token the server printed, if any.
+    token: Option<String>,
 }
 
 impl Drop for Server {
@@ -54,6 +56,10 @@ fn fixture() -> PathBuf {
 }
 
 fn start_with(scenes: Option<&Path>, extra: &[&str]) -> Server {
+    start_env(scenes, extra, &[])
+}
+
+fn start_env(scenes: Option<&Path>, extra: &[&str], env: &[(&str, &str)]) -> Server {
     let root = fixture();
     let out = root.join("out");
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_trayecto"));
@@ -61,6 +67,7 @@ fn start_with(scenes: Option<&Path>, extra: &[&str]) -> Server {
         .arg(&out)
         .args(["--threads", "1"])
         .args(extra)
+        .envs(env.iter().copied())
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit());
     cmd.arg("--scenes");
@@ -73,6 +80,17 @@ fn start_with(scenes: Option<&Path>, extra: &[&str]) -> Server {
     let mut reader = BufReader::new(stdout);
     let mut line = String::new();
     reader.read_line(&mut line).unwrap();
+    // The banner ends with the output folder; a token line comes before it.
+    let mut token = None;
+    loop {
+        let mut l = String::new();
+        if reader.read_line(&mut l).unwrap() == 0 || l.starts_with("output:") {
+            break;
+        }
+        if let Some((_, t)) = l.trim().split_once("?token=") {
+            token = Some(t.to_string());
+        }
+    }
     // Keep draining the rest of its output.
     std::thread::spawn(move || std::io::copy(&mut reader, &mut std::io::sink()));
     let addr = line
@@ -82,7 +100,12 @@ fn start_with(scenes: Option<&Path>, extra: &[&str]) -> Server {
         .unwrap_or_else(|| panic!("unexpected first line {line:?}"))
         .parse()
         .unwrap();
-    Server { child, addr, root }
+    Server {
+        child,
+        addr,
+        root,
+        token,
+    }
 }
 
 fn start() -> Server {
@@ -547,7 +570,8 @@ fn foreign_hosts_and_origins_are_refused() {
 
 #[test]
 fn too_many_jobs_are_refused_and_cancel_frees_a_slot() {
-    let s = start();
+    // Without a queue, a render beyond --max-jobs is refused.
+    let s = start_with(None, &["--max-queue", "0"]);
     // Long renders (they would take minutes): cancelled below.
     let long = |name: &str| {
         json!({"scene": "cornell", "output": name, "width": 256, "height": 256, "spp": 16384,
@@ -568,7 +592,7 @@ fn too_many_jobs_are_refused_and_cancel_frees_a_slot() {
         c.json()["error"]
             .as_str()
             .unwrap()
-            .contains("already running")
+            .contains("the queue is full (2 renders running, 0 waiting)")
     );
 
     // Wait for a preview of job a, then cancel it.
@@ -860,4 +884,818 @@ fn reusing_a_finished_output_name_is_refused() {
     // A name used by nothing yet is accepted.
     again["output"] = json!("other");
     assert_eq!(post_json(&s, "/api/renders", &again).status, 201);
+}
+
+/// `"denoise": true` (issue #19): with Open Image Denoise installed the job also writes and serves
+/// the denoised image; without it the job fails before rendering, naming the install command; a
+/// non-boolean value is refused, named.
+#[test]
+fn denoise_field_serves_the_denoised_image_or_names_the_install_command() {
+    let s = start_env(
+        None,
+        &[],
+        &[("TRAYECTO_OIDN", "/nonexistent/libOpenImageDenoise.so")],
+    );
+    let r = post_json(
+        &s,
+        "/api/renders",
+        &json!({"scene": "cornell", "denoise": "yes"}),
+    );
+    assert_eq!(r.status, 400, "{}", r.text());
+    assert!(field_error(&r, "denoise").contains("true or false"));
+    let body = json!({"scene": "cornell", "output": "dn", "width": 16, "height": 16, "spp": 2,
+                      "denoise": true});
+    let r = post_json(&s, "/api/renders", &body);
+    assert_eq!(r.status, 201, "{}", r.text());
+    let j = wait_finished(
+        &s,
+        r.json()["id"].as_u64().unwrap(),
+        Duration::from_secs(60),
+    );
+    assert_eq!(j["state"], "failed", "{j}");
+    let error = j["error"].as_str().unwrap();
+    assert!(error.contains("./scripts/install-oidn.sh"), "{error}");
+    assert!(!s.root.join("out/dn.png").exists());
+
+    if let Err(e) = trayecto::denoise::Oidn::load(None) {
+        println!("SKIPPED the denoised half: Open Image Denoise is not installed ({e})");
+        return;
+    }
+    let s = start();
+    let r = post_json(&s, "/api/renders", &body);
+    assert_eq!(r.status, 201, "{}", r.text());
+    let j = wait_finished(
+        &s,
+        r.json()["id"].as_u64().unwrap(),
+        Duration::from_secs(120),
+    );
+    assert_eq!(j["state"], "done", "{j}");
+    assert_eq!(j["denoise"], true);
+    let raw = get(&s, j["png"].as_str().unwrap());
+    let denoised = get(&s, j["denoised_png"].as_str().unwrap());
+    assert_eq!(denoised.status, 200);
+    assert_eq!(denoised.header("content-type"), Some("image/png"));
+    assert_ne!(denoised.body, raw.body);
+    assert_eq!(get(&s, j["denoised_exr"].as_str().unwrap()).status, 200);
+    assert!(s.root.join("out/dn.denoised.exr").is_file());
+}
+
+/// GET with extra header lines.
+fn get_with(s: &Server, path: &str, head: &str) -> Reply {
+    raw(s, &format!("GET {path}"), head, b"")
+}
+
+#[test]
+fn a_non_loopback_address_requires_the_token() {
+    // 127.0.0.2 stands for a public address: only 127.0.0.1 and ::1 are served without a token.
+    let s = start_with(None, &["--host", "127.0.0.2"]);
+    assert_eq!(s.addr.ip().to_string(), "127.0.0.2");
+    let token = s.token.clone().expect("a generated token is printed");
+    assert_eq!(token.len(), 32, "{token}");
+    for path in ["/api/options", "/api/renders", "/", "/app.js"] {
+        let r = get(&s, path);
+        assert_eq!(r.status, 401, "{path}: {}", r.text());
+        assert!(r.text().contains("access token"), "{}", r.text());
+    }
+    // A POST without the token starts nothing.
+    let r = post_json(
+        &s,
+        "/api/renders",
+        &json!({"scene": "cornell", "width": 8, "height": 8}),
+    );
+    assert_eq!(r.status, 401);
+    let bearer = format!("Authorization: Bearer {token}\r\n");
+    assert_eq!(
+        get_with(&s, "/api/renders", &bearer).json()["renders"],
+        json!([])
+    );
+    // A wrong token, in every place, is refused.
+    // The token with its last digit changed (a fixed "0" equalled the token one time in 16).
+    let last = if token.ends_with('0') { '1' } else { '0' };
+    let wrong = format!("{}{last}", &token[..31]);
+    assert_ne!(wrong, token);
+    assert_eq!(
+        get_with(
+            &s,
+            "/api/options",
+            &format!("Authorization: Bearer {wrong}\r\n")
+        )
+        .status,
+        401
+    );
+    assert_eq!(get(&s, &format!("/?token={wrong}")).status, 401);
+    // The printed address sets the cookie and drops the token from the address.
+    let r = get(&s, &format!("/?token={token}"));
+    assert_eq!(r.status, 303);
+    assert_eq!(r.header("location"), Some("/"));
+    let cookie = r.header("set-cookie").unwrap().to_string();
+    assert!(
+        cookie.contains("HttpOnly") && cookie.contains("SameSite=Strict"),
+        "{cookie}"
+    );
+    let pair = cookie.split(';').next().unwrap();
+    let with_cookie = format!("Cookie: other=1; {pair}\r\n");
+    assert_eq!(get_with(&s, "/", &with_cookie).status, 200);
+    assert_eq!(get_with(&s, "/api/options", &with_cookie).status, 200);
+    // A cookie with the wrong value is not enough.
+    let bad_cookie = format!("Cookie: {}={wrong}\r\n", pair.split('=').next().unwrap());
+    assert_eq!(get_with(&s, "/api/options", &bad_cookie).status, 401);
+}
+
+#[test]
+fn serving_without_a_token_is_refused_off_loopback() {
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_trayecto"))
+            .args(["serve", "--port", "0"])
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let o = run(&["--host", "127.0.0.2", "--no-token"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("refusing to serve on 127.0.0.2 without a token"),
+        "{err}"
+    );
+    let o = run(&["--host", "127.0.0.2", "--token", "short"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--token must be 16 to 256"));
+    // A token given on loopback is required there too.
+    let s = start_with(None, &["--token", "0123456789abcdef-given"]);
+    assert_eq!(s.token.as_deref(), Some("0123456789abcdef-given"));
+    assert_eq!(get(&s, "/api/options").status, 401);
+    let h = "X-Trayecto-Token: 0123456789abcdef-given\r\n";
+    assert_eq!(get_with(&s, "/api/options", h).status, 200);
+}
+
+/// The state of every job, by output name.
+fn states(s: &Server) -> Vec<(String, String)> {
+    let l = get(s, "/api/renders").json();
+    l["renders"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|j| {
+            (
+                j["output"].as_str().unwrap().to_string(),
+                j["state"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn renders_beyond_max_jobs_queue_and_complete_in_order() {
+    let s = start_with(None, &["--max-jobs", "1", "--max-queue", "3"]);
+    let job = |name: &str, spp: u32| {
+        let r = post_json(
+            &s,
+            "/api/renders",
+            &json!({"scene": "cornell", "output": name, "width": 48, "height": 48, "spp": spp,
+                    "max_depth": 4}),
+        );
+        assert_eq!(r.status, 201, "{}", r.text());
+        r.json()
+    };
+    let first = job("q1", 2048);
+    let second = job("q2", 16);
+    let third = job("q3", 16);
+    let doomed = job("q4", 16);
+    assert_eq!(second["state"], "queued");
+    assert_eq!(second["queue_position"], 1);
+    assert_eq!(third["queue_position"], 2);
+    assert_eq!(doomed["queue_position"], 3);
+    // The queue is full.
+    let r = post_json(
+        &s,
+        "/api/renders",
+        &json!({"scene": "cornell", "output": "q5"}),
+    );
+    assert_eq!(r.status, 429, "{}", r.text());
+    // Cancelling a queued job ends it at once; the ones behind it move up.
+    let id = |j: &Value| j["id"].as_u64().unwrap();
+    let c = raw(
+        &s,
+        &format!("POST /api/renders/{}/cancel", id(&doomed)),
+        "",
+        b"",
+    );
+    assert_eq!(c.json()["state"], "cancelled");
+    assert_eq!(c.json()["queue_position"], Value::Null);
+    // Completion order, watched: never two rendering at once.
+    let mut done_order = Vec::new();
+    let t0 = Instant::now();
+    while done_order.len() < 3 {
+        let st = states(&s);
+        let busy = st
+            .iter()
+            .filter(|(_, s)| !["queued", "done", "cancelled"].contains(&s.as_str()))
+            .count();
+        assert!(busy <= 1, "{st:?}");
+        for (name, state) in st {
+            if state == "done" && !done_order.contains(&name) {
+                done_order.push(name);
+            }
+        }
+        assert!(t0.elapsed() < Duration::from_secs(120), "{:?}", states(&s));
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    assert_eq!(done_order, ["q1", "q2", "q3"]);
+    let _ = first;
+    assert!(!s.root.join("out/q4.png").exists());
+    let d = wait_finished(&s, id(&doomed), Duration::from_secs(1));
+    assert_eq!(d["png"], Value::Null);
+}
+
+fn upload(s: &Server, name: &str, body: &[u8], content_type: &str) -> Reply {
+    raw(
+        s,
+        &format!("POST /api/uploads?name={name}"),
+        &format!(
+            "Content-Type: {content_type}\r\nContent-Length: {}\r\n",
+            body.len()
+        ),
+        body,
+    )
+}
+
+#[test]
+fn an_uploaded_model_is_listed_and_renders() {
+    let s = start();
+    let glb =
+        std::fs::read(common::shared_dir().join("scenes/gltf/Box/glTF-Binary/Box.glb")).unwrap();
+    let r = upload(&s, "box.glb", &glb, "application/octet-stream");
+    assert_eq!(r.status, 201, "{}", r.text());
+    assert_eq!(r.json()["scenes"], json!(["uploads/box.glb"]));
+    let files = get(&s, "/api/scenes").json()["files"].clone();
+    assert!(
+        files
+            .as_array()
+            .unwrap()
+            .contains(&json!("uploads/box.glb")),
+        "{files}"
+    );
+    let r = post_json(
+        &s,
+        "/api/renders",
+        &json!({"scene": "uploads/box.glb", "output": "box",
+        "width": 16, "height": 16, "spp": 2}),
+    );
+    assert_eq!(r.status, 201, "{}", r.text());
+    let j = wait_finished(
+        &s,
+        r.json()["id"].as_u64().unwrap(),
+        Duration::from_secs(60),
+    );
+    assert_eq!(j["state"], "done", "{j}");
+    // Again: refused, never overwritten.
+    assert_eq!(
+        upload(
+            &s,
+            "box.glb",
+            b"glTF-something-else",
+            "application/octet-stream"
+        )
+        .status,
+        409
+    );
+    // A form post's content type is refused (cross-site forms can send it).
+    assert_eq!(upload(&s, "x.glb", &glb, "text/plain").status, 415);
+    assert_eq!(
+        upload(&s, "x.glb", &glb, "multipart/form-data; boundary=x").status,
+        415
+    );
+}
+
+#[test]
+fn hostile_uploads_are_refused_and_write_nothing_outside() {
+    use std::io::Write as _;
+    let s = start_with(None, &["--max-upload", "1"]);
+    let zip = |name: &str| {
+        let mut w = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+        w.start_file(name, zip::write::SimpleFileOptions::default())
+            .unwrap();
+        w.write_all(b"[camera]\n").unwrap();
+        w.finish().unwrap().into_inner()
+    };
+    let before = std::fs::read_dir(&s.root).unwrap().count();
+    for (name, body, status, says) in [
+        ("slip.zip", zip("../../slip.toml"), 400, "'..'"),
+        ("abs.zip", zip("/tmp/abs.toml"), 400, "absolute"),
+        ("../x.glb", b"glTF0000000000".to_vec(), 400, "file name"),
+        ("x.exe", b"MZ".to_vec(), 400, ".glb"),
+        ("big.glb", vec![0u8; 2 << 20], 413, "larger than"),
+    ] {
+        let r = upload(&s, name, &body, "application/zip");
+        assert_eq!(r.status, status, "{name}: {}", r.text());
+        assert!(
+            r.json()["error"].as_str().unwrap().contains(says),
+            "{name}: {}",
+            r.text()
+        );
+    }
+    assert!(!s.root.join("slip.toml").exists());
+    assert!(!Path::new("/tmp/abs.toml").exists());
+    assert_eq!(std::fs::read_dir(&s.root).unwrap().count(), before);
+    // Nothing was left in the uploads folder either (no partial unpack, no temporary).
+    let left: Vec<_> = std::fs::read_dir(s.root.join("scenes/uploads"))
+        .map(|d| d.flatten().map(|e| e.file_name()).collect())
+        .unwrap_or_default();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
+fn the_scene_list_hides_meshes_a_scene_uses_unless_asked() {
+    let s = start();
+    let scenes = s.root.join("scenes");
+    std::fs::write(
+        scenes.join("room.toml"),
+        "[[object]]\nmesh = \"room-mesh.ply\"\n",
+    )
+    .unwrap();
+    std::fs::write(scenes.join("room-mesh.ply"), "ply\n").unwrap();
+    std::fs::write(scenes.join("loose.ply"), "ply\n").unwrap();
+    let l = get(&s, "/api/scenes").json();
+    assert_eq!(
+        l["files"],
+        json!([
+            "alias.gltf",
+            "fake.gltf",
+            "room.toml",
+            "sub/inner.obj",
+            "loose.ply"
+        ])
+    );
+    assert_eq!(l["hidden"], 1);
+    let l = get(&s, "/api/scenes?all=true").json();
+    assert_eq!(
+        l["files"],
+        json!([
+            "alias.gltf",
+            "fake.gltf",
+            "room.toml",
+            "sub/inner.obj",
+            "loose.ply",
+            "room-mesh.ply"
+        ])
+    );
+    // The size a scene file asks for, and a clear error for a missing one.
+    let d = get(&s, "/api/scene-defaults?scene=cornell").json();
+    assert!(d["width"].as_u64().unwrap() > 0, "{d}");
+    assert_eq!(d["variants"], json!([]), "{d}");
+    // A glTF file's material variants (KHR_materials_variants), and those of a glTF file a TOML
+    // scene includes: the names the `variant` field accepts, so the page can offer them.
+    let triangle = "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA";
+    std::fs::write(
+        scenes.join("variants.gltf"),
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},
+ "buffers":[{{"byteLength":36,"uri":"data:application/octet-stream;base64,{triangle}"}}],
+ "bufferViews":[{{"buffer":0,"byteLength":36}}],
+ "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
+ "materials":[{{}},{{}}],
+ "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"material":0,
+   "extensions":{{"KHR_materials_variants":{{"mappings":[{{"material":1,"variants":[1]}}]}}}}}}]}}],
+ "nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0,
+ "extensionsUsed":["KHR_materials_variants"],
+ "extensions":{{"KHR_materials_variants":{{"variants":[{{"name":"Day"}},{{"name":"Night"}}]}}}}}}"#
+        ),
+    )
+    .unwrap();
+    std::fs::write(
+        scenes.join("with-variants.toml"),
+        "[[object]]\ntype = \"mesh\"\nfile = \"variants.gltf\"\n",
+    )
+    .unwrap();
+    for name in ["variants.gltf", "with-variants.toml"] {
+        let d = get(&s, &format!("/api/scene-defaults?scene={name}")).json();
+        assert_eq!(d["variants"], json!(["Day", "Night"]), "{name}: {d}");
+    }
+    let r = get(&s, "/api/scene-defaults?scene=nope.gltf");
+    assert_eq!(r.status, 400);
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .unwrap()
+            .contains("no scene 'nope.gltf'"),
+        "{}",
+        r.text()
+    );
+}
+
+#[test]
+fn an_environment_map_from_the_scenes_folder_lights_the_render() {
+    let s = start();
+    let hdr = common::shared_dir().join("scenes/hdr/studio_small_03_1k.hdr");
+    std::fs::create_dir_all(s.root.join("scenes/maps")).unwrap();
+    std::fs::copy(&hdr, s.root.join("scenes/maps/studio.hdr")).unwrap();
+    // Offered by the scene list; not offered as a scene.
+    let l = get(&s, "/api/scenes").json();
+    assert_eq!(l["environments"], json!(["maps/studio.hdr"]));
+    assert!(
+        !l["files"]
+            .as_array()
+            .unwrap()
+            .contains(&json!("maps/studio.hdr"))
+    );
+    // Path safety as for scenes, and a scene file is not a map.
+    for (bad, says) in [
+        ("../secret.gltf", "'..'"),
+        ("escape.gltf", "outside"),
+        ("fake.gltf", "not an environment map"),
+        ("nope.hdr", "no environment map 'nope.hdr'"),
+    ] {
+        let r = post_json(
+            &s,
+            "/api/renders",
+            &json!({"scene": "cornell", "environment": bad}),
+        );
+        let m = field_error(&r, "environment");
+        assert!(m.contains(says), "{bad}: {m}");
+    }
+    // The server's render equals the command line's with --env, and differs from no map.
+    let base = json!({"scene": "cornell", "width": 24, "height": 24, "spp": 4, "max_depth": 3});
+    let mut lit = base.clone();
+    lit["environment"] = json!("maps/studio.hdr");
+    lit["output"] = json!("lit");
+    let (_, lit_exr) = server_render(&s, &lit);
+    let mut plain = base.clone();
+    plain["output"] = json!("plain");
+    let (_, plain_exr) = server_render(&s, &plain);
+    let map = s.root.join("scenes/maps/studio.hdr");
+    let args: Vec<String> = [
+        "--width",
+        "24",
+        "--height",
+        "24",
+        "--spp",
+        "4",
+        "--max-depth",
+        "3",
+        "--env",
+    ]
+    .iter()
+    .map(|a| a.to_string())
+    .chain([map.display().to_string()])
+    .collect();
+    let cli = cli_render(&s.root, "cornell", &args);
+    assert_eq!(
+        lit_exr, cli.1,
+        "server EXR with the map differs from the CLI's --env"
+    );
+    assert_ne!(lit_exr, plain_exr, "the map did not change the render");
+}
+
+/// `/api/scene-view` reports the scene's bounds and the camera it renders with: a model without a
+/// camera gets the framing camera, aimed at the centre of its bounds.
+#[test]
+fn the_scene_view_reports_bounds_and_the_framing_camera() {
+    let s = start();
+    let glb = common::shared_dir().join("scenes/gltf/Box/glTF-Binary/Box.glb");
+    std::fs::copy(&glb, s.root.join("scenes/box.glb")).unwrap();
+    let v = get(&s, "/api/scene-view?scene=box.glb");
+    assert_eq!(v.status, 200, "{}", v.text());
+    let v = v.json();
+    let f = |x: &Value| -> Vec<f64> {
+        x.as_array()
+            .unwrap()
+            .iter()
+            .map(|n| n.as_f64().unwrap())
+            .collect()
+    };
+    let (min, max) = (f(&v["bounds"]["min"]), f(&v["bounds"]["max"]));
+    // Khronos' Box is the unit cube around the origin.
+    for i in 0..3 {
+        assert!(
+            (min[i] + 0.5).abs() < 1e-4 && (max[i] - 0.5).abs() < 1e-4,
+            "{v}"
+        );
+    }
+    let (eye, target) = (f(&v["camera"]["eye"]), f(&v["camera"]["target"]));
+    assert!(target.iter().all(|t| t.abs() < 1e-4), "target {target:?}");
+    let dist = eye.iter().map(|e| e * e).sum::<f64>().sqrt();
+    // Outside the bounding sphere (radius √3/2), looking at it.
+    assert!(dist > 0.87, "eye {eye:?}");
+    assert!(v["camera"]["fov"].as_f64().unwrap() > 1.0);
+    // A built-in with its own camera reports that camera; a bad name is refused by name.
+    let c = get(&s, "/api/scene-view?scene=cornell").json();
+    assert!(
+        c["bounds"]["min"].is_array() && c["camera"]["eye"].is_array(),
+        "{c}"
+    );
+    let r = get(&s, "/api/scene-view?scene=../secret.gltf");
+    assert_eq!(r.status, 400);
+    assert!(r.text().contains(".."), "{}", r.text());
+}
+
+/// The `camera` field renders that view: the server's image equals the command line's with
+/// `--camera-from` a TOML file holding the same camera, and differs from the scene's own
+/// camera; cameras that cannot frame a view are refused by name.
+#[test]
+fn the_camera_field_renders_the_view_as_camera_from_does() {
+    let s = start();
+    let camera =
+        json!({"eye": [0.25, 0.5, 2.5], "target": [0.0, 0.125, 0.0], "up": [0, 1, 0], "fov": 50});
+    let base = json!({"scene": "cornell", "width": 20, "height": 16, "spp": 2, "max_depth": 3});
+    let mut viewed = base.clone();
+    viewed["camera"] = camera.clone();
+    viewed["output"] = json!("viewed");
+    let (_, viewed_exr) = server_render(&s, &viewed);
+    let mut own = base.clone();
+    own["output"] = json!("own");
+    let (_, own_exr) = server_render(&s, &own);
+    assert_ne!(
+        viewed_exr, own_exr,
+        "the camera field did not change the view"
+    );
+    let toml = s.root.join("cam.toml");
+    std::fs::write(
+        &toml,
+        "[[camera]]\neye = [0.25, 0.5, 2.5]\ntarget = [0.0, 0.125, 0.0]\nup = [0.0, 1.0, 0.0]\nfov = 50.0\n",
+    )
+    .unwrap();
+    let args: Vec<String> = [
+        "--width",
+        "20",
+        "--height",
+        "16",
+        "--spp",
+        "2",
+        "--max-depth",
+        "3",
+        "--camera-from",
+    ]
+    .iter()
+    .map(|a| a.to_string())
+    .chain([toml.display().to_string()])
+    .collect();
+    let cli = cli_render(&s.root, "cornell", &args);
+    assert_eq!(
+        viewed_exr, cli.1,
+        "server camera differs from --camera-from"
+    );
+    // The job reports the camera it rendered.
+    let list = get(&s, "/api/renders").json();
+    let job = list["renders"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|j| j["output"] == "viewed")
+        .unwrap()
+        .clone();
+    assert_eq!(job["camera"]["fov"], 50.0);
+    for (bad, says) in [
+        (json!({"eye": [0, 0, 1], "target": [0, 0, 1]}), "same point"),
+        (
+            json!({"eye": [0, 0, 1], "target": [0, 0, 0], "fov": 0}),
+            "fov",
+        ),
+        (
+            json!({"eye": [0, 0, 1], "target": [0, 0, 0], "fov": 200}),
+            "fov",
+        ),
+        (
+            json!({"eye": [0, 0, 1], "target": [0, 0, 0], "up": [0, 0, 2]}),
+            "up",
+        ),
+        (
+            json!({"eye": [0, 0, 1], "target": [0, 0, 0], "up": [0, 0, 0]}),
+            "up",
+        ),
+        (json!({"eye": [0, 0, 1]}), "target"),
+        (json!({"eye": [0, 0], "target": [0, 0, 0]}), "eye"),
+        (json!({"eye": [0, 0, "x"], "target": [0, 0, 0]}), "eye"),
+        (json!({"eye": [1e30, 0, 1], "target": [0, 0, 0]}), "eye"),
+        (
+            json!({"eye": [0, 0, 1], "target": [0, 0, 0], "zoom": 2}),
+            "zoom",
+        ),
+        (json!([0, 0, 1]), "object"),
+    ] {
+        let r = post_json(
+            &s,
+            "/api/renders",
+            &json!({"scene": "cornell", "camera": bad}),
+        );
+        let m = field_error(&r, "camera");
+        assert!(m.contains(says), "{bad}: {m}");
+    }
+}
+
+/// The linear image the page tone-maps is the render's film exactly (the EXR's f32 values).
+#[test]
+fn the_linear_endpoint_serves_the_film_and_the_asked_layers() {
+    let s = start();
+    let body = json!({"scene": "cornell", "width": 12, "height": 10, "spp": 2, "max_depth": 3,
+                      "output": "lin", "aovs": ["albedo", "normal"]});
+    let (_, exr) = server_render(&s, &body);
+    let id = get(&s, "/api/renders").json()["renders"][0]["id"]
+        .as_u64()
+        .unwrap();
+    let lin = get(&s, &format!("/api/renders/{id}/linear"));
+    assert_eq!(lin.status, 200);
+    let floats: Vec<f32> = lin
+        .body
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    let want: Vec<f32> = exr.data.iter().flat_map(|p| p.to_array()).collect();
+    assert_eq!(floats, want);
+    let header = |r: &Reply, k: &str| {
+        r.headers
+            .iter()
+            .find(|(h, _)| h.eq_ignore_ascii_case(k))
+            .map(|(_, v)| v.clone())
+    };
+    assert_eq!(header(&lin, "x-width").as_deref(), Some("12"));
+    assert_eq!(header(&lin, "x-height").as_deref(), Some("10"));
+    // The layers are the EXR's channels, interleaved.
+    let exr_bytes = get(&s, &format!("/api/renders/{id}/image.exr")).body;
+    let path = s.root.join("layers.exr");
+    std::fs::write(&path, exr_bytes).unwrap();
+    let (_, _, channels) = trayecto::film::output::read_exr_channels(&path).unwrap();
+    for (layer, names) in [
+        ("normal", ["normal.X", "normal.Y", "normal.Z"]),
+        ("albedo", ["albedo.R", "albedo.G", "albedo.B"]),
+    ] {
+        let r = get(&s, &format!("/api/renders/{id}/linear?layer={layer}"));
+        assert_eq!(r.status, 200, "{layer}");
+        let got: Vec<f32> = r
+            .body
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+            .collect();
+        let ch: Vec<&Vec<f32>> = names
+            .iter()
+            .map(|n| &channels.iter().find(|(c, _)| c == n).unwrap().1)
+            .collect();
+        let want: Vec<f32> = (0..120)
+            .flat_map(|i| ch.iter().map(move |c| c[i]))
+            .collect();
+        assert_eq!(got, want, "{layer}");
+        assert_ne!(got, floats, "{layer} is the beauty image");
+    }
+    // Not asked for: refused, as are unknown layers.
+    assert_eq!(
+        get(&s, &format!("/api/renders/{id}/linear?layer=denoised")).status,
+        404
+    );
+    assert_eq!(
+        get(&s, &format!("/api/renders/{id}/linear?layer=depth")).status,
+        404
+    );
+    let r = post_json(
+        &s,
+        "/api/renders",
+        &json!({"scene": "cornell", "aovs": ["depth"]}),
+    );
+    assert!(field_error(&r, "aovs").contains("albedo"));
+}
+
+/// The viewport: a view renders a quick first image, then refines to its samples; a new view
+/// cancels the stale one at once (a view of 16384 samples per pixel is replaced by a small one
+/// that finishes), previews take no place in the render queue (a final render with
+/// `--max-jobs 1` runs beside a refining preview), and sessions are named safely.
+#[test]
+fn the_viewport_refines_and_a_new_view_replaces_the_stale_one() {
+    let s = start_with(None, &["--max-jobs", "1"]);
+    let status = |sid: &str| get(&s, &format!("/api/viewport/{sid}")).json();
+    let wait = |sid: &str, generation: u64, states: &[&str]| -> Value {
+        let t0 = Instant::now();
+        loop {
+            let st = status(sid);
+            if st["generation"] == generation
+                && states.contains(&st["state"].as_str().unwrap_or(""))
+            {
+                return st;
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(60),
+                "viewport stuck: {st}"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    let view = json!({"scene": "cornell", "width": 32, "height": 24, "spp": 8, "max_depth": 3});
+    let r = post_json(&s, "/api/viewport?session=t1", &view);
+    assert_eq!(r.status, 202, "{}", r.text());
+    let g1 = r.json()["generation"].as_u64().unwrap();
+    let st = wait("t1", g1, &["done"]);
+    assert_eq!(st["samples"], 8);
+    assert_eq!(
+        (st["width"].as_u64(), st["height"].as_u64()),
+        (Some(32), Some(24))
+    );
+    // The quarter-size first look came before the full-size passes (each counted as a version).
+    assert!(st["version"].as_u64().unwrap() >= 2, "{st}");
+    assert!(st["first_ms"].as_f64().unwrap() <= st["full_ms"].as_f64().unwrap());
+    // Without a camera the scene's own view is used and reported for the orbit.
+    assert!(st["view"]["camera"]["eye"].is_array() && st["view"]["bounds"]["min"].is_array());
+    let lin = get(&s, "/api/viewport/t1/linear");
+    assert_eq!(lin.status, 200);
+    assert_eq!(lin.body.len(), 32 * 24 * 12);
+
+    // A preview that would run for ever, replaced by a small one.
+    let mut endless = view.clone();
+    endless["spp"] = json!(16384);
+    endless["width"] = json!(64);
+    endless["height"] = json!(64);
+    let g2 = post_json(&s, "/api/viewport?session=t1", &endless).json()["generation"]
+        .as_u64()
+        .unwrap();
+    wait("t1", g2, &["refining"]);
+    // A final render is not blocked by the preview (--max-jobs 1).
+    let (png, _) = server_render(
+        &s,
+        &json!({"scene": "cornell", "width": 8, "height": 8, "spp": 1, "output": "beside"}),
+    );
+    assert!(!png.is_empty());
+    let mut moved = view.clone();
+    moved["camera"] = json!({"eye": [0.5, 0.5, 3], "target": [0, 0.25, 0]});
+    let t0 = Instant::now();
+    let g3 = post_json(&s, "/api/viewport?session=t1", &moved).json()["generation"]
+        .as_u64()
+        .unwrap();
+    let st = wait("t1", g3, &["done"]);
+    eprintln!("new view done {:?} after the request", t0.elapsed());
+    assert_eq!(st["samples"], 8);
+    // Previews are not render jobs.
+    assert_eq!(
+        get(&s, "/api/renders").json()["renders"]
+            .as_array()
+            .unwrap()
+            .len(),
+        1
+    );
+
+    // Bad requests and names.
+    let bad = post_json(
+        &s,
+        "/api/viewport?session=t1",
+        &json!({"scene": "cornell", "camera": {"eye": [0, 0, 0], "target": [0, 0, 0]}}),
+    );
+    assert!(field_error(&bad, "camera").contains("same point"));
+    for sid in ["", "a/b", "..", &"x".repeat(65)] {
+        let r = post_json(&s, &format!("/api/viewport?session={sid}"), &view);
+        assert_eq!(r.status, 400, "session {sid:?}");
+    }
+    assert_eq!(get(&s, "/api/viewport/nobody").status, 404);
+}
+
+/// `env_rotation` turns the environment map as the command line's `--env-rotation` does, and
+/// needs a map.
+#[test]
+fn env_rotation_turns_the_map_as_the_cli_does() {
+    let s = start();
+    let hdr = common::shared_dir().join("scenes/hdr/studio_small_03_1k.hdr");
+    std::fs::copy(&hdr, s.root.join("scenes/studio.hdr")).unwrap();
+    let base = json!({"scene": "cornell", "width": 16, "height": 16, "spp": 2, "max_depth": 2,
+                      "environment": "studio.hdr"});
+    let mut turned = base.clone();
+    turned["env_rotation"] = json!(90);
+    turned["output"] = json!("turned");
+    let (_, turned_exr) = server_render(&s, &turned);
+    let mut plain = base.clone();
+    plain["output"] = json!("plain");
+    let (_, plain_exr) = server_render(&s, &plain);
+    assert_ne!(
+        turned_exr, plain_exr,
+        "the rotation did not change the render"
+    );
+    let map = s.root.join("scenes/studio.hdr").display().to_string();
+    let args: Vec<String> = [
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--spp",
+        "2",
+        "--max-depth",
+        "2",
+        "--env",
+        &map,
+        "--env-rotation",
+        "90",
+    ]
+    .iter()
+    .map(|a| a.to_string())
+    .collect();
+    let cli = cli_render(&s.root, "cornell", &args);
+    assert_eq!(
+        turned_exr, cli.1,
+        "server env_rotation differs from --env-rotation"
+    );
+    let r = post_json(
+        &s,
+        "/api/renders",
+        &json!({"scene": "cornell", "env_rotation": 30}),
+    );
+    assert!(field_error(&r, "env_rotation").contains("environment"));
+    let r = post_json(
+        &s,
+        "/api/renders",
+        &json!({"scene": "cornell", "environment": "studio.hdr", "env_rotation": "x"}),
+    );
+    assert!(field_error(&r, "env_rotation").contains("degrees"));
 }

@@ -6,5 +6,5 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let _ = trayecto::scene::fbx::load_bytes(data, "fuzz.fbx", None);
+    let _ = trayecto::scene::fbx::load_bytes(data, "fuzz.fbx", None).and_then(|s| s.validate());
 });

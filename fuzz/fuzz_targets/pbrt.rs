@@ -8,5 +8,6 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let _ = trayecto::scene::pbrt::load_from_bytes(data, "fuzz.pbrt");
+    // Validation is part of what a user's file goes through (scene::load_file does it).
+    let _ = trayecto::scene::pbrt::load_from_bytes(data, "fuzz.pbrt").and_then(|s| s.validate());
 });

@@ -8,5 +8,5 @@ fuzz_target!(|data: &[u8]| {
     let dir = std::env::temp_dir().join("trayecto-fuzz-empty");
     let _ = std::fs::create_dir_all(&dir);
     let _ = &dir;
-    let _ = trayecto::scene::toml_scene::load_from_bytes(data, &dir, "fuzz.toml");
+    let _ = trayecto::scene::load_bytes(data, &dir, "fuzz.toml");
 });

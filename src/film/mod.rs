@@ -7,6 +7,8 @@
 //! machines, a render stopped and resumed): a merged or resumed film is bit-identical to a single
 //! run. A floating-point sum would not be (`(a + b) + c != a + (b + c)` in general).
 
+pub mod aov;
+pub mod filter;
 pub mod output;
 pub mod partial;
 pub mod tonemap;
@@ -61,8 +63,27 @@ pub struct Film {
     pub height: u32,
     sum: Vec<[i128; 3]>,
     count: Vec<u32>,
+    /// Exact sums of the squared luminance of each sample (see [`FilmBlock::add_tracked`]), for
+    /// the per-pixel variance that adaptive sampling and the `variance` layer use. All zero when
+    /// the render does not track variance.
+    sq: Vec<i128>,
     pub discarded: u64,
 }
+
+/// Rec. 709 luminance of a linear RGB value: what the variance and relative error are measured on.
+#[inline]
+pub fn luminance(l: Vec3) -> f32 {
+    0.2126 * l.x + 0.7152 * l.y + 0.0722 * l.z
+}
+
+/// Largest squared luminance accumulated for the variance: with at most 2²⁰ samples the sums stay
+/// below 2⁴⁵⁺⁶⁰⁺²⁰ < 2¹²⁷. A brighter sample still counts as very bright (the variance it shows
+/// is large either way).
+const SQ_LIMIT: f32 = (1u64 << 45) as f32;
+
+/// Smallest mean luminance the relative error divides by: pixels darker than this are judged by
+/// their absolute error over it (a black pixel with black samples is clean).
+pub const REL_ERROR_FLOOR: f64 = 1e-4;
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Film {
@@ -72,6 +93,7 @@ impl Film {
             height,
             sum: vec![[0; 3]; n],
             count: vec![0; n],
+            sq: vec![0; n],
             discarded: 0,
         }
     }
@@ -91,6 +113,9 @@ impl Film {
                     self.sum[i][c] += block.sum[j][c];
                 }
                 self.count[i] += block.count[j];
+                if let Some(sq) = &block.sq {
+                    self.sq[i] += sq[j];
+                }
             }
         }
         self.discarded += block.discarded;
@@ -118,6 +143,9 @@ impl Film {
                 .checked_add(*o)
                 .ok_or_else(|| format!("the sample count of pixel {i} overflows"))?;
         }
+        for (s, o) in self.sq.iter_mut().zip(&other.sq) {
+            *s = s.saturating_add(*o);
+        }
         self.discarded += other.discarded;
         Ok(())
     }
@@ -142,8 +170,43 @@ impl Film {
             height,
             sum,
             count,
+            sq: vec![0; n],
             discarded,
         })
+    }
+
+    /// Samples accumulated in each pixel (row-major).
+    pub fn counts(&self) -> &[u32] {
+        &self.count
+    }
+
+    /// The unbiased sample variance of pixel `i`'s luminance samples (0 with fewer than two
+    /// samples, or when the render did not track variance).
+    pub fn variance(&self, i: usize) -> f64 {
+        let n = self.count[i];
+        if n < 2 {
+            return 0.0;
+        }
+        let scale = 1.0 / (1u64 << FRAC_BITS) as f64;
+        let s = self.sum[i];
+        let mean_y =
+            (0.2126 * s[0] as f64 + 0.7152 * s[1] as f64 + 0.0722 * s[2] as f64) * scale / n as f64;
+        let mean_sq = self.sq[i] as f64 * scale / n as f64;
+        ((mean_sq - mean_y * mean_y) * n as f64 / (n - 1) as f64).max(0.0)
+    }
+
+    /// The relative standard error of pixel `i`'s mean luminance: √(variance / n) / mean, the
+    /// mean floored at [`REL_ERROR_FLOOR`]. Infinite with fewer than two samples.
+    pub fn relative_error(&self, i: usize) -> f64 {
+        let n = self.count[i];
+        if n < 2 {
+            return f64::INFINITY;
+        }
+        let scale = 1.0 / (1u64 << FRAC_BITS) as f64;
+        let s = self.sum[i];
+        let mean_y =
+            (0.2126 * s[0] as f64 + 0.7152 * s[1] as f64 + 0.0722 * s[2] as f64) * scale / n as f64;
+        (self.variance(i) / n as f64).sqrt() / mean_y.abs().max(REL_ERROR_FLOOR)
     }
 
     /// Mean radiance of a pixel (black if it has no samples yet).
@@ -187,10 +250,19 @@ pub struct FilmBlock {
     pub h: u32,
     pub sum: Vec<[i128; 3]>,
     pub count: Vec<u32>,
+    /// Squared-luminance sums when the render tracks variance ([`FilmBlock::tracked`]).
+    pub sq: Option<Vec<i128>>,
     pub discarded: u64,
 }
 
 impl FilmBlock {
+    /// A block that also sums squared luminance (for adaptive sampling and the variance layer).
+    pub fn tracked(x0: u32, y0: u32, w: u32, h: u32) -> FilmBlock {
+        let mut b = FilmBlock::new(x0, y0, w, h);
+        b.sq = Some(vec![0; (w * h) as usize]);
+        b
+    }
+
     pub fn new(x0: u32, y0: u32, w: u32, h: u32) -> FilmBlock {
         let n = (w * h) as usize;
         FilmBlock {
@@ -200,7 +272,22 @@ impl FilmBlock {
             h,
             sum: vec![[0; 3]; n],
             count: vec![0; n],
+            sq: None,
             discarded: 0,
+        }
+    }
+
+    /// [`FilmBlock::add`], also summing the sample's squared luminance if the block is tracked.
+    #[inline]
+    pub fn add_tracked(&mut self, x: u32, y: u32, l: Vec3) {
+        let before = self.discarded;
+        self.add(x, y, l);
+        if before == self.discarded
+            && let Some(sq) = &mut self.sq
+        {
+            let j = ((y - self.y0) * self.w + (x - self.x0)) as usize;
+            let yl = luminance(l);
+            sq[j] += to_fixed((yl * yl).min(SQ_LIMIT));
         }
     }
 

@@ -114,7 +114,7 @@ pub fn write_image(
             let pixels: Vec<image::Rgb<f32>> = image
                 .data
                 .iter()
-                .map(|p| image::Rgb([p.x, p.y, p.z]))
+                .map(|p| image::Rgb([rgbe_safe(p.x), rgbe_safe(p.y), rgbe_safe(p.z)]))
                 .collect();
             let file = std::fs::File::create(path).map_err(|e| werr(e.to_string()))?;
             image::codecs::hdr::HdrEncoder::new(std::io::BufWriter::new(file))
@@ -122,6 +122,97 @@ pub fn write_image(
                 .map_err(|e| werr(e.to_string()))
         }
     }
+}
+
+/// A value Radiance RGBE can hold: it has no sign, NaN or infinity (the image crate's encoder
+/// overflows on an infinite value), so those become 0 or the largest representable magnitude
+/// (2^127 ≈ 1.7e38 needs the top exponent; 1e38 is safely inside it).
+fn rgbe_safe(v: f32) -> f32 {
+    if v.is_nan() || v <= 0.0 {
+        0.0
+    } else {
+        v.min(1e38)
+    }
+}
+
+/// Writes `image` (channels `R G B`) and `layers` (their own channel names, see
+/// [`super::aov`]) into one single-part EXR of 32-bit float channels: the layout of Blender's
+/// multi-layer EXR, which OpenImageIO, Nuke and Blender read as layers. Blocks are written in
+/// order, so the same input always gives the same bytes.
+pub fn write_exr_layers(
+    image: &Image,
+    layers: &[super::aov::Layer],
+    path: &Path,
+) -> Result<(), OutputError> {
+    use exr::prelude::*;
+    let werr = |m: String| OutputError::Write {
+        path: path.to_path_buf(),
+        message: m,
+    };
+    let (w, h) = (image.width as usize, image.height as usize);
+    let mut channels: Vec<AnyChannel<FlatSamples>> = Vec::new();
+    for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
+        let v = image.data.iter().map(|p| p[c]).collect();
+        channels.push(AnyChannel::new(name, FlatSamples::F32(v)));
+    }
+    for l in layers {
+        if (l.width as usize, l.height as usize) != (w, h) {
+            return Err(werr(format!(
+                "layer {} is {}x{}, the image {w}x{h}",
+                l.name, l.width, l.height
+            )));
+        }
+        let d = l.depth();
+        for (c, name) in l.channels.iter().enumerate() {
+            let v = l.data.iter().skip(c).step_by(d).copied().collect();
+            channels.push(AnyChannel::new(name.as_str(), FlatSamples::F32(v)));
+        }
+    }
+    let mut names: Vec<&Text> = channels.iter().map(|c| &c.name).collect();
+    names.sort();
+    if names.windows(2).any(|p| p[0] == p[1]) {
+        return Err(werr("two layers have the same channel name".into()));
+    }
+    let layer = Layer::new(
+        (w, h),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(SmallVec::from_vec(channels)),
+    );
+    Image::from_layer(layer)
+        .write()
+        .non_parallel()
+        .to_file(path)
+        .map_err(|e| werr(e.to_string()))
+}
+
+/// An EXR's size and its channels (name, values in row order), as [`read_exr_channels`] reads them.
+pub type ExrChannels = (u32, u32, Vec<(String, Vec<f32>)>);
+
+/// Every channel of a single-part EXR by name (for tests and tools reading AOVs back).
+pub fn read_exr_channels(path: &Path) -> Result<ExrChannels, OutputError> {
+    use exr::prelude::*;
+    let rerr = |m: String| OutputError::Read {
+        path: path.to_path_buf(),
+        message: m,
+    };
+    let img = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| rerr(e.to_string()))?;
+    let layer = img.layer_data;
+    let size = layer.size;
+    let channels = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect();
+    Ok((size.width() as u32, size.height() as u32, channels))
 }
 
 /// Reads a linear RGB EXR (e.g. a reference image).
@@ -187,6 +278,24 @@ mod tests {
         assert_eq!(it.next(), Some("4"));
         assert_eq!(it.next(), Some("255"));
         assert_eq!(it.count(), 8 * 4 * 3);
+    }
+
+    #[test]
+    fn hdr_output_survives_values_rgbe_cannot_hold() {
+        let dir = std::env::temp_dir().join(format!("trayecto_hdr_inf_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut img = gradient();
+        img.data[0] = Vec3::new(f32::INFINITY, f32::NAN, -1.0);
+        img.data[1] = Vec3::new(f32::MAX, 0.0, 0.0);
+        write_image(&img, &dir.join("inf.hdr"), 1.0, Tonemap::Clamp).unwrap();
+        let back = image::open(dir.join("inf.hdr")).unwrap().to_rgb32f();
+        let p = back.get_pixel(0, 0);
+        assert!(p[0] > 1e37 && p[1] == 0.0 && p[2] == 0.0, "{p:?}");
+        // RGBE shares one exponent per pixel: f32::MAX is clamped, not overflowed.
+        assert!(back.get_pixel(1, 0)[0] > 1e37);
+        // The other pixels are untouched.
+        assert!((back.get_pixel(2, 0)[1] - 0.25).abs() < 0.01);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

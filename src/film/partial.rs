@@ -102,6 +102,20 @@ pub fn image_settings(s: &RenderSettings, w: &WorldOptions) -> BTreeMap<String, 
     put("nee", s.path.nee.to_string());
     put("mis", s.path.mis.to_string());
     put("secondary", s.path.secondary.to_string());
+    // Keys added with filters and crops are written only when not the default, so partial films
+    // of default renders keep the headers they had (and still merge with older parts).
+    if !s.filter.is_default_box() {
+        put("filter", s.filter.describe());
+    }
+    if let Some(c) = s.crop {
+        put(
+            "crop",
+            format!(
+                "{}x{} pixels {}..{}, {}..{}",
+                s.width, s.height, c.x0, c.x1, c.y0, c.y1
+            ),
+        );
+    }
     put("accel", format!("{:?}", w.accel));
     put("camera", format!("{:?}", w.camera));
     put(
@@ -111,6 +125,18 @@ pub fn image_settings(s: &RenderSettings, w: &WorldOptions) -> BTreeMap<String, 
             .to_string(),
     );
     put("env_map", w.env.is_some().to_string());
+    // Only when given, so that older partial films still merge.
+    if let Some(c) = &w.camera_override {
+        put("camera_view", format!("{c:?}"));
+    }
+    if w.env_rotation != 0.0 {
+        put("env_rotation", format!("{:?}", w.env_rotation));
+    }
+    // Only when chosen explicitly, so that partial films written before the option existed (all
+    // `auto`) still merge with new ones.
+    if w.light_sampler != crate::light::LightSamplerKind::Auto {
+        put("light_sampler", w.light_sampler.name().to_string());
+    }
     m
 }
 
@@ -130,8 +156,9 @@ impl PartHeader {
             scene: scene.to_string(),
             scene_digest: scene_digest.to_string(),
             settings: image_settings(settings, world),
-            width: settings.width,
-            height: settings.height,
+            // The film's size: the crop window's when cropped (the window itself is a setting).
+            width: settings.film_window().width(),
+            height: settings.film_window().height(),
             spp: settings.spp,
             samples,
             frac_bits: FRAC_BITS,

@@ -336,6 +336,47 @@ impl GeometryStore {
         hit
     }
 
+    /// ∂p/∂u and ∂p/∂v of the shading geometry at a triangle hit, as pbrt-v4's `Triangle`
+    /// builds them (for bump mapping): v grows up the image (pbrt's convention; stored uvs grow
+    /// down, so this is −∂p/∂v of the stored ones); on a mesh with normals, ∂p/∂u is projected
+    /// onto the shading normal's plane and ∂p/∂v is n × ∂p/∂u (pbrt-v4 `ss`, `ts`). `None` for
+    /// other primitives and for triangles without a usable uv parameterisation.
+    pub fn pbrt_shading_dpduv(&self, hit: &SurfaceHit) -> Option<(Vec3, Vec3)> {
+        if hit.prim.kind() != PrimitiveKind::Triangle {
+            return None;
+        }
+        let i = hit.prim.index();
+        let tri = self.triangles.get(i)?;
+        let (mesh_i, local) = self.tri_mesh[i];
+        let mesh = &self.meshes[mesh_i as usize];
+        let uv = mesh.uv0.as_ref()?;
+        let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
+        let flip = |t: Vec2| Vec2::new(t.x, -t.y);
+        let duv02 = flip(uv[i0] - uv[i2]);
+        let duv12 = flip(uv[i1] - uv[i2]);
+        let dp02 = tri.p0 - tri.p2;
+        let dp12 = tri.p1 - tri.p2;
+        let det = duv02.x * duv12.y - duv02.y * duv12.x;
+        if !(det.abs() > 1e-12) {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let dpdu = (dp02 * duv12.y - dp12 * duv02.y) * inv;
+        let dpdv = (dp12 * duv02.x - dp02 * duv12.x) * inv;
+        if !(dpdu.is_finite() && dpdv.is_finite()) {
+            return None;
+        }
+        if mesh.normals.is_none() {
+            return Some((dpdu, dpdv));
+        }
+        let n = hit.ns;
+        let ts = n.cross(dpdu);
+        if !(ts.length_squared() > 0.0) {
+            return None;
+        }
+        Some((ts.cross(n), ts))
+    }
+
     fn triangle_hit(&self, i: usize, b1: f32, b2: f32, hit: &mut SurfaceHit) {
         let tri = &self.triangles[i];
         let (p, err) = tri.point(b1, b2);

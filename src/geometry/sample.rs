@@ -1,7 +1,8 @@
 //! Sampling points on primitives, for area lights (thesis §5.4.2): every shape is sampled
 //! uniformly by area (pdf 1/A, PBRT §6.1–6.5 `Shape::Sample` by area), which the light sampler
-//! converts to solid angle (PBRT eq. 4.9). Spheres are sampled over their whole surface (no
-//! solid-angle cone sampling of the visible cap yet); a box picks a face in proportion to area.
+//! converts to solid angle (PBRT eq. 4.9). Spheres are sampled over their whole surface here; a
+//! sphere light seen from outside is sampled over its cone instead (`light::sample_sphere_cone`).
+//! A box picks a face in proportion to area.
 
 use super::primitive::{GeometryStore, PrimRef, PrimitiveKind, SurfaceHit};
 use crate::math::{Vec2, Vec3};

@@ -21,12 +21,21 @@ pub struct TriangleHit {
     pub b2: f32,
 }
 
-impl TriangleVerts {
+/// A triangle as its first vertex and two edges, the form the Möller–Trumbore test reads. The BVH
+/// keeps its triangles in this form so a leaf test skips the two edge subtractions; the edges are
+/// the same `p1 − p0`, `p2 − p0` the test would compute, so the hit is bit-identical.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleEdges {
+    pub p0: Vec3,
+    pub e1: Vec3,
+    pub e2: Vec3,
+}
+
+impl TriangleEdges {
     /// Möller–Trumbore. Both faces are hit (culling is a shading decision, not a geometric one).
-    #[inline]
+    #[inline(always)]
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
-        let e1 = self.p1 - self.p0;
-        let e2 = self.p2 - self.p0;
+        let (e1, e2) = (self.e1, self.e2);
         let pvec = ray.d.cross(e2);
         let det = e1.dot(pvec);
         // A degenerate triangle or a ray in its plane: no hit. `!(x != 0)` also rejects NaN.
@@ -51,6 +60,24 @@ impl TriangleVerts {
             return None;
         }
         Some(TriangleHit { t, b1, b2 })
+    }
+}
+
+impl TriangleVerts {
+    /// The vertex-and-edges form of this triangle.
+    #[inline]
+    pub fn edges(&self) -> TriangleEdges {
+        TriangleEdges {
+            p0: self.p0,
+            e1: self.p1 - self.p0,
+            e2: self.p2 - self.p0,
+        }
+    }
+
+    /// Möller–Trumbore on the edge form (see [`TriangleEdges::intersect`]).
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<TriangleHit> {
+        self.edges().intersect(ray, t_max)
     }
 
     /// Point on the triangle at barycentrics `(1−b1−b2, b1, b2)` and its absolute error bound.

@@ -38,6 +38,9 @@ impl Vertex {
         let (ng, ns) = oriented_normals(&hit, wo, bsdf.is_transmissive());
         let frame = Frame::from_normal_tangent(ns, hit.tangent);
         let wo_local = frame.to_local(wo);
+        if ns.dot(hit.ns) < 0.0 {
+            bsdf.flip_bitangent();
+        }
         if let Some(n) = coat_normal {
             // Flipped with the shading normal (two-sided shading), then into the local frame.
             let n = if ns.dot(hit.ns) < 0.0 { -n } else { n };
@@ -67,8 +70,11 @@ pub fn oriented_normals(hit: &SurfaceHit, wo: Vec3, transmissive: bool) -> (Vec3
 
 /// Next-event estimation at `v` (pbrt's `SampleLd`): one light sample, shadow-tested, weighted
 /// by the power heuristic against BSDF sampling (Veach 1997, ch. 9) unless MIS is off or the
-/// light is a delta light. Returns `beta` × the estimate. Always draws three numbers from `s`
-/// (light choice and point), so the sample stream does not depend on what the vertex is.
+/// light is a delta light. Returns `beta` × the estimate. Always draws three numbers from `s`,
+/// so the sample stream does not depend on what the vertex is: one 2D number chooses the light
+/// and places the point on it (sample reuse, [`World::sample_light_reuse`]: the 2D point set's
+/// stratification carries over to every light's points, which a separate choice number would
+/// scatter), and a spare 1D number stands in for lights chosen too rarely to reuse it.
 #[inline]
 pub fn sample_ld(
     world: &World,
@@ -78,17 +84,17 @@ pub fn sample_ld(
     set: &PathSettings,
     stats: &mut RayStats,
 ) -> Vec3 {
-    let u_light = if world.light_count() > 1 {
+    let u_spare = if world.light_count() > 1 {
         s.next_1d()
     } else {
         s.skip(1);
         0.0
     };
-    let u_light2 = s.next_2d();
+    let u_light = s.next_2d();
     if v.bsdf.is_specular() {
         return Vec3::ZERO;
     }
-    let Some(ls) = world.sample_light(&v.hit, v.ng, u_light, u_light2) else {
+    let Some(ls) = world.sample_light_reuse(&v.hit, v.ng, u_light, u_spare) else {
         return Vec3::ZERO;
     };
     if !(set.nee || ls.delta) {
@@ -124,7 +130,7 @@ pub fn shade_local(
     s: &mut SampleStream,
     stats: &mut RayStats,
 ) -> Vec3 {
-    let m = world.material(hit);
+    let m = world.surface_material(hit);
     let surf = world.local_surface(hit);
     // Two-sided shading: face the normals toward the viewer.
     let (ng, ns) = if hit.ng.dot(wo) < 0.0 {

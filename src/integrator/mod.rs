@@ -1,6 +1,7 @@
 //! Integrators: where a light path's life is decided. The path tracer (`path`) is the default and
 //! the only unbiased one.
 
+pub mod aov;
 pub mod direct;
 pub mod path;
 pub mod raycast;

@@ -12,6 +12,7 @@
 //! Depth counts bounces: `max_depth = 0` shows only emitters seen directly, 1 is direct lighting.
 
 use super::RayStats;
+use super::aov::AovPath;
 use super::direct::{Vertex, sample_ld};
 use crate::geometry::Ray;
 use crate::geometry::primitive::{NO_LIGHT, SurfaceHit};
@@ -60,6 +61,33 @@ pub fn radiance(
     set: &PathSettings,
     stats: &mut RayStats,
 ) -> Vec3 {
+    radiance_impl(world, ray, s, set, stats, None)
+}
+
+/// [`radiance`], also recording the sample's AOVs (the first hit; the albedo and normal at the
+/// first non-specular vertex) into `aov` from the vertices the path visits anyway, instead of
+/// a second tracing of the camera ray. The radiance, the rays traced and the numbers drawn
+/// from `s` are exactly those of [`radiance`]: the recorder only reads the path's vertices.
+pub fn radiance_aov(
+    world: &World,
+    ray: &Ray,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+    aov: &mut AovPath,
+) -> Vec3 {
+    radiance_impl(world, ray, s, set, stats, Some(aov))
+}
+
+#[inline(always)]
+fn radiance_impl(
+    world: &World,
+    ray: &Ray,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+    mut aov: Option<&mut AovPath>,
+) -> Vec3 {
     stats.rays += 1;
     let Some(hit) = world.intersect(ray) else {
         return world.escaped(ray.d.normalize()).0;
@@ -67,12 +95,24 @@ pub fn radiance(
     let wo = -ray.d.normalize();
     let mut l = world.emitted(&hit, wo);
     if set.max_depth == 0 {
+        if let Some(a) = aov {
+            // No scattering vertex is built for the radiance: build one for the AOVs.
+            let v = Vertex::new(world, hit, wo);
+            a.first(world, &v, wo, hit.t * ray.d.length());
+            a.end_at(&v, wo);
+        }
         return l;
     }
     let n = set.secondary.max(1);
     let mut sum = Vec3::ZERO;
+    if let Some(a) = aov.as_deref_mut() {
+        a.sample.first = None;
+    }
+    let depth0 = aov.is_some().then(|| hit.t * ray.d.length());
     for _ in 0..n {
-        sum += continue_path(world, hit, wo, s, set, stats);
+        // The first continuation records the AOVs.
+        let rec = aov.take().map(|a| (a, depth0.unwrap_or(0.0)));
+        sum += continue_path(world, hit, wo, s, set, stats, rec);
     }
     l += sum / n as f32;
     l
@@ -87,6 +127,7 @@ fn continue_path(
     s: &mut SampleStream,
     set: &PathSettings,
     stats: &mut RayStats,
+    mut aov: Option<(&mut AovPath, f32)>,
 ) -> Vec3 {
     let mut l = Vec3::ZERO;
     let mut beta = Vec3::ONE;
@@ -94,8 +135,20 @@ fn continue_path(
     // whose survival should not depend on which medium the path is in (PBRT-v4 §14.1.2).
     let mut eta_scale = 1.0f32;
     let mut depth = 0u32;
+    // Sampler dimensions per bounce, taken whatever the vertex is: light (1D spare + 2D, see
+    // `sample_ld`), BSDF lobe (1D) and direction (2D), and from `rr_depth` on Russian roulette
+    // (1D).
     loop {
         let v = Vertex::new(world, hit, wo);
+        if let Some((a, first_depth)) = aov.as_mut() {
+            if depth == 0 {
+                a.first(world, &v, wo, *first_depth);
+            }
+            a.vertex(&v, wo);
+            if a.is_done() {
+                aov = None;
+            }
+        }
         l += sample_ld(world, &v, beta, s, set, stats);
 
         // BSDF sampling: choose the next direction.
@@ -113,7 +166,11 @@ fn continue_path(
         if wi.dot(v.ng) * bs.wi.z <= 0.0 {
             break;
         }
-        beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
+        let w = bs.f * (bs.wi.z.abs() / bs.pdf);
+        beta *= w;
+        if let Some((a, _)) = aov.as_mut() {
+            a.specular_bounce(w);
+        }
         eta_scale *= bs.eta * bs.eta;
         if !(beta.max_element() > 0.0) || !beta.is_finite() {
             break;
@@ -144,19 +201,30 @@ fn continue_path(
             } else if !set.mis {
                 0.0
             } else {
-                let pdf_light = world.emitter_pdf(v.hit.p, &next);
+                let pdf_light = world.emitter_pdf(v.hit.p, v.ng, &next);
                 power_heuristic(bs.pdf, pdf_light)
             };
             l += beta * le * weight;
         }
         if depth >= set.max_depth {
+            if let Some((a, _)) = aov {
+                a.end_at(&Vertex::new(world, next, wo_next), wo_next);
+            }
             break;
         }
-        // Russian roulette: survive with probability q, and divide by it to stay unbiased.
+        // Russian roulette: survive with probability q, and divide by it to stay unbiased. The
+        // number is drawn whether or not it is needed (q = 1), so every bounce of every sample
+        // takes the same sampler dimensions: a bounce's light and BSDF numbers then stay
+        // stratified across the pixel's samples, which a draw made by some samples and not by
+        // others would shift out of step.
         if depth >= set.rr_depth {
+            let u_rr = s.next_1d();
             let q = (beta.max_element() * eta_scale * set.rr_scale).min(1.0);
             if q < 1.0 {
-                if s.next_1d() >= q {
+                if u_rr >= q {
+                    if let Some((a, _)) = aov {
+                        a.end_at(&Vertex::new(world, next, wo_next), wo_next);
+                    }
                     break;
                 }
                 beta /= q;

@@ -26,10 +26,17 @@
 //!   its real length (Beer–Lambert). This is consistent with MIS because both strategies treat the
 //!   segment deterministically.
 //!
+//! * **Emissive media** (pbrt-v4's `Le`): σa·Le is added at every tentative collision with the
+//!   same spectral-MIS weight (pbrt-v4 §14.2.2), and analytically for absorbing-only media.
+//!   Medium emission is not sampled by next-event estimation (neither is it in pbrt-v4).
+//!
 //! Depth counts scattering events, at surfaces and in media alike: `max_depth = 0` shows only
-//! emitters seen directly (through media), 1 is single scattering / direct lighting. Crossing an
+//! emitters seen directly (through media), 1 is single scattering / direct lighting. Medium
+//! emission counts as one more event, as in pbrt-v4 (`depth < max_depth`): it needs
+//! `max_depth ≥ 1` to be seen directly. Crossing an
 //! interface surface is not an event. Russian roulette uses β·η²/mean(r_u) (the path's throughput
-//! under MIS) as the surface path tracer uses β·η². `secondary` splitting is not used here.
+//! under MIS) as the surface path tracer uses β·η². `secondary` splitting is not implemented here:
+//! the pipeline refuses `--secondary` above 1 for scenes with media.
 
 use super::RayStats;
 use super::direct::Vertex;
@@ -113,6 +120,9 @@ pub fn radiance(
     let mut eta_scale = 1.0f32;
     // The last scattering vertex, for the light-sampling pdf of emitters hit later.
     let mut prev_p = ray.o;
+    // Its normal as given to the light sample there (zero in a medium): the light BVH's choice,
+    // and so the pdf, depends on it.
+    let mut prev_n = Vec3::ZERO;
     let mut crossings = 0u32;
     loop {
         stats.rays += 1;
@@ -123,7 +133,14 @@ pub fn radiance(
         if let Some(mi) = medium {
             let m = &media.media[mi];
             if m.grid.is_none() && m.is_absorbing_only() {
-                st.beta *= m.analytic_transmittance(t_max);
+                let tr = m.analytic_transmittance(t_max);
+                if m.le != Vec3::ZERO && depth < set.max_depth {
+                    // ∫₀ᵈ e^(−σa·t)·σa·Le dt = Le·(1 − e^(−σa·d)), exact and noise-free; the
+                    // segment is deterministic for every channel's technique, so the MIS
+                    // weight is the path's own 1/mean(r_u).
+                    l += st.beta * (Vec3::ONE - tr) * m.le / mean(st.r_u);
+                }
+                st.beta *= tr;
             } else {
                 let mut tracker = m.tracker(&ray, t_max, channel);
                 let mut scattered = false;
@@ -146,6 +163,17 @@ pub fn radiance(
                             t_maj,
                         } => {
                             let sm = sigma_maj[channel];
+                            if m.le != Vec3::ZERO && depth < set.max_depth {
+                                // Emission at every tentative collision (pbrt-v4 §14.2.2):
+                                // β·T_maj/pdf · σa·Le, MIS-weighted over the channels by the
+                                // rescaled probability r_e = r_u·σ_maj·T_maj/pdf of reaching
+                                // this point.
+                                let pdf = t_maj[channel] * sm;
+                                let r_e = mean(st.r_u * sigma_maj * t_maj / pdf);
+                                if r_e > 0.0 && pdf > 0.0 {
+                                    l += st.beta * t_maj / pdf * props.sigma_a * m.le / r_e;
+                                }
+                            }
                             let p_absorb = props.sigma_a[channel] / sm;
                             let p_scatter = props.sigma_s[channel] / sm;
                             let u = rng.next_f32();
@@ -188,6 +216,7 @@ pub fn radiance(
                                 // β·p/pdf = β for HG (its own pdf); r_l = r_u / pdf.
                                 st.r_l = st.r_u / ps.pdf;
                                 prev_p = p;
+                                prev_n = Vec3::ZERO;
                                 specular_bounce = false;
                                 ray = Ray::new(p, ps.d_out);
                                 scattered = true;
@@ -232,7 +261,7 @@ pub fn radiance(
         let wo = -ray.d;
         let le = world.emitted(&hit, wo);
         if le != Vec3::ZERO {
-            let pdf_light = world.emitter_pdf(prev_p, &hit);
+            let pdf_light = world.emitter_pdf(prev_p, prev_n, &hit);
             l += emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set);
         }
         if media.is_passthrough(hit.material) {
@@ -300,6 +329,7 @@ pub fn radiance(
         specular_bounce = bs.specular;
         eta_scale *= bs.eta * bs.eta;
         prev_p = hit.p;
+        prev_n = ng;
         medium = media.after_crossing(hit.material, wi, hit.ng, medium);
         ray = Ray::spawn(hit.p, hit.p_error, ng, wi);
         if roulette(&mut st, depth, eta_scale, set, s).is_some() {

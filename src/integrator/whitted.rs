@@ -91,7 +91,7 @@ fn trace(
     // The shading normal of every lobe below (local shading, mirror and refraction directions)
     // is the normal-mapped one, as in the path tracer.
     world.apply_normal_map(&mut hit);
-    let m = world.material(&hit);
+    let m = world.surface_material(&hit);
     let mut l = world.emitted(&hit, wo);
     let surf = world.local_surface(&hit);
     match surface_kind(m, &surf) {

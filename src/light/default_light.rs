@@ -303,9 +303,12 @@ mod tests {
         assert!((s.peak_radiance - 1.0).abs() < 1e-6, "{s:?}");
         assert!(decide(DefaultLight::Auto, &[area(0)], &s).add);
         // One bright texel makes it a lamp, whatever the average.
-        let mut bright = Texture::constant("bright", Vec4::new(0.0, 0.0, 0.0, 1.0));
-        bright.texels.push(Vec4::new(0.0, 0.3, 0.0, 1.0));
-        bright.width = 2;
+        let bright = Texture::image(
+            "bright",
+            2,
+            1,
+            vec![Vec4::new(0.0, 0.0, 0.0, 1.0), Vec4::new(0.0, 0.3, 0.0, 1.0)],
+        );
         assert!(!auto(&[area(0)], &[m], &[bright]).add);
     }
 

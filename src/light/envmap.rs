@@ -1,14 +1,31 @@
-//! Equirectangular environment maps (`.hdr`, `.exr`), importance sampled with a 2D
-//! piecewise-constant distribution: a marginal over rows and a conditional over each row's pixels,
-//! weighted by luminance × sin θ so that the density is proportional to radiance per solid angle
-//! (PBRT-v3 §14.2.4). A direction's solid-angle pdf is p(u, v) / (2π² sin θ).
+//! Environment maps, importance sampled with a 2D piecewise-constant distribution: a marginal
+//! over rows and a conditional over each row's pixels (PBRT-v3 §14.2.4). Two parameterisations:
 //!
-//! Direction convention (Mitsuba 3's `envmap`, so references agree): in the map's own frame +y is
-//! up, u = atan2(x, −z) / 2π (wrapped to [0, 1)), v = acos(y) / π with v = 0 the top row.
+//! * **Equirectangular** (`.hdr`, `.exr`; TOML and `--env`): texels weighted by luminance × sin θ
+//!   so that the density is proportional to radiance per solid angle; a direction's solid-angle
+//!   pdf is p(u, v) / (2π² sin θ), radiance is bilinearly filtered. Direction convention (Mitsuba
+//!   3's `envmap`, so references agree): in the map's own frame +y is up, u = atan2(x, −z) / 2π
+//!   (wrapped to [0, 1)), v = acos(y) / π with v = 0 the top row.
+//! * **Equal-area square** (pbrt-v4's `infinite` light with a `filename`): Clarberg's octahedral
+//!   mapping ([`super::equal_area`]), every texel the same solid angle 4π / (w·h), so texels are
+//!   weighted by luminance alone and the pdf is p(u, v) / 4π. Radiance is the nearest texel, as
+//!   pbrt-v4's `ImageInfiniteLight::ImageLe` looks it up, so the sampling density is exactly
+//!   proportional to the luminance of the function being integrated.
 
+use super::equal_area;
 use crate::math::{Mat3, PI, Vec2, Vec3, luminance};
 use crate::sampling::Distribution1D;
 use std::path::Path;
+
+/// How an environment image covers the sphere.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum EnvMapping {
+    /// Latitude–longitude (Mitsuba's convention, +y up).
+    #[default]
+    Equirectangular,
+    /// pbrt-v4's equal-area octahedral square (+z is the square's centre).
+    EqualArea,
+}
 
 #[derive(Clone, Debug)]
 pub struct EnvMap {
@@ -17,9 +34,12 @@ pub struct EnvMap {
     /// Linear RGB radiance, row-major from the top row.
     pub texels: Vec<Vec3>,
     pub scale: Vec3,
+    pub mapping: EnvMapping,
     /// World-from-map rotation and its inverse.
     pub to_world: Mat3,
     pub to_local: Mat3,
+    /// |det to_world|, for the solid-angle Jacobian of a non-rigid light transform.
+    det: f32,
     rows: Vec<Distribution1D>,
     marginal: Distribution1D,
     /// Mean luminance over the sphere (per steradian), for light selection by power.
@@ -29,6 +49,38 @@ pub struct EnvMap {
 impl EnvMap {
     /// Reads an equirectangular map. Errors are one-line messages (the caller names the file).
     pub fn load(path: &Path, scale: Vec3, to_world: Mat3) -> Result<EnvMap, String> {
+        Self::load_mapped(path, scale, to_world, EnvMapping::Equirectangular)
+    }
+
+    /// Reads a map with the given parameterisation. Equal-area maps must be square and finite
+    /// (pbrt-v4 refuses others), and may also be `.pfm`, `.png`, `.tga` or `.jpg` (8-bit images
+    /// are sRGB-encoded, as pbrt-v4 reads them).
+    pub fn load_mapped(
+        path: &Path,
+        scale: Vec3,
+        to_world: Mat3,
+        mapping: EnvMapping,
+    ) -> Result<EnvMap, String> {
+        if mapping == EnvMapping::EqualArea {
+            let det = to_world.determinant();
+            if !(det.is_finite() && det.abs() > 1e-12 && to_world.is_finite()) {
+                return Err("the light's transform is singular or not finite".into());
+            }
+            let (w, h, texels) = read_image(path)?;
+            if w != h {
+                return Err(format!(
+                    "the image is {w}×{h}, not square: pbrt-v4 reads infinite-light images as equal-area square maps"
+                ));
+            }
+            if texels.iter().any(|t| !t.is_finite()) {
+                return Err(
+                    "the image has infinite or not-a-number pixels, so it cannot be a light".into(),
+                );
+            }
+            return Ok(EnvMap::from_texels_mapped(
+                w, h, texels, scale, to_world, mapping,
+            ));
+        }
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -64,8 +116,22 @@ impl EnvMap {
         Ok(EnvMap::from_texels(w, h, texels, scale, to_world))
     }
 
-    /// Builds the map and its sampling distributions. Non-finite or negative texels become 0.
+    /// Builds an equirectangular map and its sampling distributions. Non-finite or negative
+    /// texels become 0.
     pub fn from_texels(w: u32, h: u32, texels: Vec<Vec3>, scale: Vec3, to_world: Mat3) -> EnvMap {
+        Self::from_texels_mapped(w, h, texels, scale, to_world, EnvMapping::Equirectangular)
+    }
+
+    /// Builds a map of either parameterisation and its sampling distributions (one construction:
+    /// only the texels' solid-angle weights differ). Non-finite or negative texels become 0.
+    pub fn from_texels_mapped(
+        w: u32,
+        h: u32,
+        texels: Vec<Vec3>,
+        scale: Vec3,
+        to_world: Mat3,
+        mapping: EnvMapping,
+    ) -> EnvMap {
         let texels: Vec<Vec3> = texels
             .into_iter()
             .map(|t| {
@@ -82,9 +148,17 @@ impl EnvMap {
         // below use sin θ at the row centre, which only needs to be proportional).
         let mut integral = 0.0f64;
         for y in 0..h as usize {
-            let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
-            let row_omega = (2.0 * PI / w as f32) as f64 * (t0.cos() - t1.cos()) as f64;
-            let sin_theta = (PI * (y as f32 + 0.5) / h as f32).sin();
+            // Each texel's solid angle (exact) and the factor the sampling weight carries for it.
+            let (row_omega, sin_theta) = match mapping {
+                EnvMapping::Equirectangular => {
+                    let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
+                    (
+                        (2.0 * PI / w as f32) as f64 * (t0.cos() - t1.cos()) as f64,
+                        (PI * (y as f32 + 0.5) / h as f32).sin(),
+                    )
+                }
+                EnvMapping::EqualArea => (4.0 * PI as f64 / (w as f64 * h as f64), 1.0),
+            };
             let weights: Vec<f32> = (0..w as usize)
                 .map(|x| luminance(texels[y * w as usize + x] * scale).max(0.0) * sin_theta)
                 .collect();
@@ -101,11 +175,14 @@ impl EnvMap {
         let marginal = Distribution1D::new(&row_weights);
         let mean_luminance = (integral / (4.0 * PI as f64)) as f32;
         let to_local = to_world.inverse();
+        let det = to_world.determinant().abs();
         EnvMap {
+            det,
             width: w,
             height: h,
             texels,
             scale,
+            mapping,
             to_world,
             to_local,
             rows,
@@ -131,9 +208,29 @@ impl EnvMap {
         Vec3::new(st * sp, ct, -st * cp)
     }
 
-    /// Radiance arriving from world direction `d` (unit), bilinearly filtered.
+    /// The equal-area map's texel index of world direction `d` (unit), and the Jacobian
+    /// dω_map / dω_world of the light's transform there. The map direction is w = M⁻¹d / |M⁻¹d|
+    /// as pbrt-v4's `Le` has it; for a linear map M the solid angles relate by
+    /// dω_world / dω_map = |det M| / |M w|³, and |M w| = 1 / |M⁻¹d|, so the Jacobian is
+    /// 1 / (|det M| · |M⁻¹d|³) (1 for a rotation or reflection).
+    #[inline]
+    fn equal_area_texel(&self, d: Vec3) -> (usize, f32) {
+        let local = self.to_local * d;
+        let len = local.length();
+        let uv = equal_area::sphere_to_square(if len > 0.0 { local / len } else { Vec3::Z });
+        let (w, h) = (self.width as usize, self.height as usize);
+        let x = ((uv.x * w as f32) as usize).min(w - 1);
+        let y = ((uv.y * h as f32) as usize).min(h - 1);
+        (y * w + x, 1.0 / (self.det * len * len * len))
+    }
+
+    /// Radiance arriving from world direction `d` (unit): bilinearly filtered (equirectangular)
+    /// or the nearest texel (equal-area, as pbrt-v4).
     #[inline]
     pub fn eval(&self, d: Vec3) -> Vec3 {
+        if self.mapping == EnvMapping::EqualArea {
+            return self.texels[self.equal_area_texel(d).0] * self.scale;
+        }
         let uv = Self::dir_to_uv(self.to_local * d);
         let (w, h) = (self.width as i64, self.height as i64);
         let x = uv.x * w as f32 - 0.5;
@@ -155,8 +252,24 @@ impl EnvMap {
     #[inline]
     pub fn sample(&self, u: Vec2) -> Option<(Vec3, Vec3, f32)> {
         let (v, pdf_v, row) = self.marginal.sample_continuous(u.y);
-        let (uu, pdf_u, _) = self.rows[row].sample_continuous(u.x);
+        let (uu, pdf_u, col) = self.rows[row].sample_continuous(u.x);
         let uv = Vec2::new(uu, v);
+        if self.mapping == EnvMapping::EqualArea {
+            // Uniform Jacobian: dω = 4π du dv. The radiance is the sampled texel's, so the
+            // estimate L / pdf is exact for the piecewise-constant map.
+            if !(pdf_u * pdf_v > 0.0) {
+                return None;
+            }
+            let m = self.to_world * equal_area::square_to_sphere(uv);
+            let len = m.length();
+            if !(len > 0.0) {
+                return None;
+            }
+            // The map-to-world Jacobian (see `equal_area_texel`): |M w| = len.
+            let jacobian = len * len * len / self.det;
+            let l = self.texels[row * self.width as usize + col] * self.scale;
+            return Some((m / len, l, pdf_u * pdf_v * jacobian / (4.0 * PI)));
+        }
         let sin_theta = (uv.y * PI).sin();
         if !(sin_theta > 0.0) || !(pdf_u * pdf_v > 0.0) {
             return None;
@@ -169,6 +282,13 @@ impl EnvMap {
     /// Solid-angle pdf with which [`EnvMap::sample`] produces world direction `d`.
     #[inline]
     pub fn pdf(&self, d: Vec3) -> f32 {
+        if self.mapping == EnvMapping::EqualArea {
+            let (i, jacobian) = self.equal_area_texel(d);
+            let (y, x) = (i / self.width as usize, i % self.width as usize);
+            let pm = self.marginal.func[y] / self.marginal.func_int;
+            let row = &self.rows[y];
+            return pm * (row.func[x] / row.func_int) * jacobian / (4.0 * PI);
+        }
         let uv = Self::dir_to_uv(self.to_local * d);
         let sin_theta = (uv.y * PI).sin();
         if !(sin_theta > 0.0) {
@@ -182,6 +302,31 @@ impl EnvMap {
         let pc = row.func[x] / row.func_int;
         pm * pc / (2.0 * PI * PI * sin_theta)
     }
+}
+
+/// Reads any image an environment may be (EXR, Radiance HDR, PFM; PNG, TGA, JPEG as sRGB) into
+/// linear RGB texels, top row first.
+pub fn read_image(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
+    let name = path.display().to_string();
+    let lower = name.to_ascii_lowercase();
+    if lower.ends_with(".exr") {
+        let img = crate::film::output::read_exr(path).map_err(|e| e.to_string())?;
+        if img.width == 0 || img.height == 0 {
+            return Err("environment map is empty".into());
+        }
+        return Ok((img.width, img.height, img.data));
+    }
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read environment map: {e}"))?;
+    let t = if lower.ends_with(".pfm") {
+        crate::scene::image_io::decode_pfm(&name, &bytes)?
+    } else {
+        crate::scene::image_io::decode_texture(&name, &bytes, true)?
+    };
+    Ok((
+        t.width,
+        t.height,
+        t.texels.iter().map(|c| c.truncate()).collect(),
+    ))
 }
 
 #[cfg(test)]
@@ -268,5 +413,58 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A constant equal-area map (the furnace case): every direction has radiance L and pdf
+    /// 1/4π, so the estimate L / pdf of ∫ L dω is exact for every sample, and the mean radiance
+    /// is L. Non-square or non-finite images are refused when loaded.
+    #[test]
+    fn constant_equal_area_map_is_uniform() {
+        let n = 32u32;
+        let rot = Mat3::from_axis_angle(Vec3::new(1.0, 0.2, -0.4).normalize(), 2.0);
+        let m = EnvMap::from_texels_mapped(
+            n,
+            n,
+            vec![Vec3::new(0.5, 1.0, 2.0); (n * n) as usize],
+            Vec3::splat(3.0),
+            rot,
+            EnvMapping::EqualArea,
+        );
+        let l = Vec3::new(1.5, 3.0, 6.0);
+        assert!((m.mean_luminance - luminance(l)).abs() < 1e-4 * luminance(l));
+        let uniform = 1.0 / (4.0 * PI);
+        for i in 0..64 {
+            for j in 0..64 {
+                let u = Vec2::new((i as f32 + 0.31) / 64.0, (j as f32 + 0.77) / 64.0);
+                let (d, li, pdf) = m.sample(u).expect("a sample");
+                assert!((d.length() - 1.0).abs() < 1e-5);
+                assert!((li - l).abs().max_element() < 1e-5);
+                assert!((pdf / uniform - 1.0).abs() < 1e-4, "{pdf}");
+                assert!((m.pdf(d) / uniform - 1.0).abs() < 1e-4);
+                assert!((m.eval(d) - l).abs().max_element() < 1e-5);
+            }
+        }
+        let dir = std::env::temp_dir().join(format!("trayecto-envmap-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let pfm = |w: u32, h: u32, v: f32| {
+            let mut b = format!("PF\n{w} {h}\n-1.0\n").into_bytes();
+            for _ in 0..w * h * 3 {
+                b.extend_from_slice(&v.to_le_bytes());
+            }
+            b
+        };
+        let path = dir.join("wide.pfm");
+        std::fs::write(&path, pfm(8, 4, 1.0)).unwrap();
+        let e = EnvMap::load_mapped(&path, Vec3::ONE, Mat3::IDENTITY, EnvMapping::EqualArea)
+            .unwrap_err();
+        assert!(e.contains("not square"), "{e}");
+        let path = dir.join("square.pfm");
+        std::fs::write(&path, pfm(4, 4, 2.0)).unwrap();
+        let m =
+            EnvMap::load_mapped(&path, Vec3::ONE, Mat3::IDENTITY, EnvMapping::EqualArea).unwrap();
+        assert_eq!(m.eval(Vec3::X), Vec3::splat(2.0));
+        let singular = Mat3::from_diagonal(Vec3::new(1.0, 0.0, 1.0));
+        assert!(EnvMap::load_mapped(&path, Vec3::ONE, singular, EnvMapping::EqualArea).is_err());
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

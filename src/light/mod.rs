@@ -10,9 +10,58 @@ use crate::math::{PI, Vec2, Vec3, luminance};
 use crate::sampling::{Distribution1D, warp};
 use std::sync::Arc;
 
+pub mod bvh;
 pub mod default_light;
+pub mod emission;
 pub mod envmap;
-pub use envmap::EnvMap;
+pub mod equal_area;
+pub use bvh::{LightBounds, LightBvh};
+pub use envmap::{EnvMap, EnvMapping};
+
+/// How next-event estimation chooses a light (`--light-sampler`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LightSamplerKind {
+    /// [`LightSamplerKind::Bvh`] when the scene has more than [`BVH_AUTO_THRESHOLD`] bounded
+    /// lights, else [`LightSamplerKind::Power`].
+    #[default]
+    Auto,
+    /// In proportion to each light's power, wherever the shading point is.
+    Power,
+    /// The light BVH ([`bvh`]) for emitters, points and spots by their importance from the
+    /// shading point; lights at infinity beside it in proportion to power.
+    Bvh,
+}
+
+/// Above this many bounded lights (emissive primitives, points, spots) `auto` uses the light BVH.
+/// See BENCHMARKS.md ("Many lights") for the measurement behind it.
+pub const BVH_AUTO_THRESHOLD: usize = 16;
+
+impl LightSamplerKind {
+    pub const NAMES: [&'static str; 3] = ["auto", "power", "bvh"];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            LightSamplerKind::Auto => "auto",
+            LightSamplerKind::Power => "power",
+            LightSamplerKind::Bvh => "bvh",
+        }
+    }
+}
+
+impl std::str::FromStr for LightSamplerKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(LightSamplerKind::Auto),
+            "power" => Ok(LightSamplerKind::Power),
+            "bvh" => Ok(LightSamplerKind::Bvh),
+            _ => Err(format!(
+                "unknown light sampler '{s}' (expected one of: {})",
+                Self::NAMES.join(", ")
+            )),
+        }
+    }
+}
 
 #[derive(Clone, Debug)]
 pub enum Light {
@@ -167,6 +216,9 @@ struct AreaLightInfo {
     /// normal and radiance, enough to sample it without a [`SurfaceHit`]. Textured emitters,
     /// spheres and boxes take the general path.
     flat: Option<FlatEmitter>,
+    /// A sphere's (centre, radius): sampled over the cone it subtends from outside, and
+    /// [`LightSet::pdf_area`] must give that pdf.
+    sphere: Option<(Vec3, f32)>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -176,18 +228,35 @@ struct FlatEmitter {
     double_sided: bool,
 }
 
-/// All lights of a scene and the power-proportional distribution used to pick one.
+/// All lights of a scene and how next-event estimation chooses one of them.
 #[derive(Clone, Debug, Default)]
 pub struct LightSet {
     pub lights: Vec<Light>,
     /// Per light (same index), the precomputed part of area light sampling; default for others.
     area_info: Vec<AreaLightInfo>,
+    /// In proportion to power over all lights (the `power` sampler).
     pub distribution: Distribution1D,
+    /// The light BVH and the lights at infinity beside it (the `bvh` sampler); `None` with the
+    /// `power` sampler.
+    tree: Option<TreeSelection>,
     /// Indices of lights at infinity.
     pub infinite: Vec<u32>,
     /// Scene bounding sphere (for infinite light powers and far-away shadow rays).
     pub scene_center: Vec3,
     pub scene_radius: f32,
+}
+
+/// Light selection with the light BVH (pbrt-v4's `BVHLightSampler`): a light at infinity with
+/// probability `p_infinite` (their share of the power; pbrt splits evenly by count instead),
+/// chosen among them by power; otherwise a bounded light by the tree.
+#[derive(Clone, Debug)]
+struct TreeSelection {
+    bvh: LightBvh,
+    /// Over `LightSet::infinite`, by power.
+    infinite: Distribution1D,
+    p_infinite: f32,
+    /// Per light: its index in `LightSet::infinite`, or `u32::MAX`.
+    infinite_slot: Vec<u32>,
 }
 
 /// [`LightSet::sample`] on a flat emitter of constant radiance: the same point, pdf and shadow ray
@@ -265,6 +334,101 @@ fn sample_area_general(
     })
 }
 
+/// Below this sin²θmax the cone of a sphere is so narrow that 1 − cos θmax loses its digits in f32:
+/// pbrt-v4's threshold (sin² 1.5°) for switching to the Taylor expansion.
+const SPHERE_SMALL_SIN2: f32 = 0.000_685_23;
+
+/// The cone of directions a sphere (`center`, `radius`) subtends from `p`, as
+/// (sin²θmax, 1 − cos θmax), or `None` when `p` is inside or on it.
+#[inline]
+fn sphere_cone(center: Vec3, radius: f32, p: Vec3) -> Option<(f32, f32)> {
+    let d2 = (p - center).length_squared();
+    // A margin above the surface: points on the sphere (its own shadow-ray origins) are inside.
+    if !(d2 > radius * radius * 1.0001) {
+        return None;
+    }
+    let sin2_max = radius * radius / d2;
+    let one_minus = if sin2_max < SPHERE_SMALL_SIN2 {
+        // 1 − √(1 − x) ≈ x/2 (+ x²/8), where the difference would cancel.
+        sin2_max / 2.0 + sin2_max * sin2_max / 8.0
+    } else {
+        1.0 - (1.0 - sin2_max).max(0.0).sqrt()
+    };
+    Some((sin2_max, one_minus))
+}
+
+/// Samples a sphere light seen from outside uniformly over the solid angle it subtends
+/// (pbrt-v4 §6.2.4, `Sphere::Sample(ctx, u)`; Shirley & Wang 1996): a direction in the cone
+/// toward the centre, then the point where it meets the sphere (computed from the angle α at the
+/// centre, which is stable where a ray–sphere intersection is not). Area sampling of the whole
+/// sphere wastes the back half and weights the visible cap by distance and cosine; the cone's
+/// pdf 1/(2π(1 − cos θmax)) is constant, so an unoccluded sphere of constant radiance gives
+/// zero-variance estimates. Returns the point, its outward normal and the solid-angle pdf, or
+/// `None` from inside the sphere (then it is sampled by area).
+#[inline]
+fn sample_sphere_cone(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> Option<(Vec3, Vec3, f32)> {
+    let (sin2_max, one_minus) = sphere_cone(center, radius, p)?;
+    let (sin2_t, cos_t) = if sin2_max < SPHERE_SMALL_SIN2 {
+        // sin²θ = sin²θmax · u: the small-cone form of cos θ = 1 − u (1 − cos θmax).
+        let s2 = sin2_max * u.x;
+        (s2, (1.0 - s2).sqrt())
+    } else {
+        let c = 1.0 - u.x * one_minus;
+        ((1.0 - c * c).max(0.0), c)
+    };
+    // The angle α at the centre between the direction to p and the sampled point.
+    let cos_a = sin2_t / sin2_max.sqrt() + cos_t * (1.0 - sin2_t / sin2_max).max(0.0).sqrt();
+    let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
+    let phi = u.y * 2.0 * PI;
+    let to_p = (p - center).normalize();
+    let frame = crate::math::Frame::from_normal(to_p);
+    let n = frame.to_world(Vec3::new(sin_a * phi.cos(), sin_a * phi.sin(), cos_a));
+    let point = center + n * radius;
+    Some((point, n, 1.0 / (2.0 * PI * one_minus)))
+}
+
+/// [`sample_sphere_cone`] for a sphere area light: the light sample from `hit`.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn sample_sphere_light(
+    geometry: &GeometryStore,
+    prim: PrimRef,
+    material: &Material,
+    textures: &[Texture],
+    hit: &SurfaceHit,
+    n_offset: Vec3,
+    u: Vec2,
+) -> Option<Option<LightSample>> {
+    let s = &geometry.spheres[prim.index()].shape;
+    let (point, n, pdf) = sample_sphere_cone(s.center, s.radius, hit.p, u)?;
+    let mut lp = geometry.blank_hit(prim, 0.0);
+    let local = n * s.radius;
+    lp.p = point;
+    lp.p_error = local.abs() * crate::math::gamma(5) + s.center.abs() * crate::math::gamma(1);
+    lp.ng = n;
+    lp.ns = n;
+    let (su, sv) = s.uv(n);
+    lp.uv = [Vec2::new(su, sv); 2];
+    let to = point - hit.p;
+    let d2 = to.length_squared();
+    if !(d2 > 0.0 && pdf.is_finite() && pdf > 0.0) {
+        return Some(None);
+    }
+    let wi = to / d2.sqrt();
+    let li = emitted(material, textures, &lp, -wi);
+    if li == Vec3::ZERO {
+        return Some(None);
+    }
+    Some(Some(LightSample {
+        wi,
+        li,
+        pdf,
+        pmf: 1.0,
+        delta: false,
+        shadow: Ray::spawn_to(hit.p, hit.p_error, n_offset, lp.p, lp.p_error, lp.ng),
+    }))
+}
+
 /// The precomputed part of sampling area light `prim` (see [`AreaLightInfo`]).
 fn area_light_info(geometry: &GeometryStore, prim: PrimRef, material: &Material) -> AreaLightInfo {
     let normal = match prim.kind() {
@@ -283,24 +447,42 @@ fn area_light_info(geometry: &GeometryStore, prim: PrimRef, material: &Material)
         }
         _ => None,
     };
+    let sphere = (prim.kind() == PrimitiveKind::Sphere).then(|| {
+        let s = &geometry.spheres[prim.index()].shape;
+        (s.center, s.radius)
+    });
     AreaLightInfo {
         area: geometry.area(prim),
         flat,
+        sphere,
     }
 }
 
 /// Power of an area light's surface for light selection: π · A · L̄ (× 2 if it emits both ways).
-fn area_power(area: f32, material: &Material, texture_averages: &[Vec3]) -> f32 {
+/// L̄ uses the mean of the light's own texture footprint when it was read (`footprint_mean`,
+/// see [`emission`]), else the texture's mean.
+fn area_power(
+    area: f32,
+    material: &Material,
+    texture_averages: &[Vec3],
+    footprint_mean: Option<Vec3>,
+) -> f32 {
     let mut l = material.emissive;
     if let Some(t) = &material.emissive_texture {
-        l *= texture_averages
-            .get(t.texture)
-            .copied()
-            .unwrap_or(Vec3::ONE);
+        l *= footprint_mean.unwrap_or_else(|| {
+            texture_averages
+                .get(t.texture)
+                .copied()
+                .unwrap_or(Vec3::ONE)
+        });
     }
     let sides = if material.double_sided { 2.0 } else { 1.0 };
     PI * sides * area * luminance(l)
 }
+
+/// The least choice probability for which [`LightSet::sample_reuse`] reuses the remapped choice
+/// number: 2^-12, so the remapped number keeps at least 12 of u's 24 bits.
+pub const MIN_REUSE_PMF: f32 = 1.0 / 4096.0;
 
 impl LightSet {
     pub fn new(
@@ -309,6 +491,8 @@ impl LightSet {
         materials: &[Material],
         textures: &[Texture],
         bounds: Bounds3,
+        footprint_means: &[Option<Vec3>],
+        kind: LightSamplerKind,
     ) -> LightSet {
         let (scene_center, scene_radius) = bounds.bounding_sphere();
         let scene_radius = scene_radius.max(1e-3);
@@ -334,10 +518,14 @@ impl LightSet {
         let powers: Vec<f32> = lights
             .iter()
             .zip(&area_info)
-            .map(|(l, info)| match l {
-                Light::Area { material, .. } => {
-                    area_power(info.area, &materials[*material as usize], &texture_averages)
-                }
+            .enumerate()
+            .map(|(i, (l, info))| match l {
+                Light::Area { material, .. } => area_power(
+                    info.area,
+                    &materials[*material as usize],
+                    &texture_averages,
+                    footprint_means.get(i).copied().flatten(),
+                ),
                 Light::Point { intensity, .. } => 4.0 * PI * luminance(*intensity),
                 Light::Spot {
                     intensity,
@@ -357,14 +545,32 @@ impl LightSet {
                 }
             })
             .collect();
-        let infinite = lights
+        let infinite: Vec<u32> = lights
             .iter()
             .enumerate()
             .filter(|(_, l)| l.is_infinite())
             .map(|(i, _)| i as u32)
             .collect();
+        let bounded = lights.iter().filter(|l| !l.is_infinite()).count();
+        let use_tree = match kind {
+            LightSamplerKind::Power => false,
+            LightSamplerKind::Bvh => true,
+            LightSamplerKind::Auto => bounded > BVH_AUTO_THRESHOLD,
+        };
+        let tree = use_tree.then(|| {
+            let lb: Vec<(u32, LightBounds)> = lights
+                .iter()
+                .enumerate()
+                .zip(&powers)
+                .filter_map(|((i, l), &phi)| {
+                    light_bounds(l, geometry, materials, phi).map(|b| (i as u32, b))
+                })
+                .collect();
+            TreeSelection::new(LightBvh::new(&lb, lights.len()), &infinite, &powers)
+        });
         LightSet {
             distribution: Distribution1D::new(&powers),
+            tree,
             lights,
             area_info,
             infinite,
@@ -373,17 +579,62 @@ impl LightSet {
         }
     }
 
+    /// Which sampler chooses the lights: `Power` or `Bvh` (never `Auto`).
+    pub fn sampler_kind(&self) -> LightSamplerKind {
+        if self.tree.is_some() {
+            LightSamplerKind::Bvh
+        } else {
+            LightSamplerKind::Power
+        }
+    }
+
+    /// Chooses a light for a receiver at `p` with normal `n` (zero in a medium) with `u`: its
+    /// index and the probability of having chosen it (positive).
+    #[inline]
+    pub fn choose(&self, p: Vec3, n: Vec3, u: f32) -> Option<(usize, f32)> {
+        self.choose_remap(p, n, u)
+            .map(|(index, pmf, _)| (index, pmf))
+    }
+
+    /// [`Self::choose`] that also returns `u` remapped within the chosen light's share of
+    /// [0, 1): uniform again given the choice, so it can place the point on the light.
+    #[inline]
+    pub fn choose_remap(&self, p: Vec3, n: Vec3, u: f32) -> Option<(usize, f32, f32)> {
+        match &self.tree {
+            None => {
+                let (index, pmf, rest) = self.distribution.sample_discrete_remap(u);
+                (pmf > 0.0).then_some((index, pmf, rest))
+            }
+            Some(t) => t.choose(&self.infinite, p, n, u),
+        }
+    }
+
+    /// Probability that [`LightSet::choose`] from (`p`, `n`) picks light `index`.
+    #[inline]
+    pub fn pmf(&self, index: u32, p: Vec3, n: Vec3) -> f32 {
+        match &self.tree {
+            None => self.distribution.discrete_pdf(index as usize),
+            Some(t) => t.pmf(index, p, n),
+        }
+    }
+
+    /// Probability of choosing light `index`, a light at infinity (which does not depend on the
+    /// receiver).
+    #[inline]
+    fn pmf_infinite(&self, index: u32) -> f32 {
+        match &self.tree {
+            None => self.distribution.discrete_pdf(index as usize),
+            Some(t) => t.pmf_infinite(index),
+        }
+    }
+
     pub fn is_empty(&self) -> bool {
         self.lights.is_empty()
     }
 
-    /// Probability that NEE picks light `index`.
-    #[inline]
-    pub fn pmf(&self, index: u32) -> f32 {
-        self.distribution.discrete_pdf(index as usize)
-    }
-
-    /// Picks a light by power and samples a point/direction on it as seen from `hit`.
+    /// Picks a light (by power, or by the light BVH from `hit.p` and `n_offset`) and samples a
+    /// point/direction on it as seen from `hit`. `n_offset` is also the receiver's normal for
+    /// the light BVH's importance (zero for a point in a medium).
     #[allow(clippy::too_many_arguments)]
     pub fn sample(
         &self,
@@ -398,25 +649,74 @@ impl LightSet {
         if self.lights.is_empty() {
             return None;
         }
-        let (index, pmf) = self.distribution.sample_discrete(u_light);
-        if pmf <= 0.0 {
+        let (index, pmf) = self.choose(hit.p, n_offset, u_light)?;
+        self.sample_chosen(geometry, materials, textures, hit, n_offset, index, pmf, u)
+    }
+
+    /// [`Self::sample`] with the light chosen by `u.x` and the point placed on it by `u.x`
+    /// remapped within the light's share of [0, 1), and `u.y` (sample reuse: Mitsuba 3's
+    /// `Scene::sample_emitter_direction`; PBRT-v4 §A.1 `SampleDiscrete`'s `uRemapped`). A 2D
+    /// stratified or low-discrepancy point is thereby split among the lights by the x-ranges
+    /// they are chosen with, and each light gets a stratified set of points of its own; with the
+    /// choice from a number of its own, a light gets a random subset of the 2D points, whose
+    /// stratification is largely lost. Given the choice, the remapped x is uniform and
+    /// independent of `u.y`, so the estimator is the same. A light chosen with probability under
+    /// [`MIN_REUSE_PMF`] would get a remapped x of fewer than 12 bits (`u.x` has 24): it gets
+    /// `u_spare` (an independent uniform number) instead, which is just as uniform.
+    #[allow(clippy::too_many_arguments)]
+    pub fn sample_reuse(
+        &self,
+        geometry: &GeometryStore,
+        materials: &[Material],
+        textures: &[Texture],
+        hit: &SurfaceHit,
+        n_offset: Vec3,
+        u: Vec2,
+        u_spare: f32,
+    ) -> Option<LightSample> {
+        if self.lights.is_empty() {
             return None;
         }
+        let (index, pmf, rest) = self.choose_remap(hit.p, n_offset, u.x)?;
+        let x = if pmf >= MIN_REUSE_PMF { rest } else { u_spare };
+        let u = Vec2::new(x, u.y);
+        self.sample_chosen(geometry, materials, textures, hit, n_offset, index, pmf, u)
+    }
+
+    /// Samples light `index`, chosen with probability `pmf`, with `u`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn sample_chosen(
+        &self,
+        geometry: &GeometryStore,
+        materials: &[Material],
+        textures: &[Texture],
+        hit: &SurfaceHit,
+        n_offset: Vec3,
+        index: usize,
+        pmf: f32,
+        u: Vec2,
+    ) -> Option<LightSample> {
         let p = hit.p;
         match &self.lights[index] {
             Light::Area { prim, material } => {
                 let info = &self.area_info[index];
+                let material = &materials[*material as usize];
                 let sample = match &info.flat {
                     Some(flat) => sample_flat(geometry, *prim, info.area, flat, hit, n_offset, u),
+                    None if prim.kind() == PrimitiveKind::Sphere => {
+                        match sample_sphere_light(
+                            geometry, *prim, material, textures, hit, n_offset, u,
+                        ) {
+                            Some(sample) => sample,
+                            // From inside the sphere: by area.
+                            None => sample_area_general(
+                                geometry, *prim, info.area, material, textures, hit, n_offset, u,
+                            ),
+                        }
+                    }
                     None => sample_area_general(
-                        geometry,
-                        *prim,
-                        info.area,
-                        &materials[*material as usize],
-                        textures,
-                        hit,
-                        n_offset,
-                        u,
+                        geometry, *prim, info.area, material, textures, hit, n_offset, u,
                     ),
                 };
                 sample.map(|ls| LightSample { pmf, ..ls })
@@ -456,20 +756,37 @@ impl LightSet {
     }
 
     /// Solid-angle pdf with which NEE would have sampled the point `light_hit` on area light
-    /// `index` from `p` (selection probability included), for MIS of BSDF-sampled hits.
+    /// `index` from `p` with normal `n` (the `n_offset` given to [`LightSet::sample`]), selection
+    /// probability included, for MIS of BSDF-sampled hits.
     #[inline]
-    pub fn pdf_area(&self, index: u32, p: Vec3, light_hit: &SurfaceHit) -> f32 {
+    pub fn pdf_area(&self, index: u32, p: Vec3, n: Vec3, light_hit: &SurfaceHit) -> f32 {
         let Light::Area { .. } = &self.lights[index as usize] else {
             return 0.0;
         };
-        let area = self.area_info[index as usize].area;
+        let info = &self.area_info[index as usize];
+        if let Some((center, radius)) = info.sphere
+            && let Some((_, one_minus)) = sphere_cone(center, radius, p)
+        {
+            // Seen from outside, a sphere is sampled over its cone (`sample_sphere_cone`).
+            let pmf = self.pmf(index, p, n);
+            return if pmf > 0.0 {
+                pmf / (2.0 * PI * one_minus)
+            } else {
+                0.0
+            };
+        }
+        let area = info.area;
         let to = light_hit.p - p;
         let d2 = to.length_squared();
         let cos_l = light_hit.ng.dot(to).abs() / d2.sqrt();
         if !(cos_l > 0.0) {
             return 0.0;
         }
-        self.pmf(index) * d2 / (cos_l * area)
+        let pmf = self.pmf(index, p, n);
+        if !(pmf > 0.0) {
+            return 0.0;
+        }
+        pmf * d2 / (cos_l * area)
     }
 
     /// Radiance from the lights at infinity along an escaping ray direction `d` (unit), and for
@@ -482,16 +799,139 @@ impl LightSet {
             match &self.lights[i as usize] {
                 Light::Uniform { radiance } => {
                     l += *radiance;
-                    pdf += self.pmf(i) * warp::UNIFORM_SPHERE_PDF;
+                    pdf += self.pmf_infinite(i) * warp::UNIFORM_SPHERE_PDF;
                 }
                 Light::Environment { map } => {
                     l += map.eval(d);
-                    pdf += self.pmf(i) * map.pdf(d);
+                    pdf += self.pmf_infinite(i) * map.pdf(d);
                 }
                 _ => {}
             }
         }
         (l, pdf)
+    }
+}
+
+impl TreeSelection {
+    fn new(bvh: LightBvh, infinite: &[u32], powers: &[f32]) -> TreeSelection {
+        let inf_powers: Vec<f32> = infinite.iter().map(|&i| powers[i as usize]).collect();
+        let p_inf_power: f64 = inf_powers
+            .iter()
+            .filter(|p| p.is_finite() && **p > 0.0)
+            .map(|&p| p as f64)
+            .sum();
+        let tree_power = bvh.total_power as f64;
+        let p_infinite = if infinite.is_empty() {
+            0.0
+        } else if bvh.is_empty() {
+            1.0
+        } else if p_inf_power + tree_power > 0.0 {
+            (p_inf_power / (p_inf_power + tree_power)) as f32
+        } else {
+            0.5
+        };
+        let mut infinite_slot = vec![u32::MAX; powers.len()];
+        for (k, &i) in infinite.iter().enumerate() {
+            infinite_slot[i as usize] = k as u32;
+        }
+        TreeSelection {
+            bvh,
+            infinite: Distribution1D::new(&inf_powers),
+            p_infinite,
+            infinite_slot,
+        }
+    }
+
+    #[inline]
+    fn choose(&self, infinite: &[u32], p: Vec3, n: Vec3, u: f32) -> Option<(usize, f32, f32)> {
+        if u < self.p_infinite {
+            let u = (u / self.p_infinite).min(1.0 - f32::EPSILON / 2.0);
+            let (k, pmf, rest) = self.infinite.sample_discrete_remap(u);
+            let pmf = pmf * self.p_infinite;
+            return (pmf > 0.0).then_some((infinite[k] as usize, pmf, rest));
+        }
+        let p_tree = 1.0 - self.p_infinite;
+        let u = ((u - self.p_infinite) / p_tree).min(1.0 - f32::EPSILON / 2.0);
+        let (light, pmf, rest) = self.bvh.sample_remap(p, n, u)?;
+        let pmf = pmf * p_tree;
+        (pmf > 0.0).then_some((light as usize, pmf, rest))
+    }
+
+    #[inline]
+    fn pmf_infinite(&self, index: u32) -> f32 {
+        match self.infinite_slot.get(index as usize) {
+            Some(&k) if k != u32::MAX => self.p_infinite * self.infinite.discrete_pdf(k as usize),
+            _ => 0.0,
+        }
+    }
+
+    #[inline]
+    fn pmf(&self, index: u32, p: Vec3, n: Vec3) -> f32 {
+        match self.infinite_slot.get(index as usize) {
+            Some(&k) if k != u32::MAX => self.p_infinite * self.infinite.discrete_pdf(k as usize),
+            Some(_) => (1.0 - self.p_infinite) * self.bvh.pmf(index, p, n),
+            None => 0.0,
+        }
+    }
+}
+
+/// The light BVH's bounds of a bounded light of power `phi` (`None` for lights at infinity).
+fn light_bounds(
+    light: &Light,
+    geometry: &GeometryStore,
+    materials: &[Material],
+    phi: f32,
+) -> Option<LightBounds> {
+    // Lambertian emission reaches 90° from the normal; points emit everywhere.
+    let all_around = |bounds: Bounds3| LightBounds {
+        bounds,
+        phi,
+        w: Vec3::Z,
+        cos_theta_o: -1.0,
+        cos_theta_e: 0.0,
+        two_sided: false,
+    };
+    match light {
+        Light::Area { prim, material } => {
+            let bounds = geometry.bounds(*prim);
+            let normal = match prim.kind() {
+                PrimitiveKind::Quad => Some(geometry.quads[prim.index()].shape.normal()),
+                PrimitiveKind::Triangle => Some(geometry.triangles[prim.index()].unit_normal()),
+                PrimitiveKind::Sphere | PrimitiveKind::Cuboid => None,
+            };
+            match normal {
+                Some(w) if w.is_finite() && w != Vec3::ZERO => Some(LightBounds {
+                    bounds,
+                    phi,
+                    w,
+                    cos_theta_o: 1.0,
+                    cos_theta_e: 0.0,
+                    two_sided: materials[*material as usize].double_sided,
+                }),
+                _ => Some(all_around(bounds)),
+            }
+        }
+        Light::Point { position, .. } => Some(all_around(Bounds3::from_point(*position))),
+        Light::Spot {
+            position,
+            direction,
+            cos_inner,
+            cos_outer,
+            ..
+        } => {
+            // pbrt-v4 `SpotLight::Bounds`: θo the inner cone, θe the ramp out to the outer one.
+            let theta_e =
+                (cos_outer.clamp(-1.0, 1.0).acos() - cos_inner.clamp(-1.0, 1.0).acos()).max(0.0);
+            Some(LightBounds {
+                bounds: Bounds3::from_point(*position),
+                phi,
+                w: *direction,
+                cos_theta_o: *cos_inner,
+                cos_theta_e: theta_e.cos(),
+                two_sided: false,
+            })
+        }
+        Light::Directional { .. } | Light::Uniform { .. } | Light::Environment { .. } => None,
     }
 }
 

@@ -8,8 +8,8 @@
 //! Transmissive BSDFs keep the geometric orientation: `wo.z < 0` means the ray arrives from inside.
 
 use super::bxdf::{
-    Conductor, Dielectric, Diffuse, DiffuseTransmission, Layered, MetallicRoughness, Mirror,
-    ThinDielectric,
+    Conductor, Dielectric, Diffuse, DiffuseTransmission, GltfTransmission, Layered,
+    MetallicRoughness, Mirror, ThinDielectric,
 };
 use crate::math::{Vec2, Vec3};
 
@@ -26,6 +26,9 @@ pub enum Bsdf {
     DiffuseTransmission(DiffuseTransmission),
     /// pbrt-v4's stochastic layered BSDF (`coateddiffuse`, `coatedconductor`).
     Layered(Layered),
+    /// The transmissive component of a glTF material under clearcoat, sheen, anisotropy or
+    /// iridescence (thick or thin-walled).
+    GltfTransmission(GltfTransmission),
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -40,6 +43,24 @@ pub struct BsdfSample {
     pub specular: bool,
     /// Relative IOR crossed (1 for reflection); radiance was scaled by 1/eta².
     pub eta: f32,
+}
+
+impl BsdfSample {
+    /// A sample from a non-Dirac lobe, or `None` when its pdf is not positive (then the
+    /// direction cannot be weighted). `f` is evaluated only for a usable sample.
+    #[inline]
+    pub fn glossy(wi: Vec3, pdf: f32, eta: f32, f: impl FnOnce() -> Vec3) -> Option<BsdfSample> {
+        if !(pdf > 0.0) {
+            return None;
+        }
+        Some(BsdfSample {
+            wi,
+            f: f(),
+            pdf,
+            specular: false,
+            eta,
+        })
+    }
 }
 
 impl Bsdf {
@@ -57,8 +78,28 @@ impl Bsdf {
     /// frame; see [`super::eval::clearcoat_normal`]). No effect on BSDFs without a coat.
     #[inline]
     pub fn set_coat_normal(&mut self, local: Vec3) {
-        if let Bsdf::MetallicRoughness(MetallicRoughness { coat: Some(c), .. }) = self {
-            *c = c.with_normal(local);
+        match self {
+            Bsdf::MetallicRoughness(MetallicRoughness { coat: Some(c), .. })
+            | Bsdf::GltfTransmission(GltfTransmission { coat: Some(c), .. }) => {
+                *c = c.with_normal(local);
+            }
+            _ => {}
+        }
+    }
+
+    /// The local frame was built around the flipped shading normal (two-sided shading), whose
+    /// bitangent is the negated one: mirrors the KHR_materials_anisotropy direction, which
+    /// [`super::eval`] expresses in the unflipped frame.
+    #[inline]
+    pub fn flip_bitangent(&mut self) {
+        match self {
+            Bsdf::MetallicRoughness(MetallicRoughness { ext, .. }) => {
+                if let Some(a) = &mut ext.anisotropy {
+                    a.dir.y = -a.dir.y;
+                }
+            }
+            Bsdf::GltfTransmission(GltfTransmission { rough: Some(a), .. }) => a.dir.y = -a.dir.y,
+            _ => {}
         }
     }
 
@@ -73,6 +114,7 @@ impl Bsdf {
             Bsdf::Conductor(b) => b.is_specular(),
             Bsdf::DiffuseTransmission(_) => false,
             Bsdf::Layered(b) => b.is_specular(),
+            Bsdf::GltfTransmission(b) => b.is_specular(),
         }
     }
 
@@ -88,10 +130,14 @@ impl Bsdf {
     /// True if the BSDF transmits: its frame must keep the geometric orientation.
     #[inline]
     pub fn is_transmissive(&self) -> bool {
-        matches!(
-            self,
-            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::DiffuseTransmission(_)
-        )
+        match self {
+            Bsdf::Dielectric(_)
+            | Bsdf::ThinDielectric(_)
+            | Bsdf::DiffuseTransmission(_)
+            | Bsdf::GltfTransmission(_) => true,
+            Bsdf::MetallicRoughness(b) => b.transmits(),
+            _ => false,
+        }
     }
 
     /// f(wo, wi), without the cosine.
@@ -106,6 +152,7 @@ impl Bsdf {
             Bsdf::Conductor(b) => b.eval(wo, wi),
             Bsdf::DiffuseTransmission(b) => b.eval(wo, wi),
             Bsdf::Layered(b) => b.eval(wo, wi),
+            Bsdf::GltfTransmission(b) => b.eval(wo, wi),
         }
     }
 
@@ -121,6 +168,7 @@ impl Bsdf {
             Bsdf::Conductor(b) => b.pdf(wo, wi),
             Bsdf::DiffuseTransmission(b) => b.pdf(wo, wi),
             Bsdf::Layered(b) => b.pdf(wo, wi),
+            Bsdf::GltfTransmission(b) => b.pdf(wo, wi),
         }
     }
 
@@ -136,6 +184,7 @@ impl Bsdf {
             Bsdf::Conductor(b) => b.sample(wo, u),
             Bsdf::DiffuseTransmission(b) => b.sample(wo, u_lobe, u),
             Bsdf::Layered(b) => b.sample(wo, u_lobe, u),
+            Bsdf::GltfTransmission(b) => b.sample(wo, u_lobe, u),
         }
     }
 
@@ -150,6 +199,7 @@ impl Bsdf {
             Bsdf::Conductor(b) => b.albedo(),
             Bsdf::DiffuseTransmission(b) => b.reflectance + b.transmittance,
             Bsdf::Layered(b) => b.albedo(),
+            Bsdf::GltfTransmission(b) => b.tint,
         }
     }
 }

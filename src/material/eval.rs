@@ -2,13 +2,22 @@
 //! colour, opacity for the alpha modes, emitted radiance, and the [`Bsdf`] the path tracer
 //! scatters with (`Bsdf::from_material`).
 
+use super::bxdf::dielectric::dispersive_iors;
 use super::bxdf::layered::{Base, Coat};
-use super::bxdf::{Conductor, Diffuse, DiffuseTransmission, Layered, MetallicRoughness, Mirror};
+use super::bxdf::metallic_roughness::{Anisotropy, Extensions};
+use super::bxdf::{
+    Conductor, Dielectric, Diffuse, DiffuseTransmission, GltfTransmission, Layered,
+    MetallicRoughness, Mirror,
+};
 use super::clearcoat::Clearcoat;
-use super::microfacet::{AnisoGgx, Ggx, conductor_from_reflectance};
-use super::{Bsdf, Material, MaterialModel, Texture, TextureRef};
+use super::iridescence::Iridescence;
+use super::microfacet::{
+    AnisoGgx, Ggx, MIN_ALPHA, conductor_from_reflectance, pbrt_roughness_to_alpha,
+};
+use super::sheen::Sheen;
+use super::{Bsdf, Material, MaterialModel, RoughnessTextures, Texture, TextureRef};
 use crate::geometry::SurfaceHit;
-use crate::math::{Vec3, Vec4};
+use crate::math::{Vec2, Vec3, Vec4};
 
 impl Bsdf {
     /// Builds the BSDF of `material` at `hit`, reading its textures.
@@ -21,19 +30,21 @@ impl Bsdf {
             1.5
         };
         let p = &material.pbrt;
+        let conductor_alpha = pbrt_alpha(&p.conductor_roughness, p.conductor_alpha, textures, hit);
+        let interface_alpha = pbrt_alpha(&p.interface_roughness, p.interface_alpha, textures, hit);
         let conductor = || {
             let (eta, k) = if p.conductor_reflectance {
                 conductor_from_reflectance(base)
             } else {
                 (p.conductor_eta, p.conductor_k)
             };
-            Conductor::new(eta, k, p.conductor_alpha.x, p.conductor_alpha.y)
+            Conductor::new(eta, k, conductor_alpha.x, conductor_alpha.y)
         };
         let layered = |base: Base| {
             Bsdf::Layered(Layered {
                 coat: Coat {
                     eta: p.interface_eta,
-                    dist: AnisoGgx::new(p.interface_alpha.x, p.interface_alpha.y),
+                    dist: AnisoGgx::new(interface_alpha.x, interface_alpha.y),
                 },
                 base,
                 thickness: p.thickness,
@@ -53,8 +64,16 @@ impl Bsdf {
             }),
             MaterialModel::Diffuse => Bsdf::Diffuse(Diffuse { albedo: base }),
             MaterialModel::Mirror => Bsdf::Mirror(Mirror { color: base }),
+            MaterialModel::Dielectric if p.interface_roughness.is_textured() => {
+                // pbrt-v4 `dielectric` with roughness textures: α per hit; Trayecto's rough
+                // dielectric is isotropic (glTF roughness √α of α = √(αu·αv)).
+                let a = (interface_alpha.x * interface_alpha.y).sqrt();
+                Bsdf::dielectric(eta, a.sqrt().clamp(0.0, 1.0), Vec3::ONE)
+            }
             MaterialModel::Dielectric => Bsdf::dielectric(eta, roughness, Vec3::ONE),
             MaterialModel::Interface => Bsdf::dielectric(1.0, 0.0, Vec3::ONE),
+            // KHR_materials_unlit: the base colour is emitted ([`emitted`]), nothing scatters.
+            MaterialModel::Unlit => Bsdf::Diffuse(Diffuse { albedo: Vec3::ZERO }),
             MaterialModel::MetallicRoughness => {
                 let mut transmission = material.transmission;
                 if transmission > 0.0
@@ -74,20 +93,43 @@ impl Bsdf {
                 let p_transmit = transmission.clamp(0.0, 1.0) * (1.0 - metallic);
                 if p_transmit > 0.0 {
                     if p_transmit >= 1.0 || hit_coin(hit) < p_transmit {
+                        if let Some(b) =
+                            layered_transmission(material, textures, hit, eta, roughness, base)
+                        {
+                            return Bsdf::GltfTransmission(b);
+                        }
                         if material.thin_walled {
+                            // KHR_materials_dispersion: no effect on thin-walled materials.
                             return Bsdf::thin_dielectric(eta, roughness, base);
+                        }
+                        if material.dispersion > 0.0 {
+                            let iors = dispersive_iors(eta, material.dispersion);
+                            return Bsdf::Dielectric(
+                                Dielectric::new(eta, roughness, base).with_dispersion(iors),
+                            );
                         }
                         return Bsdf::dielectric(eta, roughness, base);
                     }
                     metallic = (metallic / (1.0 - p_transmit)).min(1.0);
                 }
                 let r0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
-                let f0_dielectric = (material.specular_color * r0).min(Vec3::ONE);
-                let specular = material.specular.clamp(0.0, 1.0);
+                // KHR_materials_specular: colour × texture RGB (sRGB), strength × texture A.
+                let mut specular_color = material.specular_color;
+                if let Some(t) = &material.specular_color_texture {
+                    specular_color *= sample_texture(textures, t, hit).truncate();
+                }
+                let f0_dielectric = (specular_color * r0).min(Vec3::ONE);
+                let mut specular = material.specular;
+                if let Some(t) = &material.specular_texture {
+                    specular *= sample_texture(textures, t, hit).w;
+                }
+                let specular = specular.clamp(0.0, 1.0);
                 let coat = clearcoat(material, textures, hit);
+                let ext = extensions(material, textures, hit, roughness);
                 if metallic == 0.0
                     && (specular == 0.0 || f0_dielectric == Vec3::ZERO)
                     && coat.is_none()
+                    && ext == Extensions::default()
                 {
                     // No specular lobe at all (Blender's "Specular IOR Level" 0, exported as
                     // KHR_materials_specular 0): the mixture is exactly Lambertian, with the same
@@ -101,10 +143,163 @@ impl Bsdf {
                     f0_dielectric,
                     specular,
                     coat,
+                    ext,
                 })
             }
         }
     }
+}
+
+/// GGX α along (u, v) of a pbrt-v4 model at `hit`: `alpha` for an axis without a roughness
+/// texture, else pbrt's roughness factor × texture R remapped as `remaproughness` asks (pbrt-v4
+/// evaluates the roughness textures at the hit, then `RoughnessToAlpha`).
+#[inline]
+fn pbrt_alpha(r: &RoughnessTextures, alpha: Vec2, textures: &[Texture], hit: &SurfaceHit) -> Vec2 {
+    if !r.is_textured() {
+        return alpha;
+    }
+    let axis = |t: &Option<TextureRef>, factor: f32, constant: f32| match t {
+        Some(t) => {
+            let x = factor * sample_texture(textures, t, hit).x;
+            pbrt_roughness_to_alpha(if x.is_finite() { x } else { 0.0 }, r.remap)
+        }
+        None => constant,
+    };
+    Vec2::new(
+        axis(&r.u, r.factor.x, alpha.x),
+        axis(&r.v, r.factor.y, alpha.y),
+    )
+}
+
+/// Deepest chain of `mix` materials followed at one hit (the pbrt loader refuses cycles; this
+/// only bounds the work for scenes built in code).
+const MAX_MIX_DEPTH: u32 = 16;
+
+/// The material that scatters at `hit` when the primitive's material is `index`: itself, or for a
+/// pbrt-v4 `mix` the component chosen as `MixMaterial::ChooseMaterial` does — amount ≤ 0 gives
+/// `materials[0]`, ≥ 1 `materials[1]`, otherwise `materials[1]` when amount ≥ u, where u is a
+/// hash of the hit (position and ray distance, standing in for pbrt's p and ωo) and the two
+/// indices. Every query of one hit (NEE, BSDF sampling, AOVs) therefore sees the same material,
+/// and the expected BSDF is (1 − amount)·f₀ + amount·f₁. Nested mixes are followed.
+pub fn resolve_mix<'a>(
+    materials: &'a [Material],
+    textures: &[Texture],
+    index: u32,
+    hit: &SurfaceHit,
+) -> &'a Material {
+    let mut m = &materials[index as usize];
+    for _ in 0..MAX_MIX_DEPTH {
+        let Some(mix) = m.mix else {
+            return m;
+        };
+        let mut amount = mix.amount;
+        if let Some(t) = &m.mix_amount_texture {
+            amount *= sample_texture(textures, t, hit).x;
+        }
+        let pick = if amount <= 0.0 {
+            0
+        } else if amount >= 1.0 {
+            1
+        } else {
+            let [a, b] = mix.materials;
+            let u = crate::sampling::rng::hash_floats_to_unit(&[
+                hit.p.x,
+                hit.p.y,
+                hit.p.z,
+                hit.t,
+                f32::from_bits(a),
+                f32::from_bits(b),
+            ]);
+            usize::from(amount >= u)
+        };
+        match materials.get(mix.materials[pick] as usize) {
+            Some(next) => m = next,
+            None => return m,
+        }
+    }
+    m
+}
+
+/// pbrt-v4 `BumpMap` (pbrt-v4 materials.h; Blinn 1978): with d = scale × displacement texture R,
+/// ∂p/∂u' = ∂p/∂u + (d(u + Δ, v) − d(u, v))/Δ · n and likewise for v, and the shading normal
+/// becomes ∂p/∂u' × ∂p/∂v' turned to the geometric normal's side. `dpdu`, `dpdv` are the shading
+/// ∂p/∂u, ∂p/∂v in pbrt's convention (v growing up the image; see
+/// [`crate::geometry::GeometryStore::pbrt_shading_dpduv`]). Δ = 0.0005, pbrt-v4's step when it
+/// has no ray differentials (with them pbrt uses the pixel footprint; the two agree for
+/// displacement that is smooth at that scale). pbrt's d·∂n/∂u term is left out: it is zero on
+/// flat-shaded meshes and changes the normal by O(d/r) on curved ones. Leaves the hit unchanged
+/// without a displacement texture or when the result is degenerate.
+pub fn bump(
+    material: &Material,
+    textures: &[Texture],
+    hit: &mut SurfaceHit,
+    dpdu: Vec3,
+    dpdv: Vec3,
+) {
+    let Some(t) = &material.pbrt.displacement else {
+        return;
+    };
+    const DELTA: f32 = 0.0005;
+    let scale = material.pbrt.displacement_scale;
+    // Stored uvs have v growing down the image (glTF), so pbrt's v + Δ is stored v − Δ.
+    let d = |shift: Vec2| {
+        let mut h = *hit;
+        h.uv = [hit.uv[0] + shift, hit.uv[1] + shift];
+        scale * sample_texture(textures, t, &h).x
+    };
+    let d0 = d(Vec2::ZERO);
+    let du = d(Vec2::new(DELTA, 0.0));
+    let dv = d(Vec2::new(0.0, -DELTA));
+    let n = hit.ns;
+    let pu = dpdu + n * ((du - d0) / DELTA);
+    let pv = dpdv + n * ((dv - d0) / DELTA);
+    let mut ns = pu.cross(pv).normalize_or_zero();
+    if ns == Vec3::ZERO || !ns.is_finite() {
+        return;
+    }
+    if ns.dot(hit.ng) < 0.0 {
+        ns = -ns;
+    }
+    hit.ns = ns;
+    let tangent = (pu - ns * ns.dot(pu)).normalize_or_zero();
+    if tangent != Vec3::ZERO && tangent.is_finite() {
+        hit.tangent = tangent;
+    }
+}
+
+/// The transmissive component under the BRDF extensions the glTF specification layers over the
+/// whole material (clearcoat, sheen, anisotropy, iridescence), or `None` when it has none of
+/// them (then it is a plain [`Dielectric`] or thin sheet, as before).
+fn layered_transmission(
+    material: &Material,
+    textures: &[Texture],
+    hit: &SurfaceHit,
+    eta: f32,
+    roughness: f32,
+    tint: Vec3,
+) -> Option<GltfTransmission> {
+    let coat = clearcoat(material, textures, hit);
+    let ext = extensions(material, textures, hit, roughness);
+    if coat.is_none()
+        && ext.sheen.is_none()
+        && ext.anisotropy.is_none()
+        && ext.iridescence.is_none()
+    {
+        return None;
+    }
+    let thin = material.thin_walled;
+    let mut b = GltfTransmission::new(eta, roughness, tint, thin);
+    if let Some(a) = ext.anisotropy {
+        b.rough = (a.dist.alpha_x.max(a.dist.alpha_y) >= MIN_ALPHA).then_some(a);
+    }
+    if !thin && material.dispersion > 0.0 {
+        // KHR_materials_dispersion: no effect on thin-walled materials.
+        b.dispersion = Some(dispersive_iors(eta, material.dispersion));
+    }
+    b.iridescence = ext.iridescence;
+    b.coat = coat;
+    b.sheen = ext.sheen;
+    Some(b)
 }
 
 /// The material's clearcoat at `hit` (KHR_materials_clearcoat: factor × texture R, roughness ×
@@ -123,6 +318,93 @@ fn clearcoat(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Opt
         roughness *= sample_texture(textures, t, hit).y;
     }
     (weight > 0.0).then(|| Clearcoat::new(weight, roughness, Vec3::Z))
+}
+
+/// The KHR extensions of the metallic-roughness lobes at `hit` (sheen, anisotropy, iridescence,
+/// diffuse transmission), each off when its weight is zero. `roughness` is the base's (factor ×
+/// texture), which anisotropy stretches.
+fn extensions(
+    material: &Material,
+    textures: &[Texture],
+    hit: &SurfaceHit,
+    roughness: f32,
+) -> Extensions {
+    let mut ext = Extensions::default();
+    // KHR_materials_sheen: colour × texture RGB (sRGB), roughness × texture A.
+    if material.sheen_color.max_element() > 0.0 {
+        let mut color = material.sheen_color;
+        if let Some(t) = &material.sheen_color_texture {
+            color *= sample_texture(textures, t, hit).truncate();
+        }
+        let mut rough = material.sheen_roughness;
+        if let Some(t) = &material.sheen_roughness_texture {
+            rough *= sample_texture(textures, t, hit).w;
+        }
+        ext.sheen = Sheen::new(color, rough);
+    }
+    // KHR_materials_anisotropy: the texture's RG is a direction in [−1, 1]² (tangent space),
+    // rotated by the rotation; B scales the strength. Without a texture the direction is the
+    // tangent, rotated. The direction is placed in the unflipped local frame (x = tangent,
+    // y = normal × tangent = bitangent × its sign); the integrator mirrors y when it flips the
+    // normal (`Bsdf::flip_bitangent`).
+    if material.anisotropy > 0.0 {
+        let mut strength = material.anisotropy;
+        let mut d = Vec2::X;
+        if let Some(t) = &material.anisotropy_texture {
+            let v = sample_texture(textures, t, hit);
+            d = Vec2::new(v.x * 2.0 - 1.0, v.y * 2.0 - 1.0);
+            strength *= v.z;
+        }
+        let (s, c) = material.anisotropy_rotation.sin_cos();
+        let d = Vec2::new(c * d.x - s * d.y, s * d.x + c * d.y);
+        let sign = if hit.bitangent_sign < 0.0 { -1.0 } else { 1.0 };
+        if strength > 0.0 {
+            ext.anisotropy = Some(Anisotropy::new(
+                roughness,
+                strength,
+                Vec2::new(d.x, d.y * sign),
+            ));
+        }
+    }
+    // KHR_materials_iridescence: factor × texture R; thickness = mix(min, max, texture G), the
+    // maximum without a texture.
+    if material.iridescence > 0.0 {
+        let mut factor = material.iridescence;
+        if let Some(t) = &material.iridescence_texture {
+            factor *= sample_texture(textures, t, hit).x;
+        }
+        let (lo, hi) = (
+            material.iridescence_thickness_min,
+            material.iridescence_thickness_max,
+        );
+        let thickness = match &material.iridescence_thickness_texture {
+            Some(t) => lo + (hi - lo) * sample_texture(textures, t, hit).y,
+            None => hi,
+        };
+        if factor > 0.0 {
+            ext.iridescence = Some(Iridescence {
+                factor: factor.clamp(0.0, 1.0),
+                ior: material.iridescence_ior,
+                thickness: thickness.max(0.0),
+            });
+        }
+    }
+    // KHR_materials_diffuse_transmission: factor × texture A, colour × texture RGB (sRGB).
+    if material.diffuse_transmission > 0.0 {
+        let mut factor = material.diffuse_transmission;
+        if let Some(t) = &material.diffuse_transmission_texture {
+            factor *= sample_texture(textures, t, hit).w;
+        }
+        let mut color = material.diffuse_transmission_color;
+        if let Some(t) = &material.diffuse_transmission_color_texture {
+            color *= sample_texture(textures, t, hit).truncate();
+        }
+        if factor > 0.0 {
+            ext.diffuse_transmission = factor.clamp(0.0, 1.0);
+            ext.diffuse_transmission_color = color.clamp(Vec3::ZERO, Vec3::ONE);
+        }
+    }
+    ext
 }
 
 /// The clearcoat's world-space normal at `hit`, which must be taken **before** the base's normal
@@ -209,11 +491,17 @@ pub fn sample_texture(textures: &[Texture], t: &TextureRef, hit: &SurfaceHit) ->
 /// Emitted radiance of `material` at `hit` (front face only unless double-sided), toward `wo`.
 #[inline]
 pub fn emitted(material: &Material, textures: &[Texture], hit: &SurfaceHit, wo: Vec3) -> Vec3 {
-    if !material.is_emissive() {
+    let unlit = material.model == MaterialModel::Unlit;
+    if !material.is_emissive() && !unlit {
         return Vec3::ZERO;
     }
     if !material.double_sided && hit.ng.dot(wo) <= 0.0 {
         return Vec3::ZERO;
+    }
+    if unlit {
+        // KHR_materials_unlit: the base colour (factor × texture × vertex colour) is the
+        // radiance the surface shows.
+        return base_color(material, textures, hit);
     }
     let mut e = material.emissive;
     if let Some(t) = &material.emissive_texture {

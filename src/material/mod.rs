@@ -8,9 +8,12 @@ pub mod bsdf;
 pub mod bxdf;
 pub mod clearcoat;
 pub mod eval;
+pub mod iridescence;
 pub mod local_shading;
 pub mod microfacet;
 pub mod normal_map;
+pub mod sheen;
+mod sheen_table;
 pub mod texture;
 
 pub use bsdf::Bsdf;
@@ -46,6 +49,12 @@ pub enum MaterialModel {
     /// rays straight through it without counting a bounce; the other integrators see it as an
     /// index-matched (η = 1) smooth dielectric, which transmits every ray unchanged.
     Interface,
+    /// glTF `KHR_materials_unlit`: the surface shows its base colour (factor × texture × vertex
+    /// colour) as emitted radiance toward every ray and scatters nothing. It is not a light that
+    /// next-event estimation samples (a viewer's unlit object lights nothing), so only paths that
+    /// hit it by BSDF sampling or from the camera see it, each with MIS weight 1 — unbiased for
+    /// that definition (docs/DESIGN.md §4).
+    Unlit,
 }
 
 /// Parameters of the pbrt-v4 models ([`MaterialModel::Conductor`], `CoatedDiffuse`,
@@ -74,6 +83,53 @@ pub struct PbrtParams {
     pub n_samples: u32,
     /// Lambertian transmittance of `diffusetransmission`.
     pub transmittance: Vec3,
+    /// Roughness given as float textures, evaluated per hit (pbrt-v4 evaluates `uroughness`,
+    /// `vroughness` at the hit, then applies `remaproughness`): the conductor's (base of
+    /// `coatedconductor`) and the interface's (coat of the coated models, the `dielectric`
+    /// itself). An axis without a texture keeps its constant α above.
+    pub conductor_roughness: RoughnessTextures,
+    pub interface_roughness: RoughnessTextures,
+    /// pbrt-v4 `displacement`: a float texture (R channel × `displacement_scale`) that bump-maps
+    /// the shading normal (pbrt-v4 `BumpMap`, see [`eval::bump`]).
+    pub displacement: Option<TextureRef>,
+    pub displacement_scale: f32,
+}
+
+/// pbrt roughness along u and v as `factor` × texture R, per hit, remapped to GGX α with
+/// [`microfacet::pbrt_roughness_to_alpha`] when `remap` (pbrt's `remaproughness`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RoughnessTextures {
+    pub u: Option<TextureRef>,
+    pub v: Option<TextureRef>,
+    pub factor: Vec2,
+    pub remap: bool,
+}
+
+impl Default for RoughnessTextures {
+    fn default() -> Self {
+        RoughnessTextures {
+            u: None,
+            v: None,
+            factor: Vec2::ONE,
+            remap: true,
+        }
+    }
+}
+
+impl RoughnessTextures {
+    pub fn is_textured(&self) -> bool {
+        self.u.is_some() || self.v.is_some()
+    }
+}
+
+/// pbrt-v4 `mix` (`MixMaterial::ChooseMaterial`): at each hit `materials[1]` is chosen with
+/// probability amount = `amount` × texture R (≤ 0: always `materials[0]`, ≥ 1: always
+/// `materials[1]`), by a hash of the hit, so the choice is deterministic and the same for every
+/// query of that hit (see [`eval::resolve_mix`]). Indices are into the scene's materials.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mix {
+    pub materials: [u32; 2],
+    pub amount: f32,
 }
 
 impl Default for PbrtParams {
@@ -93,6 +149,10 @@ impl Default for PbrtParams {
             max_depth: 10,
             n_samples: 1,
             transmittance: Vec3::splat(0.25),
+            conductor_roughness: RoughnessTextures::default(),
+            interface_roughness: RoughnessTextures::default(),
+            displacement: None,
+            displacement_scale: 1.0,
         }
     }
 }
@@ -113,6 +173,11 @@ impl PbrtParams {
             self.interface_eta,
             self.thickness,
             self.g,
+            self.conductor_roughness.factor.x,
+            self.conductor_roughness.factor.y,
+            self.interface_roughness.factor.x,
+            self.interface_roughness.factor.y,
+            self.displacement_scale,
         ];
         if vecs.iter().any(|v| !v.is_finite()) || scalars.iter().any(|s| !s.is_finite()) {
             return Err("has a non-finite pbrt parameter".into());
@@ -120,6 +185,8 @@ impl PbrtParams {
         if vecs.iter().any(|v| v.min_element() < 0.0)
             || self.conductor_alpha.min_element() < 0.0
             || self.interface_alpha.min_element() < 0.0
+            || self.conductor_roughness.factor.min_element() < 0.0
+            || self.interface_roughness.factor.min_element() < 0.0
         {
             return Err("has a negative eta, k, albedo, transmittance or roughness".into());
         }
@@ -224,6 +291,36 @@ pub struct Material {
     pub clearcoat_roughness_texture: Option<TextureRef>,
     pub clearcoat_normal_texture: Option<TextureRef>,
     pub clearcoat_normal_scale: f32,
+    /// KHR_materials_sheen: colour (linear; × sRGB texture RGB) and roughness (× texture A).
+    /// Zero colour = no sheen.
+    pub sheen_color: Vec3,
+    pub sheen_color_texture: Option<TextureRef>,
+    pub sheen_roughness: f32,
+    pub sheen_roughness_texture: Option<TextureRef>,
+    /// KHR_materials_anisotropy: strength in [0, 1] (× texture B), rotation (radians, from the
+    /// tangent toward the bitangent) and the direction texture (RG in [−1, 1], rotated).
+    pub anisotropy: f32,
+    pub anisotropy_rotation: f32,
+    pub anisotropy_texture: Option<TextureRef>,
+    /// KHR_materials_iridescence: factor (× texture R), thin-film IOR and thickness range in nm
+    /// (the thickness texture's G picks between min and max; without it the maximum is used).
+    pub iridescence: f32,
+    pub iridescence_texture: Option<TextureRef>,
+    pub iridescence_ior: f32,
+    pub iridescence_thickness_min: f32,
+    pub iridescence_thickness_max: f32,
+    pub iridescence_thickness_texture: Option<TextureRef>,
+    /// KHR_materials_dispersion: 20 / Abbe number (0 = none).
+    pub dispersion: f32,
+    /// KHR_materials_diffuse_transmission: factor (× texture A) and colour (× sRGB texture RGB).
+    pub diffuse_transmission: f32,
+    pub diffuse_transmission_texture: Option<TextureRef>,
+    pub diffuse_transmission_color: Vec3,
+    pub diffuse_transmission_color_texture: Option<TextureRef>,
+    /// pbrt-v4 `mix`: this material only chooses one of two others per hit (its own emission,
+    /// alpha and double-sidedness still apply; its scattering fields are unused).
+    pub mix: Option<Mix>,
+    pub mix_amount_texture: Option<TextureRef>,
 }
 
 impl Default for Material {
@@ -266,11 +363,75 @@ impl Default for Material {
             clearcoat_roughness_texture: None,
             clearcoat_normal_texture: None,
             clearcoat_normal_scale: 1.0,
+            sheen_color: Vec3::ZERO,
+            sheen_color_texture: None,
+            sheen_roughness: 0.0,
+            sheen_roughness_texture: None,
+            anisotropy: 0.0,
+            anisotropy_rotation: 0.0,
+            anisotropy_texture: None,
+            iridescence: 0.0,
+            iridescence_texture: None,
+            iridescence_ior: 1.3,
+            iridescence_thickness_min: 100.0,
+            iridescence_thickness_max: 400.0,
+            iridescence_thickness_texture: None,
+            dispersion: 0.0,
+            diffuse_transmission: 0.0,
+            diffuse_transmission_texture: None,
+            diffuse_transmission_color: Vec3::ONE,
+            diffuse_transmission_color_texture: None,
+            mix: None,
+            mix_amount_texture: None,
         }
     }
 }
 
+/// Every texture slot of a [`Material`], listed once: validation, a TOML include's index shift
+/// and `trayecto info` walk this list, so a new slot cannot be forgotten by one of them.
+macro_rules! texture_slots {
+    ($m:expr, $($borrow:tt)+) => {
+        [
+            $($borrow)+ $m.base_color_texture,
+            $($borrow)+ $m.metallic_roughness_texture,
+            $($borrow)+ $m.normal_texture,
+            $($borrow)+ $m.occlusion_texture,
+            $($borrow)+ $m.emissive_texture,
+            $($borrow)+ $m.transmission_texture,
+            $($borrow)+ $m.specular_texture,
+            $($borrow)+ $m.specular_color_texture,
+            $($borrow)+ $m.alpha_texture,
+            $($borrow)+ $m.clearcoat_texture,
+            $($borrow)+ $m.clearcoat_roughness_texture,
+            $($borrow)+ $m.clearcoat_normal_texture,
+            $($borrow)+ $m.sheen_color_texture,
+            $($borrow)+ $m.sheen_roughness_texture,
+            $($borrow)+ $m.anisotropy_texture,
+            $($borrow)+ $m.iridescence_texture,
+            $($borrow)+ $m.iridescence_thickness_texture,
+            $($borrow)+ $m.diffuse_transmission_texture,
+            $($borrow)+ $m.diffuse_transmission_color_texture,
+            $($borrow)+ $m.mix_amount_texture,
+            $($borrow)+ $m.pbrt.conductor_roughness.u,
+            $($borrow)+ $m.pbrt.conductor_roughness.v,
+            $($borrow)+ $m.pbrt.interface_roughness.u,
+            $($borrow)+ $m.pbrt.interface_roughness.v,
+            $($borrow)+ $m.pbrt.displacement,
+        ]
+    };
+}
+
 impl Material {
+    /// The textures this material references (every slot that is set).
+    pub fn texture_refs(&self) -> impl Iterator<Item = &TextureRef> {
+        texture_slots!(self, &).into_iter().flatten()
+    }
+
+    /// [`Material::texture_refs`], mutable (e.g. to shift indices when scenes are merged).
+    pub fn texture_refs_mut(&mut self) -> impl Iterator<Item = &mut TextureRef> {
+        texture_slots!(self, &mut).into_iter().flatten()
+    }
+
     pub fn diffuse(name: &str, color: Vec3) -> Material {
         Material {
             name: name.to_string(),
@@ -285,7 +446,13 @@ impl Material {
 
     /// Rejects parameters that would produce NaNs or reference missing textures.
     pub fn validate(&self, texture_count: usize) -> Result<(), String> {
-        let vecs = [self.base_color, self.emissive, self.specular_color];
+        let vecs = [
+            self.base_color,
+            self.emissive,
+            self.specular_color,
+            self.sheen_color,
+            self.diffuse_transmission_color,
+        ];
         let scalars = [
             self.alpha,
             self.alpha_cutoff,
@@ -299,12 +466,37 @@ impl Material {
             self.clearcoat,
             self.clearcoat_roughness,
             self.clearcoat_normal_scale,
+            self.sheen_roughness,
+            self.anisotropy,
+            self.anisotropy_rotation,
+            self.iridescence,
+            self.iridescence_ior,
+            self.iridescence_thickness_min,
+            self.iridescence_thickness_max,
+            self.dispersion,
+            self.diffuse_transmission,
+            self.mix.map_or(0.0, |m| m.amount),
         ];
         if vecs.iter().any(|v| !v.is_finite()) || scalars.iter().any(|s| !s.is_finite()) {
             return Err("has a non-finite parameter".into());
         }
         if self.base_color.min_element() < 0.0 || self.emissive.min_element() < 0.0 {
             return Err("has a negative colour".into());
+        }
+        if self.sheen_color.min_element() < 0.0
+            || self.diffuse_transmission_color.min_element() < 0.0
+        {
+            return Err("has a negative sheen or diffuse-transmission colour".into());
+        }
+        if self.iridescence_ior <= 0.0
+            || self.iridescence_thickness_min < 0.0
+            || self.iridescence_thickness_max < 0.0
+            || self.dispersion < 0.0
+        {
+            return Err(
+                "has a non-positive iridescence IOR or a negative thin-film thickness or dispersion"
+                    .into(),
+            );
         }
         self.pbrt.validate()?;
         if self.ior <= 0.0 {
@@ -313,21 +505,7 @@ impl Material {
                 self.ior
             ));
         }
-        let texs = [
-            &self.base_color_texture,
-            &self.metallic_roughness_texture,
-            &self.normal_texture,
-            &self.occlusion_texture,
-            &self.emissive_texture,
-            &self.transmission_texture,
-            &self.specular_texture,
-            &self.specular_color_texture,
-            &self.alpha_texture,
-            &self.clearcoat_texture,
-            &self.clearcoat_roughness_texture,
-            &self.clearcoat_normal_texture,
-        ];
-        for t in texs.into_iter().flatten() {
+        for t in self.texture_refs() {
             if t.texture >= texture_count {
                 return Err(format!("references missing texture {}", t.texture));
             }

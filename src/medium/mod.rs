@@ -6,8 +6,10 @@
 //!
 //! Distances are sampled by delta tracking against a majorant σ_maj ≥ σt (Woodcock et al. 1965;
 //! the null-scattering formulation of Miller, Georgiev and Jarosz 2019 as pbrt-v4 §14.1 uses it):
-//! a homogeneous medium's majorant is σt itself, a grid's is σt times the grid's maximum density
-//! over the grid's bounds (a global majorant; no null collisions happen outside the bounds).
+//! a homogeneous medium's majorant is σt itself, a grid's is σt times the bound of its
+//! [`grid::MajorantGrid`] cell: 16³ cells over the grid's box, walked by a DDA, each holding the
+//! largest density the trilinear lookup can return inside it (pbrt-v4 §11.4.3), so empty and
+//! thin regions cost few or no null collisions (none happen outside the box).
 //! [`Medium::sample_t_maj`] walks those majorant segments and hands every tentative collision to
 //! the caller, who decides between absorption, real and null scattering.
 
@@ -38,12 +40,15 @@ pub struct Medium {
     pub sigma_s: Vec3,
     pub phase: HenyeyGreenstein,
     pub grid: Option<DensityGrid>,
+    /// Emitted radiance: the medium adds σa(p)·Le per unit length (the RTE's emission term,
+    /// pbrt-v4 §11.1.4); zero for most media.
+    pub le: Vec3,
 }
 
-/// One stretch of a ray with a constant majorant: `[t0, t1)` in the ray's (unit-speed) parameter.
+/// One stretch of a ray with a constant majorant, ending at `t1` in the ray's (unit-speed)
+/// parameter (it starts where the tracker is).
 #[derive(Clone, Copy, Debug)]
 struct MajorantSegment {
-    t0: f32,
     t1: f32,
     sigma_maj: Vec3,
 }
@@ -56,6 +61,7 @@ impl Medium {
             sigma_s,
             phase: HenyeyGreenstein::new(g),
             grid: None,
+            le: Vec3::ZERO,
         }
     }
 
@@ -67,6 +73,7 @@ impl Medium {
             desc.sigma_s * desc.scale,
             desc.g,
         );
+        m.le = desc.le;
         if let crate::scene::MediumKind::Grid {
             nx,
             ny,
@@ -116,26 +123,6 @@ impl Medium {
         }
     }
 
-    /// The majorant segment of `ray` (unit direction) over `[0, t_max)`, or `None` where the medium
-    /// is empty along it.
-    fn segment(&self, ray: &Ray, t_max: f32) -> Option<MajorantSegment> {
-        match &self.grid {
-            None => Some(MajorantSegment {
-                t0: 0.0,
-                t1: t_max,
-                sigma_maj: self.sigma_t(),
-            }),
-            Some(g) => {
-                let (t0, t1) = g.clip(ray, t_max)?;
-                Some(MajorantSegment {
-                    t0,
-                    t1,
-                    sigma_maj: self.sigma_t() * g.max_density,
-                })
-            }
-        }
-    }
-
     /// Transmittance along `ray` (unit direction) over `[0, t_max)` for an absorbing-only
     /// homogeneous medium, exp(−σt·d) per channel (Beer–Lambert). For other media the caller
     /// tracks (see [`Medium::sample_t_maj`]).
@@ -153,14 +140,33 @@ impl Medium {
     /// with distances sampled in channel `channel` (the hero channel); see [`Tracker`].
     #[inline]
     pub fn tracker(&self, ray: &Ray, t_max: f32, channel: usize) -> Tracker {
-        let seg = self.segment(ray, t_max);
-        Tracker {
+        let mut tr = Tracker {
             o: ray.o,
             d: ray.d,
-            t: seg.map_or(0.0, |s| s.t0),
-            seg,
+            t: 0.0,
+            seg: None,
+            dda: None,
+            t_maj: Vec3::ONE,
             channel,
+        };
+        match &self.grid {
+            None => {
+                tr.seg = Some(MajorantSegment {
+                    t1: t_max,
+                    sigma_maj: self.sigma_t(),
+                });
+            }
+            Some(g) => {
+                let (o, d) = g.to_unit(ray);
+                if let Some((t0, t1)) = grid::clip_unit(o, d, t_max) {
+                    tr.t = t0;
+                    let mut dda = grid::Dda::new(o, d, t0, t1);
+                    tr.seg = next_segment(&mut dda, g, self.sigma_t());
+                    tr.dda = Some(dda);
+                }
+            }
         }
+        tr
     }
 
     /// Delta tracking with a callback, in the shape of pbrt-v4's `SampleT_maj` (§14.2.1): for each
@@ -212,47 +218,70 @@ pub enum TrackStep {
 /// Delta-tracking state along one ray: free flights s ~ σ_maj[h]·exp(−σ_maj[h]·s) in the hero
 /// channel h, so the flight's pdf is σ_maj[h]·T_maj[h] and reaching the end has probability
 /// T_maj[h]. The caller turns each collision into absorption, scattering or a null collision.
+///
+/// The majorant is piecewise constant along the ray: one segment for a homogeneous medium, one
+/// per majorant-grid cell for a grid (walked by [`grid::Dda`]). At a segment's end the flight is
+/// sampled afresh against the next segment's majorant (the exponential is memoryless, so this
+/// is exact: pbrt-v4's `SampleT_maj`, §14.2.1), and T_maj accumulates over the segments crossed.
 #[derive(Clone, Copy, Debug)]
 pub struct Tracker {
     o: Vec3,
     d: Vec3,
     t: f32,
     seg: Option<MajorantSegment>,
+    dda: Option<grid::Dda>,
+    /// exp(−∫σ_maj) since the last collision, over the segments already left.
+    t_maj: Vec3,
     channel: usize,
+}
+
+/// The next non-empty stretch of a grid's majorant walk.
+#[inline]
+fn next_segment(dda: &mut grid::Dda, g: &DensityGrid, sigma_t: Vec3) -> Option<MajorantSegment> {
+    let (_, t1, bound) = dda.next(&g.majorants)?;
+    Some(MajorantSegment {
+        t1,
+        sigma_maj: sigma_t * bound,
+    })
 }
 
 impl Tracker {
     #[inline]
     pub fn step(&mut self, medium: &Medium, rng: &mut Pcg32) -> TrackStep {
-        let Some(seg) = self.seg else {
-            return TrackStep::End { t_maj: Vec3::ONE };
-        };
-        let sm = seg.sigma_maj;
-        let sh = sm[self.channel];
-        if !(sh > 0.0) {
-            // Nothing can happen in the hero channel; the others still attenuate by exp(−σ_maj·d).
-            self.seg = None;
-            return TrackStep::End {
-                t_maj: exp_segment(sm, seg.t1 - self.t),
+        loop {
+            let Some(seg) = self.seg else {
+                let t_maj = self.t_maj;
+                self.t_maj = Vec3::ONE;
+                return TrackStep::End { t_maj };
             };
-        }
-        let u = rng.next_f32();
-        // Exponential sample; 1 − u is in (0, 1].
-        let step = -(1.0 - u).ln() / sh;
-        let t_next = self.t + step;
-        if !(t_next < seg.t1) {
-            self.seg = None;
-            return TrackStep::End {
-                t_maj: exp_segment(sm, seg.t1 - self.t),
+            let sm = seg.sigma_maj;
+            let sh = sm[self.channel];
+            if sh > 0.0 {
+                let u = rng.next_f32();
+                // Exponential sample; 1 − u is in (0, 1].
+                let step = -(1.0 - u).ln() / sh;
+                let t_next = self.t + step;
+                if t_next < seg.t1 {
+                    self.t = t_next;
+                    let p = self.o + self.d * t_next;
+                    let t_maj = self.t_maj * (-sm * step).exp();
+                    self.t_maj = Vec3::ONE;
+                    return TrackStep::Collision {
+                        p,
+                        props: medium.properties(p),
+                        sigma_maj: sm,
+                        t_maj,
+                    };
+                }
+            }
+            // Past the segment's end (or nothing can happen in the hero channel there; the
+            // other channels still attenuate by exp(−σ_maj·d)): on to the next segment.
+            self.t_maj *= exp_segment(sm, seg.t1 - self.t);
+            self.t = seg.t1;
+            self.seg = match (&mut self.dda, &medium.grid) {
+                (Some(dda), Some(g)) => next_segment(dda, g, medium.sigma_t()),
+                _ => None,
             };
-        }
-        self.t = t_next;
-        let p = self.o + self.d * t_next;
-        TrackStep::Collision {
-            p,
-            props: medium.properties(p),
-            sigma_maj: sm,
-            t_maj: (-sm * step).exp(),
         }
     }
 }
@@ -325,6 +354,46 @@ mod tests {
                 .abs()
                 .max_element()
                 < 1e-6
+        );
+    }
+
+    /// With the majorant grid, a ray through the empty part of a grid that is dense elsewhere
+    /// meets no tentative collisions at all (a global majorant would give about σt·max·length
+    /// of them), and the walk still ends with T_maj = 1 there.
+    #[test]
+    fn empty_cells_cost_no_collisions() {
+        let n = 16;
+        let mut data = vec![0.0f32; n * n * n];
+        // A dense block in the corner x, y, z < 4/16 of the box.
+        for z in 0..4 {
+            for y in 0..4 {
+                for x in 0..4 {
+                    data[(z * n + y) * n + x] = 50.0;
+                }
+            }
+        }
+        let mut m = Medium::homogeneous("g", Vec3::splat(0.5), Vec3::splat(1.5), 0.0);
+        m.grid = Some(DensityGrid::new(n, n, n, data, crate::math::Mat4::IDENTITY).unwrap());
+        let mut rng = Pcg32::new(9, 2);
+        // Along x at y = z = 0.7: far from the block.
+        let ray = Ray::new(Vec3::new(-1.0, 0.7, 0.7), Vec3::X);
+        let mut collisions = 0;
+        let t = m.sample_t_maj(&ray, 3.0, 1, &mut rng, |_, _, _, _| {
+            collisions += 1;
+            true
+        });
+        assert_eq!(collisions, 0);
+        assert_eq!(t, Vec3::ONE);
+        // Through the block: collisions do happen (σt·density = 100 per unit length).
+        let ray = Ray::new(Vec3::new(-1.0, 0.1, 0.1), Vec3::X);
+        let mut collisions = 0;
+        m.sample_t_maj(&ray, 3.0, 1, &mut rng, |_, _, _, _| {
+            collisions += 1;
+            collisions < 1000
+        });
+        assert!(
+            collisions > 5,
+            "{collisions} collisions through the dense block"
         );
     }
 

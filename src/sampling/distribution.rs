@@ -1,6 +1,8 @@
 //! Piecewise-constant 1D distribution sampled by inverting its CDF (PBRT §A.5.1 / §13.3.1); used to
 //! choose lights in proportion to power.
 
+use super::sampler::ONE_MINUS_EPSILON;
+
 #[derive(Clone, Debug, Default)]
 pub struct Distribution1D {
     pub func: Vec<f32>,
@@ -73,6 +75,23 @@ impl Distribution1D {
         (i, self.discrete_pdf(i))
     }
 
+    /// [`Self::sample_discrete`] that also returns `u` remapped onto [0, 1) within the chosen
+    /// index's CDF interval, `(u - cdf[i]) / (cdf[i+1] - cdf[i])`: given the choice it is again
+    /// uniform, so a caller can reuse it for the next decision (PBRT-v4 §A.1, `SampleDiscrete`'s
+    /// `uRemapped`; Mitsuba 3's `DiscreteDistribution::sample_reuse`). Its resolution is u's
+    /// times the interval's width: callers that need many bits check the probability.
+    #[inline]
+    pub fn sample_discrete_remap(&self, u: f32) -> (usize, f32, f32) {
+        let (i, pmf) = self.sample_discrete(u);
+        let width = self.cdf[i + 1] - self.cdf[i];
+        let rest = if width > 0.0 {
+            ((u - self.cdf[i]) / width).clamp(0.0, ONE_MINUS_EPSILON)
+        } else {
+            0.5
+        };
+        (i, pmf, rest)
+    }
+
     /// Probability of choosing index `i`.
     #[inline]
     pub fn discrete_pdf(&self, i: usize) -> f32 {
@@ -113,6 +132,36 @@ mod tests {
         assert_eq!(counts[1], 0);
         assert_eq!(counts[3], 0);
         assert!((counts[2] as f32 / 10_000.0 - 0.75).abs() < 0.01);
+    }
+
+    /// The remapped number is uniform within each choice: the remaps of a fine uniform grid over
+    /// [0, 1) fill every sixteenth of [0, 1) equally for each index, and the remap of an
+    /// interval's start is 0.
+    #[test]
+    fn remapped_numbers_are_uniform_per_choice() {
+        let d = Distribution1D::new(&[1.0, 0.0, 3.0, 0.5]);
+        let n = 1 << 16;
+        let mut bins = [[0u32; 16]; 4];
+        for k in 0..n {
+            let u = (k as f32 + 0.5) / n as f32;
+            let (i, pmf, rest) = d.sample_discrete_remap(u);
+            assert_eq!((i, pmf), d.sample_discrete(u));
+            assert!((0.0..1.0).contains(&rest));
+            bins[i][(rest * 16.0) as usize] += 1;
+        }
+        assert_eq!(bins[1], [0; 16]);
+        for i in [0, 2, 3] {
+            let total: u32 = bins[i].iter().sum();
+            for b in bins[i] {
+                assert!(
+                    (b as f32 - total as f32 / 16.0).abs() <= 2.0,
+                    "{i}: {:?}",
+                    bins[i]
+                );
+            }
+        }
+        let (i, _, rest) = d.sample_discrete_remap(d.cdf[2]);
+        assert_eq!((i, rest), (2, 0.0));
     }
 
     #[test]

@@ -8,6 +8,7 @@ pub mod rng;
 pub mod sampler;
 pub mod sobol;
 pub mod warp;
+pub mod zsobol;
 
 pub use distribution::Distribution1D;
 pub use sampler::{SampleStream, SamplerKind, SamplerSetup};

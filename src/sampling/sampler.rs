@@ -5,7 +5,12 @@
 //! * `stratified`: every dimension (1D) or dimension pair (2D) is split into strata, one per sample
 //!   of the pixel, and each sample index is sent to a stratum by a hashed permutation (Kensler 2013,
 //!   "Correlated Multi-Jittered Sampling", §3, the permutation function) with a jitter inside it.
+//!   2D requests are correlated multi-jittered (Kensler 2013, §4): a jittered grid whose x and y
+//!   projections are also stratified, one sample per 1/spp strip when the grid has spp cells.
 //!   Each sample is still marginally uniform, so the estimator stays unbiased.
+//! * `sobol`: per-pixel Owen-scrambled Sobol points (Burley 2020), see [`super::sobol`].
+//! * `zsobol`: one Owen-scrambled Sobol sequence over the image in Morton order (Ahmed & Wonka
+//!   2020; pbrt-v4's `ZSobolSampler`), see [`super::zsobol`]: blue-noise error between pixels.
 
 use super::rng::{hash_words, mix64, u32_to_unit_f32};
 use crate::math::Vec2;
@@ -20,6 +25,8 @@ pub enum SamplerKind {
     /// Poisson-disk points for 2D requests (§5.3.2), see [`super::poisson`]; 1D requests are
     /// stratified.
     PoissonDisk,
+    /// Morton-ordered Owen-scrambled Sobol over the whole image, see [`super::zsobol`].
+    ZSobol,
 }
 
 impl std::str::FromStr for SamplerKind {
@@ -30,8 +37,10 @@ impl std::str::FromStr for SamplerKind {
             "stratified" => Ok(SamplerKind::Stratified),
             "sobol" => Ok(SamplerKind::Sobol),
             "poisson-disk" | "poisson" => Ok(SamplerKind::PoissonDisk),
+            "zsobol" => Ok(SamplerKind::ZSobol),
             other => Err(format!(
-                "unknown sampler '{other}' (expected independent, stratified, sobol or poisson-disk)"
+                "unknown sampler '{other}' (expected independent, stratified, sobol, zsobol or \
+                 poisson-disk)"
             )),
         }
     }
@@ -59,6 +68,13 @@ pub struct SampleStream {
     /// `mask_1d` also bounds the Sobol index shuffle to the pixel's power-of-two block.
     mask_1d: u32,
     mask_2d: u32,
+    /// ZSobol only: the sample's index in the image's sequence, `(morton(pixel) << log2 spp) |
+    /// (sample mod 2^log2 spp)`, its number of base-4 digits, whether log2 spp is odd, and the
+    /// hash of (seed, sample ÷ 2^log2 spp) that keys every dimension's scrambles.
+    z_index: u64,
+    z_digits: u32,
+    z_odd: bool,
+    z_key: u64,
 }
 
 /// What every stream of a render shares: the sampler, the seed and the sample count's grid and
@@ -74,6 +90,9 @@ pub struct SamplerSetup {
     ny: u32,
     mask_1d: u32,
     mask_2d: u32,
+    /// ZSobol: ⌈log₂ spp⌉ and ⌈log₂ max(width, height)⌉ (16 until [`Self::for_image`] sets it).
+    log2_spp: u32,
+    log2_res: u32,
 }
 
 impl SamplerSetup {
@@ -89,18 +108,45 @@ impl SamplerSetup {
             ny,
             mask_1d: permute_mask(spp),
             mask_2d: permute_mask(nx * ny),
+            log2_spp: super::zsobol::ceil_log2(spp),
+            log2_res: 16,
         }
     }
 
+    /// The image size, which the ZSobol sampler's Morton indices span (the other samplers do not
+    /// depend on it). A render sets it; a stream made on its own assumes 65536².
+    pub fn for_image(mut self, width: u32, height: u32) -> SamplerSetup {
+        self.log2_res = super::zsobol::ceil_log2(width.max(height).max(1));
+        self
+    }
+
     /// The hash of (seed, pixel) that [`Self::stream`] takes: once per pixel, not per sample.
+    /// For ZSobol, the pixel's Morton code instead.
     #[inline]
     pub fn pixel_key(&self, pixel: (u32, u32)) -> u64 {
+        if self.kind == SamplerKind::ZSobol {
+            return super::zsobol::morton2(pixel.0, pixel.1);
+        }
         hash_words(&[self.seed, pixel.0 as u64, pixel.1 as u64])
     }
 
     /// The stream of camera sample `sample` of the pixel whose [`Self::pixel_key`] is given.
     #[inline]
     pub fn stream(&self, pixel_key: u64, sample: u32) -> SampleStream {
+        let (mut z_index, mut z_digits, mut z_key) = (0, 0, 0);
+        if self.kind == SamplerKind::ZSobol {
+            // Samples past 2^log2_spp (a render resumed beyond its count) start a new cycle of
+            // the pixel's block with scrambles of their own.
+            let cycle = (sample as u64) >> self.log2_spp;
+            let low = (sample as u64) & ((1u64 << self.log2_spp) - 1);
+            z_index = (pixel_key << self.log2_spp) | low;
+            // A pixel outside the image size given (a stream made on its own) still gets all of
+            // its Morton digits.
+            let pixel_bits = 64 - pixel_key.leading_zeros();
+            let res_bits = self.log2_res.max(pixel_bits.div_ceil(2));
+            z_digits = res_bits + self.log2_spp.div_ceil(2);
+            z_key = hash_words(&[self.seed, cycle, 0x07a5_0b01]);
+        }
         SampleStream {
             kind: self.kind,
             pixel_key,
@@ -117,6 +163,10 @@ impl SamplerSetup {
             },
             mask_1d: self.mask_1d,
             mask_2d: self.mask_2d,
+            z_index,
+            z_digits,
+            z_odd: self.log2_spp % 2 == 1,
+            z_key,
         }
     }
 }
@@ -132,6 +182,15 @@ impl SampleStream {
     ) -> SampleStream {
         let setup = SamplerSetup::new(kind, seed, spp);
         setup.stream(setup.pixel_key(pixel), sample)
+    }
+
+    /// ZSobol: the scrambled sequence index of dimension `dim` (its low 32 bits feed the Sobol
+    /// matrices) and the dimension's Owen-scramble seed, shared by all pixels.
+    #[inline]
+    fn z_request(&self, dim: u32) -> (u32, u64) {
+        let key = mix64(self.z_key ^ (dim as u64).wrapping_mul(0xA24BAED4963EE407));
+        let i = super::zsobol::scramble_index(self.z_index, self.z_digits, self.z_odd, key);
+        (i as u32, mix64(key))
     }
 
     #[inline]
@@ -161,6 +220,11 @@ impl SampleStream {
                 let x = super::sobol::scrambled_1d(self.sample, self.mask_1d, self.dim_hash(d));
                 u32_to_unit_f32(x)
             }
+            SamplerKind::ZSobol => {
+                let (i, seed) = self.z_request(d);
+                // Sobol dimension 0 is the bit reversal of the index: its reversed form is i.
+                u32_to_unit_f32(super::sobol::scramble_reversed(i, seed as u32))
+            }
             SamplerKind::Stratified | SamplerKind::PoissonDisk => {
                 let n = self.spp;
                 let h = self.dim_hash(d);
@@ -186,6 +250,15 @@ impl SampleStream {
             SamplerKind::Sobol => {
                 let (x, y) =
                     super::sobol::scrambled_2d(self.sample, self.mask_1d, self.dim_hash(d));
+                Vec2::new(u32_to_unit_f32(x), u32_to_unit_f32(y))
+            }
+            SamplerKind::ZSobol => {
+                let (i, seed) = self.z_request(d);
+                let x = super::sobol::scramble_reversed(i, seed as u32);
+                let y = super::sobol::scramble_reversed(
+                    super::sobol::sobol_dim1_reversed(i),
+                    (seed >> 32) as u32,
+                );
                 Vec2::new(u32_to_unit_f32(x), u32_to_unit_f32(y))
             }
             SamplerKind::PoissonDisk => {
@@ -216,13 +289,25 @@ impl SampleStream {
                 } else {
                     (cell % nx, cell / nx)
                 };
+                // Correlated multi-jittering (Kensler 2013, §4): inside its cell the sample takes
+                // the sub-column π₁(cy) of ny and the sub-row π₂(cx) of nx, with π₁, π₂ hashed
+                // permutations shared by the dimension's cells. The samples of a column then
+                // fill distinct sub-columns, so with nx·ny = spp the x (and y) projections are
+                // stratified into spp strata as well as the 2D cells (N-rooks): a 1D decision
+                // taken from x — NEE's light choice reusing its 2D number — is as stratified as
+                // a 1D request. Every point stays uniform: the cell is uniform, and given it
+                // the sub-cell is uniform over the permutations.
+                let hp = (h >> 32) as u32;
+                let sub_x = permute(cy, ny, hp.wrapping_mul(0xa511_e9b3));
+                let sub_y = permute(cx, nx, hp.wrapping_mul(0x63d8_3595));
                 // One 64-bit hash gives both jitters (24 bits each).
                 let j = mix64(h ^ self.sample_mix[1]);
                 let jx = u32_to_unit_f32(j as u32);
                 let jy = u32_to_unit_f32((j >> 32) as u32);
+                let (nxf, nyf) = (nx as f32, ny as f32);
                 Vec2::new(
-                    ((cx as f32 + jx) / nx as f32).min(ONE_MINUS_EPSILON),
-                    ((cy as f32 + jy) / ny as f32).min(ONE_MINUS_EPSILON),
+                    ((cx as f32 + (sub_x as f32 + jx) / nyf) / nxf).min(ONE_MINUS_EPSILON),
+                    ((cy as f32 + (sub_y as f32 + jy) / nxf) / nyf).min(ONE_MINUS_EPSILON),
                 )
             }
         }
@@ -362,6 +447,31 @@ mod tests {
         }
     }
 
+    /// With a full grid (16 = 4×4, 12 = 4×3) the 2D points are also stratified along each
+    /// axis: one sample in each of the spp strips of x and of y (multi-jittering), on top of one
+    /// per cell; with a partial grid (32 on 6×6) at most one per strip.
+    #[test]
+    fn stratified_2d_projections_are_stratified() {
+        for (spp, full) in [(16u32, true), (12, true), (32, false)] {
+            for pixel in [(3, 4), (17, 2), (0, 0)] {
+                let (mut xs, mut ys) = (vec![0; spp as usize], vec![0; spp as usize]);
+                for s in 0..spp {
+                    let mut st = SampleStream::new(SamplerKind::Stratified, 5, pixel, s, spp);
+                    st.next_1d();
+                    let u = st.next_2d();
+                    xs[(u.x * spp as f32) as usize] += 1;
+                    ys[(u.y * spp as f32) as usize] += 1;
+                }
+                if full {
+                    assert!(xs.iter().all(|&c| c == 1), "spp {spp} x: {xs:?}");
+                    assert!(ys.iter().all(|&c| c == 1), "spp {spp} y: {ys:?}");
+                } else {
+                    assert!(xs.iter().all(|&c| c <= 2), "spp {spp} x: {xs:?}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn streams_are_deterministic_and_distinct() {
         for kind in [
@@ -369,6 +479,7 @@ mod tests {
             SamplerKind::Stratified,
             SamplerKind::Sobol,
             SamplerKind::PoissonDisk,
+            SamplerKind::ZSobol,
         ] {
             let mut a = SampleStream::new(kind, 1, (0, 0), 3, 8);
             let mut b = SampleStream::new(kind, 1, (0, 0), 3, 8);

@@ -97,7 +97,7 @@ pub fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
 /// Dimension 1 of the Sobol sequence (the Pascal matrix: v₀ = 2³¹, v_k = v_{k−1} ⊕ v_{k−1} ≫ 1)
 /// without the direction table.
 #[inline]
-fn sobol_dim1(mut index: u32) -> u32 {
+const fn sobol_dim1(mut index: u32) -> u32 {
     let mut v = 1u32 << 31;
     let mut x = 0u32;
     while index != 0 {
@@ -108,6 +108,39 @@ fn sobol_dim1(mut index: u32) -> u32 {
         v ^= v >> 1;
     }
     x
+}
+
+/// [`sobol`] in dimension 1 with its bits reversed, by four byte tables (the generator matrix is
+/// linear over GF(2): four look-ups and three XORs instead of a loop over the index's bits, which
+/// span the whole image for ZSobol), of reversed entries because the Owen scramble works on
+/// reversed bits and x86 has no single bit-reversal instruction.
+#[inline]
+pub fn sobol_dim1_reversed(i: u32) -> u32 {
+    DIM1_BYTES_REV[0][(i & 0xff) as usize]
+        ^ DIM1_BYTES_REV[1][((i >> 8) & 0xff) as usize]
+        ^ DIM1_BYTES_REV[2][((i >> 16) & 0xff) as usize]
+        ^ DIM1_BYTES_REV[3][(i >> 24) as usize]
+}
+
+static DIM1_BYTES_REV: [[u32; 256]; 4] = {
+    let mut t = [[0u32; 256]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let mut b = 0;
+        while b < 256 {
+            t[k][b] = sobol_dim1((b as u32) << (8 * k)).reverse_bits();
+            b += 1;
+        }
+        k += 1;
+    }
+    t
+};
+
+/// Owen-scrambles Sobol points given in reversed bit order: `nested_uniform_scramble(x, seed)`
+/// for `x = reversed.reverse_bits()`, one bit reversal instead of two.
+#[inline]
+pub fn scramble_reversed(reversed: u32, seed: u32) -> u32 {
+    laine_karras(reversed, seed).reverse_bits()
 }
 
 /// The index shuffle of a padded dimension. `mask` = 2^m − 1 with 2^m ≥ the pixel's sample count:
@@ -164,6 +197,28 @@ mod tests {
     fn dimension_one_without_the_table_matches_it() {
         for i in (0..5000u32).chain([u32::MAX, 0x8000_0000, 0x1234_5678]) {
             assert_eq!(sobol(i, 1), sobol_from_table(i, 1), "index {i}");
+        }
+    }
+
+    #[test]
+    fn dimension_one_by_bytes_matches_the_loop() {
+        let mut x = 0x9e37_79b9u32;
+        for i in (0..70000u32).chain([u32::MAX, 0x8000_0000, 0x00ff_ff00]) {
+            assert_eq!(
+                sobol_dim1_reversed(i),
+                sobol_dim1(i).reverse_bits(),
+                "index {i}"
+            );
+            x = x.wrapping_mul(0x0019_660d).wrapping_add(0x3c6e_f35f);
+            assert_eq!(
+                sobol_dim1_reversed(x),
+                sobol_dim1(x).reverse_bits(),
+                "index {x}"
+            );
+            assert_eq!(
+                scramble_reversed(sobol_dim1_reversed(x), i),
+                nested_uniform_scramble(sobol_dim1(x), i)
+            );
         }
     }
 

@@ -20,10 +20,10 @@ fn hash_file(h: &mut Sha256, path: &Path) -> Result<(), SceneError> {
     Ok(())
 }
 
-fn hash_f32s<'a>(h: &mut Sha256, values: impl Iterator<Item = &'a f32>) {
+fn hash_f32s<V: std::borrow::Borrow<f32>>(h: &mut Sha256, values: impl Iterator<Item = V>) {
     let mut buf = Vec::with_capacity(4096);
     for v in values {
-        buf.extend_from_slice(&v.to_bits().to_le_bytes());
+        buf.extend_from_slice(&v.borrow().to_bits().to_le_bytes());
         if buf.len() >= 4096 {
             h.update(&buf);
             buf.clear();
@@ -83,7 +83,7 @@ pub fn digest(spec: &str, scene: &Scene, env: Option<&Path>) -> Result<String, S
         h.update(t.width.to_le_bytes());
         h.update(t.height.to_le_bytes());
         hash_debug(&mut h, &(t.wrap_s, t.wrap_t, t.filter));
-        hash_f32s(&mut h, t.texels.iter().flat_map(|p| p.as_ref().iter()));
+        hash_f32s(&mut h, t.texels.iter().flat_map(|p| p.to_array()));
     }
     h.update(b"\0materials");
     for m in &scene.materials {
@@ -101,9 +101,10 @@ pub fn digest(spec: &str, scene: &Scene, env: Option<&Path>) -> Result<String, S
                 path,
                 scale,
                 transform,
+                mapping,
                 ..
             } => {
-                hash_debug(&mut h, &(scale, transform));
+                hash_debug(&mut h, &(scale, transform, mapping));
                 hash_file(&mut h, path)?;
             }
             other => hash_debug(&mut h, other),

@@ -9,10 +9,13 @@
 //!   refused. Only glTF may embed images, as base64 `data:` URIs or buffer views, and it decodes
 //!   those itself through [`decode_texture`].
 
+use rayon::prelude::*;
 use std::path::{Component, Path, PathBuf};
 
-use crate::material::texture::{FilterMode, srgb_to_linear};
-use crate::material::{Texture, WrapMode};
+use crate::material::Texture;
+use crate::material::texture::{
+    Texels, UNORM8_TO_F32, UNORM8_TO_F32_RECIP, decode8, decode16, srgb_to_linear,
+};
 use crate::math::Vec4;
 
 /// The colour of a missing texture: loud on purpose.
@@ -118,6 +121,15 @@ fn shorten(s: &str) -> String {
 /// Decodes an encoded image (PNG, JPEG, HDR) into a texture. `srgb` converts the colour channels
 /// from sRGB to linear; alpha is always linear.
 pub fn decode_texture(name: &str, bytes: &[u8], srgb: bool) -> Result<Texture, String> {
+    decode_image(name, bytes).and_then(|img| texture_from_image(name, &img, srgb))
+}
+
+/// Decodes an encoded image (PNG, JPEG, WebP, HDR, TGA, KTX2 / Basis Universal), refusing absurd
+/// sizes before decoding. The format is guessed from the bytes, else from `name`'s extension.
+pub fn decode_image(name: &str, bytes: &[u8]) -> Result<image::DynamicImage, String> {
+    if bytes.starts_with(&KTX2_IDENTIFIER) {
+        return decode_ktx2(bytes);
+    }
     let reader = reader_for(name, bytes)?;
     if reader.format().is_none() {
         return Err("unknown image format".into());
@@ -126,9 +138,16 @@ pub fn decode_texture(name: &str, bytes: &[u8], srgb: bool) -> Result<Texture, S
     if w == 0 || h == 0 || w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE {
         return Err(format!("image size {w}×{h} is not supported"));
     }
-    let img = reader_for(name, bytes)?
-        .decode()
-        .map_err(|e| e.to_string())?;
+    reader_for(name, bytes)?.decode().map_err(|e| e.to_string())
+}
+
+/// A decoded image as a texture. `srgb` converts the colour channels from sRGB to linear; alpha
+/// is always linear.
+pub fn texture_from_image(
+    name: &str,
+    img: &image::DynamicImage,
+    srgb: bool,
+) -> Result<Texture, String> {
     let (w, h) = (img.width(), img.height());
     if w == 0 || h == 0 {
         return Err("image has no pixels".into());
@@ -137,40 +156,154 @@ pub fn decode_texture(name: &str, bytes: &[u8], srgb: bool) -> Result<Texture, S
         img.color(),
         image::ColorType::Rgb32F | image::ColorType::Rgba32F
     );
-    let texels: Vec<Vec4> = if !hdr && srgb && img.color().bytes_per_pixel() <= 4 {
-        // 8-bit sRGB: a lookup table instead of a powf per channel.
-        let lut: Vec<f32> = (0..256).map(|i| srgb_to_linear(i as f32 / 255.0)).collect();
-        img.to_rgba8()
-            .pixels()
-            .map(|p| {
-                Vec4::new(
-                    lut[p[0] as usize],
-                    lut[p[1] as usize],
-                    lut[p[2] as usize],
-                    p[3] as f32 / 255.0,
-                )
-            })
-            .collect()
-    } else {
-        // Floating-point images are already linear.
-        let convert = srgb && !hdr;
-        img.to_rgba32f()
-            .pixels()
-            .map(|p| {
-                let c = |v: f32| if convert { srgb_to_linear(v) } else { v };
-                Vec4::new(c(p[0]), c(p[1]), c(p[2]), p[3])
-            })
-            .collect()
+    // Texels keep the file's precision and are decoded at lookup (material::texture::Texels):
+    // the lookups return exactly the values this function used to store as float.
+    let bytes_per_channel = img.color().bytes_per_pixel() / img.color().channel_count();
+    if !hdr && srgb && img.color().bytes_per_pixel() <= 4 {
+        // 8-bit sRGB (16-bit grey with or without alpha is reduced to 8 bits here, as before):
+        // the table holds srgb_to_linear(i / 255), alpha i / 255.
+        let texels = Texels::Srgb8(as_quads(img.to_rgba8().as_raw()));
+        return Ok(Texture::with_texels(name, w, h, texels));
+    }
+    // Floating-point images are already linear; 16-bit sRGB is decoded to float here.
+    let convert = srgb && !hdr;
+    let float: Vec<Vec4> = img
+        .to_rgba32f()
+        .as_raw()
+        // Per texel and independent: rayon keeps the order, so the result is the same for any
+        // thread count (big textures dominate a model's load time).
+        .par_chunks_exact(4)
+        .map(|p| {
+            let c = |v: f32| if convert { srgb_to_linear(v) } else { v };
+            Vec4::new(c(p[0]), c(p[1]), c(p[2]), p[3])
+        })
+        .collect();
+    // Linear integer images keep their codes when a decoder reproduces the float conversion
+    // exactly, texel by texel (the image crate divides for some layouts and multiplies by the
+    // reciprocal for others, so this is checked, not assumed).
+    let same = |codes: &[[u8; 4]], lut: &[f32; 256]| {
+        codes
+            .par_iter()
+            .zip(&float)
+            .all(|(c, f)| same_bits(decode8(lut, lut, *c), *f))
     };
-    Ok(Texture {
-        name: name.to_string(),
-        width: w,
-        height: h,
-        texels,
-        wrap_s: WrapMode::Repeat,
-        wrap_t: WrapMode::Repeat,
-        filter: FilterMode::Bilinear,
-    })
+    let texels = if !convert && !hdr && bytes_per_channel == 1 {
+        let codes = as_quads(img.to_rgba8().as_raw());
+        if same(&codes, &UNORM8_TO_F32) {
+            Texels::Unorm8(codes)
+        } else if same(&codes, &UNORM8_TO_F32_RECIP) {
+            Texels::Unorm8Recip(codes)
+        } else {
+            Texels::F32(float)
+        }
+    } else if !convert && !hdr && bytes_per_channel == 2 {
+        let codes = as_quads(img.to_rgba16().as_raw());
+        if codes
+            .par_iter()
+            .zip(&float)
+            .all(|(c, f)| same_bits(decode16(*c), *f))
+        {
+            Texels::Unorm16(codes)
+        } else {
+            Texels::F32(float)
+        }
+    } else {
+        Texels::F32(float)
+    };
+    Ok(Texture::with_texels(name, w, h, texels))
+}
+
+fn same_bits(a: Vec4, b: Vec4) -> bool {
+    a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)
+}
+
+/// Interleaved RGBA channels as one array per texel.
+fn as_quads<T: Copy + Default>(raw: &[T]) -> Vec<[T; 4]> {
+    raw.chunks_exact(4)
+        .map(|p| [p[0], p[1], p[2], p[3]])
+        .collect()
+}
+
+/// The 12 bytes every KTX 2.0 file starts with (KTX 2.0 specification §3.1).
+const KTX2_IDENTIFIER: [u8; 12] = *b"\xABKTX 20\xBB\r\n\x1A\n";
+
+/// Decodes the base level of a KTX2 file holding Basis Universal data (ETC1S/BasisLZ or UASTC,
+/// optionally Zstandard-supercompressed: what `KHR_texture_basisu` allows) to 8-bit RGBA, with
+/// the pure-Rust `basisu` transcoder. The texel order is kept: glTF's KTX2 images are stored
+/// top row first, like PNG (KHR_texture_basisu, "KTX2 orientation").
+///
+/// The transcoder trusts the sizes in the file's level index (it allocates a level's declared
+/// uncompressed length before inflating it), so the header is checked here first: the image
+/// size against [`MAX_TEXTURE_SIDE`], and every level's byte range and uncompressed length
+/// against the file and what a 2D Basis image of that size can hold (16 bytes per 4×4 block).
+pub fn decode_ktx2(bytes: &[u8]) -> Result<image::DynamicImage, String> {
+    let u32_at = |o: usize| -> Result<u32, String> {
+        bytes
+            .get(o..o + 4)
+            .map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")))
+            .ok_or_else(|| "truncated KTX2 header".to_string())
+    };
+    let u64_at = |o: usize| -> Result<u64, String> {
+        bytes
+            .get(o..o + 8)
+            .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
+            .ok_or_else(|| "truncated KTX2 level index".to_string())
+    };
+    let (vk_format, w, h) = (u32_at(12)?, u32_at(20)?, u32_at(24)?);
+    let (depth, layers, faces, levels) = (u32_at(28)?, u32_at(32)?, u32_at(36)?, u32_at(40)?);
+    let scheme = u32_at(44)?;
+    if w == 0 || h == 0 || w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE {
+        return Err(format!("KTX2 image size {w}×{h} is not supported"));
+    }
+    if depth > 1 || layers > 1 || faces != 1 {
+        return Err(format!(
+            "KTX2 image is not a single 2D image ({depth} deep, {layers} layers, {faces} faces)"
+        ));
+    }
+    if vk_format != 0 {
+        return Err(format!(
+            "KTX2 image has vkFormat {vk_format}; only Basis Universal data (vkFormat 0: ETC1S or UASTC) is decoded"
+        ));
+    }
+    // Upper bound of one level's data: 16 bytes per 4×4 block of the base level.
+    let bound = u64::from(w.div_ceil(4)) * u64::from(h.div_ceil(4)) * 16;
+    for level in 0..levels.clamp(1, 32) as usize {
+        let at = 80 + 24 * level;
+        let (offset, length, uncompressed) = (u64_at(at)?, u64_at(at + 8)?, u64_at(at + 16)?);
+        if offset
+            .checked_add(length)
+            .is_none_or(|end| end > bytes.len() as u64)
+        {
+            return Err(format!(
+                "KTX2 level {level} (bytes {offset}..+{length}) lies outside the file of {} bytes",
+                bytes.len()
+            ));
+        }
+        if uncompressed > bound || (scheme == 2 && uncompressed == 0) {
+            return Err(format!(
+                "KTX2 level {level} declares {uncompressed} uncompressed bytes, impossible for a {w}×{h} Basis image"
+            ));
+        }
+    }
+    let tex = basisu::Transcoder::new(bytes)
+        .map_err(|e| format!("not a valid KTX2 / Basis Universal image ({e:?})"))?;
+    let (tw, th) = tex.base_dimensions();
+    if (tw, th) != (w, h) {
+        return Err(format!(
+            "KTX2 image size {tw}×{th} disagrees with its header"
+        ));
+    }
+    let rgba = tex
+        .transcode(0, basisu::TargetFormat::Rgba32, basisu::DecodeFlags::NONE)
+        .map_err(|e| {
+            format!(
+                "KTX2 image ({:?}) cannot be transcoded to RGBA ({e:?})",
+                tex.source_format()
+            )
+        })?;
+    image::RgbaImage::from_raw(w, h, rgba)
+        .map(image::DynamicImage::ImageRgba8)
+        .ok_or_else(|| "KTX2 transcoder returned the wrong amount of data".to_string())
 }
 
 /// An image reader with the format guessed from the bytes, or else from the name's extension
@@ -266,7 +399,7 @@ pub fn pack_metallic_roughness(
             let tx = (x as u64 * t.width as u64 / w as u64) as usize;
             let ty = (y as u64 * t.height as u64 / h as u64) as usize;
             t.texels
-                .get(ty * t.width as usize + tx)
+                .try_get(ty * t.width as usize + tx)
                 .map_or(1.0, |v| v.x)
         })
     };
@@ -281,15 +414,69 @@ pub fn pack_metallic_roughness(
             ));
         }
     }
-    Some(Texture {
-        name: "metallic-roughness (packed)".into(),
-        width: w,
-        height: h,
-        texels,
-        wrap_s: WrapMode::Repeat,
-        wrap_t: WrapMode::Repeat,
-        filter: FilterMode::Bilinear,
-    })
+    Some(Texture::image("metallic-roughness (packed)", w, h, texels))
+}
+
+/// Portable float map: `PF` (RGB) or `Pf` (grey), width height, scale (negative = little
+/// endian), then rows bottom to top.
+pub fn decode_pfm(name: &str, bytes: &[u8]) -> Result<Texture, String> {
+    let mut fields = Vec::new();
+    let mut pos = 0;
+    while fields.len() < 4 {
+        while pos < bytes.len() && bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        let start = pos;
+        while pos < bytes.len() && !bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        if start == pos || pos - start > 32 {
+            return Err("truncated PFM header".into());
+        }
+        fields.push(String::from_utf8_lossy(&bytes[start..pos]).into_owned());
+    }
+    pos += 1; // the single whitespace byte after the scale
+    let channels = match fields[0].as_str() {
+        "PF" => 3,
+        "Pf" => 1,
+        _ => return Err("not a PFM file".into()),
+    };
+    let w: u32 = fields[1].parse().map_err(|_| "bad PFM width")?;
+    let h: u32 = fields[2].parse().map_err(|_| "bad PFM height")?;
+    let scale: f32 = fields[3].parse().map_err(|_| "bad PFM scale")?;
+    if w == 0 || h == 0 || w > 16384 || h > 16384 || !scale.is_finite() || scale == 0.0 {
+        return Err(format!(
+            "PFM size {w}×{h} or scale {scale} is not supported"
+        ));
+    }
+    let n = w as usize * h as usize * channels;
+    let data = bytes
+        .get(pos..pos + n * 4)
+        .ok_or("the PFM file is shorter than its header says")?;
+    let little = scale < 0.0;
+    let mut texels = vec![Vec4::ZERO; w as usize * h as usize];
+    for y in 0..h as usize {
+        // PFM rows run bottom to top; textures are stored top row first.
+        let dst_row = h as usize - 1 - y;
+        for x in 0..w as usize {
+            let mut c = [0.0f32; 3];
+            for (k, ck) in c.iter_mut().enumerate().take(channels) {
+                let i = ((y * w as usize + x) * channels + k) * 4;
+                let b = [data[i], data[i + 1], data[i + 2], data[i + 3]];
+                let v = if little {
+                    f32::from_le_bytes(b)
+                } else {
+                    f32::from_be_bytes(b)
+                };
+                *ck = if v.is_finite() { v } else { 0.0 };
+            }
+            if channels == 1 {
+                c = [c[0]; 3];
+            }
+            texels[dst_row * w as usize + x] = Vec4::new(c[0], c[1], c[2], 1.0);
+        }
+    }
+    Ok(Texture::image(name, w, h, texels))
 }
 
 #[cfg(test)]
@@ -310,6 +497,124 @@ mod tests {
         assert!(resolve_in_dir(dir, "./wood.png").is_ok());
     }
 
+    /// The float texels this module stored before texels were compact (kept here as the
+    /// reference): 8-bit sRGB through a table of srgb_to_linear(i / 255), everything else through
+    /// the image crate's f32 conversion, sRGB-decoded with powf.
+    fn float_texels_as_before(img: &image::DynamicImage, srgb: bool) -> Vec<Vec4> {
+        let hdr = matches!(
+            img.color(),
+            image::ColorType::Rgb32F | image::ColorType::Rgba32F
+        );
+        if !hdr && srgb && img.color().bytes_per_pixel() <= 4 {
+            let lut: Vec<f32> = (0..256).map(|i| srgb_to_linear(i as f32 / 255.0)).collect();
+            img.to_rgba8()
+                .as_raw()
+                .chunks_exact(4)
+                .map(|p| {
+                    let c = |v: u8| lut[v as usize];
+                    Vec4::new(c(p[0]), c(p[1]), c(p[2]), p[3] as f32 / 255.0)
+                })
+                .collect()
+        } else {
+            let convert = srgb && !hdr;
+            img.to_rgba32f()
+                .as_raw()
+                .chunks_exact(4)
+                .map(|p| {
+                    let c = |v: f32| if convert { srgb_to_linear(v) } else { v };
+                    Vec4::new(c(p[0]), c(p[1]), c(p[2]), p[3])
+                })
+                .collect()
+        }
+    }
+
+    /// Compact storage must not change a single lookup: every 8-bit code (and a spread of 16-bit
+    /// ones) in every channel layout, sRGB and linear, read texel by texel and bilinearly at
+    /// scattered points, equals the float storage bit for bit. Fails if a decode table entry,
+    /// the 16-bit division or the alpha handling differs from the float path by one ulp.
+    #[test]
+    fn compact_texels_look_up_exactly_as_float_texels() {
+        use crate::material::texture::Texels;
+        let (w, h) = (64u32, 16u32); // 1024 texels: every 8-bit code four times
+        let code8 = |i: u32, c: u32| ((i * 7 + c * 61) % 256) as u8;
+        let code16 = |i: u32, c: u32| ((i * 4099 + c * 16411) % 65536) as u16;
+        let images: Vec<image::DynamicImage> = vec![
+            image::GrayImage::from_fn(w, h, |x, y| image::Luma([code8(y * w + x, 0)])).into(),
+            image::GrayAlphaImage::from_fn(w, h, |x, y| {
+                let i = y * w + x;
+                image::LumaA([code8(i, 0), code8(i, 3)])
+            })
+            .into(),
+            image::RgbImage::from_fn(w, h, |x, y| {
+                let i = y * w + x;
+                image::Rgb([code8(i, 0), code8(i, 1), code8(i, 2)])
+            })
+            .into(),
+            image::RgbaImage::from_fn(w, h, |x, y| {
+                let i = y * w + x;
+                image::Rgba([code8(i, 0), code8(i, 1), code8(i, 2), code8(i, 3)])
+            })
+            .into(),
+            image::ImageBuffer::<image::Luma<u16>, _>::from_fn(w, h, |x, y| {
+                image::Luma([code16(y * w + x, 0)])
+            })
+            .into(),
+            image::ImageBuffer::<image::LumaA<u16>, _>::from_fn(w, h, |x, y| {
+                let i = y * w + x;
+                image::LumaA([code16(i, 0), code16(i, 3)])
+            })
+            .into(),
+            image::ImageBuffer::<image::Rgba<u16>, _>::from_fn(w, h, |x, y| {
+                let i = y * w + x;
+                image::Rgba([code16(i, 0), code16(i, 1), code16(i, 2), code16(i, 3)])
+            })
+            .into(),
+            image::Rgb32FImage::from_fn(w, h, |x, y| {
+                image::Rgb([(x as f32) * 0.37, y as f32 * 3.1, 1e-3])
+            })
+            .into(),
+        ];
+        let mut kinds = std::collections::BTreeSet::new();
+        for img in &images {
+            for srgb in [false, true] {
+                let what = format!("{:?} srgb={srgb}", img.color());
+                let t = texture_from_image("t", img, srgb).unwrap();
+                kinds.insert(t.texels.kind());
+                if img.color().bytes_per_pixel() / img.color().channel_count() == 1 {
+                    assert_eq!(t.texels.bytes_per_texel(), 4, "{what}: 8-bit stays 8-bit");
+                }
+                let mut reference = t.clone();
+                reference.texels = Texels::F32(float_texels_as_before(img, srgb));
+                for i in 0..(w * h) as usize {
+                    let (a, b) = (t.texels.get(i), reference.texels.get(i));
+                    assert_eq!(
+                        a.to_array().map(f32::to_bits),
+                        b.to_array().map(f32::to_bits),
+                        "{what}: texel {i}"
+                    );
+                }
+                for k in 0..4096u32 {
+                    // Points off the texel grid, some outside [0, 1] to exercise wrapping.
+                    let uv = crate::math::Vec2::new(
+                        (k as f32 * 0.618_034).fract() * 1.5 - 0.25,
+                        (k as f32 * 0.754_877_7).fract() * 1.5 - 0.25,
+                    );
+                    let (a, b) = (t.lookup(uv), reference.lookup(uv));
+                    assert_eq!(
+                        a.to_array().map(f32::to_bits),
+                        b.to_array().map(f32::to_bits),
+                        "{what}: uv {uv}"
+                    );
+                }
+            }
+        }
+        // Each storage kind was exercised (a silent fall back to float would pass the above).
+        assert_eq!(
+            kinds.into_iter().collect::<Vec<_>>(),
+            ["f32", "srgb8", "unorm16", "unorm8", "unorm8-recip"]
+        );
+    }
+
     #[test]
     fn percent_decoding() {
         assert_eq!(percent_decode("a%20b.png"), "a b.png");
@@ -326,9 +631,9 @@ mod tests {
             .unwrap();
         let s = decode_texture("t", &png, true).unwrap();
         let l = decode_texture("t", &png, false).unwrap();
-        assert!((s.texels[0].x - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
-        assert!((l.texels[0].x - 128.0 / 255.0).abs() < 1e-6);
-        assert_eq!(s.texels[0].w, 1.0);
+        assert!((s.texels.get(0).x - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
+        assert!((l.texels.get(0).x - 128.0 / 255.0).abs() < 1e-6);
+        assert_eq!(s.texels.get(0).w, 1.0);
         assert!(decode_texture("t", b"not an image", true).is_err());
     }
 
@@ -337,7 +642,7 @@ mod tests {
         let mut w = Vec::new();
         let t = load_texture(Path::new("."), "no_such_texture.png", true, &mut w).unwrap();
         assert!(is_missing_texture(&t));
-        assert_eq!(t.texels[0], MISSING_TEXTURE_COLOR);
+        assert_eq!(t.texels.get(0), MISSING_TEXTURE_COLOR);
         assert_eq!(w.len(), 1);
         assert!(w[0].contains("no_such_texture.png"));
         let mut w = Vec::new();

@@ -30,7 +30,9 @@ pub type MediumId = usize;
 /// A participating medium (issue #18) in the file's own terms. Coefficients are RGB per unit
 /// world length and are multiplied by `scale` (pbrt-v4's `scale`, Mitsuba's `scale`): σa·scale,
 /// σs·scale. `g` is the Henyey–Greenstein asymmetry (−1 back, 0 isotropic, +1 forward; clamped to
-/// ±0.99).
+/// ±0.99). `le` is emitted radiance (pbrt-v4's `Le` times `Lescale`; not scaled by `scale`): the
+/// medium emits σa·Le per unit length (RTE emission term), so a thick absorbing medium glows
+/// with radiance `le`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MediumDesc {
     pub name: String,
@@ -38,6 +40,7 @@ pub struct MediumDesc {
     pub sigma_s: Vec3,
     pub scale: f32,
     pub g: f32,
+    pub le: Vec3,
     pub kind: MediumKind,
 }
 
@@ -191,11 +194,12 @@ pub enum LightDesc {
     },
     /// Uniform radiance from every direction (the thesis's "ambient" light).
     Ambient { name: String, radiance: Vec3 },
-    /// Equirectangular environment map.
+    /// Environment map (equirectangular, or pbrt-v4's equal-area square).
     Environment {
         name: String,
         path: PathBuf,
         scale: Vec3,
+        mapping: crate::light::EnvMapping,
         /// World-from-environment rotation.
         transform: Mat4,
     },
@@ -235,6 +239,22 @@ pub struct Scene {
     /// Render settings the file asks for (pbrt's Film, Sampler, Integrator); the command line
     /// overrides each.
     pub hints: RenderHints,
+    /// glTF `KHR_materials_variants`: the file's variant names, in file order.
+    pub variants: Vec<String>,
+    /// The objects whose material a variant changes ([`Scene::select_variant`]).
+    pub variant_objects: Vec<ObjectVariants>,
+    /// The variant [`Scene::select_variant`] chose; `None` is the file's default materials.
+    pub active_variant: Option<String>,
+}
+
+/// One object's materials under `KHR_materials_variants`: the default (the primitive's own
+/// `material`) and, per variant index, the material that variant maps it to. Each comes with the
+/// medium interface its material implies (glTF volume absorption).
+#[derive(Clone, Debug)]
+pub struct ObjectVariants {
+    pub object: usize,
+    pub default: (MaterialId, Option<MediumInterface>),
+    pub by_variant: Vec<(usize, MaterialId, Option<MediumInterface>)>,
 }
 
 /// Render settings a scene file may carry. `None` leaves the front end's default.
@@ -244,8 +264,12 @@ pub struct RenderHints {
     pub height: Option<u32>,
     pub spp: Option<u32>,
     pub max_depth: Option<u32>,
-    /// Crop window [x0, x1, y0, y1] in [0, 1] (pbrt's `cropwindow`), recorded, not applied.
+    /// Crop window [x0, x1, y0, y1] in [0, 1] (pbrt's `cropwindow`).
     pub crop: Option<[f32; 4]>,
+    /// Pixel bounds [x0, x1, y0, y1] (pbrt's `pixelbounds`), used when there is no `crop`.
+    pub pixel_bounds: Option<[u32; 4]>,
+    /// The file's reconstruction filter (pbrt's `PixelFilter`, default Gaussian).
+    pub filter: Option<crate::film::filter::Filter>,
 }
 
 impl MediumDesc {
@@ -257,6 +281,7 @@ impl MediumDesc {
             sigma_s,
             scale,
             g,
+            le: Vec3::ZERO,
             kind: MediumKind::Homogeneous,
         }
     }
@@ -266,6 +291,12 @@ impl MediumDesc {
         let nonneg = |v: Vec3| v.is_finite() && v.cmpge(Vec3::ZERO).all();
         if !nonneg(self.sigma_a) || !nonneg(self.sigma_s) {
             return Err("sigma_a and sigma_s must be finite and non-negative".into());
+        }
+        if !nonneg(self.le) {
+            return Err(format!(
+                "emission {:?} must be finite and non-negative",
+                self.le.to_array()
+            ));
         }
         if !(self.scale.is_finite() && self.scale >= 0.0) {
             return Err(format!(
@@ -411,8 +442,9 @@ impl Scene {
     }
 
     /// Checks internal consistency (indices in range, finite numbers) so the renderer can trust
-    /// the data. Loaders call this last; it turns hostile input into a clear error instead of a
-    /// panic later.
+    /// the data. [`load_file`] / [`load_bytes`] call it after the loader, and `World::build` on entry
+    /// (scenes may be built in code); it turns hostile input into a clear error instead of a panic
+    /// later.
     pub fn validate(&self) -> Result<(), SceneError> {
         let label = self.label();
         let err = |m: String| Err(SceneError::invalid(&label, m));
@@ -493,6 +525,18 @@ impl Scene {
             m.validate(self.textures.len()).map_err(|e| {
                 SceneError::invalid(&label, format!("material {i} '{}': {e}", m.name))
             })?;
+            // A pbrt-v4 `mix` names two other materials of this scene.
+            if let Some(mix) = m.mix
+                && mix
+                    .materials
+                    .iter()
+                    .any(|&j| j as usize >= self.materials.len())
+            {
+                return err(format!(
+                    "material {i} '{}' mixes a missing material ({:?})",
+                    m.name, mix.materials
+                ));
+            }
         }
         for (i, m) in self.media.iter().enumerate() {
             m.validate().map_err(|e| {
@@ -571,6 +615,49 @@ impl Scene {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Switches every object to its material under variant `name` (glTF `KHR_materials_variants`:
+    /// objects the variant does not map keep their default material). An unknown name, or a
+    /// scene without variants, is an error listing the valid names.
+    pub fn select_variant(&mut self, name: &str) -> Result<(), SceneError> {
+        let label = self
+            .source
+            .as_ref()
+            .map_or(self.name.clone(), |p| p.display().to_string());
+        let Some(index) = self.variants.iter().position(|v| v == name) else {
+            return Err(SceneError::invalid(
+                &label,
+                if self.variants.is_empty() {
+                    format!(
+                        "variant '{name}' was asked for, but the scene has no material variants (glTF KHR_materials_variants)"
+                    )
+                } else {
+                    format!(
+                        "no material variant '{name}'; the scene's variants are: {}",
+                        self.variants
+                            .iter()
+                            .map(|v| format!("'{v}'"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                },
+            ));
+        };
+        for ov in &self.variant_objects {
+            let (material, medium) = ov
+                .by_variant
+                .iter()
+                .find(|(v, ..)| *v == index)
+                .map(|&(_, m, med)| (m, med))
+                .unwrap_or(ov.default);
+            if let Some(o) = self.objects.get_mut(ov.object) {
+                o.material = material;
+                o.medium = medium;
+            }
+        }
+        self.active_variant = Some(name.to_string());
         Ok(())
     }
 
@@ -739,31 +826,51 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
     load_file(path)
 }
 
-/// Reads a scene file: the one place that reads the bytes, picks the loader from [`FORMATS`] and
-/// names the scene (the file's stem unless the file names itself) and its source. Loaders
-/// validate what they produce before returning it.
+/// Reads a scene file: the one place that reads the bytes, picks the loader from [`FORMATS`],
+/// names the scene (the file's stem unless the file names itself) and its source, and validates
+/// it. Loaders only turn bytes into a [`Scene`]; this function owns everything around that.
 pub fn load_file(path: &Path) -> Result<Scene, SceneError> {
     let label = path.display().to_string();
-    let Some(format) = format_for(path) else {
-        let ext = path.extension().unwrap_or_default().to_string_lossy();
-        return Err(SceneError::invalid(
-            &label,
-            format!("unsupported scene format '.{ext}'"),
-        ));
-    };
+    let format = format_of(path, &label)?;
     let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
         path: label.clone(),
         error: e,
     })?;
     let dir = path.parent().unwrap_or(Path::new("."));
-    let mut scene = (format.load)(&bytes, dir, &label)?;
+    let mut scene = parse(format, &bytes, dir, &label)?;
+    scene.source = Some(path.to_path_buf());
+    scene.validate()?;
+    Ok(scene)
+}
+
+/// [`load_file`] for a file already in memory: `label` is its path (its extension picks the
+/// loader; it names the scene in messages) and `dir` the folder its references resolve against.
+/// The bytes are parsed, named and validated exactly as [`load_file`] does — the entry point of
+/// the fuzz targets and the mutation tests, so they exercise what a user's file goes through.
+pub fn load_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
+    let format = format_of(Path::new(label), label)?;
+    let mut scene = parse(format, bytes, dir, label)?;
+    scene.source = Some(PathBuf::from(label));
+    scene.validate()?;
+    Ok(scene)
+}
+
+fn format_of(path: &Path, label: &str) -> Result<&'static SceneFormat, SceneError> {
+    format_for(path).ok_or_else(|| {
+        let ext = path.extension().unwrap_or_default().to_string_lossy();
+        SceneError::invalid(label, format!("unsupported scene format '.{ext}'"))
+    })
+}
+
+/// Runs the loader and names the scene after the file unless the file names itself.
+fn parse(format: &SceneFormat, bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
+    let mut scene = (format.load)(bytes, dir, label)?;
     if scene.name.is_empty() || scene.name == label {
-        scene.name = path
+        scene.name = Path::new(label)
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| format.extensions[0].to_string());
     }
-    scene.source = Some(path.to_path_buf());
     Ok(scene)
 }
 

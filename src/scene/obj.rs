@@ -143,7 +143,6 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
             "no faces found: this is not an OBJ mesh",
         ));
     }
-    scene.validate()?;
     Ok(scene)
 }
 

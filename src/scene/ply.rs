@@ -169,7 +169,6 @@ pub fn load_from_bytes(bytes: &[u8], label: &str) -> Result<Scene, SceneError> {
     let id = scene.add_mesh(mesh);
     scene.add_object(&name, Shape::Mesh(id), Mat4::IDENTITY, material);
     apply_material_conventions(&mut scene);
-    scene.validate()?;
     Ok(scene)
 }
 
@@ -481,18 +480,23 @@ mod tests {
         }
     }
 
+    /// Parsed and validated, as `scene::load_file` does with a file on disk.
+    fn load_validated(bytes: &[u8], label: &str) -> Result<Scene, SceneError> {
+        crate::scene::load_bytes(bytes, std::path::Path::new("."), label)
+    }
+
     #[test]
     fn hostile_headers_are_errors() {
         let huge = ASCII.replace("element vertex 4", "element vertex 99999999999");
-        assert!(load_from_bytes(huge.as_bytes(), "h.ply").is_err());
+        assert!(load_validated(huge.as_bytes(), "h.ply").is_err());
         let bad_index = ASCII.replace("4 0 1 2 3", "4 0 1 2 7");
-        let e = load_from_bytes(bad_index.as_bytes(), "h.ply")
+        let e = load_validated(bad_index.as_bytes(), "h.ply")
             .unwrap_err()
             .to_string();
         assert!(e.contains("h.ply"), "{e}");
         let nan = ASCII.replace("1 1 0 255", "nan 1 0 255");
-        assert!(load_from_bytes(nan.as_bytes(), "h.ply").is_err());
-        assert!(load_from_bytes(b"ply\nformat ascii 1.0\n", "h.ply").is_err());
-        assert!(load_from_bytes(b"", "h.ply").is_err());
+        assert!(load_validated(nan.as_bytes(), "h.ply").is_err());
+        assert!(load_validated(b"ply\nformat ascii 1.0\n", "h.ply").is_err());
+        assert!(load_validated(b"", "h.ply").is_err());
     }
 }

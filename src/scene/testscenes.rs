@@ -93,7 +93,7 @@ pub fn checker(name: &str, size: u32, cells: u32, a: Vec3, b: Vec3) -> Texture {
         name: name.to_string(),
         width: size,
         height: size,
-        texels,
+        texels: texels.into(),
         wrap_s: WrapMode::Repeat,
         wrap_t: WrapMode::Repeat,
         filter: FilterMode::Bilinear,

@@ -72,6 +72,9 @@ struct MediumSpec {
     /// grid: a Mitsuba `.vol` density file (single channel, float32), placed at the bounding box
     /// the file gives (world units).
     file: Option<String>,
+    /// Emitted radiance Le (RGB): the medium emits σa·Le per unit length (pbrt-v4's `Le`).
+    #[serde(default)]
+    emission: [f32; 3],
 }
 
 #[derive(Deserialize)]
@@ -173,6 +176,9 @@ struct ObjectSpec {
     file: Option<String>,
     /// Material name; for meshes it replaces the file's own materials.
     material: Option<String>,
+    /// glTF material variant of the included file (`KHR_materials_variants`); default: the
+    /// file's default materials.
+    variant: Option<String>,
     center: Option<[f32; 3]>,
     radius: Option<f32>,
     min: Option<[f32; 3]>,
@@ -336,12 +342,17 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
                     dir,
                     f,
                     transform,
-                    mat,
+                    (mat, o.variant.as_deref()),
                     interface,
                     &mut included_cameras,
                 )
                 .map_err(|e| err(format!("object '{name}': {e}")))?;
                 continue;
+            }
+            _ if o.variant.is_some() => {
+                return Err(err(format!(
+                    "object '{name}': 'variant' selects a glTF material variant of an included file (type = \"mesh\")"
+                )));
             }
             "sphere" => Shape::Sphere {
                 center: need(o.center, "center")?,
@@ -444,6 +455,7 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
                     name,
                     path,
                     scale: power,
+                    mapping: Default::default(),
                     transform: Mat4::from_rotation_y(l.rotation.to_radians()),
                 }
             }
@@ -468,6 +480,7 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
                     name: "background".into(),
                     path,
                     scale: Vec3::splat(bg.strength),
+                    mapping: Default::default(),
                     transform: Mat4::from_rotation_y(bg.rotation.to_radians()),
                 });
             }
@@ -480,7 +493,6 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
     }
 
     apply_material_conventions(&mut scene);
-    scene.validate()?;
     Ok(scene)
 }
 
@@ -517,6 +529,7 @@ fn medium(m: &MediumSpec, dir: &Path) -> Result<super::MediumDesc, String> {
         m.scale,
         m.g,
     );
+    desc.le = Vec3::from(m.emission);
     match m.kind.as_deref() {
         None | Some("homogeneous") => {
             if m.file.is_some() {
@@ -700,7 +713,7 @@ fn add_mesh_file(
     dir: &Path,
     file: &str,
     transform: Mat4,
-    material: Option<MaterialId>,
+    (material, variant): (Option<MaterialId>, Option<&str>),
     interface: Option<super::MediumInterface>,
     cameras: &mut Vec<CameraDesc>,
 ) -> Result<(), String> {
@@ -716,12 +729,19 @@ fn add_mesh_file(
         }
     }
     .map_err(|e| e.to_string())?;
+    let mut sub = sub;
+    if let Some(v) = variant {
+        sub.select_variant(v).map_err(|e| e.to_string())?;
+    }
     let (m0, t0, mat0, med0) = (
         scene.meshes.len(),
         scene.textures.len(),
         scene.materials.len(),
         scene.media.len(),
     );
+    let o0 = scene.objects.len();
+    let sub_variants = std::mem::take(&mut sub.variants);
+    let sub_variant_objects = std::mem::take(&mut sub.variant_objects);
     // The file's own media (glTF KHR_materials_volume absorption) belong to its own materials.
     if material.is_none() {
         scene.media.extend(sub.media);
@@ -732,21 +752,13 @@ fn add_mesh_file(
     scene.meshes.extend(sub.meshes);
     if material.is_none() {
         for mut m in sub.materials {
-            for t in [
-                &mut m.base_color_texture,
-                &mut m.metallic_roughness_texture,
-                &mut m.normal_texture,
-                &mut m.occlusion_texture,
-                &mut m.emissive_texture,
-                &mut m.transmission_texture,
-                &mut m.specular_texture,
-                &mut m.specular_color_texture,
-                &mut m.alpha_texture,
-            ]
-            .into_iter()
-            .flatten()
-            {
+            // Every slot, the KHR extensions' included (Material::texture_refs_mut).
+            for t in m.texture_refs_mut() {
                 t.texture += t0;
+            }
+            // A pbrt-v4 `mix` names two of the file's own materials.
+            if let Some(mix) = &mut m.mix {
+                mix.materials = mix.materials.map(|j| j + mat0 as u32);
             }
             scene.materials.push(m);
         }
@@ -770,11 +782,48 @@ fn add_mesh_file(
                 None
             });
     }
+    // The included file's material variants become the scene's (`--variant`, the server's
+    // `variant` field, `trayecto info`), merged by name with other includes'. Each object's default
+    // is the material it has now: the file's default, or the variant this include chose with
+    // `variant =`. A material override (`material =`) replaces the file's materials, variants too.
+    if material.is_none() {
+        for v in &sub_variants {
+            if !scene.variants.contains(v) {
+                scene.variants.push(v.clone());
+            }
+        }
+        let shift_interface = |mi: Option<super::MediumInterface>| {
+            interface.or(mi.map(|mi| super::MediumInterface {
+                inside: mi.inside.map(|m| m + med0),
+                outside: mi.outside.map(|m| m + med0),
+            }))
+        };
+        for ov in sub_variant_objects {
+            let object = ov.object + o0;
+            let Some(o) = scene.objects.get(object) else {
+                continue;
+            };
+            let default = (o.material, o.medium);
+            let by_variant = ov
+                .by_variant
+                .iter()
+                .filter_map(|&(v, m, mi)| {
+                    let name = sub_variants.get(v)?;
+                    let merged = scene.variants.iter().position(|n| n == name)?;
+                    Some((merged, m + mat0, shift_interface(mi)))
+                })
+                .collect();
+            scene.variant_objects.push(super::ObjectVariants {
+                object,
+                default,
+                by_variant,
+            });
+        }
+    }
     // Lights and cameras are rigid: they take the object's rotation and translation. A scale in
     // the transform moves their positions but does not change a light's intensity (as Blender
     // does when a light object is scaled) nor a camera's field of view.
     let (_, rotation, _) = transform.to_scale_rotation_translation();
-    let sub_dir = path.parent().unwrap_or(Path::new("."));
     for l in sub.lights {
         scene.lights.push(match l {
             LightDesc::Point {
@@ -815,15 +864,13 @@ fn add_mesh_file(
                 name,
                 path,
                 scale,
+                mapping,
                 transform: t,
             } => LightDesc::Environment {
+                mapping,
                 name,
-                // Relative to the included file, whose folder is inside ours.
-                path: if path.is_relative() {
-                    sub_dir.join(path)
-                } else {
-                    path
-                },
+                // Already resolved against the included file's folder by its loader.
+                path,
                 scale,
                 transform: Mat4::from_quat(rotation) * t,
             },
@@ -898,7 +945,7 @@ transmittance = [0.6, 0.5, 0.4]
             ("model = \"conductor\"\nconductor_alpha = -1.0", "negative"),
         ] {
             let text = format!("[[material]]\nname = \"m\"\n{bad}\n");
-            let e = load_from_bytes(text.as_bytes(), Path::new("."), "t.toml")
+            let e = crate::scene::load_bytes(text.as_bytes(), Path::new("."), "t.toml")
                 .err()
                 .unwrap_or_else(|| panic!("{bad} accepted"))
                 .to_string();

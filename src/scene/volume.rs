@@ -13,7 +13,10 @@ use crate::math::Vec3;
 
 /// Adds one absorbing medium per volume material and makes every object using that material its
 /// boundary (inside: the medium, outside: vacuum). Objects that already have an interface keep it.
-pub fn apply_volume_absorption(scene: &mut Scene) {
+///
+/// Returns, per material, the medium made for it (glTF material variants switch objects between
+/// materials, and their media with them).
+pub fn apply_volume_absorption(scene: &mut Scene) -> Vec<Option<usize>> {
     let mut medium_of = vec![None; scene.materials.len()];
     for (i, m) in scene.materials.iter().enumerate() {
         if !has_absorbing_volume(m) {
@@ -40,6 +43,7 @@ pub fn apply_volume_absorption(scene: &mut Scene) {
             });
         }
     }
+    medium_of
 }
 
 /// True for a material whose volume absorbs: not thin-walled, transmissive, a finite positive

@@ -25,18 +25,43 @@ impl World {
         &self.materials[hit.material as usize]
     }
 
-    /// Replaces the shading normal and tangent of `hit` by its material's normal map, if any.
+    /// The material that scatters light at `hit`: [`World::material`], or for a pbrt-v4 `mix`
+    /// the component chosen at this hit ([`eval::resolve_mix`]). Emission, alpha and medium
+    /// interfaces stay those of [`World::material`].
     #[inline]
-    pub fn apply_normal_map(&self, hit: &mut SurfaceHit) {
-        normal_map::apply_normal_map(self.material(hit), &self.textures, hit);
+    pub fn surface_material(&self, hit: &SurfaceHit) -> &Material {
+        let m = self.material(hit);
+        if m.mix.is_none() {
+            return m;
+        }
+        eval::resolve_mix(&self.materials, &self.textures, hit.material, hit)
     }
 
-    /// The BSDF at `hit` (pbrt's `GetBSDF`): applies the normal map to `hit`'s shading frame,
-    /// then evaluates the material's textures there.
+    /// Replaces the shading normal and tangent of `hit` by its material's normal map, or its
+    /// bump map (pbrt-v4 `displacement`), if any.
+    #[inline]
+    pub fn apply_normal_map(&self, hit: &mut SurfaceHit) {
+        self.perturb_shading(self.surface_material(hit), hit);
+    }
+
+    /// pbrt-v4's `GetBSDF` order: a normal map if the material has one, else its bump map.
+    #[inline]
+    fn perturb_shading(&self, material: &Material, hit: &mut SurfaceHit) {
+        if material.normal_texture.is_some() {
+            normal_map::apply_normal_map(material, &self.textures, hit);
+        } else if material.pbrt.displacement.is_some()
+            && let Some((dpdu, dpdv)) = self.geometry.pbrt_shading_dpduv(hit)
+        {
+            eval::bump(material, &self.textures, hit, dpdu, dpdv);
+        }
+    }
+
+    /// The BSDF at `hit` (pbrt's `GetBSDF`): applies the normal or bump map to `hit`'s shading
+    /// frame, then evaluates the material's textures there.
     #[inline]
     pub fn bsdf(&self, hit: &mut SurfaceHit) -> Bsdf {
-        let material = self.material(hit);
-        normal_map::apply_normal_map(material, &self.textures, hit);
+        let material = self.surface_material(hit);
+        self.perturb_shading(material, hit);
         Bsdf::from_material(material, &self.textures, hit)
     }
 
@@ -44,26 +69,35 @@ impl World {
     /// Must be asked before [`World::bsdf`] applies the base's normal map, which the coat ignores.
     #[inline]
     pub fn clearcoat_normal(&self, hit: &SurfaceHit) -> Option<Vec3> {
-        let material = self.material(hit);
+        let material = self.surface_material(hit);
         (material.clearcoat > 0.0).then(|| eval::clearcoat_normal(material, &self.textures, hit))
     }
 
     /// The parameters of the raycast/Whitted local shading models at `hit`.
     #[inline]
     pub fn local_surface(&self, hit: &SurfaceHit) -> LocalSurface {
-        LocalSurface::new(self.material(hit), &self.textures, hit)
+        LocalSurface::new(self.surface_material(hit), &self.textures, hit)
     }
 
     /// Base colour at `hit` (factor × texture × vertex colour): the `albedo` view.
     #[inline]
     pub fn base_color(&self, hit: &SurfaceHit) -> Vec3 {
-        eval::base_color(self.material(hit), &self.textures, hit)
+        eval::base_color(self.surface_material(hit), &self.textures, hit)
     }
 
     /// Radiance the surface at `hit` emits toward `wo` (unit, away from the surface).
     #[inline]
     pub fn emitted(&self, hit: &SurfaceHit, wo: Vec3) -> Vec3 {
-        eval::emitted(self.material(hit), &self.textures, hit, wo)
+        // Every primitive that can emit is an area light (`World::build`): the others are of a
+        // material that does not emit, of zero area, or triangles whose emissive texture is
+        // black over their whole footprint (`light::emission`), where the lookup would be zero.
+        // The exception is an unlit surface (KHR_materials_unlit): it shows its base colour but
+        // is not a light (NEE never samples it), so it is looked up here too.
+        let material = self.material(hit);
+        if hit.light == NO_LIGHT && material.model != crate::material::MaterialModel::Unlit {
+            return Vec3::ZERO;
+        }
+        eval::emitted(material, &self.textures, hit, wo)
     }
 
     /// Radiance from the lights at infinity along an escaping ray's unit direction `d`, and the
@@ -74,9 +108,10 @@ impl World {
     }
 
     /// Next-event estimation from `hit` (Mitsuba's `sample_emitter_direction`, pbrt's
-    /// `SampleLd`): picks a light in proportion to its power with `u_light` and a point or
-    /// direction on it with `u`. The shadow ray leaves `hit` offset along `n_offset` (the
-    /// geometric normal on the side the light is sampled from); it is not traced here.
+    /// `SampleLd`): picks a light with `u_light` (by power, or by the light BVH's importance from
+    /// `hit.p` and `n_offset`) and a point or direction on it with `u`. The shadow ray leaves
+    /// `hit` offset along `n_offset` (the geometric normal on the side the light is sampled
+    /// from, zero in a medium); it is not traced here.
     #[inline]
     pub fn sample_light(
         &self,
@@ -96,15 +131,39 @@ impl World {
         )
     }
 
-    /// Solid-angle pdf with which [`World::sample_light`] from `p` would have chosen the point
-    /// `emitter` (a hit on an area light, selection included), for MIS of a BSDF-sampled hit.
-    /// 0 if `emitter` is not on an area light.
+    /// [`World::sample_light`] with one 2D number for both the choice and the point (sample
+    /// reuse, see `LightSet::sample_reuse`); `u_spare` stands in for the remapped x of lights
+    /// chosen too rarely for it to keep enough bits. The path tracer's NEE uses this.
     #[inline]
-    pub fn emitter_pdf(&self, p: Vec3, emitter: &SurfaceHit) -> f32 {
+    pub fn sample_light_reuse(
+        &self,
+        hit: &SurfaceHit,
+        n_offset: Vec3,
+        u: Vec2,
+        u_spare: f32,
+    ) -> Option<LightSample> {
+        self.lights.sample_reuse(
+            &self.geometry,
+            &self.materials,
+            &self.textures,
+            hit,
+            n_offset,
+            u,
+            u_spare,
+        )
+    }
+
+    /// Solid-angle pdf with which [`World::sample_light`] from `p` with `n_offset` = `n` would
+    /// have chosen the point `emitter` (a hit on an area light, selection included), for MIS of a
+    /// BSDF-sampled hit. 0 if `emitter` is not on an area light. `n` must be the `n_offset` the
+    /// light sample at `p` was (or would have been) drawn with: the light BVH's choice depends
+    /// on it.
+    #[inline]
+    pub fn emitter_pdf(&self, p: Vec3, n: Vec3, emitter: &SurfaceHit) -> f32 {
         if emitter.light == NO_LIGHT {
             return 0.0;
         }
-        self.lights.pdf_area(emitter.light, p, emitter)
+        self.lights.pdf_area(emitter.light, p, n, emitter)
     }
 
     /// Number of lights [`World::sample_light`] chooses from.

@@ -8,13 +8,17 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
 use trayecto::accel::AccelKind;
+use trayecto::denoise::DenoiseOptions;
+use trayecto::film::aov::AovKind;
+use trayecto::film::filter::{Filter, FilterKind};
 use trayecto::film::output::{Format, write_image};
 use trayecto::film::tonemap::Tonemap;
 use trayecto::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
+use trayecto::light::LightSamplerKind;
 use trayecto::light::default_light::DefaultLight;
 use trayecto::pipeline::{
-    GivenSettings, LogLine, OutputSpec, PipelineError, PipelineObserver, RenderJob, Stage,
-    is_partial_film,
+    CropSpec, GivenSettings, LogLine, OutputSpec, PipelineError, PipelineObserver, RenderJob,
+    Stage, is_partial_film,
 };
 use trayecto::render::{RenderObserver, RenderSettings};
 use trayecto::sampling::SamplerKind;
@@ -49,7 +53,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Render a scene file or a built-in scene to an image.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Show what a scene contains and every warning about it.
     Info(InfoArgs),
     /// Serve the web UI: render from the browser with a live preview.
@@ -110,16 +114,31 @@ pub struct RenderArgs {
     /// Rendering mode: path, raycast or whitted.
     #[arg(long, default_value = "path")]
     pub integrator: IntegratorKind,
-    /// What the raycast mode shows: shaded, normals, barycentric, depth, albedo or uv.
-    #[arg(long, default_value = "shaded")]
-    pub aov: Aov,
+    /// AOV layers to write with the image, comma-separated: albedo, normal (both at the first
+    /// non-specular hit: the denoiser's guides), depth, position, shading_normal, material_id,
+    /// object_id, or all. An .exr output gets them as channels of one multi-layer file
+    /// (albedo.R, normal.X, Z, P.X, N.X, IndexMA.X, IndexOB.X); other formats get side files
+    /// (out.albedo.png, ...). With --integrator raycast, a single view name (shaded, normals,
+    /// barycentric, depth, albedo, uv) instead picks what the image shows.
+    #[arg(long, value_name = "LIST")]
+    pub aov: Option<String>,
+    /// Also write the image denoised by Intel Open Image Denoise (RT filter, HDR, with prefiltered
+    /// albedo and normal guides) beside the raw one: out.denoised.png. OIDN is loaded at run time:
+    /// install it with ./scripts/install-oidn.sh, or point --oidn / TRAYECTO_OIDN at the library.
+    #[arg(long)]
+    pub denoise: bool,
+    /// The Open Image Denoise library to load (libOpenImageDenoise.so) for --denoise. Default:
+    /// $TRAYECTO_OIDN, else the copy ./scripts/install-oidn.sh puts under target/, else a pyoidn
+    /// wheel in Python's site-packages, else a system install.
+    #[arg(long, value_name = "PATH", requires = "denoise")]
+    pub oidn: Option<PathBuf>,
     /// Direct-lighting model of the raycast and whitted modes: phong, blinn-phong or pbr.
     #[arg(long, default_value = "pbr")]
     pub shading: ShadingModel,
     /// Acceleration structure: bvh, grid or none.
     #[arg(long, default_value = "bvh")]
     pub accel: AccelKind,
-    /// Camera sample generator: independent, stratified, sobol or poisson-disk.
+    /// Camera sample generator: independent, stratified, sobol, zsobol or poisson-disk.
     #[arg(long, default_value = "stratified")]
     pub sampler: SamplerKind,
     /// Disable next-event estimation (light sampling) for area and environment lights.
@@ -157,6 +176,28 @@ pub struct RenderArgs {
     /// Light the scene with an equirectangular environment map (.hdr or .exr).
     #[arg(long, value_name = "FILE")]
     pub env: Option<std::path::PathBuf>,
+    /// Turn the --env map about the up axis (+y) by DEGREES, counter-clockwise seen from above
+    /// (TOML scenes: `rotation` of the environment).
+    #[arg(
+        long,
+        value_name = "DEGREES",
+        requires = "env",
+        allow_negative_numbers = true
+    )]
+    pub env_rotation: Option<f32>,
+    /// Render from the camera in FILE: a TOML file with a `[camera]` table (eye, target, up, fov;
+    /// the web viewport's "Save camera" writes one) or any scene file, whose first camera is used.
+    #[arg(long, value_name = "FILE", conflicts_with = "camera")]
+    pub camera_from: Option<PathBuf>,
+    /// glTF material variant to render (KHR_materials_variants; `trayecto info` lists them).
+    /// Default: the file's default materials.
+    #[arg(long, value_name = "NAME")]
+    pub variant: Option<String>,
+    /// How next-event estimation chooses a light: auto (the light BVH above 16 emitters, points
+    /// and spots, else power), power (in proportion to power) or bvh (the light BVH: by
+    /// importance from the shading point).
+    #[arg(long, value_name = "SAMPLER", default_value = "auto")]
+    pub light_sampler: LightSamplerKind,
     /// Render only sample indices A..B of the --spp frame (write a partial film: -o part.trp).
     #[arg(long, value_name = "A..B")]
     pub samples: Option<String>,
@@ -170,6 +211,38 @@ pub struct RenderArgs {
     /// identical to an uninterrupted render. Checkpoints go on to FILE unless --checkpoint says.
     #[arg(long, value_name = "FILE")]
     pub resume: Option<PathBuf>,
+    /// Pixel reconstruction filter: box, tent, gaussian, mitchell or blackman-harris, by filter
+    /// importance sampling. Default: the scene file's (a pbrt PixelFilter, else pbrt's Gaussian
+    /// for .pbrt files), else box (one pixel, as glTF/TOML/OBJ/FBX scenes have always rendered).
+    #[arg(long, value_name = "NAME")]
+    pub filter: Option<FilterKind>,
+    /// Filter radius in pixels (pbrt's xradius/yradius). Default per filter as in pbrt-v4: box
+    /// 0.5, tent 2, gaussian 1.5, mitchell 2; blackman-harris 1.5 (Cycles' filter width).
+    #[arg(long, value_name = "PIXELS")]
+    pub filter_radius: Option<f32>,
+    /// Standard deviation of the gaussian filter in pixels (pbrt default 0.5).
+    #[arg(long, value_name = "PIXELS")]
+    pub filter_sigma: Option<f32>,
+    /// Adaptive sampling: stop a pixel once the relative standard error of its mean luminance is
+    /// below X (e.g. 0.01), judged after every pass from the passes before it; --spp is the most
+    /// any pixel gets. The image is still a pure function of the seed and the settings.
+    #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    pub noise_threshold: Option<f32>,
+    /// Progressive rendering: stop after the last pass that ends within SECONDS (the first pass
+    /// always completes; a pass in flight when time runs out is dropped). Without --spp the frame
+    /// is planned at 65536 spp. How many passes finish depends on the machine; the image after
+    /// a given number of passes does not.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub time_limit: Option<f64>,
+    /// Render and write only this window, as fractions of the image: x0,x1,y0,y1 in 0..1 (pbrt's
+    /// cropwindow: columns ceil(width*x0)..ceil(width*x1), likewise rows). The pixels are the same
+    /// as in the full render. Default: the scene file's cropwindow/pixelbounds, else the whole image.
+    #[arg(long, value_name = "X0,X1,Y0,Y1", conflicts_with = "pixel_bounds")]
+    pub crop: Option<String>,
+    /// Render and write only columns x0..x1 and rows y0..y1 (pixels, ends excluded; pbrt's
+    /// pixelbounds).
+    #[arg(long, value_name = "X0,X1,Y0,Y1")]
+    pub pixel_bounds: Option<String>,
     /// Print only errors.
     #[arg(short, long)]
     pub quiet: bool,
@@ -187,11 +260,18 @@ impl RenderArgs {
         RenderSettings {
             width: self.width.unwrap_or(512),
             height: self.height.unwrap_or(512),
-            spp: self.spp.unwrap_or(64),
+            // A time-limited render without a sample count runs until the time is up.
+            spp: self.spp.unwrap_or(if self.time_limit.is_some() {
+                trayecto::render::TIME_LIMIT_SPP
+            } else {
+                64
+            }),
             seed: self.seed,
             threads: self.threads,
             sampler: self.sampler,
-            integrator: self.integrator.with_options(self.aov, self.shading),
+            integrator: self
+                .integrator
+                .with_options(self.raycast_view(), self.shading),
             path: PathSettings {
                 max_depth: self.max_depth.unwrap_or(64),
                 rr_depth: self.rr_depth,
@@ -200,7 +280,45 @@ impl RenderArgs {
                 mis: !self.no_mis,
                 secondary: self.secondary,
             },
+            filter: self.filter(),
+            noise_threshold: self.noise_threshold,
+            time_limit: self.time_limit,
+            crop: None,
         }
+    }
+
+    /// The filter these options describe: --filter (default box) with --filter-radius and
+    /// --filter-sigma over pbrt-v4's defaults for it.
+    pub fn filter(&self) -> Filter {
+        let mut f = Filter::new(self.filter.unwrap_or_default());
+        if let Some(r) = self.filter_radius {
+            f.radius = [r, r];
+        }
+        if let Some(s) = self.filter_sigma {
+            f.sigma = s;
+        }
+        f
+    }
+
+    /// The raycast view `--aov` picks: with `--integrator raycast`, a single view name.
+    fn raycast_view(&self) -> Aov {
+        match (&self.integrator, &self.aov) {
+            (IntegratorKind::Raycast { .. }, Some(a)) => a.trim().parse().unwrap_or_default(),
+            _ => Aov::default(),
+        }
+    }
+
+    /// The AOV layers `--aov` asks for (none when it picks a raycast view).
+    pub fn aov_layers(&self) -> Result<Vec<AovKind>> {
+        let Some(list) = &self.aov else {
+            return Ok(Vec::new());
+        };
+        if matches!(self.integrator, IntegratorKind::Raycast { .. })
+            && list.trim().parse::<Aov>().is_ok()
+        {
+            return Ok(Vec::new());
+        }
+        AovKind::parse_list(list).map_err(|e| anyhow::anyhow!("invalid setting: --aov: {e}"))
     }
 
     pub fn world_options(&self) -> WorldOptions {
@@ -213,6 +331,10 @@ impl RenderArgs {
                 self.default_light
             },
             env: self.env.clone(),
+            env_rotation: self.env_rotation.unwrap_or(0.0),
+            camera_override: None,
+            variant: self.variant.clone(),
+            light_sampler: self.light_sampler,
         }
     }
 
@@ -224,23 +346,45 @@ impl RenderArgs {
             .map(trayecto::split::parse_range)
             .transpose()
             .map_err(|e| anyhow::anyhow!("invalid setting: --samples: {e}"))?;
+        if (self.filter_radius.is_some() || self.filter_sigma.is_some()) && self.filter.is_none() {
+            bail!("invalid setting: --filter-radius and --filter-sigma need --filter NAME");
+        }
+        if self.filter_sigma.is_some() && self.filter != Some(FilterKind::Gaussian) {
+            bail!("invalid setting: --filter-sigma applies to --filter gaussian only");
+        }
+        let crop = match (&self.crop, &self.pixel_bounds) {
+            (Some(c), _) => Some(
+                CropSpec::parse(c, false)
+                    .map_err(|e| anyhow::anyhow!("invalid setting: --crop: {e}"))?,
+            ),
+            (None, Some(p)) => Some(
+                CropSpec::parse(p, true)
+                    .map_err(|e| anyhow::anyhow!("invalid setting: --pixel-bounds: {e}"))?,
+            ),
+            (None, None) => None,
+        };
         if !(self.checkpoint_interval >= 0.0 && self.checkpoint_interval <= 1e9) {
             bail!(
                 "invalid setting: --checkpoint-interval must be 0 or more seconds (got {})",
                 self.checkpoint_interval
             );
         }
+        let mut world = self.world_options();
+        if let Some(f) = &self.camera_from {
+            world.camera_override = Some(trayecto::pipeline::camera_from_file(f)?);
+        }
         Ok(RenderJob {
             scene: self.scene.clone(),
-            world: self.world_options(),
+            world,
             settings: self.settings(),
             // Options left out take the scene file's own value (pbrt's Film, Sampler,
             // Integrator), else the defaults above.
             given: GivenSettings {
                 width: self.width.is_some(),
                 height: self.height.is_some(),
-                spp: self.spp.is_some(),
+                spp: self.spp.is_some() || self.time_limit.is_some(),
                 max_depth: self.max_depth.is_some(),
+                filter: self.filter.is_some(),
             },
             outputs: vec![OutputSpec {
                 path: self.output.clone(),
@@ -254,6 +398,11 @@ impl RenderArgs {
                 checkpoint_interval: std::time::Duration::from_secs_f64(self.checkpoint_interval),
                 resume: self.resume.clone(),
             },
+            crop,
+            aovs: self.aov_layers()?,
+            denoise: self.denoise.then(|| DenoiseOptions {
+                library: self.oidn.clone(),
+            }),
         })
     }
 }
@@ -381,6 +530,7 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
     let (lights, cameras) = (scene.lights.clone(), scene.cameras.clone());
     let scene_warnings = scene.warnings.clone();
     let hints = scene.hints.clone();
+    let variants = scene.variants.clone();
     let world = World::build(scene, &WorldOptions::default())?;
     let b = world.bounds;
     println!("scene       {name}");
@@ -394,17 +544,7 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
     );
     println!("materials   {}", world.materials.len());
     for (i, m) in world.materials.iter().enumerate() {
-        let textures = [
-            m.base_color_texture,
-            m.metallic_roughness_texture,
-            m.normal_texture,
-            m.occlusion_texture,
-            m.emissive_texture,
-            m.transmission_texture,
-        ]
-        .iter()
-        .flatten()
-        .count();
+        let textures = m.texture_refs().count();
         println!(
             "  {i}: '{}' {:?} base colour {}{}{}",
             m.name,
@@ -418,18 +558,52 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
             if m.is_emissive() { " (emissive)" } else { "" }
         );
     }
-    println!("textures    {}", world.textures.len());
+    // Texel memory by storage kind (issue #23: 8-bit textures stay 8-bit).
+    let mut kinds: std::collections::BTreeMap<&str, (usize, usize)> = Default::default();
+    for t in &world.textures {
+        let k = kinds.entry(t.texels.kind()).or_default();
+        k.0 += 1;
+        k.1 += t.texel_bytes();
+    }
+    let total: usize = kinds.values().map(|k| k.1).sum();
+    let texels: usize = world.textures.iter().map(|t| t.texels.len()).sum();
+    println!(
+        "textures    {} ({:.1} MiB for {texels} texels{})",
+        world.textures.len(),
+        total as f64 / (1024.0 * 1024.0),
+        kinds
+            .iter()
+            .map(|(k, (n, _))| format!(", {n} {k}"))
+            .collect::<String>()
+    );
+    if !variants.is_empty() {
+        // KHR_materials_variants: the names --variant accepts; without it the file's default
+        // materials (listed above) are rendered.
+        println!(
+            "variants    {} (--variant NAME; default: the file's default materials)",
+            variants.len()
+        );
+        for (i, v) in variants.iter().enumerate() {
+            println!("  {i}: '{v}'");
+        }
+    }
     if hints != trayecto::scene::RenderHints::default() {
         let show = |v: Option<u32>| v.map_or("-".to_string(), |v| v.to_string());
         println!(
-            "file asks   {}x{} pixels, {} spp, max depth {}{}",
+            "file asks   {}x{} pixels, {} spp, max depth {}{}{}{}",
             show(hints.width),
             show(hints.height),
             show(hints.spp),
             show(hints.max_depth),
-            hints.crop.map_or(String::new(), |c| format!(
-                ", crop window {c:?} (not applied)"
-            ))
+            hints
+                .filter
+                .map_or(String::new(), |f| format!(", {} filter", f.describe())),
+            hints
+                .crop
+                .map_or(String::new(), |c| format!(", crop window {c:?}")),
+            hints
+                .pixel_bounds
+                .map_or(String::new(), |c| format!(", pixel bounds {c:?}"))
         );
     }
     println!(

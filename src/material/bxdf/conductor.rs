@@ -84,17 +84,7 @@ impl Conductor {
         if wi.z <= 0.0 {
             return None;
         }
-        let pdf = self.pdf(wo, wi);
-        if !(pdf > 0.0) {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            f: self.eval(wo, wi),
-            pdf,
-            specular: false,
-            eta: 1.0,
-        })
+        BsdfSample::glossy(wi, self.pdf(wo, wi), 1.0, || self.eval(wo, wi))
     }
 
     /// Normal-incidence reflectance, the colour the raycast/Whitted modes show.

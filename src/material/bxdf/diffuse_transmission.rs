@@ -63,16 +63,6 @@ impl DiffuseTransmission {
             -wo.z.signum()
         };
         wi.z *= side;
-        let pdf = self.pdf(wo, wi);
-        if !(pdf > 0.0) {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            f: self.eval(wo, wi),
-            pdf,
-            specular: false,
-            eta: 1.0,
-        })
+        BsdfSample::glossy(wi, self.pdf(wo, wi), 1.0, || self.eval(wo, wi))
     }
 }

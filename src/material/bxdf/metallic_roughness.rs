@@ -1,10 +1,79 @@
-//! The glTF 2.0 metallic-roughness BRDF (glTF spec, appendix B).
+//! The glTF 2.0 metallic-roughness BRDF (glTF spec, appendix B) with the KHR material extensions
+//! that change its lobes:
+//!
+//! * `KHR_materials_clearcoat` ([`Clearcoat`], the top layer) and `KHR_materials_sheen`
+//!   ([`Sheen`], under the coat), both layered by albedo scaling;
+//! * `KHR_materials_anisotropy`: the specular lobes use [`AnisoGgx`] with α_t = mix(α, 1, s²)
+//!   along the anisotropy direction and α_b = α across it (extension text), sampled by visible
+//!   normals in the rotated frame;
+//! * `KHR_materials_iridescence`: the specular Fresnel terms become
+//!   mix(F_schlick, F_thin-film, factor) ([`Iridescence`]);
+//! * `KHR_materials_diffuse_transmission`: the dielectric's diffuse lobe becomes
+//!   mix(diffuse_brdf(base), diffuse_btdf(colour), factor). The BSDF then transmits: its frame
+//!   keeps the geometric orientation and a view from behind is evaluated mirrored (the sheet is
+//!   thin and symmetric), the coat's normal mirrored with it. The BTDF's Fresnel weight uses the
+//!   half vector of the mirrored light direction, as for reflection, so the BTDF is symmetric
+//!   under exchanging the two sides.
+//!
+//! Sampling is one-sample MIS over the lobes (coat, sheen, specular, diffuse reflection, diffuse
+//! transmission) and every sample reports the whole mixture's pdf and value, so each lobe can
+//! produce any direction consistently.
 
 use crate::material::bsdf::BsdfSample;
 use crate::material::clearcoat::Clearcoat;
-use crate::material::microfacet::{Ggx, reflect, schlick};
+use crate::material::iridescence::Iridescence;
+use crate::material::microfacet::{AnisoGgx, Ggx, reflect, schlick};
+use crate::material::sheen::Sheen;
 use crate::math::{INV_PI, Vec2, Vec3, luminance};
 use crate::sampling::warp;
+
+/// KHR_materials_anisotropy at a shading point: the anisotropic distribution (α_x along the
+/// anisotropy direction, α_y across it) and that direction's unit (cos, sin) in the local
+/// shading frame's xy plane.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Anisotropy {
+    pub dist: AnisoGgx,
+    pub dir: Vec2,
+}
+
+impl Anisotropy {
+    /// glTF roughness `roughness`, strength `strength` ∈ [0, 1] and direction `dir` (local xy):
+    /// α = roughness², α_t = α + (1 − α)·strength², α_b = α (KHR_materials_anisotropy).
+    pub fn new(roughness: f32, strength: f32, dir: Vec2) -> Anisotropy {
+        let a = roughness.clamp(0.0, 1.0).powi(2);
+        let s = strength.clamp(0.0, 1.0);
+        let at = a + (1.0 - a) * s * s;
+        let d = dir.normalize_or_zero();
+        Anisotropy {
+            dist: AnisoGgx::new(at, a),
+            dir: if d == Vec2::ZERO { Vec2::X } else { d },
+        }
+    }
+
+    /// Local shading frame → the frame whose x axis is the anisotropy direction.
+    #[inline]
+    pub(crate) fn to_aniso(self, w: Vec3) -> Vec3 {
+        let (c, s) = (self.dir.x, self.dir.y);
+        Vec3::new(w.x * c + w.y * s, -w.x * s + w.y * c, w.z)
+    }
+
+    #[inline]
+    pub(crate) fn to_local(self, w: Vec3) -> Vec3 {
+        let (c, s) = (self.dir.x, self.dir.y);
+        Vec3::new(w.x * c - w.y * s, w.x * s + w.y * c, w.z)
+    }
+}
+
+/// The KHR extensions' state of a [`MetallicRoughness`] (all off by default).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Extensions {
+    pub anisotropy: Option<Anisotropy>,
+    pub sheen: Option<Sheen>,
+    pub iridescence: Option<Iridescence>,
+    /// KHR_materials_diffuse_transmission factor in [0, 1] and colour.
+    pub diffuse_transmission: f32,
+    pub diffuse_transmission_color: Vec3,
+}
 
 /// `mix(fresnel_mix(diffuse, specular), conductor(specular, F0 = base), metallic)` with a GGX
 /// specular lobe, height-correlated Smith G2 and Schlick Fresnel.
@@ -20,89 +89,255 @@ pub struct MetallicRoughness {
     /// KHR_materials_clearcoat layered on top (see [`Clearcoat`]): f = (1 − c·fr(V))·f_base +
     /// f_coat. Its normal is +z until [`crate::material::Bsdf::set_coat_normal`] places it.
     pub coat: Option<Clearcoat>,
+    pub ext: Extensions,
+}
+
+/// Mirror through the surface plane (a view from behind a thin sheet, evaluated from the front).
+#[inline]
+fn mirror_z(w: Vec3) -> Vec3 {
+    Vec3::new(w.x, w.y, -w.z)
 }
 
 impl MetallicRoughness {
+    /// True when the diffuse lobe transmits (KHR_materials_diffuse_transmission).
     #[inline]
-    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Vec3::ZERO;
-        }
-        self.eval_coated(wo, wi)
+    pub fn transmits(&self) -> bool {
+        self.ext.diffuse_transmission > 0.0
     }
 
-    /// The base, scaled by what the coat leaves of it, plus the coat (both directions above).
+    /// The configuration evaluated for (wo, wi): a view from behind a transmitting sheet is
+    /// mirrored to the front, with its coat normal.
+    #[inline]
+    fn canonical(&self, wo: Vec3, wi: Vec3) -> (MetallicRoughness, Vec3, Vec3, bool) {
+        if self.transmits() && wo.z < 0.0 {
+            let mut b = *self;
+            if let Some(c) = &mut b.coat {
+                let n = c.normal;
+                *c = c.with_normal(Vec3::new(-n.x, -n.y, n.z));
+            }
+            (b, mirror_z(wo), mirror_z(wi), true)
+        } else {
+            (*self, wo, wi, false)
+        }
+    }
+
+    #[inline]
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if !self.transmits() {
+            if wo.z <= 0.0 || wi.z <= 0.0 {
+                return Vec3::ZERO;
+            }
+            return self.eval_coated(wo, wi);
+        }
+        let (b, wo, wi, _) = self.canonical(wo, wi);
+        b.eval_front(wo, wi)
+    }
+
+    /// f for `wo` above, `wi` on either side (diffuse transmission only below).
+    #[inline]
+    fn eval_front(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if wo.z <= 0.0 || wi.z == 0.0 {
+            Vec3::ZERO
+        } else if wi.z > 0.0 {
+            self.eval_coated(wo, wi)
+        } else {
+            self.eval_transmitted(wo, wi)
+        }
+    }
+
+    /// The base, scaled by what the sheen and the coat leave of it, plus the sheen and the coat
+    /// (both directions above).
     #[inline]
     fn eval_coated(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        match &self.coat {
+        let under = match &self.ext.sheen {
             None => self.eval_above(wo, wi),
-            Some(c) => {
-                self.eval_above(wo, wi) * (1.0 - c.layer_weight(wo)) + Vec3::splat(c.eval(wo, wi))
-            }
+            Some(s) => s.eval(wo, wi) + self.eval_above(wo, wi) * s.base_scale(wo, wi),
+        };
+        match &self.coat {
+            None => under,
+            Some(c) => under * (1.0 - c.layer_weight(wo)) + Vec3::splat(c.eval(wo, wi)),
         }
+    }
+
+    /// Diffuse transmission to `wi` below: (1 − metallic)·(1 − F)·factor·colour/π, under the
+    /// sheen's and the coat's albedo scaling (neither transmits itself).
+    #[inline]
+    fn eval_transmitted(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        let wm = mirror_z(wi);
+        let h = wo + wm;
+        if h.length_squared() == 0.0 {
+            return Vec3::ZERO;
+        }
+        let voh = wo.dot(h.normalize());
+        let f_d = self.dielectric_fresnel(voh);
+        let e = &self.ext;
+        let mut t = e.diffuse_transmission_color
+            * (e.diffuse_transmission * (1.0 - self.metallic) * INV_PI * (1.0 - f_d.max_element()));
+        if let Some(s) = &e.sheen {
+            t *= s.base_scale(wo, wm);
+        }
+        if let Some(c) = &self.coat {
+            t *= 1.0 - c.layer_weight(wo);
+        }
+        t
     }
 
     #[inline]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
+        if !self.transmits() {
+            if wo.z <= 0.0 || wi.z <= 0.0 {
+                return 0.0;
+            }
+            return self.pdf_front(wo, wi);
+        }
+        let (b, wo, wi, _) = self.canonical(wo, wi);
+        if wo.z <= 0.0 || wi.z == 0.0 {
             return 0.0;
         }
-        let p_spec = self.spec_probability(wo);
-        let h = (wo + wi).normalize();
-        let spec = self.ggx.d_visible(wo, h) / (4.0 * wo.dot(h));
-        let base = p_spec * spec + (1.0 - p_spec) * warp::cosine_hemisphere_pdf(wi.z);
-        match &self.coat {
+        b.pdf_front(wo, wi)
+    }
+
+    /// The mixture pdf for `wo` above.
+    #[inline]
+    fn pdf_front(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let base = if wi.z > 0.0 {
+            let p_spec = self.spec_probability(wo);
+            let h = (wo + wi).normalize();
+            let spec = self.spec_d_visible(wo, h) / (4.0 * wo.dot(h));
+            let diffuse = warp::cosine_hemisphere_pdf(wi.z);
+            let diffuse = if self.transmits() {
+                diffuse * (1.0 - self.transmit_probability())
+            } else {
+                diffuse
+            };
+            p_spec * spec + (1.0 - p_spec) * diffuse
+        } else {
+            (1.0 - self.spec_probability(wo))
+                * self.transmit_probability()
+                * warp::cosine_hemisphere_pdf(-wi.z)
+        };
+        let under = match &self.ext.sheen {
             None => base,
+            Some(s) => {
+                let p = sheen_probability(s, wo);
+                let sheen = if wi.z > 0.0 {
+                    warp::uniform_cone_pdf(0.0)
+                } else {
+                    0.0
+                };
+                p * sheen + (1.0 - p) * base
+            }
+        };
+        match &self.coat {
+            None => under,
             Some(c) => {
                 let p_coat = coat_probability(c, wo);
-                p_coat * c.pdf(wo, wi) + (1.0 - p_coat) * base
+                let coat = if wi.z > 0.0 { c.pdf(wo, wi) } else { 0.0 };
+                p_coat * coat + (1.0 - p_coat) * under
             }
         }
     }
 
-    /// Picks the specular lobe (visible normals, Heitz 2018) or the diffuse one with `u_lobe`.
+    /// Picks the coat, the sheen, the specular lobe (visible normals, Heitz 2018) or the diffuse
+    /// one (reflected or transmitted) with `u_lobe`.
     #[inline]
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        let (b, wo, _, flipped) = self.canonical(wo, wo);
         if wo.z <= 0.0 {
             return None;
         }
+        let wi = b.sample_front(wo, u_lobe, u)?;
+        // The sample's pdf and value are those of the whole mixture (one-sample MIS over
+        // lobes), so either lobe can produce any direction consistently.
+        let pdf = b.pdf_front(wo, wi);
+        let out = if flipped { mirror_z(wi) } else { wi };
+        BsdfSample::glossy(out, pdf, 1.0, || {
+            if b.transmits() {
+                b.eval_front(wo, wi)
+            } else {
+                b.eval_coated(wo, wi)
+            }
+        })
+    }
+
+    /// A direction from one lobe, for `wo` above (`None` if it leaves on the wrong side).
+    #[inline]
+    fn sample_front(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<Vec3> {
         // The coat first, with probability p_coat; the rest of `u_lobe`, rescaled to [0, 1),
-        // chooses between the base's lobes.
+        // chooses between the lower layers' lobes.
         let mut u_lobe = u_lobe;
-        let mut coat_wi = None;
         if let Some(c) = &self.coat {
             let p_coat = coat_probability(c, wo);
             if u_lobe < p_coat {
-                coat_wi = Some(c.sample(wo, u)?);
-            } else {
-                u_lobe = ((u_lobe - p_coat) / (1.0 - p_coat)).min(1.0 - f32::EPSILON);
+                // The coat reflects only: a direction below the base's plane is no sample.
+                return c.sample(wo, u).filter(|wi| wi.z > 0.0);
             }
+            u_lobe = ((u_lobe - p_coat) / (1.0 - p_coat)).min(1.0 - f32::EPSILON);
+        }
+        if let Some(s) = &self.ext.sheen {
+            let p = sheen_probability(s, wo);
+            if u_lobe < p {
+                return Some(warp::uniform_cone(u, 0.0));
+            }
+            u_lobe = ((u_lobe - p) / (1.0 - p)).min(1.0 - f32::EPSILON);
         }
         let p_spec = self.spec_probability(wo);
-        let wi = if let Some(wi) = coat_wi {
-            wi
-        } else if u_lobe < p_spec {
-            let m = self.ggx.sample_visible(wo, u);
+        let wi = if u_lobe < p_spec {
+            let m = self.spec_sample_visible(wo, u);
             reflect(wo, m)
         } else {
-            warp::cosine_hemisphere(u)
+            let mut wi = warp::cosine_hemisphere(u);
+            if self.transmits() {
+                let u_t = ((u_lobe - p_spec) / (1.0 - p_spec)).min(1.0 - f32::EPSILON);
+                if u_t < self.transmit_probability() {
+                    wi = mirror_z(wi);
+                    return (wi.z < 0.0).then_some(wi);
+                }
+            }
+            wi
         };
-        if wi.z <= 0.0 {
-            return None;
+        (wi.z > 0.0).then_some(wi)
+    }
+
+    /// D(h)·G2(wo, wi) of the specular lobes: isotropic GGX, or anisotropic GGX in the frame of
+    /// the anisotropy direction.
+    #[inline]
+    fn spec_dg2(&self, wo: Vec3, wi: Vec3, h: Vec3) -> f32 {
+        match &self.ext.anisotropy {
+            None => self.ggx.d(h) * self.ggx.g2(wo, wi),
+            Some(a) => {
+                let (o, i, m) = (a.to_aniso(wo), a.to_aniso(wi), a.to_aniso(h));
+                a.dist.d(m) * a.dist.g2(o, i)
+            }
         }
-        // The sample's pdf and value are those of the whole mixture (one-sample MIS over
-        // lobes), so either lobe can produce any direction consistently.
-        let pdf = self.pdf(wo, wi);
-        if !(pdf > 0.0) {
-            return None;
+    }
+
+    #[inline]
+    fn spec_d_visible(&self, wo: Vec3, h: Vec3) -> f32 {
+        match &self.ext.anisotropy {
+            None => self.ggx.d_visible(wo, h),
+            Some(a) => a.dist.d_visible(a.to_aniso(wo), a.to_aniso(h)),
         }
-        Some(BsdfSample {
-            wi,
-            f: self.eval_coated(wo, wi),
-            pdf,
-            specular: false,
-            eta: 1.0,
-        })
+    }
+
+    #[inline]
+    fn spec_sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
+        match &self.ext.anisotropy {
+            None => self.ggx.sample_visible(wo, u),
+            Some(a) => a.to_local(a.dist.sample_visible(a.to_aniso(wo), u)),
+        }
+    }
+
+    /// The dielectric layer's Fresnel term at V·H (× the KHR specular weight), with the thin film
+    /// mixed in.
+    #[inline]
+    fn dielectric_fresnel(&self, voh: f32) -> Vec3 {
+        let f = schlick(self.f0_dielectric, voh);
+        let f = match &self.ext.iridescence {
+            None => f,
+            Some(ir) => ir.mix(f, voh, self.f0_dielectric),
+        };
+        f * self.specular
     }
 
     /// The BRDF for wo, wi both above the surface.
@@ -114,12 +349,22 @@ impl MetallicRoughness {
         }
         let h = h.normalize();
         let voh = wo.dot(h);
-        let spec = self.ggx.d(h) * self.ggx.g2(wo, wi) / (4.0 * wo.z * wi.z);
+        let spec = self.spec_dg2(wo, wi, h) / (4.0 * wo.z * wi.z);
         // glTF appendix B: fresnel_mix for the dielectric layer (with KHR_materials_specular's
         // weight), conductor Fresnel with F0 = base colour for the metal.
-        let f_d = schlick(self.f0_dielectric, voh) * self.specular;
-        let dielectric = self.base * (INV_PI * (1.0 - f_d.max_element())) + f_d * spec;
-        let metal = schlick(self.base, voh) * spec;
+        let f_d = self.dielectric_fresnel(voh);
+        let diffuse = if self.transmits() {
+            self.base * (1.0 - self.ext.diffuse_transmission)
+        } else {
+            self.base
+        };
+        let dielectric = diffuse * (INV_PI * (1.0 - f_d.max_element())) + f_d * spec;
+        let f_m = schlick(self.base, voh);
+        let f_m = match &self.ext.iridescence {
+            None => f_m,
+            Some(ir) => ir.mix(f_m, voh, self.base),
+        };
+        let metal = f_m * spec;
         dielectric * (1.0 - self.metallic) + metal * self.metallic
     }
 
@@ -130,7 +375,14 @@ impl MetallicRoughness {
         let (base, metallic) = (self.base, self.metallic);
         let f_d = schlick(self.f0_dielectric, wo.z) * self.specular;
         let w_spec = luminance(f_d * (1.0 - metallic) + schlick(base, wo.z) * metallic);
-        let w_diff = (1.0 - metallic) * (1.0 - f_d.max_element()) * luminance(base);
+        let diffuse = if self.transmits() {
+            let e = &self.ext;
+            luminance(base) * (1.0 - e.diffuse_transmission)
+                + luminance(e.diffuse_transmission_color) * e.diffuse_transmission
+        } else {
+            luminance(base)
+        };
+        let w_diff = (1.0 - metallic) * (1.0 - f_d.max_element()) * diffuse;
         if !(w_diff > 0.0) {
             1.0
         } else if !(w_spec > 0.0) {
@@ -140,12 +392,36 @@ impl MetallicRoughness {
             (w_spec / (w_spec + w_diff)).clamp(0.05, 0.95)
         }
     }
+
+    /// Probability that a diffuse sample transmits: the transmitted share of the diffuse lobe's
+    /// luminance, kept in [0.05, 0.95] when both sides carry light.
+    #[inline]
+    fn transmit_probability(&self) -> f32 {
+        let e = &self.ext;
+        let t = luminance(e.diffuse_transmission_color) * e.diffuse_transmission;
+        let r = luminance(self.base) * (1.0 - e.diffuse_transmission);
+        if !(t > 0.0) {
+            0.0
+        } else if !(r > 0.0) {
+            1.0
+        } else {
+            (t / (t + r)).clamp(0.05, 0.95)
+        }
+    }
 }
 
 /// Probability of sampling the clearcoat lobe: its Fresnel share c·fr(V) against what the base
 /// keeps, (1 − c·fr)·½, clamped so both stay reachable (the mixture pdf must cover f).
 #[inline]
-fn coat_probability(c: &Clearcoat, wo: Vec3) -> f32 {
+pub(crate) fn coat_probability(c: &Clearcoat, wo: Vec3) -> f32 {
     let w = c.layer_weight(wo);
+    (w / (w + 0.5 * (1.0 - w))).clamp(0.05, 0.95)
+}
+
+/// Probability of sampling the sheen lobe: its albedo share c·E(N·V) against what the base
+/// keeps, (1 − c·E)·½, clamped like the coat's.
+#[inline]
+pub(crate) fn sheen_probability(s: &Sheen, wo: Vec3) -> f32 {
+    let w = s.weight(wo);
     (w / (w + 0.5 * (1.0 - w))).clamp(0.05, 0.95)
 }

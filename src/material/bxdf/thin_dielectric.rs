@@ -133,14 +133,5 @@ fn rough_sample(
     }
     let wi = wr * flip;
     let (f, pdf) = rough_eval(g, eta, tint, wo, wi);
-    if !(pdf > 0.0) {
-        return None;
-    }
-    Some(BsdfSample {
-        wi,
-        f,
-        pdf,
-        specular: false,
-        eta: 1.0,
-    })
+    BsdfSample::glossy(wi, pdf, 1.0, || f)
 }

@@ -45,13 +45,12 @@ pub fn load_bytes(data: &[u8], label: &str, scene_dir: Option<&Path>) -> Result<
     let doc = binary::parse(data)
         .map_err(|e| SceneError::invalid(label, format!("not a readable binary FBX file: {e}")))?;
     let mut scene = Converter::new(&doc, label, scene_dir)?.run()?;
-    // So that validation errors name the file too.
+    // So that messages name the file when this entry point is used directly.
     scene.source = Some(std::path::PathBuf::from(label));
     scene.name = Path::new(label)
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    scene.validate()?;
     Ok(scene)
 }
 

@@ -5,6 +5,9 @@ use super::*;
 
 impl Loader<'_> {
     pub(super) fn view_bytes(&self, view: &gltf::buffer::View) -> Result<&[u8], SceneError> {
+        if let Some(d) = self.decoded_view(view.index()) {
+            return Ok(d);
+        }
         let buf = self
             .buffers
             .get(view.buffer().index())
@@ -160,28 +163,6 @@ impl Loader<'_> {
             }
         }
         Ok((out, ncomp))
-    }
-
-    pub(super) fn read_vec3(
-        &self,
-        acc: &gltf::Accessor,
-        what: &str,
-    ) -> Result<Vec<Vec3>, SceneError> {
-        let (v, _) = self.read_accessor(acc, what)?;
-        Ok(v.iter()
-            .map(|e| Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32))
-            .collect())
-    }
-
-    pub(super) fn read_vec2(
-        &self,
-        acc: &gltf::Accessor,
-        what: &str,
-    ) -> Result<Vec<Vec2>, SceneError> {
-        let (v, _) = self.read_accessor(acc, what)?;
-        Ok(v.iter()
-            .map(|e| Vec2::new(e[0] as f32, e[1] as f32))
-            .collect())
     }
 
     pub(super) fn read_indices(&self, acc: &gltf::Accessor) -> Result<Vec<u32>, SceneError> {

@@ -9,46 +9,9 @@ impl Loader<'_> {
         if let Some(&i) = self.textures.get(&(t.index(), srgb)) {
             return Ok(i);
         }
-        let img = t.source();
-        let name = img
-            .name()
-            .map(str::to_string)
-            .unwrap_or_else(|| format!("image {}", img.index()));
-        let mut tex = match img.source() {
-            gltf::image::Source::View { view, .. } => {
-                let bytes = self.view_bytes(&view)?;
-                match decode_texture(&name, bytes, srgb) {
-                    Ok(t) => t,
-                    Err(e) => {
-                        self.scene.warnings.push(format!(
-                            "embedded image {} ('{name}') could not be decoded ({e}): using a magenta fallback",
-                            img.index()
-                        ));
-                        missing_texture(&name)
-                    }
-                }
-            }
-            gltf::image::Source::Uri { uri, .. } => {
-                if uri.starts_with("data:") {
-                    let bytes = self.read_uri(uri, "image", img.index())?;
-                    match decode_texture(&name, &bytes, srgb) {
-                        Ok(t) => t,
-                        Err(e) => {
-                            self.scene.warnings.push(format!(
-                                "image {} could not be decoded ({e}): using a magenta fallback",
-                                img.index()
-                            ));
-                            missing_texture(&name)
-                        }
-                    }
-                } else {
-                    let rel = crate::scene::image_io::percent_decode(uri);
-                    load_texture_checked(self.dir, &rel, srgb, &mut self.scene.warnings).map_err(
-                        |RefusedPath(why)| self.err(format!("image {}: {why}", img.index())),
-                    )?
-                }
-            }
-        };
+        // Decoded ahead, in parallel (images.rs), from the source images.rs chooses.
+        let image = self.texture_source(t)?;
+        let mut tex = self.image_texture(image, srgb)?;
         let s = t.sampler();
         let wrap = |w: gltf::texture::WrappingMode| match w {
             gltf::texture::WrappingMode::ClampToEdge => WrapMode::ClampToEdge,
@@ -127,7 +90,19 @@ impl Loader<'_> {
         ext: Option<&gltf::json::Value>,
         what: &str,
     ) -> Result<Option<TextureRef>, SceneError> {
-        let index = self.texture(&texture, false)?;
+        self.special_tex_ref_as(texture, tex_coord, ext, what, false)
+    }
+
+    /// [`Loader::special_tex_ref`], decoded as sRGB when `srgb`.
+    pub(super) fn special_tex_ref_as(
+        &mut self,
+        texture: gltf::Texture,
+        tex_coord: u32,
+        ext: Option<&gltf::json::Value>,
+        what: &str,
+        srgb: bool,
+    ) -> Result<Option<TextureRef>, SceneError> {
+        let index = self.texture(&texture, srgb)?;
         if self.missing.contains(&index) {
             return Ok(None);
         }
@@ -250,10 +225,10 @@ impl Loader<'_> {
         if let Some(cc) = m.extension_value("KHR_materials_clearcoat") {
             self.clearcoat(&mut mat, cc)?;
         }
+        self.bsdf_extensions(m, &mut mat)?;
         if m.unlit() {
-            self.scene.warnings.push(format!(
-                "material '{name}': KHR_materials_unlit is not supported; it is shaded as a lit material"
-            ));
+            // KHR_materials_unlit: the base colour is shown as emitted radiance (docs/DESIGN.md §4).
+            mat.model = MaterialModel::Unlit;
         }
         if m.pbr_specular_glossiness().is_some() {
             self.scene.warnings.push(format!(
@@ -305,12 +280,159 @@ impl Loader<'_> {
         Ok(())
     }
 
+    /// A number of a material extension's JSON: `default` when absent; an error naming the
+    /// material, extension and key when it is not a finite number in `range`.
+    fn ext_num(
+        &self,
+        mat: &Material,
+        v: &gltf::json::Value,
+        ext: &str,
+        key: &str,
+        default: f32,
+        range: std::ops::RangeInclusive<f32>,
+    ) -> Result<f32, SceneError> {
+        match v.get(key) {
+            None => Ok(default),
+            Some(x) => x
+                .as_f64()
+                .map(|x| x as f32)
+                .filter(|x| x.is_finite() && range.contains(x))
+                .ok_or_else(|| {
+                    SceneError::invalid(
+                        self.label,
+                        format!(
+                            "material '{}': {ext} {key} must be a number in [{}, {}]",
+                            mat.name,
+                            range.start(),
+                            range.end()
+                        ),
+                    )
+                }),
+        }
+    }
+
+    /// A colour (3 numbers in `range`) of a material extension's JSON.
+    fn ext_color(
+        &self,
+        mat: &Material,
+        v: &gltf::json::Value,
+        ext: &str,
+        key: &str,
+        default: Vec3,
+    ) -> Result<Vec3, SceneError> {
+        let Some(x) = v.get(key) else {
+            return Ok(default);
+        };
+        let bad = || {
+            SceneError::invalid(
+                self.label,
+                format!(
+                    "material '{}': {ext} {key} must be three numbers in [0, 1]",
+                    mat.name
+                ),
+            )
+        };
+        let a = x.as_array().filter(|a| a.len() == 3).ok_or_else(bad)?;
+        let mut c = [0.0f32; 3];
+        for (i, e) in a.iter().enumerate() {
+            c[i] = e
+                .as_f64()
+                .map(|x| x as f32)
+                .filter(|x| x.is_finite() && (0.0..=1.0).contains(x))
+                .ok_or_else(bad)?;
+        }
+        Ok(Vec3::from(c))
+    }
+
+    /// The BSDF extensions read from the raw JSON (the `gltf` crate does not parse them):
+    /// KHR_materials_sheen, _anisotropy, _iridescence, _dispersion and _diffuse_transmission,
+    /// with their textures (colour textures sRGB, the others linear).
+    fn bsdf_extensions(
+        &mut self,
+        m: &gltf::Material,
+        mat: &mut Material,
+    ) -> Result<(), SceneError> {
+        const UNIT: std::ops::RangeInclusive<f32> = 0.0..=1.0;
+        if let Some(v) = m.extension_value("KHR_materials_sheen") {
+            let e = "KHR_materials_sheen";
+            mat.sheen_color = self.ext_color(mat, v, e, "sheenColorFactor", Vec3::ZERO)?;
+            mat.sheen_roughness = self.ext_num(mat, v, e, "sheenRoughnessFactor", 0.0, UNIT)?;
+            mat.sheen_color_texture =
+                self.raw_tex_ref_as(v.get("sheenColorTexture"), "sheenColor", true)?;
+            mat.sheen_roughness_texture =
+                self.raw_tex_ref(v.get("sheenRoughnessTexture"), "sheenRoughness")?;
+        }
+        if let Some(v) = m.extension_value("KHR_materials_anisotropy") {
+            let e = "KHR_materials_anisotropy";
+            mat.anisotropy = self.ext_num(mat, v, e, "anisotropyStrength", 0.0, UNIT)?;
+            mat.anisotropy_rotation =
+                self.ext_num(mat, v, e, "anisotropyRotation", 0.0, -1.0e6..=1.0e6)?;
+            mat.anisotropy_texture = self.raw_tex_ref(v.get("anisotropyTexture"), "anisotropy")?;
+        }
+        if let Some(v) = m.extension_value("KHR_materials_iridescence") {
+            let e = "KHR_materials_iridescence";
+            mat.iridescence = self.ext_num(mat, v, e, "iridescenceFactor", 0.0, UNIT)?;
+            mat.iridescence_ior = self.ext_num(mat, v, e, "iridescenceIor", 1.3, 1.0..=10.0)?;
+            mat.iridescence_thickness_min =
+                self.ext_num(mat, v, e, "iridescenceThicknessMinimum", 100.0, 0.0..=1.0e5)?;
+            mat.iridescence_thickness_max =
+                self.ext_num(mat, v, e, "iridescenceThicknessMaximum", 400.0, 0.0..=1.0e5)?;
+            mat.iridescence_texture =
+                self.raw_tex_ref(v.get("iridescenceTexture"), "iridescence")?;
+            mat.iridescence_thickness_texture =
+                self.raw_tex_ref(v.get("iridescenceThicknessTexture"), "iridescenceThickness")?;
+        }
+        if let Some(v) = m.extension_value("KHR_materials_dispersion") {
+            mat.dispersion = self.ext_num(
+                mat,
+                v,
+                "KHR_materials_dispersion",
+                "dispersion",
+                0.0,
+                0.0..=1.0e3,
+            )?;
+            if mat.dispersion > 0.0 && (mat.transmission <= 0.0 || mat.thin_walled) {
+                self.scene.warnings.push(format!(
+                    "material '{}': KHR_materials_dispersion has no effect without volumetric transmission (KHR_materials_transmission with KHR_materials_volume thickness > 0)",
+                    mat.name
+                ));
+            }
+        }
+        if let Some(v) = m.extension_value("KHR_materials_diffuse_transmission") {
+            let e = "KHR_materials_diffuse_transmission";
+            mat.diffuse_transmission =
+                self.ext_num(mat, v, e, "diffuseTransmissionFactor", 0.0, UNIT)?;
+            mat.diffuse_transmission_color =
+                self.ext_color(mat, v, e, "diffuseTransmissionColorFactor", Vec3::ONE)?;
+            mat.diffuse_transmission_texture =
+                self.raw_tex_ref(v.get("diffuseTransmissionTexture"), "diffuseTransmission")?;
+            mat.diffuse_transmission_color_texture = self.raw_tex_ref_as(
+                v.get("diffuseTransmissionColorTexture"),
+                "diffuseTransmissionColor",
+                true,
+            )?;
+        }
+        // The transmissive component models clearcoat, sheen, anisotropy and iridescence too
+        // (`material::bxdf::GltfTransmission`), so nothing here needs a warning.
+        Ok(())
+    }
+
     /// A `textureInfo` given as raw extension JSON (`index`, `texCoord`, KHR_texture_transform),
     /// decoded linearly. A missing or out-of-range index is an error naming the file.
     pub(super) fn raw_tex_ref(
         &mut self,
         info: Option<&gltf::json::Value>,
         what: &str,
+    ) -> Result<Option<TextureRef>, SceneError> {
+        self.raw_tex_ref_as(info, what, false)
+    }
+
+    /// [`Loader::raw_tex_ref`], decoded as sRGB when `srgb` (colour textures).
+    pub(super) fn raw_tex_ref_as(
+        &mut self,
+        info: Option<&gltf::json::Value>,
+        what: &str,
+        srgb: bool,
     ) -> Result<Option<TextureRef>, SceneError> {
         let Some(info) = info else { return Ok(None) };
         let texture = info
@@ -331,7 +453,7 @@ impl Loader<'_> {
         let transform = info
             .get("extensions")
             .and_then(|e| e.get("KHR_texture_transform"));
-        self.special_tex_ref(texture, tex_coord, transform, what)
+        self.special_tex_ref_as(texture, tex_coord, transform, what, srgb)
     }
 
     pub(super) fn default_material(&mut self) -> MaterialId {

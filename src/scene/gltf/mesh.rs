@@ -43,8 +43,29 @@ impl Loader<'_> {
             ));
             return Ok(None);
         };
+        // KHR_draco_mesh_compression: the listed attributes and the triangles come from the
+        // Draco stream (draco.rs); the accessors only describe them.
+        let mut draco = self.decode_draco(mesh_name, prim)?;
+        let mut take = |this: &Self,
+                        acc: &gltf::Accessor,
+                        sem: &gltf::Semantic,
+                        what: &str|
+         -> Result<(Vec<[f64; 4]>, usize), SceneError> {
+            if let Some(v) = draco
+                .as_mut()
+                .and_then(|d| d.attributes.remove(&sem.to_string()))
+            {
+                return Ok(v);
+            }
+            this.read_accessor(acc, what)
+        };
+        let vec3 = |v: Vec<[f64; 4]>| -> Vec<Vec3> {
+            v.iter()
+                .map(|e| Vec3::new(e[0] as f32, e[1] as f32, e[2] as f32))
+                .collect()
+        };
         let what = format!("mesh '{mesh_name}' POSITION");
-        let positions = self.read_vec3(&pos_acc, &what)?;
+        let positions = vec3(take(self, &pos_acc, &gltf::Semantic::Positions, &what)?.0);
         let n = positions.len();
         let mut m = Mesh {
             name: mesh_name.to_string(),
@@ -55,19 +76,30 @@ impl Loader<'_> {
             use gltf::Semantic as S;
             match sem {
                 S::Positions => {}
-                S::Normals => m.normals = Some(self.read_vec3(&acc, "NORMAL")?),
+                S::Normals => m.normals = Some(vec3(take(self, &acc, &sem, "NORMAL")?.0)),
                 S::Tangents => {
-                    let (v, _) = self.read_accessor(&acc, "TANGENT")?;
+                    let (v, _) = take(self, &acc, &sem, "TANGENT")?;
                     m.tangents = Some(
                         v.iter()
                             .map(|e| Vec4::new(e[0] as f32, e[1] as f32, e[2] as f32, e[3] as f32))
                             .collect(),
                     );
                 }
-                S::TexCoords(0) => m.uv0 = Some(self.read_vec2(&acc, "TEXCOORD_0")?),
-                S::TexCoords(1) => m.uv1 = Some(self.read_vec2(&acc, "TEXCOORD_1")?),
+                S::TexCoords(k @ (0 | 1)) => {
+                    let (v, _) = take(self, &acc, &sem, &format!("TEXCOORD_{k}"))?;
+                    let uv = Some(
+                        v.iter()
+                            .map(|e| Vec2::new(e[0] as f32, e[1] as f32))
+                            .collect(),
+                    );
+                    if k == 0 {
+                        m.uv0 = uv;
+                    } else {
+                        m.uv1 = uv;
+                    }
+                }
                 S::Colors(0) => {
-                    let (v, nc) = self.read_accessor(&acc, "COLOR_0")?;
+                    let (v, nc) = take(self, &acc, &sem, "COLOR_0")?;
                     m.colors = Some(
                         v.iter()
                             .map(|e| {
@@ -92,9 +124,17 @@ impl Loader<'_> {
                 "morph targets are not supported: the base shape is rendered".into(),
             );
         }
-        let idx: Vec<u32> = match prim.indices() {
-            Some(acc) => self.read_indices(&acc)?,
-            None => (0..n as u32).collect(),
+        let idx: Vec<u32> = match (draco.map(|d| d.indices), prim.indices()) {
+            // Draco streams hold triangles whatever the primitive's mode says.
+            (Some(tris), _) => {
+                m.indices = tris.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+                return Ok(Some((
+                    self.scene.add_mesh(m),
+                    self.primitive_material(mesh_name, prim)?,
+                )));
+            }
+            (None, Some(acc)) => self.read_indices(&acc)?,
+            (None, None) => (0..n as u32).collect(),
         };
         let tri = |a: u32, b: u32, c: u32| [a, b, c];
         m.indices = match mode {
@@ -117,7 +157,17 @@ impl Loader<'_> {
                 idx.chunks_exact(3).map(|c| tri(c[0], c[1], c[2])).collect()
             }
         };
-        let material = match prim.material().index() {
+        let material = self.primitive_material(mesh_name, prim)?;
+        let id = self.scene.add_mesh(m);
+        Ok(Some((id, material)))
+    }
+
+    fn primitive_material(
+        &mut self,
+        mesh_name: &str,
+        prim: &gltf::Primitive,
+    ) -> Result<MaterialId, SceneError> {
+        Ok(match prim.material().index() {
             Some(i) if i < self.scene.materials.len() => i,
             Some(i) => {
                 return Err(self.err(format!(
@@ -125,9 +175,7 @@ impl Loader<'_> {
                 )));
             }
             None => self.default_material(),
-        };
-        let id = self.scene.add_mesh(m);
-        Ok(Some((id, material)))
+        })
     }
 
     // ---------------------------------------------------------------- node hierarchy

@@ -17,9 +17,13 @@
 //! textures; `mesh.rs` primitives into meshes; `nodes.rs` the node hierarchy, cameras and lights.
 
 mod accessor;
+mod draco;
+mod images;
 mod material;
 mod mesh;
+mod meshopt;
 mod nodes;
+mod variants;
 
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
@@ -29,10 +33,7 @@ use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
 use super::conventions::{ambient_light, apply_material_conventions, is_ambient_light_name};
-use super::image_io::{
-    RefusedPath, decode_texture, is_missing_texture, load_texture_checked, missing_texture,
-    resolve_in_dir,
-};
+use super::image_io::{is_missing_texture, missing_texture, resolve_in_dir};
 use super::{CameraDesc, LightDesc, MaterialId, Mesh, MeshId, Scene, SceneError, Shape};
 use crate::material::texture::{FilterMode, UvTransform};
 use crate::material::{AlphaMode, Material, MaterialModel, TextureRef, WrapMode};
@@ -55,8 +56,25 @@ const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_volume",
     "KHR_materials_specular",
     "KHR_materials_clearcoat",
+    "KHR_materials_sheen",
+    "KHR_materials_anisotropy",
+    "KHR_materials_iridescence",
+    "KHR_materials_dispersion",
+    "KHR_materials_diffuse_transmission",
+    "KHR_materials_unlit",
     "KHR_texture_transform",
+    "KHR_mesh_quantization",
+    "KHR_draco_mesh_compression",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
+    "EXT_texture_webp",
+    "KHR_texture_basisu",
+    "KHR_materials_variants",
 ];
+
+/// Extensions that carry only metadata (authorship, licence): nothing in them changes the image,
+/// so they are not "unsupported".
+const METADATA_EXTENSIONS: &[&str] = &["KHR_xmp", "KHR_xmp_json_ld"];
 
 /// Loads a glTF document from memory; external files are looked up in `dir`. `label` names the
 /// file in messages. (Also the fuzzing entry point.)
@@ -91,9 +109,16 @@ fn load_from_bytes_unguarded(bytes: &[u8], dir: &Path, label: &str) -> Result<Sc
         meshes: HashMap::new(),
         default_material: None,
         warned: HashSet::new(),
+        decoded_views: HashMap::new(),
+        images: HashMap::new(),
+        variants: Vec::new(),
+        variant_sets: Vec::new(),
     };
     ld.read_buffers(gltf.blob.as_deref())?;
+    ld.decode_meshopt_views()?;
     ld.report_extensions();
+    ld.read_variants()?;
+    ld.decode_images()?;
     for m in gltf.document.materials() {
         let mat = ld.material(&m)?;
         ld.scene.add_material(mat);
@@ -113,10 +138,12 @@ fn load_from_bytes_unguarded(bytes: &[u8], dir: &Path, label: &str) -> Result<Sc
             "skins are not supported: meshes are rendered in their bind pose".into(),
         );
     }
+    ld.images.clear();
+    let variant_sets = std::mem::take(&mut ld.variant_sets);
     let mut scene = ld.scene;
     apply_material_conventions(&mut scene);
-    super::volume::apply_volume_absorption(&mut scene);
-    scene.validate()?;
+    let medium_of = super::volume::apply_volume_absorption(&mut scene);
+    variants::finish(&mut scene, variant_sets, &medium_of);
     Ok(scene)
 }
 
@@ -130,7 +157,15 @@ fn validate(doc: &gltf::Document) -> Result<(), String> {
     let mut errors = Vec::new();
     root.validate(root, gltf::json::Path::new, &mut |path, error| {
         let path = path();
-        if !(matches!(error, Error::Unsupported) && path.0.starts_with("extensionsRequired")) {
+        let unsupported_required =
+            matches!(error, Error::Unsupported) && path.0.starts_with("extensionsRequired");
+        // An accessor without a bufferView is all zeros (glTF 2.0 §3.6.2.1), which the crate
+        // refuses; KHR_draco_mesh_compression's accessors are such, and are checked where the
+        // primitive is read.
+        let accessor_without_view = matches!(error, Error::Missing)
+            && path.0.starts_with("accessors[")
+            && path.0.ends_with("].bufferView");
+        if !unsupported_required && !accessor_without_view {
             errors.push((path, error));
         }
     });
@@ -177,6 +212,14 @@ struct Loader<'a> {
     meshes: HashMap<(usize, usize), Option<(MeshId, MaterialId)>>,
     default_material: Option<MaterialId>,
     warned: HashSet<String>,
+    /// Buffer views decoded from EXT/KHR_meshopt_compression, by view index.
+    decoded_views: HashMap<usize, Vec<u8>>,
+    /// Images decoded ahead of the materials (in parallel), by image index.
+    images: HashMap<usize, images::Decoded>,
+    /// KHR_materials_variants: the variant names, in file order.
+    variants: Vec<String>,
+    /// Per object with variant mappings: its default material and the material of each variant.
+    variant_sets: Vec<variants::ObjectVariantsDraft>,
 }
 
 impl<'a> Loader<'a> {
@@ -192,6 +235,11 @@ impl<'a> Loader<'a> {
 
     fn read_buffers(&mut self, blob: Option<&[u8]>) -> Result<(), SceneError> {
         for b in self.doc.buffers() {
+            if meshopt::is_fallback_buffer(&b) {
+                // Only the compressed views inside it are used; its bytes are never read.
+                self.buffers.push(Vec::new());
+                continue;
+            }
             let data = match b.source() {
                 gltf::buffer::Source::Bin => blob
                     .ok_or_else(|| {
@@ -244,7 +292,7 @@ impl<'a> Loader<'a> {
         let required: HashSet<&str> = self.doc.extensions_required().collect();
         let used: Vec<&str> = self.doc.extensions_used().collect();
         for ext in used {
-            if !SUPPORTED_EXTENSIONS.contains(&ext) {
+            if !SUPPORTED_EXTENSIONS.contains(&ext) && !METADATA_EXTENSIONS.contains(&ext) {
                 let req = if required.contains(ext) {
                     " (the file marks it required; the render may be wrong)"
                 } else {

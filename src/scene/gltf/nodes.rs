@@ -54,6 +54,8 @@ impl Loader<'_> {
                     if let Some((mesh_id, material)) = self.primitive(&mesh, &prim)? {
                         self.scene
                             .add_object(&node_name, Shape::Mesh(mesh_id), world, material);
+                        let object = self.scene.objects.len() - 1;
+                        self.primitive_variants(&prim, object, material)?;
                     }
                 }
             }

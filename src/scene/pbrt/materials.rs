@@ -11,9 +11,12 @@
 //! `roughness`); `thindielectric` → thin-walled transmission; `conductor` → the pbrt-v4 conductor
 //! (complex Fresnel of RGB η, k or pbrt's `reflectance`, anisotropic GGX); `coateddiffuse` and
 //! `coatedconductor` → pbrt-v4's layered BSDF (coat roughness/η, thickness, albedo, g, maxdepth,
-//! nsamples); `diffusetransmission` → Lambertian reflection and transmission; `mix` → the heavier
-//! of the two (warned: Trayecto has no per-hit stochastic material selection); `interface` → an
-//! index-matched boundary. Textured roughness, η, albedo and transmittance use their mean (warned).
+//! nsamples); `diffusetransmission` → Lambertian reflection and transmission; `mix` → a material
+//! that chooses one of the two per hit with probability `amount` (textured or not), as pbrt-v4's
+//! `MixMaterial` does (`eval::resolve_mix`); `interface` → an index-matched boundary.
+//! `roughness`/`uroughness`/`vroughness` textures are evaluated per hit (with `remaproughness`);
+//! `displacement` bump-maps the shading normal per hit (`eval::bump`). Textured η, albedo and
+//! transmittance use their mean (warned).
 
 use std::path::PathBuf;
 
@@ -23,7 +26,7 @@ use super::Loader;
 use super::params::{ParamList, SpectrumValue, TexOr};
 use crate::material::microfacet::pbrt_roughness_to_alpha;
 use crate::material::texture::{FilterMode, TextureRef, UvTransform};
-use crate::material::{Material, MaterialModel, Texture, WrapMode};
+use crate::material::{Material, MaterialModel, RoughnessTextures, Texture, WrapMode};
 use crate::math::{Vec2, Vec3, Vec4};
 use crate::scene::SceneError;
 
@@ -339,6 +342,8 @@ impl Loader {
             None => (!float_format, None),
             Some("sRGB") => (!float_format, None),
             Some("linear") => (false, None),
+            // pbrt-v4 applies an encoding only to 8-bit images; float images are linear.
+            Some(g) if g.starts_with("gamma ") && float_format => (false, None),
             Some(g) if g.starts_with("gamma ") => match g[6..].trim().parse::<f32>() {
                 Ok(v) if v.is_finite() && v > 0.0 => (false, Some(v)),
                 _ => {
@@ -455,6 +460,11 @@ impl Loader {
                 if let Some((eta, k)) = super::spectra::named_metal(n) {
                     return if n.ends_with("-eta") { eta } else { k };
                 }
+                if let Some(v) = self.spectrum_file(n, at)
+                    && let Some(c) = super::spectra::sampled_rgb(&v)
+                {
+                    return c;
+                }
                 self.warn(format!(
                     "{at}: \"{key}\": named spectrum \"{n}\" is not known; 0.5 is used"
                 ));
@@ -555,15 +565,7 @@ impl Loader {
                 }
                 (
                     j.texture,
-                    Texture {
-                        name: "pbrt baked texture".into(),
-                        width: n,
-                        height: n,
-                        texels,
-                        wrap_s: WrapMode::Repeat,
-                        wrap_t: WrapMode::Repeat,
-                        filter: FilterMode::Bilinear,
-                    },
+                    Texture::image("pbrt baked texture", n, n, texels),
                 )
             })
             .collect();
@@ -574,17 +576,26 @@ impl Loader {
 
     /// GGX α along u and v (pbrt's `uroughness`/`vroughness`, falling back to `roughness`),
     /// remapped as pbrt-v4's `TrowbridgeReitzDistribution::RoughnessToAlpha` when
-    /// `remaproughness` is true (its default).
-    fn alpha_pair(&mut self, p: &ParamList, prefix: &str, at: &str, what: &str) -> Vec2 {
-        let get = |l: &mut Loader, k: &str| -> Option<f32> {
+    /// `remaproughness` is true (its default). A roughness given as a float texture is evaluated
+    /// per hit (the returned [`RoughnessTextures`]); its α slot holds the α of its mean over
+    /// [0,1]², which only the raycast/Whitted local shading uses.
+    fn alpha_pair(&mut self, p: &ParamList, prefix: &str, at: &str) -> (Vec2, RoughnessTextures) {
+        // (roughness or texture factor, texture, mean roughness over [0,1]²); a texture named
+        // twice (e.g. the same for u and v) is converted once.
+        type Axis = (f32, Option<TextureRef>, f32);
+        let mut seen: Vec<(String, Axis)> = Vec::new();
+        let mut get = |l: &mut Loader, k: &str| -> Option<Axis> {
             match p.float_tex(&format!("{prefix}{k}")) {
-                Some(TexOr::Value(v)) => Some(v),
+                Some(TexOr::Value(v)) => Some((v, None, v)),
                 Some(TexOr::Texture(t)) => {
+                    if let Some((_, a)) = seen.iter().find(|(n, _)| *n == t) {
+                        return Some(*a);
+                    }
                     let n = l.lookup_texture(&t, true, at);
-                    l.warn(format!(
-                        "{at}: {what}: a roughness texture (\"{t}\") is not supported; its mean over [0,1]² is used"
-                    ));
-                    Some(l.mean_over_unit_square(&n).x)
+                    let mean = l.mean_over_unit_square(&n).x;
+                    let (c, r) = l.node_to_factor(&n);
+                    seen.push((t, (c.x, r, mean)));
+                    Some((c.x, r, mean))
                 }
                 None => None,
             }
@@ -592,26 +603,44 @@ impl Loader {
         let r = get(self, "roughness");
         let u = get(self, "uroughness");
         let v = get(self, "vroughness");
+        let zero = (0.0, None, 0.0);
         let (u, v) = match (u, v, r) {
             (Some(u), Some(v), _) => (u, v),
-            (Some(u), None, r) => (u, r.unwrap_or(0.0)),
-            (None, Some(v), r) => (r.unwrap_or(0.0), v),
-            (None, None, r) => (r.unwrap_or(0.0), r.unwrap_or(0.0)),
+            (Some(u), None, r) => (u, r.unwrap_or(zero)),
+            (None, Some(v), r) => (r.unwrap_or(zero), v),
+            (None, None, r) => (r.unwrap_or(zero), r.unwrap_or(zero)),
         };
         let remap = p.bool("remaproughness", true);
         let fix = |x: f32| if x.is_finite() { x.max(0.0) } else { 0.0 };
-        Vec2::new(
-            pbrt_roughness_to_alpha(fix(u), remap),
-            pbrt_roughness_to_alpha(fix(v), remap),
-        )
+        let alpha = Vec2::new(
+            pbrt_roughness_to_alpha(fix(u.2), remap),
+            pbrt_roughness_to_alpha(fix(v.2), remap),
+        );
+        let textures = RoughnessTextures {
+            u: u.1,
+            v: v.1,
+            factor: Vec2::new(fix(u.0), fix(v.0)),
+            remap,
+        };
+        (alpha, textures)
     }
 
     /// glTF perceptual roughness (α = roughness²) for the models that are isotropic
-    /// (dielectric): anisotropy is warned and rendered with α = √(αu·αv).
-    fn roughness(&mut self, p: &ParamList, prefix: &str, at: &str, what: &str) -> f32 {
-        let a = self.alpha_pair(p, prefix, at, what);
+    /// (dielectric): anisotropy is warned and rendered with α = √(αu·αv). Roughness textures
+    /// go to `m.pbrt.interface_roughness` (evaluated per hit, [`crate::material::eval`]).
+    fn roughness(&mut self, p: &ParamList, m: &mut Material, at: &str, what: &str) -> f32 {
+        let (a, tex) = self.alpha_pair(p, "", at);
+        if tex.is_textured() {
+            if tex.u != tex.v || tex.factor.x != tex.factor.y {
+                self.warn(format!(
+                    "{at}: {what}: anisotropic roughness textures are rendered isotropic with α = √(αu·αv) per hit"
+                ));
+            }
+            m.pbrt.interface_alpha = a;
+            m.pbrt.interface_roughness = tex;
+        }
         let (au, av) = (a.x, a.y);
-        if (au - av).abs() > 1e-6 * au.max(av) {
+        if !tex.is_textured() && (au - av).abs() > 1e-6 * au.max(av) {
             self.warn(format!(
                 "{at}: {what}: anisotropic roughness (α {au} × {av}) is rendered isotropic with α = √(αu·αv)"
             ));
@@ -714,7 +743,7 @@ impl Loader {
         at: &str,
         what: &str,
     ) {
-        m.pbrt.conductor_alpha = self.alpha_pair(p, pre, at, what);
+        (m.pbrt.conductor_alpha, m.pbrt.conductor_roughness) = self.alpha_pair(p, pre, at);
         let has_eta_k = p.has(&format!("{pre}eta")) || p.has(&format!("{pre}k"));
         if let Some(r) = p.spectrum_tex("reflectance") {
             if has_eta_k {
@@ -786,15 +815,25 @@ impl Loader {
         };
         // Parameters every material may have.
         let _ = p.string("type");
-        if let Some(d) = p.texture("displacement") {
-            self.warn(format!(
-                "{at}: {what}: displacement (bump) texture \"{d}\" is not supported and is ignored"
-            ));
+        // pbrt-v4 `displacement`: bump mapping of the shading normal per hit (eval::bump); a
+        // constant displaces nothing.
+        if let Some(d) = p.float_tex("displacement") {
+            if let TexOr::Texture(t) = d {
+                let n = self.lookup_texture(&t, true, at);
+                let (c, r) = self.node_to_factor(&n);
+                if r.is_some() && c.x != 0.0 && c.x.is_finite() {
+                    m.pbrt.displacement = r;
+                    m.pbrt.displacement_scale = c.x;
+                }
+            }
+            if p.has("normalmap") {
+                self.warn(format!(
+                    "{at}: {what}: both \"displacement\" and \"normalmap\" are given; the normal map is used (as pbrt-v4 does)"
+                ));
+            }
         }
         if let Some(n) = p.string("normalmap") {
-            self.warn(format!(
-                "{at}: {what}: normal map \"{n}\" is not supported yet and is ignored"
-            ));
+            self.normal_map(&mut m, &n, at, &what);
         }
         match spec.ty.as_str() {
             "diffuse" => {
@@ -810,7 +849,7 @@ impl Loader {
                 m.model = MaterialModel::CoatedDiffuse;
                 m.base_color = c;
                 m.base_color_texture = t;
-                m.pbrt.interface_alpha = self.alpha_pair(p, "", at, &what);
+                (m.pbrt.interface_alpha, m.pbrt.interface_roughness) = self.alpha_pair(p, "", at);
                 m.pbrt.interface_eta = self.eta(p, at, &what);
                 self.layer_params(p, &mut m, at, &what);
             }
@@ -823,14 +862,15 @@ impl Loader {
                 // the base, an unprefixed `reflectance` instead of conductor.eta/k.
                 m.model = MaterialModel::CoatedConductor;
                 self.conductor_params(p, "conductor.", &mut m, at, &what);
-                m.pbrt.interface_alpha = self.alpha_pair(p, "interface.", at, &what);
+                (m.pbrt.interface_alpha, m.pbrt.interface_roughness) =
+                    self.alpha_pair(p, "interface.", at);
                 m.pbrt.interface_eta = self.prefixed_eta(p, "interface.", at, &what);
                 self.layer_params(p, &mut m, at, &what);
             }
             "dielectric" | "thindielectric" => {
                 let eta = self.eta(p, at, &what);
                 let rough = if spec.ty == "dielectric" {
-                    self.roughness(p, "", at, &what)
+                    self.roughness(p, &mut m, at, &what)
                 } else {
                     0.0
                 };
@@ -870,38 +910,42 @@ impl Loader {
                 };
             }
             "mix" => {
+                // pbrt-v4 MixMaterial: one of the two materials is chosen per hit with
+                // probability `amount` for materials[1] (eval::resolve_mix). This material only
+                // holds the choice (and, from the graphics state, emission and alpha).
                 let names = p.strings("materials").unwrap_or_default();
-                let amount = match p.float_tex("amount") {
-                    Some(TexOr::Value(v)) => v,
+                let (mut amount, texture) = match p.float_tex("amount") {
+                    Some(TexOr::Value(v)) => (v, None),
                     Some(TexOr::Texture(t)) => {
-                        self.warn(format!("{at}: {what}: a textured mix amount (\"{t}\") is not supported; 0.5 is used"));
-                        0.5
+                        let n = self.lookup_texture(&t, true, at);
+                        let (c, r) = self.node_to_factor(&n);
+                        (c.x, r)
                     }
-                    None => 0.5,
+                    None => (0.5, None),
                 };
+                if !amount.is_finite() {
+                    self.warn(format!(
+                        "{at}: {what}: amount {amount} is not a number; 0.5 is used"
+                    ));
+                    amount = 0.5;
+                }
                 if names.len() != 2 {
                     self.warn(format!("{at}: {what}: \"materials\" must name two materials; the default material is used"));
                     return Material::diffuse(&spec.name, Vec3::splat(0.5));
                 }
-                // pbrt-v4 MixMaterial picks materials[1] with probability `amount`.
-                let pick = if amount >= 0.5 { &names[1] } else { &names[0] };
-                if amount > 0.0 && amount < 1.0 {
-                    self.warn(format!(
-                        "{at}: {what}: a mix with amount {amount} is rendered as \"{pick}\" alone (stochastic material mixing is not supported)"
-                    ));
-                }
-                let Some(inner) = self.named_materials.get(pick).cloned() else {
-                    self.warn(format!("{at}: {what}: material \"{pick}\" is not defined; the default material is used"));
-                    return Material::diffuse(&spec.name, Vec3::splat(0.5));
-                };
                 if depth > 16 {
-                    self.warn(format!("{at}: {what}: mix materials nested too deeply"));
+                    self.warn(format!(
+                        "{at}: {what}: mix materials nested too deeply (a mix that contains itself?); the default material is used"
+                    ));
                     return Material::diffuse(&spec.name, Vec3::splat(0.5));
                 }
-                let mut inner = self.convert_material(&inner, depth + 1);
-                inner.name = spec.name.clone();
-                self.note_unused(p, &what, at);
-                return inner;
+                let a = self.mix_component(&names[0], at, depth);
+                let b = self.mix_component(&names[1], at, depth);
+                m.mix = Some(crate::material::Mix {
+                    materials: [a as u32, b as u32],
+                    amount,
+                });
+                m.mix_amount_texture = texture;
             }
             "interface" => {
                 // A boundary that only separates media (pbrt-v4 `interface`): no surface.
@@ -926,6 +970,35 @@ impl Loader {
         }
         self.note_unused(p, &what, at);
         m
+    }
+
+    /// A component of a `mix`: the named material (without an area light) as a scene material,
+    /// shared with the shapes that name it. A name defined later is filled in at the end, as
+    /// pbrt-v4 creates named materials at the end of the world block.
+    fn mix_component(&mut self, n: &str, at: &str, depth: u32) -> crate::scene::MaterialId {
+        // The keys `current_material` uses for the same name without an area light.
+        let key = format!("named {n}|None");
+        let pending_key = format!("pending {n}|None");
+        if let Some(id) = self
+            .material_cache
+            .get(&key)
+            .or_else(|| self.material_cache.get(&pending_key))
+        {
+            return *id;
+        }
+        let Some(spec) = self.named_materials.get(n).cloned() else {
+            let id = self
+                .scene
+                .add_material(Material::diffuse("pbrt default", Vec3::splat(0.5)));
+            self.material_cache.insert(pending_key, id);
+            self.pending_materials
+                .push((id, n.to_string(), None, at.to_string()));
+            return id;
+        };
+        let m = self.convert_material(&spec, depth + 1);
+        let id = self.scene.add_material(m);
+        self.material_cache.insert(key, id);
+        id
     }
 
     fn eta(&mut self, p: &ParamList, at: &str, what: &str) -> f32 {
@@ -991,6 +1064,50 @@ impl Loader {
     }
 }
 
+impl Loader {
+    /// pbrt-v4's `normalmap`: an image read with linear encoding whose texel (bilinear, repeat)
+    /// is a tangent-space normal 2c − 1 in the frame (∂p/∂u, n × ∂p/∂u, n) (pbrt-v4
+    /// `NormalMap`, `Frame::FromXZ`). Trayecto's tangent-space normal mapping uses the same frame
+    /// for meshes whose uv parameterisation is not mirrored (its bitangent follows ∂p/∂v, which
+    /// n × ∂p/∂u then equals). A missing image is a warning and the surface stays unmapped.
+    fn normal_map(&mut self, m: &mut Material, file: &str, at: &str, what: &str) {
+        let path = match self.resolve(file, at) {
+            Ok(p) if p.is_file() => p,
+            Ok(_) => {
+                self.warn(format!(
+                    "{at}: {what}: normal map \"{file}\" does not exist; the surface is not normal-mapped"
+                ));
+                return;
+            }
+            Err(e) => {
+                self.warn(format!("{e}; the surface is not normal-mapped"));
+                return;
+            }
+        };
+        let index = self.scene.textures.len();
+        // A flat normal until the image is decoded (and if it cannot be).
+        self.scene.textures.push(Texture::image(
+            file,
+            1,
+            1,
+            vec![Vec4::new(0.5, 0.5, 1.0, 1.0)],
+        ));
+        self.image_jobs.push(ImageJob {
+            texture: index,
+            path,
+            name: file.to_string(),
+            srgb: false,
+            gamma: None,
+            filter: FilterMode::Bilinear,
+            wrap: WrapMode::Repeat,
+            at: at.to_string(),
+            size_hint: 0,
+        });
+        m.normal_texture = Some(crate::material::texture::TextureRef::new(index));
+        m.normal_scale = 1.0;
+    }
+}
+
 /// Reads and decodes one image (PNG, JPEG, TGA, HDR via the `image` crate; EXR via the loader
 /// shared with the environment maps; PFM by hand).
 pub(crate) fn decode_image(j: &ImageJob) -> Result<Texture, String> {
@@ -1000,20 +1117,20 @@ pub(crate) fn decode_image(j: &ImageJob) -> Result<Texture, String> {
     } else {
         let bytes = std::fs::read(&j.path).map_err(|e| e.to_string())?;
         if lower.ends_with(".pfm") {
-            decode_pfm(&j.name, &bytes)?
+            crate::scene::image_io::decode_pfm(&j.name, &bytes)?
         } else {
             crate::scene::image_io::decode_texture(&j.name, &bytes, j.srgb)?
         }
     };
     if let Some(g) = j.gamma {
-        for c in &mut t.texels {
-            *c = Vec4::new(
+        t.map_texels(|c| {
+            Vec4::new(
                 c.x.max(0.0).powf(g),
                 c.y.max(0.0).powf(g),
                 c.z.max(0.0).powf(g),
                 c.w,
-            );
-        }
+            )
+        });
     }
     t.filter = j.filter;
     t.wrap_s = j.wrap;
@@ -1027,90 +1144,18 @@ fn decode_exr(name: &str, path: &std::path::Path) -> Result<Texture, String> {
     if w == 0 || h == 0 || w > 16384 || h > 16384 {
         return Err(format!("image size {w}×{h} is not supported"));
     }
-    Ok(Texture {
-        name: name.to_string(),
-        width: w,
-        height: h,
-        texels: img.data.iter().map(|c| c.extend(1.0)).collect(),
-        wrap_s: WrapMode::Repeat,
-        wrap_t: WrapMode::Repeat,
-        filter: FilterMode::Bilinear,
-    })
-}
-
-/// Portable float map: `PF` (RGB) or `Pf` (grey), width height, scale (negative = little
-/// endian), then rows bottom to top.
-pub fn decode_pfm(name: &str, bytes: &[u8]) -> Result<Texture, String> {
-    let mut fields = Vec::new();
-    let mut pos = 0;
-    while fields.len() < 4 {
-        while pos < bytes.len() && bytes[pos].is_ascii_whitespace() {
-            pos += 1;
-        }
-        let start = pos;
-        while pos < bytes.len() && !bytes[pos].is_ascii_whitespace() {
-            pos += 1;
-        }
-        if start == pos || pos - start > 32 {
-            return Err("truncated PFM header".into());
-        }
-        fields.push(String::from_utf8_lossy(&bytes[start..pos]).into_owned());
-    }
-    pos += 1; // the single whitespace byte after the scale
-    let channels = match fields[0].as_str() {
-        "PF" => 3,
-        "Pf" => 1,
-        _ => return Err("not a PFM file".into()),
-    };
-    let w: u32 = fields[1].parse().map_err(|_| "bad PFM width")?;
-    let h: u32 = fields[2].parse().map_err(|_| "bad PFM height")?;
-    let scale: f32 = fields[3].parse().map_err(|_| "bad PFM scale")?;
-    if w == 0 || h == 0 || w > 16384 || h > 16384 || !scale.is_finite() || scale == 0.0 {
-        return Err(format!(
-            "PFM size {w}×{h} or scale {scale} is not supported"
-        ));
-    }
-    let n = w as usize * h as usize * channels;
-    let data = bytes
-        .get(pos..pos + n * 4)
-        .ok_or("the PFM file is shorter than its header says")?;
-    let little = scale < 0.0;
-    let mut texels = vec![Vec4::ZERO; w as usize * h as usize];
-    for y in 0..h as usize {
-        // PFM rows run bottom to top; textures are stored top row first.
-        let dst_row = h as usize - 1 - y;
-        for x in 0..w as usize {
-            let mut c = [0.0f32; 3];
-            for (k, ck) in c.iter_mut().enumerate().take(channels) {
-                let i = ((y * w as usize + x) * channels + k) * 4;
-                let b = [data[i], data[i + 1], data[i + 2], data[i + 3]];
-                let v = if little {
-                    f32::from_le_bytes(b)
-                } else {
-                    f32::from_be_bytes(b)
-                };
-                *ck = if v.is_finite() { v } else { 0.0 };
-            }
-            if channels == 1 {
-                c = [c[0]; 3];
-            }
-            texels[dst_row * w as usize + x] = Vec4::new(c[0], c[1], c[2], 1.0);
-        }
-    }
-    Ok(Texture {
-        name: name.to_string(),
-        width: w,
-        height: h,
-        texels,
-        wrap_s: WrapMode::Repeat,
-        wrap_t: WrapMode::Repeat,
-        filter: FilterMode::Bilinear,
-    })
+    Ok(Texture::image(
+        name,
+        w,
+        h,
+        img.data.iter().map(|c| c.extend(1.0)).collect(),
+    ))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::image_io::decode_pfm;
 
     #[test]
     fn pfm_rows_are_flipped_and_truncation_is_an_error() {
@@ -1119,7 +1164,7 @@ mod tests {
             f.extend_from_slice(&v.to_le_bytes());
         }
         let t = decode_pfm("x", &f).unwrap();
-        assert_eq!(t.texels[1], Vec4::new(4.0, 5.0, 6.0, 1.0));
+        assert_eq!(t.texels.get(1), Vec4::new(4.0, 5.0, 6.0, 1.0));
         assert!(decode_pfm("x", &f[..f.len() - 1]).is_err());
         assert!(decode_pfm("x", b"PF\n999999 999999\n-1\n").is_err());
     }

@@ -30,7 +30,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use crate::material::Material;
-use crate::math::{Mat4, Vec3};
+use crate::math::{Mat3, Mat4, Vec3};
 use crate::scene::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape};
 
 use materials::{MatSpec, TexNode};
@@ -68,9 +68,7 @@ pub fn load_from_file_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Sce
         l.include_stack.push(c);
     }
     l.run_file(text, label, 0)?;
-    let scene = l.finish()?;
-    scene.validate()?;
-    Ok(scene)
+    l.finish()
 }
 
 /// Parses pbrt text held in memory (the fuzzing entry point). Nothing is read from disk:
@@ -81,7 +79,6 @@ pub fn load_from_str(text: &str, label: &str) -> Result<Scene, SceneError> {
     let mut scene = l.finish()?;
     scene.name = label.to_string();
     scene.source = Some(label.into());
-    scene.validate()?;
     Ok(scene)
 }
 
@@ -132,6 +129,18 @@ enum Active {
 struct AreaLight {
     radiance: Vec3,
     two_sided: bool,
+    /// pbrt-v4's `power` (W): radiance L·scale·power / (π · sides · area of each light's shape).
+    power: Option<f32>,
+}
+
+/// The area pbrt-v4 normalises an area light's `power` by, for the shape being placed: each pbrt
+/// shape is one light, and a triangle or bilinear mesh is one light per triangle or patch.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum LightArea {
+    /// A quadric's own `Area()` (object space, as pbrt-v4 computes it).
+    Quadric(f32),
+    /// A mesh whose pbrt-v4 lights are groups of `n` of its triangles (1, or 2 for patches).
+    Triangles(u32),
 }
 
 #[derive(Clone, Debug)]
@@ -180,13 +189,15 @@ enum Frame {
 }
 
 /// One shape of an object definition (`ObjectBegin`): its shape, the transform at definition
-/// time, its material.
+/// time, its material and its medium interface (pbrt-v4 records the `MediumInterface` in effect
+/// inside the definition with each shape; the one at `ObjectInstance` does not apply).
 #[derive(Clone, Debug)]
 struct InstancePart {
     shape: Shape,
     transform: Mat4,
     material: MaterialId,
     name: String,
+    medium: Option<crate::scene::MediumInterface>,
 }
 
 /// A `plymesh` to read after parsing (in parallel).
@@ -217,6 +228,13 @@ pub(crate) struct Loader {
     pub(crate) float_textures: HashMap<String, TexNode>,
     pub(crate) spectrum_textures: HashMap<String, TexNode>,
     material_cache: HashMap<String, MaterialId>,
+    /// Materials placed by a `NamedMaterial` not (yet) defined: pbrt-v4 creates named materials
+    /// at the end of the world block, so a later `MakeNamedMaterial` still applies. Resolved in
+    /// [`Loader::finish`]: (material slot, name, area light, where it was used).
+    pending_materials: Vec<(MaterialId, String, Option<AreaLight>, String)>,
+    /// Set by `shape` for the shape it is about to place: the area its area light's `power`
+    /// is normalised by.
+    pub(crate) light_area: Option<LightArea>,
     instances: HashMap<String, Vec<InstancePart>>,
     current_object: Option<(String, Vec<InstancePart>)>,
     include_stack: Vec<PathBuf>,
@@ -250,6 +268,8 @@ impl Loader {
             float_textures: HashMap::new(),
             spectrum_textures: HashMap::new(),
             material_cache: HashMap::new(),
+            pending_materials: Vec::new(),
+            light_area: None,
             instances: HashMap::new(),
             current_object: None,
             include_stack: Vec::new(),
@@ -569,11 +589,9 @@ impl Loader {
             }
             "PixelFilter" => {
                 let ty = p.string(at)?;
-                let _ = p.params(at)?;
-                self.warn_once(
-                    "filter",
-                    format!("{at}: PixelFilter \"{ty}\": Trayecto reconstructs with a box filter of one pixel (pbrt-v4's default is a 1.5-pixel Gaussian); edges are slightly sharper, means agree"),
-                );
+                let list = p.params(at)?;
+                self.pixel_filter(&ty, &list, at)?;
+                self.note_unused(&list, &format!("PixelFilter \"{ty}\""), at);
             }
             "Accelerator" => {
                 let _ = p.string(at)?;
@@ -723,6 +741,9 @@ impl Loader {
                         ctm * part.transform,
                         part.material,
                     );
+                    if let Some(o) = self.scene.objects.last_mut() {
+                        o.medium = part.medium;
+                    }
                 }
             }
             "Include" | "Import" => {
@@ -882,41 +903,45 @@ impl Loader {
                             "infinite light: both \"L\" and \"filename\" are given",
                         ));
                     }
-                    if e > 0.0 {
-                        self.warn(format!("{at}: infinite light: \"illuminance\" with an image is not supported; the image is used unscaled"));
-                    }
                     let path = self.resolve(&f, at)?;
-                    // pbrt-v4's image infinite lights use square equal-area (octahedral) maps,
-                    // every texel subtending the same solid angle, so the plain texel mean is the
-                    // mean radiance over the sphere. Until that parameterization lands, the light
-                    // is that mean as uniform radiance: exact for the total power it sends into
-                    // an open scene, not for its directions.
-                    let job = materials::ImageJob {
-                        texture: 0,
-                        path,
-                        name: f.clone(),
-                        srgb: false,
-                        gamma: None,
-                        filter: crate::material::texture::FilterMode::Bilinear,
-                        wrap: crate::material::WrapMode::Repeat,
-                        at: at.to_string(),
-                        size_hint: 0,
-                    };
-                    match materials::decode_image(&job) {
-                        Ok(t) => {
-                            let mean = t.average().truncate();
-                            self.warn(format!(
-                                "{at}: infinite light \"{f}\": equal-area environment images are not supported yet; its mean radiance {mean} is used as a uniform environment"
-                            ));
-                            self.scene.lights.push(LightDesc::Ambient {
-                                name,
-                                radiance: mean * s,
-                            });
-                        }
-                        Err(e) => self.warn(format!(
-                            "{at}: infinite light \"{f}\" could not be read ({e}) and was left out"
-                        )),
+                    if !path.is_file() {
+                        self.warn(format!(
+                            "{at}: infinite light \"{f}\": the image does not exist; the light was left out"
+                        ));
+                        self.note_unused(&list, &format!("LightSource \"{ty}\""), at);
+                        return Ok(());
                     }
+                    if let Some(p) = list.point3s("portal") {
+                        // pbrt-v4's PortalImageInfiniteLight samples only directions through
+                        // the portal and is black behind the portal's plane; the whole map is
+                        // the same radiance wherever the portal is visible.
+                        self.warn(format!(
+                            "{at}: infinite light \"{f}\": \"portal\" ({} points) is not supported; the map is sampled over the whole sphere (the same radiance through the portal; pbrt-v4 is black behind the portal's plane)",
+                            p.len()
+                        ));
+                    }
+                    // The light's frame is the CTM (pbrt-v4's `renderFromLight`); EnvMap takes
+                    // its linear part and accounts for a non-rigid one's solid-angle Jacobian.
+                    let to_world = Mat3::from_mat4(ctm);
+                    if e > 0.0 {
+                        let (w, h, texels) =
+                            crate::light::envmap::read_image(&path).map_err(|err| {
+                                SceneError::invalid(at, format!("infinite light \"{f}\": {err}"))
+                            })?;
+                        let k = equal_area_illuminance(w, h, &texels);
+                        if k > 0.0 && k.is_finite() {
+                            s *= e / k;
+                        } else {
+                            self.warn(format!("{at}: infinite light \"{f}\": \"illuminance\" is given but the map sends no light to its upper hemisphere; the image is used unscaled"));
+                        }
+                    }
+                    self.scene.lights.push(LightDesc::Environment {
+                        name,
+                        path,
+                        scale: Vec3::splat(s),
+                        mapping: crate::light::EnvMapping::EqualArea,
+                        transform: Mat4::from_mat3(to_world),
+                    });
                 } else {
                     let rgb = match l {
                         Some(v) => self.illuminant_rgb(&v, at, "L").unwrap_or(Vec3::ONE),
@@ -962,15 +987,9 @@ impl Loader {
         };
         let scale = list.float("scale", 1.0);
         let two_sided = list.bool("twosided", false);
-        if list.has("power") {
-            let _ = list.float("power", 0.0);
-            // pbrt-v4 normalises `power` per shape it creates, and a triangle mesh makes one
-            // light per triangle, so the radiance would differ per triangle: not representable by
-            // one emissive material.
-            self.warn(format!(
-                "{at}: AreaLightSource \"diffuse\": \"power\" is not supported; L × scale is used"
-            ));
-        }
+        // pbrt-v4 normalises `power` per light it creates, i.e. per shape (see `place`).
+        let power = list.float("power", -1.0);
+        let power = (power > 0.0 && power.is_finite()).then_some(power);
         if list.has("filename") {
             let _ = list.string("filename");
             self.warn(format!(
@@ -981,6 +1000,7 @@ impl Loader {
         self.gs.area_light = Some(AreaLight {
             radiance: l * scale,
             two_sided,
+            power,
         });
     }
 
@@ -994,8 +1014,13 @@ impl Loader {
         let r = match s {
             SpectrumValue::Rgb(c) => Some(*c),
             SpectrumValue::Blackbody(t) => spectra::blackbody_rgb(*t),
-            SpectrumValue::Named(n) => spectra::named_illuminant(n),
-            SpectrumValue::Sampled(v) => spectra::sampled_rgb(v),
+            SpectrumValue::Named(n) => match spectra::named_illuminant(n) {
+                Some(c) => Some(c),
+                None => self
+                    .spectrum_file(n, at)
+                    .and_then(|v| spectra::sampled_illuminant_rgb(&v)),
+            },
+            SpectrumValue::Sampled(v) => spectra::sampled_illuminant_rgb(v),
         };
         if r.is_none() {
             self.warn(format!(
@@ -1005,6 +1030,36 @@ impl Loader {
         r
     }
 
+    /// A spectrum named by a file (pbrt-v4 reads a `"spectrum"` string that is not a built-in
+    /// name as a file of (λ, value) pairs, relative to the scene), `None` when it is not one
+    /// (the caller warns); a file that cannot be read or parsed is a warning naming it.
+    pub(crate) fn spectrum_file(&mut self, name: &str, at: &str) -> Option<Vec<(f32, f32)>> {
+        if self.in_memory() {
+            return None;
+        }
+        let path = self.resolve(name, at).ok()?;
+        if !path.is_file() {
+            return None;
+        }
+        let parsed = std::fs::metadata(&path)
+            .map_err(|e| e.to_string())
+            .and_then(|m| {
+                if m.len() > 1 << 24 {
+                    Err("larger than 16 MiB".to_string())
+                } else {
+                    std::fs::read_to_string(&path).map_err(|e| e.to_string())
+                }
+            })
+            .and_then(|t| spectra::parse_spectrum_file(&t));
+        match parsed {
+            Ok(v) => Some(v),
+            Err(e) => {
+                self.warn(format!("{at}: spectrum file \"{name}\": {e}"));
+                None
+            }
+        }
+    }
+
     /// The Trayecto material for the current graphics state (material plus area light).
     fn current_material(&mut self, at: &str) -> MaterialId {
         let (key, spec) = match self.gs.material.clone() {
@@ -1012,14 +1067,13 @@ impl Loader {
             MatRef::Anonymous(i) => (format!("#{i}"), self.anonymous_materials.get(i).cloned()),
             MatRef::Named(n) => match self.named_materials.get(&n) {
                 Some(s) => (format!("named {n}"), Some(s.clone())),
-                None => {
-                    self.warn_once(
-                        &format!("nomat {n}"),
-                        format!("{at}: NamedMaterial \"{n}\" is not defined; the default diffuse material is used"),
-                    );
-                    ("<default>".to_string(), None)
-                }
+                // Defined later, or never (then warned at the end).
+                None => (format!("pending {n}"), None),
             },
+        };
+        let pending = match &self.gs.material {
+            MatRef::Named(n) if spec.is_none() => Some(n.clone()),
+            _ => None,
         };
         let light = self.gs.area_light.clone();
         let full_key = format!("{key}|{light:?}");
@@ -1036,25 +1090,113 @@ impl Loader {
         }
         let id = self.scene.add_material(m);
         self.material_cache.insert(full_key, id);
+        if let Some(n) = pending {
+            self.pending_materials
+                .push((id, n, light.clone(), at.to_string()));
+        }
         id
+    }
+
+    /// The area pbrt-v4 divides an area light's `power` by for `shape` (see [`LightArea`]). A
+    /// mesh whose triangles (or patches) differ in area gets one radiance for the mean area —
+    /// the total power pbrt-v4 emits — with a warning, as pbrt-v4 gives each its own radiance.
+    fn power_area(&mut self, shape: &Shape, area: Option<LightArea>, at: &str) -> Option<f32> {
+        match (area?, shape) {
+            (LightArea::Quadric(a), _) => Some(a),
+            (LightArea::Triangles(n), Shape::Mesh(id)) => {
+                let mesh = self.scene.meshes.get(*id)?;
+                let ctm = self.gs.ctm;
+                let areas: Vec<f32> = mesh
+                    .indices
+                    .chunks(n as usize)
+                    .map(|group| {
+                        group
+                            .iter()
+                            .map(|t| {
+                                let p = |i: u32| ctm.transform_point3(mesh.positions[i as usize]);
+                                0.5 * (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0])).length()
+                            })
+                            .sum::<f32>()
+                    })
+                    .collect();
+                let (lo, hi) = areas.iter().fold((f32::INFINITY, 0.0f32), |(lo, hi), &a| {
+                    (lo.min(a), hi.max(a))
+                });
+                if areas.is_empty() {
+                    return None;
+                }
+                let mean = areas.iter().sum::<f32>() / areas.len() as f32;
+                if hi > 1.01 * lo {
+                    self.warn(format!(
+                        "{at}: AreaLightSource \"diffuse\" \"power\": pbrt-v4 gives each of the mesh's {} triangles or patches its own radiance (their areas differ, {lo}..{hi}); Trayecto uses one radiance for the mean area, with the same total power",
+                        areas.len()
+                    ));
+                }
+                Some(mean)
+            }
+            _ => None,
+        }
+    }
+
+    /// Fills the slots of materials used before their `MakeNamedMaterial` (pbrt-v4 resolves
+    /// names at the end of the world block); names never defined keep the default material.
+    fn resolve_pending_materials(&mut self) {
+        for (id, n, light, at) in std::mem::take(&mut self.pending_materials) {
+            match self.named_materials.get(&n).cloned() {
+                Some(spec) => {
+                    let mut m = self.convert_material(&spec, 0);
+                    if let Some(l) = &light {
+                        m.emissive = l.radiance;
+                        m.double_sided = l.two_sided;
+                    }
+                    self.scene.materials[id] = m;
+                }
+                None => self.warn_once(
+                    &format!("nomat {n}"),
+                    format!("{at}: NamedMaterial \"{n}\" is not defined; the default diffuse material is used"),
+                ),
+            }
+        }
     }
 
     /// Places a shape: in the world, or in the object being defined.
     fn place(&mut self, shape: Shape, name: String, at: &str) {
+        let light_area = self.light_area.take();
+        let saved = self.gs.area_light.clone();
+        if let Some(mut l) = self.gs.area_light.clone()
+            && let Some(phi) = l.power.take()
+        {
+            match self.power_area(&shape, light_area, at) {
+                Some(a) if a > 0.0 && a.is_finite() => {
+                    let sides = if l.two_sided { 2.0 } else { 1.0 };
+                    l.radiance *= phi / (std::f32::consts::PI * sides * a);
+                }
+                _ => self.warn(format!(
+                    "{at}: AreaLightSource \"diffuse\": \"power\" is not supported for this shape; L × scale is used"
+                )),
+            }
+            self.gs.area_light = Some(l);
+        }
         let material = self.current_material(at);
+        self.gs.area_light = saved;
         if self.gs.ctm != self.gs.ctm_end {
             self.warn_once(
                 "motion",
                 format!("{at}: Shape: an animated transform is rendered at its start time (motion blur is not supported)"),
             );
         }
-        if let Some((_, parts)) = &mut self.current_object {
-            parts.push(InstancePart {
-                shape,
-                transform: self.gs.ctm,
-                material,
-                name,
-            });
+        if self.current_object.is_some() {
+            let medium = self.shape_medium_interface(at);
+            let transform = self.gs.ctm;
+            if let Some((_, parts)) = &mut self.current_object {
+                parts.push(InstancePart {
+                    shape,
+                    transform,
+                    material,
+                    name,
+                    medium,
+                });
+            }
         } else {
             self.scene.add_object(&name, shape, self.gs.ctm, material);
             let mi = self.shape_medium_interface(at);
@@ -1099,7 +1241,8 @@ impl Loader {
 
     /// `MakeNamedMedium`: `homogeneous` and `uniformgrid` map onto [`crate::scene::MediumDesc`]
     /// (pbrt-v4 defaults: σa = σs = 1, scale 1, g 0; the grid spans p0–p1 of the medium space
-    /// given by the CTM); other types and emission are warnings.
+    /// given by the CTM); homogeneous media read emission (`Le`, `Lescale`); other types and grid
+    /// emission are warnings.
     fn make_named_medium(&mut self, name: &str, p: &ParamList, at: &str) -> Result<(), SceneError> {
         use crate::scene::{MediumDesc, MediumKind};
         let ty = p.string("type").unwrap_or_default();
@@ -1109,10 +1252,19 @@ impl Loader {
                 "{at}: {what}: redefines the medium; the new definition is used"
             ));
         }
-        if !matches!(ty.as_str(), "homogeneous" | "uniformgrid") {
+        if ty == "nanovdb" {
+            // pbrt-v4 reads NanoVDB files (.nvdb); no maintained Rust reader of that format
+            // exists (the `vdb-rs` crate reads OpenVDB .vdb files, not NanoVDB).
+            let file = p.string("filename").unwrap_or_default();
+            self.warn(format!(
+                "{at}: {what}: NanoVDB grid \"{file}\" is not supported (no Rust reader of the NanoVDB format is available; convert the grid to a \"uniformgrid\" medium); the medium is ignored (vacuum)"
+            ));
+        } else if !matches!(ty.as_str(), "homogeneous" | "uniformgrid") {
             self.warn(format!(
                 "{at}: {what}: medium type \"{ty}\" is not supported; the medium is ignored (vacuum)"
             ));
+        }
+        if !matches!(ty.as_str(), "homogeneous" | "uniformgrid") {
             for q in &p.params {
                 q.used.set(true);
             }
@@ -1134,15 +1286,37 @@ impl Loader {
         let sigma_s = coef(self, "sigma_s");
         let scale = p.float("scale", 1.0);
         let g = p.float("g", 0.0);
-        if p.has("Le") || p.has("Lescale") || p.has("temperature") || p.has("temperaturescale") {
+        // Emission (pbrt-v4 `Le`, an illuminant spectrum, times `Lescale`; σa·Le per unit
+        // length). A uniformgrid weighs Le by its own `Lescale` grid (trilinear, and with no
+        // array a single sample that fades towards the box faces), and `temperature` makes
+        // blackbody emission per voxel: neither is modelled, so grids do not emit.
+        let mut le = Vec3::ZERO;
+        if ty == "homogeneous" && p.has("Le") {
+            let sv = p.spectrum("Le");
+            let rgb = match &sv {
+                Some(s) => self.illuminant_rgb(s, at, "Le").unwrap_or(Vec3::ONE),
+                None => Vec3::ZERO,
+            };
+            le = rgb * p.float("Lescale", 1.0);
+        } else if ty == "homogeneous" && p.has("Lescale") {
+            let _ = p.float("Lescale", 1.0);
+        } else if p.has("Le")
+            || p.has("Lescale")
+            || p.has("temperature")
+            || p.has("temperaturescale")
+            || p.has("temperatureoffset")
+            || p.has("temperaturecutoff")
+        {
             let _ = (
                 p.spectrum("Le"),
-                p.float("Lescale", 1.0),
+                p.floats("Lescale"),
                 p.floats("temperature"),
                 p.float("temperaturescale", 1.0),
+                p.float("temperatureoffset", 0.0),
+                p.float("temperaturecutoff", 0.0),
             );
             self.warn(format!(
-                "{at}: {what}: medium emission (Le/temperature) is not supported; it is ignored"
+                "{at}: {what}: emission of grid media (Le, Lescale, temperature) is not supported; the grid does not emit"
             ));
         }
         let kind = if ty == "uniformgrid" {
@@ -1179,6 +1353,7 @@ impl Loader {
             sigma_s,
             scale,
             g,
+            le,
             kind,
         };
         desc.validate()
@@ -1202,15 +1377,74 @@ impl Loader {
         if let Some((_, _, opened)) = self.stack.last() {
             self.warn(format!("{opened}: this block is never closed"));
         }
+        self.resolve_pending_materials();
         self.load_plys()?;
+        self.default_triangle_uvs();
         self.run_image_jobs();
         self.run_bake_jobs();
         self.camera_and_film()?;
         Ok(self.scene)
     }
 
+    /// Meshes without uvs under a material that reads texture coordinates get pbrt-v4's
+    /// per-triangle (0, 0), (1, 0), (1, 1) ([`shapes::give_default_triangle_uvs`]).
+    fn default_triangle_uvs(&mut self) {
+        let mut done = vec![false; self.scene.meshes.len()];
+        for i in 0..self.scene.objects.len() {
+            let o = &self.scene.objects[i];
+            let Shape::Mesh(id) = o.shape else { continue };
+            if done.get(id).copied() != Some(false)
+                || self.scene.meshes[id].uv0.is_some()
+                || !shapes::material_uses_uv(&self.scene.materials, o.material)
+            {
+                continue;
+            }
+            done[id] = true;
+            shapes::give_default_triangle_uvs(&mut self.scene.meshes[id]);
+        }
+    }
+
+    /// pbrt-v4's `PixelFilter`: box, gaussian, mitchell and triangle with their parameters
+    /// (`xradius`, `yradius`, `sigma`, `B`, `C`) become the scene's filter hint; `sinc` (Lanczos)
+    /// is not built and falls back to pbrt's default Gaussian with a warning.
+    fn pixel_filter(&mut self, ty: &str, list: &ParamList, at: &str) -> Result<(), SceneError> {
+        use crate::film::filter::{Filter, FilterKind};
+        let kind = match ty {
+            "box" => FilterKind::Box,
+            "gaussian" => FilterKind::Gaussian,
+            "mitchell" => FilterKind::Mitchell,
+            "triangle" => FilterKind::Tent,
+            other => {
+                for k in ["xradius", "yradius", "tau"] {
+                    let _ = list.float(k, 0.0);
+                }
+                self.warn(format!(
+                    "{at}: PixelFilter \"{other}\" is not supported: pbrt's default Gaussian (radius 1.5, sigma 0.5) is used"
+                ));
+                self.scene.hints.filter = Some(Filter::new(FilterKind::Gaussian));
+                return Ok(());
+            }
+        };
+        let mut f = Filter::new(kind);
+        f.radius = [
+            list.float("xradius", f.radius[0]),
+            list.float("yradius", f.radius[1]),
+        ];
+        if kind == FilterKind::Gaussian {
+            f.sigma = list.float("sigma", f.sigma);
+        }
+        if kind == FilterKind::Mitchell {
+            f.b = list.float("B", f.b);
+            f.c = list.float("C", f.c);
+        }
+        f.validate()
+            .map_err(|e| SceneError::invalid(at, format!("PixelFilter \"{ty}\": {e}")))?;
+        self.scene.hints.filter = Some(f);
+        Ok(())
+    }
+
     fn camera_and_film(&mut self) -> Result<(), SceneError> {
-        let (xres, yres, crop) = match self.settings.film.take() {
+        let (xres, yres, crop, pixel_bounds) = match self.settings.film.take() {
             Some((film, at)) => {
                 let x = film.int("xresolution", 1280);
                 let y = film.int("yresolution", 720);
@@ -1221,6 +1455,7 @@ impl Loader {
                     ));
                 }
                 let crop = film.floats("cropwindow");
+                let bounds = film.ints("pixelbounds");
                 if let Some(f) = film.string("filename") {
                     self.warn(format!(
                         "{at}: Film \"filename\" \"{f}\" is ignored: the output is what the command line names"
@@ -1229,16 +1464,26 @@ impl Loader {
                 self.note_unused(&film, "Film", &at);
                 let crop = match crop {
                     Some(c) if c.len() == 4 => {
+                        // pbrt-v4: each pair is ordered and clamped to [0, 1].
+                        let cl = |v: f32| if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
                         let c = [
-                            c[0].clamp(0.0, 1.0),
-                            c[1].clamp(0.0, 1.0),
-                            c[2].clamp(0.0, 1.0),
-                            c[3].clamp(0.0, 1.0),
+                            cl(c[0].min(c[1])),
+                            cl(c[0].max(c[1])),
+                            cl(c[2].min(c[3])),
+                            cl(c[2].max(c[3])),
                         ];
-                        if c[0] < c[1] && c[2] < c[3] && c != [0.0, 1.0, 0.0, 1.0] {
+                        if c == [0.0, 1.0, 0.0, 1.0] {
+                            None
+                        } else if c[0] < c[1] && c[2] < c[3] {
                             Some(c)
                         } else {
-                            None
+                            return Err(SceneError::invalid(
+                                &at,
+                                format!(
+                                    "Film: cropwindow {} {} {} {} holds no pixel",
+                                    c[0], c[1], c[2], c[3]
+                                ),
+                            ));
                         }
                     }
                     Some(_) => {
@@ -1246,15 +1491,54 @@ impl Loader {
                     }
                     None => None,
                 };
-                (x as u32, y as u32, crop)
+                // pbrt-v4: pixel bounds x0 x1 y0 y1 within the image, used when no crop window
+                // is given (with both, pbrt uses the crop window and so does Trayecto).
+                let pixel_bounds = match bounds {
+                    Some(b) if b.len() == 4 => {
+                        // pbrt-v4 clamps the bounds to the image, with a warning.
+                        let c = [
+                            b[0].clamp(0, x),
+                            b[1].clamp(0, x),
+                            b[2].clamp(0, y),
+                            b[3].clamp(0, y),
+                        ];
+                        if c[..] != b[..] {
+                            self.warn(format!("{at}: Film \"pixelbounds\" extend beyond the {x}×{y} image: clamped"));
+                        }
+                        if !(c[0] < c[1] && c[2] < c[3]) {
+                            return Err(SceneError::invalid(
+                                &at,
+                                format!(
+                                    "Film: pixelbounds {} {} {} {} holds no pixel of the {x}×{y} image",
+                                    b[0], b[1], b[2], b[3]
+                                ),
+                            ));
+                        }
+                        let c = [c[0] as u32, c[1] as u32, c[2] as u32, c[3] as u32];
+                        (c != [0, x as u32, 0, y as u32]).then_some(c)
+                    }
+                    Some(_) => {
+                        return Err(SceneError::invalid(&at, "Film: pixelbounds needs 4 values"));
+                    }
+                    None => None,
+                };
+                if crop.is_some() && pixel_bounds.is_some() {
+                    self.warn(format!("{at}: Film has both \"cropwindow\" and \"pixelbounds\": the crop window is used, as pbrt-v4 does"));
+                }
+                (x as u32, y as u32, crop, pixel_bounds)
             }
-            None => (1280, 720, None),
+            None => (1280, 720, None, None),
         };
         self.scene.hints.width = Some(xres);
         self.scene.hints.height = Some(yres);
         self.scene.hints.crop = crop;
-        if crop.is_some() {
-            self.warn("Film \"cropwindow\": the whole image is rendered (the crop window is recorded in the render hints but not applied)".into());
+        self.scene.hints.pixel_bounds = pixel_bounds;
+        // pbrt-v4 reconstructs with a Gaussian (radius 1.5, sigma 0.5) when the file names no
+        // PixelFilter.
+        if self.scene.hints.filter.is_none() {
+            self.scene.hints.filter = Some(crate::film::filter::Filter::new(
+                crate::film::filter::FilterKind::Gaussian,
+            ));
         }
         let (camera_from_world, list, at) = match self.settings.camera.take() {
             Some(c) => c,
@@ -1281,27 +1565,59 @@ impl Loader {
                 format!("Camera: fov {fov} is not in (0, 180)"),
             ));
         }
-        // pbrt-v4 PerspectiveCamera: the screen window is [-aspect, aspect] × [-1, 1] for wide
-        // images and [-1, 1] × [-1/aspect, 1/aspect] for tall ones, scaled by tan(fov/2): fov
-        // spans the shorter axis.
+        // pbrt-v4 PerspectiveCamera: the screen window is [-a, a] × [-1, 1] for wide frames and
+        // [-1, 1] × [-1/a, 1/a] for tall ones (a = `frameaspectratio`, by default the film's),
+        // scaled by tan(fov/2): fov spans the shorter axis. A `screenwindow` replaces it.
         let t = (fov.to_radians() * 0.5).tan();
+        let frame = list.float("frameaspectratio", aspect);
+        if !(frame.is_finite() && frame > 0.0) {
+            return Err(SceneError::invalid(
+                &at,
+                format!("Camera: frameaspectratio {frame} is not positive"),
+            ));
+        }
         let mut half_h = if aspect >= 1.0 { t } else { t / aspect };
-        if let Some(sw) = list.floats("screenwindow") {
-            if sw.len() == 4 && sw[1] > sw[0] && sw[3] > sw[2] {
-                let centred = (sw[0] + sw[1]).abs() < 1e-6 && (sw[2] + sw[3]).abs() < 1e-6;
-                if !centred {
-                    self.warn(format!("{at}: Camera \"screenwindow\": an off-centre window is not supported; its height is used, centred"));
-                }
-                half_h = t * 0.5 * (sw[3] - sw[2]);
-                let w_ratio = (sw[1] - sw[0]) / (sw[3] - sw[2]);
-                if (w_ratio - aspect).abs() > 1e-3 * aspect {
-                    self.warn(format!("{at}: Camera \"screenwindow\" has a different aspect ratio from the film; the film's is used"));
-                }
-            } else {
+        let default_window = if frame >= 1.0 {
+            [-frame, frame, -1.0, 1.0]
+        } else {
+            [-1.0, 1.0, -1.0 / frame, 1.0 / frame]
+        };
+        let window = match list.floats("screenwindow") {
+            Some(sw) if sw.len() == 4 && sw[1] > sw[0] && sw[3] > sw[2] => {
+                Some([sw[0], sw[1], sw[2], sw[3]])
+            }
+            Some(_) => {
                 return Err(SceneError::invalid(
                     &at,
                     "Camera: screenwindow needs 4 increasing values",
                 ));
+            }
+            None => (frame != aspect).then_some(default_window),
+        };
+        // An off-centre window, or one whose aspect differs from the film's (pbrt stretches the
+        // image), is the centred window of the same height seen through a shear of camera space:
+        // S(X, Y, −1) = (sx·X + cx·t, Y + cy·t, −1) maps Trayecto's direction through film point
+        // (nx, ny) ∈ [−1, 1]², (nx·hy·t·aspect, ny·hy·t, −1), to pbrt's, ((cx + hx·nx)·t,
+        // (cy + hy·ny)·t, −1), with (cx, cy) the window's centre and (hx, hy) its half sizes.
+        // The lens (z = 0) and the plane of focus (z = −focaldistance) keep their depths, so the
+        // thin lens is unchanged; the centred, film-shaped window keeps the camera as it was.
+        let mut shear = None;
+        if let Some(sw) = window {
+            let (cx, cy) = (0.5 * (sw[0] + sw[1]), 0.5 * (sw[2] + sw[3]));
+            let (hx, hy) = (0.5 * (sw[1] - sw[0]), 0.5 * (sw[3] - sw[2]));
+            half_h = t * hy;
+            let sx = hx / (hy * aspect);
+            let centred = cx.abs() < 1e-6 * hx && cy.abs() < 1e-6 * hy;
+            if !(centred && (sx - 1.0).abs() < 1e-6) {
+                shear = Some(Mat4::from_cols(
+                    crate::math::Vec4::new(sx, 0.0, 0.0, 0.0),
+                    crate::math::Vec4::new(0.0, 1.0, 0.0, 0.0),
+                    crate::math::Vec4::new(-cx * t, -cy * t, 1.0, 0.0),
+                    crate::math::Vec4::W,
+                ));
+                if (sx - 1.0).abs() >= 1e-6 && list.float("lensradius", 0.0) > 0.0 {
+                    self.warn(format!("{at}: Camera: the screen window's aspect ratio differs from the film's: the image is stretched as in pbrt-v4, and so is the lens aperture (pbrt-v4's stays round)"));
+                }
             }
         }
         let vfov = 2.0 * half_h.atan().to_degrees();
@@ -1313,12 +1629,9 @@ impl Loader {
                 "Camera: lensradius must be ≥ 0 and focaldistance > 0",
             ));
         }
-        for k in ["frameaspectratio", "shutteropen", "shutterclose"] {
+        for k in ["shutteropen", "shutterclose"] {
             if list.has(k) {
                 let _ = list.float(k, 0.0);
-                if k == "frameaspectratio" {
-                    self.warn(format!("{at}: Camera \"frameaspectratio\" is not supported; the film's aspect ratio is used"));
-                }
             }
         }
         self.note_unused(&list, "Camera", &at);
@@ -1326,7 +1639,10 @@ impl Loader {
         let flip = Mat4::from_scale(Vec3::new(1.0, 1.0, -1.0));
         self.scene.cameras.push(CameraDesc {
             name: "pbrt camera".into(),
-            camera_to_world: world_from_camera * flip,
+            camera_to_world: match shear {
+                Some(shear) => world_from_camera * flip * shear,
+                None => world_from_camera * flip,
+            },
             vfov_deg: vfov,
             aspect: Some(aspect),
             aperture_radius: lens,
@@ -1587,4 +1903,25 @@ impl<'a> Cursor<'a> {
             Values::Nums(nums)
         })
     }
+}
+
+/// pbrt-v4's `illuminance` normalisation of an equal-area map (`Light::Create`, "infinite"): the
+/// sum over texels in the map's upper hemisphere (+z, texel centres) of luminance × cos θ, times
+/// 2π / texel count. Each texel subtends 4π / N, so with pbrt-v4's 2π / N the illuminance it
+/// produces is twice the requested one; Trayecto follows pbrt-v4, the authority on the format.
+fn equal_area_illuminance(w: u32, h: u32, texels: &[Vec3]) -> f32 {
+    let mut sum = 0.0f64;
+    for y in 0..h {
+        for x in 0..w {
+            let uv =
+                crate::math::Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+            let d = crate::light::equal_area::square_to_sphere(uv);
+            if d.z <= 0.0 {
+                continue;
+            }
+            let t = texels[(y * w + x) as usize];
+            sum += (crate::math::luminance(t) * d.z) as f64;
+        }
+    }
+    (sum * 2.0 * std::f64::consts::PI / (w as f64 * h as f64)) as f32
 }

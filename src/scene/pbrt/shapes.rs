@@ -76,6 +76,7 @@ impl Loader {
             );
         }
         let reverse = self.gs.reverse;
+        self.light_area = None;
         let shape: Option<Shape> = match ty {
             "trianglemesh" => {
                 let p = list.point3s("P");
@@ -112,6 +113,7 @@ impl Loader {
                     .collect();
                 self.mesh_attributes(&mut mesh, &list, at, &what)?;
                 orient(&mut mesh, reverse);
+                self.light_area = Some(super::LightArea::Triangles(1));
                 Some(Shape::Mesh(self.scene.add_mesh(mesh)))
             }
             "bilinearmesh" => {
@@ -147,6 +149,10 @@ impl Loader {
                 let mesh = bilinear_to_triangles(&src, &idx);
                 let mut mesh = mesh;
                 orient(&mut mesh, reverse);
+                // Planar patches are two triangles each; curved ones are refined (no `power`).
+                if mesh.indices.len() == idx.len() / 2 {
+                    self.light_area = Some(super::LightArea::Triangles(2));
+                }
                 Some(Shape::Mesh(self.scene.add_mesh(mesh)))
             }
             "plymesh" => {
@@ -196,15 +202,26 @@ impl Loader {
                     None
                 } else {
                     let full = zmin <= -r && zmax >= r && phimax >= 360.0;
-                    if full && !reverse && is_similarity(&self.gs.ctm) {
+                    // pbrt-v4 Sphere::Area: φmax · r · (zmax − zmin).
+                    self.light_area = Some(super::LightArea::Quadric(
+                        phimax.to_radians() * r * (zmax - zmin),
+                    ));
+                    // Trayecto's analytic sphere has its own (u, v) (around +y); pbrt's runs
+                    // around +z in object space, so a textured sphere is tessellated.
+                    let mat = self.current_material(at);
+                    let textured = material_uses_uv(&self.scene.materials, mat);
+                    if full && !reverse && !textured && is_similarity(&self.gs.ctm) {
                         Some(Shape::Sphere {
                             center: Vec3::ZERO,
                             radius: r,
                         })
                     } else {
+                        // pbrt-v4 Sphere: u = φ/φmax, v = (θ − θ(zmin))/(θ(zmax) − θ(zmin)).
+                        let theta0 = (zmin / r).clamp(-1.0, 1.0).acos();
+                        let theta1 = (zmax / r).clamp(-1.0, 1.0).acos();
                         let mut m = tessellate(&name, QUADRIC_STEPS, |u, v| {
                             let phi = u * phimax.to_radians();
-                            let z = zmin + (zmax - zmin) * v;
+                            let z = r * (theta0 + (theta1 - theta0) * v).cos();
                             let rho = (r * r - z * z).max(0.0).sqrt();
                             let p = Vec3::new(rho * phi.cos(), rho * phi.sin(), z);
                             (p, p.normalize_or_zero())
@@ -223,6 +240,10 @@ impl Loader {
                     self.warn(format!("{at}: {what}: empty cylinder left out"));
                     None
                 } else {
+                    // pbrt-v4 Cylinder::Area: (zmax − zmin) · r · φmax.
+                    self.light_area = Some(super::LightArea::Quadric(
+                        (zmax - zmin).abs() * r * phimax.to_radians(),
+                    ));
                     let mut m = tessellate(&name, (QUADRIC_STEPS.0, 1), |u, v| {
                         let phi = u * phimax.to_radians();
                         let p = Vec3::new(r * phi.cos(), r * phi.sin(), zmin + (zmax - zmin) * v);
@@ -241,6 +262,10 @@ impl Loader {
                     self.warn(format!("{at}: {what}: empty disk left out"));
                     None
                 } else {
+                    // pbrt-v4 Disk::Area: φmax · ½ (r² − rᵢ²).
+                    self.light_area = Some(super::LightArea::Quadric(
+                        phimax.to_radians() * 0.5 * (r * r - ri * ri),
+                    ));
                     let mut m = tessellate(&name, (QUADRIC_STEPS.0, 1), |u, v| {
                         let phi = u * phimax.to_radians();
                         let rho = r + (ri - r) * v;
@@ -635,6 +660,49 @@ fn is_similarity(m: &crate::math::Mat4) -> bool {
 }
 
 /// A (steps.0 × steps.1) grid over (u, v) ∈ [0,1]², with normals from `f` (wound by `orient`).
+/// Whether material `id` (or, for a `mix`, any material it can choose) reads texture
+/// coordinates: any texture slot, bump map or mix amount texture.
+pub(crate) fn material_uses_uv(materials: &[crate::material::Material], id: usize) -> bool {
+    let mut stack = vec![(id, 0u32)];
+    while let Some((i, depth)) = stack.pop() {
+        let Some(m) = materials.get(i) else { continue };
+        if m.texture_refs().next().is_some() {
+            return true;
+        }
+        if let Some(mix) = m.mix
+            && depth < 16
+        {
+            stack.extend(mix.materials.iter().map(|&j| (j as usize, depth + 1)));
+        }
+    }
+    false
+}
+
+/// pbrt-v4's `Triangle` gives a triangle of a mesh without uvs the coordinates (0, 0), (1, 0),
+/// (1, 1) at its three corners. Trayecto's meshes share uvs between triangles, so such a mesh is
+/// split into separate triangles carrying those uvs (stored with v down).
+pub(crate) fn give_default_triangle_uvs(mesh: &mut Mesh) {
+    if mesh.uv0.is_some() {
+        return;
+    }
+    let corners: Vec<u32> = mesh.indices.iter().flatten().copied().collect();
+    let pick3 = |v: &Vec<Vec3>| corners.iter().map(|&i| v[i as usize]).collect::<Vec<_>>();
+    let pick4 =
+        |v: &Vec<crate::math::Vec4>| corners.iter().map(|&i| v[i as usize]).collect::<Vec<_>>();
+    mesh.positions = pick3(&mesh.positions);
+    mesh.normals = mesh.normals.as_ref().map(pick3);
+    mesh.tangents = mesh.tangents.as_ref().map(pick4);
+    mesh.colors = mesh.colors.as_ref().map(pick4);
+    mesh.uv1 = mesh
+        .uv1
+        .as_ref()
+        .map(|v| corners.iter().map(|&i| v[i as usize]).collect());
+    let tri_uv = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)].map(|(u, v)| to_stored_uv(Vec2::new(u, v)));
+    mesh.uv0 = Some((0..mesh.indices.len()).flat_map(|_| tri_uv).collect());
+    let n = mesh.indices.len() as u32;
+    mesh.indices = (0..n).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+}
+
 fn tessellate(name: &str, steps: (usize, usize), f: impl Fn(f32, f32) -> (Vec3, Vec3)) -> Mesh {
     let (nu, nv) = steps;
     let mut m = Mesh {

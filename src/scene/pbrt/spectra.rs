@@ -91,21 +91,7 @@ pub fn sampled_rgb(samples: &[(f32, f32)]) -> Option<Vec3> {
     }
     let mut s: Vec<(f64, f64)> = samples.iter().map(|&(l, v)| (l as f64, v as f64)).collect();
     s.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let eval = |l: f64| -> f64 {
-        if l <= s[0].0 {
-            return s[0].1;
-        }
-        if l >= s[s.len() - 1].0 {
-            return s[s.len() - 1].1;
-        }
-        let i = s.partition_point(|p| p.0 <= l);
-        let (a, b) = (s[i - 1], s[i]);
-        if b.0 == a.0 {
-            return a.1;
-        }
-        a.1 + (b.1 - a.1) * (l - a.0) / (b.0 - a.0)
-    };
-    let xyz = integrate(eval);
+    let xyz = integrate(|l| piecewise_linear(&s, l));
     let white = integrate(|_| 1.0)[1];
     let rgb = xyz_to_srgb([xyz[0] / white, xyz[1] / white, xyz[2] / white]);
     // Equal energy is not D65: scale each channel so that a flat spectrum maps to (1, 1, 1).
@@ -114,6 +100,79 @@ pub fn sampled_rgb(samples: &[(f32, f32)]) -> Option<Vec3> {
         [w[0] / white, 1.0, w[2] / white]
     });
     Some(rgb / flat)
+}
+
+/// Linear sRGB of a piecewise-linear sampled *light* spectrum `(λ nm, value)`: like every pbrt-v4
+/// light spectrum (`scale /= SpectrumToPhotometric(L)`, lights.cpp) it is normalised to luminance
+/// Y = 1 — its magnitude does not matter, `scale`/`power` set the brightness — and, as pbrt-v4's
+/// sRGB film does without white balancing, its XYZ goes to sRGB as it is (an equal-energy
+/// spectrum is slightly red, not white). Checked against pbrt-v4 in
+/// `tests/pbrt_import.rs::spectrum_files_and_sampled_lights_match_pbrt_v4`.
+pub fn sampled_illuminant_rgb(samples: &[(f32, f32)]) -> Option<Vec3> {
+    if samples.is_empty()
+        || samples
+            .iter()
+            .any(|(l, v)| !l.is_finite() || !v.is_finite())
+    {
+        return None;
+    }
+    let mut s: Vec<(f64, f64)> = samples.iter().map(|&(l, v)| (l as f64, v as f64)).collect();
+    s.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let xyz = integrate(|l| piecewise_linear(&s, l));
+    if !(xyz[1] > 0.0) {
+        return None;
+    }
+    Some(xyz_to_srgb([xyz[0] / xyz[1], 1.0, xyz[2] / xyz[1]]))
+}
+
+/// A sorted piecewise-linear spectrum at `l`, constant beyond its ends (pbrt-v4
+/// `PiecewiseLinearSpectrum` is zero there; the difference only matters for spectra that stop
+/// inside 360–830 nm, which measured spectra do not).
+fn piecewise_linear(s: &[(f64, f64)], l: f64) -> f64 {
+    if l <= s[0].0 {
+        return s[0].1;
+    }
+    if l >= s[s.len() - 1].0 {
+        return s[s.len() - 1].1;
+    }
+    let i = s.partition_point(|p| p.0 <= l);
+    let (a, b) = (s[i - 1], s[i]);
+    if b.0 == a.0 {
+        return a.1;
+    }
+    a.1 + (b.1 - a.1) * (l - a.0) / (b.0 - a.0)
+}
+
+/// A pbrt-v4 spectrum file (`PiecewiseLinearSpectrum::Read`): whitespace-separated numbers,
+/// `#` to the end of a line is a comment, read as (λ nm, value) pairs with increasing λ.
+pub fn parse_spectrum_file(text: &str) -> Result<Vec<(f32, f32)>, String> {
+    let mut nums = Vec::new();
+    for line in text.lines() {
+        let line = line.split('#').next().unwrap_or("");
+        for w in line.split_whitespace() {
+            let v: f32 = w.parse().map_err(|_| {
+                format!(
+                    "'{}' is not a number",
+                    w.chars().take(20).collect::<String>()
+                )
+            })?;
+            if !v.is_finite() {
+                return Err(format!("'{w}' is not a finite number"));
+            }
+            nums.push(v);
+        }
+    }
+    if nums.len() < 2 || nums.len() % 2 != 0 {
+        return Err(format!(
+            "{} numbers: a spectrum file holds (wavelength, value) pairs",
+            nums.len()
+        ));
+    }
+    let pairs: Vec<(f32, f32)> = nums.chunks_exact(2).map(|c| (c[0], c[1])).collect();
+    if pairs.windows(2).any(|w| w[1].0 <= w[0].0) {
+        return Err("the wavelengths do not increase".into());
+    }
+    Ok(pairs)
 }
 
 /// RGB (η, k) of pbrt-v4's named metal spectra.

@@ -9,6 +9,8 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use trayecto::denoise::DenoiseOptions;
+use trayecto::film::aov::side_path;
 use trayecto::film::output::to_rgb8;
 use trayecto::film::{Film, Image};
 use trayecto::pipeline::{
@@ -19,9 +21,12 @@ use trayecto::world::WorldOptions;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum JobState {
+    /// Waiting for a free slot (`--max-jobs` renders already run).
+    Queued,
     Loading,
     Building,
     Rendering,
+    Denoising,
     Writing,
     Done,
     Failed,
@@ -31,9 +36,11 @@ pub enum JobState {
 impl JobState {
     pub fn name(self) -> &'static str {
         match self {
+            JobState::Queued => "queued",
             JobState::Loading => "loading",
             JobState::Building => "building",
             JobState::Rendering => "rendering",
+            JobState::Denoising => "denoising",
             JobState::Writing => "writing",
             JobState::Done => "done",
             JobState::Failed => "failed",
@@ -65,6 +72,8 @@ pub struct JobStatus {
     pub error: Option<String>,
     pub png: Option<PathBuf>,
     pub exr: Option<PathBuf>,
+    /// The denoised images (`<output>.denoised.png`/`.exr`), when the request asked for them.
+    pub denoised: Option<(PathBuf, PathBuf)>,
 }
 
 pub struct Job {
@@ -108,8 +117,8 @@ impl Job {
         Some(png)
     }
 
-    /// The job as the API reports it.
-    pub fn to_json(&self) -> Value {
+    /// The job as the API reports it; `queue_position` (1 = next to start) while it waits.
+    pub fn to_json(&self, queue_position: Option<usize>) -> Value {
         let st = self.status();
         let r = &self.request;
         let now = st.finished.unwrap_or_else(Instant::now);
@@ -142,8 +151,14 @@ impl Job {
             "secondary": r.settings.path.secondary,
             "max_depth": r.settings.path.max_depth,
             "exposure": r.exposure,
+            "environment": r.environment.as_ref().map(|(n, _)| n),
+            "env_rotation": r.env_rotation,
+            "camera": r.camera.map(|c| super::viewport::camera_json(&c)),
+            "aovs": r.aovs.iter().map(|k| k.name()).collect::<Vec<_>>(),
+            "linear": st.exr.as_ref().map(|_| format!("{base}/linear")),
             "state": st.state.name(),
             "active": st.state.is_active(),
+            "queue_position": queue_position,
             "samples_done": st.samples_done,
             "progress": progress,
             "elapsed_s": elapsed,
@@ -155,6 +170,9 @@ impl Job {
             "error": st.error,
             "png": st.png.as_ref().map(|_| format!("{base}/image.png")),
             "exr": st.exr.as_ref().map(|_| format!("{base}/image.exr")),
+            "denoise": r.denoise,
+            "denoised_png": st.denoised.as_ref().map(|_| format!("{base}/denoised.png")),
+            "denoised_exr": st.denoised.as_ref().map(|_| format!("{base}/denoised.exr")),
             "created_unix": self.created_unix,
         })
     }
@@ -207,6 +225,7 @@ impl PipelineObserver for Observer<'_> {
                 st.render_started = Some(Instant::now());
                 JobState::Rendering
             }
+            Stage::Denoise => JobState::Denoising,
             Stage::Write => JobState::Writing,
         };
     }
@@ -216,6 +235,7 @@ impl PipelineObserver for Observer<'_> {
             Stage::Load => "load",
             Stage::Build => "build (accel)",
             Stage::Render => "render",
+            Stage::Denoise => "denoise",
             Stage::Write => "write",
         };
         self.job.status().timings.push((name, took.as_secs_f64()));
@@ -227,78 +247,127 @@ impl PipelineObserver for Observer<'_> {
     }
 }
 
-/// Why a job could not be started.
+/// Why a job could not be accepted.
 #[derive(Debug, PartialEq)]
 pub enum SubmitError {
-    /// Already `max_jobs` jobs running.
-    Busy(usize),
-    /// A running job writes the same output name.
+    /// `max_jobs` renders run and `max_queued` more already wait.
+    Busy { running: usize, queued: usize },
+    /// A running or queued job writes the same output name.
     NameInUse(String),
     /// The output folder already holds files of that name (an earlier render's).
     NameTaken(String),
 }
 
-/// Every job the server knows: the running ones and the last few finished ones.
+/// Every job the server knows: the queued, the running and the last few finished ones, in the
+/// order they were submitted. Cloning shares the list (the render threads hold a clone to start
+/// the next queued job when they end).
+#[derive(Clone)]
 pub struct Jobs {
+    inner: Arc<Inner>,
+}
+
+struct Inner {
     list: Mutex<Vec<Arc<Job>>>,
     next_id: AtomicU64,
     max_active: usize,
+    max_queued: usize,
     history: usize,
     output_dir: PathBuf,
 }
 
 impl Jobs {
-    pub fn new(max_active: usize, history: usize, output_dir: PathBuf) -> Jobs {
+    /// `max_active` renders run at once; up to `max_queued` more wait for a slot, first come
+    /// first served.
+    pub fn new(max_active: usize, max_queued: usize, history: usize, output_dir: PathBuf) -> Jobs {
         Jobs {
-            list: Mutex::new(Vec::new()),
-            next_id: AtomicU64::new(1),
-            max_active,
-            history,
-            output_dir,
+            inner: Arc::new(Inner {
+                list: Mutex::new(Vec::new()),
+                next_id: AtomicU64::new(1),
+                max_active,
+                max_queued,
+                history,
+                output_dir,
+            }),
         }
     }
 
     pub fn get(&self, id: u64) -> Option<Arc<Job>> {
-        lock(&self.list).iter().find(|j| j.id == id).cloned()
+        lock(&self.inner.list).iter().find(|j| j.id == id).cloned()
     }
 
     /// Newest first.
     pub fn all(&self) -> Vec<Arc<Job>> {
-        lock(&self.list).iter().rev().cloned().collect()
+        lock(&self.inner.list).iter().rev().cloned().collect()
     }
 
+    /// Jobs queued or running.
     pub fn active_count(&self) -> usize {
-        lock(&self.list)
+        lock(&self.inner.list)
             .iter()
             .filter(|j| j.status().state.is_active())
             .count()
     }
 
-    /// Starts a job on its own thread, unless too many are running.
+    /// 1 for the queued job that starts next, 2 for the one after, …; `None` unless queued.
+    pub fn queue_position(&self, id: u64) -> Option<usize> {
+        lock(&self.inner.list)
+            .iter()
+            .filter(|j| j.status().state == JobState::Queued)
+            .position(|j| j.id == id)
+            .map(|p| p + 1)
+    }
+
+    /// The job as the API reports it, with its place in the queue.
+    pub fn json(&self, job: &Job) -> Value {
+        job.to_json(self.queue_position(job.id))
+    }
+
+    /// Cancels a job: a queued one ends at once (it never starts), a running one stops at the
+    /// end of its current tile.
+    pub fn cancel(&self, job: &Job) {
+        job.cancel.store(true, Ordering::Relaxed);
+        let mut st = job.status();
+        if st.state == JobState::Queued {
+            st.state = JobState::Cancelled;
+            st.log.push("cancelled before it started".into());
+            st.finished = Some(Instant::now());
+        }
+    }
+
+    /// Accepts a job: it starts at once if fewer than `max_active` run, else it waits in the
+    /// queue; refused when the queue is full too.
     pub fn submit(&self, request: RenderRequest) -> Result<Arc<Job>, SubmitError> {
+        let inner = &self.inner;
         let job = {
-            let mut list = lock(&self.list);
-            let active: Vec<&Arc<Job>> = list
-                .iter()
-                .filter(|j| j.status().state.is_active())
-                .collect();
-            if active.len() >= self.max_active {
-                return Err(SubmitError::Busy(self.max_active));
+            let mut list = lock(&inner.list);
+            let states: Vec<JobState> = list.iter().map(|j| j.status().state).collect();
+            let queued = states.iter().filter(|s| **s == JobState::Queued).count();
+            let running = states.iter().filter(|s| s.is_active()).count() - queued;
+            if running >= inner.max_active && queued >= inner.max_queued {
+                return Err(SubmitError::Busy { running, queued });
             }
-            if active.iter().any(|j| j.request.output == request.output) {
+            if list
+                .iter()
+                .zip(&states)
+                .any(|(j, s)| s.is_active() && j.request.output == request.output)
+            {
                 return Err(SubmitError::NameInUse(request.output));
             }
             // Files are never overwritten: a name an earlier render wrote (in this run of the
             // server or before it) is refused rather than silently replaced.
-            if ["png", "exr"].iter().any(|ext| {
-                self.output_dir
-                    .join(format!("{}.{ext}", request.output))
-                    .exists()
-            }) {
+            if ["png", "exr", "denoised.png", "denoised.exr"]
+                .iter()
+                .any(|ext| {
+                    inner
+                        .output_dir
+                        .join(format!("{}.{ext}", request.output))
+                        .exists()
+                })
+            {
                 return Err(SubmitError::NameTaken(request.output));
             }
             let job = Arc::new(Job {
-                id: self.next_id.fetch_add(1, Ordering::Relaxed),
+                id: inner.next_id.fetch_add(1, Ordering::Relaxed),
                 request,
                 cancel: AtomicBool::new(false),
                 created: Instant::now(),
@@ -309,7 +378,7 @@ impl Jobs {
                 tiles_done: AtomicU64::new(0),
                 tiles_total: AtomicU64::new(0),
                 status: Mutex::new(JobStatus {
-                    state: JobState::Loading,
+                    state: JobState::Queued,
                     samples_done: 0,
                     preview: None,
                     preview_version: 0,
@@ -321,6 +390,7 @@ impl Jobs {
                     error: None,
                     png: None,
                     exr: None,
+                    denoised: None,
                 }),
             });
             list.push(job.clone());
@@ -330,7 +400,7 @@ impl Jobs {
                 .filter(|j| !j.status().state.is_active())
                 .count();
             list.retain(|j| {
-                if finished > self.history && !j.status().state.is_active() {
+                if finished > inner.history && !j.status().state.is_active() {
                     finished -= 1;
                     false
                 } else {
@@ -339,46 +409,87 @@ impl Jobs {
             });
             job
         };
+        self.dispatch();
+        Ok(job)
+    }
+
+    /// Starts queued jobs, oldest first, while fewer than `max_active` run. Called after a
+    /// submission and whenever a job ends.
+    fn dispatch(&self) {
+        let list = lock(&self.inner.list);
+        let mut running = list
+            .iter()
+            .filter(|j| {
+                let s = j.status().state;
+                s.is_active() && s != JobState::Queued
+            })
+            .count();
+        for job in list.iter() {
+            if running >= self.inner.max_active {
+                break;
+            }
+            {
+                // Checked and changed under the job's lock, as `cancel` does: a job is either
+                // cancelled while queued or started, never both.
+                let mut st = job.status();
+                if st.state != JobState::Queued {
+                    continue;
+                }
+                st.state = JobState::Loading;
+            }
+            running += 1;
+            self.spawn(job.clone());
+        }
+    }
+
+    fn spawn(&self, job: Arc<Job>) {
         let worker = job.clone();
-        let out_dir = self.output_dir.clone();
+        let jobs = self.clone();
         let spawned = std::thread::Builder::new()
             .name(format!("render-{}", job.id))
             .spawn(move || {
                 let j = worker.clone();
+                let out_dir = jobs.inner.output_dir.clone();
                 // A panic in the renderer must not leave the job counted as running forever.
                 let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     run_job(&j, &out_dir)
                 }));
-                let mut st = worker.status();
-                match r {
-                    Ok(Ok(())) => st.state = JobState::Done,
-                    Ok(Err(JobEnd::Cancelled)) => {
-                        st.state = JobState::Cancelled;
-                        st.log.push("cancelled".into());
+                {
+                    let mut st = worker.status();
+                    match r {
+                        Ok(Ok(())) => st.state = JobState::Done,
+                        Ok(Err(JobEnd::Cancelled)) => {
+                            st.state = JobState::Cancelled;
+                            st.log.push("cancelled".into());
+                        }
+                        Ok(Err(JobEnd::Failed(m))) => {
+                            st.log.push(format!("error: {m}"));
+                            st.error = Some(m);
+                            st.state = JobState::Failed;
+                        }
+                        Err(_) => {
+                            st.error = Some("internal error: the renderer panicked".into());
+                            st.state = JobState::Failed;
+                        }
                     }
-                    Ok(Err(JobEnd::Failed(m))) => {
-                        st.log.push(format!("error: {m}"));
-                        st.error = Some(m);
-                        st.state = JobState::Failed;
-                    }
-                    Err(_) => {
-                        st.error = Some("internal error: the renderer panicked".into());
-                        st.state = JobState::Failed;
-                    }
+                    // Free the image memory: the result is on disk, and a cancelled or failed
+                    // job keeps nothing.
+                    st.preview = None;
+                    st.preview_png = None;
+                    st.finished = Some(Instant::now());
                 }
-                // Free the image memory: the result is on disk, and a cancelled or failed job
-                // keeps nothing.
-                st.preview = None;
-                st.preview_png = None;
-                st.finished = Some(Instant::now());
+                jobs.dispatch();
             });
         if let Err(e) = spawned {
-            let mut st = job.status();
-            st.state = JobState::Failed;
-            st.error = Some(format!("could not start a render thread: {e}"));
-            st.finished = Some(Instant::now());
+            {
+                let mut st = job.status();
+                st.state = JobState::Failed;
+                st.error = Some(format!("could not start a render thread: {e}"));
+                st.finished = Some(Instant::now());
+            }
+            // Not `dispatch` again from here (it holds the list lock): the next job starts when
+            // another one ends or is submitted.
         }
-        Ok(job)
     }
 }
 
@@ -407,13 +518,26 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
         scene: r.source.load_spec(),
         world: WorldOptions {
             default_light: r.default_light,
+            variant: r.variant.clone(),
+            env: r.environment.as_ref().map(|(_, p)| p.clone()),
+            env_rotation: r.env_rotation,
+            camera_override: r.camera,
             ..WorldOptions::default()
         },
         settings: r.settings.clone(),
-        // The web UI always sends its size, samples and depth.
-        given: GivenSettings::ALL,
+        // The web UI always sends its size, samples and depth; the filter only when asked
+        // (else the scene file's, e.g. a pbrt PixelFilter).
+        given: GivenSettings {
+            filter: r.filter_given,
+            ..GivenSettings::ALL
+        },
         outputs: vec![output(&png), output(&exr)],
         split: Default::default(),
+        crop: r.crop,
+        aovs: r.aovs.clone(),
+        // Open Image Denoise as the CLI finds it; without it the job fails before rendering,
+        // with the install command in its error.
+        denoise: r.denoise.then(DenoiseOptions::default),
     };
     let observer = Observer {
         job,
@@ -448,6 +572,9 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
     let mut st = job.status();
     st.timings
         .push(("total", job.created.elapsed().as_secs_f64()));
+    if r.denoise {
+        st.denoised = Some((side_path(&png, "denoised"), side_path(&exr, "denoised")));
+    }
     st.png = Some(png);
     st.exr = Some(exr);
     st.samples_done = r.settings.spp;
@@ -459,34 +586,97 @@ mod tests {
     use super::*;
     use crate::server::request::SceneSource;
 
+    fn request(output: &str, size: u32, spp: u32) -> RenderRequest {
+        RenderRequest {
+            scene: "cornell".into(),
+            source: SceneSource::Builtin("cornell".into()),
+            output: output.into(),
+            settings: trayecto::render::RenderSettings {
+                width: size,
+                height: size,
+                spp,
+                threads: Some(1),
+                ..Default::default()
+            },
+            exposure: 1.0,
+            tonemap: Default::default(),
+            default_light: None,
+            denoise: false,
+            filter_given: false,
+            crop: None,
+            variant: None,
+            environment: None,
+            env_rotation: 0.0,
+            camera: None,
+            aovs: Vec::new(),
+        }
+    }
+
+    fn wait(job: &Arc<Job>) {
+        let t0 = Instant::now();
+        while job.status().state.is_active() {
+            assert!(t0.elapsed() < Duration::from_secs(60), "job still running");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    /// With one slot, later jobs wait in order with their positions, a queued job cancelled
+    /// never starts, a full queue refuses, and the rest complete in submission order.
+    #[test]
+    fn jobs_beyond_the_slots_queue_and_run_in_order() {
+        let dir = std::env::temp_dir().join(format!("trayecto-jobs-queue-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let jobs = Jobs::new(1, 3, 10, dir.clone());
+        // The first is long enough to still run while the others are submitted.
+        let first = jobs.submit(request("q1", 64, 4096)).unwrap();
+        let second = jobs.submit(request("q2", 8, 1)).unwrap();
+        // A queued job's name is in use.
+        assert!(matches!(
+            jobs.submit(request("q2", 8, 1)),
+            Err(SubmitError::NameInUse(_))
+        ));
+        let third = jobs.submit(request("q3", 8, 1)).unwrap();
+        let fourth = jobs.submit(request("q4", 8, 1)).unwrap();
+        assert_ne!(first.status().state, JobState::Queued);
+        assert_eq!(second.status().state, JobState::Queued);
+        assert_eq!(jobs.queue_position(first.id), None);
+        assert_eq!(jobs.queue_position(second.id), Some(1));
+        assert_eq!(jobs.queue_position(third.id), Some(2));
+        assert_eq!(jobs.json(&fourth)["queue_position"], 3);
+        // The queue (3) is full: refused, naming what runs and waits.
+        assert_eq!(
+            jobs.submit(request("q5", 8, 1)).err(),
+            Some(SubmitError::Busy {
+                running: 1,
+                queued: 3
+            })
+        );
+        jobs.cancel(&third);
+        assert_eq!(third.status().state, JobState::Cancelled);
+        assert_eq!(jobs.queue_position(fourth.id), Some(2));
+        jobs.cancel(&first);
+        for j in [&first, &second, &third, &fourth] {
+            wait(j);
+        }
+        assert_eq!(first.status().state, JobState::Cancelled);
+        assert_eq!(second.status().state, JobState::Done);
+        assert_eq!(fourth.status().state, JobState::Done);
+        // The cancelled queued job never rendered; the others ran one after the other.
+        assert!(third.status().render_started.is_none());
+        let (s2, s4) = (second.status(), fourth.status());
+        assert!(s2.finished.unwrap() <= s4.render_started.unwrap());
+        drop((s2, s4));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
     /// A panic in the renderer becomes a failed job with an error, the job stops counting as
     /// running, and its slot takes the next job (max_active = 1).
     #[test]
     fn a_renderer_panic_becomes_a_failed_job() {
         let dir = std::env::temp_dir().join(format!("trayecto-jobs-panic-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let jobs = Jobs::new(1, 10, dir.clone());
-        let request = |output: &str| RenderRequest {
-            scene: "cornell".into(),
-            source: SceneSource::Builtin("cornell".into()),
-            output: output.into(),
-            settings: trayecto::render::RenderSettings {
-                width: 8,
-                height: 8,
-                spp: 1,
-                ..Default::default()
-            },
-            exposure: 1.0,
-            tonemap: Default::default(),
-            default_light: None,
-        };
-        let wait = |job: &Arc<Job>| {
-            let t0 = Instant::now();
-            while job.status().state.is_active() {
-                assert!(t0.elapsed() < Duration::from_secs(30), "job still running");
-                std::thread::sleep(Duration::from_millis(10));
-            }
-        };
+        let jobs = Jobs::new(1, 4, 10, dir.clone());
+        let request = |output: &str| super::tests::request(output, 8, 1);
         let job = jobs.submit(request("panic-in-renderer")).unwrap();
         wait(&job);
         {

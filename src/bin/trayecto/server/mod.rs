@@ -12,6 +12,8 @@
 
 pub mod jobs;
 pub mod request;
+pub mod upload;
+pub mod viewport;
 
 use axum::Router;
 use axum::body::Body;
@@ -50,18 +52,34 @@ pub struct ServeArgs {
     /// Folder the renders are written to (created if missing).
     #[arg(long, default_value = "renders")]
     pub output: PathBuf,
-    /// Renders allowed to run at the same time; more are refused with 429.
+    /// Renders allowed to run at the same time; more wait in a queue.
     #[arg(long, default_value_t = 2)]
     pub max_jobs: usize,
+    /// Renders allowed to wait for a free slot; more are refused with 429.
+    #[arg(long, default_value_t = 16)]
+    pub max_queue: usize,
     /// Largest width or height accepted.
     #[arg(long, default_value_t = 4096)]
     pub max_size: u32,
     /// Largest samples per pixel accepted.
     #[arg(long, default_value_t = 16384)]
     pub max_spp: u32,
+    /// Largest upload accepted (a .glb or a .zip), in MiB.
+    #[arg(long, default_value_t = 128, value_name = "MIB")]
+    pub max_upload: u64,
+    /// Largest total size an uploaded .zip may unpack to, in MiB.
+    #[arg(long, default_value_t = 1024, value_name = "MIB")]
+    pub max_unpacked: u64,
     /// Worker threads per render (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Access token the page and the API require (16 to 256 letters, digits, '-', '_', '.');
+    /// on any address but 127.0.0.1 and ::1 one is generated and printed when not given.
+    #[arg(long, value_name = "TOKEN")]
+    pub token: Option<String>,
+    /// Serve without a token: only allowed on 127.0.0.1 and ::1.
+    #[arg(long, conflicts_with = "token")]
+    pub no_token: bool,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -80,15 +98,102 @@ struct AppState {
     /// Whether the server listens on loopback only; then the Host header must name loopback too
     /// (a DNS-rebinding page cannot reach the API).
     loopback: bool,
+    /// The access token every request must carry, if any ([`Access`]).
+    access: Option<Access>,
+    /// The pages' interactive previews (outside the render queue, [`viewport`]).
+    viewports: viewport::Viewports,
+}
+
+/// Access by token (issue #21), as Jupyter does: the start-up line prints `/?token=T`; opening
+/// it stores the token in a cookie (HttpOnly, SameSite=Strict, so other sites' pages cannot use
+/// it) and redirects to the bare page; API clients send `Authorization: Bearer T` instead.
+#[derive(Clone, Debug)]
+pub struct Access {
+    pub token: String,
+    /// Cookies are per host, not per port: the name carries the port so that two servers on
+    /// one machine keep their own tokens.
+    pub cookie: String,
+}
+
+impl Access {
+    pub fn new(token: String, port: u16) -> Access {
+        Access {
+            token,
+            cookie: format!("trayecto_token_{port}"),
+        }
+    }
+}
+
+/// The addresses served without a token: this machine's default loopback addresses. Every other
+/// address, other 127.x.y.z ones included, needs a token (`--no-token` is refused there).
+pub fn token_free(ip: std::net::IpAddr) -> bool {
+    ip == std::net::IpAddr::from(std::net::Ipv4Addr::LOCALHOST)
+        || ip == std::net::IpAddr::from(std::net::Ipv6Addr::LOCALHOST)
+}
+
+/// Comparison whose time does not depend on where the strings differ.
+fn same_secret(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// 128 random bits from the operating system, as 32 hexadecimal digits.
+fn generate_token() -> Result<String, ServeError> {
+    use std::io::Read;
+    let mut bytes = [0u8; 16];
+    std::fs::File::open("/dev/urandom")
+        .and_then(|mut f| f.read_exact(&mut bytes))
+        .map_err(|e| {
+            ServeError::Option(format!(
+                "cannot generate an access token ({e}): give one with --token"
+            ))
+        })?;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
 type Shared = Arc<AppState>;
 
 impl ServeArgs {
+    /// The access token for serving on `ip`: the given one, a generated one on addresses other
+    /// than 127.0.0.1 and ::1, or none there. `--no-token` elsewhere is refused.
+    pub fn access_token(&self, ip: std::net::IpAddr) -> Result<Option<String>, ServeError> {
+        if let Some(t) = &self.token {
+            let ok = (16..=256).contains(&t.len())
+                && t.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'));
+            if !ok {
+                return Err(ServeError::Option(
+                    "--token must be 16 to 256 letters, digits, '-', '_' or '.'".into(),
+                ));
+            }
+            return Ok(Some(t.clone()));
+        }
+        match (token_free(ip), self.no_token) {
+            (true, _) => Ok(None),
+            (false, true) => Err(ServeError::Option(format!(
+                "refusing to serve on {ip} without a token: anyone who can reach it could start \
+                 renders (drop --no-token to get a generated token, or give --token)"
+            ))),
+            (false, false) => generate_token().map(Some),
+        }
+    }
+
     /// Checks the options and canonicalises the folders.
     pub fn policy(&self) -> Result<Policy, ServeError> {
         if self.max_jobs == 0 || self.max_jobs > 64 {
             return Err(ServeError::Option("--max-jobs must be 1 to 64".into()));
+        }
+        if self.max_upload == 0 || self.max_upload > 4096 {
+            return Err(ServeError::Option(
+                "--max-upload must be 1 to 4096 (MiB)".into(),
+            ));
+        }
+        if self.max_unpacked == 0 || self.max_unpacked > 65536 {
+            return Err(ServeError::Option(
+                "--max-unpacked must be 1 to 65536 (MiB)".into(),
+            ));
+        }
+        if self.max_queue > 1024 {
+            return Err(ServeError::Option("--max-queue must be 0 to 1024".into()));
         }
         if self.max_size == 0 || self.max_size > trayecto::render::MAX_DIMENSION {
             return Err(ServeError::Option(format!(
@@ -136,6 +241,12 @@ impl ServeArgs {
                 max_size: self.max_size,
                 max_spp: self.max_spp,
                 max_jobs: self.max_jobs,
+                max_queue: self.max_queue,
+                upload: upload::UploadLimits {
+                    max_file: (self.max_upload << 20) as usize,
+                    max_unpacked: self.max_unpacked << 20,
+                    ..Default::default()
+                },
                 ..Limits::default()
             },
             threads: self.threads,
@@ -144,11 +255,18 @@ impl ServeArgs {
 }
 
 /// The router for a policy (exposed so it can be served by other means).
-pub fn router(policy: Policy, loopback: bool) -> Router {
+pub fn router(policy: Policy, loopback: bool, access: Option<Access>) -> Router {
     let state = Arc::new(AppState {
-        jobs: Jobs::new(policy.limits.max_jobs, HISTORY, policy.output_dir.clone()),
+        access,
+        jobs: Jobs::new(
+            policy.limits.max_jobs,
+            policy.limits.max_queue,
+            HISTORY,
+            policy.output_dir.clone(),
+        ),
         policy,
         loopback,
+        viewports: Default::default(),
     });
     Router::new()
         .route(
@@ -167,9 +285,15 @@ pub fn router(policy: Policy, loopback: bool) -> Router {
         .route("/api/scenes", get(scenes))
         .route("/api/scene-defaults", get(scene_defaults))
         .route("/api/renders", get(list_renders).post(create_render))
+        .route("/api/uploads", post(upload_scene))
         .route("/api/renders/{id}", get(render_status))
         .route("/api/renders/{id}/cancel", post(cancel_render))
         .route("/api/renders/{id}/preview.png", get(preview))
+        .route("/api/renders/{id}/linear", get(render_linear))
+        .route("/api/scene-view", get(scene_view))
+        .route("/api/viewport", post(viewport_submit))
+        .route("/api/viewport/{session}", get(viewport_status))
+        .route("/api/viewport/{session}/linear", get(viewport_linear))
         .route("/api/renders/{id}/{file}", get(download))
         .fallback(|| async { error(StatusCode::NOT_FOUND, "no such page or API endpoint") })
         .layer(middleware::from_fn_with_state(state.clone(), guard))
@@ -183,6 +307,7 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
         .host
         .parse()
         .map_err(|_| ServeError::Option(format!("--host '{}' is not an IP address", args.host)))?;
+    let token = args.access_token(ip)?;
     let addr = SocketAddr::new(ip, args.port);
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -206,10 +331,17 @@ pub fn run(args: &ServeArgs) -> anyhow::Result<()> {
             .map(|p| p.display().to_string())
             .unwrap_or_else(|| "built-in only (use --scenes DIR)".into());
         let _ = writeln!(out, "trayecto serve: listening on http://{local}/");
+        if let Some(t) = &token {
+            let _ = writeln!(
+                out,
+                "access token required; open the page at http://{local}/?token={t}"
+            );
+        }
         let _ = writeln!(out, "scenes: {scenes}");
         let _ = writeln!(out, "output: {}", policy.output_dir.display());
         let _ = out.flush();
-        axum::serve(listener, router(policy, ip.is_loopback())).await?;
+        let access = token.map(|t| Access::new(t, local.port()));
+        axum::serve(listener, router(policy, ip.is_loopback(), access)).await?;
         Ok(())
     })
 }
@@ -252,6 +384,11 @@ async fn guard(State(st): State<Shared>, req: Request, next: Next) -> Response {
     {
         return error(StatusCode::FORBIDDEN, "cross-origin requests are refused");
     }
+    if let Some(access) = &st.access
+        && let Some(refusal) = check_token(access, &req)
+    {
+        return refusal;
+    }
     let mut res = next.run(req).await;
     let h = res.headers_mut();
     h.insert(
@@ -264,6 +401,80 @@ async fn guard(State(st): State<Shared>, req: Request, next: Next) -> Response {
     );
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
     res
+}
+
+/// `None` when the request carries the token (a Bearer header, `X-Trayecto-Token` or the
+/// cookie); otherwise the answer: a redirect that sets the cookie for `GET …?token=T`, else 401.
+fn check_token(access: &Access, req: &Request) -> Option<Response> {
+    let ok = |t: &str| same_secret(t.trim().as_bytes(), access.token.as_bytes());
+    let headers = req.headers();
+    let header_ok = headers
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer "))
+        .is_some_and(ok)
+        || headers
+            .get("x-trayecto-token")
+            .and_then(|v| v.to_str().ok())
+            .is_some_and(ok);
+    let cookie_ok = headers
+        .get_all(header::COOKIE)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(';'))
+        .filter_map(|c| c.trim().split_once('='))
+        .any(|(k, v)| k == access.cookie && ok(v));
+    if header_ok || cookie_ok {
+        return None;
+    }
+    let query_token = req.uri().query().and_then(|q| {
+        q.split('&')
+            .filter_map(|kv| kv.split_once('='))
+            .find(|(k, _)| *k == "token")
+            .map(|(_, v)| v)
+    });
+    if req.method() == Method::GET
+        && let Some(t) = query_token
+        && ok(t)
+    {
+        // The page is reloaded without the token in its address (so it does not stay in the
+        // history or leak through Referer); the cookie carries it from now on.
+        let cookie = format!(
+            "{}={}; Path=/; HttpOnly; SameSite=Strict",
+            access.cookie, access.token
+        );
+        return Some(
+            (
+                StatusCode::SEE_OTHER,
+                [
+                    (header::LOCATION, req.uri().path().to_string()),
+                    (header::SET_COOKIE, cookie),
+                ],
+            )
+                .into_response(),
+        );
+    }
+    let message = if query_token.is_some() {
+        "wrong access token: use the address with ?token= that the server printed when it started"
+    } else {
+        "this server needs its access token: open the address with ?token= that it printed when \
+         it started (API clients: send Authorization: Bearer TOKEN)"
+    };
+    let mut res = if req.uri().path().starts_with("/api/") {
+        error(StatusCode::UNAUTHORIZED, message)
+    } else {
+        (
+            StatusCode::UNAUTHORIZED,
+            [(header::CONTENT_TYPE, "text/plain; charset=utf-8")],
+            format!("Trayecto: {message}\n"),
+        )
+            .into_response()
+    };
+    res.headers_mut().insert(
+        header::WWW_AUTHENTICATE,
+        HeaderValue::from_static("Bearer realm=\"trayecto\""),
+    );
+    Some(res)
 }
 
 fn is_loopback_host(host: &str) -> bool {
@@ -292,6 +503,9 @@ async fn options(State(st): State<Shared>) -> Response {
                 "max_depth": l.max_depth,
                 "max_samples": l.max_samples,
                 "max_jobs": l.max_jobs,
+                "max_queue": l.max_queue,
+                "max_upload": l.upload.max_file,
+                "max_unpacked": l.upload.max_unpacked,
                 "max_body": l.max_body,
                 "max_output_name": request::MAX_OUTPUT_NAME,
             },
@@ -311,6 +525,7 @@ async fn options(State(st): State<Shared>) -> Response {
             "integrators": request::integrator_names(),
             "tonemaps": request::tonemap_names(),
             "default_lights": request::DEFAULT_LIGHT_NAMES,
+            "uploads": st.policy.scenes_dir.is_some(),
         }),
     )
 }
@@ -324,16 +539,36 @@ async fn scenes(
         .get("all")
         .is_some_and(|v| matches!(v.as_str(), "true" | "1" | "on" | "yes"));
     let dir = st.policy.scenes_dir.clone();
-    let (files, hidden) = match dir {
-        Some(d) => tokio::task::spawn_blocking(move || request::scene_list(&d, all))
-            .await
-            .unwrap_or_default(),
-        None => (Vec::new(), 0),
+    let (files, hidden, environments) = match dir {
+        Some(d) => tokio::task::spawn_blocking(move || {
+            let (f, h) = request::scene_list(&d, all);
+            (f, h, request::list_environments(&d))
+        })
+        .await
+        .unwrap_or_default(),
+        None => (Vec::new(), 0, Vec::new()),
     };
     json_response(
         StatusCode::OK,
-        json!({ "builtin": trayecto::scene::builtin::NAMES, "files": files, "hidden": hidden }),
+        json!({
+            "builtin": trayecto::scene::builtin::NAMES,
+            "files": files,
+            "hidden": hidden,
+            "environments": environments,
+        }),
     )
+}
+
+/// The `scene` query parameter of `/api/scene-defaults` and `/api/scene-view`, or the 400 to send
+/// when it is missing or longer than any scene name the request parser accepts.
+fn scene_param(q: &std::collections::HashMap<String, String>) -> Result<String, Response> {
+    let Some(name) = q.get("scene").cloned() else {
+        return Err(error(StatusCode::BAD_REQUEST, "give ?scene=NAME"));
+    };
+    if name.len() > request::MAX_SCENE_NAME {
+        return Err(error(StatusCode::BAD_REQUEST, "the scene name is too long"));
+    }
+    Ok(name)
 }
 
 /// `?scene=NAME`: the size, samples and depth a render of NAME gets from the file (the page
@@ -342,12 +577,10 @@ async fn scene_defaults(
     State(st): State<Shared>,
     Query(q): Query<std::collections::HashMap<String, String>>,
 ) -> Response {
-    let Some(name) = q.get("scene").cloned() else {
-        return error(StatusCode::BAD_REQUEST, "give ?scene=NAME");
+    let name = match scene_param(&q) {
+        Ok(n) => n,
+        Err(r) => return r,
     };
-    if name.len() > request::MAX_SCENE_NAME {
-        return error(StatusCode::BAD_REQUEST, "the scene name is too long");
-    }
     let policy = st.policy.clone();
     match tokio::task::spawn_blocking(move || request::scene_defaults(&name, &policy)).await {
         Ok(Ok(v)) => json_response(StatusCode::OK, v),
@@ -357,7 +590,7 @@ async fn scene_defaults(
 }
 
 async fn list_renders(State(st): State<Shared>) -> Response {
-    let list: Vec<Value> = st.jobs.all().iter().map(|j| j.to_json()).collect();
+    let list: Vec<Value> = st.jobs.all().iter().map(|j| st.jobs.json(j)).collect();
     json_response(
         StatusCode::OK,
         json!({ "renders": list, "active": st.jobs.active_count() }),
@@ -412,42 +645,53 @@ async fn read_limited(
     Ok(buf)
 }
 
-async fn create_render(State(st): State<Shared>, headers: HeaderMap, body: Body) -> Response {
-    // Requiring JSON also makes a cross-site form post impossible (it cannot set this type).
+/// The JSON render request of a POST (`what` names it in the 415 message): checked to be JSON,
+/// read within the body limit, parsed and validated off the async workers. `Err` is the response
+/// to send. Requiring JSON also makes a cross-site form post impossible (it cannot set this type).
+async fn read_render_request(
+    st: &Shared,
+    headers: &HeaderMap,
+    body: Body,
+    what: &str,
+) -> Result<request::RenderRequest, Response> {
     let is_json = headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
         .map(|v| v.trim_start().starts_with("application/json"))
         .unwrap_or(false);
     if !is_json {
-        return error(
+        return Err(error(
             StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            "send the render request as JSON (Content-Type: application/json)",
-        );
+            format!("send {what} as JSON (Content-Type: application/json)"),
+        ));
     }
-    let body = match read_limited(&headers, body, st.policy.limits.max_body).await {
-        Ok(b) => b,
-        Err(r) => return r,
-    };
+    let body = read_limited(headers, body, st.policy.limits.max_body).await?;
     let policy = st.policy.clone();
     // Resolving a scene touches the file system: keep it off the async workers.
     let parsed = tokio::task::spawn_blocking(move || request::parse_request(&body, &policy)).await;
-    let req = match parsed {
-        Ok(Ok(r)) => r,
-        Ok(Err(RequestError::Malformed(m))) => return error(StatusCode::BAD_REQUEST, m),
-        Ok(Err(RequestError::Fields(f))) => {
-            return json_response(
-                StatusCode::BAD_REQUEST,
-                json!({ "error": "some fields are invalid", "fields": f }),
-            );
-        }
-        Err(_) => return error(StatusCode::INTERNAL_SERVER_ERROR, "internal error"),
+    match parsed {
+        Ok(Ok(r)) => Ok(r),
+        Ok(Err(RequestError::Malformed(m))) => Err(error(StatusCode::BAD_REQUEST, m)),
+        Ok(Err(RequestError::Fields(f))) => Err(json_response(
+            StatusCode::BAD_REQUEST,
+            json!({ "error": "some fields are invalid", "fields": f }),
+        )),
+        Err(_) => Err(error(StatusCode::INTERNAL_SERVER_ERROR, "internal error")),
+    }
+}
+
+async fn create_render(State(st): State<Shared>, headers: HeaderMap, body: Body) -> Response {
+    let req = match read_render_request(&st, &headers, body, "the render request").await {
+        Ok(r) => r,
+        Err(r) => return r,
     };
     match st.jobs.submit(req) {
-        Ok(job) => json_response(StatusCode::CREATED, job.to_json()),
-        Err(SubmitError::Busy(n)) => error(
+        Ok(job) => json_response(StatusCode::CREATED, st.jobs.json(&job)),
+        Err(SubmitError::Busy { running, queued }) => error(
             StatusCode::TOO_MANY_REQUESTS,
-            format!("{n} renders are already running; wait for one to finish or cancel one"),
+            format!(
+                "the queue is full ({running} renders running, {queued} waiting): wait for one to finish or cancel one"
+            ),
         ),
         Err(SubmitError::NameInUse(n)) => json_response(
             StatusCode::CONFLICT,
@@ -468,6 +712,78 @@ async fn create_render(State(st): State<Shared>, headers: HeaderMap, body: Body)
     }
 }
 
+/// `POST /api/uploads?name=FILE.glb|FILE.zip` with the file as the body ([`upload`]). Only
+/// binary content types are accepted: a cross-site form can send neither them nor the token.
+async fn upload_scene(
+    State(st): State<Shared>,
+    Query(q): Query<std::collections::HashMap<String, String>>,
+    headers: HeaderMap,
+    body: Body,
+) -> Response {
+    let Some(scenes_dir) = st.policy.scenes_dir.clone() else {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "this server has no scenes folder to upload into (start it with --scenes DIR)",
+        );
+    };
+    let binary = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .map(|v| {
+            v.split(';')
+                .next()
+                .unwrap_or("")
+                .trim()
+                .to_ascii_lowercase()
+        })
+        .is_some_and(|t| {
+            matches!(
+                t.as_str(),
+                "application/octet-stream"
+                    | "application/zip"
+                    | "application/x-zip-compressed"
+                    | "model/gltf-binary"
+            )
+        });
+    if !binary {
+        return error(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "send the file itself as the body (Content-Type: application/octet-stream)",
+        );
+    }
+    let Some(name) = q.get("name").cloned() else {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "give the file name: ?name=FILE.glb",
+        );
+    };
+    let limits = st.policy.limits.upload.clone();
+    let body = match read_limited(&headers, body, limits.max_file).await {
+        Ok(b) => b,
+        Err(r) => return r,
+    };
+    let stored =
+        tokio::task::spawn_blocking(move || upload::store(&scenes_dir, &name, &body, &limits))
+            .await;
+    use upload::UploadError as E;
+    match stored {
+        Ok(Ok(s)) => json_response(
+            StatusCode::CREATED,
+            json!({ "scenes": s.scenes, "skipped": s.skipped }),
+        ),
+        Ok(Err(e)) => {
+            let status = match &e {
+                E::Invalid(_) => StatusCode::BAD_REQUEST,
+                E::TooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+                E::Exists(_) => StatusCode::CONFLICT,
+                E::Io(_) => StatusCode::INTERNAL_SERVER_ERROR,
+            };
+            error(status, e.to_string())
+        }
+        Err(_) => error(StatusCode::INTERNAL_SERVER_ERROR, "internal error"),
+    }
+}
+
 fn find_job(st: &AppState, id: &str) -> Result<Arc<jobs::Job>, Response> {
     id.parse::<u64>()
         .ok()
@@ -477,7 +793,7 @@ fn find_job(st: &AppState, id: &str) -> Result<Arc<jobs::Job>, Response> {
 
 async fn render_status(State(st): State<Shared>, UrlPath(id): UrlPath<String>) -> Response {
     match find_job(&st, &id) {
-        Ok(j) => json_response(StatusCode::OK, j.to_json()),
+        Ok(j) => json_response(StatusCode::OK, st.jobs.json(&j)),
         Err(r) => r,
     }
 }
@@ -487,8 +803,8 @@ async fn cancel_render(State(st): State<Shared>, UrlPath(id): UrlPath<String>) -
         Ok(j) => j,
         Err(r) => return r,
     };
-    job.cancel.store(true, std::sync::atomic::Ordering::Relaxed);
-    json_response(StatusCode::OK, job.to_json())
+    st.jobs.cancel(&job);
+    json_response(StatusCode::OK, st.jobs.json(&job))
 }
 
 async fn preview(State(st): State<Shared>, UrlPath(id): UrlPath<String>) -> Response {
@@ -519,6 +835,12 @@ async fn download(
         match file.as_str() {
             "image.png" => (s.png.clone(), "image/png", "png"),
             "image.exr" => (s.exr.clone(), "image/x-exr", "exr"),
+            "denoised.png" => (s.denoised.clone().map(|d| d.0), "image/png", "denoised.png"),
+            "denoised.exr" => (
+                s.denoised.clone().map(|d| d.1),
+                "image/x-exr",
+                "denoised.exr",
+            ),
             _ => return error(StatusCode::NOT_FOUND, "no such file"),
         }
     };
@@ -543,6 +865,246 @@ async fn download(
             "the file is no longer in the output folder",
         ),
     }
+}
+
+/// Linear RGB as the page tone-maps it: little-endian f32 triples, rows top first; the size in
+/// `X-Width`/`X-Height` headers.
+fn linear_response(
+    width: u32,
+    height: u32,
+    data: Vec<f32>,
+    extra: &[(&'static str, String)],
+) -> Response {
+    let mut bytes = Vec::with_capacity(data.len() * 4);
+    for v in data {
+        // Non-finite values would poison the page's tone mapping; the library maps them to 0 too.
+        bytes.extend_from_slice(&(if v.is_finite() { v } else { 0.0 }).to_le_bytes());
+    }
+    let mut res = (
+        [
+            (header::CONTENT_TYPE, "application/octet-stream".to_string()),
+            (header::CACHE_CONTROL, "no-store".to_string()),
+        ],
+        Body::from(bytes),
+    )
+        .into_response();
+    let h = res.headers_mut();
+    for (k, v) in [
+        ("x-width", width.to_string()),
+        ("x-height", height.to_string()),
+    ]
+    .into_iter()
+    .chain(extra.iter().map(|(k, v)| (*k, v.clone())))
+    {
+        if let Ok(v) = HeaderValue::from_str(&v) {
+            h.insert(k, v);
+        }
+    }
+    res
+}
+
+fn image_floats(image: &trayecto::film::Image) -> Vec<f32> {
+    image.data.iter().flat_map(|p| p.to_array()).collect()
+}
+
+/// `?layer=beauty|albedo|normal|denoised`: a finished render's linear image (read back from its
+/// EXR, which holds the film exactly as f32), or the preview of a running one (beauty only).
+async fn render_linear(
+    State(st): State<Shared>,
+    UrlPath(id): UrlPath<String>,
+    Query(q): Query<std::collections::HashMap<String, String>>,
+) -> Response {
+    let job = match find_job(&st, &id) {
+        Ok(j) => j,
+        Err(r) => return r,
+    };
+    let layer = q.get("layer").map(String::as_str).unwrap_or("beauty");
+    let (exr, denoised, preview, version) = {
+        let s = job.status();
+        (
+            s.exr.clone(),
+            s.denoised.clone().map(|d| d.1),
+            s.preview.clone(),
+            s.preview_version,
+        )
+    };
+    let (path, channels): (_, [&str; 3]) = match layer {
+        "beauty" => (exr, ["R", "G", "B"]),
+        "denoised" => (denoised, ["R", "G", "B"]),
+        "albedo"
+            if job
+                .request
+                .aovs
+                .contains(&trayecto::film::aov::AovKind::Albedo) =>
+        {
+            (exr, ["albedo.R", "albedo.G", "albedo.B"])
+        }
+        "normal"
+            if job
+                .request
+                .aovs
+                .contains(&trayecto::film::aov::AovKind::Normal) =>
+        {
+            (exr, ["normal.X", "normal.Y", "normal.Z"])
+        }
+        _ => {
+            return error(
+                StatusCode::NOT_FOUND,
+                "no such layer in this render (beauty; albedo and normal when asked for with aovs; denoised with denoise)",
+            );
+        }
+    };
+    let Some(path) = path else {
+        if layer == "beauty"
+            && let Some(img) = preview
+        {
+            let (w, h) = (img.width, img.height);
+            let data = tokio::task::spawn_blocking(move || image_floats(&img))
+                .await
+                .unwrap_or_default();
+            return linear_response(w, h, data, &[("x-version", version.to_string())]);
+        }
+        return error(StatusCode::NOT_FOUND, "the render has not finished");
+    };
+    let read = tokio::task::spawn_blocking(move || {
+        let (w, h, chans) = trayecto::film::output::read_exr_channels(&path).ok()?;
+        let pick: Vec<&Vec<f32>> = channels
+            .iter()
+            .map(|c| chans.iter().find(|(n, _)| n == c).map(|(_, v)| v))
+            .collect::<Option<_>>()?;
+        let n = (w * h) as usize;
+        if pick.iter().any(|v| v.len() != n) {
+            return None;
+        }
+        let data: Vec<f32> = (0..n)
+            .flat_map(|i| pick.iter().map(move |v| v[i]))
+            .collect();
+        Some((w, h, data))
+    })
+    .await;
+    match read {
+        Ok(Some((w, h, data))) => linear_response(w, h, data, &[]),
+        _ => error(
+            StatusCode::GONE,
+            "the image is no longer in the output folder",
+        ),
+    }
+}
+
+/// `?scene=NAME`: the scene's bounds and the camera it renders with (its first, or the framing
+/// camera for a model without one), for the page to orbit around. Builds the scene.
+async fn scene_view(
+    State(st): State<Shared>,
+    Query(q): Query<std::collections::HashMap<String, String>>,
+) -> Response {
+    let name = match scene_param(&q) {
+        Ok(n) => n,
+        Err(r) => return r,
+    };
+    let policy = st.policy.clone();
+    let built = tokio::task::spawn_blocking(move || {
+        let source = request::scene_source(&name, &policy)?;
+        let rename = |m: String| match &source {
+            request::SceneSource::File(p) => m.replace(&*p.to_string_lossy(), &name),
+            request::SceneSource::Builtin(_) => m,
+        };
+        let scene =
+            trayecto::scene::load(&source.load_spec()).map_err(|e| rename(e.to_string()))?;
+        let world = trayecto::world::World::build(scene, &Default::default())
+            .map_err(|e| rename(e.to_string()))?;
+        Ok::<_, String>(viewport::view_json(&world))
+    })
+    .await;
+    match built {
+        Ok(Ok(v)) => json_response(StatusCode::OK, v),
+        Ok(Err(m)) => error(StatusCode::BAD_REQUEST, m),
+        Err(_) => error(StatusCode::INTERNAL_SERVER_ERROR, "internal error"),
+    }
+}
+
+fn session_id(
+    q: &std::collections::HashMap<String, String>,
+    path: Option<&str>,
+) -> Result<String, Response> {
+    let id = path.or(q.get("session").map(String::as_str)).unwrap_or("");
+    let ok = !id.is_empty()
+        && id.len() <= viewport::MAX_SESSION_ID
+        && id
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+    if ok {
+        Ok(id.to_string())
+    } else {
+        Err(error(
+            StatusCode::BAD_REQUEST,
+            format!(
+                "give the viewport session: ?session=ID (1 to {} letters, digits, '-', '_')",
+                viewport::MAX_SESSION_ID
+            ),
+        ))
+    }
+}
+
+/// `POST /api/viewport?session=ID` with a render request (its `camera`, size and `spp`; no
+/// output is written): the session's preview restarts with this view at once.
+async fn viewport_submit(
+    State(st): State<Shared>,
+    Query(q): Query<std::collections::HashMap<String, String>>,
+    headers: HeaderMap,
+    body: Body,
+) -> Response {
+    let id = match session_id(&q, None) {
+        Ok(id) => id,
+        Err(r) => return r,
+    };
+    let req = match read_render_request(&st, &headers, body, "the view").await {
+        Ok(r) => r,
+        Err(r) => return r,
+    };
+    match st.viewports.submit(&id, req) {
+        Ok(generation) => json_response(
+            StatusCode::ACCEPTED,
+            json!({ "session": id, "generation": generation }),
+        ),
+        Err(m) => error(StatusCode::SERVICE_UNAVAILABLE, m),
+    }
+}
+
+async fn viewport_status(State(st): State<Shared>, UrlPath(session): UrlPath<String>) -> Response {
+    let id = match session_id(&Default::default(), Some(&session)) {
+        Ok(id) => id,
+        Err(r) => return r,
+    };
+    match st.viewports.get(&id) {
+        Some(s) => json_response(StatusCode::OK, s.json()),
+        None => error(
+            StatusCode::NOT_FOUND,
+            "no such viewport session (send a view first)",
+        ),
+    }
+}
+
+async fn viewport_linear(State(st): State<Shared>, UrlPath(session): UrlPath<String>) -> Response {
+    let id = match session_id(&Default::default(), Some(&session)) {
+        Ok(id) => id,
+        Err(r) => return r,
+    };
+    let Some((img, version, samples)) = st.viewports.get(&id).and_then(|s| s.image()) else {
+        return error(StatusCode::NOT_FOUND, "no viewport image yet");
+    };
+    let (w, h) = (img.width, img.height);
+    let data = tokio::task::spawn_blocking(move || image_floats(&img))
+        .await
+        .unwrap_or_default();
+    linear_response(
+        w,
+        h,
+        data,
+        &[
+            ("x-version", version.to_string()),
+            ("x-samples", samples.to_string()),
+        ],
+    )
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@ use serde_json::{Map, Value};
 use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
 use std::str::FromStr;
+use trayecto::film::filter::{Filter, FilterKind};
 use trayecto::film::tonemap::Tonemap;
 use trayecto::integrator::{IntegratorKind, PathSettings};
 use trayecto::light::default_light::DefaultLight;
@@ -34,7 +35,10 @@ pub struct Limits {
     /// Upper bound on width × height × spp × secondary.
     pub max_samples: u64,
     pub max_jobs: usize,
+    /// Renders that may wait for a slot.
+    pub max_queue: usize,
     pub max_body: usize,
+    pub upload: super::upload::UploadLimits,
 }
 
 impl Default for Limits {
@@ -46,7 +50,9 @@ impl Default for Limits {
             max_depth: MAX_DEPTH,
             max_samples: 1 << 34,
             max_jobs: 2,
+            max_queue: 16,
             max_body: 16 * 1024,
+            upload: Default::default(),
         }
     }
 }
@@ -101,6 +107,109 @@ pub struct RenderRequest {
     pub tonemap: Tonemap,
     /// `None`: as the scene file says (else auto).
     pub default_light: Option<DefaultLight>,
+    /// Also write the image denoised by Open Image Denoise (`<output>.denoised.png`/`.exr`).
+    pub denoise: bool,
+    /// Whether the request named a filter (else the scene file's, e.g. a pbrt PixelFilter).
+    pub filter_given: bool,
+    /// `crop`: fractions [x0, x1, y0, y1] of the image (pbrt's cropwindow).
+    pub crop: Option<trayecto::pipeline::CropSpec>,
+    /// glTF material variant (`KHR_materials_variants`); `None`: the file's default materials.
+    pub variant: Option<String>,
+    /// An environment map from the scenes folder lighting the scene (canonical path), and its
+    /// name as the client gave it.
+    pub environment: Option<(String, PathBuf)>,
+    /// `env_rotation`: the environment map turned about +y, in degrees.
+    pub env_rotation: f32,
+    /// `camera`: render from this view (the viewport's) instead of the scene's camera.
+    pub camera: Option<trayecto::camera::CameraSpec>,
+    /// `aovs`: layers written into the EXR with the image (`albedo`, `normal`), which the page
+    /// can show.
+    pub aovs: Vec<trayecto::film::aov::AovKind>,
+}
+
+/// AOV layers a request may ask for (the page's view toggle).
+pub const AOV_NAMES: [&str; 2] = ["albedo", "normal"];
+
+/// The `camera` field: `{"eye": [x, y, z], "target": [x, y, z], "up": [x, y, z], "fov": degrees}`
+/// (`up` defaults to +y, `fov` to 39.6), checked by [`trayecto::camera::CameraSpec::validate`].
+pub fn camera_field(v: &Value) -> Result<trayecto::camera::CameraSpec, String> {
+    use trayecto::camera::CameraSpec;
+    let Value::Object(o) = v else {
+        return Err("must be an object {eye, target, up, fov}".into());
+    };
+    if let Some(k) = o
+        .keys()
+        .find(|k| !["eye", "target", "up", "fov"].contains(&k.as_str()))
+    {
+        let shown: String = k.chars().take(40).collect();
+        return Err(format!(
+            "unknown key '{shown}' (known: eye, target, up, fov)"
+        ));
+    }
+    let vec3 = |key: &str, default: Option<[f32; 3]>| -> Result<trayecto::math::Vec3, String> {
+        match o.get(key) {
+            None | Some(Value::Null) => default
+                .map(trayecto::math::Vec3::from)
+                .ok_or_else(|| format!("{key} is missing (three numbers)")),
+            Some(Value::Array(a)) if a.len() == 3 => {
+                let mut out = [0f32; 3];
+                for (x, v) in out.iter_mut().zip(a) {
+                    *x = v
+                        .as_f64()
+                        .ok_or_else(|| format!("{key} must be three numbers"))?
+                        as f32;
+                }
+                Ok(out.into())
+            }
+            Some(_) => Err(format!("{key} must be three numbers")),
+        }
+    };
+    let fov = match o.get("fov") {
+        None | Some(Value::Null) => CameraSpec::DEFAULT_FOV,
+        Some(v) => v
+            .as_f64()
+            .ok_or_else(|| "fov must be a number (degrees)".to_string())? as f32,
+    };
+    let spec = CameraSpec {
+        eye: vec3("eye", None)?,
+        target: vec3("target", None)?,
+        up: vec3("up", Some([0.0, 1.0, 0.0]))?,
+        fov,
+    };
+    spec.validate()?;
+    Ok(spec)
+}
+
+/// Longest time limit a request may ask for, in seconds.
+pub const MAX_TIME_LIMIT: f64 = 24.0 * 3600.0;
+
+/// A positive number field at most `max` (`None` when absent or null).
+fn positive_field(
+    obj: &Map<String, Value>,
+    key: &str,
+    max: f64,
+    errors: &mut BTreeMap<String, String>,
+) -> Option<f64> {
+    match obj.get(key) {
+        None | Some(Value::Null) => None,
+        Some(Value::Number(n)) => match n.as_f64() {
+            Some(x) if x.is_finite() && x > 0.0 && x <= max => Some(x),
+            _ => {
+                errors.insert(
+                    key.into(),
+                    format!("must be a number above 0 and at most {max}"),
+                );
+                None
+            }
+        },
+        Some(_) => {
+            errors.insert(
+                key.into(),
+                format!("must be a number above 0 and at most {max}"),
+            );
+            None
+        }
+    }
 }
 
 /// Why a request was refused: the body is not a JSON object, or some fields are wrong (field →
@@ -128,6 +237,38 @@ fn has_scene_extension(p: &Path) -> bool {
 /// `..`/`.`/root component, backslashes and NULs before touching the file system, then
 /// canonicalises (which resolves symlinks) and checks the result is still inside the folder.
 pub fn resolve_scene(root: &Path, name: &str) -> Result<PathBuf, String> {
+    let canon = resolve_in(root, name, "scene")?;
+    if !has_scene_extension(&canon) {
+        return Err(format!(
+            "'{name}' is not a scene file (expected {})",
+            trayecto::scene::extension_list(false)
+        ));
+    }
+    Ok(canon)
+}
+
+/// Extensions of the environment maps the page offers (equirectangular images).
+const ENV_EXTENSIONS: &[&str] = &["hdr", "exr"];
+
+fn is_env_map(p: &Path) -> bool {
+    p.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| ENV_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// Resolves an environment map's name as [`resolve_scene`] resolves a scene's.
+pub fn resolve_env(root: &Path, name: &str) -> Result<PathBuf, String> {
+    let canon = resolve_in(root, name, "environment map")?;
+    if !is_env_map(&canon) {
+        return Err(format!(
+            "'{name}' is not an environment map (expected .hdr or .exr)"
+        ));
+    }
+    Ok(canon)
+}
+
+/// The path safety shared by scenes and environment maps; `what` names the kind in messages.
+fn resolve_in(root: &Path, name: &str, what: &str) -> Result<PathBuf, String> {
     if name.contains('\0') || name.contains('\\') {
         return Err("may not contain backslashes or NUL characters".into());
     }
@@ -143,18 +284,12 @@ pub fn resolve_scene(root: &Path, name: &str) -> Result<PathBuf, String> {
     let canon = root
         .join(rel)
         .canonicalize()
-        .map_err(|_| format!("no scene '{name}' in the scenes folder"))?;
+        .map_err(|_| format!("no {what} '{name}' in the scenes folder"))?;
     if !canon.starts_with(root) {
         return Err("resolves outside the scenes folder".into());
     }
     if !canon.is_file() {
         return Err(format!("'{name}' is not a file"));
-    }
-    if !has_scene_extension(&canon) {
-        return Err(format!(
-            "'{name}' is not a scene file (expected {})",
-            trayecto::scene::extension_list(false)
-        ));
     }
     Ok(canon)
 }
@@ -235,6 +370,19 @@ fn referenced_files(root: &Path, files: &[String]) -> std::collections::HashSet<
 /// Hidden entries are skipped; symlinks are listed only if they are files that resolve inside
 /// the folder (symlinked folders are not followed, so loops cannot occur).
 pub fn list_scenes(root: &Path) -> Vec<String> {
+    list_files(root, has_scene_extension, resolve_scene)
+}
+
+/// Environment maps (`.hdr`, `.exr`) under the scenes folder, listed as scenes are.
+pub fn list_environments(root: &Path) -> Vec<String> {
+    list_files(root, is_env_map, resolve_env)
+}
+
+fn list_files(
+    root: &Path,
+    wanted: fn(&Path) -> bool,
+    resolve: fn(&Path, &str) -> Result<PathBuf, String>,
+) -> Vec<String> {
     let mut out = Vec::new();
     let mut seen = 0usize;
     let mut stack: Vec<(PathBuf, usize)> = vec![(root.to_path_buf(), 0)];
@@ -266,12 +414,12 @@ pub fn list_scenes(root: &Path) -> Vec<String> {
                 continue;
             };
             let Some(rel) = rel.to_str() else { continue };
-            if !has_scene_extension(&path) {
+            if !wanted(&path) {
                 continue;
             }
             if meta.file_type().is_symlink() {
                 // Listed only if resolving it would be accepted.
-                if resolve_scene(root, rel).is_err() {
+                if resolve(root, rel).is_err() {
                     continue;
                 }
             } else if !meta.is_file() {
@@ -414,9 +562,13 @@ pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
             height: false,
             spp: false,
             max_depth: false,
+            filter: false,
         },
         split: Default::default(),
+        aovs: Vec::new(),
+        denoise: None,
         outputs: vec![],
+        crop: None,
     };
     let (s, note) = job.resolve(&scene);
     let l = &policy.limits;
@@ -429,6 +581,9 @@ pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
         "spp": s.spp.min(l.max_spp),
         "max_depth": s.path.max_depth.min(l.max_depth),
         "note": note,
+        // glTF KHR_materials_variants (also of glTF files a TOML scene includes): the names the
+        // request's `variant` field accepts; none is the file's default materials.
+        "variants": scene.variants,
     }))
 }
 
@@ -456,6 +611,16 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         "tonemap",
         "seed",
         "default_light",
+        "filter",
+        "noise_threshold",
+        "time_limit",
+        "crop",
+        "denoise",
+        "variant",
+        "environment",
+        "env_rotation",
+        "camera",
+        "aovs",
     ];
     for k in obj.keys() {
         if !known.contains(&k.as_str()) {
@@ -585,6 +750,149 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         }
         parsed
     });
+    // Checked against the scene's variants when the job loads it (an unknown name fails the job
+    // with the list of valid ones).
+    let variant = string_field(&obj, "variant", 256, &mut errors).map(str::to_string);
+
+    let filter = match string_field(&obj, "filter", 32, &mut errors) {
+        None => None,
+        Some(s) => match FilterKind::from_str(s) {
+            Ok(k) => Some(Filter::new(k)),
+            Err(_) => {
+                errors.insert(
+                    "filter".into(),
+                    "must be one of: box, tent, gaussian, mitchell, blackman-harris".into(),
+                );
+                None
+            }
+        },
+    };
+    let noise_threshold =
+        positive_field(&obj, "noise_threshold", 100.0, &mut errors).map(|x| x as f32);
+    let time_limit = positive_field(&obj, "time_limit", MAX_TIME_LIMIT, &mut errors);
+    let crop = match obj.get("crop") {
+        None | Some(Value::Null) => None,
+        Some(Value::Array(a)) if a.len() == 4 => {
+            let v: Vec<f32> = a
+                .iter()
+                .filter_map(|x| x.as_f64())
+                .map(|x| x as f32)
+                .collect();
+            let text = v
+                .iter()
+                .map(|x| x.to_string())
+                .collect::<Vec<_>>()
+                .join(",");
+            match (v.len(), trayecto::pipeline::CropSpec::parse(&text, false)) {
+                (4, Ok(c)) => Some(c),
+                (_, Err(m)) if v.len() == 4 => {
+                    errors.insert("crop".into(), m);
+                    None
+                }
+                _ => {
+                    errors.insert(
+                        "crop".into(),
+                        "must be four numbers [x0, x1, y0, y1]".into(),
+                    );
+                    None
+                }
+            }
+        }
+        Some(_) => {
+            errors.insert(
+                "crop".into(),
+                "must be four fractions of the image [x0, x1, y0, y1]".into(),
+            );
+            None
+        }
+    };
+    let denoise = match obj.get("denoise") {
+        None | Some(Value::Null) => false,
+        Some(Value::Bool(b)) => *b,
+        Some(_) => {
+            errors.insert("denoise".into(), "must be true or false".into());
+            false
+        }
+    };
+
+    let environment = match string_field(&obj, "environment", MAX_SCENE_NAME, &mut errors) {
+        None | Some("") => None,
+        Some(name) => match &policy.scenes_dir {
+            None => {
+                errors.insert(
+                    "environment".into(),
+                    "this server has no scenes folder to take environment maps from".into(),
+                );
+                None
+            }
+            Some(root) => match resolve_env(root, name) {
+                Ok(p) => Some((name.to_string(), p)),
+                Err(m) => {
+                    errors.insert("environment".into(), m);
+                    None
+                }
+            },
+        },
+    };
+
+    let env_rotation = match obj.get("env_rotation") {
+        None | Some(Value::Null) => 0.0,
+        Some(v) => match v.as_f64() {
+            Some(x) if x.is_finite() && x.abs() <= 36000.0 => x as f32,
+            _ => {
+                errors.insert(
+                    "env_rotation".into(),
+                    "must be a number of degrees (at most 36000 either way)".into(),
+                );
+                0.0
+            }
+        },
+    };
+    if env_rotation != 0.0 && environment.is_none() && !errors.contains_key("environment") {
+        errors.insert(
+            "env_rotation".into(),
+            "turns the environment map: choose one (environment)".into(),
+        );
+    }
+    let camera = match obj.get("camera") {
+        None | Some(Value::Null) => None,
+        Some(v) => match camera_field(v) {
+            Ok(c) => Some(c),
+            Err(m) => {
+                errors.insert("camera".into(), m);
+                None
+            }
+        },
+    };
+    let mut aovs = Vec::new();
+    match obj.get("aovs") {
+        None | Some(Value::Null) => {}
+        Some(Value::Array(a)) if a.len() <= AOV_NAMES.len() => {
+            for v in a {
+                match v.as_str().filter(|n| AOV_NAMES.contains(n)) {
+                    Some(n) => {
+                        let k = trayecto::film::aov::AovKind::from_name(n)
+                            .expect("the offered names parse");
+                        if !aovs.contains(&k) {
+                            aovs.push(k);
+                        }
+                    }
+                    None => {
+                        errors.insert(
+                            "aovs".into(),
+                            format!("must be a list of: {}", AOV_NAMES.join(", ")),
+                        );
+                    }
+                }
+            }
+        }
+        Some(_) => {
+            errors.insert(
+                "aovs".into(),
+                format!("must be a list of: {}", AOV_NAMES.join(", ")),
+            );
+        }
+    }
 
     let samples = width as u64 * height as u64 * spp as u64 * secondary as u64;
     if !errors.contains_key("spp") && samples > lim.max_samples {
@@ -610,6 +918,10 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             secondary,
             ..PathSettings::default()
         },
+        filter: filter.unwrap_or_default(),
+        noise_threshold,
+        time_limit,
+        crop: None,
     };
     if errors.is_empty()
         && let Err(e) = settings.validate()
@@ -625,6 +937,14 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             exposure,
             tonemap,
             default_light,
+            filter_given: filter.is_some(),
+            crop,
+            denoise,
+            variant,
+            environment,
+            env_rotation,
+            camera,
+            aovs,
         }),
         _ => Err(RequestError::Fields(errors)),
     }
@@ -648,6 +968,39 @@ mod tests {
             Err(RequestError::Fields(f)) => f,
             other => panic!("expected field errors, got {other:?}"),
         }
+    }
+
+    /// The #19 fields reach the settings, and absurd values are refused by name.
+    #[test]
+    fn filter_adaptive_time_limit_and_crop_fields() {
+        let r = parse_request(
+            br#"{"scene":"cornell","filter":"mitchell","noise_threshold":0.02,"time_limit":5,"crop":[0.25,0.75,0,0.5]}"#,
+            &policy(),
+        )
+        .unwrap();
+        assert_eq!(r.settings.filter, Filter::new(FilterKind::Mitchell));
+        assert!(r.filter_given);
+        assert_eq!(r.settings.noise_threshold, Some(0.02));
+        assert_eq!(r.settings.time_limit, Some(5.0));
+        assert_eq!(
+            r.crop,
+            Some(trayecto::pipeline::CropSpec::Fractions([
+                0.25, 0.75, 0.0, 0.5
+            ]))
+        );
+        let plain = parse_request(br#"{"scene":"cornell"}"#, &policy()).unwrap();
+        assert!(!plain.filter_given && plain.crop.is_none());
+        let f = fields(
+            r#"{"scene":"cornell","filter":"sinc","noise_threshold":-1,"time_limit":"x","crop":[0.5,0.1,0,1]}"#,
+        );
+        for k in ["filter", "noise_threshold", "time_limit", "crop"] {
+            assert!(f.contains_key(k), "{k} not refused: {f:?}");
+        }
+        let f = fields(r#"{"scene":"cornell","time_limit":1e12,"crop":[0,1,0]}"#);
+        assert!(
+            f.contains_key("time_limit") && f.contains_key("crop"),
+            "{f:?}"
+        );
     }
 
     #[test]

@@ -1,0 +1,342 @@
+//! Arbitrary output variables (AOVs): per-pixel layers written beside the beauty image
+//! (docs/DESIGN.md §5). The geometric ones (albedo, normals, depth, position, ids) are traced by
+//! [`crate::integrator::aov`]; layers that come from the film itself (sample counts, variance)
+//! are built from it. All of them are [`Layer`]s, which [`crate::pipeline::write_outputs`]
+//! writes into one multi-layer EXR, or as side files `out.NAME.png` beside other formats.
+//!
+//! Channel names follow the OpenEXR layer convention that OpenImageIO, Nuke and Blender read
+//! (OpenEXR "Interpreting OpenEXR deep pixels"/"multi-view" notes; OIIO's `ImageSpec` channel
+//! names): `LAYER.CHANNEL`, the layer a dotted prefix, colour channels `R G B`, vectors `X Y Z`.
+//! Depth is the bare standard channel `Z` (OpenEXR's depth channel, which Nuke shows as
+//! `depth.Z`). The ids use Blender's pass names `IndexMA.X` and `IndexOB.X`.
+
+use crate::math::Vec3;
+use std::path::{Path, PathBuf};
+
+/// One AOV that can be asked for with `--aov`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum AovKind {
+    /// Reflectance at the first non-specular hit, following perfect-specular chains (their
+    /// weights multiplied in): what denoisers (OIDN) want as the albedo guide.
+    Albedo,
+    /// Shading normal (world space, facing the viewer) at the same hit as `Albedo`: OIDN's normal
+    /// guide.
+    Normal,
+    /// Distance along the camera ray to the first visible surface, in scene units.
+    Depth,
+    /// World-space position of the first visible surface.
+    Position,
+    /// Shading normal (world space, normal-mapped, facing the viewer) of the first visible
+    /// surface, mirrors and glass included.
+    ShadingNormal,
+    /// Index (+1) of the material of the first visible surface; 0 where nothing is hit.
+    MaterialId,
+    /// Index (+1) of the object (mesh or analytic shape) first visible; 0 where nothing is hit.
+    ObjectId,
+}
+
+impl AovKind {
+    pub const ALL: [AovKind; 7] = [
+        AovKind::Albedo,
+        AovKind::Normal,
+        AovKind::Depth,
+        AovKind::Position,
+        AovKind::ShadingNormal,
+        AovKind::MaterialId,
+        AovKind::ObjectId,
+    ];
+
+    /// The name given to `--aov` and used for side files (`out.NAME.png`).
+    pub fn name(self) -> &'static str {
+        match self {
+            AovKind::Albedo => "albedo",
+            AovKind::Normal => "normal",
+            AovKind::Depth => "depth",
+            AovKind::Position => "position",
+            AovKind::ShadingNormal => "shading_normal",
+            AovKind::MaterialId => "material_id",
+            AovKind::ObjectId => "object_id",
+        }
+    }
+
+    /// The EXR channel names, in pixel order.
+    pub fn channels(self) -> &'static [&'static str] {
+        match self {
+            AovKind::Albedo => &["albedo.R", "albedo.G", "albedo.B"],
+            AovKind::Normal => &["normal.X", "normal.Y", "normal.Z"],
+            AovKind::Depth => &["Z"],
+            AovKind::Position => &["P.X", "P.Y", "P.Z"],
+            AovKind::ShadingNormal => &["N.X", "N.Y", "N.Z"],
+            AovKind::MaterialId => &["IndexMA.X"],
+            AovKind::ObjectId => &["IndexOB.X"],
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<AovKind> {
+        Some(match s {
+            "albedo" => AovKind::Albedo,
+            "normal" | "normals" => AovKind::Normal,
+            "depth" | "z" | "Z" => AovKind::Depth,
+            "position" | "P" => AovKind::Position,
+            "shading_normal" | "N" => AovKind::ShadingNormal,
+            "material_id" => AovKind::MaterialId,
+            "object_id" => AovKind::ObjectId,
+            _ => return None,
+        })
+    }
+
+    /// Parses `--aov a,b,c` (`all` for every AOV); duplicates are dropped, order is kept.
+    pub fn parse_list(s: &str) -> Result<Vec<AovKind>, String> {
+        let mut out = Vec::new();
+        for item in s.split(',').map(str::trim).filter(|i| !i.is_empty()) {
+            let kinds: Vec<AovKind> = if item == "all" {
+                AovKind::ALL.to_vec()
+            } else {
+                vec![AovKind::from_name(item).ok_or_else(|| {
+                    format!(
+                        "unknown AOV '{item}' (expected a comma-separated list of {}, or all)",
+                        AovKind::ALL.map(|k| k.name()).join(", ")
+                    )
+                })?]
+            };
+            for k in kinds {
+                if !out.contains(&k) {
+                    out.push(k);
+                }
+            }
+        }
+        if out.is_empty() {
+            return Err("--aov needs at least one AOV name".into());
+        }
+        Ok(out)
+    }
+}
+
+/// How a layer is shown in a display-referred side file (PNG/PPM).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Display {
+    /// Colour in [0, 1] (albedo): sRGB-encoded like the beauty image.
+    Colour,
+    /// A unit vector mapped to (v + 1) / 2, no transfer curve (normal maps' convention).
+    UnitVector,
+    /// A scalar or vector normalised by the layer's finite range to [0, 1] (depth, position,
+    /// sample counts).
+    Range,
+    /// Integer ids shown as distinct colours (a hash); 0 (nothing) is black.
+    Id,
+}
+
+/// One per-pixel layer: `channels.len()` values per pixel, interleaved, rows top first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Layer {
+    /// The side-file name (`out.NAME.png`) and `--aov` name.
+    pub name: String,
+    /// Full EXR channel names (`albedo.R`, `Z`, …), in pixel order.
+    pub channels: Vec<String>,
+    pub display: Display,
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<f32>,
+}
+
+impl Layer {
+    pub fn new(kind: AovKind, width: u32, height: u32, data: Vec<f32>) -> Layer {
+        let display = match kind {
+            AovKind::Albedo => Display::Colour,
+            AovKind::Normal | AovKind::ShadingNormal => Display::UnitVector,
+            AovKind::Depth | AovKind::Position => Display::Range,
+            AovKind::MaterialId | AovKind::ObjectId => Display::Id,
+        };
+        debug_assert_eq!(
+            data.len(),
+            width as usize * height as usize * kind.channels().len()
+        );
+        Layer {
+            name: kind.name().into(),
+            channels: kind.channels().iter().map(|c| c.to_string()).collect(),
+            display,
+            width,
+            height,
+            data,
+        }
+    }
+
+    /// A layer that is not one of the traced [`AovKind`]s (e.g. one computed from the film, such
+    /// as per-pixel sample counts): `channels` are full EXR names, `data` interleaved.
+    pub fn from_channels(
+        name: &str,
+        channels: &[&str],
+        display: Display,
+        width: u32,
+        height: u32,
+        data: Vec<f32>,
+    ) -> Layer {
+        assert_eq!(
+            data.len(),
+            width as usize * height as usize * channels.len(),
+            "layer {name}: data does not match its size"
+        );
+        Layer {
+            name: name.into(),
+            channels: channels.iter().map(|c| c.to_string()).collect(),
+            display,
+            width,
+            height,
+            data,
+        }
+    }
+
+    pub fn depth(&self) -> usize {
+        self.channels.len()
+    }
+
+    /// The value of channel `c` at pixel (x, y).
+    pub fn get(&self, x: u32, y: u32, c: usize) -> f32 {
+        self.data[(y as usize * self.width as usize + x as usize) * self.depth() + c]
+    }
+
+    /// A 3-channel layer as an RGB image (for the denoiser's guides and tests).
+    pub fn to_image(&self) -> Option<super::Image> {
+        (self.depth() == 3).then(|| super::Image {
+            width: self.width,
+            height: self.height,
+            data: self
+                .data
+                .chunks_exact(3)
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect(),
+        })
+    }
+
+    /// The layer as a display-referred RGB image in [0, 1] for a PNG/PPM side file (see
+    /// [`Display`]); the linear values are in the EXR.
+    pub fn display_image(&self) -> super::Image {
+        let d = self.depth();
+        let px = |i: usize| -> Vec3 {
+            let v = &self.data[i * d..i * d + d];
+            match d {
+                1 => Vec3::splat(v[0]),
+                2 => Vec3::new(v[0], v[1], 0.0),
+                _ => Vec3::new(v[0], v[1], v[2]),
+            }
+        };
+        let n = self.width as usize * self.height as usize;
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        if self.display == Display::Range {
+            for &v in self.data.iter().filter(|v| v.is_finite()) {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+        let span = if hi > lo { hi - lo } else { 1.0 };
+        let data = (0..n)
+            .map(|i| {
+                let p = px(i);
+                match self.display {
+                    // The writer's sRGB curve is applied with the `clamp` tone map.
+                    Display::Colour => p,
+                    // Written with the sRGB curve too: undo it so the file holds (v + 1) / 2.
+                    Display::UnitVector => srgb_to_linear((p + Vec3::ONE) * 0.5),
+                    Display::Range => {
+                        let f = |v: f32| if v.is_finite() { (v - lo) / span } else { 1.0 };
+                        srgb_to_linear(Vec3::new(f(p.x), f(p.y), f(p.z)))
+                    }
+                    Display::Id => srgb_to_linear(id_colour(p.x)),
+                }
+            })
+            .collect();
+        super::Image {
+            width: self.width,
+            height: self.height,
+            data,
+        }
+    }
+}
+
+/// The inverse of the sRGB transfer curve the PNG writer applies (IEC 61966-2-1), so values
+/// meant to be stored as-is survive it.
+fn srgb_to_linear(c: Vec3) -> Vec3 {
+    let f = |v: f32| {
+        let v = v.clamp(0.0, 1.0);
+        if v <= 0.04045 {
+            v / 12.92
+        } else {
+            ((v + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    Vec3::new(f(c.x), f(c.y), f(c.z))
+}
+
+/// A distinct, stable colour for an id (black for 0): an integer hash's bytes.
+fn id_colour(id: f32) -> Vec3 {
+    if !(id >= 1.0) {
+        return Vec3::ZERO;
+    }
+    let mut h = (id as u32).wrapping_mul(0x9E37_79B9);
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x85EB_CA6B);
+    h ^= h >> 13;
+    let b = |s: u32| (((h >> s) & 0xff) as f32 / 255.0) * 0.8 + 0.2;
+    Vec3::new(b(0), b(8), b(16))
+}
+
+/// The side file of `layer` beside the output `path`: `out.png` → `out.albedo.png`.
+pub fn side_path(path: &Path, name: &str) -> PathBuf {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!("{stem}.{name}.{ext}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_lists_parse() {
+        for k in AovKind::ALL {
+            assert_eq!(AovKind::from_name(k.name()), Some(k));
+        }
+        assert_eq!(
+            AovKind::parse_list("albedo, normal,albedo,Z").unwrap(),
+            vec![AovKind::Albedo, AovKind::Normal, AovKind::Depth]
+        );
+        assert_eq!(AovKind::parse_list("all").unwrap(), AovKind::ALL.to_vec());
+        let e = AovKind::parse_list("albedo,wireframe").unwrap_err();
+        assert!(e.contains("wireframe") && e.contains("object_id"), "{e}");
+        assert!(AovKind::parse_list(" , ").is_err());
+    }
+
+    #[test]
+    fn channel_names_are_unique_and_not_the_beauty_channels() {
+        let mut all: Vec<&str> = AovKind::ALL
+            .iter()
+            .flat_map(|k| k.channels())
+            .copied()
+            .collect();
+        let n = all.len();
+        all.sort();
+        all.dedup();
+        assert_eq!(all.len(), n);
+        for beauty in ["R", "G", "B", "A"] {
+            assert!(!all.contains(&beauty));
+        }
+    }
+
+    #[test]
+    fn side_paths_keep_the_folder_and_format() {
+        assert_eq!(
+            side_path(Path::new("dir/out.png"), "albedo"),
+            PathBuf::from("dir/out.albedo.png")
+        );
+        assert_eq!(
+            side_path(Path::new("out.v2.exr"), "denoised"),
+            PathBuf::from("out.v2.denoised.exr")
+        );
+    }
+}

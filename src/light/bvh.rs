@@ -1,0 +1,481 @@
+//! A light BVH for scenes with many emitters: Conty Estevez & Kulla 2018, "Importance Sampling of
+//! Many Lights with Adaptive Tree Splitting", in the form of pbrt-v4's `BVHLightSampler`
+//! (Pharr, Jakob & Humphreys, PBRT 4th ed., §12.6.3).
+//!
+//! Every bounded light (an emissive primitive, a point or a spot) gets a [`LightBounds`]: a box,
+//! its power φ and an orientation cone — the directions of its normals (axis `w`, half-angle θo)
+//! widened by θe, the angle past the normals at which it still emits. A binary tree is built over
+//! them with pbrt's cost (power × orientation-cone measure M_Ω × box area, §12.6.3 eq. 12.6 and the
+//! regularisation K_r), and every interior node keeps the union of its children's bounds.
+//!
+//! Sampling walks down from the root: at each node the two children are given an importance as
+//! seen from the shading point (φ · cos θ′ / d², times cos θ′ᵢ for the receiver's normal,
+//! [`LightBounds::importance`]) and one is chosen in proportion to it, reusing the random number.
+//! The probability of a light is the product of the choices along its path, and
+//! [`LightBvh::pmf`] recomputes it exactly — the same function of the same numbers — by walking
+//! the light's recorded path (its bit trail), so MIS weights use the probability with which the
+//! light was really sampled.
+
+use crate::geometry::Bounds3;
+use crate::math::{PI, Vec3};
+
+/// Below this depth the tree is split by pbrt's cost; past it by count, so that no path is
+/// longer than 64 steps (its trail is a `u64`) for up to 2³² lights.
+const COST_SPLIT_DEPTH: usize = 30;
+/// Buckets per axis for the cost evaluation (pbrt uses 12).
+const BUCKETS: usize = 12;
+/// Importances are clamped below this so that the sum of two stays finite.
+const MAX_IMPORTANCE: f32 = 1e30;
+
+/// The spatial and directional extent of a light's emission (pbrt's `LightBounds`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightBounds {
+    pub bounds: Bounds3,
+    /// Emitted power (any consistent scale: only ratios matter).
+    pub phi: f32,
+    /// Axis of the normals' cone (unit).
+    pub w: Vec3,
+    /// Cosine of the half-angle θo of the normals' cone (−1: all directions).
+    pub cos_theta_o: f32,
+    /// Cosine of θe, the angle beyond the normals at which light is still emitted (0 for a
+    /// Lambertian surface: it emits up to 90° from its normal).
+    pub cos_theta_e: f32,
+    /// Emits on both sides of its normals.
+    pub two_sided: bool,
+}
+
+/// cos(max(0, a − b)) from the sines and cosines of a and b (pbrt's `cosSubClamped`).
+#[inline]
+fn cos_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
+    if cos_a > cos_b {
+        1.0
+    } else {
+        cos_a * cos_b + sin_a * sin_b
+    }
+}
+
+/// sin(max(0, a − b)) (pbrt's `sinSubClamped`).
+#[inline]
+fn sin_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
+    if cos_a > cos_b {
+        0.0
+    } else {
+        sin_a * cos_b - cos_a * sin_b
+    }
+}
+
+#[inline]
+fn safe_sqrt(x: f32) -> f32 {
+    x.max(0.0).sqrt()
+}
+
+#[inline]
+fn safe_acos(x: f32) -> f32 {
+    x.clamp(-1.0, 1.0).acos()
+}
+
+impl LightBounds {
+    /// Unnormalised importance of these lights for a receiver at `p` with normal `n` (zero
+    /// vector: a point in a medium, no cosine), pbrt-v4 `LightBounds::Importance`: the largest
+    /// cosine the box can present within the emission cone, over d² (clamped below by half the
+    /// box's diagonal so that a receiver inside a cluster does not blow it up), times the largest
+    /// cosine at the receiver. Zero only where no light of the box can reach `p` from the side
+    /// its cone allows. Never NaN, never infinite.
+    #[inline]
+    pub fn importance(&self, p: Vec3, n: Vec3) -> f32 {
+        let pc = (self.bounds.min + self.bounds.max) * 0.5;
+        let diag = (self.bounds.max - self.bounds.min).length();
+        let d2 = p.distance_squared(pc).max(diag * 0.5);
+        // Direction from the lights to the receiver.
+        let wi = (p - pc).normalize_or_zero();
+        let mut cos_w = self.w.dot(wi);
+        if self.two_sided {
+            cos_w = cos_w.abs();
+        }
+        let sin_w = safe_sqrt(1.0 - cos_w * cos_w);
+        // Half-angle θb of the cone of directions from p to the box's bounding sphere.
+        let r2 = diag * diag * 0.25;
+        let dc2 = p.distance_squared(pc);
+        let cos_b = if dc2 < r2 || !(dc2 > 0.0) {
+            -1.0
+        } else {
+            safe_sqrt(1.0 - r2 / dc2)
+        };
+        let sin_b = safe_sqrt(1.0 - cos_b * cos_b);
+        // θ′ = max(0, θw − θo − θb): the smallest angle between an emitting normal and a
+        // direction toward p.
+        let sin_o = safe_sqrt(1.0 - self.cos_theta_o * self.cos_theta_o);
+        let cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, self.cos_theta_o);
+        let sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, self.cos_theta_o);
+        let cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
+        if cos_p <= self.cos_theta_e {
+            return 0.0;
+        }
+        let mut importance = self.phi * cos_p / d2;
+        if n != Vec3::ZERO {
+            // The receiver's cosine, at its most favourable within the box's cone.
+            let cos_i = wi.dot(n).abs();
+            let sin_i = safe_sqrt(1.0 - cos_i * cos_i);
+            importance *= cos_sub_clamped(sin_i, cos_i, sin_b, cos_b);
+        }
+        if importance > 0.0 {
+            importance.min(MAX_IMPORTANCE)
+        } else {
+            // Also NaN (degenerate input).
+            0.0
+        }
+    }
+
+    /// The bounds of two sets of lights together (pbrt's `Union(LightBounds, LightBounds)`).
+    pub fn union(&self, o: &LightBounds) -> LightBounds {
+        if self.phi == 0.0 {
+            return *o;
+        }
+        if o.phi == 0.0 {
+            return *self;
+        }
+        let (w, cos_theta_o) = cone_union(self.w, self.cos_theta_o, o.w, o.cos_theta_o);
+        LightBounds {
+            bounds: self.bounds.union(&o.bounds),
+            phi: self.phi + o.phi,
+            w,
+            cos_theta_o,
+            cos_theta_e: self.cos_theta_e.min(o.cos_theta_e),
+            two_sided: self.two_sided || o.two_sided,
+        }
+    }
+
+    /// pbrt's surface-area-orientation cost of a node (§12.6.3): φ · M_Ω · area · K_r, with M_Ω
+    /// the integral of the cone's cosine-weighted solid angle and K_r the ratio of the longest
+    /// extent of `parent` to its extent along `axis`.
+    fn cost(&self, parent: &Bounds3, axis: usize) -> f32 {
+        let theta_o = safe_acos(self.cos_theta_o);
+        let theta_e = safe_acos(self.cos_theta_e);
+        let theta_w = (theta_o + theta_e).min(PI);
+        let sin_o = safe_sqrt(1.0 - self.cos_theta_o * self.cos_theta_o);
+        let m_omega = 2.0 * PI * (1.0 - self.cos_theta_o)
+            + PI / 2.0
+                * (2.0 * theta_w * sin_o - (theta_o - 2.0 * theta_w).cos() - 2.0 * theta_o * sin_o
+                    + self.cos_theta_o);
+        let d = parent.diagonal();
+        let kr = d.max_element() / d[axis].max(f32::MIN_POSITIVE);
+        self.phi * m_omega * kr * self.bounds.surface_area()
+    }
+}
+
+/// The smallest cone (axis, cos half-angle) holding two cones (pbrt's `DirectionCone::Union`),
+/// widened by a thousandth of a radian so that rounding in the rotation cannot leave a normal
+/// outside it.
+fn cone_union(wa: Vec3, cos_a: f32, wb: Vec3, cos_b: f32) -> (Vec3, f32) {
+    let theta_a = safe_acos(cos_a);
+    let theta_b = safe_acos(cos_b);
+    let theta_d = safe_acos(wa.dot(wb));
+    if (theta_d + theta_b).min(PI) <= theta_a {
+        return (wa, cos_a);
+    }
+    if (theta_d + theta_a).min(PI) <= theta_b {
+        return (wb, cos_b);
+    }
+    let theta_o = (theta_a + theta_d + theta_b) * 0.5 + 1e-3;
+    if theta_o >= PI {
+        return (Vec3::Z, -1.0);
+    }
+    let theta_r = theta_o - theta_a;
+    let axis = wa.cross(wb);
+    if !(axis.length_squared() > 1e-12) {
+        return (Vec3::Z, -1.0);
+    }
+    let k = axis.normalize();
+    // Rodrigues' rotation of wa about k (⊥ wa) by θr.
+    let w = (wa * theta_r.cos() + k.cross(wa) * theta_r.sin()).normalize_or_zero();
+    if w == Vec3::ZERO {
+        return (Vec3::Z, -1.0);
+    }
+    (w, theta_o.cos())
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    lb: LightBounds,
+    /// Leaf: the light's index in the light set. Interior: the second child (the first is the
+    /// next node).
+    index: u32,
+    leaf: bool,
+}
+
+/// The light BVH over a scene's bounded lights.
+#[derive(Clone, Debug, Default)]
+pub struct LightBvh {
+    nodes: Vec<Node>,
+    /// Per light of the light set: its path from the root (bit d = 1: second child at depth d),
+    /// or `None` if the light is not in the tree.
+    trails: Vec<Option<u64>>,
+    /// Total power of the lights in the tree.
+    pub total_power: f32,
+}
+
+/// A light being placed in the tree.
+#[derive(Clone, Copy)]
+struct Item {
+    lb: LightBounds,
+    centroid: Vec3,
+    light: u32,
+}
+
+enum Build {
+    Leaf(LightBounds, u32),
+    Interior(LightBounds, Box<[Build; 2]>),
+}
+
+impl Build {
+    fn bounds(&self) -> &LightBounds {
+        match self {
+            Build::Leaf(lb, _) | Build::Interior(lb, _) => lb,
+        }
+    }
+}
+
+impl LightBvh {
+    /// Builds the tree over `lights`: (index in the light set, bounds) pairs; lights of zero or
+    /// non-finite power or bounds are left out (they can never be chosen). `light_count` is the
+    /// size of the light set.
+    pub fn new(lights: &[(u32, LightBounds)], light_count: usize) -> LightBvh {
+        let mut items: Vec<Item> = lights
+            .iter()
+            .filter(|(_, lb)| {
+                lb.phi > 0.0
+                    && lb.phi.is_finite()
+                    && lb.bounds.min.is_finite()
+                    && lb.bounds.max.is_finite()
+                    && !lb.bounds.is_empty()
+            })
+            .map(|&(light, lb)| Item {
+                lb,
+                centroid: lb.bounds.centroid(),
+                light,
+            })
+            .collect();
+        let mut bvh = LightBvh {
+            nodes: Vec::with_capacity(2 * items.len()),
+            trails: vec![None; light_count],
+            total_power: 0.0,
+        };
+        if items.is_empty() {
+            return bvh;
+        }
+        let root = build(&mut items, 0);
+        bvh.total_power = root.bounds().phi;
+        bvh.flatten(&root, 0, 0);
+        bvh
+    }
+
+    fn flatten(&mut self, b: &Build, trail: u64, depth: u32) {
+        match b {
+            Build::Leaf(lb, light) => {
+                self.trails[*light as usize] = Some(trail);
+                self.nodes.push(Node {
+                    lb: *lb,
+                    index: *light,
+                    leaf: true,
+                });
+            }
+            Build::Interior(lb, children) => {
+                let at = self.nodes.len();
+                self.nodes.push(Node {
+                    lb: *lb,
+                    index: 0,
+                    leaf: false,
+                });
+                self.flatten(&children[0], trail, depth + 1);
+                self.nodes[at].index = self.nodes.len() as u32;
+                self.flatten(&children[1], trail | (1u64 << depth), depth + 1);
+            }
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Number of lights in the tree.
+    pub fn len(&self) -> usize {
+        self.nodes.len().div_ceil(2)
+    }
+
+    /// The probability of choosing the first child of interior node `i` from (`p`, `n`), or
+    /// `None` if neither child can light the point.
+    #[inline]
+    fn first_child_probability(&self, i: usize, p: Vec3, n: Vec3) -> Option<f32> {
+        let c0 = self.nodes[i + 1].lb.importance(p, n);
+        let c1 = self.nodes[self.nodes[i].index as usize].lb.importance(p, n);
+        let total = c0 + c1;
+        if !(total > 0.0) {
+            return None;
+        }
+        Some(c0 / total)
+    }
+
+    /// Chooses a light for a receiver at `p` with normal `n` (zero in a medium) with `u` in
+    /// [0, 1): its index in the light set and the probability of having chosen it. `None` when no
+    /// light of the tree can reach `p`.
+    pub fn sample(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32)> {
+        self.sample_remap(p, n, u)
+            .map(|(light, pmf, _)| (light, pmf))
+    }
+
+    /// [`Self::sample`] that also returns `u` as remapped at the last level, uniform on [0, 1)
+    /// given the choice (see `Distribution1D::sample_discrete_remap`).
+    pub fn sample_remap(&self, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32, f32)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let mut i = 0usize;
+        let mut pmf = 1.0f32;
+        loop {
+            let node = &self.nodes[i];
+            if node.leaf {
+                // A lone light at the root has had no importance test yet.
+                if i == 0 && !(node.lb.importance(p, n) > 0.0) {
+                    return None;
+                }
+                return (pmf > 0.0).then_some((node.index, pmf, u));
+            }
+            let p0 = self.first_child_probability(i, p, n)?;
+            if u < p0 {
+                u = (u / p0).min(ONE_MINUS_EPSILON);
+                pmf *= p0;
+                i += 1;
+            } else {
+                let p1 = 1.0 - p0;
+                u = ((u - p0) / p1).min(ONE_MINUS_EPSILON);
+                pmf *= p1;
+                i = node.index as usize;
+            }
+        }
+    }
+
+    /// The probability with which [`LightBvh::sample`] from (`p`, `n`) chooses light `light`
+    /// (an index into the light set): the same products along the light's path. 0 for lights
+    /// not in the tree.
+    pub fn pmf(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
+        let Some(Some(trail)) = self.trails.get(light as usize) else {
+            return 0.0;
+        };
+        let mut i = 0usize;
+        let mut pmf = 1.0f32;
+        let mut depth = 0u32;
+        loop {
+            let node = &self.nodes[i];
+            if node.leaf {
+                debug_assert_eq!(node.index, light);
+                if i == 0 && !(node.lb.importance(p, n) > 0.0) {
+                    return 0.0;
+                }
+                return pmf;
+            }
+            let Some(p0) = self.first_child_probability(i, p, n) else {
+                return 0.0;
+            };
+            if trail & (1u64 << depth) == 0 {
+                pmf *= p0;
+                i += 1;
+            } else {
+                pmf *= 1.0 - p0;
+                i = node.index as usize;
+            }
+            depth += 1;
+        }
+    }
+}
+
+/// The largest f32 below 1.
+const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+fn build(items: &mut [Item], depth: usize) -> Build {
+    if items.len() == 1 {
+        return Build::Leaf(items[0].lb, items[0].light);
+    }
+    let lb = items[1..]
+        .iter()
+        .fold(items[0].lb, |acc, it| acc.union(&it.lb));
+    let centroids = items
+        .iter()
+        .fold(Bounds3::EMPTY, |b, it| b.union_point(it.centroid));
+    let n = items.len();
+    let mut mid = n / 2;
+    let mut split: Option<(usize, usize)> = None;
+    if depth < COST_SPLIT_DEPTH {
+        // pbrt's bucketed cost over every axis with a non-zero centroid extent.
+        let mut best = f32::INFINITY;
+        for axis in 0..3 {
+            let (lo, hi) = (centroids.min[axis], centroids.max[axis]);
+            if !(hi > lo) {
+                continue;
+            }
+            let mut buckets: [Option<LightBounds>; BUCKETS] = [None; BUCKETS];
+            for it in items.iter() {
+                let b = bucket_of(it.centroid[axis], lo, hi);
+                buckets[b] = Some(match buckets[b] {
+                    Some(acc) => acc.union(&it.lb),
+                    None => it.lb,
+                });
+            }
+            // Cost of splitting after bucket i: sweep from both ends.
+            let mut below: [Option<LightBounds>; BUCKETS] = [None; BUCKETS];
+            let mut acc: Option<LightBounds> = None;
+            for (i, b) in buckets.iter().enumerate() {
+                acc = union_opt(acc, *b);
+                below[i] = acc;
+            }
+            let mut above: Option<LightBounds> = None;
+            for i in (0..BUCKETS - 1).rev() {
+                above = union_opt(above, buckets[i + 1]);
+                let (Some(l), Some(r)) = (below[i], above) else {
+                    continue;
+                };
+                let cost = l.cost(&lb.bounds, axis) + r.cost(&lb.bounds, axis);
+                if cost < best {
+                    best = cost;
+                    split = Some((axis, i));
+                }
+            }
+        }
+    }
+    if let Some((axis, bucket)) = split {
+        let (lo, hi) = (centroids.min[axis], centroids.max[axis]);
+        let mut left = 0;
+        for i in 0..n {
+            if bucket_of(items[i].centroid[axis], lo, hi) <= bucket {
+                items.swap(i, left);
+                left += 1;
+            }
+        }
+        if left > 0 && left < n {
+            mid = left;
+        }
+    } else {
+        // No cost split (coincident centroids or too deep): halve by count along the longest axis.
+        let axis = centroids.max_extent();
+        items.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+    }
+    let (a, b) = items.split_at_mut(mid);
+    let children = if n > 4096 {
+        let (x, y) = rayon::join(|| build(a, depth + 1), || build(b, depth + 1));
+        [x, y]
+    } else {
+        [build(a, depth + 1), build(b, depth + 1)]
+    };
+    Build::Interior(lb, Box::new(children))
+}
+
+#[inline]
+fn bucket_of(c: f32, lo: f32, hi: f32) -> usize {
+    (((c - lo) / (hi - lo) * BUCKETS as f32) as usize).min(BUCKETS - 1)
+}
+
+fn union_opt(a: Option<LightBounds>, b: Option<LightBounds>) -> Option<LightBounds> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.union(&b)),
+        (x, None) | (None, x) => x,
+    }
+}
