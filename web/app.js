@@ -701,6 +701,12 @@ async function sendView() {
   try {
     const r = await api("POST", "/api/viewport?session=" + vp.session, view);
     if (r.ok) {
+      if (r.data.generation !== vp.generation) {
+        // The image on show belongs to an earlier view until this one's first image arrives:
+        // its state and sample count must not be read as the new view's.
+        $("viewport").dataset.state = "rendering";
+        $("viewport").dataset.samples = "0";
+      }
       vp.generation = r.data.generation;
       $("viewport").dataset.generation = String(vp.generation);
     } else {
