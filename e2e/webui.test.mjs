@@ -331,6 +331,29 @@ test("the keyboard orbits a focused, labelled viewport", async () => {
   }
 });
 
+/** Waits for the followed job's final image on the page. */
+async function waitFinal() {
+  await page.waitForFunction(() => {
+    const f = document.getElementById("final");
+    return document.getElementById("state").textContent === "done" && !f.hidden
+      && f.dataset.job === String(current);
+  });
+}
+
+/** How many bytes of the final render's canvas differ from the viewport's (or why they cannot
+ * be compared). */
+async function finalVsViewport() {
+  return page.evaluate(() => {
+    const a = document.getElementById("viewport"), b = document.getElementById("final");
+    const da = a.getContext("2d").getImageData(0, 0, a.width, a.height).data;
+    const db = b.getContext("2d").getImageData(0, 0, b.width, b.height).data;
+    if (a.width !== b.width || a.height !== b.height) return `sizes ${a.width}x${a.height} vs ${b.width}x${b.height}`;
+    let n = 0;
+    for (let i = 0; i < da.length; i++) if (da[i] !== db[i]) n++;
+    return n;
+  });
+}
+
 test("Render final renders the framed view, the same image the viewport refined to", async () => {
   await openViewport({ scene: "cornell", output: "e2e-final", width: 48, height: 40, spp: 8,
     max_depth: 4, view_spp: 8, exposure: 1 }, 8);
@@ -342,27 +365,65 @@ test("Render final renders the framed view, the same image the viewport refined 
   await settle(8);
   const camera = await page.evaluate(() => orbitCamera(vp.orbit));
   await page.click("#render-final");
-  await page.waitForFunction(() => {
-    const f = document.getElementById("final");
-    return document.getElementById("state").textContent === "done" && !f.hidden
-      && f.dataset.job === String(current);
-  });
+  await waitFinal();
   const r = await (await fetch(BASE + "/api/renders")).json();
   const job = r.renders.find((j) => j.output === "e2e-final");
   for (const k of ["eye", "target", "up"]) {
     job.camera[k].forEach((x, i) => assert.ok(Math.abs(x - camera[k][i]) < 1e-4, `${k}: ${job.camera[k]} vs ${camera[k]}`));
   }
   // Same view, size, samples and settings: the final image is the viewport's, pixel for pixel.
-  const same = await page.evaluate(() => {
-    const a = document.getElementById("viewport"), b = document.getElementById("final");
-    const da = a.getContext("2d").getImageData(0, 0, a.width, a.height).data;
-    const db = b.getContext("2d").getImageData(0, 0, b.width, b.height).data;
-    if (a.width !== b.width || a.height !== b.height) return `sizes ${a.width}x${a.height} vs ${b.width}x${b.height}`;
-    let n = 0;
-    for (let i = 0; i < da.length; i++) if (da[i] !== db[i]) n++;
-    return n;
-  });
+  const same = await finalVsViewport();
   assert.equal(same, 0, "the final image differs from the viewport's");
+});
+
+/** Mean display RGB (0-255) of a canvas. */
+async function meanRgb(id) {
+  return page.evaluate((id) => {
+    const c = document.getElementById(id);
+    const d = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+    const m = [0, 0, 0];
+    for (let i = 0; i < d.length; i += 4) for (let k = 0; k < 3; k++) m[k] += d[i + k];
+    return m.map((x) => x / (d.length / 4));
+  }, id);
+}
+
+/** The channel (0 r, 1 g, 2 b) that leads the others by more than 40 of 255, or -1. */
+function dominant(rgb) {
+  for (let k = 0; k < 3; k++) {
+    if (rgb.every((x, j) => j === k || rgb[k] - x > 40)) return k;
+  }
+  return -1;
+}
+
+test("a glTF scene's material variants are offered and change the viewport and the final render", async () => {
+  // The quad fills the view: blue by default, red or green as its variants say.
+  await openViewport({ scene: "quad_variants.gltf", output: "e2e-variant", width: 32, height: 32,
+    spp: 4, max_depth: 2, view_spp: 4, exposure: 1 }, 4);
+  assert.ok(await page.isVisible("#variant"), "the variant picker is not shown");
+  assert.deepEqual(await page.$$eval("#variant option", (os) => os.map((o) => o.value)), ["", "Red", "Green"]);
+  assert.equal(dominant(await meanRgb("viewport")), 2, "default materials: " + await meanRgb("viewport"));
+  for (const [variant, channel] of [["Green", 1], ["Red", 0]]) {
+    const before = await viewport();
+    await page.selectOption("#variant", variant);
+    await waitNewView(before.generation);
+    await settle(4);
+    const rgb = await meanRgb("viewport");
+    assert.equal(dominant(rgb), channel, `viewport with variant ${variant}: ${rgb}`);
+  }
+  // The final render uses the chosen variant (Red) and equals the viewport's image.
+  await page.selectOption("#tonemap", "clamp");
+  await page.click("#render-final");
+  await waitFinal();
+  const r = await (await fetch(BASE + "/api/renders")).json();
+  const job = r.renders.find((j) => j.output === "e2e-variant");
+  assert.equal(job.variant, "Red");
+  assert.equal(dominant(await meanRgb("final")), 0, "final render: " + await meanRgb("final"));
+  const differ = await finalVsViewport();
+  assert.equal(differ, 0, "the final image differs from the viewport's");
+  // A scene without variants hides the picker and forgets the choice.
+  await fill({ scene: "cornell" });
+  assert.ok(!(await page.isVisible("#variant")), "the variant picker is shown for the Cornell box");
+  assert.equal(await page.inputValue("#variant"), "");
 });
 
 test("exposure and tone mapping apply on the page and match the server's PNG within 1/255", async () => {

@@ -52,6 +52,8 @@ address_of() {
 mkdir -p "$tmp/scenes"
 # An environment map to light the screenshot's model.
 cp ../shared/scenes/hdr/studio_small_03_1k.hdr "$tmp/scenes/"
+# A glTF quad with material variants (KHR_materials_variants) for the variant picker.
+cp scenes/gltf-files/quad_variants.gltf "$tmp/scenes/"
 "$bin" serve --port 0 --max-jobs 1 --scenes "$tmp/scenes" --output "$tmp/out" >"$tmp/server.log" 2>&1 &
 pid=$!
 addr="$(address_of "$tmp/server.log" "$pid")" || exit 1

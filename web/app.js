@@ -5,7 +5,7 @@
 
 const FIELDS = ["scene", "output", "width", "height", "spp", "secondary", "max_depth",
   "exposure", "integrator", "tonemap", "default_light", "denoise", "environment",
-  "env_rotation", "view_spp", "aovs"];
+  "env_rotation", "view_spp", "aovs", "variant"];
 const $ = (id) => document.getElementById(id);
 let options = null;
 let current = null;       // id of the job the page is following
@@ -77,6 +77,8 @@ function readForm() {
   body.default_light = $("default_light").value || null;
   body.denoise = $("denoise").checked;
   body.environment = $("environment").value || null;
+  // "" = the file's default materials (KHR_materials_variants); the list is the scene's own.
+  body.variant = $("variant").value || null;
   const rot = Number($("env_rotation").value.trim() || "0");
   if (!isFinite(rot) || Math.abs(rot) > 36000) errors.env_rotation = "must be a number of degrees (at most 36000 either way)";
   else if (rot !== 0 && !body.environment) errors.env_rotation = "turns the environment map: choose one (environment)";
@@ -178,6 +180,13 @@ async function prefillScene() {
   if (!name) return;
   const r = await api("GET", "/api/scene-defaults?scene=" + encodeURIComponent(name));
   if (name !== sel.value) return;
+  // A variant belongs to its scene: another scene starts from its file's default materials.
+  const variants = (r.ok && r.data.variants) || [];
+  fillSelect($("variant"), [""].concat(variants));
+  $("variant").options[0].textContent = "the file's default materials";
+  $("variant").value = "";
+  $("variant-box").hidden = variants.length === 0;
+  setError("variant", "");
   if (r.ok) {
     setError("scene", "");
     for (const f of ["width", "height", "spp", "max_depth"]) $(f).value = r.data[f];
@@ -389,7 +398,7 @@ async function refreshRecent() {
     }
     const meta = document.createElement("span");
     meta.className = "meta";
-    meta.textContent = `${j.scene} · ${j.width}×${j.height} · ${j.spp} spp · ` +
+    meta.textContent = `${j.scene}${j.variant ? " (" + j.variant + ")" : ""} · ${j.width}×${j.height} · ${j.spp} spp · ` +
       (j.queue_position ? `queued, position ${j.queue_position}` : j.state) +
       (j.active ? "" : " · " + fmtTime(j.elapsed_s));
     li.dataset.state = j.state;
@@ -623,7 +632,7 @@ function setupViewport() {
     e.preventDefault();
   });
   for (const f of ["width", "height", "max_depth", "environment", "env_rotation", "default_light",
-    "view_spp", "integrator"]) {
+    "view_spp", "integrator", "variant"]) {
     $(f).addEventListener("change", () => sendView());
   }
   for (const f of ["exposure", "tonemap"]) $(f).addEventListener("input", redisplay);
@@ -668,6 +677,8 @@ function saveScene() {
   if (dl) t += `default_light = ${q(dl)}\n`;
   t += "\n" + cameraToml(orbitCamera(vp.orbit));
   t += `\n[[object]]\nname = "model"\ntype = "mesh"\nfile = ${q(scene)}\n`;
+  const variant = $("variant").value;
+  if (variant) t += `variant = ${q(variant)}\n`;
   const env = $("environment").value;
   if (env) t += `\n[[light]]\ntype = "environment"\nfile = ${q(env)}\nrotation = ${num(Number($("env_rotation").value) || 0)}\n`;
   download(scene.replace(/^.*\//, "").replace(/\.[^.]*$/, "") + "-view.toml", t);
@@ -694,7 +705,7 @@ async function sendView() {
   for (const f of ["environment", "env_rotation", "max_depth"]) if (errors[f]) return;
   const view = { scene: vp.scene, width: w, height: h, spp, max_depth: body.max_depth,
     integrator: body.integrator, default_light: body.default_light, environment: body.environment,
-    env_rotation: body.env_rotation, variant: null };
+    env_rotation: body.env_rotation, variant: body.variant };
   if (vp.orbit) view.camera = orbitCamera(vp.orbit);
   vp.sending = true;
   vp.sentAt = performance.now();

@@ -154,6 +154,8 @@ impl Job {
             "environment": r.environment.as_ref().map(|(n, _)| n),
             "env_rotation": r.env_rotation,
             "camera": r.camera.map(|c| super::viewport::camera_json(&c)),
+            // glTF KHR_materials_variants choice; null: the file's default materials.
+            "variant": r.variant,
             "aovs": r.aovs.iter().map(|k| k.name()).collect::<Vec<_>>(),
             "linear": st.exr.as_ref().map(|_| format!("{base}/linear")),
             "state": st.state.name(),
