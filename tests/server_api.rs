@@ -1699,3 +1699,105 @@ fn env_rotation_turns_the_map_as_the_cli_does() {
     );
     assert!(field_error(&r, "env_rotation").contains("degrees"));
 }
+
+/// `variant` (glTF KHR_materials_variants) picks the material variant for a render job and for
+/// the viewport, as `--variant` does on the command line; an unknown name fails the job or the
+/// view with the scene's variant names.
+#[test]
+fn the_variant_field_renders_as_the_cli_variant_flag_does() {
+    let s = start();
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/gltf-files/quad_variants.gltf");
+    std::fs::copy(&src, s.root.join("scenes/quad_variants.gltf")).unwrap();
+    // The quad fills the view: blue by default, red and green as its variants.
+    let base = json!({"scene": "quad_variants.gltf", "width": 16, "height": 16, "spp": 4,
+                      "max_depth": 2, "seed": 0});
+    let job = |variant: Option<&str>| {
+        let mut b = base.clone();
+        b["output"] = json!(format!("v-{}", variant.unwrap_or("default")));
+        if let Some(v) = variant {
+            b["variant"] = json!(v);
+        }
+        b
+    };
+    // Which channel leads the others by 20 %: 0 red, 1 green, 2 blue.
+    let lead = |m: [f32; 3]| (0..3).find(|&k| (0..3).all(|j| j == k || m[k] > 1.2 * m[j]));
+    let (_, default) = server_render(&s, &job(None));
+    let (_, green) = server_render(&s, &job(Some("Green")));
+    let (_, red) = server_render(&s, &job(Some("Red")));
+    assert_eq!(lead(default.mean().to_array()), Some(2), "{:?}", default.mean());
+    assert_eq!(lead(green.mean().to_array()), Some(1), "{:?}", green.mean());
+    assert_eq!(lead(red.mean().to_array()), Some(0), "{:?}", red.mean());
+    // The same image as the command line's --variant.
+    let args: Vec<String> = [
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--spp",
+        "4",
+        "--max-depth",
+        "2",
+        "--seed",
+        "0",
+        "--variant",
+        "Green",
+    ]
+    .iter()
+    .map(|a| a.to_string())
+    .collect();
+    let scene = s.root.join("scenes/quad_variants.gltf");
+    let cli = cli_render(&s.root, scene.to_str().unwrap(), &args);
+    assert_eq!(green, cli.1, "server EXR with variant Green differs from --variant Green");
+    // The job reports its variant.
+    let jobs = get(&s, "/api/renders").json();
+    let listed = jobs["renders"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|j| j["output"] == "v-Green")
+        .cloned()
+        .unwrap();
+    assert_eq!(listed["variant"], "Green", "{listed}");
+    // An unknown name fails the job, naming the variants there are.
+    let r = post_json(&s, "/api/renders", &job(Some("Purple")));
+    assert_eq!(r.status, 201, "{}", r.text());
+    let j = wait_finished(&s, r.json()["id"].as_u64().unwrap(), Duration::from_secs(60));
+    let e = j["error"].as_str().unwrap_or("");
+    assert!(
+        j["state"] == "failed" && e.contains("'Purple'") && e.contains("'Red', 'Green'"),
+        "{j}"
+    );
+
+    // The viewport: the same variants, the same refusal.
+    let view = |variant: Value| {
+        let mut v = json!({"scene": "quad_variants.gltf", "width": 16, "height": 16, "spp": 2,
+                           "max_depth": 2});
+        v["variant"] = variant;
+        let r = post_json(&s, "/api/viewport?session=variants", &v);
+        assert_eq!(r.status, 202, "{}", r.text());
+        let generation = r.json()["generation"].clone();
+        let t0 = Instant::now();
+        loop {
+            let st = get(&s, "/api/viewport/variants").json();
+            if st["generation"] == generation && matches!(st["state"].as_str(), Some("done" | "failed"))
+            {
+                if st["state"] == "failed" {
+                    return Err(st["error"].as_str().unwrap_or("").to_string());
+                }
+                let lin = get(&s, "/api/viewport/variants/linear").body;
+                let mut m = [0f32; 3];
+                for (i, c) in lin.chunks_exact(4).enumerate() {
+                    m[i % 3] += f32::from_le_bytes(c.try_into().unwrap());
+                }
+                return Ok(m);
+            }
+            assert!(t0.elapsed() < Duration::from_secs(60), "viewport stuck: {st}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    assert_eq!(lead(view(json!("Green")).unwrap()), Some(1));
+    assert_eq!(lead(view(json!("Red")).unwrap()), Some(0));
+    assert_eq!(lead(view(Value::Null).unwrap()), Some(2));
+    let e = view(json!("Purple")).unwrap_err();
+    assert!(e.contains("'Purple'") && e.contains("'Red', 'Green'"), "{e}");
+}
