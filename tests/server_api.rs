@@ -1724,7 +1724,12 @@ fn the_variant_field_renders_as_the_cli_variant_flag_does() {
     let (_, default) = server_render(&s, &job(None));
     let (_, green) = server_render(&s, &job(Some("Green")));
     let (_, red) = server_render(&s, &job(Some("Red")));
-    assert_eq!(lead(default.mean().to_array()), Some(2), "{:?}", default.mean());
+    assert_eq!(
+        lead(default.mean().to_array()),
+        Some(2),
+        "{:?}",
+        default.mean()
+    );
     assert_eq!(lead(green.mean().to_array()), Some(1), "{:?}", green.mean());
     assert_eq!(lead(red.mean().to_array()), Some(0), "{:?}", red.mean());
     // The same image as the command line's --variant.
@@ -1747,7 +1752,10 @@ fn the_variant_field_renders_as_the_cli_variant_flag_does() {
     .collect();
     let scene = s.root.join("scenes/quad_variants.gltf");
     let cli = cli_render(&s.root, scene.to_str().unwrap(), &args);
-    assert_eq!(green, cli.1, "server EXR with variant Green differs from --variant Green");
+    assert_eq!(
+        green, cli.1,
+        "server EXR with variant Green differs from --variant Green"
+    );
     // The job reports its variant.
     let jobs = get(&s, "/api/renders").json();
     let listed = jobs["renders"]
@@ -1761,7 +1769,11 @@ fn the_variant_field_renders_as_the_cli_variant_flag_does() {
     // An unknown name fails the job, naming the variants there are.
     let r = post_json(&s, "/api/renders", &job(Some("Purple")));
     assert_eq!(r.status, 201, "{}", r.text());
-    let j = wait_finished(&s, r.json()["id"].as_u64().unwrap(), Duration::from_secs(60));
+    let j = wait_finished(
+        &s,
+        r.json()["id"].as_u64().unwrap(),
+        Duration::from_secs(60),
+    );
     let e = j["error"].as_str().unwrap_or("");
     assert!(
         j["state"] == "failed" && e.contains("'Purple'") && e.contains("'Red', 'Green'"),
@@ -1779,7 +1791,8 @@ fn the_variant_field_renders_as_the_cli_variant_flag_does() {
         let t0 = Instant::now();
         loop {
             let st = get(&s, "/api/viewport/variants").json();
-            if st["generation"] == generation && matches!(st["state"].as_str(), Some("done" | "failed"))
+            if st["generation"] == generation
+                && matches!(st["state"].as_str(), Some("done" | "failed"))
             {
                 if st["state"] == "failed" {
                     return Err(st["error"].as_str().unwrap_or("").to_string());
@@ -1791,7 +1804,10 @@ fn the_variant_field_renders_as_the_cli_variant_flag_does() {
                 }
                 return Ok(m);
             }
-            assert!(t0.elapsed() < Duration::from_secs(60), "viewport stuck: {st}");
+            assert!(
+                t0.elapsed() < Duration::from_secs(60),
+                "viewport stuck: {st}"
+            );
             std::thread::sleep(Duration::from_millis(20));
         }
     };
@@ -1799,5 +1815,8 @@ fn the_variant_field_renders_as_the_cli_variant_flag_does() {
     assert_eq!(lead(view(json!("Red")).unwrap()), Some(0));
     assert_eq!(lead(view(Value::Null).unwrap()), Some(2));
     let e = view(json!("Purple")).unwrap_err();
-    assert!(e.contains("'Purple'") && e.contains("'Red', 'Green'"), "{e}");
+    assert!(
+        e.contains("'Purple'") && e.contains("'Red', 'Green'"),
+        "{e}"
+    );
 }
