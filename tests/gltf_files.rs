@@ -918,3 +918,23 @@ fn metadata_extensions_are_not_unsupported_but_unknown_ones_are() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Built without the `meshopt` feature (`cargo test --no-default-features --test gltf_files
+/// meshopt_without`: no C++ compiler needed), a meshopt-compressed file is refused with an error
+/// naming the file, the extension and the feature; other files still load.
+#[cfg(not(feature = "meshopt"))]
+#[test]
+fn meshopt_without_the_decoder_is_a_named_error() {
+    for (file, ext) in [
+        ("spheres_meshopt.glb", "EXT_meshopt_compression"),
+        ("spheres_meshopt_khr.glb", "KHR_meshopt_compression"),
+    ] {
+        let e = load(&repo_file(file)).unwrap_err();
+        assert!(
+            e.contains(file) && e.contains(ext) && e.contains("feature 'meshopt'"),
+            "{file}: {e}"
+        );
+    }
+    load(&repo_file("spheres_quantized.glb")).unwrap();
+    load(&repo_file("box_draco.glb")).unwrap();
+}

@@ -30,6 +30,7 @@ const MAX_DECODED_TOTAL: usize = 1 << 31;
 
 /// One compressed buffer view, as the extension object describes it.
 #[derive(Debug)]
+#[cfg_attr(not(feature = "meshopt"), allow(dead_code))]
 struct Compressed<'a> {
     view: usize,
     ext: &'static str,
@@ -215,16 +216,32 @@ impl Loader<'_> {
     }
 }
 
+/// A build without the `meshopt` cargo feature (on by default) has no decoder: the reference
+/// decoder is C++, and this lets Trayecto build with the Rust toolchain alone. Such a build still
+/// reads and checks the extension objects, then refuses the file naming the extension.
+#[cfg(not(feature = "meshopt"))]
+fn decode(_: &Compressed) -> Result<Vec<u8>, String> {
+    Err(
+        "this build of Trayecto has no meshopt decoder (it was built without the cargo feature \
+         'meshopt', which is on by default and needs a C++ compiler); rebuild with it, or write \
+         the file without meshopt compression"
+            .into(),
+    )
+}
+
 /// One vertex of `N` bytes (`[u8; N]` has no `Default` beyond 32).
+#[cfg(feature = "meshopt")]
 #[derive(Clone, Copy)]
 struct Vertex<const N: usize>([u8; N]);
 
+#[cfg(feature = "meshopt")]
 impl<const N: usize> Default for Vertex<N> {
     fn default() -> Self {
         Vertex([0; N])
     }
 }
 
+#[cfg(feature = "meshopt")]
 fn decode_vertices<const N: usize>(src: &[u8], count: usize) -> Result<Vec<u8>, String> {
     let v: Vec<Vertex<N>> = ::meshopt::decode_vertex_buffer(src, count)
         .map_err(|e| format!("corrupt vertex stream ({e})"))?;
@@ -232,6 +249,7 @@ fn decode_vertices<const N: usize>(src: &[u8], count: usize) -> Result<Vec<u8>, 
 }
 
 /// Dispatches the vertex decoder on the stride (a multiple of 4 up to 256, checked above).
+#[cfg(feature = "meshopt")]
 fn decode_vertex_stride(src: &[u8], count: usize, stride: usize) -> Result<Vec<u8>, String> {
     macro_rules! strides {
         ($($n:literal)*) => {
@@ -246,6 +264,7 @@ fn decode_vertex_stride(src: &[u8], count: usize, stride: usize) -> Result<Vec<u
         200 204 208 212 216 220 224 228 232 236 240 244 248 252 256)
 }
 
+#[cfg(feature = "meshopt")]
 fn decode(c: &Compressed) -> Result<Vec<u8>, String> {
     if c.count == 0 {
         return Ok(Vec::new());
@@ -280,6 +299,7 @@ fn decode(c: &Compressed) -> Result<Vec<u8>, String> {
 
 /// Undoes a vertex filter in place (extension text, "Filters"). Strides were checked against the
 /// filter when the view was read.
+#[cfg(feature = "meshopt")]
 fn apply_filter(data: &mut [u8], filter: Filter, stride: usize) {
     fn through<T: Copy + Default, const K: usize>(
         data: &mut [u8],
