@@ -68,10 +68,16 @@ const MAX_CUTOUT_LAYERS: u32 = 256;
 
 impl World {
     /// Compiles `scene` for rendering. The scene is consumed: its materials and textures move
-    /// into the world instead of being copied. `Scene::validate` runs on entry: loaded scenes were
-    /// checked by `scene::load_file` already, but scenes built in code must be just as safe.
+    /// into the world instead of being copied. The scene must be valid: `scene::load` validated
+    /// it (the one place, docs/DESIGN.md §3; `Scene::select_variant` keeps it valid), and a scene
+    /// built in code is checked with `Scene::validate` before it comes here. Debug builds check
+    /// again, so a test that builds an invalid scene by hand fails here rather than deeper.
     pub fn build(mut scene: Scene, options: &WorldOptions) -> Result<World, SceneError> {
-        scene.validate()?;
+        debug_assert!(
+            scene.validate().is_ok(),
+            "World::build got an invalid scene: {:?}",
+            scene.validate()
+        );
         let label = scene
             .source
             .as_ref()

@@ -167,10 +167,17 @@ fn specular_scene(front: Material, behind: (Shape, Vec3)) -> World {
     World::build(s, &WorldOptions::default()).unwrap()
 }
 
-/// Through a mirror the albedo is the mirror's colour times the wall it reflects, the normal is
-/// that wall's; the first-hit layers (N, material) still show the mirror.
-#[test]
-fn albedo_and_normal_follow_a_mirror_to_the_surface_it_reflects() {
+/// The built-in Cornell box, built.
+fn cornell() -> World {
+    World::build(
+        trayecto::scene::load("cornell").unwrap(),
+        &WorldOptions::default(),
+    )
+    .unwrap()
+}
+
+/// A mirror (colour 0.9) in front of a red wall at x = 2 facing -x; returns the wall's colour.
+fn mirror_world() -> (World, Vec3) {
     let mirror = Material {
         name: "mirror".into(),
         model: MaterialModel::Mirror,
@@ -178,9 +185,30 @@ fn albedo_and_normal_follow_a_mirror_to_the_surface_it_reflects() {
         ..Default::default()
     };
     let red = Vec3::new(0.8, 0.1, 0.1);
-    // A wall at x = 2 facing -x.
     let wall = quad([2.0, -5.0, -10.0], [0.0, 0.0, 20.0], [0.0, 10.0, 0.0]);
-    let world = specular_scene(mirror, (wall, red));
+    (specular_scene(mirror, (wall, red)), red)
+}
+
+/// A smooth glass slab (IOR 1.5) in front of a green wall at z = -4 facing +z; returns the
+/// wall's colour.
+fn glass_world() -> (World, Vec3) {
+    let glass = Material {
+        name: "glass".into(),
+        model: MaterialModel::Dielectric,
+        roughness: 0.0,
+        ior: 1.5,
+        ..Default::default()
+    };
+    let green = Vec3::new(0.1, 0.7, 0.2);
+    let wall = quad([-10.0, -10.0, -4.0], [20.0, 0.0, 0.0], [0.0, 20.0, 0.0]);
+    (specular_scene(glass, (wall, green)), green)
+}
+
+/// Through a mirror the albedo is the mirror's colour times the wall it reflects, the normal is
+/// that wall's; the first-hit layers (N, material) still show the mirror.
+#[test]
+fn albedo_and_normal_follow_a_mirror_to_the_surface_it_reflects() {
+    let (world, red) = mirror_world();
     let layers = aovs(&world, &settings(16, 16, 4, 2));
     let mirror_n = Vec3::new(1.0, 0.0, 1.0).normalize();
     for y in 0..16 {
@@ -202,17 +230,7 @@ fn albedo_and_normal_follow_a_mirror_to_the_surface_it_reflects() {
 /// transmittance of about 0.92 for glass of IOR 1.5 seen head-on.
 #[test]
 fn albedo_and_normal_are_seen_through_glass() {
-    let glass = Material {
-        name: "glass".into(),
-        model: MaterialModel::Dielectric,
-        roughness: 0.0,
-        ior: 1.5,
-        ..Default::default()
-    };
-    let green = Vec3::new(0.1, 0.7, 0.2);
-    // A wall at z = -4 facing +z.
-    let wall = quad([-10.0, -10.0, -4.0], [20.0, 0.0, 0.0], [0.0, 20.0, 0.0]);
-    let world = specular_scene(glass, (wall, green));
+    let (world, green) = glass_world();
     let layers = aovs(&world, &settings(8, 8, 64, 2));
     let mut share = 0.0;
     for y in 0..8 {
@@ -281,11 +299,7 @@ fn normals_face_the_viewer() {
 /// The layers are a function of the settings, not of the thread count.
 #[test]
 fn aovs_do_not_depend_on_the_thread_count() {
-    let world = World::build(
-        trayecto::scene::load("cornell").unwrap(),
-        &WorldOptions::default(),
-    )
-    .unwrap();
+    let world = cornell();
     let one = aovs(&world, &settings(24, 20, 3, 1));
     let three = aovs(&world, &settings(24, 20, 3, 3));
     assert_eq!(one, three);
@@ -337,11 +351,7 @@ fn one_multilayer_exr_with_an_unchanged_beauty_image() {
     want.sort();
     assert_eq!(names, want);
     // The albedo channels hold the traced layer.
-    let world = World::build(
-        trayecto::scene::load("cornell").unwrap(),
-        &WorldOptions::default(),
-    )
-    .unwrap();
+    let world = cornell();
     let traced = render_aovs(&world, &settings(20, 16, 2, 1), &[AovKind::Albedo], &stop).unwrap();
     let g = channels.iter().find(|(n, _)| n == "albedo.G").unwrap();
     let want_g: Vec<f32> = traced[0].data.iter().skip(1).step_by(3).copied().collect();
@@ -409,11 +419,7 @@ fn render_in_loop(
 /// image is bit-identical with and without them.
 #[test]
 fn in_loop_aovs_equal_the_separate_pass_on_diffuse_surfaces() {
-    let world = World::build(
-        trayecto::scene::load("cornell").unwrap(),
-        &WorldOptions::default(),
-    )
-    .unwrap();
+    let world = cornell();
     let s1 = settings(24, 20, 7, 1);
     let (_, one) = render_in_loop(&world, &s1, &AovKind::ALL);
     let (_, three) = render_in_loop(&world, &settings(24, 20, 7, 3), &AovKind::ALL);
@@ -438,15 +444,7 @@ fn in_loop_aovs_equal_the_separate_pass_on_diffuse_surfaces() {
 /// then taken (as the separate pass takes it).
 #[test]
 fn in_loop_aovs_follow_mirrors_and_glass() {
-    let mirror = Material {
-        name: "mirror".into(),
-        model: MaterialModel::Mirror,
-        base_color: Vec3::splat(0.9),
-        ..Default::default()
-    };
-    let red = Vec3::new(0.8, 0.1, 0.1);
-    let wall = quad([2.0, -5.0, -10.0], [0.0, 0.0, 20.0], [0.0, 10.0, 0.0]);
-    let world = specular_scene(mirror, (wall, red));
+    let (world, red) = mirror_world();
     for max_depth in [1, 64] {
         let mut s = settings(16, 16, 4, 2);
         s.path.max_depth = max_depth;
@@ -460,16 +458,7 @@ fn in_loop_aovs_follow_mirrors_and_glass() {
             }
         }
     }
-    let glass = Material {
-        name: "glass".into(),
-        model: MaterialModel::Dielectric,
-        roughness: 0.0,
-        ior: 1.5,
-        ..Default::default()
-    };
-    let green = Vec3::new(0.1, 0.7, 0.2);
-    let wall = quad([-10.0, -10.0, -4.0], [20.0, 0.0, 0.0], [0.0, 20.0, 0.0]);
-    let world = specular_scene(glass, (wall, green));
+    let (world, green) = glass_world();
     let (_, layers) = render_in_loop(
         &world,
         &settings(8, 8, 64, 2),

@@ -274,15 +274,7 @@ fn draco_boxes_decode_to_the_original_vertices() {
 
 #[test]
 fn hostile_draco_streams_are_clear_errors() {
-    let path = repo_file("box_draco.glb");
-    let glb = std::fs::read(&path).unwrap();
-    let dir = path.parent().unwrap();
-    let (json, bin) = glb_parts(&glb);
-    let parse = |bytes: &[u8]| trayecto::scene::load_bytes(bytes, dir, "hostile.glb");
-    assert!(
-        parse(&glb_join(&json, &bin)).is_ok(),
-        "the repacked file loads"
-    );
+    let (json, bin, parse) = repacked("box_draco.glb");
     let ext = |j: &mut serde_json::Value| -> serde_json::Value {
         j["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"].clone()
     };
@@ -835,17 +827,25 @@ fn glb_join(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
     out
 }
 
-#[test]
-fn hostile_meshopt_streams_are_clear_errors() {
-    let path = repo_file("box_meshopt_filters.glb");
-    let glb = std::fs::read(&path).unwrap();
-    let dir = path.parent().unwrap();
-    let (json, bin) = glb_parts(&glb);
-    let parse = |bytes: &[u8]| trayecto::scene::load_bytes(bytes, dir, "hostile.glb");
+/// A sample file split into its JSON and binary chunks, checked to load once joined again, and a
+/// parser of hostile variants of it (named `hostile.glb`, resolved in the file's folder).
+type GlbParser = Box<dyn Fn(&[u8]) -> Result<Scene, trayecto::scene::SceneError>>;
+fn repacked(file: &str) -> (serde_json::Value, Vec<u8>, GlbParser) {
+    let path = repo_file(file);
+    let (json, bin) = glb_parts(&std::fs::read(&path).unwrap());
+    let dir = path.parent().unwrap().to_path_buf();
+    let parse: GlbParser =
+        Box::new(move |bytes| trayecto::scene::load_bytes(bytes, &dir, "hostile.glb"));
     assert!(
         parse(&glb_join(&json, &bin)).is_ok(),
-        "the repacked file loads"
+        "{file}: the repacked file loads"
     );
+    (json, bin, parse)
+}
+
+#[test]
+fn hostile_meshopt_streams_are_clear_errors() {
+    let (json, bin, parse) = repacked("box_meshopt_filters.glb");
     let views = json["bufferViews"].as_array().unwrap().clone();
     let compressed: Vec<usize> = (0..views.len())
         .filter(|&i| views[i]["extensions"]["EXT_meshopt_compression"].is_object())

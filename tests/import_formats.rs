@@ -584,3 +584,55 @@ radius = 1
         "the environment map is the one light"
     );
 }
+
+/// Validation runs once, when a scene is loaded (docs/DESIGN.md §3), and `World::build` trusts a
+/// loaded scene; `select_variant` may still move objects to a variant's material afterwards. So
+/// `Scene::validate` must check the variants' materials and media too, not only the objects'.
+/// (Checked to fail: with the variant loop removed from `Scene::validate`, both scenes validate.)
+#[test]
+fn material_variants_are_validated_with_the_scene() {
+    use trayecto::scene::{MediumInterface, ObjectVariants};
+    let base = trayecto::scene::load("cornell").unwrap();
+    let n = base.materials.len();
+    let variant = |material: usize, medium: Option<MediumInterface>| {
+        let mut s = base.clone();
+        s.variants = vec!["v".into()];
+        s.variant_objects = vec![ObjectVariants {
+            object: 0,
+            default: (s.objects[0].material, None),
+            by_variant: vec![(0, material, medium)],
+        }];
+        s
+    };
+    assert!(variant(n - 1, None).validate().is_ok());
+    let e = variant(n, None).validate().unwrap_err().to_string();
+    assert!(
+        e.contains("variant") && e.contains(&format!("material {n}")),
+        "{e}"
+    );
+    let missing = MediumInterface {
+        inside: Some(7),
+        outside: None,
+    };
+    assert!(variant(0, Some(missing)).validate().is_err());
+}
+
+/// A folder given as the scene is named as a folder, with the next step, whether or not its name
+/// has an extension (it said "the file has no extension" for `/tmp`).
+/// (Checked to fail: without the `is_dir` test in `scene::load`, the first case says "no extension".)
+#[test]
+fn a_folder_given_as_the_scene_is_called_a_folder() {
+    let dir = std::env::temp_dir().join(format!("trayecto-folder-{}", std::process::id()));
+    for d in [dir.join("plain"), dir.join("looks.gltf")] {
+        std::fs::create_dir_all(&d).unwrap();
+        let e = trayecto::scene::load(d.to_str().unwrap())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(d.to_str().unwrap())
+                && e.contains("is a folder; give a scene file inside it"),
+            "{e}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -661,7 +661,11 @@ fn server_render(s: &Server, body: &Value) -> (Vec<u8>, trayecto::film::Image) {
 }
 
 /// The same render by the command line (whose options are tested in tests/cli.rs).
-fn cli_render(dir: &Path, scene: &str, args: &[String]) -> (Vec<u8>, trayecto::film::Image) {
+fn cli_render<A: AsRef<std::ffi::OsStr> + std::fmt::Debug>(
+    dir: &Path,
+    scene: &str,
+    args: &[A],
+) -> (Vec<u8>, trayecto::film::Image) {
     let mut out = Vec::new();
     for ext in ["png", "exr"] {
         let file = dir.join(format!("cli.{ext}"));
@@ -782,7 +786,7 @@ fn a_real_scene_file_from_the_scenes_folder_renders() {
         &json!({"scene": "mitsuba/textured.toml", "output": "real", "width": 24, "height": 16,
                 "spp": 2, "max_depth": 4, "seed": 3}),
     );
-    let args: Vec<String> = [
+    let args = [
         "--width",
         "24",
         "--height",
@@ -793,10 +797,7 @@ fn a_real_scene_file_from_the_scenes_folder_renders() {
         "4",
         "--seed",
         "3",
-    ]
-    .iter()
-    .map(|a| a.to_string())
-    .collect();
+    ];
     let cli = cli_render(
         &s.root,
         dir.join("mitsuba/textured.toml").to_str().unwrap(),
@@ -1324,7 +1325,7 @@ fn an_environment_map_from_the_scenes_folder_lights_the_render() {
     plain["output"] = json!("plain");
     let (_, plain_exr) = server_render(&s, &plain);
     let map = s.root.join("scenes/maps/studio.hdr");
-    let args: Vec<String> = [
+    let args = [
         "--width",
         "24",
         "--height",
@@ -1334,11 +1335,8 @@ fn an_environment_map_from_the_scenes_folder_lights_the_render() {
         "--max-depth",
         "3",
         "--env",
-    ]
-    .iter()
-    .map(|a| a.to_string())
-    .chain([map.display().to_string()])
-    .collect();
+        map.to_str().unwrap(),
+    ];
     let cli = cli_render(&s.root, "cornell", &args);
     assert_eq!(
         lit_exr, cli.1,
@@ -1415,7 +1413,7 @@ fn the_camera_field_renders_the_view_as_camera_from_does() {
         "[[camera]]\neye = [0.25, 0.5, 2.5]\ntarget = [0.0, 0.125, 0.0]\nup = [0.0, 1.0, 0.0]\nfov = 50.0\n",
     )
     .unwrap();
-    let args: Vec<String> = [
+    let args = [
         "--width",
         "20",
         "--height",
@@ -1425,11 +1423,8 @@ fn the_camera_field_renders_the_view_as_camera_from_does() {
         "--max-depth",
         "3",
         "--camera-from",
-    ]
-    .iter()
-    .map(|a| a.to_string())
-    .chain([toml.display().to_string()])
-    .collect();
+        toml.to_str().unwrap(),
+    ];
     let cli = cli_render(&s.root, "cornell", &args);
     assert_eq!(
         viewed_exr, cli.1,
@@ -1664,7 +1659,7 @@ fn env_rotation_turns_the_map_as_the_cli_does() {
         "the rotation did not change the render"
     );
     let map = s.root.join("scenes/studio.hdr").display().to_string();
-    let args: Vec<String> = [
+    let args = [
         "--width",
         "16",
         "--height",
@@ -1674,13 +1669,10 @@ fn env_rotation_turns_the_map_as_the_cli_does() {
         "--max-depth",
         "2",
         "--env",
-        &map,
+        map.as_str(),
         "--env-rotation",
         "90",
-    ]
-    .iter()
-    .map(|a| a.to_string())
-    .collect();
+    ];
     let cli = cli_render(&s.root, "cornell", &args);
     assert_eq!(
         turned_exr, cli.1,

@@ -3,6 +3,7 @@
 //! solid angle (PBRT eq. 4.9 / §12.2); a light is first chosen in proportion to its power.
 
 use crate::geometry::primitive::{PrimRef, PrimitiveKind, SurfaceHit};
+use crate::geometry::sample::{sample_sphere_cone, sphere_cone};
 use crate::geometry::{Bounds3, GeometryStore, Ray};
 use crate::material::eval::emitted;
 use crate::material::{Material, Texture};
@@ -334,60 +335,7 @@ fn sample_area_general(
     })
 }
 
-/// Below this sin²θmax the cone of a sphere is so narrow that 1 − cos θmax loses its digits in f32:
-/// pbrt-v4's threshold (sin² 1.5°) for switching to the Taylor expansion.
-const SPHERE_SMALL_SIN2: f32 = 0.000_685_23;
-
-/// The cone of directions a sphere (`center`, `radius`) subtends from `p`, as
-/// (sin²θmax, 1 − cos θmax), or `None` when `p` is inside or on it.
-#[inline]
-fn sphere_cone(center: Vec3, radius: f32, p: Vec3) -> Option<(f32, f32)> {
-    let d2 = (p - center).length_squared();
-    // A margin above the surface: points on the sphere (its own shadow-ray origins) are inside.
-    if !(d2 > radius * radius * 1.0001) {
-        return None;
-    }
-    let sin2_max = radius * radius / d2;
-    let one_minus = if sin2_max < SPHERE_SMALL_SIN2 {
-        // 1 − √(1 − x) ≈ x/2 (+ x²/8), where the difference would cancel.
-        sin2_max / 2.0 + sin2_max * sin2_max / 8.0
-    } else {
-        1.0 - (1.0 - sin2_max).max(0.0).sqrt()
-    };
-    Some((sin2_max, one_minus))
-}
-
-/// Samples a sphere light seen from outside uniformly over the solid angle it subtends
-/// (pbrt-v4 §6.2.4, `Sphere::Sample(ctx, u)`; Shirley & Wang 1996): a direction in the cone
-/// toward the centre, then the point where it meets the sphere (computed from the angle α at the
-/// centre, which is stable where a ray–sphere intersection is not). Area sampling of the whole
-/// sphere wastes the back half and weights the visible cap by distance and cosine; the cone's
-/// pdf 1/(2π(1 − cos θmax)) is constant, so an unoccluded sphere of constant radiance gives
-/// zero-variance estimates. Returns the point, its outward normal and the solid-angle pdf, or
-/// `None` from inside the sphere (then it is sampled by area).
-#[inline]
-fn sample_sphere_cone(center: Vec3, radius: f32, p: Vec3, u: Vec2) -> Option<(Vec3, Vec3, f32)> {
-    let (sin2_max, one_minus) = sphere_cone(center, radius, p)?;
-    let (sin2_t, cos_t) = if sin2_max < SPHERE_SMALL_SIN2 {
-        // sin²θ = sin²θmax · u: the small-cone form of cos θ = 1 − u (1 − cos θmax).
-        let s2 = sin2_max * u.x;
-        (s2, (1.0 - s2).sqrt())
-    } else {
-        let c = 1.0 - u.x * one_minus;
-        ((1.0 - c * c).max(0.0), c)
-    };
-    // The angle α at the centre between the direction to p and the sampled point.
-    let cos_a = sin2_t / sin2_max.sqrt() + cos_t * (1.0 - sin2_t / sin2_max).max(0.0).sqrt();
-    let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
-    let phi = u.y * 2.0 * PI;
-    let to_p = (p - center).normalize();
-    let frame = crate::math::Frame::from_normal(to_p);
-    let n = frame.to_world(Vec3::new(sin_a * phi.cos(), sin_a * phi.sin(), cos_a));
-    let point = center + n * radius;
-    Some((point, n, 1.0 / (2.0 * PI * one_minus)))
-}
-
-/// [`sample_sphere_cone`] for a sphere area light: the light sample from `hit`.
+/// [`sample_sphere_cone`] (in geometry, with the other shape sampling) for a sphere area light: the light sample from `hit`.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn sample_sphere_light(

@@ -441,10 +441,11 @@ impl Scene {
         }
     }
 
-    /// Checks internal consistency (indices in range, finite numbers) so the renderer can trust
-    /// the data. [`load_file`] / [`load_bytes`] call it after the loader, and `World::build` on entry
-    /// (scenes may be built in code); it turns hostile input into a clear error instead of a panic
-    /// later.
+    /// Checks internal consistency (indices in range, finite numbers, material variants) so the
+    /// renderer can trust the data. It runs once per loaded scene, in [`load`] / [`load_file`] /
+    /// [`load_bytes`] (and on each TOML `include`d file before it is merged); `World::build` trusts
+    /// its input, so a scene built in code calls this first. It turns hostile input into a clear
+    /// error instead of a panic later.
     pub fn validate(&self) -> Result<(), SceneError> {
         let label = self.label();
         let err = |m: String| Err(SceneError::invalid(&label, m));
@@ -555,6 +556,31 @@ impl Scene {
                     "object {i} '{}' references a missing medium",
                     o.name
                 ));
+            }
+        }
+        // `select_variant` moves objects to these materials and media after loading, so they are
+        // checked here with the rest: the world trusts a loaded scene (docs/DESIGN.md §3).
+        for ov in &self.variant_objects {
+            let name = self.objects.get(ov.object).map(|o| o.name.as_str());
+            let Some(name) = name else {
+                return err(format!(
+                    "a material variant maps object {} of {}",
+                    ov.object,
+                    self.objects.len()
+                ));
+            };
+            let choices = std::iter::once((ov.default.0, ov.default.1))
+                .chain(ov.by_variant.iter().map(|&(_, m, med)| (m, med)));
+            for (m, med) in choices {
+                if m >= self.materials.len()
+                    || med.is_some_and(|mi| !(medium_ok(mi.inside) && medium_ok(mi.outside)))
+                {
+                    return err(format!(
+                        "a material variant of object {} '{name}' references material {m} of {} or a missing medium",
+                        ov.object,
+                        self.materials.len()
+                    ));
+                }
             }
         }
         for (i, c) in self.cameras.iter().enumerate() {
@@ -797,9 +823,12 @@ pub fn extension_list(includable_only: bool) -> String {
 pub fn load(spec: &str) -> Result<Scene, SceneError> {
     let path = Path::new(spec);
     if builtin::NAMES.contains(&spec) && !path.exists() {
-        return builtin::load(spec);
+        let scene = builtin::load(spec)?;
+        scene.validate()?;
+        return Ok(scene);
     }
-    if path.extension().is_none() {
+    // A folder is named as one whatever its name ('/tmp' has no extension, 'x.gltf/' may).
+    if path.extension().is_none() && !path.is_dir() {
         if path.exists() {
             return Err(SceneError::invalid(
                 spec,
