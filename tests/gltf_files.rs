@@ -919,7 +919,7 @@ fn metadata_extensions_are_not_unsupported_but_unknown_ones_are() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Built without the `meshopt` feature (`cargo test --no-default-features --test gltf_files
+/// Built without the `meshopt` feature (`cargo test --no-default-features --features cli --test gltf_files
 /// meshopt_without`: no C++ compiler needed), a meshopt-compressed file is refused with an error
 /// naming the file, the extension and the feature; other files still load.
 #[cfg(not(feature = "meshopt"))]
