@@ -126,6 +126,16 @@ pub fn blackbody_rgb(t: f32) -> Vec3 {
     illuminant_to_rgb(|l| blackbody(l, t))
 }
 
+/// Linear sRGB of pbrt-v4's `BlackbodySpectrum(t)` *without* the photometric normalisation of
+/// lights (peak 1, XYZ = Σ x̄·B / Σ ȳ): what a grid medium's `temperature` voxel emits per unit
+/// `Lescale` (pbrt-v4 `GridMedium::SamplePoint`). Zero at t ≤ 0.
+pub fn blackbody_peak_rgb(t: f32) -> Vec3 {
+    if !(t > 0.0) {
+        return Vec3::ZERO;
+    }
+    xyz_to_linear_srgb(spectrum_to_xyz(|l| blackbody(l, t)))
+}
+
 /// A piecewise-linear tabulated spectrum; 0 outside its range (pbrt-v4 `PiecewiseLinearSpectrum`).
 fn table(tab: &[(f32, f32)], lambda: f32) -> f32 {
     let (Some(first), Some(last)) = (tab.first(), tab.last()) else {
