@@ -40,8 +40,8 @@ lines = [
     'Sampler "independent" "integer pixelsamples" [ 64 ]',
     'Integrator "volpath" "integer maxdepth" [ 100 ]',
     "WorldBegin",
-    # A dim sky: with no light at all Trayecto would add its default white environment
-    # (src/light/default_light.rs counts surface emitters only, not emissive media).
+    # A dim sky (written before Trayecto's default-light rule counted glowing grids as the
+    # scene's lighting; kept so the committed reference stays valid).
     'LightSource "infinite" "rgb L" [ 0.02 0.02 0.02 ]',
     'MakeNamedMedium "flame" "string type" "uniformgrid"',
     '    "rgb sigma_a" [ 1.5 1.5 1.5 ] "rgb sigma_s" [ 0.5 0.5 0.5 ] "float g" [ 0.2 ]',

@@ -45,6 +45,9 @@ pub struct MediumDesc {
 }
 
 /// How the coefficients vary in space.
+// A scene description, built once per medium and compiled into `medium::Medium`: the size of
+// the Grid variant costs nothing, and boxing it would only obscure the importers' code.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum MediumKind {
     /// The same σa, σs everywhere.
