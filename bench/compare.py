@@ -116,7 +116,8 @@ def reexec_in_venv():
 
 
 def find_libllvm():
-    """A libLLVM >= 16 for drjit's LLVM backend (Debian's libLLVM-15 makes drjit abort)."""
+    """A libLLVM for drjit's LLVM backend, the newest found (Debian's libLLVM-15 makes drjit abort;
+    with drjit 3.9 libLLVM-16 aborts too, "Cannot select: fminimum"; libLLVM-19 works)."""
     if os.environ.get("DRJIT_LIBLLVM_PATH"):
         return os.environ["DRJIT_LIBLLVM_PATH"]
     best = None

@@ -534,10 +534,16 @@ fn add_option_lights(
     );
     // An emissive medium is the author's lighting too: a scene lit only by glowing gas must not
     // get the white environment that `auto` gives an unlit scene.
-    let medium_glows = scene
-        .media
-        .iter()
-        .any(|m| m.le.max_element() > 0.0 && (m.sigma_a * m.scale).max_element() > 0.0);
+    let medium_glows = scene.media.iter().any(|m| {
+        let grid_glows = matches!(
+            &m.kind,
+            crate::scene::MediumKind::Grid {
+                emission: Some(_),
+                ..
+            }
+        );
+        (m.le.max_element() > 0.0 || grid_glows) && (m.sigma_a * m.scale).max_element() > 0.0
+    });
     let decision = if medium_glows && matches!(mode, DefaultLight::Auto) {
         default_light::Decision {
             add: false,

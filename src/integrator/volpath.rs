@@ -163,7 +163,7 @@ pub fn radiance(
                             t_maj,
                         } => {
                             let sm = sigma_maj[channel];
-                            if m.le != Vec3::ZERO && depth < set.max_depth {
+                            if m.is_emissive() && depth < set.max_depth {
                                 // Emission at every tentative collision (pbrt-v4 §14.2.2):
                                 // β·T_maj/pdf · σa·Le, MIS-weighted over the channels by the
                                 // rescaled probability r_e = r_u·σ_maj·T_maj/pdf of reaching
@@ -171,7 +171,7 @@ pub fn radiance(
                                 let pdf = t_maj[channel] * sm;
                                 let r_e = mean(st.r_u * sigma_maj * t_maj / pdf);
                                 if r_e > 0.0 && pdf > 0.0 {
-                                    l += st.beta * t_maj / pdf * props.sigma_a * m.le / r_e;
+                                    l += st.beta * t_maj / pdf * props.sigma_a * m.le_at(p) / r_e;
                                 }
                             }
                             let p_absorb = props.sigma_a[channel] / sm;

@@ -10,6 +10,7 @@
 
 use crate::geometry::Ray;
 use crate::math::{Mat4, Vec3};
+pub use crate::scene::GridEdge;
 
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum GridError {
@@ -52,6 +53,9 @@ pub struct DensityGrid {
     pub max_density: f32,
     /// Per-cell maxima of the density over a coarse grid of the box (see [`MajorantGrid`]).
     pub majorants: MajorantGrid,
+    /// Lookups between the outermost voxel centres and the faces: held (Mitsuba) or fading to
+    /// zero (pbrt-v4). The majorants hold for both: a blend with zeros is never larger.
+    pub edge: GridEdge,
 }
 
 /// Cells per axis of the majorant grid (pbrt-v4's `MajorantGrid` uses 16³ for grid media).
@@ -114,7 +118,20 @@ impl DensityGrid {
             world_to_unit,
             max_density,
             majorants,
+            edge: GridEdge::Hold,
         })
+    }
+
+    /// The same grid with lookups following `edge`.
+    pub fn with_edge(mut self, edge: GridEdge) -> Self {
+        self.edge = edge;
+        self
+    }
+
+    /// World point `p` in the grid's unit cube [0, 1]³ (outside it when `p` is outside the box).
+    #[inline]
+    pub fn unit(&self, p: Vec3) -> Vec3 {
+        self.world_to_unit.transform_point3(p)
     }
 
     /// The ray in the grid's unit-cube space: same parameter `t` as the world ray (the map is
@@ -127,33 +144,17 @@ impl DensityGrid {
         )
     }
 
-    #[inline]
-    fn at(&self, x: usize, y: usize, z: usize) -> f32 {
-        self.data[(z * self.ny + y) * self.nx + x]
-    }
-
     /// Density at world point `p` (0 outside the box).
     #[inline]
     pub fn density(&self, p: Vec3) -> f32 {
-        let q = self.world_to_unit.transform_point3(p);
-        if !(q.cmpge(Vec3::ZERO).all() && q.cmple(Vec3::ONE).all()) {
-            return 0.0;
-        }
-        let coord = |v: f32, n: usize| -> (usize, usize, f32) {
-            let x = (v * n as f32 - 0.5).clamp(0.0, (n - 1) as f32);
-            let i0 = (x.floor() as usize).min(n - 1);
-            let i1 = (i0 + 1).min(n - 1);
-            (i0, i1, x - i0 as f32)
-        };
-        let (x0, x1, fx) = coord(q.x, self.nx);
-        let (y0, y1, fy) = coord(q.y, self.ny);
-        let (z0, z1, fz) = coord(q.z, self.nz);
-        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-        let c00 = lerp(self.at(x0, y0, z0), self.at(x1, y0, z0), fx);
-        let c10 = lerp(self.at(x0, y1, z0), self.at(x1, y1, z0), fx);
-        let c01 = lerp(self.at(x0, y0, z1), self.at(x1, y0, z1), fx);
-        let c11 = lerp(self.at(x0, y1, z1), self.at(x1, y1, z1), fx);
-        lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz)
+        trilinear(
+            self.nx,
+            self.ny,
+            self.nz,
+            &self.data,
+            self.unit(p),
+            self.edge,
+        )
     }
 
     /// The part of `ray` over `[0, t_max)` inside the grid's box, as a parameter interval.
@@ -161,6 +162,51 @@ impl DensityGrid {
         let (o, d) = self.to_unit(ray);
         clip_unit(o, d, t_max)
     }
+}
+
+/// Trilinear lookup of an `nx·ny·nz` grid (x fastest) at unit-cube point `q`, voxel (i, j, k)
+/// sitting at ((i+½)/nx, (j+½)/ny, (k+½)/nz); 0 outside [0, 1]³. Between the outermost voxel
+/// centres and the faces `edge` decides: [`GridEdge::Hold`] clamps the indices (Mitsuba's `clamp`
+/// wrap mode), [`GridEdge::Zero`] blends with zeros beyond the grid (pbrt-v4 `SampledGrid::Lookup`).
+#[inline]
+pub fn trilinear(nx: usize, ny: usize, nz: usize, data: &[f32], q: Vec3, edge: GridEdge) -> f32 {
+    if !(q.cmpge(Vec3::ZERO).all() && q.cmple(Vec3::ONE).all()) {
+        return 0.0;
+    }
+    // Per axis: the two voxel indices blended and the weight of the second; an index of `n`
+    // (or the wrapped −1) is a sample outside the grid, which reads as 0 under `Zero`.
+    let coord = |v: f32, n: usize| -> (usize, usize, f32) {
+        let x = v * n as f32 - 0.5;
+        match edge {
+            GridEdge::Hold => {
+                let x = x.clamp(0.0, (n - 1) as f32);
+                let i0 = (x.floor() as usize).min(n - 1);
+                (i0, (i0 + 1).min(n - 1), x - i0 as f32)
+            }
+            GridEdge::Zero => {
+                let f = x.floor();
+                // f ≥ −1 since v ≥ 0; −1 is stored as `usize::MAX` (out of range).
+                let i0 = if f < 0.0 { usize::MAX } else { f as usize };
+                (i0, i0.wrapping_add(1), x - f)
+            }
+        }
+    };
+    let (x0, x1, fx) = coord(q.x, nx);
+    let (y0, y1, fy) = coord(q.y, ny);
+    let (z0, z1, fz) = coord(q.z, nz);
+    let at = |x: usize, y: usize, z: usize| -> f32 {
+        if x < nx && y < ny && z < nz {
+            data[(z * ny + y) * nx + x]
+        } else {
+            0.0
+        }
+    };
+    let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+    let c00 = lerp(at(x0, y0, z0), at(x1, y0, z0), fx);
+    let c10 = lerp(at(x0, y1, z0), at(x1, y1, z0), fx);
+    let c01 = lerp(at(x0, y0, z1), at(x1, y0, z1), fx);
+    let c11 = lerp(at(x0, y1, z1), at(x1, y1, z1), fx);
+    lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz)
 }
 
 /// The parameter interval of the unit-space ray `o + t·d`, `t` in `[0, t_max)`, inside [0, 1]³.
@@ -571,5 +617,38 @@ mod tests {
             "NaN density"
         );
         assert!(DensityGrid::new(1, 1, 1, vec![1.0], Mat4::ZERO).is_err());
+    }
+
+    /// pbrt-v4's `SampledGrid::Lookup` reads voxels outside the grid as 0: a 1×1×1 grid of 1
+    /// (pbrt-v4's default `Lescale`) is 1 at the centre, ½ at a face's centre, ⅛ at a corner,
+    /// (1 − |u − ½|)(…)(…) in between; `Hold` keeps it 1 up to the faces. Expected values are
+    /// computed from pbrt-v4's formula by hand, not by the code under test.
+    #[test]
+    fn zero_edge_fades_to_the_faces_as_pbrt_v4() {
+        let one = [1.0f32];
+        let tent = |u: f32| 1.0 - (u - 0.5).abs();
+        for q in [
+            Vec3::splat(0.5),
+            Vec3::new(0.5, 0.5, 1.0),
+            Vec3::ZERO,
+            Vec3::new(0.1, 0.7, 0.35),
+            Vec3::new(0.95, 0.2, 0.5),
+        ] {
+            let z = trilinear(1, 1, 1, &one, q, GridEdge::Zero);
+            let want = tent(q.x) * tent(q.y) * tent(q.z);
+            assert!((z - want).abs() < 1e-6, "{q}: {z} vs {want}");
+            assert_eq!(trilinear(1, 1, 1, &one, q, GridEdge::Hold), 1.0);
+        }
+        // A 2×1×1 ramp [2, 4]: between the centres (¼, ¾) both rules lerp; outside them Zero
+        // blends with 0 (at u = 0.1: x = −0.3 → 0.7·2·(tent in y, z = 1)), Hold keeps 2.
+        let d = [2.0f32, 4.0];
+        let at = |u: f32, e| trilinear(2, 1, 1, &d, Vec3::new(u, 0.5, 0.5), e);
+        assert!((at(0.5, GridEdge::Zero) - 3.0).abs() < 1e-6);
+        assert!((at(0.5, GridEdge::Hold) - 3.0).abs() < 1e-6);
+        assert!((at(0.1, GridEdge::Zero) - 0.7 * 2.0).abs() < 1e-5);
+        assert!((at(0.9, GridEdge::Zero) - 0.7 * 4.0).abs() < 1e-5);
+        assert_eq!(at(0.1, GridEdge::Hold), 2.0);
+        assert_eq!(at(1.0, GridEdge::Zero), 2.0); // half of the edge voxel at the face
+        assert_eq!(at(1.01, GridEdge::Zero), 0.0);
     }
 }

@@ -43,6 +43,125 @@ pub struct Medium {
     /// Emitted radiance: the medium adds σa(p)·Le per unit length (the RTE's emission term,
     /// pbrt-v4 §11.1.4); zero for most media.
     pub le: Vec3,
+    /// Emission varying over the grid, added to `le` (pbrt-v4 `uniformgrid` `Lescale` and
+    /// `temperature`).
+    pub grid_le: Option<GridLe>,
+}
+
+/// Compiled grid emission: Le(p) = scale(p) × (an RGB radiance, or a blackbody at T(p)), the
+/// grids looked up in the density grid's unit cube with its edge rule (pbrt-v4
+/// `GridMedium::SamplePoint`).
+#[derive(Clone, Debug)]
+pub struct GridLe {
+    scale: crate::scene::VoxelGrid,
+    source: LeSource,
+}
+
+#[derive(Clone, Debug)]
+enum LeSource {
+    Rgb(Vec3),
+    Blackbody {
+        temperature: crate::scene::VoxelGrid,
+        temperature_scale: f32,
+        offset: f32,
+        table: BlackbodyTable,
+    },
+}
+
+/// Linear sRGB of the peak-normalised Planck spectrum (pbrt-v4 `BlackbodySpectrum`) tabulated
+/// over [100 K, `t_hi`], so a lookup costs a lerp rather than an integral over the CIE curves
+/// (the curve is smooth in T: at 4096 steps the lerp is within 10⁻⁴ relative, see the test).
+#[derive(Clone, Debug)]
+struct BlackbodyTable {
+    t_hi: f32,
+    rgb: Vec<Vec3>,
+}
+
+/// pbrt-v4 emits nothing from voxels at or below 100 K.
+const BLACKBODY_MIN_K: f32 = 100.0;
+
+impl BlackbodyTable {
+    const N: usize = 4096;
+
+    fn new(t_hi: f32) -> Self {
+        let t_hi = t_hi.max(BLACKBODY_MIN_K + 1.0);
+        let rgb = (0..Self::N)
+            .map(|i| {
+                let t =
+                    BLACKBODY_MIN_K + (t_hi - BLACKBODY_MIN_K) * i as f32 / (Self::N - 1) as f32;
+                crate::spectrum::blackbody_peak_rgb(t)
+            })
+            .collect();
+        BlackbodyTable { t_hi, rgb }
+    }
+
+    #[inline]
+    fn lookup(&self, t: f32) -> Vec3 {
+        if !(t > BLACKBODY_MIN_K) {
+            return Vec3::ZERO;
+        }
+        let x = ((t.min(self.t_hi) - BLACKBODY_MIN_K) / (self.t_hi - BLACKBODY_MIN_K))
+            * (Self::N - 1) as f32;
+        let i = (x as usize).min(Self::N - 2);
+        let f = x - i as f32;
+        self.rgb[i] + (self.rgb[i + 1] - self.rgb[i]) * f
+    }
+}
+
+impl GridLe {
+    fn new(e: &crate::scene::GridEmission) -> Self {
+        use crate::scene::GridEmission;
+        match e {
+            GridEmission::Radiance { le, scale } => GridLe {
+                scale: scale.clone(),
+                source: LeSource::Rgb(*le),
+            },
+            GridEmission::Blackbody {
+                temperature,
+                scale,
+                temperature_scale,
+                offset,
+            } => {
+                // The hottest T the trilinear lookup can return (lerps stay within the voxels'
+                // range, and the edge rule's zeros are lower still).
+                let (lo, hi) = temperature
+                    .data
+                    .iter()
+                    .fold((0.0f32, 0.0f32), |(a, b), &v| (a.min(v), b.max(v)));
+                let t_hi =
+                    ((lo - offset) * temperature_scale).max((hi - offset) * temperature_scale);
+                GridLe {
+                    scale: scale.clone(),
+                    source: LeSource::Blackbody {
+                        temperature: temperature.clone(),
+                        temperature_scale: *temperature_scale,
+                        offset: *offset,
+                        table: BlackbodyTable::new(t_hi),
+                    },
+                }
+            }
+        }
+    }
+
+    /// Le at unit-cube point `q` of the grid.
+    #[inline]
+    fn at(&self, q: Vec3, edge: grid::GridEdge) -> Vec3 {
+        let look =
+            |g: &crate::scene::VoxelGrid| grid::trilinear(g.nx, g.ny, g.nz, &g.data, q, edge);
+        let s = look(&self.scale);
+        if !(s > 0.0) {
+            return Vec3::ZERO;
+        }
+        match &self.source {
+            LeSource::Rgb(le) => *le * s,
+            LeSource::Blackbody {
+                temperature,
+                temperature_scale,
+                offset,
+                table,
+            } => table.lookup((look(temperature) - offset) * temperature_scale) * s,
+        }
+    }
 }
 
 /// One stretch of a ray with a constant majorant, ending at `t1` in the ray's (unit-speed)
@@ -62,6 +181,7 @@ impl Medium {
             phase: HenyeyGreenstein::new(g),
             grid: None,
             le: Vec3::ZERO,
+            grid_le: None,
         }
     }
 
@@ -82,17 +202,38 @@ impl Medium {
             min,
             max,
             transform,
+            edge,
+            emission,
         } = &desc.kind
         {
-            m.grid = Some(DensityGrid::new(
-                *nx,
-                *ny,
-                *nz,
-                density.clone(),
-                *transform * grid::box_to_world(*min, *max),
-            )?);
+            m.grid = Some(
+                DensityGrid::new(
+                    *nx,
+                    *ny,
+                    *nz,
+                    density.clone(),
+                    *transform * grid::box_to_world(*min, *max),
+                )?
+                .with_edge(*edge),
+            );
+            m.grid_le = emission.as_ref().map(GridLe::new);
         }
         Ok(m)
+    }
+
+    /// True if the medium emits anywhere.
+    #[inline]
+    pub fn is_emissive(&self) -> bool {
+        self.le != Vec3::ZERO || self.grid_le.is_some()
+    }
+
+    /// Emitted radiance Le at world point `p` (the medium adds σa(p)·Le(p) per unit length).
+    #[inline]
+    pub fn le_at(&self, p: Vec3) -> Vec3 {
+        match (&self.grid_le, &self.grid) {
+            (Some(e), Some(g)) => self.le + e.at(g.unit(p), g.edge),
+            _ => self.le,
+        }
     }
 
     pub fn sigma_t(&self) -> Vec3 {
@@ -455,6 +596,78 @@ mod tests {
         assert!(
             (mean - want).abs() < 5.0 * sd + 1e-4,
             "ratio tracking {mean} ± {sd}, quadrature {want}"
+        );
+    }
+
+    /// The blackbody table against the direct CIE integral, across the range a flame uses.
+    #[test]
+    fn blackbody_table_matches_the_integral() {
+        let table = BlackbodyTable::new(6000.0);
+        assert_eq!(table.lookup(100.0), Vec3::ZERO);
+        assert_eq!(table.lookup(50.0), Vec3::ZERO);
+        for t in [450.0f32, 900.0, 1234.5, 1800.0, 2500.0, 4000.0, 5999.0] {
+            let want = crate::spectrum::blackbody_peak_rgb(t);
+            let got = table.lookup(t);
+            let err = ((got - want).abs() / want.abs().max(Vec3::splat(1e-12))).max_element();
+            assert!(err < 1e-3, "{t} K: table {got} vs integral {want}");
+        }
+        // Peak-normalised, not luminance-normalised: 1000 K is far dimmer than 3000 K (pbrt-v4
+        // `BlackbodySpectrum` is 1 at its peak, which moves into the infrared as T falls).
+        let y = |c: Vec3| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+        assert!(y(table.lookup(1000.0)) < 0.01 * y(table.lookup(3000.0)));
+    }
+
+    /// Grid emission: Le(p) = Lescale(p)·Le, read in the density grid's unit cube with its edge
+    /// rule; a temperature grid gives the blackbody of T = (t − offset)·scale.
+    #[test]
+    fn grid_emission_follows_the_scale_and_temperature_grids() {
+        use crate::scene::{GridEdge, GridEmission, MediumDesc, MediumKind, VoxelGrid};
+        let mut desc = MediumDesc::homogeneous("e", Vec3::ONE, Vec3::ZERO, 1.0, 0.0);
+        desc.kind = MediumKind::Grid {
+            nx: 1,
+            ny: 1,
+            nz: 1,
+            density: vec![1.0],
+            min: Vec3::ZERO,
+            max: Vec3::splat(2.0),
+            transform: crate::math::Mat4::IDENTITY,
+            edge: GridEdge::Zero,
+            emission: Some(GridEmission::Radiance {
+                le: Vec3::new(1.0, 2.0, 3.0),
+                scale: VoxelGrid {
+                    nx: 2,
+                    ny: 1,
+                    nz: 1,
+                    data: vec![0.0, 4.0],
+                },
+            }),
+        };
+        let m = Medium::from_desc(&desc).unwrap();
+        assert!(m.is_emissive());
+        // World (1.5, 1, 1) is unit (0.75, 0.5, 0.5): the second voxel's centre.
+        assert!(
+            (m.le_at(Vec3::new(1.5, 1.0, 1.0)) - Vec3::new(4.0, 8.0, 12.0))
+                .abs()
+                .max_element()
+                < 1e-5
+        );
+        assert_eq!(m.le_at(Vec3::new(0.5, 1.0, 1.0)), Vec3::ZERO);
+        assert_eq!(m.le_at(Vec3::new(3.0, 1.0, 1.0)), Vec3::ZERO);
+        if let MediumKind::Grid { emission, .. } = &mut desc.kind {
+            *emission = Some(GridEmission::Blackbody {
+                temperature: VoxelGrid::single(1100.0),
+                scale: VoxelGrid::single(2.0),
+                temperature_scale: 2.0,
+                offset: 100.0,
+            });
+        }
+        let m = Medium::from_desc(&desc).unwrap();
+        // At the centre: T = (1100 − 100)·2 = 2000 K, scale 2 (both 1×1×1 grids are 1 there).
+        let want = crate::spectrum::blackbody_peak_rgb(2000.0) * 2.0;
+        let got = m.le_at(Vec3::splat(1.0));
+        assert!(
+            ((got - want).abs() / want).max_element() < 1e-3,
+            "{got} vs {want}"
         );
     }
 }

@@ -45,6 +45,9 @@ pub struct MediumDesc {
 }
 
 /// How the coefficients vary in space.
+// A scene description, built once per medium and compiled into `medium::Medium`: the size of
+// the Grid variant costs nothing, and boxing it would only obscure the importers' code.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum MediumKind {
     /// The same σa, σs everywhere.
@@ -62,6 +65,83 @@ pub enum MediumKind {
         min: Vec3,
         max: Vec3,
         transform: Mat4,
+        /// How lookups behave between the outermost voxel centres and the box faces.
+        edge: GridEdge,
+        /// Emission that varies over the grid (pbrt-v4 `uniformgrid` `Lescale` / `temperature`);
+        /// `MediumDesc::le` is a constant Le on top of it (zero for pbrt-v4 grids).
+        emission: Option<GridEmission>,
+    },
+}
+
+/// Lookups of a grid between the outermost voxel centres and the box faces.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GridEdge {
+    /// The edge voxel's value is held up to the face (Mitsuba 3 `gridvolume`'s default `clamp`).
+    #[default]
+    Hold,
+    /// Samples outside the grid count as 0, so values fade to the faces (pbrt-v4
+    /// `SampledGrid::Lookup`, which returns a default value for out-of-range voxel indices).
+    Zero,
+}
+
+/// A scalar voxel grid (x fastest: index (z·ny + y)·nx + x) spanning the same box as the medium's
+/// density grid; its resolution may differ from the density's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VoxelGrid {
+    pub nx: usize,
+    pub ny: usize,
+    pub nz: usize,
+    pub data: Vec<f32>,
+}
+
+impl VoxelGrid {
+    /// A 1×1×1 grid: pbrt-v4's default `Lescale` grid (one sample at the box centre, which with
+    /// [`GridEdge::Zero`] fades linearly to half its value at a face's centre).
+    pub fn single(v: f32) -> Self {
+        VoxelGrid {
+            nx: 1,
+            ny: 1,
+            nz: 1,
+            data: vec![v],
+        }
+    }
+
+    fn validate(&self, what: &str) -> Result<(), String> {
+        let n = self
+            .nx
+            .checked_mul(self.ny)
+            .and_then(|v| v.checked_mul(self.nz));
+        if n != Some(self.data.len()) || self.data.is_empty() {
+            return Err(format!(
+                "the {what} grid is {} x {} x {} but has {} values",
+                self.nx,
+                self.ny,
+                self.nz,
+                self.data.len()
+            ));
+        }
+        if let Some((i, v)) = self.data.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(format!("{what} value {i} is {v}; values must be finite"));
+        }
+        Ok(())
+    }
+}
+
+/// Emission of a grid medium (pbrt-v4 `GridMedium::SamplePoint`, media.h): the medium emits
+/// σa(p)·Le(p) per unit length with Le(p) = `scale`(p) × a radiance. `scale` ≤ 0 emits nothing.
+#[derive(Clone, Debug, PartialEq)]
+pub enum GridEmission {
+    /// Le(p) = scale(p)·`le` (pbrt-v4 `Le` × `Lescale`; `le` is already normalised as pbrt-v4
+    /// normalises an illuminant spectrum, 1/SpectrumToPhotometric).
+    Radiance { le: Vec3, scale: VoxelGrid },
+    /// Le(p) = scale(p)·B(T) with T = (temperature(p) − `offset`)·`temperature_scale` and B the
+    /// Planck spectrum normalised to a peak of 1 (pbrt-v4 `BlackbodySpectrum`), nothing at
+    /// T ≤ 100 K (pbrt-v4's cut-off).
+    Blackbody {
+        temperature: VoxelGrid,
+        scale: VoxelGrid,
+        temperature_scale: f32,
+        offset: f32,
     },
 }
 
@@ -318,8 +398,34 @@ impl MediumDesc {
             min,
             max,
             transform,
+            emission,
+            ..
         } = &self.kind
         {
+            match emission {
+                None => {}
+                Some(GridEmission::Radiance { le, scale }) => {
+                    scale.validate("emission scale")?;
+                    if !nonneg(*le) {
+                        return Err(format!(
+                            "emission {:?} must be finite and non-negative",
+                            le.to_array()
+                        ));
+                    }
+                }
+                Some(GridEmission::Blackbody {
+                    temperature,
+                    scale,
+                    temperature_scale,
+                    offset,
+                }) => {
+                    scale.validate("emission scale")?;
+                    temperature.validate("temperature")?;
+                    if !(temperature_scale.is_finite() && offset.is_finite()) {
+                        return Err("temperature scale and offset must be finite".into());
+                    }
+                }
+            }
             let n = nx.checked_mul(*ny).and_then(|v| v.checked_mul(*nz));
             if n != Some(density.len()) || density.is_empty() {
                 return Err(format!(

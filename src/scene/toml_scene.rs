@@ -75,6 +75,19 @@ struct MediumSpec {
     /// Emitted radiance Le (RGB): the medium emits σa·Le per unit length (pbrt-v4's `Le`).
     #[serde(default)]
     emission: [f32; 3],
+    /// grid: a `.vol` grid over the same box scaling `emission` point by point (pbrt-v4's
+    /// `Lescale` grid); with `temperature_file`, the scale of the blackbody emission.
+    emission_file: Option<String>,
+    /// grid: a `.vol` grid of temperatures (K): blackbody emission normalised to peak 1 at
+    /// T = (t − temperature_offset)·temperature_scale, none at T ≤ 100 K (pbrt-v4 `temperature`).
+    temperature_file: Option<String>,
+    #[serde(default = "one")]
+    temperature_scale: f32,
+    #[serde(default)]
+    temperature_offset: f32,
+    /// grid: "hold" (default; Mitsuba's `clamp`) holds the edge voxels up to the box faces,
+    /// "zero" fades them to zero there (pbrt-v4's `uniformgrid`).
+    edge: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -530,10 +543,28 @@ fn medium(m: &MediumSpec, dir: &Path) -> Result<super::MediumDesc, String> {
         m.g,
     );
     desc.le = Vec3::from(m.emission);
+    let read = |f: &str| -> Result<crate::medium::grid::VolFile, String> {
+        let path = resolve_in_dir(dir, f)?;
+        let bytes = std::fs::read(&path).map_err(|e| format!("'{}': {e}", path.display()))?;
+        crate::medium::read_vol(&bytes).map_err(|e| format!("'{}': {e}", path.display()))
+    };
+    let voxels = |v: crate::medium::grid::VolFile| super::VoxelGrid {
+        nx: v.nx,
+        ny: v.ny,
+        nz: v.nz,
+        data: v.data,
+    };
     match m.kind.as_deref() {
         None | Some("homogeneous") => {
-            if m.file.is_some() {
-                return Err("'file' is for grid media (type = \"grid\")".into());
+            if m.file.is_some()
+                || m.emission_file.is_some()
+                || m.temperature_file.is_some()
+                || m.edge.is_some()
+            {
+                return Err(
+                    "'file', 'emission_file', 'temperature_file' and 'edge' are for grid media (type = \"grid\")"
+                        .into(),
+                );
             }
         }
         Some("grid") => {
@@ -541,10 +572,36 @@ fn medium(m: &MediumSpec, dir: &Path) -> Result<super::MediumDesc, String> {
                 .file
                 .as_deref()
                 .ok_or("a grid medium needs 'file' (a .vol grid)")?;
-            let path = resolve_in_dir(dir, f)?;
-            let bytes = std::fs::read(&path).map_err(|e| format!("'{}': {e}", path.display()))?;
-            let v = crate::medium::read_vol(&bytes)
-                .map_err(|e| format!("'{}': {e}", path.display()))?;
+            let v = read(f)?;
+            let edge = match m.edge.as_deref() {
+                None | Some("hold") => super::GridEdge::Hold,
+                Some("zero") => super::GridEdge::Zero,
+                Some(o) => return Err(format!("unknown edge '{o}' (hold or zero)")),
+            };
+            let scale = m
+                .emission_file
+                .as_deref()
+                .map(read)
+                .transpose()?
+                .map(voxels);
+            let emission = match m.temperature_file.as_deref() {
+                Some(t) => {
+                    if desc.le != Vec3::ZERO {
+                        return Err("'emission' and 'temperature_file' exclude each other".into());
+                    }
+                    Some(super::GridEmission::Blackbody {
+                        temperature: voxels(read(t)?),
+                        scale: scale.unwrap_or(super::VoxelGrid::single(1.0)),
+                        temperature_scale: m.temperature_scale,
+                        offset: m.temperature_offset,
+                    })
+                }
+                // The constant `emission` becomes the grid's radiance, scaled per voxel.
+                None => scale.map(|scale| super::GridEmission::Radiance {
+                    le: std::mem::take(&mut desc.le),
+                    scale,
+                }),
+            };
             desc.kind = super::MediumKind::Grid {
                 nx: v.nx,
                 ny: v.ny,
@@ -553,6 +610,8 @@ fn medium(m: &MediumSpec, dir: &Path) -> Result<super::MediumDesc, String> {
                 min: v.bbox_min,
                 max: v.bbox_max,
                 transform: Mat4::IDENTITY,
+                edge,
+                emission,
             };
         }
         Some(other) => return Err(format!("unknown type '{other}' (homogeneous or grid)")),

@@ -126,6 +126,19 @@ pub fn blackbody_rgb(t: f32) -> Vec3 {
     illuminant_to_rgb(|l| blackbody(l, t))
 }
 
+/// Linear sRGB of pbrt-v4's `BlackbodySpectrum(t)` *without* the photometric normalisation of
+/// lights: what a grid medium's `temperature` voxel emits per unit `Lescale` (pbrt-v4
+/// `GridMedium::SamplePoint`). pbrt-v4's film takes XYZ = ∫ x̄·L dλ with the unnormalised CIE
+/// curves (its `cie1931` sensor); every light and `Le` spectrum is divided by its
+/// `SpectrumToPhotometric` = ∫ ȳ·L, which cancels that, but this spectrum is not, so its XYZ is
+/// Σ x̄·B at 1 nm — Σ ȳ (≈ 106.9) times [`spectrum_to_xyz`]'s. Zero at t ≤ 0.
+pub fn blackbody_peak_rgb(t: f32) -> Vec3 {
+    if !(t > 0.0) {
+        return Vec3::ZERO;
+    }
+    xyz_to_linear_srgb(spectrum_to_xyz(|l| blackbody(l, t)) * cie_y_integral())
+}
+
 /// A piecewise-linear tabulated spectrum; 0 outside its range (pbrt-v4 `PiecewiseLinearSpectrum`).
 fn table(tab: &[(f32, f32)], lambda: f32) -> f32 {
     let (Some(first), Some(last)) = (tab.first(), tab.last()) else {

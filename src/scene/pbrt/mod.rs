@@ -1241,8 +1241,8 @@ impl Loader {
 
     /// `MakeNamedMedium`: `homogeneous` and `uniformgrid` map onto [`crate::scene::MediumDesc`]
     /// (pbrt-v4 defaults: σa = σs = 1, scale 1, g 0; the grid spans p0–p1 of the medium space
-    /// given by the CTM); homogeneous media read emission (`Le`, `Lescale`); other types and grid
-    /// emission are warnings.
+    /// given by the CTM, looked up with pbrt-v4's zero-outside-the-samples edge); both read
+    /// emission (`Le`, `Lescale`; grids also `temperature`); other types are warnings.
     fn make_named_medium(&mut self, name: &str, p: &ParamList, at: &str) -> Result<(), SceneError> {
         use crate::scene::{MediumDesc, MediumKind};
         let ty = p.string("type").unwrap_or_default();
@@ -1287,9 +1287,8 @@ impl Loader {
         let scale = p.float("scale", 1.0);
         let g = p.float("g", 0.0);
         // Emission (pbrt-v4 `Le`, an illuminant spectrum, times `Lescale`; σa·Le per unit
-        // length). A uniformgrid weighs Le by its own `Lescale` grid (trilinear, and with no
-        // array a single sample that fades towards the box faces), and `temperature` makes
-        // blackbody emission per voxel: neither is modelled, so grids do not emit.
+        // length). A homogeneous medium's `Lescale` is one number; a uniformgrid's is a grid
+        // (read below with the density).
         let mut le = Vec3::ZERO;
         if ty == "homogeneous" && p.has("Le") {
             let sv = p.spectrum("Le");
@@ -1300,24 +1299,6 @@ impl Loader {
             le = rgb * p.float("Lescale", 1.0);
         } else if ty == "homogeneous" && p.has("Lescale") {
             let _ = p.float("Lescale", 1.0);
-        } else if p.has("Le")
-            || p.has("Lescale")
-            || p.has("temperature")
-            || p.has("temperaturescale")
-            || p.has("temperatureoffset")
-            || p.has("temperaturecutoff")
-        {
-            let _ = (
-                p.spectrum("Le"),
-                p.floats("Lescale"),
-                p.floats("temperature"),
-                p.float("temperaturescale", 1.0),
-                p.float("temperatureoffset", 0.0),
-                p.float("temperaturecutoff", 0.0),
-            );
-            self.warn(format!(
-                "{at}: {what}: emission of grid media (Le, Lescale, temperature) is not supported; the grid does not emit"
-            ));
         }
         let kind = if ty == "uniformgrid" {
             let nx = p.int("nx", 1);
@@ -1334,6 +1315,8 @@ impl Loader {
                     ),
                 ));
             }
+            let emission =
+                self.grid_emission(p, [nx as usize, ny as usize, nz as usize], at, &what)?;
             MediumKind::Grid {
                 nx: nx as usize,
                 ny: ny as usize,
@@ -1342,6 +1325,9 @@ impl Loader {
                 min: p.point3("p0", Vec3::ZERO),
                 max: p.point3("p1", Vec3::ONE),
                 transform: self.gs.ctm,
+                // pbrt-v4 `SampledGrid::Lookup` reads voxels outside the grid as 0.
+                edge: crate::scene::GridEdge::Zero,
+                emission,
             }
         } else {
             MediumKind::Homogeneous
@@ -1362,6 +1348,61 @@ impl Loader {
         let id = self.scene.add_medium(desc);
         self.media.insert(name.to_string(), Some(id));
         Ok(())
+    }
+
+    /// A `uniformgrid`'s emission as pbrt-v4's `GridMedium::Create` reads it (media.cpp): `Le`
+    /// (an illuminant spectrum, normalised by 1/SpectrumToPhotometric) or a `temperature` grid
+    /// (blackbody, `temperatureoffset` — alias `temperaturecutoff` — and `temperaturescale`), never
+    /// both; either weighted by the `Lescale` grid (nx·ny·nz values), which is one sample of 1 at
+    /// the box centre when absent. Counts that do not match nx·ny·nz are errors, as in pbrt-v4.
+    fn grid_emission(
+        &mut self,
+        p: &ParamList,
+        [nx, ny, nz]: [usize; 3],
+        at: &str,
+        what: &str,
+    ) -> Result<Option<crate::scene::GridEmission>, SceneError> {
+        use crate::scene::{GridEmission, VoxelGrid};
+        let n = nx * ny * nz;
+        let grid = |key: &str, data: Vec<f32>| -> Result<VoxelGrid, SceneError> {
+            if data.len() != n {
+                return Err(SceneError::invalid(
+                    at,
+                    format!(
+                        "{what}: \"{key}\" has {} values, not nx·ny·nz = {nx}·{ny}·{nz}",
+                        data.len()
+                    ),
+                ));
+            }
+            Ok(VoxelGrid { nx, ny, nz, data })
+        };
+        let temperature = p.floats("temperature").filter(|t| !t.is_empty());
+        let le = if p.has("Le") { p.spectrum("Le") } else { None };
+        let scale = match p.floats("Lescale") {
+            Some(v) if !v.is_empty() => grid("Lescale", v)?,
+            _ => VoxelGrid::single(1.0),
+        };
+        let t_offset = p.float("temperatureoffset", p.float("temperaturecutoff", 0.0));
+        let t_scale = p.float("temperaturescale", 1.0);
+        match (le, temperature) {
+            (Some(_), Some(_)) => Err(SceneError::invalid(
+                at,
+                format!(
+                    "{what}: both \"Le\" and \"temperature\" are given (pbrt-v4 refuses this too)"
+                ),
+            )),
+            (Some(sv), None) => {
+                let rgb = self.illuminant_rgb(&sv, at, "Le").unwrap_or(Vec3::ONE);
+                Ok((rgb.max_element() > 0.0).then_some(GridEmission::Radiance { le: rgb, scale }))
+            }
+            (None, Some(t)) => Ok(Some(GridEmission::Blackbody {
+                temperature: grid("temperature", t)?,
+                scale,
+                temperature_scale: t_scale,
+                offset: t_offset,
+            })),
+            (None, None) => Ok(None),
+        }
     }
 
     fn finish(mut self) -> Result<Scene, SceneError> {
