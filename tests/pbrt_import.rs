@@ -620,7 +620,8 @@ fn orthographic_and_spherical_cameras_match_pbrt_v4() {
     // The spherical scenes (and references) are committed but not compared yet: their bright
     // blocks agree within 2 %, but the blocks along the walls' top edge against the void are
     // brighter in pbrt-v4 (0.0027 against 0.0000 at 64 spp), unexplained so far.
-    for name in ["orthographic"] {
+    {
+        let name = "orthographic";
         let scene = load(&repo(&format!("scenes/pbrt/{name}.pbrt")));
         assert!(
             warnings_about(&scene, "Camera").is_empty(),
