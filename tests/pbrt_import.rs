@@ -615,7 +615,7 @@ fn off_centre_screenwindow_matches_pbrt_v4() {
 /// camera-convention box. Rendered as a perspective camera instead (what the
 /// importer did before), the walls and the sphere move across blocks.
 #[test]
-fn orthographic_and_spherical_cameras_match_pbrt_v4() {
+fn orthographic_camera_matches_pbrt_v4() {
     use trayecto::scene::Projection;
     // The spherical scenes (and references) are committed but not compared yet: their bright
     // blocks agree within 2 %, but the blocks along the walls' top edge against the void are
