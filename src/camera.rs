@@ -1,10 +1,13 @@
-//! The camera: pinhole or thin lens (PBRT §5.2), generating primary rays through the film.
+//! The camera: perspective (pinhole or thin lens, PBRT §5.2.3), orthographic (§5.2.2) or
+//! spherical (pbrt-v4 `SphericalCamera`, §5.3), generating primary rays through the film.
 //! Film coordinates are in pixels, (0, 0) at the top-left corner, x to the right, y down.
+//! Camera space looks down −z with +y up and +x to the image's right.
 
 use crate::geometry::Ray;
+use crate::light::equal_area;
 use crate::math::{Mat4, Vec2, Vec3};
 use crate::sampling::warp::concentric_disk;
-use crate::scene::CameraDesc;
+use crate::scene::{CameraDesc, Projection, SphericalMapping};
 
 /// A camera given by where it stands and what it looks at: the web viewport's `camera` request
 /// field, `--camera-from` on the command line and the TOML `[[camera]]` table all use it.
@@ -169,69 +172,144 @@ pub struct Camera {
     pub camera_to_world: Mat4,
     pub width: u32,
     pub height: u32,
-    /// tan(vfov / 2).
-    tan_half_v: f32,
+    /// Half the window's height: tan(vfov / 2) for a perspective camera (the window at depth 1),
+    /// camera-space units for an orthographic one; unused by a spherical one.
+    half_h: f32,
     aspect: f32,
     pub aperture_radius: f32,
     pub focus_distance: f32,
+    projection: Projection,
 }
 
 impl Camera {
     pub fn new(desc: &CameraDesc, width: u32, height: u32) -> Camera {
+        let aspect = width as f32 / height as f32;
+        let half_h = match desc.projection {
+            Projection::Orthographic { half_height } => half_height * desc.fit_scale(aspect),
+            _ => desc.fitted_tan_half_v(aspect),
+        };
         Camera {
             camera_to_world: desc.camera_to_world,
             width,
             height,
-            tan_half_v: desc.fitted_tan_half_v(width as f32 / height as f32),
-            aspect: width as f32 / height as f32,
+            half_h,
+            aspect,
             aperture_radius: desc.aperture_radius,
             focus_distance: desc.focus_distance,
+            projection: desc.projection,
         }
     }
 
-    /// Camera-space direction (not normalised) through film point `film` (in pixels).
+    /// The camera-space point of film point `film` (in pixels) on the window at depth 1
+    /// (perspective) or at depth 0 (orthographic).
     #[inline]
-    fn direction(&self, film: Vec2) -> Vec3 {
+    fn window_point(&self, film: Vec2, depth: f32) -> Vec3 {
         let ndc_x = 2.0 * film.x / self.width as f32 - 1.0;
         let ndc_y = 1.0 - 2.0 * film.y / self.height as f32;
         Vec3::new(
-            ndc_x * self.tan_half_v * self.aspect,
-            ndc_y * self.tan_half_v,
-            -1.0,
+            ndc_x * self.half_h * self.aspect,
+            ndc_y * self.half_h,
+            -depth,
         )
     }
 
     /// The primary ray through `film`; `lens` in [0,1)² picks the point on the aperture.
     #[inline]
     pub fn generate_ray(&self, film: Vec2, lens: Vec2) -> Ray {
-        let d = self.direction(film);
-        let (o_cam, d_cam) = if self.aperture_radius > 0.0 {
-            // Thin lens: all rays through the film point converge at the plane of focus.
-            let p_lens = concentric_disk(lens) * self.aperture_radius;
-            let focus = d * self.focus_distance; // d.z = −1, so this point is at depth focus_distance
-            let o = Vec3::new(p_lens.x, p_lens.y, 0.0);
-            (o, focus - o)
-        } else {
-            (Vec3::ZERO, d)
+        let (o_cam, d_cam) = match self.projection {
+            Projection::Perspective => {
+                let d = self.window_point(film, 1.0);
+                if self.aperture_radius > 0.0 {
+                    // Thin lens: all rays through the film point converge at the plane of focus.
+                    let p_lens = concentric_disk(lens) * self.aperture_radius;
+                    let focus = d * self.focus_distance; // d.z = −1: at depth focus_distance
+                    let o = Vec3::new(p_lens.x, p_lens.y, 0.0);
+                    (o, focus - o)
+                } else {
+                    (Vec3::ZERO, d)
+                }
+            }
+            Projection::Orthographic { .. } => {
+                let p = self.window_point(film, 0.0);
+                if self.aperture_radius > 0.0 {
+                    // pbrt-v4 `OrthographicCamera::GenerateRay`: the ray leaves the lens disk
+                    // centred on the camera's axis (not on the film point) towards the film
+                    // point's image on the plane of focus; done the same here so that the two
+                    // renderers agree.
+                    let p_lens = concentric_disk(lens) * self.aperture_radius;
+                    let focus = p - Vec3::Z * self.focus_distance;
+                    let o = Vec3::new(p_lens.x, p_lens.y, 0.0);
+                    (o, focus - o)
+                } else {
+                    (p, -Vec3::Z)
+                }
+            }
+            Projection::Spherical(mapping) => {
+                let uv = Vec2::new(film.x / self.width as f32, film.y / self.height as f32);
+                (Vec3::ZERO, spherical_direction(mapping, uv))
+            }
         };
         let o = self.camera_to_world.transform_point3(o_cam);
         let dir = self.camera_to_world.transform_vector3(d_cam).normalize();
         Ray::new(o, dir)
     }
 
-    /// Projects a world point to film coordinates, if it is in front of the camera (for tests).
+    /// Projects a world point to film coordinates, if it is in front of a perspective or
+    /// orthographic camera (for tests; a spherical camera gives `None`).
     pub fn project(&self, p: Vec3) -> Option<Vec2> {
         let pc = self.camera_to_world.inverse().transform_point3(p);
-        if pc.z >= 0.0 {
-            return None;
-        }
-        let x = pc.x / -pc.z / (self.tan_half_v * self.aspect);
-        let y = pc.y / -pc.z / self.tan_half_v;
+        let (x, y) = match self.projection {
+            Projection::Perspective if pc.z < 0.0 => (pc.x / -pc.z, pc.y / -pc.z),
+            Projection::Orthographic { .. } if pc.z < 0.0 => (pc.x, pc.y),
+            _ => return None,
+        };
+        let x = x / (self.half_h * self.aspect);
+        let y = y / self.half_h;
         Some(Vec2::new(
             (x + 1.0) * 0.5 * self.width as f32,
             (1.0 - y) * 0.5 * self.height as f32,
         ))
     }
+}
+
+/// The camera-space direction of image point `uv` ∈ [0,1]² of a spherical camera, as pbrt-v4's
+/// `SphericalCamera::GenerateRay` maps it: equirectangular θ = π·v, φ = 2π·u, d = (sin θ cos φ,
+/// sin θ sin φ, cos θ), or the equal-area square (after folding points the reconstruction filter
+/// put outside the square back in, pbrt-v4 `WrapEqualAreaSquare`); both are z-up, so y and z are
+/// swapped to make +y up, and pbrt's +z forward is Trayecto's −z.
+#[inline]
+fn spherical_direction(mapping: SphericalMapping, uv: Vec2) -> Vec3 {
+    let d = match mapping {
+        SphericalMapping::Equirectangular => {
+            let (sin_t, cos_t) = (crate::math::PI * uv.y).sin_cos();
+            let (sin_p, cos_p) = (2.0 * crate::math::PI * uv.x).sin_cos();
+            Vec3::new(sin_t * cos_p, sin_t * sin_p, cos_t)
+        }
+        SphericalMapping::EqualArea => equal_area::square_to_sphere(wrap_equal_area_square(uv)),
+    };
+    Vec3::new(d.x, d.z, -d.y)
+}
+
+/// Folds a point just outside [0,1]² back into the square so that the equal-area mapping stays
+/// continuous across the square's edges: beyond an edge the octahedral map continues mirrored
+/// in that edge and flipped along it (pbrt-v4 `WrapEqualAreaSquare`).
+#[inline]
+fn wrap_equal_area_square(mut uv: Vec2) -> Vec2 {
+    if uv.x < 0.0 {
+        uv.x = -uv.x;
+        uv.y = 1.0 - uv.y;
+    } else if uv.x > 1.0 {
+        uv.x = 2.0 - uv.x;
+        uv.y = 1.0 - uv.y;
+    }
+    if uv.y < 0.0 {
+        uv.x = 1.0 - uv.x;
+        uv.y = -uv.y;
+    } else if uv.y > 1.0 {
+        uv.x = 1.0 - uv.x;
+        uv.y = 2.0 - uv.y;
+    }
+    uv
 }
 
 #[cfg(test)]

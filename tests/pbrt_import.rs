@@ -611,6 +611,37 @@ fn off_centre_screenwindow_matches_pbrt_v4() {
     );
 }
 
+/// pbrt-v4's `OrthographicCamera` with an off-centre `screenwindow` in the asymmetric
+/// camera-convention box. Rendered as a perspective camera instead (what the
+/// importer did before), the walls and the sphere move across blocks.
+#[test]
+fn orthographic_camera_matches_pbrt_v4() {
+    use trayecto::scene::Projection;
+    // The spherical scenes (and references) are committed but not compared yet: their bright
+    // blocks agree within 2 %, but the blocks along the walls' top edge against the void are
+    // brighter in pbrt-v4 (0.0027 against 0.0000 at 64 spp), unexplained so far.
+    {
+        let name = "orthographic";
+        let scene = load(&repo(&format!("scenes/pbrt/{name}.pbrt")));
+        assert!(
+            warnings_about(&scene, "Camera").is_empty(),
+            "{name}: {:?}",
+            scene.warnings
+        );
+        assert_ne!(scene.cameras[0].projection, Projection::Perspective);
+        feature_against_pbrt_v4(
+            name,
+            &scene,
+            |s| s.cameras[0].projection = Projection::Perspective,
+            // The 8×8 bound is 0.3, not 0.15: the orthographic view's worst 8×8 block is a
+            // near-black one at the box's silhouette against the void, compared against 2 % of
+            // the mean (measured 0.28 of that floor, 0.0004 absolute, while the mean is within
+            // 0.4 % and the worst 4×4 block 1.9 %). As a perspective camera it is 1.0.
+            (0.03, 0.1, 0.3),
+        );
+    }
+}
+
 /// pbrt-v4 records the `MediumInterface` in effect inside `ObjectBegin` with each shape, so an
 /// instanced absorbing glass ball renders exactly like the ball placed directly (pbrt-v4 renders
 /// the two alike too). Without the interface on instances the ball is clear glass.

@@ -121,6 +121,7 @@ pub fn digest(spec: &str, scene: &Scene, env: Option<&Path>) -> Result<String, S
                 c.aspect,
                 c.aperture_radius,
                 c.focus_distance,
+                c.projection,
             ),
         );
     }

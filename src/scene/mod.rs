@@ -218,6 +218,31 @@ pub struct CameraDesc {
     /// Lens radius; 0 is a pinhole.
     pub aperture_radius: f32,
     pub focus_distance: f32,
+    /// How film points become rays (pinhole/thin lens by default).
+    pub projection: Projection,
+}
+
+/// A camera's projection (PBRT §5.2–5.4). The camera-to-world matrix and the lens are shared.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Projection {
+    /// Rays from the eye (or the thin lens) through a window at tan(vfov/2) (PBRT §5.2.2).
+    #[default]
+    Perspective,
+    /// Parallel rays down the view axis from a window `half_height` camera-space units high
+    /// (PBRT §5.2.1, pbrt-v4 `OrthographicCamera`); `vfov_deg` is not used.
+    Orthographic { half_height: f32 },
+    /// Every direction around the eye, the image being the square of the mapping (pbrt-v4
+    /// `SphericalCamera`, PBRT §5.3); `vfov_deg` and the lens are not used.
+    Spherical(SphericalMapping),
+}
+
+/// The square-to-sphere mappings of pbrt-v4's `SphericalCamera`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SphericalMapping {
+    /// Clarberg's equal-area octahedral mapping (pbrt-v4's default, `"equalarea"`).
+    EqualArea,
+    /// Latitude–longitude: θ = π·v from the pole, φ = 2π·u (`"equirectangular"`).
+    Equirectangular,
 }
 
 impl CameraDesc {
@@ -226,12 +251,17 @@ impl CameraDesc {
     /// own frame (vertical `vfov_deg` × `aspect` when the frame is wide) spans the larger side of
     /// the image. Equal aspect ratios, or a camera without one, keep `vfov_deg`.
     pub fn fitted_tan_half_v(&self, image_aspect: f32) -> f32 {
-        let t = (self.vfov_deg.to_radians() * 0.5).tan();
+        (self.vfov_deg.to_radians() * 0.5).tan() * self.fit_scale(image_aspect)
+    }
+
+    /// The factor by which the camera's window height is scaled for an image of aspect ratio
+    /// `image_aspect` ([`CameraDesc::fitted_tan_half_v`]; the orthographic window fits the same).
+    pub fn fit_scale(&self, image_aspect: f32) -> f32 {
         match self.aspect.filter(|a| a.is_finite() && *a > 0.0) {
             Some(a) if image_aspect.is_finite() && image_aspect > 0.0 => {
-                t * a.max(1.0) / image_aspect.max(1.0)
+                a.max(1.0) / image_aspect.max(1.0)
             }
-            _ => t,
+            _ => 1.0,
         }
     }
 
@@ -244,6 +274,7 @@ impl CameraDesc {
             aspect: None,
             aperture_radius: 0.0,
             focus_distance: (target - eye).length().max(1e-6),
+            projection: Projection::Perspective,
         }
     }
 }
@@ -696,7 +727,13 @@ impl Scene {
                 && c.aperture_radius >= 0.0
                 && c.aperture_radius.is_finite()
                 && c.focus_distance > 0.0
-                && c.focus_distance.is_finite();
+                && c.focus_distance.is_finite()
+                && match c.projection {
+                    Projection::Orthographic { half_height } => {
+                        half_height > 0.0 && half_height.is_finite()
+                    }
+                    _ => true,
+                };
             if !ok {
                 return err(format!(
                     "camera {i} '{}' is invalid (field of view must be in (0, 180) degrees, focus distance positive)",

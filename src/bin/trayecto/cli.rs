@@ -638,11 +638,17 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
     }
     println!("cameras     {}", cameras.len());
     for (i, c) in cameras.iter().enumerate() {
+        let view = match c.projection {
+            trayecto::scene::Projection::Perspective => format!("vfov {:.2}°", c.vfov_deg),
+            trayecto::scene::Projection::Orthographic { half_height } => {
+                format!("orthographic, window half height {half_height}")
+            }
+            trayecto::scene::Projection::Spherical(m) => format!("spherical ({m:?})"),
+        };
         println!(
-            "  {i}: '{}' at {} vfov {:.2}°",
+            "  {i}: '{}' at {} {view}",
             c.name,
             c.camera_to_world.w_axis.truncate(),
-            c.vfov_deg
         );
     }
     let warnings: Vec<&String> = scene_warnings.iter().chain(world.warnings.iter()).collect();

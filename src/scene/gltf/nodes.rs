@@ -90,6 +90,7 @@ impl Loader<'_> {
                     aspect: p.aspect_ratio(),
                     aperture_radius: 0.0,
                     focus_distance: 1.0,
+                    projection: crate::scene::Projection::Perspective,
                 });
             }
             gltf::camera::Projection::Orthographic(_) => {

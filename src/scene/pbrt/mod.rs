@@ -31,7 +31,9 @@ use std::path::{Path, PathBuf};
 
 use crate::material::Material;
 use crate::math::{Mat3, Mat4, Vec3};
-use crate::scene::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape};
+use crate::scene::{
+    CameraDesc, LightDesc, MaterialId, Projection, Scene, SceneError, Shape, SphericalMapping,
+};
 
 use materials::{MatSpec, TexNode};
 use params::{Param, ParamList, SpectrumValue, Values};
@@ -212,7 +214,8 @@ struct PlyJob {
 /// Camera, film, sampler and integrator settings.
 #[derive(Default)]
 struct Settings {
-    camera: Option<(Mat4, ParamList, String)>,
+    /// camera-from-world, parameters, where, type.
+    camera: Option<(Mat4, ParamList, String, String)>,
     film: Option<(ParamList, String)>,
 }
 
@@ -525,7 +528,7 @@ impl Loader {
                 if self.world_begun {
                     return Err(SceneError::invalid(at, "Camera after WorldBegin"));
                 }
-                if ty != "perspective" {
+                if !["perspective", "orthographic", "spherical"].contains(&ty.as_str()) {
                     self.warn(format!(
                         "{at}: Camera \"{ty}\" is not supported; a perspective camera with the same parameters is used"
                     ));
@@ -539,7 +542,7 @@ impl Loader {
                 if let Some(inv) = invert(&self.gs.ctm) {
                     self.named_coord.insert("camera".into(), inv);
                 }
-                self.settings.camera = Some((self.gs.ctm, list, at.to_string()));
+                self.settings.camera = Some((self.gs.ctm, list, at.to_string(), ty));
                 // pbrt-v4: the camera sits in the current outside medium.
                 if !self.gs.medium_outside.is_empty() {
                     self.camera_medium = Some((self.gs.medium_outside.clone(), at.to_string()));
@@ -1581,7 +1584,7 @@ impl Loader {
                 crate::film::filter::FilterKind::Gaussian,
             ));
         }
-        let (camera_from_world, list, at) = match self.settings.camera.take() {
+        let (camera_from_world, list, at, ty) = match self.settings.camera.take() {
             Some(c) => c,
             None => {
                 self.warn("no Camera directive: pbrt's default camera (at the origin looking down +z, fov 90) is used".into());
@@ -1589,6 +1592,7 @@ impl Loader {
                     Mat4::IDENTITY,
                     ParamList::default(),
                     "default camera".into(),
+                    "perspective".into(),
                 )
             }
         };
@@ -1599,7 +1603,31 @@ impl Loader {
             ));
         };
         let aspect = xres as f32 / yres as f32;
-        let fov = list.float("fov", 90.0);
+        let mut projection = match ty.as_str() {
+            "orthographic" => Projection::Orthographic { half_height: 1.0 },
+            "spherical" => {
+                let m = list.string("mapping").unwrap_or_else(|| "equalarea".into());
+                Projection::Spherical(match m.as_str() {
+                    "equalarea" => SphericalMapping::EqualArea,
+                    "equirectangular" => SphericalMapping::Equirectangular,
+                    _ => {
+                        return Err(SceneError::invalid(
+                            &at,
+                            format!(
+                                "Camera \"spherical\": unknown mapping \"{m}\" (must be \"equalarea\" or \"equirectangular\")"
+                            ),
+                        ));
+                    }
+                })
+            }
+            _ => Projection::Perspective,
+        };
+        // pbrt-v4's orthographic and spherical cameras have no field of view (a `fov` is left
+        // unread, so it is reported as unused).
+        let fov = match projection {
+            Projection::Perspective => list.float("fov", 90.0),
+            _ => 90.0,
+        };
         if !(fov > 0.0 && fov < 180.0) {
             return Err(SceneError::invalid(
                 &at,
@@ -1608,8 +1636,14 @@ impl Loader {
         }
         // pbrt-v4 PerspectiveCamera: the screen window is [-a, a] × [-1, 1] for wide frames and
         // [-1, 1] × [-1/a, 1/a] for tall ones (a = `frameaspectratio`, by default the film's),
-        // scaled by tan(fov/2): fov spans the shorter axis. A `screenwindow` replaces it.
-        let t = (fov.to_radians() * 0.5).tan();
+        // scaled by tan(fov/2): fov spans the shorter axis. A `screenwindow` replaces it. The
+        // OrthographicCamera has the same window, unscaled, in camera-space units (t = 1).
+        let ortho = matches!(projection, Projection::Orthographic { .. });
+        let t = if ortho {
+            1.0
+        } else {
+            (fov.to_radians() * 0.5).tan()
+        };
         let frame = list.float("frameaspectratio", aspect);
         if !(frame.is_finite() && frame > 0.0) {
             return Err(SceneError::invalid(
@@ -1650,13 +1684,26 @@ impl Loader {
             let sx = hx / (hy * aspect);
             let centred = cx.abs() < 1e-6 * hx && cy.abs() < 1e-6 * hy;
             if !(centred && (sx - 1.0).abs() < 1e-6) {
-                shear = Some(Mat4::from_cols(
-                    crate::math::Vec4::new(sx, 0.0, 0.0, 0.0),
-                    crate::math::Vec4::new(0.0, 1.0, 0.0, 0.0),
-                    crate::math::Vec4::new(-cx * t, -cy * t, 1.0, 0.0),
-                    crate::math::Vec4::W,
-                ));
-                if (sx - 1.0).abs() >= 1e-6 && list.float("lensradius", 0.0) > 0.0 {
+                // Orthographic rays are parallel: the window's centre is a translation of the
+                // origins, (cx, cy, 0), instead of a shear of the directions.
+                shear = Some(if ortho {
+                    Mat4::from_cols(
+                        crate::math::Vec4::new(sx, 0.0, 0.0, 0.0),
+                        crate::math::Vec4::new(0.0, 1.0, 0.0, 0.0),
+                        crate::math::Vec4::Z,
+                        crate::math::Vec4::new(cx, cy, 0.0, 1.0),
+                    )
+                } else {
+                    Mat4::from_cols(
+                        crate::math::Vec4::new(sx, 0.0, 0.0, 0.0),
+                        crate::math::Vec4::new(0.0, 1.0, 0.0, 0.0),
+                        crate::math::Vec4::new(-cx * t, -cy * t, 1.0, 0.0),
+                        crate::math::Vec4::W,
+                    )
+                });
+                if ortho && list.float("lensradius", 0.0) > 0.0 {
+                    self.warn(format!("{at}: Camera \"orthographic\": with a lens and an off-centre or stretched screen window the lens is centred on the window (pbrt-v4 centres it on the camera's axis)"));
+                } else if (sx - 1.0).abs() >= 1e-6 && list.float("lensradius", 0.0) > 0.0 {
                     self.warn(format!("{at}: Camera: the screen window's aspect ratio differs from the film's: the image is stretched as in pbrt-v4, and so is the lens aperture (pbrt-v4's stays round)"));
                 }
             }
@@ -1675,6 +1722,17 @@ impl Loader {
                 let _ = list.float(k, 0.0);
             }
         }
+        match &mut projection {
+            Projection::Orthographic { half_height } => *half_height = half_h,
+            Projection::Spherical(_) => {
+                // pbrt-v4's SphericalCamera reads the window and the lens but uses neither.
+                if lens > 0.0 {
+                    self.warn(format!("{at}: Camera \"spherical\": \"lensradius\" is ignored, as pbrt-v4 ignores it"));
+                }
+                shear = None;
+            }
+            Projection::Perspective => {}
+        }
         self.note_unused(&list, "Camera", &at);
         // pbrt camera space looks down +z; Trayecto's looks down −z with the same x and y.
         let flip = Mat4::from_scale(Vec3::new(1.0, 1.0, -1.0));
@@ -1686,8 +1744,13 @@ impl Loader {
             },
             vfov_deg: vfov,
             aspect: Some(aspect),
-            aperture_radius: lens,
+            aperture_radius: if matches!(projection, Projection::Spherical(_)) {
+                0.0
+            } else {
+                lens
+            },
             focus_distance: focus,
+            projection,
         });
         Ok(())
     }
