@@ -18,11 +18,11 @@ const N_SAMPLES: usize = 400_000;
 /// Number of chi-square tests this file runs (for the Šidák correction): every call of
 /// [`chi2_support`] counts itself in [`CHI2_RUNS`] and fails if the file runs more than this, so a
 /// new test cannot silently widen the family. (It was 43 while the file ran 25; the pbrt conductor
-/// and diffuse-transmission tests add 8, the clearcoat test 5, the Henyey–Greenstein test 5, the
+/// and diffuse-transmission tests add 8, the clearcoat test 6 (one with the coat tilted 45° away from the view), the Henyey–Greenstein test 5, the
 /// equal-area environment maps 2; the glTF BSDF extensions 13: sheen 3, anisotropy 3,
 /// iridescence 2, diffuse transmission 3, dispersion 2; the layered transmissive component 7:
 /// thick and thin from either side 4, dispersive 1, smooth under layers 2.)
-const N_TESTS: usize = 65;
+const N_TESTS: usize = 66;
 static CHI2_RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 fn ln_gamma(x: f64) -> f64 {
@@ -1006,6 +1006,8 @@ fn clearcoat_sampling_matches_pdf() {
         (1.0, 0.4, 0.6, 0.35, 45.0, 0.0),
         (0.0, 0.8, 1.0, 0.3, 30.0, 15.0),
         (0.0, 1.0, 1.0, 0.5, 80.0, 25.0),
+        // Tilted 45° away from the view: much of the coat's lobe is below the base's plane.
+        (0.0, 0.5, 1.0, 0.3, -30.0, 45.0),
     ] {
         let mut b = coated(0.8, metallic, rough, cc, cc_rough);
         let t = (tilt_deg as f32).to_radians();
@@ -1014,6 +1016,70 @@ fn clearcoat_sampling_matches_pdf() {
             format!("clearcoat m{metallic} r{rough} c{cc} cr{cc_rough} {deg}° tilt {tilt_deg}°");
         let i = check_bsdf(&name, b, wo_at(deg));
         assert!(i <= 1.0 + 3e-3, "{name}: pdf integrates to {i}");
+    }
+}
+
+/// A black, non-specular base under a clearcoat whose normal N_c is tilted 40° from the base's
+/// shading normal (+z), as a base normal map does to an untextured coat: the coat must reflect
+/// about N_c, also into directions below the base's plane, and from views below that plane, with
+/// N_c's cosine. So (i) at the coat's mirror direction, 100° from +z, f·|cos θ| is the coat lobe
+/// with its own cosine, c·fr·D·G2/(4 N_c·V); (ii) the integrators accept that direction when it
+/// is above the geometric surface; (iii) the albedo (∫ f |cos θ|, estimated with the BSDF's own
+/// sampler) equals that of the same coat untilted, seen at the same angle to N_c. Under the
+/// base's hemisphere only, (i) was 0 and the albedo lost the half of the lobe below the plane.
+#[test]
+fn a_tilted_coat_reflects_about_its_own_normal() {
+    let coat_only = |tilt_deg: f32| {
+        let m = trayecto::material::Material {
+            model: trayecto::material::MaterialModel::MetallicRoughness,
+            base_color: Vec3::ZERO,
+            metallic: 0.0,
+            roughness: 1.0,
+            specular: 0.0,
+            clearcoat: 1.0,
+            clearcoat_roughness: 0.3,
+            ..Default::default()
+        };
+        let mut b = Bsdf::from_material(&m, &[], &plain_hit());
+        b.set_coat_normal(wo_at(tilt_deg));
+        b
+    };
+    let albedo = |b: &Bsdf, wo: Vec3| {
+        let mut rng = Pcg32::new(21, 3);
+        let n = 200_000;
+        let mut sum = 0.0f64;
+        for _ in 0..n {
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            if let Some(s) = b.sample(wo, rng.next_f32(), u) {
+                sum += (s.f.x * s.wi.z.abs() / s.pdf) as f64;
+            }
+        }
+        sum / n as f64
+    };
+    let tilted = coat_only(40.0);
+    let n_c = wo_at(40.0);
+    // (i) and (ii): viewed 60° from N_c on the far side, the mirror direction is 100° from +z.
+    let wo = wo_at(-20.0);
+    let mirror = wo_at(100.0);
+    assert!(mirror.z < 0.0 && mirror.dot(n_c) > 0.0);
+    let f_cos = tilted.eval(wo, mirror).x * mirror.z.abs();
+    let c = trayecto::material::clearcoat::Clearcoat::new(1.0, 0.3, n_c);
+    let want = c.eval(wo, mirror) * mirror.dot(n_c);
+    assert!(
+        want > 1.0 && (f_cos - want).abs() <= 1e-4 * want,
+        "f·|cos| {f_cos} at the coat's mirror direction, want {want}"
+    );
+    assert!(tilted.pdf(wo, mirror) > 0.0);
+    assert!(tilted.side_consistent(mirror, mirror.dot(n_c)));
+    assert!(!tilted.side_consistent(mirror, -mirror.dot(n_c)));
+    // (iii): the same angle to N_c (60° and 60°), from above and from below the base's plane.
+    for (wo_deg, label) in [(-20.0, "above the base's plane"), (100.0, "below it")] {
+        let a = albedo(&tilted, wo_at(wo_deg));
+        let b = albedo(&coat_only(0.0), wo_at(wo_deg - 40.0));
+        assert!(
+            b > 0.05 && (a - b).abs() < 0.01 * b,
+            "view {label}: tilted coat albedo {a}, untilted {b}"
+        );
     }
 }
 
@@ -1029,7 +1095,7 @@ fn clearcoat_albedo_is_bounded_and_the_coat_is_seen() {
         for _ in 0..n {
             let u = Vec2::new(rng.next_f32(), rng.next_f32());
             if let Some(s) = b.sample(wo, rng.next_f32(), u) {
-                sum += (luminance(s.f) * s.wi.z / s.pdf) as f64;
+                sum += (luminance(s.f) * s.wi.z.abs() / s.pdf) as f64;
             }
         }
         sum / n as f64

@@ -886,3 +886,93 @@ fn dispersion_separates_colours_as_the_abbe_law_predicts() {
         got[2] - got[0]
     );
 }
+
+/// KHR_materials_clearcoat: the coat reflects about its own normal, whatever the base's normal
+/// map does (glTF appendix B: `fresnel_coat(clearcoat_normal, …)`; the base's normal map does not
+/// apply to the coat). A plane with a black, non-specular base under a clearcoat, lit by a
+/// uniform sky of radiance 1, shows only the coat, so tilting the **base's** normal map by 50°
+/// must not change the image. Before the coat had its own hemisphere it did: the coated BSDF
+/// lived in the hemisphere of the base's normal-mapped normal and was weighed by that normal's
+/// cosine, so coat reflections below the tilted base plane were lost, and a view from behind the
+/// tilted base saw nothing.
+#[test]
+fn a_tilted_base_normal_map_leaves_the_coat_unchanged() {
+    use trayecto::integrator::IntegratorKind;
+    use trayecto::material::{MaterialModel, Texture, TextureRef};
+    use trayecto::math::{Mat4, Vec3, Vec4};
+    use trayecto::scene::{CameraDesc, LightDesc, Shape};
+    let plane = |tilt_deg: f32| {
+        let mut s = Scene::default();
+        let mut m = Material {
+            model: MaterialModel::MetallicRoughness,
+            base_color: Vec3::ZERO,
+            metallic: 0.0,
+            roughness: 1.0,
+            specular: 0.0,
+            clearcoat: 1.0,
+            clearcoat_roughness: 0.3,
+            ..Default::default()
+        };
+        if tilt_deg != 0.0 {
+            // A tangent-space normal tilted towards the tangent (+x, the quad's first edge).
+            let t = tilt_deg.to_radians();
+            let n = Vec3::new(t.sin(), 0.0, t.cos());
+            let texel = (n + Vec3::ONE) * 0.5;
+            s.textures.push(Texture::constant(
+                "tilt",
+                Vec4::new(texel.x, texel.y, texel.z, 1.0),
+            ));
+            m.normal_texture = Some(TextureRef::new(0));
+            m.normal_scale = 1.0;
+        }
+        let m = s.add_material(m);
+        s.add_object(
+            "plane",
+            Shape::Quad {
+                corner: Vec3::new(-50.0, -50.0, 0.0),
+                e1: Vec3::new(100.0, 0.0, 0.0),
+                e2: Vec3::new(0.0, 100.0, 0.0),
+            },
+            Mat4::IDENTITY,
+            m,
+        );
+        s.lights.push(LightDesc::Ambient {
+            name: "sky".into(),
+            radiance: Vec3::ONE,
+        });
+        // Seen from 50° off the normal, from the side the base normal tilts away from.
+        let a = 50f32.to_radians();
+        s.cameras.push(CameraDesc::look_at(
+            "c",
+            Vec3::new(-3.0 * a.sin(), 0.0, 3.0 * a.cos()),
+            Vec3::ZERO,
+            Vec3::Z,
+            20.0,
+        ));
+        let world = World::build(s, &WorldOptions::default()).unwrap();
+        let img = common::render_world(
+            &world,
+            &RenderSettings {
+                width: 16,
+                height: 16,
+                spp: 64,
+                integrator: IntegratorKind::default(),
+                ..Default::default()
+            },
+        );
+        img.data.iter().map(|p| luminance(*p)).sum::<f32>() / img.data.len() as f32
+    };
+    let flat = plane(0.0);
+    // The coat's albedo at 50°: c·fr ≈ 0.04 + 0.96·(1 − cos 50°)⁵ ≈ 0.046, a little less for G2.
+    assert!(flat > 0.03 && flat < 0.06, "flat {flat}");
+    // 25°: the base is seen from the front, part of the coat's lobe is below its plane; 50°: the
+    // base is seen from behind (only the coat can reflect).
+    for tilt in [25.0, 50.0] {
+        let tilted = plane(tilt);
+        eprintln!("coat over a black base: flat base normal {flat}, tilted {tilt}° {tilted}");
+        assert!(
+            (tilted - flat).abs() < 0.02 * flat,
+            "the base's normal map tilted {tilt}° changed the coat: {tilted} vs {flat}"
+        );
+    }
+}

@@ -228,6 +228,32 @@ CLEARCOAT_DIAGNOSIS = [
 ]
 
 
+def _aniso_as_cycles(m):
+    """glTF roughness r' and anisotropy strength s' whose α_t = mix(r'², 1, s'²), α_b = r'²
+    (KHR_materials_anisotropy) equal the α_x, α_y Cycles' Principled BSDF gives the material as
+    Blender's importer maps it (Anisotropic = strength, Roughness = r): aspect = √(1 − 0.9 s),
+    α_x = r²/aspect, α_y = r²·aspect (intern/cycles/kernel/svm/closure.h). α_x is capped at 1,
+    the most glTF can express (it is reached only at r ≥ 0.97)."""
+    pbr = m.setdefault("pbrMetallicRoughness", {})
+    ext = m.get("extensions", {}).get("KHR_materials_anisotropy")
+    if ext is None:
+        return
+    r = pbr.get("roughnessFactor", 1.0)
+    s = ext.get("anisotropyStrength", 0.0)
+    aspect = math.sqrt(1.0 - 0.9 * s)
+    ax, ay = min(r * r / aspect, 1.0), r * r * aspect
+    pbr["roughnessFactor"] = math.sqrt(ay)
+    ext["anisotropyStrength"] = math.sqrt((ax - ay) / (1.0 - ay)) if ay < 1.0 else 0.0
+
+
+# AnisotropyStrengthTest with Trayecto given Cycles' α mapping (--diagnose-anisotropy): the
+# edit applies to Trayecto's copy only; Cycles renders the file as it is.
+ANISOTROPY_DIAGNOSIS = [
+    ("anisotropy as is", None),
+    ("anisotropy, Trayecto with Cycles' alpha mapping", _aniso_as_cycles),
+]
+
+
 def read_exr(path):
     import bpy
     import numpy as np
@@ -253,6 +279,11 @@ def main():
         action="store_true",
         help="render ClearcoatWicker variants that isolate the clearcoat gap's terms",
     )
+    ap.add_argument(
+        "--diagnose-anisotropy",
+        action="store_true",
+        help="render AnisotropyStrengthTest as is and with Trayecto given Cycles' roughness mapping",
+    )
     a = ap.parse_args()
     exe = os.environ.get("TRAYECTO_EXE") or os.path.join(
         os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target")), "release", "trayecto"
@@ -263,17 +294,25 @@ def main():
     tmp = tempfile.mkdtemp(prefix="trayecto-cycles-")
     print(f"{'case':50} {'Trayecto mean RGB':>28} {'Cycles mean RGB':>28} {'rel. diff (lum)':>16}")
     try:
+        # (name, model, edit of both renderers' copy, edit of Trayecto's copy only)
         if a.diagnose_clearcoat:
-            runs = [(n, MODELS["clearcoat"], e) for n, e in CLEARCOAT_DIAGNOSIS]
+            runs = [(n, MODELS["clearcoat"], e, None) for n, e in CLEARCOAT_DIAGNOSIS]
+        elif a.diagnose_anisotropy:
+            runs = [(n, MODELS["anisotropy"], None, e) for n, e in ANISOTROPY_DIAGNOSIS]
         else:
-            runs = [(n, rel, None) for n, rel in MODELS.items()]
-        for k, (name, rel, edit) in enumerate(runs):
+            runs = [(n, rel, None, None) for n, rel in MODELS.items()]
+        for k, (name, rel, edit, edit_trayecto) in enumerate(runs):
             work = os.path.join(tmp, f"run{k}")
             os.makedirs(work)
-            g = with_camera(os.path.join(shared, "scenes", "gltf-ext", rel), work, edit)
+            src = os.path.join(shared, "scenes", "gltf-ext", rel)
+            g = with_camera(src, work, edit)
+            g_t = g
+            if edit_trayecto:
+                os.makedirs(os.path.join(work, "t"))
+                g_t = with_camera(src, os.path.join(work, "t"), edit_trayecto)
             t_exr, c_exr = os.path.join(work, "trayecto.exr"), os.path.join(work, "cycles.exr")
             subprocess.run(
-                [exe, g, "--spp", str(a.spp), "--width", str(a.size), "--height", str(a.size),
+                [exe, g_t, "--spp", str(a.spp), "--width", str(a.size), "--height", str(a.size),
                  "--max-depth", "64", "-q", "-o", t_exr],
                 check=True,
             )

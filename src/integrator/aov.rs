@@ -111,7 +111,7 @@ pub fn trace(world: &World, ray: &Ray, s: &mut SampleStream) -> AovSample {
             return out;
         };
         let wi = v.frame.to_world(bs.wi);
-        if wi.dot(v.ng) * bs.wi.z <= 0.0 || !(bs.pdf > 0.0) {
+        if !v.bsdf.side_consistent(bs.wi, wi.dot(v.ng)) || !(bs.pdf > 0.0) {
             return out;
         }
         weight *= bs.f * (bs.wi.z.abs() / bs.pdf);

@@ -102,8 +102,8 @@ pub fn sample_ld(
     }
     let wi_local = v.frame.to_local(ls.wi);
     // Shading and geometric normals must agree on the side of `wi`, or light would leak
-    // through the surface.
-    let consistent = ls.wi.dot(v.ng) * wi_local.z > 0.0;
+    // through the surface (the BSDF knows which normal its lobes use).
+    let consistent = v.bsdf.side_consistent(wi_local, ls.wi.dot(v.ng));
     let f = v.bsdf.eval(v.wo_local, wi_local);
     if !consistent || f == Vec3::ZERO {
         return Vec3::ZERO;

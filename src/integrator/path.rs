@@ -163,7 +163,7 @@ fn continue_path(
             break;
         };
         let wi = v.frame.to_world(bs.wi);
-        if wi.dot(v.ng) * bs.wi.z <= 0.0 {
+        if !v.bsdf.side_consistent(bs.wi, wi.dot(v.ng)) {
             break;
         }
         let w = bs.f * (bs.wi.z.abs() / bs.pdf);

@@ -318,7 +318,7 @@ pub fn radiance(
             return l;
         };
         let wi = frame.to_world(bs.wi);
-        if wi.dot(ng) * bs.wi.z <= 0.0 || !(bs.pdf > 0.0) {
+        if !bsdf.side_consistent(bs.wi, wi.dot(ng)) || !(bs.pdf > 0.0) {
             return l;
         }
         st.beta *= bs.f * (bs.wi.z.abs() / bs.pdf);
@@ -440,7 +440,7 @@ fn sample_ld(
         } => {
             let wi_local = frame.to_local(ls.wi);
             // Shading and geometric normals must agree on the side of `wi`.
-            if ls.wi.dot(*ng) * wi_local.z <= 0.0 {
+            if !bsdf.side_consistent(wi_local, ls.wi.dot(*ng)) {
                 return Vec3::ZERO;
             }
             let f = bsdf.eval(*wo_local, wi_local) * wi_local.z.abs();

@@ -103,6 +103,21 @@ impl Bsdf {
         }
     }
 
+    /// True if light may scatter between `wo` and `wi_local` (local frame) when `wi` lies on
+    /// side `wi_dot_ng` of the geometric normal as the integrator oriented it (towards `wo` for
+    /// opaque BSDFs). Shading and geometric normals must agree on the side of `wi`, or light
+    /// would leak through the surface; that is the rule, except for a clearcoated glTF material
+    /// without transmission: its coat reflects about its own normal (KHR_materials_clearcoat),
+    /// possibly into directions below the base's normal-mapped shading plane, which are right
+    /// whenever they are above the geometric surface (the base's lobes are zero there).
+    #[inline]
+    pub fn side_consistent(&self, wi_local: Vec3, wi_dot_ng: f32) -> bool {
+        match self {
+            Bsdf::MetallicRoughness(b) if b.coat.is_some() && !b.transmits() => wi_dot_ng > 0.0,
+            _ => wi_dot_ng * wi_local.z > 0.0,
+        }
+    }
+
     /// True if every lobe is a Dirac delta (light sampling is pointless).
     #[inline]
     pub fn is_specular(&self) -> bool {

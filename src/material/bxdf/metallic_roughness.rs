@@ -124,9 +124,7 @@ impl MetallicRoughness {
     #[inline]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         if !self.transmits() {
-            if wo.z <= 0.0 || wi.z <= 0.0 {
-                return Vec3::ZERO;
-            }
+            // Each layer checks its own hemisphere: the coat reflects about its own normal.
             return self.eval_coated(wo, wi);
         }
         let (b, wo, wi, _) = self.canonical(wo, wi);
@@ -145,17 +143,27 @@ impl MetallicRoughness {
         }
     }
 
-    /// The base, scaled by what the sheen and the coat leave of it, plus the sheen and the coat
-    /// (both directions above).
+    /// The base, scaled by what the sheen and the coat leave of it, plus the sheen and the coat.
+    /// The base and the sheen live in the hemisphere of the (normal-mapped) shading normal, the
+    /// coat in that of its own normal N_c (glTF appendix B: `fresnel_coat(clearcoat_normal, …)`),
+    /// so where N_c tilts away from the base normal the coat still reflects about N_c, also into
+    /// directions below the base's shading plane (the integrators accept those when they are
+    /// above the geometric surface, [`crate::material::Bsdf::side_consistent`]).
     #[inline]
     fn eval_coated(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        let under = match &self.ext.sheen {
-            None => self.eval_above(wo, wi),
-            Some(s) => s.eval(wo, wi) + self.eval_above(wo, wi) * s.base_scale(wo, wi),
+        let under = if wo.z > 0.0 && wi.z > 0.0 {
+            match &self.ext.sheen {
+                None => self.eval_above(wo, wi),
+                Some(s) => s.eval(wo, wi) + self.eval_above(wo, wi) * s.base_scale(wo, wi),
+            }
+        } else {
+            Vec3::ZERO
         };
         match &self.coat {
             None => under,
-            Some(c) => under * (1.0 - c.layer_weight(wo)) + Vec3::splat(c.eval(wo, wi)),
+            Some(c) => {
+                under * (1.0 - c.layer_weight(wo)) + Vec3::splat(coat_in_base_cosine(c, wo, wi))
+            }
         }
     }
 
@@ -185,9 +193,6 @@ impl MetallicRoughness {
     #[inline]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if !self.transmits() {
-            if wo.z <= 0.0 || wi.z <= 0.0 {
-                return 0.0;
-            }
             return self.pdf_front(wo, wi);
         }
         let (b, wo, wi, _) = self.canonical(wo, wi);
@@ -197,9 +202,18 @@ impl MetallicRoughness {
         b.pdf_front(wo, wi)
     }
 
-    /// The mixture pdf for `wo` above.
+    /// The mixture pdf for `wo` above (above the base's or, without transmission, the coat's
+    /// plane).
     #[inline]
     fn pdf_front(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let p_coat = self.coat_share(wo);
+        if p_coat >= 1.0 {
+            // Only the coat is sampled (`wo` is below the base's shading plane).
+            return self.coat.as_ref().map_or(0.0, |c| c.pdf(wo, wi));
+        }
+        if wo.z <= 0.0 {
+            return 0.0;
+        }
         let base = if wi.z > 0.0 {
             let p_spec = self.spec_probability(wo);
             let h = (wo + wi).normalize();
@@ -231,10 +245,27 @@ impl MetallicRoughness {
         match &self.coat {
             None => under,
             Some(c) => {
-                let p_coat = coat_probability(c, wo);
-                let coat = if wi.z > 0.0 { c.pdf(wo, wi) } else { 0.0 };
+                // With diffuse transmission a direction below the base's plane is a transmitted
+                // one, which the coat does not produce ([`Self::sample_front`]).
+                let coat = if wi.z > 0.0 || !self.transmits() {
+                    c.pdf(wo, wi)
+                } else {
+                    0.0
+                };
                 p_coat * coat + (1.0 - p_coat) * under
             }
+        }
+    }
+
+    /// Probability of sampling the coat lobe: [`coat_probability`], or 1 when the base cannot
+    /// scatter (`wo` below its shading plane: only the coat, about its own normal, can), 0
+    /// without a coat.
+    #[inline]
+    fn coat_share(&self, wo: Vec3) -> f32 {
+        match &self.coat {
+            None => 0.0,
+            Some(_) if wo.z <= 0.0 && !self.transmits() => 1.0,
+            Some(c) => coat_probability(c, wo),
         }
     }
 
@@ -243,7 +274,7 @@ impl MetallicRoughness {
     #[inline]
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let (b, wo, _, flipped) = self.canonical(wo, wo);
-        if wo.z <= 0.0 {
+        if wo.z <= 0.0 && (b.transmits() || b.coat.is_none()) {
             return None;
         }
         let wi = b.sample_front(wo, u_lobe, u)?;
@@ -267,10 +298,11 @@ impl MetallicRoughness {
         // chooses between the lower layers' lobes.
         let mut u_lobe = u_lobe;
         if let Some(c) = &self.coat {
-            let p_coat = coat_probability(c, wo);
+            let p_coat = self.coat_share(wo);
             if u_lobe < p_coat {
-                // The coat reflects only: a direction below the base's plane is no sample.
-                return c.sample(wo, u).filter(|wi| wi.z > 0.0);
+                // The coat reflects about its own normal. With diffuse transmission a direction
+                // below the base's plane would be a transmitted one: no sample.
+                return c.sample(wo, u).filter(|wi| wi.z > 0.0 || !self.transmits());
             }
             u_lobe = ((u_lobe - p_coat) / (1.0 - p_coat)).min(1.0 - f32::EPSILON);
         }
@@ -408,6 +440,24 @@ impl MetallicRoughness {
             (t / (t + r)).clamp(0.05, 0.95)
         }
     }
+}
+
+/// The coat lobe as the integrators weigh it. They multiply f by the cosine to the base's shading
+/// normal, |wi.z|; the coat's radiance is weighed by its own cosine N_c·L (glTF appendix B; Cycles
+/// evaluates its coat closure with its own normal too), so f carries (N_c·L)/|wi.z|. Zero on the
+/// base's plane and wherever the coat lobe is. Directions within 10⁻⁶ of the base's plane are
+/// dropped (a solid angle of ~6·10⁻⁶ sr) so that f stays finite.
+#[inline]
+fn coat_in_base_cosine(c: &Clearcoat, wo: Vec3, wi: Vec3) -> f32 {
+    let cos_base = wi.z.abs();
+    if cos_base < 1e-6 {
+        return 0.0;
+    }
+    let f = c.eval(wo, wi);
+    if f == 0.0 {
+        return 0.0;
+    }
+    f * wi.dot(c.normal).max(0.0) / cos_base
 }
 
 /// Probability of sampling the clearcoat lobe: its Fresnel share c·fr(V) against what the base
