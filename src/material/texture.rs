@@ -674,4 +674,102 @@ mod tests {
         let p = r.apply(Vec2::new(1.0, 0.0));
         assert!((p - Vec2::new(0.0, -1.0)).length() < 1e-6);
     }
+    fn ramp(w: u32, h: u32) -> Vec<Vec4> {
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                // A pattern with content at every frequency (no level averages it out early).
+                let f =
+                    |k: f32| ((x * k + y * 1.7).sin() * 0.5 + 0.5) * ((x + y) % 3.0 + 1.0) / 3.0;
+                Vec4::new(f(0.9), f(2.3), f(0.31), 1.0 - f(1.1) * 0.5)
+            })
+            .collect()
+    }
+
+    fn mean(texels: &Texels) -> Vec4 {
+        texels.iter().sum::<Vec4>() / texels.len() as f32
+    }
+
+    /// Every level of a non-power-of-two pyramid halves its sides (rounded down) and keeps the
+    /// image's mean: exactly (f32 rounding) for float texels, within 8-bit rounding for sRGB.
+    /// Fails with a box that drops the odd texel or point-samples (checked by replacing the
+    /// overlap weights with 1/2 each: the mean of the 37-wide level moves by 2e-3).
+    #[test]
+    fn pyramid_keeps_the_mean_at_every_level() {
+        let texels = ramp(37, 23);
+        let m0 = texels.iter().sum::<Vec4>() / texels.len() as f32;
+        for (kind, tol) in [("f32", 2e-6f32), ("srgb8", 2.5e-3)] {
+            let stored = if kind == "f32" {
+                Texels::F32(texels.clone())
+            } else {
+                Texels::Srgb8(
+                    texels
+                        .iter()
+                        .map(|t| {
+                            let q = |c: f32| (linear_to_srgb(c) * 255.0).round() as u8;
+                            [q(t.x), q(t.y), q(t.z), (t.w * 255.0).round() as u8]
+                        })
+                        .collect(),
+                )
+            };
+            let mut t = Texture::with_texels("r", 37, 23, stored);
+            let base = mean(&t.texels);
+            if kind == "f32" {
+                assert!((base - m0).abs().max_element() < 1e-6);
+            }
+            t.build_mips();
+            let sizes: Vec<(u32, u32)> = t.mips.iter().map(|m| (m.width, m.height)).collect();
+            assert_eq!(sizes, [(18, 11), (9, 5), (4, 2), (2, 1), (1, 1)]);
+            for m in &t.mips {
+                assert_eq!(m.texels.kind(), kind);
+                let d = (mean(&m.texels) - base).abs().max_element();
+                assert!(
+                    d <= tol,
+                    "{kind} level {}x{}: mean off by {d}",
+                    m.width,
+                    m.height
+                );
+            }
+            // About a third more memory (a 2D pyramid: 1/4 + 1/16 + … of level 0).
+            let extra = t.mip_bytes() as f32 / t.texel_bytes() as f32;
+            assert!(extra > 0.2 && extra < 0.4, "{extra}");
+        }
+    }
+
+    /// Without a footprint, or magnified, or without a pyramid, a filtered lookup is the plain
+    /// one bit for bit; minified far enough it reads the coarsest level (the mean).
+    #[test]
+    fn filtered_lookup_is_the_plain_one_without_a_footprint() {
+        let mut t = Texture::image("r", 37, 23, ramp(37, 23));
+        let plain = t.clone();
+        t.build_mips();
+        for i in 0..200 {
+            let uv = Vec2::new(i as f32 * 0.0137 - 0.5, i as f32 * 0.0291 - 1.0);
+            let want = plain.lookup(uv).to_array().map(f32::to_bits);
+            assert_eq!(
+                t.lookup_filtered(uv, Vec4::ZERO)
+                    .to_array()
+                    .map(f32::to_bits),
+                want
+            );
+            // One tenth of a texel per pixel: magnification.
+            let small = Vec4::new(0.1 / 37.0, 0.0, 0.0, 0.1 / 23.0);
+            assert_eq!(
+                t.lookup_filtered(uv, small).to_array().map(f32::to_bits),
+                want
+            );
+            assert_eq!(
+                plain
+                    .lookup_filtered(uv, Vec4::ONE)
+                    .to_array()
+                    .map(f32::to_bits),
+                want
+            );
+        }
+        let coarse = t.lookup_filtered(Vec2::new(0.3, 0.6), Vec4::splat(10.0));
+        assert_eq!(coarse, t.mips.last().unwrap().texels.get(0));
+        // Level: the larger side of the footprint in level-0 texels, log2.
+        assert!((t.mip_level(Vec4::new(4.0 / 37.0, 0.0, 0.0, 1.0 / 23.0)) - 2.0).abs() < 1e-5);
+        assert!((t.mip_level(Vec4::new(0.0, 8.0 / 23.0, 1.0 / 37.0, 0.0)) - 3.0).abs() < 1e-5);
+    }
 }
