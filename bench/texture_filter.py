@@ -35,7 +35,7 @@ def relmse(x, ref):
 def render(args, mode, spp, seed, name):
     out = os.path.join(OUT, f"{name}.exr")
     t, _ = compare.run_trayecto(args.exe, SCENE, out, args.res, spp, seed, args.threads,
-                                extra=("--texture-filter", mode, "--quiet"))
+                                extra=("--texture-filter", mode))
     return t, compare.read_exr_rgb(out).astype("float64")
 
 
