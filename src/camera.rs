@@ -167,6 +167,52 @@ impl CameraSpec {
     }
 }
 
+/// How far a surface point moves when the camera ray through it moves by one pixel: pbrt-v4's
+/// `CameraBase::Approximate_dp_dxy`, which gives every hit of a path, not only the first, the
+/// footprint of a camera ray reaching that point. Rays stay plain data (no differentials are
+/// carried). With a pinhole the first hit's footprint is exact (the offset rays are the camera
+/// rays of the neighbouring pixels); a thin lens is treated as its pinhole. Unlike pbrt-v4, the
+/// footprint is not shrunk by 1/√spp, so the filtered image does not depend on the sample count.
+/// `Default` is off: every lookup then is the unfiltered one.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Footprint {
+    pub enabled: bool,
+    world_to_camera: Mat4,
+    camera_to_world: Mat4,
+    pixel: f32,
+}
+
+impl Footprint {
+    /// (∂p/∂x, ∂p/∂y) at `p` with surface normal `n`: where the rays through the pinhole and the
+    /// film points one pixel right and one pixel down of `p`'s meet `p`'s tangent plane (pbrt-v4
+    /// `SurfaceInteraction::ComputeDifferentials`). `None` when off, for points behind the camera
+    /// and at grazing angles whose offset rays miss the plane.
+    #[inline]
+    pub fn dp_dxy(&self, p: Vec3, n: Vec3) -> Option<(Vec3, Vec3)> {
+        if !self.enabled {
+            return None;
+        }
+        let pc = self.world_to_camera.transform_point3(p);
+        if !(pc.z < 0.0) {
+            return None;
+        }
+        // Normals transform by the inverse transpose of world-to-camera.
+        let nc = self.camera_to_world.transpose().transform_vector3(n);
+        let d = pc / -pc.z;
+        let plane = nc.dot(pc);
+        let on_plane = |dir: Vec3| dir * (plane / nc.dot(dir)) - pc;
+        let dx = on_plane(d + Vec3::X * self.pixel);
+        let dy = on_plane(d - Vec3::Y * self.pixel);
+        if !(dx.is_finite() && dy.is_finite()) {
+            return None;
+        }
+        Some((
+            self.camera_to_world.transform_vector3(dx),
+            self.camera_to_world.transform_vector3(dy),
+        ))
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct Camera {
     pub camera_to_world: Mat4,
@@ -252,6 +298,23 @@ impl Camera {
         let o = self.camera_to_world.transform_point3(o_cam);
         let dir = self.camera_to_world.transform_vector3(d_cam).normalize();
         Ray::new(o, dir)
+    }
+
+    /// The footprint of this camera's pixels, for filtered texture lookups. Only the perspective
+    /// projection has one: the footprint's offset rays go through a pinhole, which an orthographic
+    /// or spherical camera does not have, so their lookups stay unfiltered.
+    pub fn footprint(&self) -> Footprint {
+        if self.projection != Projection::Perspective {
+            return Footprint::default();
+        }
+        Footprint {
+            enabled: true,
+            world_to_camera: self.camera_to_world.inverse(),
+            camera_to_world: self.camera_to_world,
+            // A pixel's side on the film plane at z = −1: 2·tan(vfov/2)/height (and, as the
+            // aspect is width/height, 2·tan(vfov/2)·aspect/width).
+            pixel: 2.0 * self.half_h / self.height as f32,
+        }
     }
 
     /// Projects a world point to film coordinates, if it is in front of a perspective or

@@ -437,6 +437,20 @@ fn render_in_pool(
     let start = Instant::now();
     let (w, h) = (settings.width, settings.height);
     let camera = crate::camera::Camera::new(&world.camera, w, h);
+    // Filtered texture lookups need this camera's pixel footprint at every hit.
+    let filtered;
+    let settings = if world.texture_filter == crate::material::texture::TextureFilter::Trilinear {
+        filtered = RenderSettings {
+            path: crate::integrator::path::PathSettings {
+                footprint: camera.footprint(),
+                ..settings.path
+            },
+            ..settings.clone()
+        };
+        &filtered
+    } else {
+        settings
+    };
     // The film covers the crop window (the whole image by default); tiles are in film
     // coordinates and samples in image coordinates, so a pixel is the same number whether or not
     // it is rendered as part of a crop.

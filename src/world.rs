@@ -40,6 +40,10 @@ pub struct WorldOptions {
     pub variant: Option<String>,
     /// `--light-sampler auto|power|bvh`: how next-event estimation chooses a light.
     pub light_sampler: crate::light::LightSamplerKind,
+    /// `--texture-filter none|trilinear`: `trilinear` builds MIP pyramids of the image
+    /// textures and reads them over each hit's pixel footprint; `none` (the default) keeps
+    /// the textures' own unfiltered lookups.
+    pub texture_filter: crate::material::texture::TextureFilter,
 }
 
 pub struct World {
@@ -60,6 +64,9 @@ pub struct World {
     cutout: Vec<bool>,
     /// True if any material is a cutout; opaque scenes skip the alpha test entirely.
     has_cutouts: bool,
+    /// `WorldOptions::texture_filter`: with `Trilinear` the textures carry MIP pyramids and
+    /// renders give the path tracers the camera's [`crate::camera::Footprint`].
+    pub texture_filter: crate::material::texture::TextureFilter,
 }
 
 /// Rays pass through at most this many cut-out surfaces; beyond it the next surface counts as
@@ -99,9 +106,13 @@ impl World {
         let camera = choose_camera(&scene, options, bounds, &accel, &g, &label)?;
         let Scene {
             materials,
-            textures,
+            mut textures,
             ..
         } = scene;
+        if options.texture_filter == crate::material::texture::TextureFilter::Trilinear {
+            use rayon::prelude::*;
+            textures.par_iter_mut().for_each(Texture::build_mips);
+        }
         let lights = LightSet::new(
             lights,
             &g,
@@ -129,6 +140,7 @@ impl World {
             accel_build_time,
             cutout,
             has_cutouts,
+            texture_filter: options.texture_filter,
         })
     }
 
@@ -149,6 +161,21 @@ impl World {
             }
             None => self.geometry.surface_hit(ray, &isect),
         })
+    }
+
+    /// [`World::intersect`], with the hit's uv derivatives ([`SurfaceHit::duv`]) set from the
+    /// camera `footprint` when it is on, for filtered texture lookups.
+    #[inline]
+    pub fn intersect_filtered(
+        &self,
+        ray: &Ray,
+        footprint: &crate::camera::Footprint,
+    ) -> Option<SurfaceHit> {
+        let mut hit = self.intersect(ray)?;
+        if let Some((dpdx, dpdy)) = footprint.dp_dxy(hit.p, hit.ng) {
+            hit.duv = self.geometry.uv_derivatives(&hit, dpdx, dpdy);
+        }
+        Some(hit)
     }
 
     /// The first surface along `ray` that is not a hole of an alpha-masked or alpha-blended

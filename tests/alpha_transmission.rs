@@ -168,6 +168,8 @@ fn mask_follows_the_base_colour_texture_alpha() {
         wrap_s: Default::default(),
         wrap_t: Default::default(),
         filter: FilterMode::Nearest,
+        mipmap: true,
+        mips: Vec::new(),
     };
     let sheet = Material {
         base_color_texture: Some(TextureRef::new(0)),

@@ -271,6 +271,7 @@ fn plain_hit() -> trayecto::geometry::SurfaceHit {
         tangent: Vec3::X,
         bitangent_sign: 1.0,
         uv: [Vec2::ZERO; 2],
+        duv: [trayecto::math::Vec4::ZERO; 2],
         color: trayecto::math::Vec4::ONE,
         material: 0,
         light: u32::MAX,

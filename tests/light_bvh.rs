@@ -156,6 +156,7 @@ fn receiver(p: Vec3, n: Vec3) -> SurfaceHit {
         tangent: Vec3::X,
         bitangent_sign: 1.0,
         uv: [Vec2::ZERO; 2],
+        duv: [trayecto::math::Vec4::ZERO; 2],
         color: Vec4::ONE,
         material: 0,
         light: NO_LIGHT,

@@ -402,6 +402,7 @@ fn mix_choice_has_the_amount_as_probability() {
         tangent: Vec3::X,
         bitangent_sign: 1.0,
         uv: [Vec2::ZERO; 2],
+        duv: [trayecto::math::Vec4::ZERO; 2],
         color: Vec4::ONE,
         material: 2,
         light: u32::MAX,

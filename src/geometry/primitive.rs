@@ -96,6 +96,10 @@ pub struct SurfaceHit {
     pub tangent: Vec3,
     pub bitangent_sign: f32,
     pub uv: [Vec2; 2],
+    /// Screen-space derivatives of each uv set, (∂u/∂x, ∂v/∂x, ∂u/∂y, ∂v/∂y) per pixel, for
+    /// filtered texture lookups; zero (an unfiltered lookup) unless the integrator set them
+    /// ([`crate::camera::Footprint`]).
+    pub duv: [Vec4; 2],
     pub color: Vec4,
     pub material: u32,
     pub light: u32,
@@ -270,6 +274,7 @@ impl GeometryStore {
             tangent: Vec3::X,
             bitangent_sign: 1.0,
             uv: [Vec2::ZERO; 2],
+            duv: [Vec4::ZERO; 2],
             color: Vec4::ONE,
             material: self.material(prim),
             light: self.light(prim),
@@ -375,6 +380,58 @@ impl GeometryStore {
             return None;
         }
         Some((ts.cross(n), ts))
+    }
+
+    /// Screen-space uv derivatives ([`SurfaceHit::duv`]) of each uv set at a triangle hit from
+    /// the point's screen-space derivatives `dpdx`, `dpdy`: the least-squares solution of
+    /// dp = ∂p/∂u·du + ∂p/∂v·dv (pbrt-v4 `SurfaceInteraction::ComputeDifferentials`), with
+    /// ∂p/∂u, ∂p/∂v of the triangle's uv parameterisation (PBRT eq. 3.33). Zero for other
+    /// primitives and degenerate uvs (an unfiltered lookup).
+    pub fn uv_derivatives(&self, hit: &SurfaceHit, dpdx: Vec3, dpdy: Vec3) -> [Vec4; 2] {
+        let mut out = [Vec4::ZERO; 2];
+        if hit.prim.kind() != PrimitiveKind::Triangle {
+            return out;
+        }
+        let i = hit.prim.index();
+        let tri = &self.triangles[i];
+        let (mesh_i, local) = self.tri_mesh[i];
+        let mesh = &self.meshes[mesh_i as usize];
+        let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
+        let set = |uv: &[Vec2]| -> Vec4 {
+            let (duv02, duv12) = (uv[i0] - uv[i2], uv[i1] - uv[i2]);
+            let (dp02, dp12) = (tri.p0 - tri.p2, tri.p1 - tri.p2);
+            let det = duv02.x * duv12.y - duv02.y * duv12.x;
+            if !(det.abs() > 1e-20) {
+                return Vec4::ZERO;
+            }
+            let inv = 1.0 / det;
+            let dpdu = (dp02 * duv12.y - dp12 * duv02.y) * inv;
+            let dpdv = (dp12 * duv02.x - dp02 * duv12.x) * inv;
+            let (a00, a01, a11) = (dpdu.dot(dpdu), dpdu.dot(dpdv), dpdv.dot(dpdv));
+            let inv_det = 1.0 / (a00 * a11 - a01 * a01);
+            if !inv_det.is_finite() {
+                return Vec4::ZERO;
+            }
+            let solve = |d: Vec3| {
+                let (b0, b1) = (dpdu.dot(d), dpdv.dot(d));
+                Vec2::new(a11 * b0 - a01 * b1, a00 * b1 - a01 * b0) * inv_det
+            };
+            let (x, y) = (solve(dpdx), solve(dpdy));
+            let v = Vec4::new(x.x, x.y, y.x, y.y);
+            if v.is_finite() {
+                v.clamp(Vec4::splat(-1e8), Vec4::splat(1e8))
+            } else {
+                Vec4::ZERO
+            }
+        };
+        if let Some(uv) = &mesh.uv0 {
+            out[0] = set(uv);
+        }
+        out[1] = match &mesh.uv1 {
+            Some(uv) => set(uv),
+            None => out[0],
+        };
+        out
     }
 
     fn triangle_hit(&self, i: usize, b1: f32, b2: f32, hit: &mut SurfaceHit) {

@@ -38,6 +38,9 @@ pub struct PathSettings {
     pub mis: bool,
     /// Continuation paths split at the first hit (the thesis's "rayos secundarios").
     pub secondary: u32,
+    /// The camera's pixel footprint for filtered texture lookups; set by the renderer when
+    /// the world was built with `--texture-filter trilinear`, off (`Default`) otherwise.
+    pub footprint: crate::camera::Footprint,
 }
 
 impl Default for PathSettings {
@@ -49,6 +52,7 @@ impl Default for PathSettings {
             nee: true,
             mis: true,
             secondary: 1,
+            footprint: Default::default(),
         }
     }
 }
@@ -89,7 +93,7 @@ fn radiance_impl(
     mut aov: Option<&mut AovPath>,
 ) -> Vec3 {
     stats.rays += 1;
-    let Some(hit) = world.intersect(ray) else {
+    let Some(hit) = world.intersect_filtered(ray, &set.footprint) else {
         return world.escaped(ray.d.normalize()).0;
     };
     let wo = -ray.d.normalize();
@@ -179,7 +183,7 @@ fn continue_path(
 
         let ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
         stats.rays += 1;
-        let Some(next) = world.intersect(&ray) else {
+        let Some(next) = world.intersect_filtered(&ray, &set.footprint) else {
             let (le, pdf_light) = world.escaped(wi);
             if le != Vec3::ZERO {
                 let weight = if bs.specular || !set.nee {

@@ -126,7 +126,7 @@ pub fn radiance(
     let mut crossings = 0u32;
     loop {
         stats.rays += 1;
-        let hit = world.intersect(&ray);
+        let hit = world.intersect_filtered(&ray, &set.footprint);
         let t_max = hit.map_or(f32::INFINITY, |h| h.t);
 
         // --- The medium between the ray's origin and the surface (or infinity).
@@ -418,6 +418,7 @@ fn sample_ld(
         tangent: Vec3::X,
         bitangent_sign: 1.0,
         uv: [crate::math::Vec2::ZERO; 2],
+        duv: [crate::math::Vec4::ZERO; 2],
         color: crate::math::Vec4::ONE,
         material: 0,
         light: NO_LIGHT,

@@ -125,6 +125,8 @@ mod tests {
             wrap_s: wrap,
             wrap_t: wrap,
             filter,
+            mipmap: true,
+            mips: Vec::new(),
         }
     }
 

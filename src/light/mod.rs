@@ -941,6 +941,7 @@ mod tests {
             tangent: crate::math::Frame::from_normal(n).x,
             bitangent_sign: 1.0,
             uv: [Vec2::ZERO; 2],
+            duv: [Vec4::ZERO; 2],
             color: Vec4::ONE,
             material: 0,
             light: crate::geometry::primitive::NO_LIGHT,

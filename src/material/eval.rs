@@ -481,11 +481,20 @@ pub fn opacity(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> f
 /// Reads a texture reference at a hit, applying its UV set and transform.
 #[inline]
 pub fn sample_texture(textures: &[Texture], t: &TextureRef, hit: &SurfaceHit) -> Vec4 {
-    let mut uv = hit.uv[(t.texcoord as usize).min(1)];
+    let set = (t.texcoord as usize).min(1);
+    let mut uv = hit.uv[set];
+    let mut duv = hit.duv[set];
     if let Some(tr) = &t.transform {
         uv = tr.apply(uv);
+        if duv != Vec4::ZERO {
+            // The transform is affine: its linear part maps the derivatives.
+            let o = tr.apply(Vec2::ZERO);
+            let dx = tr.apply(Vec2::new(duv.x, duv.y)) - o;
+            let dy = tr.apply(Vec2::new(duv.z, duv.w)) - o;
+            duv = Vec4::new(dx.x, dx.y, dy.x, dy.y);
+        }
     }
-    textures[t.texture].lookup(uv)
+    textures[t.texture].lookup_filtered(uv, duv)
 }
 
 /// Emitted radiance of `material` at `hit` (front face only unless double-sided), toward `wo`.

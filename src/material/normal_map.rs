@@ -55,6 +55,7 @@ mod tests {
             tangent: Vec3::X,
             bitangent_sign: 1.0,
             uv: [Vec2::ZERO; 2],
+            duv: [Vec4::ZERO; 2],
             color: Vec4::ONE,
             material: 0,
             light: u32::MAX,

@@ -27,6 +27,30 @@ pub enum FilterMode {
     Bilinear,
 }
 
+/// Whether textures are filtered over the pixel footprint (`--texture-filter`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum TextureFilter {
+    /// Each texture's own nearest or bilinear lookup at the hit's uv, as before filtering
+    /// existed: no pyramids are built.
+    #[default]
+    None,
+    /// MIP pyramids and trilinear lookups driven by ray footprints.
+    Trilinear,
+}
+
+impl std::str::FromStr for TextureFilter {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "none" => Ok(TextureFilter::None),
+            "trilinear" => Ok(TextureFilter::Trilinear),
+            _ => Err(format!(
+                "unknown texture filter '{s}' (expected none or trilinear)"
+            )),
+        }
+    }
+}
+
 /// `i / 255` for every 8-bit value: the linear (data) decoding, exactly as the `image` crate's
 /// u8 → f32 conversion computes it (a division, not a multiplication by 1/255).
 pub static UNORM8_TO_F32: LazyLock<[f32; 256]> =
@@ -185,6 +209,58 @@ impl Texels {
     pub fn to_f32(&self) -> Vec<Vec4> {
         self.iter().collect()
     }
+
+    /// `v` (linear RGBA) stored in this storage's kind, rounded to its nearest codes (for MIP
+    /// levels: an 8-bit image's pyramid stays 8-bit). The 8-bit linear kinds both store as
+    /// [`Texels::Unorm8`].
+    pub fn encode_like(&self, v: &[Vec4]) -> Texels {
+        let q8 = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+        let q16 = |x: f32| (x.clamp(0.0, 1.0) * 65535.0).round() as u16;
+        match self {
+            Texels::Srgb8(_) => Texels::Srgb8(
+                v.iter()
+                    .map(|t| {
+                        let s = |c: f32| q8(linear_to_srgb(c.clamp(0.0, 1.0)));
+                        [s(t.x), s(t.y), s(t.z), q8(t.w)]
+                    })
+                    .collect(),
+            ),
+            Texels::Unorm8(_) | Texels::Unorm8Recip(_) => {
+                Texels::Unorm8(v.iter().map(|t| t.to_array().map(q8)).collect())
+            }
+            Texels::Unorm16(_) => {
+                Texels::Unorm16(v.iter().map(|t| t.to_array().map(q16)).collect())
+            }
+            Texels::F32(_) => Texels::F32(v.to_vec()),
+        }
+    }
+}
+
+/// `src` resampled to `n` values by an exact box: output `i` is the mean of the piecewise-
+/// constant input over [i·r, (i+1)·r), r = len/n, each input texel weighted by its overlap. The
+/// weights of every input texel sum to 1/r over the outputs, so the mean is kept.
+fn box_resample(src: &[Vec4], n: usize) -> Vec<Vec4> {
+    let m = src.len();
+    if n == m {
+        return src.to_vec();
+    }
+    let r = m as f64 / n as f64;
+    (0..n)
+        .map(|i| {
+            let (a, b) = (i as f64 * r, (i + 1) as f64 * r);
+            let mut acc = Vec4::ZERO;
+            for (j, &v) in src
+                .iter()
+                .enumerate()
+                .take((b.ceil() as usize).min(m))
+                .skip(a.floor() as usize)
+            {
+                let overlap = (b.min(j as f64 + 1.0) - a.max(j as f64)).max(0.0);
+                acc += v * (overlap / r) as f32;
+            }
+            acc
+        })
+        .collect()
 }
 
 /// A decoded image. Colour textures are sRGB-decoded to linear at lookup (see [`Texels`]).
@@ -197,7 +273,26 @@ pub struct Texture {
     pub wrap_s: WrapMode,
     pub wrap_t: WrapMode,
     pub filter: FilterMode,
+    /// Whether minified lookups may read the MIP pyramid (glTF: a sampler whose `minFilter` is
+    /// `NEAREST` or `LINEAR` asks for no MIP maps; pbrt-v4 always filters through its pyramid).
+    pub mipmap: bool,
+    /// Levels 1, 2, … of the MIP pyramid (level 0 is `texels`), built by [`Texture::build_mips`]
+    /// when texture filtering is on; empty otherwise, and then every lookup is the plain one.
+    pub mips: Vec<MipLevel>,
 }
+
+/// One level of a MIP pyramid: half the size of the level below (rounded down, at least 1),
+/// each texel the area-weighted box average of the texels it covers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MipLevel {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Texels,
+}
+
+/// The largest derivative of a UV footprint, (∂u/∂x, ∂v/∂x, ∂u/∂y, ∂v/∂y) per pixel, below which
+/// a lookup is a plain magnified one.
+const NO_FOOTPRINT: f32 = 0.0;
 
 /// UV transform (KHR_texture_transform): uv' = T · R · S · uv.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -273,6 +368,8 @@ impl Texture {
             wrap_s: WrapMode::Repeat,
             wrap_t: WrapMode::Repeat,
             filter: FilterMode::Bilinear,
+            mipmap: true,
+            mips: Vec::new(),
         }
     }
 
@@ -286,6 +383,8 @@ impl Texture {
             wrap_s: WrapMode::Repeat,
             wrap_t: WrapMode::Repeat,
             filter: FilterMode::Nearest,
+            mipmap: false,
+            mips: Vec::new(),
         }
     }
 
@@ -306,9 +405,15 @@ impl Texture {
 
     #[inline]
     fn index(&self, x: i64, y: i64) -> usize {
-        let xi = Self::wrap(x, self.width, self.wrap_s);
-        let yi = Self::wrap(y, self.height, self.wrap_t);
-        yi * self.width as usize + xi
+        self.index_in(self.width, self.height, x, y)
+    }
+
+    /// Texel index of (x, y) in a `width` × `height` level, after the wrap modes.
+    #[inline]
+    fn index_in(&self, width: u32, height: u32, x: i64, y: i64) -> usize {
+        let xi = Self::wrap(x, width, self.wrap_s);
+        let yi = Self::wrap(y, height, self.wrap_t);
+        yi * width as usize + xi
     }
 
     /// Looks up (u, v) with v = 0 at the top row (glTF convention).
@@ -323,39 +428,136 @@ impl Texture {
             FilterMode::Nearest => self
                 .texels
                 .get(self.index(x.floor() as i64, y.floor() as i64)),
-            FilterMode::Bilinear => {
-                let (fx, fy) = (x - 0.5, y - 0.5);
-                let (x0, y0) = (fx.floor(), fy.floor());
-                let (tx, ty) = (fx - x0, fy - y0);
-                let (x0, y0) = (x0 as i64, y0 as i64);
-                let i = [
-                    self.index(x0, y0),
-                    self.index(x0 + 1, y0),
-                    self.index(x0, y0 + 1),
-                    self.index(x0 + 1, y0 + 1),
-                ];
-                // One match per lookup, not per texel: the storage kind picks the decoder once.
-                let [t00, t10, t01, t11] = match &self.texels {
-                    Texels::Srgb8(v) => {
-                        let (c, a) = (&*SRGB8_TO_LINEAR, &*UNORM8_TO_F32);
-                        i.map(|i| decode8(c, a, v[i]))
-                    }
-                    Texels::Unorm8(v) => {
-                        let a = &*UNORM8_TO_F32;
-                        i.map(|i| decode8(a, a, v[i]))
-                    }
-                    Texels::Unorm8Recip(v) => {
-                        let a = &*UNORM8_TO_F32_RECIP;
-                        i.map(|i| decode8(a, a, v[i]))
-                    }
-                    Texels::Unorm16(v) => i.map(|i| decode16(v[i])),
-                    Texels::F32(v) => i.map(|i| v[i]),
-                };
-                let a = t00 * (1.0 - tx) + t10 * tx;
-                let b = t01 * (1.0 - tx) + t11 * tx;
-                a * (1.0 - ty) + b * ty
-            }
+            FilterMode::Bilinear => self.bilinear(self.width, self.height, &self.texels, x, y),
         }
+    }
+
+    /// Bilinear interpolation between the texel centres of a `width` × `height` level at
+    /// (x, y) in that level's texel units.
+    #[inline]
+    fn bilinear(&self, width: u32, height: u32, texels: &Texels, x: f32, y: f32) -> Vec4 {
+        let (fx, fy) = (x - 0.5, y - 0.5);
+        let (x0, y0) = (fx.floor(), fy.floor());
+        let (tx, ty) = (fx - x0, fy - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let i = [
+            self.index_in(width, height, x0, y0),
+            self.index_in(width, height, x0 + 1, y0),
+            self.index_in(width, height, x0, y0 + 1),
+            self.index_in(width, height, x0 + 1, y0 + 1),
+        ];
+        // One match per lookup, not per texel: the storage kind picks the decoder once.
+        let [t00, t10, t01, t11] = match texels {
+            Texels::Srgb8(v) => {
+                let (c, a) = (&*SRGB8_TO_LINEAR, &*UNORM8_TO_F32);
+                i.map(|i| decode8(c, a, v[i]))
+            }
+            Texels::Unorm8(v) => {
+                let a = &*UNORM8_TO_F32;
+                i.map(|i| decode8(a, a, v[i]))
+            }
+            Texels::Unorm8Recip(v) => {
+                let a = &*UNORM8_TO_F32_RECIP;
+                i.map(|i| decode8(a, a, v[i]))
+            }
+            Texels::Unorm16(v) => i.map(|i| decode16(v[i])),
+            Texels::F32(v) => i.map(|i| v[i]),
+        };
+        let a = t00 * (1.0 - tx) + t10 * tx;
+        let b = t01 * (1.0 - tx) + t11 * tx;
+        a * (1.0 - ty) + b * ty
+    }
+
+    /// The MIP level a lookup with UV derivatives `duv` = (∂u/∂x, ∂v/∂x, ∂u/∂y, ∂v/∂y) reads:
+    /// log₂ of the footprint's larger side in level-0 texels (pbrt-v4 `MIPMap::Filter` takes
+    /// the largest of the four derivatives as the filter width, as here, but doubles it;
+    /// Trayecto takes one pixel's footprint, so a level-0 texel per pixel is level 0). Level
+    /// ≤ 0 is magnification. Not clamped to the pyramid.
+    #[inline]
+    pub fn mip_level(&self, duv: Vec4) -> f32 {
+        let (w, h) = (self.width as f32, self.height as f32);
+        let width = (duv.x.abs() * w)
+            .max(duv.y.abs() * h)
+            .max(duv.z.abs() * w)
+            .max(duv.w.abs() * h);
+        width.max(1e-8).log2()
+    }
+
+    /// Looks up (u, v) filtered over the pixel footprint `duv` = (∂u/∂x, ∂v/∂x, ∂u/∂y, ∂v/∂y):
+    /// trilinear (Williams 1983, "Pyramidal Parametrics"; pbrt-v4 `MIPMap::Filter` with
+    /// `trilinear`), a blend of bilinear lookups in the two pyramid levels around
+    /// [`Texture::mip_level`]. Without a pyramid, for a zero footprint or when magnifying, it is
+    /// exactly [`Texture::lookup`].
+    #[inline]
+    pub fn lookup_filtered(&self, uv: Vec2, duv: Vec4) -> Vec4 {
+        if self.mips.is_empty() || duv.abs().max_element() <= NO_FOOTPRINT || !uv.is_finite() {
+            return self.lookup(uv);
+        }
+        let level = self.mip_level(duv);
+        if !(level > 0.0) {
+            return self.lookup(uv);
+        }
+        let last = self.mips.len() as f32;
+        let level = level.min(last);
+        let l0 = level.floor();
+        let t = level - l0;
+        let at = |l: usize| -> Vec4 {
+            let (w, h, texels) = if l == 0 {
+                (self.width, self.height, &self.texels)
+            } else {
+                let m = &self.mips[l - 1];
+                (m.width, m.height, &m.texels)
+            };
+            self.bilinear(w, h, texels, uv.x * w as f32, uv.y * h as f32)
+        };
+        let l0 = l0 as usize;
+        let a = at(l0);
+        if t == 0.0 || l0 >= self.mips.len() {
+            return a;
+        }
+        a * (1.0 - t) + at(l0 + 1) * t
+    }
+
+    /// Builds the MIP pyramid (levels 1… down to 1×1) if the texture allows it and has none.
+    /// Each level halves each side (rounded down, at least 1) and averages with an exact
+    /// area-weighted box, separably, in linear values, so a non-power-of-two side is handled
+    /// and every level keeps the image's mean (up to the rounding of its storage). A level is
+    /// stored in its image's storage kind (8-bit stays 8-bit), so the pyramid adds about a
+    /// third to the texel memory.
+    pub fn build_mips(&mut self) {
+        if !self.mipmap || !self.mips.is_empty() || self.width * self.height <= 1 {
+            return;
+        }
+        let (mut w, mut h) = (self.width as usize, self.height as usize);
+        let mut cur: Vec<Vec4> = self.texels.to_f32();
+        while w > 1 || h > 1 {
+            let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+            // Along x, then along y.
+            let rows: Vec<Vec4> = (0..h)
+                .flat_map(|y| box_resample(&cur[y * w..(y + 1) * w], nw))
+                .collect();
+            let mut next = vec![Vec4::ZERO; nw * nh];
+            for x in 0..nw {
+                let col: Vec<Vec4> = (0..h).map(|y| rows[y * nw + x]).collect();
+                for (y, v) in box_resample(&col, nh).into_iter().enumerate() {
+                    next[y * nw + x] = v;
+                }
+            }
+            self.mips.push(MipLevel {
+                width: nw as u32,
+                height: nh as u32,
+                texels: self.texels.encode_like(&next),
+            });
+            (w, h, cur) = (nw, nh, next);
+        }
+    }
+
+    /// Bytes the MIP levels above level 0 take.
+    pub fn mip_bytes(&self) -> usize {
+        self.mips
+            .iter()
+            .map(|m| m.texels.len() * m.texels.bytes_per_texel())
+            .sum()
     }
 
     /// Average texel value (for light power estimates).
@@ -366,6 +568,7 @@ impl Texture {
 
     /// Replaces every texel by `f(texel)`; the result is stored as float.
     pub fn map_texels(&mut self, f: impl Fn(Vec4) -> Vec4) {
+        self.mips.clear();
         self.texels = Texels::F32(self.texels.iter().map(f).collect());
     }
 
@@ -388,6 +591,8 @@ mod tests {
             wrap_s: WrapMode::Repeat,
             wrap_t: WrapMode::Repeat,
             filter: FilterMode::Nearest,
+            mipmap: true,
+            mips: Vec::new(),
         }
     }
 
@@ -468,5 +673,103 @@ mod tests {
         };
         let p = r.apply(Vec2::new(1.0, 0.0));
         assert!((p - Vec2::new(0.0, -1.0)).length() < 1e-6);
+    }
+    fn ramp(w: u32, h: u32) -> Vec<Vec4> {
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                // A pattern with content at every frequency (no level averages it out early).
+                let f =
+                    |k: f32| ((x * k + y * 1.7).sin() * 0.5 + 0.5) * ((x + y) % 3.0 + 1.0) / 3.0;
+                Vec4::new(f(0.9), f(2.3), f(0.31), 1.0 - f(1.1) * 0.5)
+            })
+            .collect()
+    }
+
+    fn mean(texels: &Texels) -> Vec4 {
+        texels.iter().sum::<Vec4>() / texels.len() as f32
+    }
+
+    /// Every level of a non-power-of-two pyramid halves its sides (rounded down) and keeps the
+    /// image's mean: exactly (f32 rounding) for float texels, within 8-bit rounding for sRGB.
+    /// Fails with a box that drops the odd texel or point-samples (checked by replacing the
+    /// overlap weights with 1/2 each: the mean of the 37-wide level moves by 2e-3).
+    #[test]
+    fn pyramid_keeps_the_mean_at_every_level() {
+        let texels = ramp(37, 23);
+        let m0 = texels.iter().sum::<Vec4>() / texels.len() as f32;
+        for (kind, tol) in [("f32", 2e-6f32), ("srgb8", 2.5e-3)] {
+            let stored = if kind == "f32" {
+                Texels::F32(texels.clone())
+            } else {
+                Texels::Srgb8(
+                    texels
+                        .iter()
+                        .map(|t| {
+                            let q = |c: f32| (linear_to_srgb(c) * 255.0).round() as u8;
+                            [q(t.x), q(t.y), q(t.z), (t.w * 255.0).round() as u8]
+                        })
+                        .collect(),
+                )
+            };
+            let mut t = Texture::with_texels("r", 37, 23, stored);
+            let base = mean(&t.texels);
+            if kind == "f32" {
+                assert!((base - m0).abs().max_element() < 1e-6);
+            }
+            t.build_mips();
+            let sizes: Vec<(u32, u32)> = t.mips.iter().map(|m| (m.width, m.height)).collect();
+            assert_eq!(sizes, [(18, 11), (9, 5), (4, 2), (2, 1), (1, 1)]);
+            for m in &t.mips {
+                assert_eq!(m.texels.kind(), kind);
+                let d = (mean(&m.texels) - base).abs().max_element();
+                assert!(
+                    d <= tol,
+                    "{kind} level {}x{}: mean off by {d}",
+                    m.width,
+                    m.height
+                );
+            }
+            // About a third more memory (a 2D pyramid: 1/4 + 1/16 + … of level 0).
+            let extra = t.mip_bytes() as f32 / t.texel_bytes() as f32;
+            assert!(extra > 0.2 && extra < 0.4, "{extra}");
+        }
+    }
+
+    /// Without a footprint, or magnified, or without a pyramid, a filtered lookup is the plain
+    /// one bit for bit; minified far enough it reads the coarsest level (the mean).
+    #[test]
+    fn filtered_lookup_is_the_plain_one_without_a_footprint() {
+        let mut t = Texture::image("r", 37, 23, ramp(37, 23));
+        let plain = t.clone();
+        t.build_mips();
+        for i in 0..200 {
+            let uv = Vec2::new(i as f32 * 0.0137 - 0.5, i as f32 * 0.0291 - 1.0);
+            let want = plain.lookup(uv).to_array().map(f32::to_bits);
+            assert_eq!(
+                t.lookup_filtered(uv, Vec4::ZERO)
+                    .to_array()
+                    .map(f32::to_bits),
+                want
+            );
+            // One tenth of a texel per pixel: magnification.
+            let small = Vec4::new(0.1 / 37.0, 0.0, 0.0, 0.1 / 23.0);
+            assert_eq!(
+                t.lookup_filtered(uv, small).to_array().map(f32::to_bits),
+                want
+            );
+            assert_eq!(
+                plain
+                    .lookup_filtered(uv, Vec4::ONE)
+                    .to_array()
+                    .map(f32::to_bits),
+                want
+            );
+        }
+        let coarse = t.lookup_filtered(Vec2::new(0.3, 0.6), Vec4::splat(10.0));
+        assert_eq!(coarse, t.mips.last().unwrap().texels.get(0));
+        // Level: the larger side of the footprint in level-0 texels, log2.
+        assert!((t.mip_level(Vec4::new(4.0 / 37.0, 0.0, 0.0, 1.0 / 23.0)) - 2.0).abs() < 1e-5);
+        assert!((t.mip_level(Vec4::new(0.0, 8.0 / 23.0, 1.0 / 37.0, 0.0)) - 3.0).abs() < 1e-5);
     }
 }

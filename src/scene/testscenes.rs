@@ -97,6 +97,8 @@ pub fn checker(name: &str, size: u32, cells: u32, a: Vec3, b: Vec3) -> Texture {
         wrap_s: WrapMode::Repeat,
         wrap_t: WrapMode::Repeat,
         filter: FilterMode::Bilinear,
+        mipmap: true,
+        mips: Vec::new(),
     }
 }
 

@@ -198,6 +198,11 @@ pub struct RenderArgs {
     /// importance from the shading point).
     #[arg(long, value_name = "SAMPLER", default_value = "auto")]
     pub light_sampler: LightSamplerKind,
+    /// Texture filtering: none (each texture's own bilinear or nearest lookup at the hit) or
+    /// trilinear (MIP pyramids built at load, read over each hit's pixel footprint from
+    /// pbrt-v4-style ray differentials; path tracers only). See docs/DESIGN.md.
+    #[arg(long, value_name = "FILTER", default_value = "none")]
+    pub texture_filter: trayecto::material::texture::TextureFilter,
     /// Render only sample indices A..B of the --spp frame (write a partial film: -o part.trp).
     #[arg(long, value_name = "A..B")]
     pub samples: Option<String>,
@@ -279,6 +284,7 @@ impl RenderArgs {
                 nee: !self.no_nee,
                 mis: !self.no_mis,
                 secondary: self.secondary,
+                ..Default::default()
             },
             filter: self.filter(),
             noise_threshold: self.noise_threshold,
@@ -335,6 +341,7 @@ impl RenderArgs {
             camera_override: None,
             variant: self.variant.clone(),
             light_sampler: self.light_sampler,
+            texture_filter: self.texture_filter,
         }
     }
 

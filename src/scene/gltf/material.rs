@@ -24,6 +24,12 @@ impl Loader<'_> {
             Some(gltf::texture::MagFilter::Nearest) => FilterMode::Nearest,
             _ => FilterMode::Bilinear,
         };
+        // glTF sampler: a `minFilter` of NEAREST or LINEAR asks for no MIP maps; the
+        // *_MIPMAP_* filters, or none given, allow the pyramid (`--texture-filter`).
+        tex.mipmap = !matches!(
+            s.min_filter(),
+            Some(gltf::texture::MinFilter::Nearest | gltf::texture::MinFilter::Linear)
+        );
         let missing = is_missing_texture(&tex);
         self.scene.textures.push(tex);
         let i = self.scene.textures.len() - 1;

@@ -322,9 +322,19 @@ impl Loader {
         };
         let scale = list.float("scale", 1.0);
         let invert = list.bool("invert", false);
+        // pbrt-v4 filters every one of these through its MIP pyramid; Trayecto does when
+        // `--texture-filter trilinear` builds pyramids, and then "point" and "bilinear" read
+        // the levels bilinearly and blended (trilinear) too. EWA is approximated by trilinear.
         let filter = match list.string("filter").as_deref() {
             Some("point") => FilterMode::Nearest,
-            _ => FilterMode::Bilinear,
+            None | Some("bilinear" | "trilinear") => FilterMode::Bilinear,
+            Some(f) => {
+                self.warn(format!(
+                    "{at}: Texture \"{name}\": filter \"{f}\" is not supported; bilinear \
+                     (trilinear with --texture-filter trilinear) is used"
+                ));
+                FilterMode::Bilinear
+            }
         };
         let wrap = match list.string("wrap").as_deref() {
             None | Some("repeat") => WrapMode::Repeat,
