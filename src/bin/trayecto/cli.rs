@@ -200,7 +200,7 @@ pub struct RenderArgs {
     pub light_sampler: LightSamplerKind,
     /// Texture filtering: none (each texture's own bilinear or nearest lookup at the hit) or
     /// trilinear (MIP pyramids built at load, read over each hit's pixel footprint from
-    /// pbrt-v4-style ray differentials; path tracers only). See docs/DESIGN.md.
+    /// pbrt-v4-style ray differentials; path tracers and perspective cameras only). See docs/DESIGN.md.
     #[arg(long, value_name = "FILTER", default_value = "none")]
     pub texture_filter: trayecto::material::texture::TextureFilter,
     /// Render only sample indices A..B of the --spp frame (write a partial film: -o part.trp).
