@@ -832,3 +832,95 @@ fn secondary_rays_are_refused_with_media() {
     plain.media.clear();
     render_scene(&plain, &s);
 }
+
+/// The TOML grid-emission keys reach the medium: `emission_file` becomes an `Lescale`-style grid
+/// scaling `emission`, `temperature_file` a blackbody grid with its scale and offset, `edge` the
+/// lookup rule; and the combinations pbrt-v4 refuses are refused here too. (Their rendering is
+/// checked against pbrt-v4 by `emissive_grid_matches_pbrt_v4`, through the same description.)
+#[test]
+fn toml_grid_emission_keys_are_read() {
+    use trayecto::scene::toml_scene::load_from_bytes;
+    use trayecto::scene::{GridEdge, GridEmission, MediumKind};
+    let dir = std::env::temp_dir().join(format!("trayecto-grid-emission-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // A Mitsuba .vol grid of 2×1×1 voxels over the unit box.
+    let vol = |values: [f32; 2]| {
+        let mut b = b"VOL\x03".to_vec();
+        for i in [1i32, 2, 1, 1, 1] {
+            b.extend(i.to_le_bytes());
+        }
+        for f in [0.0f32, 0.0, 0.0, 1.0, 1.0, 1.0].into_iter().chain(values) {
+            b.extend(f.to_le_bytes());
+        }
+        b
+    };
+    std::fs::write(dir.join("density.vol"), vol([1.0, 2.0])).unwrap();
+    std::fs::write(dir.join("scale.vol"), vol([0.5, 3.0])).unwrap();
+    std::fs::write(dir.join("temp.vol"), vol([1500.0, 2500.0])).unwrap();
+    let scene = |medium: &str| {
+        let text = format!(
+            "[[medium]]\nname = \"m\"\ntype = \"grid\"\nfile = \"density.vol\"\n{medium}\n\
+             [[material]]\nname = \"b\"\nmodel = \"interface\"\n\
+             [[object]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"b\"\n\
+             medium_inside = \"m\"\n"
+        );
+        load_from_bytes(text.as_bytes(), &dir, "grid.toml")
+    };
+    let kind = |s: trayecto::scene::Scene| s.media[0].kind.clone();
+
+    let s = scene("emission = [1, 2, 3]\nemission_file = \"scale.vol\"\nedge = \"zero\"").unwrap();
+    match kind(s) {
+        MediumKind::Grid {
+            edge,
+            emission: Some(GridEmission::Radiance { le, scale }),
+            ..
+        } => {
+            assert_eq!(edge, GridEdge::Zero);
+            assert_eq!(le, Vec3::new(1.0, 2.0, 3.0));
+            assert_eq!((scale.nx, scale.ny, scale.nz), (2, 1, 1));
+            assert_eq!(scale.data, vec![0.5, 3.0]);
+        }
+        k => panic!("emission_file not read: {k:?}"),
+    }
+
+    let s =
+        scene("temperature_file = \"temp.vol\"\ntemperature_scale = 2\ntemperature_offset = 100")
+            .unwrap();
+    match kind(s) {
+        MediumKind::Grid {
+            edge,
+            emission:
+                Some(GridEmission::Blackbody {
+                    temperature,
+                    temperature_scale,
+                    offset,
+                    ..
+                }),
+            ..
+        } => {
+            assert_eq!(edge, GridEdge::Hold, "the default edge is Mitsuba's");
+            assert_eq!(temperature.data, vec![1500.0, 2500.0]);
+            assert_eq!((temperature_scale, offset), (2.0, 100.0));
+        }
+        k => panic!("temperature_file not read: {k:?}"),
+    }
+
+    for (medium, want) in [
+        ("edge = \"wrap\"", "unknown edge 'wrap'"),
+        (
+            "emission = [1, 1, 1]\ntemperature_file = \"temp.vol\"",
+            "exclude each other",
+        ),
+        ("emission_file = \"missing.vol\"", "missing.vol"),
+    ] {
+        let msg = scene(medium)
+            .err()
+            .unwrap_or_else(|| panic!("accepted: {medium}"))
+            .to_string();
+        assert!(
+            msg.contains("grid.toml") && msg.contains(want),
+            "{medium}: {msg:?} lacks {want:?}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
