@@ -273,14 +273,60 @@ fn unsupported_features_are_named_in_warnings() {
     let scene = load_str(&triangle_gltf(TRI, [0, 1, 2], &extra), Path::new(".")).unwrap();
     let all = scene.warnings.join("\n");
     assert!(all.contains("EXT_lights_image_based"), "{all}");
-    assert!(all.contains("orthographic"), "{all}");
-    assert_eq!(scene.cameras.len(), 1);
-    assert_eq!(scene.cameras[0].name, "persp");
-    assert!((scene.cameras[0].vfov_deg - 0.5f32.to_degrees()).abs() < 1e-4);
+    assert!(!all.contains("orthographic"), "{all}");
+    assert_eq!(scene.cameras.len(), 2);
+    let persp = scene.cameras.iter().find(|c| c.name == "persp").unwrap();
+    assert!((persp.vfov_deg - 0.5f32.to_degrees()).abs() < 1e-4);
     assert_eq!(
-        scene.cameras[0].camera_to_world.w_axis.truncate(),
+        persp.camera_to_world.w_axis.truncate(),
         Vec3::new(0.0, 0.0, 5.0)
     );
+}
+
+/// A glTF orthographic camera renders a parallel view whose half extents are `xmag`, `ymag`: a
+/// camera at (0.5, 0.5, 5) with xmag = ymag = 0.5 sees exactly the unit square, so an emissive
+/// triangle (0,0)-(1,0)-(0,1) fills the pixels below the image's anti-diagonal and nothing else
+/// (a perspective camera, or other magnitudes, would move that edge). Zero magnitudes cannot
+/// frame a view: a warning, and the camera is skipped.
+#[test]
+fn orthographic_camera_frames_its_xmag_ymag_window() {
+    let extra = r#""materials":[{"name":"glow","emissiveFactor":[1,1,1]}],
+ "cameras":[{"name":"ortho","type":"orthographic","orthographic":{"xmag":0.5,"ymag":0.5,"znear":0.1,"zfar":10}},
+            {"name":"flat","type":"orthographic","orthographic":{"xmag":0,"ymag":1,"znear":0.1,"zfar":10}}],
+ "nodes":[{"mesh":0},{"camera":0,"translation":[0.5,0.5,5]},{"camera":1}],"scenes":[{"nodes":[0,1,2]}]"#;
+    let scene = load_str(&triangle_gltf(TRI, [0, 1, 2], extra), Path::new(".")).unwrap();
+    assert_eq!(scene.cameras.len(), 1, "{:?}", scene.warnings);
+    assert_eq!(
+        scene.cameras[0].projection,
+        trayecto::scene::Projection::Orthographic { half_height: 0.5 }
+    );
+    assert_eq!(scene.cameras[0].aspect, Some(1.0));
+    let all = scene.warnings.join("\n");
+    assert!(all.contains("'flat'") && all.contains("xmag 0"), "{all}");
+    let n = 16;
+    let px = render_small(&scene, n, 4, true);
+    let mut checked = 0;
+    for y in 0..n {
+        for x in 0..n {
+            let (u, v) = (
+                (x as f32 + 0.5) / n as f32,
+                1.0 - (y as f32 + 0.5) / n as f32,
+            );
+            // Pixels the edge crosses are partly covered.
+            if (u + v - 1.0).abs() < 1.5 / n as f32 {
+                continue;
+            }
+            let lit = px[(y * n + x) as usize].y > 0.5;
+            assert_eq!(
+                lit,
+                u + v < 1.0,
+                "pixel ({x}, {y}): {:?}",
+                px[(y * n + x) as usize]
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 150, "{checked}");
 }
 
 #[test]

@@ -74,18 +74,20 @@ impl Loader<'_> {
 
     pub(super) fn camera(&mut self, cam: &gltf::Camera, node_name: &str, world: Mat4) {
         let name = cam.name().unwrap_or(node_name).to_string();
+        // Cameras ignore scale: keep the rotation and the position only.
+        let rigid = |world: Mat4| {
+            Mat4::from_cols(
+                world.x_axis.truncate().normalize_or_zero().extend(0.0),
+                world.y_axis.truncate().normalize_or_zero().extend(0.0),
+                world.z_axis.truncate().normalize_or_zero().extend(0.0),
+                world.w_axis,
+            )
+        };
         match cam.projection() {
             gltf::camera::Projection::Perspective(p) => {
-                // Cameras ignore scale: keep the rotation and the position only.
-                let rigid = Mat4::from_cols(
-                    world.x_axis.truncate().normalize_or_zero().extend(0.0),
-                    world.y_axis.truncate().normalize_or_zero().extend(0.0),
-                    world.z_axis.truncate().normalize_or_zero().extend(0.0),
-                    world.w_axis,
-                );
                 self.scene.cameras.push(CameraDesc {
                     name,
-                    camera_to_world: rigid,
+                    camera_to_world: rigid(world),
                     vfov_deg: p.yfov().to_degrees(),
                     aspect: p.aspect_ratio(),
                     aperture_radius: 0.0,
@@ -93,10 +95,30 @@ impl Loader<'_> {
                     projection: crate::scene::Projection::Perspective,
                 });
             }
-            gltf::camera::Projection::Orthographic(_) => {
-                self.scene.warnings.push(format!(
-                    "camera '{name}' is orthographic, which is not supported; it is skipped"
-                ));
+            gltf::camera::Projection::Orthographic(o) => {
+                // glTF: `xmag`/`ymag` are half the view's width and height in scene units (the
+                // spec forbids zero; their sign carries no meaning, so it is dropped).
+                let (xmag, ymag) = (o.xmag().abs(), o.ymag().abs());
+                if !(xmag > 0.0 && ymag > 0.0 && xmag.is_finite() && ymag.is_finite()) {
+                    self.scene.warnings.push(format!(
+                        "camera '{name}' is orthographic with xmag {} and ymag {}, which cannot \
+                         frame a view; it is skipped",
+                        o.xmag(),
+                        o.ymag()
+                    ));
+                    return;
+                }
+                self.scene.cameras.push(CameraDesc {
+                    name,
+                    camera_to_world: rigid(world),
+                    // Not used by the projection; the angle that frames the same height at unit
+                    // distance, for front ends that show a perspective view of it.
+                    vfov_deg: (2.0 * ymag.atan().to_degrees()).clamp(1.0, 170.0),
+                    aspect: Some(xmag / ymag),
+                    aperture_radius: 0.0,
+                    focus_distance: 1.0,
+                    projection: crate::scene::Projection::Orthographic { half_height: ymag },
+                });
             }
         }
     }
