@@ -482,18 +482,22 @@ mod common;
 use trayecto::light::{EnvMap, EnvMapping};
 use trayecto::math::Mat3;
 
-fn synthetic_env() -> EnvMap {
-    let (w, h) = (24u32, 12u32);
-    let mut rng = Pcg32::new(42, 1);
-    let mut texels: Vec<Vec3> = (0..w * h)
+/// `count` texels of radiance `floor` + a uniform number in [0, 1) per channel, from `rng`.
+fn noisy_texels(mut rng: Pcg32, count: usize, floor: f32) -> Vec<Vec3> {
+    (0..count)
         .map(|_| {
             Vec3::new(
-                0.5 + rng.next_f32(),
-                0.5 + rng.next_f32(),
-                0.5 + rng.next_f32(),
+                floor + rng.next_f32(),
+                floor + rng.next_f32(),
+                floor + rng.next_f32(),
             )
         })
-        .collect();
+        .collect()
+}
+
+fn synthetic_env() -> EnvMap {
+    let (w, h) = (24u32, 12u32);
+    let mut texels = noisy_texels(Pcg32::new(42, 1), (w * h) as usize, 0.5);
     texels[3 * w as usize + 7] = Vec3::splat(20.0); // a sun
     let rot = Mat3::from_axis_angle(Vec3::new(1.0, 2.0, 0.5).normalize(), 0.7);
     EnvMap::from_texels(w, h, texels, Vec3::ONE, rot)
@@ -538,16 +542,7 @@ fn environment_map_sampling_matches_pdf() {
 #[test]
 fn equal_area_environment_sampling_matches_pdf() {
     let n = 16u32;
-    let mut rng = Pcg32::new(42, 3);
-    let mut texels: Vec<Vec3> = (0..n * n)
-        .map(|_| {
-            Vec3::new(
-                0.2 + rng.next_f32(),
-                0.2 + rng.next_f32(),
-                0.2 + rng.next_f32(),
-            )
-        })
-        .collect();
+    let mut texels = noisy_texels(Pcg32::new(42, 3), (n * n) as usize, 0.2);
     texels[5 * n as usize + 9] = Vec3::new(40.0, 30.0, 20.0); // a sun
     texels[0] = Vec3::ZERO; // a black texel in the −z corner
     let rotation = Mat3::from_axis_angle(Vec3::new(0.3, -1.0, 0.6).normalize(), 1.1)

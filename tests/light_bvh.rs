@@ -21,17 +21,7 @@ use trayecto::world::{World, WorldOptions};
 /// lights, and an ambient light at infinity.
 fn many_lights(ambient: bool) -> Scene {
     let mut s = Scene::default();
-    let floor = s.add_material(Material::diffuse("floor", Vec3::splat(0.6)));
-    s.add_object(
-        "floor",
-        Shape::Quad {
-            corner: Vec3::new(-20.0, 0.0, 20.0),
-            e1: Vec3::new(40.0, 0.0, 0.0),
-            e2: Vec3::new(0.0, 0.0, -40.0),
-        },
-        Mat4::IDENTITY,
-        floor,
-    );
+    add_floor(&mut s, 20.0, 0.6);
     let mut rng = Pcg32::new(11, 5);
     let mut mats = vec![];
     for (k, double_sided) in [(0, false), (1, true), (2, false)] {

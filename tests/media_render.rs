@@ -249,25 +249,7 @@ fn emissive_absorbing_slab_has_the_closed_form() {
         ..homogeneous.clone()
     };
     for (what, medium) in [("homogeneous", homogeneous), ("grid", grid)] {
-        let mut scene = Scene {
-            name: "glowing slab".into(),
-            ..Default::default()
-        };
-        let m = scene.add_material(interface_material());
-        let med = scene.add_medium(medium);
-        scene.add_object(
-            "slab",
-            Shape::Cuboid {
-                min: Vec3::new(-200.0, -200.0, 0.0),
-                max: Vec3::new(200.0, 200.0, depth),
-            },
-            Mat4::IDENTITY,
-            m,
-        );
-        scene.objects[0].medium = Some(MediumInterface {
-            inside: Some(med),
-            outside: None,
-        });
+        let mut scene = medium_slab("glowing slab", medium, depth);
         scene
             .cameras
             .push(camera(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 0.5));
@@ -307,6 +289,31 @@ fn emissive_absorbing_slab_has_the_closed_form() {
 /// A camera at `eye` looking at `target` with a narrow field of view.
 fn camera(eye: Vec3, target: Vec3, fov: f32) -> CameraDesc {
     CameraDesc::look_at("cam", eye, target, Vec3::Y, fov)
+}
+
+/// A scene named `name` holding one slab, z ∈ [0, depth] and 400 units wide, filled with
+/// `medium` behind index-matched interfaces, with vacuum outside.
+fn medium_slab(name: &str, medium: MediumDesc, depth: f32) -> Scene {
+    let mut scene = Scene {
+        name: name.into(),
+        ..Default::default()
+    };
+    let m = scene.add_material(interface_material());
+    let med = scene.add_medium(medium);
+    scene.add_object(
+        "slab",
+        Shape::Cuboid {
+            min: Vec3::new(-200.0, -200.0, 0.0),
+            max: Vec3::new(200.0, 200.0, depth),
+        },
+        Mat4::IDENTITY,
+        m,
+    );
+    scene.objects[0].medium = Some(MediumInterface {
+        inside: Some(med),
+        outside: None,
+    });
+    scene
 }
 
 fn interface_material() -> Material {
@@ -488,25 +495,11 @@ fn single_scattering_in_a_slab_has_the_closed_form() {
     let g = 0.4;
     let e = Vec3::new(2.0, 3.0, 1.5);
     let d_l = Vec3::new(0.6, 0.0, -0.8);
-    let mut scene = Scene {
-        name: "single scattering".into(),
-        ..Default::default()
-    };
-    let m = scene.add_material(interface_material());
-    let med = scene.add_medium(MediumDesc::homogeneous("slab", sigma_a, sigma_s, 1.0, g));
-    scene.add_object(
-        "slab",
-        Shape::Cuboid {
-            min: Vec3::new(-200.0, -200.0, 0.0),
-            max: Vec3::new(200.0, 200.0, depth),
-        },
-        Mat4::IDENTITY,
-        m,
+    let mut scene = medium_slab(
+        "single scattering",
+        MediumDesc::homogeneous("slab", sigma_a, sigma_s, 1.0, g),
+        depth,
     );
-    scene.objects[0].medium = Some(MediumInterface {
-        inside: Some(med),
-        outside: None,
-    });
     scene.lights.push(LightDesc::Directional {
         name: "sun".into(),
         direction: d_l,

@@ -19,17 +19,7 @@ use trayecto::world::{World, WorldOptions};
 /// mesh of 40 small triangles (more than 16 bounded lights with `bvh`).
 fn scene() -> Scene {
     let mut s = Scene::default();
-    let floor = s.add_material(Material::diffuse("floor", Vec3::splat(0.5)));
-    s.add_object(
-        "floor",
-        Shape::Quad {
-            corner: Vec3::new(-10.0, 0.0, 10.0),
-            e1: Vec3::new(20.0, 0.0, 0.0),
-            e2: Vec3::new(0.0, 0.0, -20.0),
-        },
-        Mat4::IDENTITY,
-        floor,
-    );
+    common::add_floor(&mut s, 10.0, 0.5);
     let emit = |s: &mut Scene, name: &str, l: Vec3| {
         let mut m = Material::diffuse(name, Vec3::ZERO);
         m.emissive = l;
@@ -228,17 +218,7 @@ fn reuse_keeps_the_mean_and_lowers_the_variance() {
 fn sphere_lights_are_sampled_over_their_cone() {
     for (radius, height) in [(0.5f32, 2.0f32), (0.01, 3.0), (0.9, 1.0)] {
         let mut s = Scene::default();
-        let floor = s.add_material(Material::diffuse("floor", Vec3::splat(0.5)));
-        s.add_object(
-            "floor",
-            Shape::Quad {
-                corner: Vec3::new(-10.0, 0.0, 10.0),
-                e1: Vec3::new(20.0, 0.0, 0.0),
-                e2: Vec3::new(0.0, 0.0, -20.0),
-            },
-            Mat4::IDENTITY,
-            floor,
-        );
+        common::add_floor(&mut s, 10.0, 0.5);
         let mut m = Material::diffuse("emitter", Vec3::ZERO);
         m.emissive = Vec3::splat(3.0);
         let e = s.add_material(m);

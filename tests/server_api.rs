@@ -204,6 +204,18 @@ fn get(s: &Server, path: &str) -> Reply {
     raw(s, &format!("GET {path}"), "", b"")
 }
 
+/// The job that writes `output`, as `GET /api/renders` lists it.
+fn listed_job(s: &Server, output: &str) -> Value {
+    let list = get(s, "/api/renders").json();
+    list["renders"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|j| j["output"] == output)
+        .unwrap_or_else(|| panic!("no job writes '{output}': {list}"))
+        .clone()
+}
+
 fn post_json(s: &Server, path: &str, body: &Value) -> Reply {
     let b = body.to_string();
     raw(
@@ -1431,14 +1443,7 @@ fn the_camera_field_renders_the_view_as_camera_from_does() {
         "server camera differs from --camera-from"
     );
     // The job reports the camera it rendered.
-    let list = get(&s, "/api/renders").json();
-    let job = list["renders"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|j| j["output"] == "viewed")
-        .unwrap()
-        .clone();
+    let job = listed_job(&s, "viewed");
     assert_eq!(job["camera"]["fov"], 50.0);
     for (bad, says) in [
         (json!({"eye": [0, 0, 1], "target": [0, 0, 1]}), "same point"),
@@ -1749,14 +1754,7 @@ fn the_variant_field_renders_as_the_cli_variant_flag_does() {
         "server EXR with variant Green differs from --variant Green"
     );
     // The job reports its variant.
-    let jobs = get(&s, "/api/renders").json();
-    let listed = jobs["renders"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|j| j["output"] == "v-Green")
-        .cloned()
-        .unwrap();
+    let listed = listed_job(&s, "v-Green");
     assert_eq!(listed["variant"], "Green", "{listed}");
     // An unknown name fails the job, naming the variants there are.
     let r = post_json(&s, "/api/renders", &job(Some("Purple")));

@@ -4,9 +4,27 @@
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use trayecto::film::Image;
+use trayecto::material::Material;
+use trayecto::math::{Mat4, Vec3};
 use trayecto::render::{NoObserver, RenderSettings, render};
-use trayecto::scene::Scene;
+use trayecto::scene::{Scene, Shape};
 use trayecto::world::{World, WorldOptions};
+
+/// Adds a grey diffuse floor named "floor": the square of side `2·half` at y = 0 around the
+/// origin, facing +y (e1 × e2 points up).
+pub fn add_floor(s: &mut Scene, half: f32, albedo: f32) {
+    let floor = s.add_material(Material::diffuse("floor", Vec3::splat(albedo)));
+    s.add_object(
+        "floor",
+        Shape::Quad {
+            corner: Vec3::new(-half, 0.0, half),
+            e1: Vec3::new(2.0 * half, 0.0, 0.0),
+            e2: Vec3::new(0.0, 0.0, -2.0 * half),
+        },
+        Mat4::IDENTITY,
+        floor,
+    );
+}
 
 /// Renders `scene` in-process and returns the linear image.
 pub fn render_scene(scene: &Scene, settings: &RenderSettings) -> Image {
