@@ -151,13 +151,7 @@ fn camera_convention_puts_the_red_wall_where_pbrt_does() {
 fn feature_scene_matches_pbrt_v4() {
     let scene = load(&repo("scenes/pbrt/features.pbrt"));
     let img = render(&scene, 64);
-    let reference = read_exr(&repo("tests/references/pbrt/features.exr"));
-    let (mean_err, block_err) = compare(&img, &reference);
-    eprintln!("features: mean {mean_err:.4}, worst 4x4 block {block_err:.4}");
-    assert!(
-        mean_err < 0.05 && block_err < 0.15,
-        "mean {mean_err}, block {block_err}"
-    );
+    assert_matches_pbrt_v4(&img, "features", 0.05, 0.15);
 }
 
 /// pbrt-v4's equal-area environment map (issue #16): seen directly, in a near-mirror and as the
@@ -172,13 +166,7 @@ fn equal_area_environment_matches_pbrt_v4() {
         scene.warnings
     );
     let img = render(&scene, 64);
-    let reference = read_exr(&repo("tests/references/pbrt/envmap-sky.exr"));
-    let (mean_err, block_err) = compare(&img, &reference);
-    eprintln!("envmap-sky: mean {mean_err:.4}, worst 4x4 block {block_err:.4}");
-    assert!(
-        mean_err < 0.03 && block_err < 0.1,
-        "mean {mean_err}, block {block_err}"
-    );
+    assert_matches_pbrt_v4(&img, "envmap-sky", 0.03, 0.1);
 }
 
 /// pbrt-v4's `illuminance` scaling of an image infinite light (which makes twice the requested
@@ -189,13 +177,7 @@ fn equal_area_environment_matches_pbrt_v4() {
 fn equal_area_environment_illuminance_matches_pbrt_v4() {
     let scene = load(&repo("scenes/pbrt/envmap-illuminance.pbrt"));
     let img = render(&scene, 64);
-    let reference = read_exr(&repo("tests/references/pbrt/envmap-illuminance.exr"));
-    let (mean_err, block_err) = compare(&img, &reference);
-    eprintln!("envmap-illuminance: mean {mean_err:.4}, worst 4x4 block {block_err:.4}");
-    assert!(
-        mean_err < 0.03 && block_err < 0.1,
-        "mean {mean_err}, block {block_err}"
-    );
+    assert_matches_pbrt_v4(&img, "envmap-illuminance", 0.03, 0.1);
 }
 
 /// A white furnace through the whole importer: a constant equal-area map of radiance L around a
@@ -278,13 +260,7 @@ fn area_light_power_matches_pbrt_v4() {
         scene.warnings
     );
     let img = render(&scene, 64);
-    let reference = read_exr(&repo("tests/references/pbrt/power.exr"));
-    let (mean_err, block_err) = compare(&img, &reference);
-    eprintln!("power: mean {mean_err:.4}, worst 4x4 block {block_err:.4}");
-    assert!(
-        mean_err < 0.03 && block_err < 0.1,
-        "mean {mean_err}, block {block_err}"
-    );
+    assert_matches_pbrt_v4(&img, "power", 0.03, 0.1);
 }
 
 /// pbrt-v4 `normalmap` on a diffuse floor and a rough conductor wall, lit at grazing angles.
@@ -297,13 +273,7 @@ fn normal_map_matches_pbrt_v4() {
         scene.warnings
     );
     let img = render(&scene, 64);
-    let reference = read_exr(&repo("tests/references/pbrt/normalmap.exr"));
-    let (mean_err, block_err) = compare(&img, &reference);
-    eprintln!("normalmap: mean {mean_err:.4}, worst 4x4 block {block_err:.4}");
-    assert!(
-        mean_err < 0.03 && block_err < 0.1,
-        "mean {mean_err}, block {block_err}"
-    );
+    assert_matches_pbrt_v4(&img, "normalmap", 0.03, 0.1);
 }
 
 /// The scene's warnings that mention `needle` after its location (the file name may hold it).
@@ -314,6 +284,18 @@ fn warnings_about(scene: &Scene, needle: &str) -> Vec<String> {
         .filter(|w| w.split(": ").skip(1).any(|part| part.contains(needle)))
         .cloned()
         .collect()
+}
+
+/// Compares `img` with the committed pbrt-v4 reference `tests/references/pbrt/{name}.exr`: the
+/// relative error of the mean below `mean_tol` and the worst 4×4 block's below `block_tol`.
+fn assert_matches_pbrt_v4(img: &Image, name: &str, mean_tol: f64, block_tol: f64) {
+    let reference = read_exr(&repo(&format!("tests/references/pbrt/{name}.exr")));
+    let (mean_err, block_err) = compare(img, &reference);
+    eprintln!("{name}: mean {mean_err:.4}, worst 4x4 block {block_err:.4}");
+    assert!(
+        mean_err < mean_tol && block_err < block_tol,
+        "mean {mean_err}, block {block_err}"
+    );
 }
 
 /// Renders `scene` at 64 spp and compares it with the pbrt-v4 reference `name` on 4 × 4 and
@@ -682,13 +664,7 @@ fn spectrum_files_and_sampled_lights_match_pbrt_v4() {
         scene.warnings
     );
     let img = render(&scene, 64);
-    let reference = read_exr(&repo("tests/references/pbrt/spectrum-file.exr"));
-    let (mean_err, block_err) = compare(&img, &reference);
-    eprintln!("spectrum-file: mean {mean_err:.4}, worst 4x4 block {block_err:.4}");
-    assert!(
-        mean_err < 0.03 && block_err < 0.1,
-        "mean {mean_err}, block {block_err}"
-    );
+    assert_matches_pbrt_v4(&img, "spectrum-file", 0.03, 0.1);
 }
 
 /// Rarely used syntax against pbrt-v4 (scenes/pbrt/odd/odd.pbrt lists it): bare values,
