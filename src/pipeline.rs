@@ -10,8 +10,9 @@
 //!   ([`crate::split`]); an output named `*.trp` is a partial film, written by [`write_outputs`];
 //! - AOVs ([`RenderJob::aovs`]) are traced after the beauty render by
 //!   [`crate::render::render_aovs`] and handed to [`write_outputs`] as [`Layer`]s with the beauty
-//!   image (one multi-layer EXR, or side files); layers computed from the film (sample counts,
-//!   variance) join the same list in [`RenderJob::run`];
+//!   image (one multi-layer EXR, or side files); the layers read from the film (sample counts,
+//!   variance: [`AovKind::FILM`], [`crate::film::aov::film_layers`]) join the same list in
+//!   [`RenderJob::run`];
 //! - denoising ([`RenderJob::denoise`], [`crate::denoise`]) is the [`Stage::Denoise`] between
 //!   rendering and [`write_outputs`]; the library is loaded before anything else, so a missing
 //!   one fails before the render;
@@ -341,10 +342,23 @@ impl RenderJob {
         let partial =
             self.split.samples.is_some() || self.outputs.iter().any(|o| is_partial_film(&o.path));
         if !self.aovs.is_empty() && partial {
-            return bad(
+            let film = if self.aovs.iter().any(|k| !k.is_traced()) {
+                " (samples and variance neither: a partial film keeps no squared sums, so the \
+                 variance of merged parts could not be exact)"
+            } else {
+                ""
+            };
+            return bad(format!(
                 "--aov: AOVs are written with the image of a whole render, not into partial films \
-                 (.trp, --samples); render the AOVs with the whole frame's settings and an image \
-                 output, e.g. -o aovs.exr --aov albedo,normal"
+                 (.trp, --samples){film}; render the AOVs with the whole frame's settings and an \
+                 image output, e.g. -o aovs.exr --aov albedo,normal"
+            ));
+        }
+        if self.aovs.contains(&AovKind::Variance) && self.split.resume.is_some() {
+            return bad(
+                "--aov variance: a checkpoint keeps no squared sums, so the variance of a resumed \
+                 render would leave out the samples before it; render the frame without --resume \
+                 for the variance (samples works with --resume)"
                     .into(),
             );
         }
@@ -524,6 +538,8 @@ impl RenderJob {
         s.crop = crop
             .map(|c| c.resolve(s.width, s.height))
             .filter(|c| (c.x0, c.x1, c.y0, c.y1) != (0, s.width, 0, s.height));
+        // The variance AOV needs the film's squared-luminance sums.
+        s.track_variance |= self.aovs.contains(&AovKind::Variance);
         (s, note)
     }
 
@@ -628,7 +644,8 @@ impl RenderJob {
         // Render.
         observer.stage_started(Stage::Render);
         // The denoiser's guides are traced too when they were not asked for (and not written).
-        let mut traced = self.aovs.clone();
+        // Samples and variance are not traced: they are read from the film below.
+        let mut traced = crate::integrator::aov::traced(&self.aovs);
         if denoiser.is_some() {
             for k in [AovKind::Albedo, AovKind::Normal] {
                 if !traced.contains(&k) {
@@ -740,10 +757,18 @@ impl RenderJob {
             None => None,
         };
         layers.retain(|l| self.aovs.iter().any(|k| k.name() == l.name));
-        // An adaptive render's per-pixel sample counts and variances, from the film.
-        if settings.noise_threshold.is_some() {
-            layers.extend(sample_stat_layers(&part.film));
-        }
+        // Per-pixel sample counts and variances, from the film: when asked for, and always
+        // from an adaptive render (which tracks the variance anyway).
+        let film_kinds: &[AovKind] = if settings.noise_threshold.is_some() {
+            &AovKind::FILM
+        } else {
+            &self.aovs
+        };
+        debug_assert!(
+            !film_kinds.contains(&AovKind::Variance) || settings.tracks_variance(),
+            "the variance layer needs a film that tracked it"
+        );
+        layers.extend(crate::film::aov::film_layers(&part.film, film_kinds));
 
         // Write.
         observer.stage_started(Stage::Write);
@@ -804,29 +829,6 @@ impl RenderJob {
             mean_samples,
         })
     }
-}
-
-/// An adaptive render's per-pixel statistics as AOV layers: `samples` (the samples each pixel
-/// took, channel `samples.Y`) and `variance` (the unbiased variance s² of its samples' luminance,
-/// the variance of one sample; the mean's is s²/n; channel `variance.Y`). Written like every
-/// layer: into a multi-layer EXR output, else as side files `out.samples.png` and so on.
-pub fn sample_stat_layers(film: &crate::film::Film) -> Vec<Layer> {
-    let layer = |name: &str, data: Vec<f32>| Layer {
-        name: name.into(),
-        channels: vec![format!("{name}.Y")],
-        display: crate::film::aov::Display::Range,
-        width: film.width,
-        height: film.height,
-        data,
-    };
-    let n = film.counts().len();
-    vec![
-        layer("samples", film.counts().iter().map(|&c| c as f32).collect()),
-        layer(
-            "variance",
-            (0..n).map(|i| film.variance(i) as f32).collect(),
-        ),
-    ]
 }
 
 /// The output stage: writes the image (or, for `*.trp` outputs, the partial film `part`) to every

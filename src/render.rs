@@ -42,6 +42,10 @@ pub struct RenderSettings {
     pub time_limit: Option<f64>,
     /// Render and write only this window of the image (pixel bounds, see [`Crop`]).
     pub crop: Option<Crop>,
+    /// Sum each pixel's squared sample luminance too ([`FilmBlock::tracked`]), for the
+    /// `variance` AOV ([`Film::variance`]). Adaptive sampling tracks it whatever this says
+    /// ([`RenderSettings::tracks_variance`]). The image is the same either way.
+    pub track_variance: bool,
 }
 
 /// A window of the image in pixels: columns `x0..x1`, rows `y0..y1` (pbrt's `pixelbounds`).
@@ -102,6 +106,7 @@ impl Default for RenderSettings {
             noise_threshold: None,
             time_limit: None,
             crop: None,
+            track_variance: false,
         }
     }
 }
@@ -209,6 +214,13 @@ impl RenderSettings {
     /// depend on more than its sample range: such renders cannot be split or resumed.
     pub fn progressive(&self) -> bool {
         self.noise_threshold.is_some() || self.time_limit.is_some()
+    }
+
+    /// Whether the film sums squared luminance ([`Film::variance`]): when asked for
+    /// ([`RenderSettings::track_variance`], the `variance` AOV) or when adaptive sampling needs
+    /// it to judge pixels.
+    pub fn tracks_variance(&self) -> bool {
+        self.track_variance || self.noise_threshold.is_some()
     }
 }
 
@@ -480,13 +492,15 @@ fn render_in_pool(
     let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h);
     let filter = FilterSampler::new(&settings.filter);
     // Adaptive sampling: which pixels the next pass renders (decided between passes).
-    let track = settings.noise_threshold.is_some();
+    let adaptive = settings.noise_threshold.is_some();
+    // Squared-luminance sums, for adaptive sampling and the variance AOV.
+    let track = settings.tracks_variance();
     let pixels = (fw * fh) as usize;
     // In-loop AOVs: one accumulator per film pixel; each pass's tiles fill blocks of their own,
     // added here once the pass is complete (like the film's blocks).
     let mut aov_film: Option<Vec<PixelAovs>> =
         record_aovs.then(|| vec![PixelAovs::default(); (fw * fh) as usize]);
-    let (mut active, mut scratch) = if track {
+    let (mut active, mut scratch) = if adaptive {
         (vec![true; pixels], vec![false; pixels])
     } else {
         (Vec::new(), Vec::new())
@@ -536,7 +550,7 @@ fn render_in_pool(
                 }
                 for fy in y0..y0 + th {
                     for fx in x0..x0 + tw {
-                        if track && !active[(fy * fw + fx) as usize] {
+                        if adaptive && !active[(fy * fw + fx) as usize] {
                             continue;
                         }
                         let (x, y) = (fx + win.x0, fy + win.y0);
@@ -622,9 +636,11 @@ fn render_in_pool(
     })
 }
 
-/// The AOV layers `kinds` of a film window `width` × `height` from the accumulators
-/// [`render_range_aovs`] recorded.
+/// The traced AOV layers among `kinds` ([`AovKind::is_traced`]; the film's own statistics come
+/// from [`crate::film::aov::film_layers`]) of a film window `width` × `height` from the
+/// accumulators [`render_range_aovs`] recorded.
 pub fn aov_layers(kinds: &[AovKind], width: u32, height: u32, acc: &[PixelAovs]) -> Vec<Layer> {
+    let kinds = &aov::traced(kinds)[..];
     let rows: Vec<Vec<f32>> = acc
         .chunks(width.max(1) as usize)
         .map(|row| {
@@ -658,7 +674,8 @@ fn camera_ray(
     (camera.generate_ray(film, lens), weight)
 }
 
-/// Traces the AOV layers `kinds` ([`crate::integrator::aov`]) over sample indices
+/// Traces the AOV layers `kinds` ([`crate::integrator::aov`]; only the traced ones,
+/// [`AovKind::is_traced`]: samples and variance come from the film) over sample indices
 /// `0..settings.spp` of every pixel of the film window (the crop, else the image), with the
 /// camera rays of the beauty render's samples. See [`render_aovs_samples`].
 pub fn render_aovs(
@@ -684,6 +701,7 @@ pub fn render_aovs_samples(
     cancel: &AtomicBool,
 ) -> Result<Vec<Layer>, RenderError> {
     settings.validate()?;
+    let kinds = &aov::traced(kinds)[..];
     let (w, h) = (settings.width, settings.height);
     let camera = crate::camera::Camera::new(&world.camera, w, h);
     // The beauty render's sampler, image size included (ZSobol's indices span it), so each AOV

@@ -33,10 +33,32 @@ pub enum AovKind {
     MaterialId,
     /// Index (+1) of the object (mesh or analytic shape) first visible; 0 where nothing is hit.
     ObjectId,
+    /// Samples the pixel's estimate holds (from the film, not traced: see
+    /// [`AovKind::is_traced`]).
+    Samples,
+    /// The unbiased sample variance s² of the luminance of the pixel's samples: the variance of
+    /// one sample, what adaptive sampling judges a pixel by (the variance of the pixel's mean is
+    /// s²/n). From the film's exact squared-luminance sums, not traced ([`AovKind::is_traced`]).
+    Variance,
 }
 
 impl AovKind {
-    pub const ALL: [AovKind; 7] = [
+    /// Every AOV `--aov all` asks for.
+    pub const ALL: [AovKind; 9] = [
+        AovKind::Albedo,
+        AovKind::Normal,
+        AovKind::Depth,
+        AovKind::Position,
+        AovKind::ShadingNormal,
+        AovKind::MaterialId,
+        AovKind::ObjectId,
+        AovKind::Samples,
+        AovKind::Variance,
+    ];
+
+    /// The AOVs traced per hit by [`crate::integrator::aov`] (in the path loop or a pass of
+    /// their own).
+    pub const TRACED: [AovKind; 7] = [
         AovKind::Albedo,
         AovKind::Normal,
         AovKind::Depth,
@@ -45,6 +67,16 @@ impl AovKind {
         AovKind::MaterialId,
         AovKind::ObjectId,
     ];
+
+    /// The per-pixel statistics of the film itself ([`film_layers`]): any render of a whole
+    /// frame has them, whatever its integrator.
+    pub const FILM: [AovKind; 2] = [AovKind::Samples, AovKind::Variance];
+
+    /// Whether the AOV is traced per hit ([`AovKind::TRACED`]) rather than read from the film
+    /// ([`AovKind::FILM`]). The tracing code skips film AOVs; [`film_layers`] skips traced ones.
+    pub fn is_traced(self) -> bool {
+        !matches!(self, AovKind::Samples | AovKind::Variance)
+    }
 
     /// The name given to `--aov` and used for side files (`out.NAME.png`).
     pub fn name(self) -> &'static str {
@@ -56,6 +88,8 @@ impl AovKind {
             AovKind::ShadingNormal => "shading_normal",
             AovKind::MaterialId => "material_id",
             AovKind::ObjectId => "object_id",
+            AovKind::Samples => "samples",
+            AovKind::Variance => "variance",
         }
     }
 
@@ -69,6 +103,9 @@ impl AovKind {
             AovKind::ShadingNormal => &["N.X", "N.Y", "N.Z"],
             AovKind::MaterialId => &["IndexMA.X"],
             AovKind::ObjectId => &["IndexOB.X"],
+            // The names adaptive renders have always written.
+            AovKind::Samples => &["samples.Y"],
+            AovKind::Variance => &["variance.Y"],
         }
     }
 
@@ -81,6 +118,8 @@ impl AovKind {
             "shading_normal" | "N" => AovKind::ShadingNormal,
             "material_id" => AovKind::MaterialId,
             "object_id" => AovKind::ObjectId,
+            "samples" => AovKind::Samples,
+            "variance" => AovKind::Variance,
             _ => return None,
         })
     }
@@ -146,6 +185,7 @@ impl Layer {
             AovKind::Normal | AovKind::ShadingNormal => Display::UnitVector,
             AovKind::Depth | AovKind::Position => Display::Range,
             AovKind::MaterialId | AovKind::ObjectId => Display::Id,
+            AovKind::Samples | AovKind::Variance => Display::Range,
         };
         debug_assert_eq!(
             data.len(),
@@ -253,6 +293,26 @@ impl Layer {
     }
 }
 
+/// The layers of the film AOVs among `kinds` ([`AovKind::FILM`], in `kinds` order; traced kinds
+/// are skipped): `samples`, the samples each pixel holds, and `variance`, the unbiased variance
+/// s² of its samples' luminance ([`super::Film::variance`]; 0 for a pixel with fewer than two
+/// samples). The variance needs a film that tracked squared luminance
+/// ([`crate::render::RenderSettings::tracks_variance`]); the caller checks that.
+pub fn film_layers(film: &super::Film, kinds: &[AovKind]) -> Vec<Layer> {
+    let n = film.counts().len();
+    kinds
+        .iter()
+        .filter_map(|&k| {
+            let data = match k {
+                AovKind::Samples => film.counts().iter().map(|&c| c as f32).collect(),
+                AovKind::Variance => (0..n).map(|i| film.variance(i) as f32).collect(),
+                _ => return None,
+            };
+            Some(Layer::new(k, film.width, film.height, data))
+        })
+        .collect()
+}
+
 /// The inverse of the sRGB transfer curve the PNG writer applies (IEC 61966-2-1), so values
 /// meant to be stored as-is survive it.
 fn srgb_to_linear(c: Vec3) -> Vec3 {
@@ -310,6 +370,23 @@ mod tests {
         let e = AovKind::parse_list("albedo,wireframe").unwrap_err();
         assert!(e.contains("wireframe") && e.contains("object_id"), "{e}");
         assert!(AovKind::parse_list(" , ").is_err());
+    }
+
+    /// Every AOV is either traced or read from the film, and the two lists say which.
+    #[test]
+    fn traced_and_film_aovs_partition_all() {
+        for k in AovKind::ALL {
+            assert_eq!(AovKind::TRACED.contains(&k), k.is_traced(), "{k:?}");
+            assert_eq!(AovKind::FILM.contains(&k), !k.is_traced(), "{k:?}");
+        }
+        assert_eq!(
+            AovKind::TRACED.len() + AovKind::FILM.len(),
+            AovKind::ALL.len()
+        );
+        assert_eq!(
+            AovKind::parse_list("samples,variance").unwrap(),
+            AovKind::FILM.to_vec()
+        );
     }
 
     #[test]

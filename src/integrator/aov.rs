@@ -330,17 +330,22 @@ impl PixelAovs {
             }),
             AovKind::MaterialId => out.push(winner(&self.materials)),
             AovKind::ObjectId => out.push(winner(&self.objects)),
+            // Not traced: they come from the film (`film::aov::film_layers`), and every caller
+            // leaves them out of its rows, as `layers` does.
+            AovKind::Samples | AovKind::Variance => {}
         }
     }
 }
 
-/// Builds the layers of `kinds` from rows of per-pixel accumulators.
+/// Builds the layers of the traced kinds among `kinds` ([`AovKind::is_traced`]; the film's
+/// statistics are not in the rows) from rows of per-pixel accumulators.
 pub fn layers(kinds: &[AovKind], width: u32, height: u32, rows: &[Vec<f32>]) -> Vec<Layer> {
-    // `rows[y]` holds, per pixel, the channels of every kind in `kinds` order.
+    let kinds = traced(kinds);
+    // `rows[y]` holds, per pixel, the channels of every traced kind in `kinds` order.
     let per_pixel: usize = kinds.iter().map(|k| k.channels().len()).sum();
     let mut out = Vec::with_capacity(kinds.len());
     let mut offset = 0;
-    for &k in kinds {
+    for k in kinds {
         let c = k.channels().len();
         let mut data = Vec::with_capacity(width as usize * height as usize * c);
         for row in rows {
@@ -352,4 +357,10 @@ pub fn layers(kinds: &[AovKind], width: u32, height: u32, rows: &[Vec<f32>]) -> 
         offset += c;
     }
     out
+}
+
+/// The kinds among `kinds` that are traced per hit, in order (the film's statistics, samples
+/// and variance, are left out: [`crate::film::aov::film_layers`] builds them).
+pub fn traced(kinds: &[AovKind]) -> Vec<AovKind> {
+    kinds.iter().copied().filter(|k| k.is_traced()).collect()
 }

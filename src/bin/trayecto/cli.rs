@@ -116,10 +116,12 @@ pub struct RenderArgs {
     pub integrator: IntegratorKind,
     /// AOV layers to write with the image, comma-separated: albedo, normal (both at the first
     /// non-specular hit: the denoiser's guides), depth, position, shading_normal, material_id,
-    /// object_id, or all. An .exr output gets them as channels of one multi-layer file
-    /// (albedo.R, normal.X, Z, P.X, N.X, IndexMA.X, IndexOB.X); other formats get side files
-    /// (out.albedo.png, ...). With --integrator raycast, a single view name (shaded, normals,
-    /// barycentric, depth, albedo, uv) instead picks what the image shows.
+    /// object_id, samples (samples each pixel took), variance (the variance of one sample's
+    /// luminance in each pixel; the mean's is variance/samples), or all. An .exr output gets
+    /// them as channels of one multi-layer file (albedo.R, normal.X, Z, P.X, N.X, IndexMA.X,
+    /// IndexOB.X, samples.Y, variance.Y); other formats get side files (out.albedo.png, ...).
+    /// With --integrator raycast, a single view name (shaded, normals, barycentric, depth,
+    /// albedo, uv) instead picks what the image shows.
     #[arg(long, value_name = "LIST")]
     pub aov: Option<String>,
     /// Also write the image denoised by Intel Open Image Denoise (RT filter, HDR, with prefiltered
@@ -290,6 +292,8 @@ impl RenderArgs {
             noise_threshold: self.noise_threshold,
             time_limit: self.time_limit,
             crop: None,
+            // Set by the pipeline when the variance AOV is asked for.
+            track_variance: false,
         }
     }
 

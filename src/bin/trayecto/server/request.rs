@@ -922,6 +922,8 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         noise_threshold,
         time_limit,
         crop: None,
+        // Set by the pipeline when the variance AOV is asked for.
+        track_variance: false,
     };
     if errors.is_empty()
         && let Err(e) = settings.validate()
