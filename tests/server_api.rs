@@ -1810,3 +1810,145 @@ fn the_variant_field_renders_as_the_cli_variant_flag_does() {
         "{e}"
     );
 }
+
+/// The size of a finished job's PNG.
+fn png_size(s: &Server, job: &Value) -> (u32, u32) {
+    let png = get(s, job["png"].as_str().unwrap());
+    assert_eq!(png.status, 200);
+    (
+        u32::from_be_bytes(png.body[16..20].try_into().unwrap()),
+        u32::from_be_bytes(png.body[20..24].try_into().unwrap()),
+    )
+}
+
+/// API paper cuts: a request without `output` gets a name of its own, `render-ID` (it used to be
+/// `render` every time, so a second such request got 409), skipping a name an earlier run of the
+/// server left in the output folder; and a request without a size gets the command line's rule
+/// (the scene file's resolution, else its camera's shape at 512 high, else 512²) — the size
+/// `/api/scene-defaults` reports — where it used to be 256² always.
+#[test]
+fn requests_without_output_or_size_get_unique_names_and_the_cli_size() {
+    let root = fixture();
+    let scenes = root.join("scenes");
+    std::fs::write(
+        scenes.join("wide.toml"),
+        "[render]\nwidth = 48\nheight = 20\n\n[[material]]\nname = \"white\"\n\
+         base_color = [0.8, 0.8, 0.8]\n\n[[object]]\nname = \"ball\"\ntype = \"sphere\"\n\
+         center = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"white\"\n",
+    )
+    .unwrap();
+    let s = start_with(Some(&scenes), &[]);
+    let run = |body: Value| {
+        let r = post_json(&s, "/api/renders", &body);
+        assert_eq!(r.status, 201, "{body}: {}", r.text());
+        let id = r.json()["id"].as_u64().unwrap();
+        let j = wait_finished(&s, id, Duration::from_secs(120));
+        assert_eq!(j["state"], "done", "{j}");
+        (id, j)
+    };
+    // The same request twice: two renders, two names.
+    let body = json!({"scene": "cornell", "spp": 1, "max_depth": 1});
+    let (a, ja) = run(body.clone());
+    let (b, jb) = run(body.clone());
+    assert_eq!(ja["output"], format!("render-{a}"));
+    assert_eq!(jb["output"], format!("render-{b}"));
+    // The Cornell box's camera is square: 512², as `trayecto render cornell` gives.
+    assert_eq!(png_size(&s, &ja), (512, 512));
+    // A name left by an earlier run is skipped, never overwritten.
+    let next = b + 1;
+    let old = s.root.join(format!("out/render-{next}.png"));
+    std::fs::write(&old, b"an earlier run's image").unwrap();
+    let small = json!({"scene": "cornell", "width": 8, "height": 8, "spp": 1});
+    let (c, jc) = run(small);
+    assert_eq!(c, next);
+    assert_eq!(jc["output"], format!("render-{next}-2"));
+    assert_eq!(std::fs::read(&old).unwrap(), b"an earlier run's image");
+    // An explicit name is still refused when taken.
+    let r = post_json(
+        &s,
+        "/api/renders",
+        &json!({"scene": "cornell", "output": format!("render-{a}"), "width": 8, "height": 8}),
+    );
+    assert_eq!(r.status, 409, "{}", r.text());
+    // The scene file's resolution, as /api/scene-defaults says; one side given keeps its shape.
+    let d = get(&s, "/api/scene-defaults?scene=wide.toml").json();
+    assert_eq!(
+        (d["width"].clone(), d["height"].clone()),
+        (json!(48), json!(20))
+    );
+    let (_, j) = run(json!({"scene": "wide.toml", "spp": 1, "max_depth": 1}));
+    assert_eq!(png_size(&s, &j), (48, 20));
+    let (_, j) = run(json!({"scene": "wide.toml", "width": 96, "spp": 1, "max_depth": 1}));
+    assert_eq!(png_size(&s, &j), (96, 40));
+    // A scene that cannot be loaded is named when its size is needed.
+    let r = post_json(&s, "/api/renders", &json!({"scene": "fake.gltf"}));
+    assert!(
+        field_error(&r, "scene").contains("fake.gltf"),
+        "{}",
+        r.text()
+    );
+    std::fs::remove_dir_all(root).ok();
+}
+
+/// `"aovs": ["samples", "variance"]` (#19): the server's EXR carries `samples.Y` (the spp
+/// everywhere on a uniform render) and `variance.Y`, bit-identical to the command line's
+/// `--aov samples,variance`, and `/linear?layer=` serves them as grey RGB.
+#[test]
+fn the_sample_and_variance_layers_are_served_as_the_cli_writes_them() {
+    let s = start();
+    let body = json!({"scene": "cornell", "output": "stats", "width": 10, "height": 8, "spp": 3,
+                      "max_depth": 4, "aovs": ["samples", "variance"]});
+    server_render(&s, &body);
+    let j = listed_job(&s, "stats");
+    let id = j["id"].as_u64().unwrap();
+    let path = s.root.join("stats-fetched.exr");
+    std::fs::write(&path, get(&s, &format!("/api/renders/{id}/image.exr")).body).unwrap();
+    let (_, _, server) = trayecto::film::output::read_exr_channels(&path).unwrap();
+    let dir = s.root.join("cli");
+    std::fs::create_dir_all(&dir).unwrap();
+    let args = [
+        "--width",
+        "10",
+        "--height",
+        "8",
+        "--spp",
+        "3",
+        "--max-depth",
+        "4",
+        "--aov",
+        "samples,variance",
+    ];
+    cli_render(&dir, "cornell", &args);
+    let (_, _, cli) = trayecto::film::output::read_exr_channels(&dir.join("cli.exr")).unwrap();
+    let channel = |chans: &[(String, Vec<f32>)], name: &str| {
+        chans
+            .iter()
+            .find(|(n, _)| n == name)
+            .unwrap_or_else(|| panic!("no channel {name}"))
+            .1
+            .clone()
+    };
+    assert!(channel(&server, "samples.Y").iter().all(|&c| c == 3.0));
+    let variance = channel(&server, "variance.Y");
+    assert!(variance.iter().any(|&v| v > 0.0));
+    assert_eq!(
+        variance.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        channel(&cli, "variance.Y")
+            .iter()
+            .map(|v| v.to_bits())
+            .collect::<Vec<_>>()
+    );
+    // Side files beside the CLI's PNG.
+    assert!(dir.join("cli.samples.png").is_file() && dir.join("cli.variance.png").is_file());
+    for (layer, want) in [("samples", vec![3.0; 80]), ("variance", variance)] {
+        let r = get(&s, &format!("/api/renders/{id}/linear?layer={layer}"));
+        assert_eq!(r.status, 200, "{layer}");
+        let got: Vec<f32> = r
+            .body
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+            .collect();
+        let want: Vec<f32> = want.iter().flat_map(|&v| [v; 3]).collect();
+        assert_eq!(got, want, "{layer}");
+    }
+}

@@ -3,7 +3,7 @@
 //! progress bar. Cancelling sets the driver's flag; when the thread ends the world, the film and
 //! the preview are dropped, so a cancelled job holds no image memory.
 
-use super::request::{RenderRequest, SceneSource};
+use super::request::{Defaults, RenderRequest, SceneSource};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -338,7 +338,7 @@ impl Jobs {
 
     /// Accepts a job: it starts at once if fewer than `max_active` run, else it waits in the
     /// queue; refused when the queue is full too.
-    pub fn submit(&self, request: RenderRequest) -> Result<Arc<Job>, SubmitError> {
+    pub fn submit(&self, mut request: RenderRequest) -> Result<Arc<Job>, SubmitError> {
         let inner = &self.inner;
         let job = {
             let mut list = lock(&inner.list);
@@ -348,28 +348,40 @@ impl Jobs {
             if running >= inner.max_active && queued >= inner.max_queued {
                 return Err(SubmitError::Busy { running, queued });
             }
-            if list
-                .iter()
-                .zip(&states)
-                .any(|(j, s)| s.is_active() && j.request.output == request.output)
-            {
-                return Err(SubmitError::NameInUse(request.output));
-            }
+            let in_use = |name: &str| {
+                list.iter()
+                    .zip(&states)
+                    .any(|(j, s)| s.is_active() && j.request.output == name)
+            };
             // Files are never overwritten: a name an earlier render wrote (in this run of the
             // server or before it) is refused rather than silently replaced.
-            if ["png", "exr", "denoised.png", "denoised.exr"]
-                .iter()
-                .any(|ext| {
-                    inner
-                        .output_dir
-                        .join(format!("{}.{ext}", request.output))
-                        .exists()
-                })
-            {
+            let written = |name: &str| {
+                ["png", "exr", "denoised.png", "denoised.exr"]
+                    .iter()
+                    .any(|ext| inner.output_dir.join(format!("{name}.{ext}")).exists())
+            };
+            // Ids are handed out under this lock, so this is the new job's.
+            let id = inner.next_id.load(Ordering::Relaxed);
+            if !request.output_given {
+                // A request without a name gets `render-ID`; ids start again at 1 when the
+                // server restarts, so a name an earlier run wrote gets `render-ID-2`, ...
+                request.output = (1..=1000)
+                    .map(|k| match k {
+                        1 => format!("{}-{id}", Defaults::OUTPUT),
+                        k => format!("{}-{id}-{k}", Defaults::OUTPUT),
+                    })
+                    .find(|n| !in_use(n.as_str()) && !written(n.as_str()))
+                    .ok_or_else(|| SubmitError::NameTaken(format!("{}-{id}", Defaults::OUTPUT)))?;
+            }
+            if in_use(&request.output) {
+                return Err(SubmitError::NameInUse(request.output));
+            }
+            if written(&request.output) {
                 return Err(SubmitError::NameTaken(request.output));
             }
+            inner.next_id.store(id + 1, Ordering::Relaxed);
             let job = Arc::new(Job {
-                id: inner.next_id.fetch_add(1, Ordering::Relaxed),
+                id,
                 request,
                 cancel: AtomicBool::new(false),
                 created: Instant::now(),
@@ -593,6 +605,7 @@ mod tests {
             scene: "cornell".into(),
             source: SceneSource::Builtin("cornell".into()),
             output: output.into(),
+            output_given: true,
             settings: trayecto::render::RenderSettings {
                 width: size,
                 height: size,

@@ -907,7 +907,7 @@ fn image_floats(image: &trayecto::film::Image) -> Vec<f32> {
     image.data.iter().flat_map(|p| p.to_array()).collect()
 }
 
-/// `?layer=beauty|albedo|normal|denoised`: a finished render's linear image (read back from its
+/// `?layer=beauty|albedo|normal|samples|variance|denoised`: a finished render's linear image (read back from its
 /// EXR, which holds the film exactly as f32), or the preview of a running one (beauty only).
 async fn render_linear(
     State(st): State<Shared>,
@@ -947,10 +947,27 @@ async fn render_linear(
         {
             (exr, ["normal.X", "normal.Y", "normal.Z"])
         }
+        // One channel each, served as grey RGB like the other layers.
+        "samples"
+            if job
+                .request
+                .aovs
+                .contains(&trayecto::film::aov::AovKind::Samples) =>
+        {
+            (exr, ["samples.Y"; 3])
+        }
+        "variance"
+            if job
+                .request
+                .aovs
+                .contains(&trayecto::film::aov::AovKind::Variance) =>
+        {
+            (exr, ["variance.Y"; 3])
+        }
         _ => {
             return error(
                 StatusCode::NOT_FOUND,
-                "no such layer in this render (beauty; albedo and normal when asked for with aovs; denoised with denoise)",
+                "no such layer in this render (beauty; albedo, normal, samples and variance when asked for with aovs; denoised with denoise)",
             );
         }
     };

@@ -100,8 +100,11 @@ pub struct RenderRequest {
     /// The scene as the client named it.
     pub scene: String,
     pub source: SceneSource,
-    /// Base name of the output files (`<output>.png`, `<output>.exr`).
+    /// Base name of the output files (`<output>.png`, `<output>.exr`). When the request gave
+    /// none ([`RenderRequest::output_given`]), the job queue picks a free `render-ID`.
     pub output: String,
+    /// Whether the request named its output (else [`Defaults::OUTPUT`] is only a placeholder).
+    pub output_given: bool,
     pub settings: RenderSettings,
     pub exposure: f32,
     pub tonemap: Tonemap,
@@ -122,13 +125,13 @@ pub struct RenderRequest {
     pub env_rotation: f32,
     /// `camera`: render from this view (the viewport's) instead of the scene's camera.
     pub camera: Option<trayecto::camera::CameraSpec>,
-    /// `aovs`: layers written into the EXR with the image (`albedo`, `normal`), which the page
-    /// can show.
+    /// `aovs`: layers written into the EXR with the image (`albedo`, `normal`, which the page
+    /// can show; `samples`, `variance`, the film's per-pixel statistics).
     pub aovs: Vec<trayecto::film::aov::AovKind>,
 }
 
-/// AOV layers a request may ask for (the page's view toggle).
-pub const AOV_NAMES: [&str; 2] = ["albedo", "normal"];
+/// AOV layers a request may ask for (albedo and normal: the page's view toggle).
+pub const AOV_NAMES: [&str; 4] = ["albedo", "normal", "samples", "variance"];
 
 /// The `camera` field: `{"eye": [x, y, z], "target": [x, y, z], "up": [x, y, z], "fov": degrees}`
 /// (`up` defaults to +y, `fov` to 39.6), checked by [`trayecto::camera::CameraSpec::validate`].
@@ -509,12 +512,15 @@ fn string_field<'a>(
 /// The defaults the page starts with (and that apply to fields a client leaves out).
 pub struct Defaults;
 impl Defaults {
-    pub const WIDTH: u64 = 256;
-    pub const HEIGHT: u64 = 256;
+    /// The size when the scene gives none: the command line's (a request without a size gets
+    /// the CLI's rule, [`default_size`]).
+    pub const WIDTH: u64 = 512;
+    pub const HEIGHT: u64 = 512;
     pub const SPP: u64 = 64;
     pub const SECONDARY: u64 = 1;
     pub const MAX_DEPTH: u64 = 16;
     pub const EXPOSURE: f64 = 1.0;
+    /// The prefix of the output name a request without one gets: `render-ID` (the job's id).
     pub const OUTPUT: &str = "render";
 }
 
@@ -532,24 +538,27 @@ pub fn scene_source(name: &str, policy: &Policy) -> Result<SceneSource, String> 
     }
 }
 
-/// What a render of `name` gets when its size, samples and depth are not given: the file's own
-/// resolution, else its camera's shape (the pipeline's rule, [`trayecto::pipeline::RenderJob::resolve`]),
-/// scaled down to fit the server's `max_size`. Loads the scene.
-pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
-    let source = scene_source(name, policy)?;
-    let scene = trayecto::scene::load(&source.load_spec()).map_err(|e| {
-        let m = e.to_string();
-        match &source {
-            SceneSource::File(p) => m.replace(&*p.to_string_lossy(), name),
-            SceneSource::Builtin(_) => m,
-        }
-    })?;
+/// The settings a render of `scene` resolves to by the command line's rule
+/// ([`trayecto::pipeline::RenderJob::resolve`]: the sides given, else the file's resolution,
+/// else the camera's shape at [`trayecto::pipeline::DEFAULT_HEIGHT`] high, else
+/// [`Defaults::WIDTH`]²), with the server's default samples and depth where the file has none,
+/// and the note saying where the size came from.
+fn resolved_settings(
+    name: &str,
+    scene: &trayecto::scene::Scene,
+    width: Option<u32>,
+    height: Option<u32>,
+    camera: Option<trayecto::camera::CameraSpec>,
+) -> (RenderSettings, Option<String>) {
     let job = trayecto::pipeline::RenderJob {
         scene: name.to_string(),
-        world: trayecto::world::WorldOptions::default(),
+        world: trayecto::world::WorldOptions {
+            camera_override: camera,
+            ..trayecto::world::WorldOptions::default()
+        },
         settings: RenderSettings {
-            width: Defaults::WIDTH as u32,
-            height: Defaults::HEIGHT as u32,
+            width: width.unwrap_or(Defaults::WIDTH as u32),
+            height: height.unwrap_or(Defaults::HEIGHT as u32),
             spp: Defaults::SPP as u32,
             path: PathSettings {
                 max_depth: Defaults::MAX_DEPTH as u32,
@@ -558,8 +567,8 @@ pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
             ..RenderSettings::default()
         },
         given: trayecto::pipeline::GivenSettings {
-            width: false,
-            height: false,
+            width: width.is_some(),
+            height: height.is_some(),
             spp: false,
             max_depth: false,
             filter: false,
@@ -570,14 +579,77 @@ pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
         outputs: vec![],
         crop: None,
     };
-    let (s, note) = job.resolve(&scene);
+    job.resolve(scene)
+}
+
+/// Loads the scene a request names, with the error message naming it as the client did.
+fn load_scene(name: &str, source: &SceneSource) -> Result<trayecto::scene::Scene, String> {
+    trayecto::scene::load(&source.load_spec()).map_err(|e| {
+        let m = e.to_string();
+        match source {
+            SceneSource::File(p) => m.replace(&*p.to_string_lossy(), name),
+            SceneSource::Builtin(_) => m,
+        }
+    })
+}
+
+/// Scales a size down (keeping its shape) to fit `max_size` on its longer side.
+fn fit(w: u32, h: u32, max_size: u32) -> (u32, u32) {
+    let (w, h) = (w as f64, h as f64);
+    let scale = (max_size as f64 / w.max(h)).min(1.0);
+    (
+        (w * scale).round().max(1.0) as u32,
+        (h * scale).round().max(1.0) as u32,
+    )
+}
+
+/// The image size of a request that left out its width or height: the command line's rule
+/// ([`resolved_settings`]) for the scene (loaded here), fitted to the server's `max_size` when
+/// neither side was given. With one side given, the other follows the file's or the camera's
+/// aspect ratio and must fit `max_size` itself (else the error names the side to give).
+pub fn default_size(
+    name: &str,
+    source: &SceneSource,
+    width: Option<u32>,
+    height: Option<u32>,
+    camera: Option<trayecto::camera::CameraSpec>,
+    max_size: u32,
+) -> Result<(u32, u32), (&'static str, String)> {
+    let scene = load_scene(name, source).map_err(|m| ("scene", m))?;
+    let (s, _) = resolved_settings(name, &scene, width, height, camera);
+    match (width, height) {
+        (None, None) => Ok(fit(s.width, s.height, max_size)),
+        _ => {
+            let (side, v) = if width.is_none() {
+                ("width", s.width)
+            } else {
+                ("height", s.height)
+            };
+            if v > max_size {
+                return Err((
+                    side,
+                    format!(
+                        "the scene's aspect ratio makes it {v}, over this server's {max_size}: give it"
+                    ),
+                ));
+            }
+            Ok((s.width, s.height))
+        }
+    }
+}
+
+/// What a render of `name` gets when its size, samples and depth are not given: the file's own
+/// resolution, else its camera's shape (the pipeline's rule, [`trayecto::pipeline::RenderJob::resolve`]),
+/// scaled down to fit the server's `max_size`. Loads the scene.
+pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
+    let source = scene_source(name, policy)?;
+    let scene = load_scene(name, &source)?;
+    let (s, note) = resolved_settings(name, &scene, None, None, None);
     let l = &policy.limits;
-    let (mut w, mut h) = (s.width as f64, s.height as f64);
-    let scale = (l.max_size as f64 / w.max(h)).min(1.0);
-    (w, h) = ((w * scale).round().max(1.0), (h * scale).round().max(1.0));
+    let (w, h) = fit(s.width, s.height, l.max_size);
     Ok(serde_json::json!({
-        "width": w as u32,
-        "height": h as u32,
+        "width": w,
+        "height": h,
         "spp": s.spp.min(l.max_spp),
         "max_depth": s.path.max_depth.min(l.max_depth),
         "note": note,
@@ -662,6 +734,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         },
     }
 
+    let output_given = !matches!(obj.get("output"), None | Some(Value::Null));
     let output = match string_field(&obj, "output", 4 * MAX_OUTPUT_NAME, &mut errors) {
         None => Some(Defaults::OUTPUT.to_string()),
         Some(s) => match sanitize_output(s) {
@@ -674,8 +747,10 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
     };
 
     let size = lim.max_size as u64;
-    let width = uint_field(&obj, "width", Defaults::WIDTH, 1, size, &mut errors) as u32;
-    let height = uint_field(&obj, "height", Defaults::HEIGHT, 1, size, &mut errors) as u32;
+    let given = |k: &str| !matches!(obj.get(k), None | Some(Value::Null));
+    let (width_given, height_given) = (given("width"), given("height"));
+    let mut width = uint_field(&obj, "width", Defaults::WIDTH, 1, size, &mut errors) as u32;
+    let mut height = uint_field(&obj, "height", Defaults::HEIGHT, 1, size, &mut errors) as u32;
     let spp = uint_field(
         &obj,
         "spp",
@@ -894,6 +969,27 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         }
     }
 
+    // A size left out follows the command line's rule for the scene (its file's resolution or
+    // its camera's shape), as /api/scene-defaults reports it; this loads the scene.
+    if (!width_given || !height_given)
+        && errors.is_empty()
+        && let (Some(name), Some(src)) = (scene_name, &source)
+    {
+        match default_size(
+            name,
+            src,
+            width_given.then_some(width),
+            height_given.then_some(height),
+            camera,
+            lim.max_size,
+        ) {
+            Ok((w, h)) => (width, height) = (w, h),
+            Err((field, m)) => {
+                errors.insert(field.into(), m);
+            }
+        }
+    }
+
     let samples = width as u64 * height as u64 * spp as u64 * secondary as u64;
     if !errors.contains_key("spp") && samples > lim.max_samples {
         errors.insert(
@@ -935,6 +1031,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             scene: scene_name.unwrap_or_default().to_string(),
             source,
             output,
+            output_given,
             settings,
             exposure,
             tonemap,
@@ -1010,7 +1107,9 @@ mod tests {
         let r = parse_request(br#"{"scene":"cornell"}"#, &policy()).unwrap();
         assert_eq!(r.source, SceneSource::Builtin("cornell".into()));
         assert_eq!(r.output, "render");
-        assert_eq!((r.settings.width, r.settings.height), (256, 256));
+        assert!(!r.output_given);
+        // The command line's size for the Cornell box (its camera is square).
+        assert_eq!((r.settings.width, r.settings.height), (512, 512));
         assert_eq!(r.settings.spp, 64);
         assert_eq!(r.exposure, 1.0);
     }
