@@ -33,8 +33,9 @@ pub enum AovKind {
     MaterialId,
     /// Index (+1) of the object (mesh or analytic shape) first visible; 0 where nothing is hit.
     ObjectId,
-    /// Samples the pixel's estimate holds (from the film, not traced: see
-    /// [`AovKind::is_traced`]).
+    /// Samples the pixel's estimate holds: the frame's spp on a uniform render, less any
+    /// discarded (NaN, infinite) samples; fewer where adaptive sampling stopped. From the film,
+    /// not traced ([`AovKind::is_traced`]).
     Samples,
     /// The unbiased sample variance s² of the luminance of the pixel's samples: the variance of
     /// one sample, what adaptive sampling judges a pixel by (the variance of the pixel's mean is
