@@ -7,7 +7,7 @@ down to that size and prints, per scene: the mean of each image (luminance), the
 difference of the means), the per-channel ratio of means, and the relative error of the 16 blocks of
 a 4 x 4 grid (mean and worst). The scene file's own max depth is used (pbrt's `maxdepth`).
 
-Needs numpy and mitsuba (for reading EXR): `pip install mitsuba numpy`.
+Needs numpy and, for reading EXR, mitsuba or OpenEXR: `pip install numpy OpenEXR` (or mitsuba).
 With --pbrt, pbrt-v4 (../shared/tools/pbrt-v4/pbrt) also renders each scene at the same size and
 samples (a copy of the file with the Film resolution changed, beside links to the scene's files),
 and Trayecto is compared against it as well: where Tungsten and pbrt-v4 disagree, pbrt-v4 is the
@@ -27,16 +27,25 @@ import numpy as np
 
 try:
     import mitsuba as mi
-except ImportError:
-    sys.exit("pbrt_bitterli.py needs mitsuba to read EXR files: pip install mitsuba")
 
-mi.set_variant("scalar_rgb")
+    mi.set_variant("scalar_rgb")
+except ImportError:
+    mi = None
+    try:
+        import OpenEXR
+    except ImportError:
+        sys.exit("pbrt_bitterli.py needs OpenEXR or mitsuba to read EXR files: pip install OpenEXR")
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = ["cornell-box", "veach-mis", "coffee", "dining-room", "volumetric-caustic"]
 
 
 def read(path):
-    return np.array(mi.Bitmap(path), dtype=np.float64)[:, :, :3]
+    if mi is not None:
+        return np.array(mi.Bitmap(path), dtype=np.float64)[:, :, :3]
+    with OpenEXR.File(path) as f:
+        ch = f.channels()
+        rgb = ch["RGB"].pixels if "RGB" in ch else np.stack([ch[c].pixels for c in "RGB"], -1)
+    return np.asarray(rgb, dtype=np.float64)[:, :, :3]
 
 
 def downsample(img, h, w):

@@ -478,6 +478,7 @@ fn scene_lights(scene: &Scene, label: &str) -> Result<Vec<Light>, SceneError> {
                 intensity,
                 inner_angle,
                 outer_angle,
+                falloff,
                 ..
             } => lights.push(Light::Spot {
                 position: *position,
@@ -485,6 +486,7 @@ fn scene_lights(scene: &Scene, label: &str) -> Result<Vec<Light>, SceneError> {
                 intensity: *intensity,
                 cos_inner: inner_angle.cos(),
                 cos_outer: outer_angle.cos(),
+                falloff: *falloff,
             }),
             LightDesc::Directional {
                 direction,

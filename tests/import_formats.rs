@@ -318,7 +318,7 @@ fn gltf_and_toml_twins_render_the_same_image() {
 #[test]
 fn toml_includes_lights_and_cameras_of_mesh_files() {
     use base64::Engine;
-    use trayecto::scene::LightDesc;
+    use trayecto::scene::{LightDesc, SpotFalloff};
     let dir = std::env::temp_dir().join(format!("trayecto_toml_incl_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     // One white floor triangle (y = 0, facing +y), a camera 3 above it looking down, a point light 1
@@ -460,6 +460,7 @@ scale = 2.0
             intensity: Vec3::ONE,
             inner_angle: 0.0,
             outer_angle: 0.5,
+            falloff: SpotFalloff::SquaredRamp,
         };
         by_hand.lights = vec![point.clone(), spot.clone()];
         let expected = mean(&by_hand);

@@ -13,7 +13,7 @@ use trayecto::material::Material;
 use trayecto::math::{Mat4, Vec2, Vec3, Vec4};
 use trayecto::render::RenderSettings;
 use trayecto::sampling::rng::Pcg32;
-use trayecto::scene::{CameraDesc, LightDesc, Mesh, Scene, Shape};
+use trayecto::scene::{CameraDesc, LightDesc, Mesh, Scene, Shape, SpotFalloff};
 use trayecto::world::{World, WorldOptions};
 
 /// A floor and many small emitters of every kind: 240 triangles scattered and tilted above the
@@ -107,6 +107,7 @@ fn many_lights(ambient: bool) -> Scene {
         intensity: Vec3::splat(8.0),
         inner_angle: 0.3,
         outer_angle: 0.6,
+        falloff: SpotFalloff::SquaredRamp,
     });
     if ambient {
         s.lights.push(LightDesc::Ambient {

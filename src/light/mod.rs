@@ -9,6 +9,7 @@ use crate::material::eval::emitted;
 use crate::material::{Material, Texture};
 use crate::math::{PI, Vec2, Vec3, luminance};
 use crate::sampling::{Distribution1D, warp};
+use crate::scene::SpotFalloff;
 use std::sync::Arc;
 
 pub mod bvh;
@@ -82,6 +83,7 @@ pub enum Light {
         intensity: Vec3,
         cos_inner: f32,
         cos_outer: f32,
+        falloff: SpotFalloff,
     },
     /// Light arriving from direction `-direction` with irradiance `irradiance` on a perpendicular plane.
     Directional {
@@ -141,9 +143,10 @@ impl Light {
                 intensity,
                 cos_inner,
                 cos_outer,
+                falloff,
             } => {
                 let (wi, d2) = toward(*position, p)?;
-                let falloff = spot_falloff(direction.dot(-wi), *cos_inner, *cos_outer);
+                let falloff = falloff.eval(direction.dot(-wi), *cos_inner, *cos_outer);
                 if falloff <= 0.0 {
                     return None;
                 }
@@ -883,6 +886,29 @@ fn light_bounds(
     }
 }
 
+impl SpotFalloff {
+    /// The falloff at `cos_theta` (the cosine of the angle to the spot's axis): 1 inside the
+    /// inner cone, 0 outside the outer, this ramp in between.
+    #[inline]
+    pub fn eval(self, cos_theta: f32, cos_inner: f32, cos_outer: f32) -> f32 {
+        match self {
+            SpotFalloff::SquaredRamp => spot_falloff(cos_theta, cos_inner, cos_outer),
+            SpotFalloff::Smoothstep => smoothstep(cos_theta, cos_outer, cos_inner),
+        }
+    }
+}
+
+/// pbrt-v4's `SmoothStep(x, a, b)` (util/math.h): 0 below `a`, 1 above `b`, the cubic Hermite
+/// t²(3 − 2t), t = (x − a)/(b − a), between; a step at `a` when the two coincide.
+#[inline]
+pub fn smoothstep(x: f32, a: f32, b: f32) -> f32 {
+    if a == b {
+        return if x < a { 0.0 } else { 1.0 };
+    }
+    let t = ((x - a) / (b - a)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
 /// Smooth spot cone falloff: 1 inside the inner cone, 0 outside the outer, and the squared linear
 /// ramp of the glTF `KHR_lights_punctual` reference implementation in between.
 #[inline]
@@ -1045,6 +1071,24 @@ mod tests {
         assert_eq!(spot_falloff(0.6, ci, co), 0.0);
         let mid = spot_falloff(0.8, ci, co);
         assert!(mid > 0.0 && mid < 1.0);
+    }
+
+    /// pbrt-v4's spot ramp is `SmoothStep(cos θ, cos outer, cos inner)`: t²(3 − 2t), so 0.5 half
+    /// way in cos θ (the glTF ramp gives 0.25 there), 0.15625 at t = 1/4 and 0.84375 at 3/4,
+    /// and a step when the cones coincide (pbrt-v4 conedeltaangle 0).
+    #[test]
+    fn pbrt_spot_falloff_is_a_smoothstep_in_cos() {
+        let (ci, co) = (0.9f32, 0.7f32);
+        let f = |c: f32| SpotFalloff::Smoothstep.eval(c, ci, co);
+        assert_eq!(f(0.95), 1.0);
+        assert_eq!(f(0.6), 0.0);
+        for (t, want) in [(0.25f32, 0.15625f32), (0.5, 0.5), (0.75, 0.84375)] {
+            let got = f(co + t * (ci - co));
+            assert!((got - want).abs() < 1e-5, "t = {t}: {got}, want {want}");
+        }
+        assert_eq!(SpotFalloff::Smoothstep.eval(0.8, 0.8, 0.8), 1.0);
+        assert_eq!(SpotFalloff::Smoothstep.eval(0.79, 0.8, 0.8), 0.0);
+        assert!((SpotFalloff::SquaredRamp.eval(0.8, ci, co) - 0.25).abs() < 1e-5);
     }
 
     /// The formula itself, at the soft spot of `scenes/mitsuba/spot_soft.toml` (inner 10°, outer

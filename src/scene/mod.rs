@@ -279,6 +279,17 @@ impl CameraDesc {
     }
 }
 
+/// How a spot light's intensity falls from 1 at its inner cone to 0 at its outer cone, as a
+/// function of t = (cos θ − cos outer) / (cos inner − cos outer).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SpotFalloff {
+    /// t², the ramp of the glTF `KHR_lights_punctual` reference implementation (glTF, FBX, TOML).
+    #[default]
+    SquaredRamp,
+    /// t²(3 − 2t): pbrt-v4's `SpotLight::I`, `SmoothStep(cos θ, cos outer, cos inner)`.
+    Smoothstep,
+}
+
 /// Lights that are not emissive surfaces. Radiometric units throughout (RGB):
 /// intensity in W/sr, irradiance in W/m², radiance in W/(m²·sr).
 #[derive(Clone, Debug)]
@@ -296,6 +307,8 @@ pub enum LightDesc {
         /// Half-angles in radians.
         inner_angle: f32,
         outer_angle: f32,
+        /// The shape of the ramp between the two cones.
+        falloff: SpotFalloff,
     },
     Directional {
         name: String,

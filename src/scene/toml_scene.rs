@@ -15,7 +15,7 @@ use serde::Deserialize;
 
 use super::conventions::{ambient_light, apply_material_conventions, is_ambient_light_name};
 use super::image_io::{RefusedPath, is_missing_texture, load_texture_checked, resolve_in_dir};
-use super::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape};
+use super::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape, SpotFalloff};
 use crate::material::texture::UvTransform;
 use crate::material::{AlphaMode, Material, MaterialModel, TextureRef};
 use crate::math::{Mat4, Vec2, Vec3};
@@ -445,6 +445,7 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
                     intensity: power,
                     inner_angle: l.inner_angle.unwrap_or(0.0).to_radians(),
                     outer_angle: outer.to_radians(),
+                    falloff: SpotFalloff::SquaredRamp,
                     name,
                 }
             }
@@ -901,6 +902,7 @@ fn add_mesh_file(
                 intensity,
                 inner_angle,
                 outer_angle,
+                falloff,
             } => LightDesc::Spot {
                 name,
                 position: transform.transform_point3(position),
@@ -908,6 +910,7 @@ fn add_mesh_file(
                 intensity,
                 inner_angle,
                 outer_angle,
+                falloff,
             },
             LightDesc::Directional {
                 name,

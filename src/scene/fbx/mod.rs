@@ -34,7 +34,7 @@ use glam::{DMat4, DVec3};
 use props::{PropertyTable, Props, Templates};
 
 use super::conventions;
-use super::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape};
+use super::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape, SpotFalloff};
 use crate::material::texture::TextureRef;
 use crate::material::{AlphaMode, Material, MaterialModel, PhongParams};
 use crate::math::Vec3;
@@ -730,6 +730,7 @@ impl<'a> Converter<'a> {
                     intensity,
                     inner_angle: inner,
                     outer_angle: outer,
+                    falloff: SpotFalloff::SquaredRamp,
                 });
             }
             3 => self.warn(format!(

@@ -34,7 +34,9 @@ use gltf::mesh::Mode;
 
 use super::conventions::{ambient_light, apply_material_conventions, is_ambient_light_name};
 use super::image_io::{is_missing_texture, missing_texture, resolve_in_dir};
-use super::{CameraDesc, LightDesc, MaterialId, Mesh, MeshId, Scene, SceneError, Shape};
+use super::{
+    CameraDesc, LightDesc, MaterialId, Mesh, MeshId, Scene, SceneError, Shape, SpotFalloff,
+};
 use crate::material::texture::{FilterMode, UvTransform};
 use crate::material::{AlphaMode, Material, MaterialModel, TextureRef, WrapMode};
 use crate::math::{Mat4, Vec2, Vec3, Vec4};

@@ -172,6 +172,7 @@ impl Loader<'_> {
                 intensity: power,
                 inner_angle: inner_cone_angle,
                 outer_angle: outer_cone_angle,
+                falloff: SpotFalloff::SquaredRamp,
             },
         };
         self.scene.lights.push(desc);

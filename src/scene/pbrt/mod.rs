@@ -862,10 +862,6 @@ impl Loader {
                 if !(dir.length_squared() > 0.0) {
                     return Err(SceneError::invalid(at, "spot light: 'from' equals 'to'"));
                 }
-                self.warn_once(
-                    "spotfalloff",
-                    format!("{at}: spot light: Trayecto's cone falloff between the inner and outer angles may differ from pbrt-v4's smoothstep"),
-                );
                 self.scene.lights.push(LightDesc::Spot {
                     name,
                     position: ctm.transform_point3(from),
@@ -873,6 +869,7 @@ impl Loader {
                     intensity: i * s,
                     inner_angle: (cone - delta).to_radians(),
                     outer_angle: cone.to_radians(),
+                    falloff: crate::scene::SpotFalloff::Smoothstep,
                 });
             }
             "distant" => {
