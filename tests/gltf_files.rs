@@ -935,7 +935,10 @@ fn meshopt_decoder_survives_truncated_miscounted_and_random_streams() {
             for more in [1, 16] {
                 if let Err(err) = edit("count", count + more) {
                     let err = err.to_string();
-                    assert!(err.contains("hostile.glb"), "{file} view {v} count +{more}: {err}");
+                    assert!(
+                        err.contains("hostile.glb"),
+                        "{file} view {v} count +{more}: {err}"
+                    );
                 }
             }
         }
@@ -996,7 +999,9 @@ fn meshopt_decoder_survives_truncated_miscounted_and_random_streams() {
             }
         }
     }
-    eprintln!("random meshopt streams: {refused_by_decoder} of {n} refused by the decoder checks, {loaded} loaded");
+    eprintln!(
+        "random meshopt streams: {refused_by_decoder} of {n} refused by the decoder checks, {loaded} loaded"
+    );
     assert!(refused_by_decoder > n / 2, "{refused_by_decoder} of {n}");
 }
 
