@@ -1850,12 +1850,12 @@ fn the_coat_on_transmissive_materials_reflects_below_the_base_plane() {
 /// A thin sheet carries the coat on both faces (the double-sided thin surface of the glTF
 /// transmission and diffuse-transmission extensions), so light through it is attenuated on
 /// entering and on leaving: T·(1 − c·fr(V))·(1 − c·fr(L)). (i) Smooth thin glass seen head-on
-/// transmits exactly (1 − 0.04)² of what the uncoated sheet does (the smooth interface's
-/// samples are deterministic given the lobe); (ii) a diffuse-transmitting sheet without a
-/// specular layer transmits (1 − fr(V))·(1 − F̄) of the uncoated one, F̄ = 0.04 + 0.96/21 the
-/// cosine-weighted mean of Schlick's fr over the far side; (iii) both BTDFs are reciprocal
-/// with the coat. With the view-only weight (1 − c·fr(V)) the ratios were 0.96 and the BTDFs
-/// not reciprocal.
+/// transmits (1 − 0.04)² = 0.9216 of what the uncoated sheet does (measured 0.9220: the smooth
+/// interface's samples are deterministic given the lobe, only the lobe counts are random);
+/// (ii) a diffuse-transmitting sheet without a specular layer transmits (1 − fr(V))·(1 − F̄)
+/// of the uncoated one, F̄ = 0.04 + 0.96/21 the cosine-weighted mean of Schlick's fr over the
+/// far side (0.8777; measured 0.8775); (iii) both BTDFs are reciprocal with the coat. With the
+/// view-only weight (1 − c·fr(V)) (i) measured 0.9565 and the test failed (checked).
 #[test]
 fn a_coat_on_a_thin_sheet_weighs_light_entering_and_leaving() {
     let glass = |cc: f32| {
@@ -1867,6 +1867,10 @@ fn a_coat_on_a_thin_sheet_weighs_light_entering_and_leaving() {
     let (_, t0) = split_albedo(&glass(0.0), Vec3::Z, 200_000);
     let (_, t1) = split_albedo(&glass(1.0), Vec3::Z, 200_000);
     let want = 0.96f32 * 0.96;
+    eprintln!(
+        "coated / uncoated smooth thin glass: {} (want {want})",
+        t1.y / t0.y
+    );
     assert!(
         (t1.y / t0.y - want).abs() < 0.005,
         "thin glass: transmitted {t1:?} vs uncoated {t0:?}, ratio {} want {want}",
@@ -1887,6 +1891,10 @@ fn a_coat_on_a_thin_sheet_weighs_light_entering_and_leaving() {
     let (_, t1) = split_albedo(&leaf(1.0), wo, 400_000);
     let fr_v = 0.04 + 0.96 * (1.0 - wo.z).powi(5);
     let want = (1.0 - fr_v) * (1.0 - (0.04 + 0.96 / 21.0));
+    eprintln!(
+        "coated / uncoated diffuse transmission: {} (want {want})",
+        t1.y / t0.y
+    );
     assert!(
         (t1.y / t0.y - want).abs() < 0.005,
         "diffuse transmission: transmitted {t1:?} vs uncoated {t0:?}, ratio {} want {want}",
