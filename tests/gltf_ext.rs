@@ -583,6 +583,61 @@ fn diffuse_transmission_lets_light_through_a_sheet() {
     );
 }
 
+/// The clearcoat on a diffuse-transmitting sheet, rendered: the back-lit sheet of
+/// [`diffuse_transmission_lets_light_through_a_sheet`] with a smooth coat (factor 1). The sheet
+/// is thin and both faces carry the coat, so the light is attenuated where it enters (the back,
+/// lit head-on: 1 − 0.04) and where it leaves towards the camera (within 10° of the normal:
+/// 1 − 0.04): every pixel is (0.96)² = 0.9216 of the uncoated sheet's (the directional light's
+/// estimate is deterministic, so the ratio is exact to rounding). Weighing by the view only, as
+/// before, gave 0.96; a coat that is ignored gives 1.
+#[test]
+fn a_coat_on_a_back_lit_sheet_attenuates_entering_and_leaving_light() {
+    let json = triangle(
+        r#"{"name":"leaf","doubleSided":true,"pbrMetallicRoughness":{"baseColorFactor":[1,1,1,1],"metallicFactor":0},
+            "extensions":{"KHR_materials_diffuse_transmission":{"diffuseTransmissionFactor":1,
+                "diffuseTransmissionColorFactor":[0.2,0.9,0.4]},
+                "KHR_materials_clearcoat":{"clearcoatFactor":1,"clearcoatRoughnessFactor":0}}}"#,
+        r#","extensionsUsed":["KHR_materials_diffuse_transmission","KHR_materials_clearcoat","KHR_lights_punctual"],
+           "extensions":{"KHR_lights_punctual":{"lights":[{"type":"directional","intensity":683}]}},
+           "cameras":[{"type":"perspective","perspective":{"yfov":0.6,"znear":0.01,"aspectRatio":1}}],
+           "nodes":[{"mesh":0},{"camera":0,"translation":[0.33,0.33,2.5]},
+                    {"rotation":[1,0,0,0],"extensions":{"KHR_lights_punctual":{"light":0}}}],
+           "scenes":[{"nodes":[0,1,2]}]"#,
+    );
+    let json = json.replace(r#""nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"#, "");
+    let scene = load(&json).unwrap();
+    assert!(unsupported(&scene).is_empty(), "{:?}", scene.warnings);
+    assert_eq!(scene.materials[0].clearcoat, 1.0);
+    let mut bare = scene.clone();
+    bare.materials[0].clearcoat = 0.0;
+    let opts = WorldOptions::default();
+    let (with, without) = (
+        model_pixels(&scene, &opts, 24, 4, 0),
+        model_pixels(&bare, &opts, 24, 4, 0),
+    );
+    // Lit pixels only (edge pixels blend with the black sky).
+    let peak = without.iter().map(|c| c.y).fold(0.0f32, f32::max);
+    let ratios: Vec<f32> = with
+        .iter()
+        .zip(&without)
+        .filter(|(_, b)| b.y > 0.5 * peak)
+        .map(|(a, b)| a.y / b.y)
+        .collect();
+    assert!(ratios.len() > 50, "{} lit pixels", ratios.len());
+    let (lo, hi) = ratios
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, h), &r| (l.min(r), h.max(r)));
+    eprintln!(
+        "coated / uncoated back-lit sheet: {lo} … {hi} over {} pixels",
+        ratios.len()
+    );
+    let want = 0.96f32 * 0.96;
+    assert!(
+        (lo - want).abs() < 0.003 && (hi - want).abs() < 0.003,
+        "coated / uncoated transmitted radiance {lo} … {hi}, want {want}"
+    );
+}
+
 /// IridescenceSuzanne's right-hand Suzanne is glass (transmission 1, volume) under a thin film
 /// of varying thickness: it loads without any unsupported-material warning, and the film colours
 /// the glass. The other two Suzannes are made black (unlit, black), so the mean chroma of the

@@ -42,9 +42,10 @@ impl Vertex {
             bsdf.flip_bitangent();
         }
         if let Some(n) = coat_normal {
-            // Flipped with the shading normal (two-sided shading), then into the local frame.
+            // Flipped with the shading normal (two-sided shading), then into the local frame,
+            // with the geometric normal on the coat's side.
             let n = if ns.dot(hit.ns) < 0.0 { -n } else { n };
-            bsdf.set_coat_normal(frame.to_local(n));
+            bsdf.set_coat_normal(frame.to_local(n), frame.to_local(ng));
         }
         Vertex {
             hit,

@@ -74,14 +74,16 @@ impl Bsdf {
         Bsdf::ThinDielectric(ThinDielectric::new(eta, roughness, tint))
     }
 
-    /// Places the clearcoat's normal, given in the local shading frame (the integrator knows the
-    /// frame; see [`super::eval::clearcoat_normal`]). No effect on BSDFs without a coat.
+    /// Places the clearcoat's normal and the geometric normal on its side (the outside: the
+    /// side the ray came from for an opaque BSDF, the surface's own for a transmissive one),
+    /// both given in the local shading frame (the integrator knows the frame; see
+    /// [`super::eval::clearcoat_normal`]). No effect on BSDFs without a coat.
     #[inline]
-    pub fn set_coat_normal(&mut self, local: Vec3) {
+    pub fn set_coat_normal(&mut self, local: Vec3, outside: Vec3) {
         match self {
             Bsdf::MetallicRoughness(MetallicRoughness { coat: Some(c), .. })
             | Bsdf::GltfTransmission(GltfTransmission { coat: Some(c), .. }) => {
-                *c = c.with_normal(local);
+                *c = c.with_normal(local).with_outside(outside);
             }
             _ => {}
         }
@@ -106,14 +108,19 @@ impl Bsdf {
     /// True if light may scatter between `wo` and `wi_local` (local frame) when `wi` lies on
     /// side `wi_dot_ng` of the geometric normal as the integrator oriented it (towards `wo` for
     /// opaque BSDFs). Shading and geometric normals must agree on the side of `wi`, or light
-    /// would leak through the surface; that is the rule, except for a clearcoated glTF material
-    /// without transmission: its coat reflects about its own normal (KHR_materials_clearcoat),
-    /// possibly into directions below the base's normal-mapped shading plane, which are right
-    /// whenever they are above the geometric surface (the base's lobes are zero there).
+    /// would leak through the surface; that is the rule, except for a clearcoated glTF material:
+    /// its coat reflects about its own normal (KHR_materials_clearcoat), possibly into
+    /// directions below the base's normal-mapped shading plane, which are right whenever they
+    /// are above the geometric surface. Without transmission the base's lobes are zero there;
+    /// with transmission the BSDF knows the geometric normal ([`Bsdf::set_coat_normal`]) and
+    /// gives only the coat's reflection wherever the two normals disagree (zero where the coat
+    /// does not reach), so every direction is left to it.
     #[inline]
     pub fn side_consistent(&self, wi_local: Vec3, wi_dot_ng: f32) -> bool {
         match self {
             Bsdf::MetallicRoughness(b) if b.coat.is_some() && !b.transmits() => wi_dot_ng > 0.0,
+            Bsdf::MetallicRoughness(MetallicRoughness { coat: Some(_), .. })
+            | Bsdf::GltfTransmission(GltfTransmission { coat: Some(_), .. }) => true,
             _ => wi_dot_ng * wi_local.z > 0.0,
         }
     }

@@ -29,6 +29,12 @@ pub struct Clearcoat {
     pub ggx: Ggx,
     /// The coat's unit normal in the base's local shading frame.
     pub normal: Vec3,
+    /// The geometric normal on the coat's side, in the same frame (+z until
+    /// [`crate::material::Bsdf::set_coat_normal`] places it): the coat reflects into directions
+    /// `w` with `w · outside > 0`, also where its own normal sends them below the base's shading
+    /// plane. A transmissive BSDF tells such a reflection from transmitted light by this normal
+    /// (see [`Clearcoat::agrees`]).
+    pub outside: Vec3,
 }
 
 impl Clearcoat {
@@ -41,7 +47,44 @@ impl Clearcoat {
             weight: weight.clamp(0.0, 1.0),
             ggx: Ggx::new(r * r),
             normal: if n.z > 0.0 { n } else { Vec3::Z },
+            outside: Vec3::Z,
         }
+    }
+
+    /// The same coat on a surface whose geometric normal on the coat's side is `ng` (local
+    /// frame; +z when degenerate).
+    #[inline]
+    pub fn with_outside(mut self, ng: Vec3) -> Clearcoat {
+        let n = ng.normalize_or_zero();
+        self.outside = if n == Vec3::ZERO { Vec3::Z } else { n };
+        self
+    }
+
+    /// The coat mirrored to the other face of a thin sheet, seen through `mirror_z` (a view from
+    /// behind evaluated from the front): that face's outward normals are the negated ones, which
+    /// the mirror turns into (−x, −y, z).
+    #[inline]
+    pub fn mirrored(self) -> Clearcoat {
+        let flip = |n: Vec3| Vec3::new(-n.x, -n.y, n.z);
+        let o = flip(self.outside);
+        let mut c = self.with_normal(flip(self.normal));
+        c.outside = o;
+        c
+    }
+
+    /// True if `w` leaves on the coat's side of the surface (geometrically).
+    #[inline]
+    pub fn is_outside(&self, w: Vec3) -> bool {
+        w.dot(self.outside) > 0.0
+    }
+
+    /// True if the base's shading frame and the surface agree on the side of `w` (both above or
+    /// both below). Where they do not, `w` is a direction only the coat reaches: above the
+    /// surface but below the base's normal-mapped plane (a reflection about the coat's normal),
+    /// or the reverse, where nothing scatters.
+    #[inline]
+    pub fn agrees(&self, w: Vec3) -> bool {
+        (w.z > 0.0) == self.is_outside(w)
     }
 
     /// The same coat with unit normal `normal` (local frame; +z when degenerate or below).

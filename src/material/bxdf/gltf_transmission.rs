@@ -17,12 +17,20 @@
 //! * **sheen** and **clearcoat** layered by albedo scaling (glTF appendix B, the extension
 //!   texts): f = f_coat + (1 − c·F_c(V))·(f_sheen + S·f_base), S = min(1 − s·E(N·V),
 //!   1 − s·E(N·L)). Both layers sit on the outside of the surface, so they only reflect on the
-//!   outside. Transmitted light crosses them once: its weight uses the direction on the outside
-//!   (V for light entering, L for light leaving), which equals the specification's V-only
-//!   weight for a view from outside and keeps transmission reciprocal. Internal reflection
-//!   never reaches them. A thin-walled sheet (no volume) is evaluated from the side it is seen
-//!   from, mirrored, as the specification's double-sided thin surface: its layers are on both
-//!   faces and weigh by V, as the metallic-roughness sheet's diffuse transmission does.
+//!   outside. At a closed volume's surface transmitted light crosses them once: its weight
+//!   uses the direction on the outside (V for light entering, L for light leaving), which
+//!   equals the specification's V-only weight for a view from outside and keeps transmission
+//!   reciprocal; light through the volume is so weighed on entering and on leaving. Internal
+//!   reflection never reaches them. A thin-walled sheet (no volume) is evaluated from the side
+//!   it is seen from, mirrored, as the specification's double-sided thin surface: its layers
+//!   are on both faces, so light through it crosses the coat of each face,
+//!   (1 − c·F_c(V))·(1 − c·F_c(L)), as the metallic-roughness sheet's diffuse transmission
+//!   does. The coat reflects about its own normal N_c (a clearcoat normal map, or the vertex
+//!   normal under a base normal map), also into directions below the base's shading plane that
+//!   are still outside the surface: the coat knows the geometric normal
+//!   ([`Clearcoat::outside`]), and where the surface and the shading plane disagree on the side
+//!   of a direction only the coat scatters (the interface and the sheen live in the base's
+//!   frame).
 //! * **dispersion** (thick only, as the extension says) combines with all of the above: one IOR
 //!   per channel and the one-sample mixture over channels of [`super::dielectric`].
 //!
@@ -33,7 +41,9 @@
 //! reports the whole mixture's pdf and value.
 
 use super::dielectric::half_vector;
-use super::metallic_roughness::{Anisotropy, coat_probability, sheen_probability};
+use super::metallic_roughness::{
+    Anisotropy, coat_in_base_cosine, coat_probability, sheen_probability,
+};
 use crate::material::bsdf::BsdfSample;
 use crate::material::clearcoat::Clearcoat;
 use crate::material::iridescence::Iridescence;
@@ -122,8 +132,7 @@ impl GltfTransmission {
         if self.thin && wo.z < 0.0 {
             let mut b = *self;
             if let Some(c) = &mut b.coat {
-                let n = c.normal;
-                *c = c.with_normal(Vec3::new(-n.x, -n.y, n.z));
+                *c = c.mirrored();
             }
             (b, true)
         } else {
@@ -378,7 +387,11 @@ impl GltfTransmission {
     // ---- the layers ------------------------------------------------------------------------
 
     /// What the coat and the sheen leave of the interface's f(wo, wi): both reflect on the
-    /// outside only, and light crossing them is weighed by its direction on the outside.
+    /// outside only, and light crossing them is weighed by its direction on the outside. A
+    /// thick surface is crossed once per hit (entering: V outside, leaving: L outside, so light
+    /// through a closed volume is weighed on entering *and* on leaving, at its two hits); a
+    /// thin sheet carries the coat on both faces, so light through it crosses two coats at one
+    /// hit: (1 − c·fr(V))·(1 − c·fr(L)), the back face's normal being −N_c (fr takes |cos|).
     #[inline]
     fn layer_scale(&self, wo: Vec3, wi: Vec3) -> f32 {
         let out = if wo.z > 0.0 {
@@ -391,6 +404,9 @@ impl GltfTransmission {
         let mut s = 1.0;
         if let Some(c) = &self.coat {
             s *= 1.0 - c.layer_weight(out);
+            if self.thin && wo.z * wi.z < 0.0 {
+                s *= 1.0 - c.layer_weight(wi);
+            }
         }
         if let Some(sh) = &self.sheen {
             s *= sh.base_scale(wo, wi);
@@ -412,21 +428,42 @@ impl GltfTransmission {
         )
     }
 
+    /// True if the base's shading frame and the surface agree on the side of `wi` (always
+    /// without a coat, whose geometric normal tells; see [`Clearcoat::agrees`]). Where they do
+    /// not, only the coat scatters.
+    #[inline]
+    fn agrees(&self, wi: Vec3) -> bool {
+        self.coat.as_ref().is_none_or(|c| c.agrees(wi))
+    }
+
+    /// The coat lobe, reflecting about its own normal on the outside: `wo` outside (above the
+    /// base's plane) and `wi` outside the surface, also below the base's plane. Weighed by the
+    /// coat's own cosine as the opaque material's coat is ([`coat_in_base_cosine`]).
+    #[inline]
+    fn coat_eval(&self, wo: Vec3, wi: Vec3) -> f32 {
+        match &self.coat {
+            Some(c) if wo.z > 0.0 && c.is_outside(wi) => coat_in_base_cosine(c, wo, wi),
+            _ => 0.0,
+        }
+    }
+
     fn eval_canonical(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z == 0.0 || wi.z == 0.0 {
             return Vec3::ZERO;
         }
-        let mut f = self.interface_eval(wo, wi) * self.layer_scale(wo, wi);
-        if wo.z > 0.0 && wi.z > 0.0 {
-            if let Some(s) = &self.sheen {
-                let w = self.coat.as_ref().map_or(1.0, |c| 1.0 - c.layer_weight(wo));
-                f += s.eval(wo, wi) * w;
-            }
-            if let Some(c) = &self.coat {
-                f += Vec3::splat(c.eval(wo, wi));
-            }
+        let coat = Vec3::splat(self.coat_eval(wo, wi));
+        if !self.agrees(wi) {
+            return coat;
         }
-        f
+        let mut f = self.interface_eval(wo, wi) * self.layer_scale(wo, wi);
+        if wo.z > 0.0
+            && wi.z > 0.0
+            && let Some(s) = &self.sheen
+        {
+            let w = self.coat.as_ref().map_or(1.0, |c| 1.0 - c.layer_weight(wo));
+            f += s.eval(wo, wi) * w;
+        }
+        f + coat
     }
 
     fn pdf_canonical(&self, wo: Vec3, wi: Vec3) -> f32 {
@@ -435,13 +472,14 @@ impl GltfTransmission {
         }
         let (p_coat, p_sheen) = self.layer_probabilities(wo);
         let mut p = (1.0 - p_coat) * (1.0 - p_sheen) * self.interface_pdf(wo, wi);
-        if wo.z > 0.0 && wi.z > 0.0 {
-            if let Some(c) = &self.coat {
-                p += p_coat * c.pdf(wo, wi);
-            }
-            if self.sheen.is_some() {
-                p += (1.0 - p_coat) * p_sheen * warp::uniform_cone_pdf(0.0);
-            }
+        if let Some(c) = &self.coat
+            && wo.z > 0.0
+            && c.is_outside(wi)
+        {
+            p += p_coat * c.pdf(wo, wi);
+        }
+        if wo.z > 0.0 && wi.z > 0.0 && self.sheen.is_some() {
+            p += (1.0 - p_coat) * p_sheen * warp::uniform_cone_pdf(0.0);
         }
         p
     }
@@ -494,7 +532,7 @@ impl GltfTransmission {
         {
             if u_lobe < p_coat {
                 // The coat reflects only: a direction below the surface is no sample.
-                wi = Some(c.sample(wo, u).filter(|wi| wi.z > 0.0)?);
+                wi = Some(c.sample(wo, u).filter(|wi| c.is_outside(*wi))?);
             } else {
                 u_lobe = ((u_lobe - p_coat) / (1.0 - p_coat)).min(1.0 - f32::EPSILON);
             }
@@ -512,9 +550,10 @@ impl GltfTransmission {
                 let (wi, dirac) = self.interface_sample(wo, u_lobe, u)?;
                 if let Some((f, p)) = dirac {
                     // A Dirac lobe: its discrete probability within the mixture, its value
-                    // under the layers.
+                    // under the layers. None where the surface disagrees with the shading
+                    // frame on its side (there only the coat scatters).
                     let pdf = (1.0 - p_coat) * (1.0 - p_sheen) * p;
-                    if !(pdf > 0.0) {
+                    if !(pdf > 0.0) || !self.agrees(wi) {
                         return None;
                     }
                     return Some(BsdfSample {
@@ -538,7 +577,7 @@ impl GltfTransmission {
     /// d-line IOR with dispersion, which Russian roulette uses only as a scale).
     #[inline]
     fn relative_eta(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if self.thin || wo.z * wi.z > 0.0 {
+        if self.thin || wo.z * wi.z > 0.0 || !self.agrees(wi) {
             1.0
         } else if wo.z > 0.0 {
             self.eta

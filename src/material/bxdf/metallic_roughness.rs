@@ -112,8 +112,7 @@ impl MetallicRoughness {
         if self.transmits() && wo.z < 0.0 {
             let mut b = *self;
             if let Some(c) = &mut b.coat {
-                let n = c.normal;
-                *c = c.with_normal(Vec3::new(-n.x, -n.y, n.z));
+                *c = c.mirrored();
             }
             (b, mirror_z(wo), mirror_z(wi), true)
         } else {
@@ -131,12 +130,25 @@ impl MetallicRoughness {
         b.eval_front(wo, wi)
     }
 
-    /// f for `wo` above, `wi` on either side (diffuse transmission only below).
+    /// f for `wo` above, `wi` on either side (diffuse transmission only below). Where the
+    /// surface and the base's shading plane disagree on the side of `wi`, only the coat can
+    /// scatter: a reflection about its own normal that stays outside the surface
+    /// ([`Clearcoat::agrees`]); the base's lobes, in the shading frame, see none of it.
     #[inline]
     fn eval_front(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z <= 0.0 || wi.z == 0.0 {
-            Vec3::ZERO
-        } else if wi.z > 0.0 {
+            return Vec3::ZERO;
+        }
+        if let Some(c) = &self.coat
+            && !c.agrees(wi)
+        {
+            return if c.is_outside(wi) {
+                Vec3::splat(coat_in_base_cosine(c, wo, wi))
+            } else {
+                Vec3::ZERO
+            };
+        }
+        if wi.z > 0.0 {
             self.eval_coated(wo, wi)
         } else {
             self.eval_transmitted(wo, wi)
@@ -168,7 +180,10 @@ impl MetallicRoughness {
     }
 
     /// Diffuse transmission to `wi` below: (1 − metallic)·(1 − F)·factor·colour/π, under the
-    /// sheen's and the coat's albedo scaling (neither transmits itself).
+    /// sheen's and the coat's albedo scaling (neither transmits itself). The sheet is thin and
+    /// both its faces carry the coat, so transmitted light crosses it twice, on entering and on
+    /// leaving: (1 − c·fr(V))·(1 − c·fr(L)), each with that face's normal (the back face's is
+    /// −N_c, and fr takes |cos|). This keeps the BTDF reciprocal.
     #[inline]
     fn eval_transmitted(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         let wm = mirror_z(wi);
@@ -185,7 +200,7 @@ impl MetallicRoughness {
             t *= s.base_scale(wo, wm);
         }
         if let Some(c) = &self.coat {
-            t *= 1.0 - c.layer_weight(wo);
+            t *= (1.0 - c.layer_weight(wo)) * (1.0 - c.layer_weight(wi));
         }
         t
     }
@@ -246,8 +261,9 @@ impl MetallicRoughness {
             None => under,
             Some(c) => {
                 // With diffuse transmission a direction below the base's plane is a transmitted
-                // one, which the coat does not produce ([`Self::sample_front`]).
-                let coat = if wi.z > 0.0 || !self.transmits() {
+                // one, which the coat does not produce ([`Self::sample_front`]), unless it is
+                // still outside the surface.
+                let coat = if wi.z > 0.0 || !self.transmits() || c.is_outside(wi) {
                     c.pdf(wo, wi)
                 } else {
                     0.0
@@ -301,8 +317,10 @@ impl MetallicRoughness {
             let p_coat = self.coat_share(wo);
             if u_lobe < p_coat {
                 // The coat reflects about its own normal. With diffuse transmission a direction
-                // below the base's plane would be a transmitted one: no sample.
-                return c.sample(wo, u).filter(|wi| wi.z > 0.0 || !self.transmits());
+                // below the surface would be a transmitted one: no sample.
+                return c
+                    .sample(wo, u)
+                    .filter(|wi| wi.z > 0.0 || !self.transmits() || c.is_outside(*wi));
             }
             u_lobe = ((u_lobe - p_coat) / (1.0 - p_coat)).min(1.0 - f32::EPSILON);
         }
@@ -448,7 +466,7 @@ impl MetallicRoughness {
 /// base's plane and wherever the coat lobe is. Directions within 10⁻⁶ of the base's plane are
 /// dropped (a solid angle of ~6·10⁻⁶ sr) so that f stays finite.
 #[inline]
-fn coat_in_base_cosine(c: &Clearcoat, wo: Vec3, wi: Vec3) -> f32 {
+pub(crate) fn coat_in_base_cosine(c: &Clearcoat, wo: Vec3, wi: Vec3) -> f32 {
     let cos_base = wi.z.abs();
     if cos_base < 1e-6 {
         return 0.0;

@@ -1,13 +1,13 @@
 //! `EXT_meshopt_compression` and `KHR_meshopt_compression`: buffer views whose bytes are stored
 //! compressed by meshoptimizer's vertex and index codecs (and optionally passed through one of its
-//! filters). Each such view is decoded once, after the buffers are read, with the reference
-//! decoder (the `meshopt` crate); [`Loader::view_bytes`] then serves the decoded bytes.
+//! filters). Each such view is decoded once, after the buffers are read, with the pure-Rust
+//! decoder of the `meshoptimizer-rs` crate (see [`decode`]); [`Loader::view_bytes`] then serves
+//! the decoded bytes.
 //!
-//! The decoder is documented as safe on untrusted input (a malformed stream is an error code),
-//! but its C `assert`s on the *parameters* are live in debug builds, so every parameter the
-//! extension text constrains is checked here first: mode, stride (ATTRIBUTES: a multiple of 4 up
-//! to 256; TRIANGLES/INDICES: 2 or 4), the triangle count being a multiple of 3, and each
-//! filter's stride. Memory is bounded: the decoded size may not exceed [`MAX_RATIO`] times the
+//! The decoder checks its input (a malformed stream is an error), and every parameter the
+//! extension text constrains is checked here first as well, so that the error names what is
+//! wrong: mode, stride (ATTRIBUTES: a multiple of 4 up to 256; TRIANGLES/INDICES: 2 or 4), the
+//! triangle count being a multiple of 3, and each filter's stride. Memory is bounded: the decoded size may not exceed [`MAX_RATIO`] times the
 //! compressed size (the codecs cannot do better, see below) nor [`MAX_DECODED_TOTAL`] in all.
 
 use rayon::prelude::*;
@@ -30,7 +30,6 @@ const MAX_DECODED_TOTAL: usize = 1 << 31;
 
 /// One compressed buffer view, as the extension object describes it.
 #[derive(Debug)]
-#[cfg_attr(not(feature = "meshopt"), allow(dead_code))]
 struct Compressed<'a> {
     view: usize,
     ext: &'static str,
@@ -216,160 +215,43 @@ impl Loader<'_> {
     }
 }
 
-/// A build without the `meshopt` cargo feature (on by default) has no decoder: the reference
-/// decoder is C++, and this lets Trayecto build with the Rust toolchain alone. Such a build still
-/// reads and checks the extension objects, then refuses the file naming the extension.
-#[cfg(not(feature = "meshopt"))]
-fn decode(_: &Compressed) -> Result<Vec<u8>, String> {
-    Err(
-        "this build of Trayecto has no meshopt decoder (it was built without the cargo feature \
-         'meshopt', which is on by default and needs a C++ compiler); rebuild with it, or write \
-         the file without meshopt compression"
-            .into(),
-    )
-}
-
-/// One vertex of `N` bytes (`[u8; N]` has no `Default` beyond 32).
-#[cfg(feature = "meshopt")]
-#[derive(Clone, Copy)]
-struct Vertex<const N: usize>([u8; N]);
-
-#[cfg(feature = "meshopt")]
-impl<const N: usize> Default for Vertex<N> {
-    fn default() -> Self {
-        Vertex([0; N])
-    }
-}
-
-#[cfg(feature = "meshopt")]
-fn decode_vertices<const N: usize>(src: &[u8], count: usize) -> Result<Vec<u8>, String> {
-    let v: Vec<Vertex<N>> = ::meshopt::decode_vertex_buffer(src, count)
-        .map_err(|e| format!("corrupt vertex stream ({e})"))?;
-    Ok(v.iter().flat_map(|v| v.0).collect())
-}
-
-/// Dispatches the vertex decoder on the stride (a multiple of 4 up to 256, checked above).
-#[cfg(feature = "meshopt")]
-fn decode_vertex_stride(src: &[u8], count: usize, stride: usize) -> Result<Vec<u8>, String> {
-    macro_rules! strides {
-        ($($n:literal)*) => {
-            match stride {
-                $($n => decode_vertices::<$n>(src, count),)*
-                _ => Err(format!("byteStride {stride} is not a multiple of 4 up to 256")),
-            }
-        };
-    }
-    strides!(4 8 12 16 20 24 28 32 36 40 44 48 52 56 60 64 68 72 76 80 84 88 92 96 100 104 108
-        112 116 120 124 128 132 136 140 144 148 152 156 160 164 168 172 176 180 184 188 192 196
-        200 204 208 212 216 220 224 228 232 236 240 244 248 252 256)
-}
-
-#[cfg(feature = "meshopt")]
+/// Decodes one view with `meshoptimizer-rs`, a safe-Rust port of meshoptimizer 1.3 (built
+/// without its `simd` feature, so no `unsafe` code at all): the vertex codec (versions 0 and 1),
+/// the triangle and sequence index codecs, then the view's filter. Malformed streams, counts that
+/// the stream cannot hold, and filter words with no defined value (a zero-length octahedral
+/// normal, a colour with a zero alpha scale) are errors of the crate, never a panic. Its filters
+/// are meshoptimizer's scalar reference; the C++ decoder used before (its SSE build) rounds
+/// exact halves to even instead and so differs by one unit in the last place on 0.14 % of the
+/// octahedral normals of the test files (everything else byte-identical).
 fn decode(c: &Compressed) -> Result<Vec<u8>, String> {
+    use meshoptimizer_rs::codec;
     if c.count == 0 {
         return Ok(Vec::new());
     }
-    let corrupt = |what: &str, e: ::meshopt::Error| format!("corrupt {what} stream ({e})");
-    let mut out = match (c.mode, c.stride) {
-        (Mode::Attributes, s) => decode_vertex_stride(c.source, c.count, s)?,
-        (Mode::Triangles, 2) => ::meshopt::decode_index_buffer::<u16>(c.source, c.count)
-            .map_err(|e| corrupt("index", e))?
-            .iter()
-            .flat_map(|i| i.to_le_bytes())
-            .collect(),
-        (Mode::Triangles, _) => ::meshopt::decode_index_buffer::<u32>(c.source, c.count)
-            .map_err(|e| corrupt("index", e))?
-            .iter()
-            .flat_map(|i| i.to_le_bytes())
-            .collect(),
-        (Mode::Indices, 2) => ::meshopt::decode_index_sequence::<u16>(c.source, c.count)
-            .map_err(|e| corrupt("index sequence", e))?
-            .iter()
-            .flat_map(|i| i.to_le_bytes())
-            .collect(),
-        (Mode::Indices, _) => ::meshopt::decode_index_sequence::<u32>(c.source, c.count)
-            .map_err(|e| corrupt("index sequence", e))?
-            .iter()
-            .flat_map(|i| i.to_le_bytes())
-            .collect(),
+    let mut ws = meshoptimizer_rs::Workspace::new(meshoptimizer_rs::Limits::default());
+    let (what, decoded) = match c.mode {
+        Mode::Attributes => (
+            "vertex",
+            codec::decode_vertex_buffer(c.count, c.stride, c.source, &mut ws),
+        ),
+        Mode::Triangles => (
+            "index",
+            codec::decode_index_buffer(c.count, c.stride, c.source, &mut ws),
+        ),
+        Mode::Indices => (
+            "index sequence",
+            codec::decode_index_sequence(c.count, c.stride, c.source, &mut ws),
+        ),
     };
-    apply_filter(&mut out, c.filter, c.stride);
+    let mut out = decoded.map_err(|e| format!("corrupt {what} stream ({e})"))?;
+    let (n, s) = (c.count, c.stride);
+    let filtered = match c.filter {
+        Filter::None => Ok(()),
+        Filter::Octahedral => codec::decode_filter_oct(&mut out, n, s, &mut ws),
+        Filter::Quaternion => codec::decode_filter_quat(&mut out, n, s, &mut ws),
+        Filter::Exponential => codec::decode_filter_exp(&mut out, n, s, &mut ws),
+        Filter::Color => codec::decode_filter_color(&mut out, n, s, &mut ws),
+    };
+    filtered.map_err(|e| format!("the {:?} filter failed ({e})", c.filter))?;
     Ok(out)
-}
-
-/// Undoes a vertex filter in place (extension text, "Filters"). Strides were checked against the
-/// filter when the view was read.
-#[cfg(feature = "meshopt")]
-fn apply_filter(data: &mut [u8], filter: Filter, stride: usize) {
-    fn through<T: Copy + Default, const K: usize>(
-        data: &mut [u8],
-        size: usize,
-        from: fn([u8; 8]) -> [T; K],
-        to: fn([T; K]) -> Vec<u8>,
-        f: impl Fn(&mut [[T; K]]),
-    ) {
-        let mut v: Vec<[T; K]> = data
-            .chunks_exact(size)
-            .map(|c| {
-                let mut b = [0u8; 8];
-                b[..size].copy_from_slice(c);
-                from(b)
-            })
-            .collect();
-        f(&mut v);
-        for (dst, e) in data.chunks_exact_mut(size).zip(v) {
-            dst.copy_from_slice(&to(e));
-        }
-    }
-    let i8x4 = |b: [u8; 8]| [b[0] as i8, b[1] as i8, b[2] as i8, b[3] as i8];
-    let u8x4 = |b: [u8; 8]| [b[0], b[1], b[2], b[3]];
-    let i16x4 = |b: [u8; 8]| [0, 2, 4, 6].map(|k| i16::from_le_bytes([b[k], b[k + 1]]));
-    let u16x4 = |b: [u8; 8]| [0, 2, 4, 6].map(|k| u16::from_le_bytes([b[k], b[k + 1]]));
-    let u32x1 = |b: [u8; 8]| [u32::from_le_bytes([b[0], b[1], b[2], b[3]])];
-    match (filter, stride) {
-        (Filter::None, _) => {}
-        (Filter::Octahedral, 4) => through(
-            data,
-            4,
-            i8x4,
-            |e| e.iter().map(|&x| x as u8).collect(),
-            ::meshopt::decode_filter_oct::<i8>,
-        ),
-        (Filter::Octahedral, _) => through(
-            data,
-            8,
-            i16x4,
-            |e| e.iter().flat_map(|x| x.to_le_bytes()).collect(),
-            ::meshopt::decode_filter_oct::<i16>,
-        ),
-        (Filter::Quaternion, _) => through(
-            data,
-            8,
-            i16x4,
-            |e| e.iter().flat_map(|x| x.to_le_bytes()).collect(),
-            ::meshopt::decode_filter_quat,
-        ),
-        (Filter::Color, 4) => through(
-            data,
-            4,
-            u8x4,
-            |e| e.to_vec(),
-            ::meshopt::decode_filter_color::<u8>,
-        ),
-        (Filter::Color, _) => through(
-            data,
-            8,
-            u16x4,
-            |e| e.iter().flat_map(|x| x.to_le_bytes()).collect(),
-            ::meshopt::decode_filter_color::<u16>,
-        ),
-        // Each 32-bit component is decoded on its own (2^E·M), whatever the stride.
-        (Filter::Exponential, _) => through(
-            data,
-            4,
-            u32x1,
-            |e| e[0].to_le_bytes().to_vec(),
-            ::meshopt::decode_filter_exp::<1>,
-        ),
-    }
 }
