@@ -59,6 +59,49 @@ enum Lobes {
     Transmission,
 }
 
+/// How [`Layered::eval`] weighs its two ways of reaching the exit direction `wi` from a point
+/// inside the layer: a *connection* through the direction `wis` sampled from `wi` (next-event
+/// estimation toward the "virtual light"), and a *walk* direction sampled at the base or in the
+/// medium that happens to leave through the rough coat toward `wi`. Every choice has the same
+/// expectation (the unit tests check it); rendering uses [`Connect::Mis`].
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Connect {
+    /// Power-heuristic MIS (Veach 1997, §9.2) with both densities in the same measure: the
+    /// walk's pdf of `w` and the density with which the connection produces `w`,
+    /// `coat.pdf(wi, -w)`.
+    Mis,
+    /// Connections only: walk directions leaving through the coat add nothing.
+    #[cfg(test)]
+    ConnectOnly,
+    /// Walk directions only: no connections (where the walk has a non-specular alternative).
+    #[cfg(test)]
+    WalkOnly,
+    /// pbrt-v4's `LayeredBxDF::f` weights (v4.0, `layered.h`): the walk's exit is weighed
+    /// against `exitInterface.PDF(-w, wi)`, the density of `wi` given `-w`, which is not the
+    /// density of the competing connection in `w`'s measure; the weights then do not sum to one.
+    #[cfg(test)]
+    PbrtV4,
+}
+
+/// The weight of a connection (NEE) whose direction has density `p_nee`, when the walk could
+/// have produced the same direction with density `p_walk` (`walk_can`: the walk's event there
+/// is not a Dirac one, and the coat is rough so walk directions can leave through it).
+#[inline(always)]
+fn connect_weight(mode: Connect, walk_can: bool, p_nee: f32, p_walk: f32) -> f32 {
+    if !walk_can {
+        return 1.0;
+    }
+    match mode {
+        Connect::Mis => power_heuristic(p_nee, p_walk),
+        #[cfg(test)]
+        Connect::PbrtV4 => power_heuristic(p_nee, p_walk),
+        #[cfg(test)]
+        Connect::ConnectOnly => 1.0,
+        #[cfg(test)]
+        Connect::WalkOnly => 0.0,
+    }
+}
+
 /// A sample of one interface: f (no cosine), pdf, and what kind of event it was.
 #[derive(Clone, Copy)]
 struct Event {
@@ -353,6 +396,33 @@ impl Layered {
 
     /// Stochastic estimate of f(wo, wi) (no cosine).
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.eval_with(wo, wi, Connect::Mis)
+    }
+
+    /// The weight of a walk direction `w` (density `p_walk`) that leaves through the rough coat
+    /// toward `wi`, when a connection could have produced it (`connect_can`: the event that
+    /// sampled `w` is not a Dirac one).
+    #[inline(always)]
+    fn exit_weight(&self, mode: Connect, connect_can: bool, p_walk: f32, w: Vec3, wi: Vec3) -> f32 {
+        if !connect_can {
+            return 1.0;
+        }
+        let coat = &self.coat;
+        match mode {
+            // The connection samples its direction `wis.wi` from `wi`; it produces this walk
+            // when `wis.wi = -w`, with density coat.pdf(wi, -w) in the same measure as p_walk.
+            Connect::Mis => power_heuristic(p_walk, coat.pdf(wi, -w, Lobes::Transmission)),
+            #[cfg(test)]
+            Connect::PbrtV4 => power_heuristic(p_walk, coat.pdf(-w, wi, Lobes::Transmission)),
+            #[cfg(test)]
+            Connect::ConnectOnly => 0.0,
+            #[cfg(test)]
+            Connect::WalkOnly => 1.0,
+        }
+    }
+
+    #[inline(always)]
+    fn eval_with(&self, wo: Vec3, wi: Vec3, mode: Connect) -> Vec3 {
         let (wo, wi) = Self::orient(wo, wi);
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return Vec3::ZERO; // the base is opaque: nothing is transmitted
@@ -403,11 +473,12 @@ impl Layered {
                     }
                     if 0.0 < zp && zp < thick {
                         // Scattering in the medium: connect to the virtual light through the coat.
-                        let wt = if coat.is_specular() {
-                            1.0
-                        } else {
-                            power_heuristic(wis.pdf, hg_p(self.g, -w, -wis.wi))
-                        };
+                        let wt = connect_weight(
+                            mode,
+                            !coat.is_specular(),
+                            wis.pdf,
+                            hg_p(self.g, -w, -wis.wi),
+                        );
                         f += beta
                             * self.albedo
                             * hg_p(self.g, -w, -wis.wi)
@@ -426,10 +497,7 @@ impl Layered {
                         if w.z > 0.0 && !coat.is_specular() {
                             let f_exit = coat.f(-w, wi, true);
                             if f_exit > 0.0 {
-                                // The density with which the virtual-light strategy (wis)
-                                // would have produced -w, in the same measure as p.
-                                let exit_pdf = coat.pdf(wi, -w, Lobes::Transmission);
-                                let wt = power_heuristic(p, exit_pdf);
+                                let wt = self.exit_weight(mode, true, p, w, wi);
                                 f += beta * (tr(zp - thick, w) * f_exit * wt);
                             }
                         }
@@ -449,11 +517,12 @@ impl Layered {
                 } else {
                     // At the base: NEE toward the virtual light, then continue by sampling it.
                     if !base.is_specular() {
-                        let wt = if coat.is_specular() {
-                            1.0
-                        } else {
-                            power_heuristic(wis.pdf, base.pdf(-w, -wis.wi))
-                        };
+                        let wt = connect_weight(
+                            mode,
+                            !coat.is_specular(),
+                            wis.pdf,
+                            base.pdf(-w, -wis.wi),
+                        );
                         f += beta
                             * base.f(-w, -wis.wi)
                             * wis.wi.z.abs()
@@ -473,11 +542,7 @@ impl Layered {
                     if !coat.is_specular() {
                         let f_exit = coat.f(-w, wi, true);
                         if f_exit > 0.0 {
-                            let wt = if base.is_specular() {
-                                1.0
-                            } else {
-                                power_heuristic(bs.pdf, coat.pdf(wi, -w, Lobes::Transmission))
-                            };
+                            let wt = self.exit_weight(mode, !base.is_specular(), bs.pdf, w, wi);
                             f += beta * (tr(thick, bs.wi) * f_exit * wt);
                         }
                     }
@@ -629,5 +694,112 @@ impl Layered {
             f *= ev.wi.z.abs();
         }
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn coated_diffuse(alpha: f32, albedo: f32, thickness: f32, g: f32) -> Layered {
+        Layered {
+            coat: Coat {
+                eta: 1.5,
+                dist: AnisoGgx::new(alpha, alpha),
+            },
+            base: Base::Diffuse {
+                reflectance: Vec3::splat(0.8),
+            },
+            thickness,
+            albedo: Vec3::splat(albedo),
+            g,
+            max_depth: 10,
+            n_samples: 1,
+        }
+    }
+
+    /// Mean and standard error of the paired difference
+    /// ∫ (f_a − f_b)(wo, wi) cos θi dωi over cosine-distributed `wi` (the coat's own reflection,
+    /// the same in both, cancels exactly).
+    fn albedo_difference(l: &Layered, wo: Vec3, a: Connect, b: Connect, n: u32) -> (f64, f64) {
+        let mut rng = Pcg32::new(0x5eed, 3);
+        let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+        for _ in 0..n {
+            let wi = warp::cosine_hemisphere(u2(&mut rng));
+            // f cos / pdf with pdf = cos / π.
+            let d = (l.eval_with(wo, wi, a).x - l.eval_with(wo, wi, b).x) as f64 * PI as f64;
+            sum += d;
+            sum2 += d * d;
+        }
+        let mean = sum / n as f64;
+        let var = (sum2 / n as f64 - mean * mean).max(0.0);
+        (mean, (var / n as f64).sqrt())
+    }
+
+    /// Reflectance ∫ f cos dωi of `l` from `wo` with the rendering estimator (for the messages).
+    fn reflectance(l: &Layered, wo: Vec3, n: u32) -> f64 {
+        let mut rng = Pcg32::new(0x5eed, 3);
+        let mut sum = 0.0f64;
+        for _ in 0..n {
+            let wi = warp::cosine_hemisphere(u2(&mut rng));
+            sum += l.eval(wo, wi).x as f64 * PI as f64;
+        }
+        sum / n as f64
+    }
+
+    fn dir(theta_deg: f32) -> Vec3 {
+        let t = theta_deg.to_radians();
+        Vec3::new(t.sin(), 0.0, t.cos())
+    }
+
+    const CASES: [(&str, f32, f32, f32, f32); 3] = [
+        // pbrt-v4 coateddiffuse defaults (thickness 0.01, albedo 0) at roughness 0.3 (α √0.3).
+        ("rough coat, absorbing-free slab", 0.5477, 0.0, 0.01, 0.0),
+        ("rough coat, scattering slab", 0.3, 0.6, 0.2, 0.3),
+        ("very rough coat", 1.0, 0.0, 0.01, 0.0),
+    ];
+
+    /// MIS is only unbiased when the weights of the two ways of producing a path sum to one.
+    /// Connections alone, walks alone and their MIS must estimate the same reflectance.
+    #[test]
+    fn connections_walks_and_their_mis_agree() {
+        let n = 200_000;
+        for (name, alpha, albedo, thickness, g) in CASES {
+            let l = coated_diffuse(alpha, albedo, thickness, g);
+            for theta in [20.0, 65.0] {
+                let wo = dir(theta);
+                let total = reflectance(&l, wo, n / 4);
+                for other in [Connect::ConnectOnly, Connect::WalkOnly] {
+                    let (d, se) = albedo_difference(&l, wo, Connect::Mis, other, n);
+                    assert!(
+                        d.abs() < 4.0 * se + 1e-4,
+                        "{name}, θo {theta}°: MIS − {other:?} = {d:.5} ± {se:.5} \
+                         (reflectance {total:.4})"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Why Trayecto's rough `coateddiffuse` is darker than pbrt-v4's (README, pbrt table): pbrt-v4
+    /// weighs the walk's exit against the density of `wi` given `-w` instead of the density of
+    /// the competing connection in `w`'s measure, so its weights sum to more than one and it
+    /// overcounts light leaving through a rough coat. A smooth coat has no MIS and agrees.
+    #[test]
+    fn pbrt_v4_exit_weights_overcount_light_leaving_a_rough_coat() {
+        let n = 200_000;
+        let (name, alpha, albedo, thickness, g) = CASES[0];
+        let l = coated_diffuse(alpha, albedo, thickness, g);
+        let wo = dir(20.0);
+        let total = reflectance(&l, wo, n / 4);
+        let (d, se) = albedo_difference(&l, wo, Connect::PbrtV4, Connect::Mis, n);
+        eprintln!(
+            "{name}: reflectance {total:.4}, pbrt-v4's weights add {d:.4} ± {se:.4} ({:+.1} %)",
+            100.0 * d / total
+        );
+        assert!(
+            d > 4.0 * se && d / total > 0.02,
+            "pbrt-v4's weights should overcount: {d:.5} ± {se:.5} of {total:.4}"
+        );
     }
 }
