@@ -32,13 +32,22 @@ impl Bsdf {
         let p = &material.pbrt;
         let conductor_alpha = pbrt_alpha(&p.conductor_roughness, p.conductor_alpha, textures, hit);
         let interface_alpha = pbrt_alpha(&p.interface_roughness, p.interface_alpha, textures, hit);
-        let conductor = || {
+        // `outside_ior`: the IOR of the medium the conductor's surface faces. Under a coat it is
+        // the coat's, and the Fresnel equations take the conductor's η and k relative to it
+        // (pbrt-v4's CoatedConductorMaterial divides both by the interface IOR, also for the
+        // `reflectance` form).
+        let conductor = |outside_ior: f32| {
             let (eta, k) = if p.conductor_reflectance {
                 conductor_from_reflectance(base)
             } else {
                 (p.conductor_eta, p.conductor_k)
             };
-            Conductor::new(eta, k, conductor_alpha.x, conductor_alpha.y)
+            Conductor::new(
+                eta / outside_ior,
+                k / outside_ior,
+                conductor_alpha.x,
+                conductor_alpha.y,
+            )
         };
         let layered = |base: Base| {
             Bsdf::Layered(Layered {
@@ -55,9 +64,9 @@ impl Bsdf {
             })
         };
         match material.model {
-            MaterialModel::Conductor => Bsdf::Conductor(conductor()),
+            MaterialModel::Conductor => Bsdf::Conductor(conductor(1.0)),
             MaterialModel::CoatedDiffuse => layered(Base::Diffuse { reflectance: base }),
-            MaterialModel::CoatedConductor => layered(Base::Conductor(conductor())),
+            MaterialModel::CoatedConductor => layered(Base::Conductor(conductor(p.interface_eta))),
             MaterialModel::DiffuseTransmission => Bsdf::DiffuseTransmission(DiffuseTransmission {
                 reflectance: base,
                 transmittance: p.transmittance,
