@@ -76,22 +76,6 @@ def inclusive(annotate, pattern):
     return total
 
 
-def calls(out_file, pattern):
-    """Call counts of functions matching `pattern`, from the callgrind output's `calls=` lines."""
-    n, fn_names, cur = 0, {}, None
-    with open(out_file) as f:
-        for line in f:
-            if line.startswith("cfn="):
-                m = re.match(r"cfn=\((\d+)\)(?: (.*))?", line.strip())
-                if m:
-                    if m.group(2):
-                        fn_names[m.group(1)] = m.group(2)
-                    cur = fn_names.get(m.group(1), "")
-            elif line.startswith("calls=") and cur is not None and re.search(pattern, cur):
-                n += int(line.split("=")[1].split()[0])
-    return n
-
-
 def callgrind(args, tmp):
     print("| binary | scene | rays (shadow) | render Ir / ray | closest-hit Ir / call | shadow Ir / call |")
     print("|---|---|---|---|---|---|")
@@ -105,19 +89,15 @@ def callgrind(args, tmp):
             m = RAYS.search(r.stderr)
             if r.returncode != 0 or not m:
                 sys.exit(f"callgrind run of {b} {s} failed: {r.stderr[-500:]}")
-            rays, shadow = int(m.group(1)), int(m.group(3))
+            # One closest-hit query per camera/bounce ray and one occlusion query per shadow ray.
+            rays, hit_n, occ_n = int(m.group(1)), int(m.group(2)), int(m.group(3))
             ann = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--threshold=100", out],
                                  capture_output=True, text=True).stdout
             render_ir = inclusive(ann, r"path::radiance")
-            # The render's own instructions: collect from here on only (`--toggle-collect`) would
-            # hide the load; the annotate's inclusive count of path::radiance is what we divide.
             hit_ir = inclusive(ann, r"Bvh>?::intersect_avx2|Bvh>?::intersect_portable")
             occ_ir = inclusive(ann, r"Bvh>?::occluded_avx2|Bvh>?::occluded_portable")
-            hit_n = calls(out, r"Bvh>?::intersect_(avx2|portable)")
-            occ_n = calls(out, r"Bvh>?::occluded_(avx2|portable)")
-            print(f"| {b} | {s} | {rays} ({shadow}) | {render_ir / rays:.0f} | "
-                  f"{hit_ir / max(hit_n, 1):.0f} ({hit_n} calls) | {occ_ir / max(occ_n, 1):.0f} ({occ_n} calls) |",
-                  flush=True)
+            print(f"| {b} | {s} | {rays} ({occ_n}) | {render_ir / rays:.0f} | "
+                  f"{hit_ir / max(hit_n, 1):.0f} | {occ_ir / max(occ_n, 1):.0f} |", flush=True)
 
 
 def main():

@@ -1051,14 +1051,27 @@ mod tests {
             assert!(!seen[p.index()]);
             seen[p.index()] = true;
         }
-        // With splitting, each at least once, and never twice in one leaf.
+        // With splitting (a few long triangles added to the soup), each at least once, and never
+        // twice in one leaf.
+        let mut g = g;
+        for i in 0..200u32 {
+            let a = Vec3::new(i as f32 * 0.05 - 5.0, -5.0, 0.0);
+            g.triangles.push(TriangleVerts {
+                p0: a,
+                p1: a + Vec3::new(0.0, 10.0, 0.1),
+                p2: a + Vec3::new(0.02, 10.0, 0.0),
+            });
+            g.tri_mesh.push((0, 20_000 + i));
+            g.tri_light.push(crate::geometry::primitive::NO_LIGHT);
+            g.meshes[0].indices.push([0, 0, 0]);
+        }
         let bvh = Bvh::build_split(&g, 0.3);
         let s = bvh.stats();
         assert!(
-            s.references > 20_000 && s.max_leaf_size <= MAX_LEAF,
+            s.references > 20_200 + 1000 && s.max_leaf_size <= MAX_LEAF,
             "{s:?}"
         );
-        let mut seen = vec![false; 20_000];
+        let mut seen = vec![false; 20_200];
         for n in &bvh.nodes {
             for lane in 0..WIDTH {
                 let (f, c) = (n.first[lane] as usize, n.count[lane] as usize);
