@@ -3,7 +3,8 @@
 //! then collapsed into an 8-wide BVH (Wald et al. 2008, "Getting Rid of Packets"; Dammertz et al.
 //! 2008, "Shallow Bounding Volume Hierarchies"; Embree's BVH8) whose nodes keep their eight
 //! children's boxes in structure-of-arrays form, so one node visit is a single 8-lane slab test.
-//! Traversal is front-to-back: hit children are pushed farthest first with their entry distance,
+//! Long triangles are first cut into several references with tighter boxes (`split.rs`), so the
+//! build sees boxes it can separate; a leaf keeps each primitive once. Traversal is front-to-back: hit children are pushed farthest first with their entry distance,
 //! and entries beyond the current closest hit are skipped when popped.
 //!
 //! Where the CPU has AVX2 (detected at run time, not `target-cpu=native`, so one binary runs
