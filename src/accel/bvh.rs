@@ -3,7 +3,8 @@
 //! then collapsed into an 8-wide BVH (Wald et al. 2008, "Getting Rid of Packets"; Dammertz et al.
 //! 2008, "Shallow Bounding Volume Hierarchies"; Embree's BVH8) whose nodes keep their eight
 //! children's boxes in structure-of-arrays form, so one node visit is a single 8-lane slab test.
-//! Traversal is front-to-back: hit children are pushed farthest first with their entry distance,
+//! Long triangles are first cut into several references with tighter boxes (`split.rs`), so the
+//! build sees boxes it can separate; a leaf keeps each primitive once. Traversal is front-to-back: hit children are pushed farthest first with their entry distance,
 //! and entries beyond the current closest hit are skipped when popped.
 //!
 //! Where the CPU has AVX2 (detected at run time, not `target-cpu=native`, so one binary runs
@@ -19,6 +20,7 @@
 //! the traversal loop another 14 % (callgrind, see BENCHMARKS.md); a 4-wide node did the work of
 //! about three binary nodes for the cost of one, and an 8-wide node that of about seven.
 
+use super::split::Reference;
 use crate::geometry::PrimitiveKind;
 use crate::geometry::primitive::Intersection;
 use crate::geometry::triangle::TriangleEdges;
@@ -85,6 +87,8 @@ pub struct Bvh {
     /// was a cache miss per triangle (BENCHMARKS.md). 36 bytes per triangle.
     tri_verts: Vec<TriangleEdges>,
     bounds: Bounds3,
+    /// References the tree was built over (primitives plus the extra pieces of split triangles).
+    references: usize,
     /// AVX2 was detected when the tree was built: traverse with the AVX2 copy of the code.
     avx2: bool,
 }
@@ -123,6 +127,16 @@ pub struct BvhStats {
     pub leaves: usize,
     pub max_depth: usize,
     pub max_leaf_size: usize,
+    /// References built over (primitives, plus the extra pieces of split triangles).
+    pub references: usize,
+    /// Primitive entries in the leaves (a split triangle may sit in several leaves).
+    pub leaf_prims: usize,
+    /// The SAH cost of the wide tree (Goldsmith & Salmon 1987; MacDonald & Booth 1990): the
+    /// expected number of wide-node tests plus primitive tests of a ray that crosses the root
+    /// box, for uniformly distributed rays: Σ over nodes of A(node)/A(root) + Σ over leaves of
+    /// A(leaf)/A(root) · primitives. Both tests are counted as cost 1 (an 8-lane node test and a
+    /// triangle test take a similar number of instructions, see BENCHMARKS.md).
+    pub sah_cost: f64,
 }
 
 /// Per-ray constants of the wide slab test: the origin, the inverse direction and, per axis,
@@ -258,8 +272,17 @@ struct Entry {
 }
 
 impl Bvh {
+    /// Builds over every primitive of `geometry`, long triangles pre-split into several
+    /// references (`split.rs`, budget [`super::split::budget_from_env`]).
     pub fn build(geometry: &GeometryStore) -> Bvh {
-        let mut bvh = Self::build_from(geometry.all_prims(), |p| geometry.bounds(p));
+        Self::build_split(geometry, super::split::budget_from_env())
+    }
+
+    /// [`Self::build`] with an explicit pre-split budget (extra references as a share of the
+    /// triangle count; 0 builds over one reference per primitive).
+    pub fn build_split(geometry: &GeometryStore, budget: f32) -> Bvh {
+        let refs = super::split::references(geometry, budget);
+        let mut bvh = Self::build_references(refs);
         let placeholder = TriangleEdges {
             p0: Vec3::ZERO,
             e1: Vec3::ZERO,
@@ -297,19 +320,31 @@ impl Bvh {
         }
     }
 
-    /// Builds over any set of primitives given their bounds. Primitives with empty or non-finite
-    /// bounds (degenerate input) are left out: they can never be hit.
+    /// Builds over any set of primitives given their bounds (no splitting). Primitives with empty
+    /// or non-finite bounds (degenerate input) are left out: they can never be hit.
     pub fn build_from(prims: Vec<PrimRef>, bounds_of: impl Fn(PrimRef) -> Bounds3 + Sync) -> Bvh {
-        let mut build: Vec<BuildPrim> = prims
+        let refs = prims
             .into_iter()
             .filter_map(|prim| {
                 let bounds = bounds_of(prim);
                 let ok = !bounds.is_empty() && bounds.min.is_finite() && bounds.max.is_finite();
-                ok.then(|| BuildPrim {
-                    prim,
-                    bounds,
-                    centroid: bounds.centroid(),
-                })
+                ok.then_some(Reference { prim, bounds })
+            })
+            .collect();
+        Self::build_references(refs)
+    }
+
+    /// Builds over references (a primitive and a box holding the part of it the reference
+    /// stands for; a split triangle has several). A leaf holding two references of one primitive
+    /// keeps one.
+    fn build_references(refs: Vec<Reference>) -> Bvh {
+        let references = refs.len();
+        let mut build: Vec<BuildPrim> = refs
+            .into_iter()
+            .map(|r| BuildPrim {
+                prim: r.prim,
+                bounds: r.bounds,
+                centroid: r.bounds.centroid(),
             })
             .collect();
         if build.is_empty() {
@@ -318,24 +353,28 @@ impl Bvh {
                 prims: Vec::new(),
                 tri_verts: Vec::new(),
                 bounds: Bounds3::EMPTY,
+                references: 0,
                 avx2: false,
             };
         }
         let root = build_recursive(&mut build, 0, 0);
         let bounds = root.bounds();
         let mut nodes = Vec::with_capacity(build.len() / 2 + 1);
+        let mut prims = Vec::with_capacity(build.len());
         nodes.push(BvhNode::EMPTY);
         match &root {
-            BuildNode::Leaf { first, count, .. } => {
-                nodes[0].set_lane(0, &bounds, *first as u32, *count as u32);
+            BuildNode::Leaf { .. } => {
+                let (first, count) = leaf_prims(&root, &build, &mut prims);
+                nodes[0].set_lane(0, &bounds, first, count);
             }
-            BuildNode::Interior { .. } => collapse(&root, 0, &mut nodes),
+            BuildNode::Interior { .. } => collapse(&root, 0, &build, &mut nodes, &mut prims),
         }
         Bvh {
             nodes,
-            prims: build.into_iter().map(|b| b.prim).collect(),
+            prims,
             tri_verts: Vec::new(),
             bounds,
+            references,
             avx2: detect_avx2(),
         }
     }
@@ -354,20 +393,33 @@ impl Bvh {
     pub fn stats(&self) -> BvhStats {
         let mut s = BvhStats {
             nodes: self.nodes.len(),
+            references: self.references,
             ..Default::default()
         };
         if self.nodes.is_empty() {
             return s;
         }
+        let root_area = (self.bounds.surface_area() as f64).max(f64::MIN_POSITIVE);
+        // The root node is tested by every ray that enters the root box.
+        s.sah_cost = 1.0;
         let mut stack = vec![(0usize, 1usize)];
         while let Some((i, depth)) = stack.pop() {
             let n = &self.nodes[i];
             s.max_depth = s.max_depth.max(depth);
             for lane in 0..WIDTH {
+                let area = Bounds3 {
+                    min: Vec3::new(n.min[0][lane], n.min[1][lane], n.min[2][lane]),
+                    max: Vec3::new(n.max[0][lane], n.max[1][lane], n.max[2][lane]),
+                }
+                .surface_area() as f64
+                    / root_area;
                 if n.count[lane] > 0 {
                     s.leaves += 1;
+                    s.leaf_prims += n.count[lane] as usize;
                     s.max_leaf_size = s.max_leaf_size.max(n.count[lane] as usize);
+                    s.sah_cost += area * n.count[lane] as f64;
                 } else if n.first[lane] != EMPTY_LANE {
+                    s.sah_cost += area;
                     stack.push((n.first[lane] as usize, depth + 1));
                 }
             }
@@ -535,10 +587,32 @@ impl Bvh {
     }
 }
 
+/// Appends the primitives of the binary leaf `leaf` to `prims`, each once (two pieces of a split
+/// triangle may share a leaf), and returns their range.
+fn leaf_prims(leaf: &BuildNode, build: &[BuildPrim], prims: &mut Vec<PrimRef>) -> (u32, u32) {
+    let BuildNode::Leaf { first, count, .. } = leaf else {
+        unreachable!("leaf_prims is called on leaves")
+    };
+    let start = prims.len();
+    for b in &build[*first..*first + *count] {
+        if !prims[start..].contains(&b.prim) {
+            prims.push(b.prim);
+        }
+    }
+    (start as u32, (prims.len() - start) as u32)
+}
+
 /// Writes the wide node `index` for the binary interior node `node`: its children are gathered
 /// by repeatedly opening the interior child of largest surface area (the SAH's proxy for the
 /// probability of being visited) until there are `WIDTH`, then each interior child becomes a node.
-fn collapse(node: &BuildNode, index: usize, nodes: &mut Vec<BvhNode>) {
+/// Leaves' primitives are written to `prims` in the order the leaves are reached.
+fn collapse(
+    node: &BuildNode,
+    index: usize,
+    build: &[BuildPrim],
+    nodes: &mut Vec<BvhNode>,
+    prims: &mut Vec<PrimRef>,
+) {
     let mut children: Vec<&BuildNode> = match node {
         BuildNode::Interior { children, .. } => vec![&children[0], &children[1]],
         BuildNode::Leaf { .. } => vec![node],
@@ -565,16 +639,15 @@ fn collapse(node: &BuildNode, index: usize, nodes: &mut Vec<BvhNode>) {
     }
     for (lane, child) in children.into_iter().enumerate() {
         match child {
-            BuildNode::Leaf {
-                bounds,
-                first,
-                count,
-            } => nodes[index].set_lane(lane, bounds, *first as u32, *count as u32),
+            BuildNode::Leaf { bounds, .. } => {
+                let (first, count) = leaf_prims(child, build, prims);
+                nodes[index].set_lane(lane, bounds, first, count);
+            }
             BuildNode::Interior { bounds, .. } => {
                 let child_index = nodes.len();
                 nodes.push(BvhNode::EMPTY);
                 nodes[index].set_lane(lane, bounds, child_index as u32, 0);
-                collapse(child, child_index, nodes);
+                collapse(child, child_index, build, nodes, prims);
             }
         }
     }
@@ -889,20 +962,131 @@ mod tests {
         }
     }
 
+    /// Long slivers crossing the scene in all directions among small triangles: the pre-split
+    /// tree (many references per sliver) finds exactly the brute-force hits, closest (t,
+    /// primitive, barycentrics) and any, and its SAH cost is lower than the unsplit tree's.
+    /// Fails if a piece's box misses part of its triangle, or if a leaf loses a primitive.
+    #[test]
+    fn split_slivers_agree_with_brute_force() {
+        let mut g = soup(2000, 21);
+        let mut rng = crate::sampling::rng::Pcg32::new(21, 4);
+        let mut point =
+            |s: f32| (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * s;
+        for i in 0..300 {
+            let (a, b) = (point(10.0), point(10.0));
+            let w = point(0.05);
+            g.triangles.push(TriangleVerts {
+                p0: a,
+                p1: b,
+                p2: b + w,
+            });
+            g.tri_mesh.push((0, 2000 + i));
+            g.tri_light.push(crate::geometry::primitive::NO_LIGHT);
+            g.meshes[0].indices.push([0, 0, 0]);
+        }
+        let plain = Bvh::build_split(&g, 0.0);
+        let split = Bvh::build_split(&g, 0.5);
+        let (ps, ss) = (plain.stats(), split.stats());
+        assert_eq!(ps.references, 2300);
+        assert!(ss.references > 2300 + 500, "{ss:?}");
+        assert!(
+            ss.sah_cost < 0.8 * ps.sah_cost,
+            "split {ss:?} vs plain {ps:?}"
+        );
+        let brute = crate::accel::Accel::build(crate::accel::AccelKind::None, &g);
+        let key = |h: Option<Intersection>| {
+            h.map(|h| (h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()))
+        };
+        let mut rng = crate::sampling::rng::Pcg32::new(8, 2);
+        let (mut hits, mut sliver_hits) = (0, 0);
+        for i in 0..6000 {
+            let o = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 14.0;
+            let mut d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+            if i % 2 == 0 {
+                // Aim at a uniform point of a random sliver: its ends and edges get hit too.
+                let t = g.triangles[2000 + (rng.next_f32() * 300.0) as usize % 300];
+                let (mut u, mut v) = (rng.next_f32(), rng.next_f32());
+                if u + v > 1.0 {
+                    (u, v) = (1.0 - u, 1.0 - v);
+                }
+                d = t.p0 + (t.p1 - t.p0) * u + (t.p2 - t.p0) * v - o;
+            }
+            let mut ray = Ray::new(o, d);
+            if i % 3 == 0 {
+                ray.t_max = 3.0 * rng.next_f32();
+            }
+            let want = key(brute.intersect(&g, &ray));
+            assert_eq!(key(split.intersect(&g, &ray)), want, "ray {i}");
+            assert_eq!(key(split.intersect_portable(&g, &ray)), want, "ray {i}");
+            assert_eq!(
+                split.occluded(&g, &ray),
+                brute.occluded(&g, &ray),
+                "ray {i}"
+            );
+            hits += want.is_some() as usize;
+            sliver_hits += want.is_some_and(|w| w.1.index() >= 2000) as usize;
+        }
+        assert!(
+            hits > 2000 && sliver_hits > 1000,
+            "{hits} hits, {sliver_hits} on slivers"
+        );
+        // Every primitive is in some leaf.
+        let mut seen = vec![false; 2300];
+        for p in &split.prims {
+            seen[p.index()] = true;
+        }
+        assert!(seen.iter().all(|&s| s));
+    }
+
     #[test]
     fn bvh_structure_is_sound() {
         let g = soup(20_000, 2);
-        let bvh = Bvh::build(&g);
+        let bvh = Bvh::build_split(&g, 0.0);
         let s = bvh.stats();
         assert_eq!(bvh.prims.len(), 20_000);
         assert!(s.max_leaf_size <= MAX_LEAF, "{s:?}");
         assert!(s.max_depth < MAX_BINARY_DEPTH, "{s:?}");
-        // Every primitive appears exactly once.
+        // Without splitting every primitive appears exactly once.
         let mut seen = vec![false; 20_000];
         for p in &bvh.prims {
             assert!(!seen[p.index()]);
             seen[p.index()] = true;
         }
+        // With splitting (a few long triangles added to the soup), each at least once, and never
+        // twice in one leaf.
+        let mut g = g;
+        for i in 0..200u32 {
+            let a = Vec3::new(i as f32 * 0.05 - 5.0, -5.0, 0.0);
+            g.triangles.push(TriangleVerts {
+                p0: a,
+                p1: a + Vec3::new(0.0, 10.0, 0.1),
+                p2: a + Vec3::new(0.02, 10.0, 0.0),
+            });
+            g.tri_mesh.push((0, 20_000 + i));
+            g.tri_light.push(crate::geometry::primitive::NO_LIGHT);
+            g.meshes[0].indices.push([0, 0, 0]);
+        }
+        let bvh = Bvh::build_split(&g, 0.3);
+        let s = bvh.stats();
+        assert!(
+            s.references > 20_200 + 1000 && s.max_leaf_size <= MAX_LEAF,
+            "{s:?}"
+        );
+        let mut seen = vec![false; 20_200];
+        for n in &bvh.nodes {
+            for lane in 0..WIDTH {
+                let (f, c) = (n.first[lane] as usize, n.count[lane] as usize);
+                if c == 0 {
+                    continue;
+                }
+                let leaf = &bvh.prims[f..f + c];
+                for (i, p) in leaf.iter().enumerate() {
+                    assert!(!leaf[..i].contains(p), "{p:?} twice in one leaf");
+                    seen[p.index()] = true;
+                }
+            }
+        }
+        assert!(seen.iter().all(|&s| s));
     }
 
     #[test]

@@ -4,6 +4,7 @@
 
 pub mod bvh;
 pub mod grid;
+pub mod split;
 
 pub use bvh::Bvh;
 pub use grid::Grid;
@@ -54,7 +55,13 @@ impl Accel {
     /// One line for reports: the structure and its size.
     pub fn describe(&self) -> String {
         match self {
-            Accel::Bvh(b) => format!("bvh ({} nodes)", b.nodes.len()),
+            Accel::Bvh(b) => {
+                let s = b.stats();
+                format!(
+                    "bvh ({} nodes, {} references, {} in leaves, SAH cost {:.1})",
+                    s.nodes, s.references, s.leaf_prims, s.sah_cost
+                )
+            }
             Accel::None(p) => format!("none ({} primitives tested per ray)", p.len()),
             Accel::Grid(g) => {
                 let s = g.stats();
