@@ -13,8 +13,7 @@ Scenes: cornell, veach, highpoly (1.3 M triangles), textured (high-frequency alb
 manylight (4096 emissive triangles), envlit (HDR-lit product shot), fog (scenes/media/fog_cornell.toml,
 Mitsuba volpath, pbrt-v4 volpath on scenes/pbrt/media/fog_cornell.pbrt, no Cycles), dragon (3 x the
 full Stanford dragon from npm, 2.6 M triangles), and Bitterli's pbrt-v4 scenes from ../shared/scenes/pbrt/
-(pbrt-cornell-box, pbrt-veach-mis, pbrt-volumetric-caustic; pbrt-coffee on request; Trayecto and
-pbrt-v4 only): both read the same edited copy in bench/out/pbrt/ (film `--res` pixels high, aspect
+(pbrt-cornell-box, pbrt-veach-mis, pbrt-volumetric-caustic, pbrt-coffee; Trayecto and pbrt-v4 only): both read the same edited copy in bench/out/pbrt/ (film `--res` pixels high, aspect
 kept; pbrt-v4's sampler set there; everything else as in the file, e.g. its maxdepth and filter).
 
 Writes bench/results.md (the table, also printed) and everything generated into bench/out/ (scene
@@ -80,8 +79,7 @@ SHARED = os.path.normpath(os.path.join(ROOT, "..", "shared"))
 PBRT_EXE = os.path.join(SHARED, "tools", "pbrt-v4", "pbrt")
 # Bitterli's scenes as pbrt-v4 files (../shared/scenes/pbrt/): Trayecto and pbrt-v4 read the same
 # edited copy (resolution and sampler changed, see pbrt_copy); Mitsuba and Cycles do not read pbrt.
-# coffee and dining-room are left out by default: at 64 px high they take minutes per pbrt-v4
-# reference and Trayecto warns about parts of them (see BENCHMARKS.md).
+# dining-room is not in the default list: ../shared lacks one of its textures (pbrt-v4 refuses it).
 PBRT_SCENES = {
     "pbrt-cornell-box": os.path.join(SHARED, "scenes", "pbrt", "cornell-box", "scene-v4.pbrt"),
     "pbrt-veach-mis": os.path.join(SHARED, "scenes", "pbrt", "veach-mis", "scene-v4.pbrt"),
@@ -90,7 +88,7 @@ PBRT_SCENES = {
     "pbrt-dining-room": os.path.join(SHARED, "scenes", "pbrt", "dining-room", "scene-v4.pbrt"),
 }
 SCENES = ["cornell", "veach", "highpoly", "textured", "manylight", "envlit", "fog", "dragon",
-          "pbrt-cornell-box", "pbrt-veach-mis", "pbrt-volumetric-caustic"]
+          "pbrt-cornell-box", "pbrt-veach-mis", "pbrt-volumetric-caustic", "pbrt-coffee"]
 QUICK_SCENES = ["cornell", "textured", "fog", "pbrt-cornell-box", "pbrt-veach-mis"]
 # Scenes that are not built with bpy: Trayecto reads the repository's file, Mitsuba a translation
 # of it, Cycles is not run.
@@ -942,15 +940,17 @@ def pbrt_copy(scene, res, sampler):
     high with the file's aspect ratio kept (its width rounded), and, when `sampler` is given, the
     Sampler directive replaced by `Sampler "NAME"` with no parameters (pbrt-v4's --spp gives the
     count; a parameter another sampler does not take would be an error). Everything else in the
-    file's folder is symlinked beside the copy, so relative paths (meshes, textures) still resolve.
+    file's folder is copied beside it (a few MB), so relative paths (meshes, textures) still
+    resolve: not symlinked, as Trayecto refuses files that lead outside the scene's folder.
     Returns (path, width, height)."""
     src = PBRT_FILES[scene]
     d = os.path.join(OUT, "pbrt", scene)
     os.makedirs(d, exist_ok=True)
     for name in os.listdir(os.path.dirname(src)):
-        link = os.path.join(d, name)
-        if name != os.path.basename(src) and not os.path.lexists(link):
-            os.symlink(os.path.join(os.path.dirname(src), name), link)
+        dst, orig = os.path.join(d, name), os.path.join(os.path.dirname(src), name)
+        if name == os.path.basename(src) or name.endswith(".pbrt") or os.path.lexists(dst):
+            continue
+        (shutil.copytree if os.path.isdir(orig) else shutil.copy2)(orig, dst)
     dirs = pbrt_directives(pbrt_tokens(open(src).read()))
     w0 = h0 = None
     for dv in dirs:
@@ -1147,6 +1147,8 @@ def main():
     ap.add_argument("--trayecto-bin", default=None, help="use this trayecto binary instead of cargo build")
     ap.add_argument("--no-pgo", action="store_true",
                     help="time the plain `cargo build --release` binary instead of the profile-guided build")
+    ap.add_argument("--references-only", action="store_true",
+                    help="render (and cache in bench/out/) the missing references, time nothing, write no table")
     ap.add_argument("--results", default=os.path.join(HERE, "results.md"))
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--scene", help=argparse.SUPPRESS)
@@ -1245,7 +1247,7 @@ def main():
             else:
                 live.append(r)
         base_name = next((r for r in renderers if r.split(":")[0] == "trayecto"), None)
-        for rnd in range(args.rounds):
+        for rnd in range(1 if args.references_only else args.rounds):
             for r in list(live):
                 kind, _, fixed = r.partition(":")
                 entry = results.get((scene, r))
@@ -1269,6 +1271,8 @@ def main():
                         f.write(json.dumps({"time": res["runs"][0]["time"]}))
                     if res.get("crashes"):
                         results[(scene, "_pbrt_crashes")] = results.get((scene, "_pbrt_crashes"), 0) + res["crashes"]
+                if args.references_only:
+                    continue
                 pre_sweep = None
                 if len(samplers) > 1:
                     # Mitsuba's samplers, each at the ladder's top spp; the least time × error
@@ -1356,10 +1360,14 @@ def main():
                     # Each round renders new seeds: the error is the rounds' mean too.
                     p["relmse"] = float(np.mean([errs[k] for errs in entry["round_ladders"]]))
                 loads.append(os.getloadavg()[0])
+        if args.references_only:
+            continue
         # The table so far, after every scene, so an interrupted run keeps what it measured.
         done = scenes[:scenes.index(scene) + 1]
         with open(args.results, "w") as f:
             f.write(report(results, done, renderers, ladder, ref_spp, args, loads, time.time() - t_start))
+    if args.references_only:
+        return 0
     load1 = os.getloadavg()
     md = report(results, scenes, renderers, ladder, ref_spp, args, loads + [load1[0]], time.time() - t_start)
     with open(args.results, "w") as f:
