@@ -1433,7 +1433,10 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
     w(f"# Trayecto vs Mitsuba 3 vs Cycles vs pbrt-v4 ({'quick' if args.quick else 'full'} mode)")
     w("")
     w(f"- machine: {os.cpu_count()} logical CPUs, {cpu}; {args.threads} threads for every renderer")
-    w(f"- {args.res}×{args.res} pixels, ladder {ladder} spp, references {ref_spp} spp; {args.rounds} interleaved "
+    sizes = "; ".join(f"{sc} {pbrt_copy(sc, args.res, None)[1]}×{args.res}" for sc in scenes
+                      if sc in PBRT_SCENES and pbrt_copy(sc, args.res, None)[1] != args.res)
+    w(f"- {args.res}×{args.res} pixels ({'pbrt scenes keep their aspect: ' + sizes if sizes else 'every scene'}), "
+      f"ladder {ladder} spp, references {ref_spp} spp; {args.rounds} interleaved "
       f"rounds, each timing a ladder point as the best of {args.repeat} renders; times are the rounds' medians, "
       f"ratios in brackets the lowest and highest round; run took {elapsed:.0f} s")
     w(f"- Trayecto build: {args.trayecto_build}")
