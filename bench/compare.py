@@ -1448,6 +1448,9 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
                                                   ("repeat", args.repeat, 2 if args.quick else 3)) if v != d)
     opts += "" if args.renderers == ",".join(RENDERERS) else " --renderers " + args.renderers
     opts += " --no-pgo" if args.no_pgo else ""
+    opts += f" --res {args.res}" if args.res != (64 if args.quick else 256) else ""
+    opts += f" --ladder {','.join(map(str, ladder))}" if ladder != ([4, 16, 64] if args.quick else [4, 16, 64, 256]) else ""
+    opts += f" --ref-spp {ref_spp}" if ref_spp != (512 if args.quick else 4096) else ""
     opts += f" --time-limit {args.time_limit:g}" if args.time_limit != (300.0 if args.quick else 1800.0) else ""
     w(f"- command: `python3 bench/compare.py{opts}`")
     w(f"- time limit: {args.time_limit:.0f} s per sampler probe (a ladder worker {2 * args.repeat} x that, a "
