@@ -72,7 +72,7 @@ enum Connect {
     Mis,
     /// Connections only: walk directions leaving through the coat add nothing.
     #[cfg(test)]
-    ConnectOnly,
+    NeeOnly,
     /// Walk directions only: no connections (where the walk has a non-specular alternative).
     #[cfg(test)]
     WalkOnly,
@@ -96,7 +96,7 @@ fn connect_weight(mode: Connect, walk_can: bool, p_nee: f32, p_walk: f32) -> f32
         #[cfg(test)]
         Connect::PbrtV4 => power_heuristic(p_nee, p_walk),
         #[cfg(test)]
-        Connect::ConnectOnly => 1.0,
+        Connect::NeeOnly => 1.0,
         #[cfg(test)]
         Connect::WalkOnly => 0.0,
     }
@@ -415,7 +415,7 @@ impl Layered {
             #[cfg(test)]
             Connect::PbrtV4 => power_heuristic(p_walk, coat.pdf(-w, wi, Lobes::Transmission)),
             #[cfg(test)]
-            Connect::ConnectOnly => 0.0,
+            Connect::NeeOnly => 0.0,
             #[cfg(test)]
             Connect::WalkOnly => 1.0,
         }
@@ -769,7 +769,7 @@ mod tests {
             for theta in [20.0, 65.0] {
                 let wo = dir(theta);
                 let total = reflectance(&l, wo, n / 4);
-                for other in [Connect::ConnectOnly, Connect::WalkOnly] {
+                for other in [Connect::NeeOnly, Connect::WalkOnly] {
                     let (d, se) = albedo_difference(&l, wo, Connect::Mis, other, n);
                     assert!(
                         d.abs() < 4.0 * se + 1e-4,
