@@ -478,10 +478,16 @@ pub fn opacity(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> f
     a
 }
 
-/// Reads a texture reference at a hit, applying its UV set and transform.
+/// Reads a texture reference at a hit, applying its UV set and transform. A procedural texture
+/// ([`super::procedural`]) is evaluated at the hit instead (alpha 1; its mapping replaces the
+/// reference's transform).
 #[inline]
 pub fn sample_texture(textures: &[Texture], t: &TextureRef, hit: &SurfaceHit) -> Vec4 {
     let set = (t.texcoord as usize).min(1);
+    let tex = &textures[t.texture];
+    if let Some(p) = &tex.procedural {
+        return procedural_lookup(p, textures, hit, set);
+    }
     let mut uv = hit.uv[set];
     let mut duv = hit.duv[set];
     if let Some(tr) = &t.transform {
@@ -494,7 +500,27 @@ pub fn sample_texture(textures: &[Texture], t: &TextureRef, hit: &SurfaceHit) ->
             duv = Vec4::new(dx.x, dx.y, dy.x, dy.y);
         }
     }
-    textures[t.texture].lookup_filtered(uv, duv)
+    tex.lookup_filtered(uv, duv)
+}
+
+/// A procedural texture at `hit`, in pbrt's (u, v) convention: stored uvs have v growing down
+/// the image, so pbrt's v is 1 − v and its derivatives change sign. Kept out of line so the
+/// image lookup above stays as small as it was.
+#[inline(never)]
+fn procedural_lookup(
+    p: &super::procedural::Procedural,
+    textures: &[Texture],
+    hit: &SurfaceHit,
+    set: usize,
+) -> Vec4 {
+    let (uv, d) = (hit.uv[set], hit.duv[set]);
+    let ctx = super::procedural::TexCtx {
+        uv: Vec2::new(uv.x, 1.0 - uv.y),
+        duv: Vec4::new(d.x, -d.y, d.z, -d.w),
+        p: hit.p,
+        n: hit.ng,
+    };
+    p.eval(textures, &ctx).extend(1.0)
 }
 
 /// Emitted radiance of `material` at `hit` (front face only unless double-sided), toward `wo`.

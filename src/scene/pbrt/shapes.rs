@@ -358,7 +358,7 @@ impl Loader {
 
     fn alpha_node(&mut self, t: &str, at: &str) -> super::materials::TexNode {
         match self.float_textures.get(t) {
-            Some(n) => n.clone(),
+            Some(n) => *n,
             None => {
                 self.warn(format!(
                     "{at}: alpha texture \"{t}\" is not defined; the shape is opaque"
