@@ -592,6 +592,32 @@ fn checkerboard_3d_matches_pbrt_v4() {
     assert!(block8 < 0.1, "worst 8x8 block {block8}");
 }
 
+/// `loopsubdiv` on a closed cube and an open bumpy patch (boundary rules), one level each, ends
+/// on the limit surface with limit normals, as pbrt-v4's `LoopSubdivide` does.
+#[test]
+fn loop_subdivision_limit_surface_matches_pbrt_v4() {
+    let scene = load(&repo("scenes/pbrt/loopsubdiv.pbrt"));
+    assert!(
+        warnings_about(&scene, "Shape").is_empty(),
+        "{:?}",
+        scene.warnings
+    );
+    let with_normals = scene.meshes.iter().filter(|m| m.normals.is_some()).count();
+    assert_eq!(
+        with_normals, 2,
+        "both subdivision surfaces carry limit normals"
+    );
+    let img = render(&scene, 64);
+    assert_matches_pbrt_v4(&img, "loopsubdiv", 0.02, 0.05);
+    let (_, block8) = compare_grid(
+        &img,
+        &read_exr(&repo("tests/references/pbrt/loopsubdiv.exr")),
+        8,
+    );
+    eprintln!("loopsubdiv: worst 8x8 block {block8:.4}");
+    assert!(block8 < 0.1, "worst 8x8 block {block8}");
+}
+
 /// Hostile texture graphs: a chain of `scale` textures each naming the previous one twice
 /// (the work per lookup doubles per level), a deep chain, an unknown checkerboard dimension and
 /// a texture naming itself (it sees only textures defined before it) are clean errors or
