@@ -170,6 +170,7 @@ fn mask_follows_the_base_colour_texture_alpha() {
         filter: FilterMode::Nearest,
         mipmap: true,
         mips: Vec::new(),
+        procedural: None,
     };
     let sheet = Material {
         base_color_texture: Some(TextureRef::new(0)),

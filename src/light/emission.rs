@@ -127,6 +127,7 @@ mod tests {
             filter,
             mipmap: true,
             mips: Vec::new(),
+            procedural: None,
         }
     }
 

@@ -12,6 +12,7 @@ pub mod iridescence;
 pub mod local_shading;
 pub mod microfacet;
 pub mod normal_map;
+pub mod procedural;
 pub mod sheen;
 mod sheen_table;
 pub mod texture;

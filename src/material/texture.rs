@@ -279,6 +279,9 @@ pub struct Texture {
     /// Levels 1, 2, … of the MIP pyramid (level 0 is `texels`), built by [`Texture::build_mips`]
     /// when texture filtering is on; empty otherwise, and then every lookup is the plain one.
     pub mips: Vec<MipLevel>,
+    /// A pbrt-v4 procedural texture evaluated per hit ([`super::eval::sample_texture`]); its
+    /// `texels` then hold one texel, its mean, which plain lookups and light-power estimates use.
+    pub procedural: Option<Box<super::procedural::Procedural>>,
 }
 
 /// One level of a MIP pyramid: half the size of the level below (rounded down, at least 1),
@@ -370,6 +373,7 @@ impl Texture {
             filter: FilterMode::Bilinear,
             mipmap: true,
             mips: Vec::new(),
+            procedural: None,
         }
     }
 
@@ -385,6 +389,7 @@ impl Texture {
             filter: FilterMode::Nearest,
             mipmap: false,
             mips: Vec::new(),
+            procedural: None,
         }
     }
 
@@ -593,6 +598,7 @@ mod tests {
             filter: FilterMode::Nearest,
             mipmap: true,
             mips: Vec::new(),
+            procedural: None,
         }
     }
 

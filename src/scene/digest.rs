@@ -84,6 +84,7 @@ pub fn digest(spec: &str, scene: &Scene, env: Option<&Path>) -> Result<String, S
         h.update(t.height.to_le_bytes());
         hash_debug(&mut h, &(t.wrap_s, t.wrap_t, t.filter));
         hash_f32s(&mut h, t.texels.iter().flat_map(|p| p.to_array()));
+        hash_debug(&mut h, &t.procedural);
     }
     h.update(b"\0materials");
     for m in &scene.materials {

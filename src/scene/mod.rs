@@ -672,6 +672,14 @@ impl Scene {
                 ));
             }
         }
+        for (i, t) in self.textures.iter().enumerate() {
+            // A procedural texture's arena: ordered (no cycles), bounded, naming images.
+            if let Some(p) = &t.procedural {
+                p.validate(&self.textures).map_err(|e| {
+                    SceneError::invalid(&label, format!("texture {i} '{}': {e}", t.name))
+                })?;
+            }
+        }
         for (i, m) in self.materials.iter().enumerate() {
             m.validate(self.textures.len()).map_err(|e| {
                 SceneError::invalid(&label, format!("material {i} '{}': {e}", m.name))

@@ -99,6 +99,7 @@ pub fn checker(name: &str, size: u32, cells: u32, a: Vec3, b: Vec3) -> Texture {
         filter: FilterMode::Bilinear,
         mipmap: true,
         mips: Vec::new(),
+        procedural: None,
     }
 }
 

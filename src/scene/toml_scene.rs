@@ -822,7 +822,13 @@ fn add_mesh_file(
             }
             scene.materials.push(m);
         }
-        scene.textures.extend(sub.textures);
+        // Image nodes of pbrt-v4 procedural textures name the file's own images.
+        scene.textures.extend(sub.textures.into_iter().map(|mut t| {
+            if let Some(p) = &mut t.procedural {
+                p.shift_images(t0 as u32);
+            }
+            t
+        }));
     }
     for o in sub.objects {
         let shape = match o.shape {

@@ -572,7 +572,13 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
     // Texel memory by storage kind (issue #23: 8-bit textures stay 8-bit).
     let mut kinds: std::collections::BTreeMap<&str, (usize, usize)> = Default::default();
     for t in &world.textures {
-        let k = kinds.entry(t.texels.kind()).or_default();
+        // pbrt-v4 procedural textures are evaluated per hit; their one texel is their mean.
+        let kind = if t.procedural.is_some() {
+            "procedural"
+        } else {
+            t.texels.kind()
+        };
+        let k = kinds.entry(kind).or_default();
         k.0 += 1;
         k.1 += t.texel_bytes();
     }

@@ -1,11 +1,15 @@
 //! pbrt-v4 materials and textures mapped onto Trayecto's.
 //!
-//! Textures become a small tree ([`TexNode`]) evaluated in pbrt's (u, v) convention (v up). A
-//! constant folds into the material's factor; an `imagemap` (optionally scaled) becomes an image
-//! texture reference with its `uscale/vscale/udelta/vdelta` as a UV transform; anything else
-//! (`checkerboard`, `mix`, `bilerp`, `scale` of two textures, `invert`…) is baked into an image
-//! over one period of the texture coordinates (documented in the README; exact for textures that
-//! repeat with period 1, as integer `uscale`/`vscale` checkerboards do).
+//! Textures become nodes of an arena ([`TexNode`], [`TexExpr`]) as the file defines them; a
+//! texture can only name textures defined before it, so children always precede parents and the
+//! graph has no cycle. Constants fold while the graph is built. Where a material uses a texture,
+//! a constant becomes the material's factor; an `imagemap` with `uv` mapping (optionally scaled
+//! by a constant) becomes an image texture reference with its `uscale/vscale/udelta/vdelta` as a
+//! UV transform (the plain image path); anything else (`checkerboard` in 2D or 3D, `mix`,
+//! `directionmix`, `bilerp`, `scale` of two textures, `invert`, other mappings) becomes a
+//! procedural texture evaluated at each hit ([`crate::material::procedural`]), exactly as
+//! pbrt-v4 evaluates it. Graphs nested deeper than [`procedural::MAX_DEPTH`] or costing more
+//! than [`procedural::MAX_COST`] node evaluations per lookup are errors.
 //!
 //! Material mapping: `diffuse` → Lambertian; `dielectric` → dielectric (rough through
 //! `roughness`); `thindielectric` → thin-walled transmission; `conductor` → the pbrt-v4 conductor
@@ -18,6 +22,7 @@
 //! `displacement` bump-maps the shading normal per hit (`eval::bump`). Textured η, albedo and
 //! transmittance use their mean (warned).
 
+use std::collections::HashMap;
 use std::path::PathBuf;
 
 use rayon::prelude::*;
@@ -25,6 +30,7 @@ use rayon::prelude::*;
 use super::Loader;
 use super::params::{ParamList, SpectrumValue, TexOr};
 use crate::material::microfacet::pbrt_roughness_to_alpha;
+use crate::material::procedural::{self, Mapping2D, Procedural, TexCtx, TexExpr};
 use crate::material::texture::{FilterMode, TextureRef, UvTransform};
 use crate::material::{Material, MaterialModel, RoughnessTextures, Texture, WrapMode};
 use crate::math::{Vec2, Vec3, Vec4};
@@ -39,152 +45,100 @@ pub struct MatSpec {
     pub at: String,
 }
 
-/// pbrt's `uv` texture mapping: s = su·u + du, t = sv·v + dv.
+/// A texture value: a constant, or a node of the loader's texture arena.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct UvMap {
-    pub su: f32,
-    pub sv: f32,
-    pub du: f32,
-    pub dv: f32,
-}
-
-impl UvMap {
-    fn from_params(p: &ParamList) -> UvMap {
-        if let Some(m) = p.string("mapping")
-            && m != "uv"
-        {
-            // Reported by the caller through `unused`-style warnings is not possible for a value,
-            // so the caller checks `mapping` itself.
-        }
-        UvMap {
-            su: p.float("uscale", 1.0),
-            sv: p.float("vscale", 1.0),
-            du: p.float("udelta", 0.0),
-            dv: p.float("vdelta", 0.0),
-        }
-    }
-
-    fn apply(&self, u: f32, v: f32) -> (f32, f32) {
-        (self.su * u + self.du, self.sv * v + self.dv)
-    }
-
-    fn is_identity(&self) -> bool {
-        *self
-            == UvMap {
-                su: 1.0,
-                sv: 1.0,
-                du: 0.0,
-                dv: 0.0,
-            }
-    }
-}
-
-/// A texture, evaluated in pbrt's (u, v) (v = 0 at the bottom of images).
-#[derive(Clone, Debug)]
 pub enum TexNode {
     Const(Vec3),
-    /// `scene.textures[texture]` (decoded after parsing), times `scale`, optionally inverted.
-    Image {
-        texture: usize,
-        scale: f32,
-        invert: bool,
-        map: UvMap,
-    },
-    Checker {
-        a: Box<TexNode>,
-        b: Box<TexNode>,
-        map: UvMap,
-    },
-    Scale(Box<TexNode>, Box<TexNode>),
-    Mix {
-        a: Box<TexNode>,
-        b: Box<TexNode>,
-        amount: Box<TexNode>,
-    },
-    Bilerp {
-        v: [Vec3; 4],
-        map: UvMap,
-    },
+    Node(u32),
 }
 
-impl TexNode {
-    fn constant(&self) -> Option<Vec3> {
-        match self {
-            TexNode::Const(c) => Some(*c),
-            TexNode::Scale(a, b) => Some(a.constant()? * b.constant()?),
-            TexNode::Mix { a, b, amount } => {
-                let t = amount.constant()?.x;
-                Some(a.constant()? * (1.0 - t) + b.constant()? * t)
-            }
-            TexNode::Checker { a, b, .. } => {
-                let (a, b) = (a.constant()?, b.constant()?);
-                (a == b).then_some(a)
-            }
-            _ => None,
+/// The loader's texture graph: every node of every named texture, children before parents, with
+/// each node's nesting depth and evaluation cost (shared children counted each time).
+#[derive(Default)]
+pub struct TexArena {
+    nodes: Vec<TexExpr>,
+    depth: Vec<u32>,
+    cost: Vec<u64>,
+    /// Scene texture (and material factor) made for a node, so materials naming the same
+    /// texture share one procedural texture.
+    made: HashMap<u32, (Vec3, TextureRef)>,
+    /// Procedural textures whose fallback texel (their mean) is computed after images decode.
+    procedural: Vec<usize>,
+}
+
+impl TexArena {
+    fn index(&mut self, n: TexNode) -> u32 {
+        match n {
+            TexNode::Node(i) => i,
+            TexNode::Const(c) => self.push(TexExpr::Const(c)),
         }
     }
 
-    /// Value at pbrt (u, v).
-    fn eval(&self, textures: &[Texture], u: f32, v: f32) -> Vec3 {
-        match self {
-            TexNode::Const(c) => *c,
-            TexNode::Image {
-                texture,
-                scale,
-                invert,
-                map,
-            } => {
-                let (s, t) = map.apply(u, v);
-                let c = textures
-                    .get(*texture)
-                    .map(|tex| tex.lookup(Vec2::new(s, 1.0 - t)).truncate())
-                    .unwrap_or(Vec3::ZERO)
-                    * *scale;
-                if *invert {
-                    (Vec3::ONE - c).max(Vec3::ZERO)
-                } else {
-                    c
-                }
-            }
-            TexNode::Checker { a, b, map } => {
-                let (s, t) = map.apply(u, v);
-                if (s.floor() as i64 + t.floor() as i64).rem_euclid(2) == 0 {
-                    a.eval(textures, u, v)
-                } else {
-                    b.eval(textures, u, v)
-                }
-            }
-            TexNode::Scale(a, b) => a.eval(textures, u, v) * b.eval(textures, u, v),
-            TexNode::Mix { a, b, amount } => {
-                let t = amount.eval(textures, u, v).x;
-                a.eval(textures, u, v) * (1.0 - t) + b.eval(textures, u, v) * t
-            }
-            TexNode::Bilerp { v: c, map } => {
-                let (s, t) = map.apply(u, v);
-                let (s, t) = (s - s.floor(), t - t.floor());
-                c[0] * (1.0 - s) * (1.0 - t)
-                    + c[1] * s * (1.0 - t)
-                    + c[2] * (1.0 - s) * t
-                    + c[3] * s * t
-            }
+    fn push(&mut self, e: TexExpr) -> u32 {
+        let (mut d, mut c) = (1u32, 1u64);
+        let (ch, k) = e.children();
+        for &i in &ch[..k] {
+            d = d.max(self.depth[i as usize].saturating_add(1));
+            c = c.saturating_add(self.cost[i as usize]);
+        }
+        self.nodes.push(e);
+        self.depth.push(d);
+        self.cost.push(c);
+        (self.nodes.len() - 1) as u32
+    }
+
+    fn get(&self, n: TexNode) -> Option<&TexExpr> {
+        match n {
+            TexNode::Node(i) => self.nodes.get(i as usize),
+            TexNode::Const(_) => None,
         }
     }
 
-    /// The largest source image under this node (sets the bake resolution).
-    fn max_image(&self, jobs: &[ImageJob]) -> u32 {
-        match self {
-            TexNode::Image { texture, .. } => jobs
-                .iter()
-                .find(|j| j.texture == *texture)
-                .map_or(0, |j| j.size_hint),
-            TexNode::Checker { a, b, .. } => a.max_image(jobs).max(b.max_image(jobs)),
-            TexNode::Scale(a, b) => a.max_image(jobs).max(b.max_image(jobs)),
-            TexNode::Mix { a, b, amount } => a
-                .max_image(jobs)
-                .max(b.max_image(jobs))
-                .max(amount.max_image(jobs)),
-            _ => 0,
+    /// The nodes `root` reaches, in arena order (so still children first), re-indexed, the root
+    /// last.
+    fn extract(&self, root: u32) -> Procedural {
+        let mut keep = vec![false; root as usize + 1];
+        let mut stack = vec![root];
+        while let Some(i) = stack.pop() {
+            if std::mem::replace(&mut keep[i as usize], true) {
+                continue;
+            }
+            let (ch, k) = self.nodes[i as usize].children();
+            stack.extend_from_slice(&ch[..k]);
         }
+        let mut new_index = vec![u32::MAX; keep.len()];
+        let mut nodes = Vec::new();
+        for (i, _) in keep.iter().enumerate().filter(|(_, k)| **k) {
+            new_index[i] = nodes.len() as u32;
+            let r = |j: u32| new_index[j as usize];
+            nodes.push(match self.nodes[i] {
+                TexExpr::Checkerboard { tex, map } => TexExpr::Checkerboard {
+                    tex: tex.map(r),
+                    map,
+                },
+                TexExpr::Checkerboard3D {
+                    tex,
+                    texture_from_world,
+                } => TexExpr::Checkerboard3D {
+                    tex: tex.map(r),
+                    texture_from_world,
+                },
+                TexExpr::Scale { tex, scale } => TexExpr::Scale {
+                    tex: r(tex),
+                    scale: r(scale),
+                },
+                TexExpr::Mix { tex, amount } => TexExpr::Mix {
+                    tex: tex.map(r),
+                    amount: r(amount),
+                },
+                TexExpr::DirectionMix { tex, dir } => TexExpr::DirectionMix {
+                    tex: tex.map(r),
+                    dir,
+                },
+                leaf => leaf,
+            });
+        }
+        Procedural { nodes }
     }
 }
 
@@ -198,21 +152,54 @@ pub struct ImageJob {
     pub filter: FilterMode,
     pub wrap: WrapMode,
     pub at: String,
-    /// Bake resolution to use for nodes containing this image.
-    pub size_hint: u32,
 }
 
-/// A procedural texture to bake into `scene.textures[texture]` after images are decoded.
-pub struct BakeJob {
-    pub texture: usize,
-    pub node: TexNode,
-    pub size: u32,
-}
-
-/// Bake resolution for procedural textures without an image in them.
-const BAKE_SIZE: u32 = 512;
+/// Resolution of the grid over [0, 1]² whose mean stands for a procedural texture where a
+/// single value is needed (light-power estimates, the raycast modes' roughness).
+const MEAN_GRID: u32 = 32;
 
 impl Loader {
+    /// pbrt-v4's 2D texture mapping of a `Texture` directive (`TextureMapping2D::Create`):
+    /// `uv` with `uscale/vscale/udelta/vdelta`; `spherical`, `cylindrical` and `planar` (with
+    /// `v1`, `v2`, `udelta`, `vdelta`) of the point in the texture's space, the inverse of the
+    /// transform current at the directive.
+    fn mapping_2d(&mut self, list: &ParamList, what: &str, at: &str) -> Mapping2D {
+        let uv = |list: &ParamList| Mapping2D::Uv {
+            su: list.float("uscale", 1.0),
+            sv: list.float("vscale", 1.0),
+            du: list.float("udelta", 0.0),
+            dv: list.float("vdelta", 0.0),
+        };
+        let m = list.string("mapping").unwrap_or_else(|| "uv".into());
+        if m == "uv" {
+            return uv(list);
+        }
+        let Some(texture_from_world) = super::invert(&self.gs.ctm) else {
+            self.warn(format!(
+                "{at}: {what}: mapping \"{m}\" under a singular transform; uv mapping is used"
+            ));
+            return uv(list);
+        };
+        match m.as_str() {
+            "spherical" => Mapping2D::Spherical { texture_from_world },
+            "cylindrical" => Mapping2D::Cylindrical { texture_from_world },
+            "planar" => Mapping2D::Planar {
+                texture_from_world,
+                vs: list.point3("v1", Vec3::X),
+                vt: list.point3("v2", Vec3::Y),
+                ds: list.float("udelta", 0.0),
+                dt: list.float("vdelta", 0.0),
+            },
+            other => {
+                // pbrt-v4 reports an unknown mapping and uses uv.
+                self.warn(format!(
+                    "{at}: {what}: mapping \"{other}\" is unknown; uv mapping is used"
+                ));
+                uv(list)
+            }
+        }
+    }
+
     pub(super) fn texture_directive(
         &mut self,
         name: String,
@@ -233,70 +220,154 @@ impl Loader {
                 ));
             }
         };
-        if let Some(m) = list.string("mapping")
-            && m != "uv"
-        {
-            self.warn(format!(
-                "{at}: Texture \"{name}\": mapping \"{m}\" is not supported; uv mapping is used"
-            ));
-        }
-        let map = UvMap::from_params(&list);
+        let what = format!("Texture \"{name}\"");
         let node = match class {
             "constant" => self.tex_param(&list, "value", is_float, Vec3::ONE, at),
             "scale" => {
                 let t = self.tex_param(&list, "tex", is_float, Vec3::ONE, at);
                 let s = self.tex_param(&list, "scale", true, Vec3::ONE, at);
-                TexNode::Scale(Box::new(t), Box::new(s))
+                match (t, s) {
+                    (TexNode::Const(t), TexNode::Const(s)) => TexNode::Const(t * s.x),
+                    _ => {
+                        let (tex, scale) = (self.tex.index(t), self.tex.index(s));
+                        TexNode::Node(self.tex.push(TexExpr::Scale { tex, scale }))
+                    }
+                }
             }
             "mix" => {
                 let a = self.tex_param(&list, "tex1", is_float, Vec3::ZERO, at);
                 let b = self.tex_param(&list, "tex2", is_float, Vec3::ONE, at);
                 let amount = self.tex_param(&list, "amount", true, Vec3::splat(0.5), at);
-                TexNode::Mix {
-                    a: Box::new(a),
-                    b: Box::new(b),
-                    amount: Box::new(amount),
+                match (a, b, amount) {
+                    (TexNode::Const(a), TexNode::Const(b), TexNode::Const(t)) => {
+                        TexNode::Const(a * (1.0 - t.x) + b * t.x)
+                    }
+                    _ => {
+                        let tex = [self.tex.index(a), self.tex.index(b)];
+                        let amount = self.tex.index(amount);
+                        TexNode::Node(self.tex.push(TexExpr::Mix { tex, amount }))
+                    }
+                }
+            }
+            "directionmix" => {
+                let a = self.tex_param(&list, "tex1", is_float, Vec3::ZERO, at);
+                let b = self.tex_param(&list, "tex2", is_float, Vec3::ONE, at);
+                // pbrt-v4: `dir` in the texture's space, taken to render space and normalised.
+                let dir = self
+                    .gs
+                    .ctm
+                    .transform_vector3(list.point3("dir", Vec3::Y))
+                    .normalize_or_zero();
+                if let (TexNode::Const(a), TexNode::Const(b)) = (a, b)
+                    && a == b
+                {
+                    TexNode::Const(a)
+                } else if !dir.is_finite() || dir == Vec3::ZERO {
+                    return Err(SceneError::invalid(
+                        at,
+                        format!("{what}: \"dir\" is not a direction"),
+                    ));
+                } else {
+                    let tex = [self.tex.index(a), self.tex.index(b)];
+                    TexNode::Node(self.tex.push(TexExpr::DirectionMix { tex, dir }))
                 }
             }
             "checkerboard" => {
-                let dim = list.int("dimension", 2);
-                if dim != 2 {
-                    self.warn(format!(
-                        "{at}: Texture \"{name}\": 3D checkerboards are not supported; a 2D one is used"
-                    ));
-                }
                 let a = self.tex_param(&list, "tex1", is_float, Vec3::ONE, at);
                 let b = self.tex_param(&list, "tex2", is_float, Vec3::ZERO, at);
-                TexNode::Checker {
-                    a: Box::new(a),
-                    b: Box::new(b),
-                    map,
+                let dim = list.int("dimension", 2);
+                let e = match dim {
+                    2 => {
+                        let map = self.mapping_2d(&list, &what, at);
+                        TexExpr::Checkerboard { tex: [0, 0], map }
+                    }
+                    3 => {
+                        // pbrt-v4 `TextureMapping3D`: the point in the texture's space.
+                        let Some(texture_from_world) = super::invert(&self.gs.ctm) else {
+                            return Err(SceneError::invalid(
+                                at,
+                                format!("{what}: a 3D checkerboard under a singular transform"),
+                            ));
+                        };
+                        TexExpr::Checkerboard3D {
+                            tex: [0, 0],
+                            texture_from_world,
+                        }
+                    }
+                    d => {
+                        return Err(SceneError::invalid(
+                            at,
+                            format!("{what}: {d}-dimensional checkerboards do not exist (2 or 3)"),
+                        ));
+                    }
+                };
+                if let (TexNode::Const(a), TexNode::Const(b)) = (a, b)
+                    && a == b
+                {
+                    TexNode::Const(a)
+                } else {
+                    let tex = [self.tex.index(a), self.tex.index(b)];
+                    TexNode::Node(self.tex.push(match e {
+                        TexExpr::Checkerboard { map, .. } => TexExpr::Checkerboard { tex, map },
+                        TexExpr::Checkerboard3D {
+                            texture_from_world, ..
+                        } => TexExpr::Checkerboard3D {
+                            tex,
+                            texture_from_world,
+                        },
+                        other => other,
+                    }))
                 }
             }
             "bilerp" => {
+                // pbrt-v4 `BilerpTexture`: four constant corner values (not textures).
                 let g = |l: &mut Loader, k: &str, d: f32| -> Vec3 {
                     match l.tex_param(&list, k, is_float, Vec3::splat(d), at) {
                         TexNode::Const(c) => c,
-                        _ => Vec3::splat(d),
+                        TexNode::Node(_) => {
+                            l.warn(format!(
+                                "{at}: {what}: \"{k}\" must be a value, not a texture; {d} is used"
+                            ));
+                            Vec3::splat(d)
+                        }
                     }
                 };
                 let v = [
                     g(self, "v00", 0.0),
-                    g(self, "v10", 1.0),
-                    g(self, "v01", 0.0),
+                    g(self, "v10", 0.0),
+                    g(self, "v01", 1.0),
                     g(self, "v11", 1.0),
                 ];
-                TexNode::Bilerp { v, map }
+                let map = self.mapping_2d(&list, &what, at);
+                TexNode::Node(self.tex.push(TexExpr::Bilerp { v, map }))
             }
-            "imagemap" => self.imagemap(&name, &list, map, is_float, at)?,
+            "imagemap" => self.imagemap(&name, &list, is_float, at)?,
             other => {
                 self.warn(format!(
-                    "{at}: Texture \"{name}\" \"{other}\" is not supported; a constant 0.5 is used"
+                    "{at}: {what} \"{other}\" is not supported; a constant 0.5 is used"
                 ));
+                // Its own parameters are covered by this warning.
+                for q in &list.params {
+                    q.used.set(true);
+                }
                 TexNode::Const(Vec3::splat(0.5))
             }
         };
-        self.note_unused(&list, &format!("Texture \"{name}\" \"{class}\""), at);
+        if let TexNode::Node(i) = node {
+            let (d, c) = (self.tex.depth[i as usize], self.tex.cost[i as usize]);
+            if d > procedural::MAX_DEPTH || c > procedural::MAX_COST {
+                return Err(SceneError::invalid(
+                    at,
+                    format!(
+                        "{what}: the texture graph is nested {d} deep and costs {c} evaluations \
+                         per lookup (limits {} and {})",
+                        procedural::MAX_DEPTH,
+                        procedural::MAX_COST
+                    ),
+                ));
+            }
+        }
+        self.note_unused(&list, &format!("{what} \"{class}\""), at);
         let table = if is_float {
             &mut self.float_textures
         } else {
@@ -310,7 +381,6 @@ impl Loader {
         &mut self,
         name: &str,
         list: &ParamList,
-        map: UvMap,
         is_float: bool,
         at: &str,
     ) -> Result<TexNode, SceneError> {
@@ -320,6 +390,7 @@ impl Loader {
                 format!("Texture \"{name}\": imagemap without \"filename\""),
             ));
         };
+        let map = self.mapping_2d(list, &format!("Texture \"{name}\""), at);
         let scale = list.float("scale", 1.0);
         let invert = list.bool("invert", false);
         // pbrt-v4 filters every one of these through its MIP pyramid; Trayecto does when
@@ -383,9 +454,6 @@ impl Loader {
         self.scene
             .textures
             .push(crate::scene::image_io::missing_texture(&file));
-        let size_hint = image::image_dimensions(&path)
-            .map(|(w, h)| w.max(h).min(4096))
-            .unwrap_or(BAKE_SIZE);
         self.image_jobs.push(ImageJob {
             texture: index,
             path,
@@ -395,14 +463,13 @@ impl Loader {
             filter,
             wrap,
             at: at.to_string(),
-            size_hint,
         });
-        Ok(TexNode::Image {
-            texture: index,
+        Ok(TexNode::Node(self.tex.push(TexExpr::Image {
+            texture: index as u32,
             scale,
             invert,
             map,
-        })
+        })))
     }
 
     pub(super) fn in_memory(&self) -> bool {
@@ -446,7 +513,7 @@ impl Loader {
             (&self.spectrum_textures, &self.float_textures)
         };
         if let Some(n) = first.get(name).or_else(|| second.get(name)) {
-            return n.clone();
+            return *n;
         }
         self.warn(format!(
             "{at}: texture \"{name}\" is not defined; a constant 0.5 is used"
@@ -495,42 +562,57 @@ impl Loader {
         }
     }
 
-    /// A node as a material factor plus an optional texture reference.
+    /// A node as a material factor plus an optional texture reference: a constant is a factor;
+    /// a `uv`-mapped, non-inverted image (or such an image scaled by a constant) is the plain
+    /// image path with pbrt's mapping as a UV transform; anything else is a procedural texture
+    /// evaluated per hit, made once per node.
     fn node_to_factor(&mut self, node: &TexNode) -> (Vec3, Option<TextureRef>) {
-        if let Some(c) = node.constant() {
-            return (c, None);
-        }
-        if let TexNode::Image {
-            texture,
-            scale,
-            invert: false,
-            map,
-        } = node
+        let i = match *node {
+            TexNode::Const(c) => return (c, None),
+            TexNode::Node(i) => i,
+        };
+        let image = |e: Option<&TexExpr>| match e {
+            Some(&TexExpr::Image {
+                texture,
+                scale,
+                invert: false,
+                map: Mapping2D::Uv { su, sv, du, dv },
+            }) => Some((texture, scale, (su, sv, du, dv))),
+            _ => None,
+        };
+        let mut plain = image(self.tex.get(*node)).map(|(t, s, m)| (t, s, 1.0, m));
+        if let Some(&TexExpr::Scale { tex, scale }) = self.tex.get(*node)
+            && let Some(&TexExpr::Const(c)) = self.tex.nodes.get(scale as usize)
+            && let Some((t, s, m)) = image(self.tex.nodes.get(tex as usize))
         {
+            // pbrt-v4 folds a constant `scale` texture into the image's scale too.
+            plain = Some((t, s, c.x, m));
+        }
+        if let Some((texture, scale, k, (su, sv, du, dv))) = plain {
             // Trayecto's v runs down the image (mesh uvs are stored as (u, 1 − v)); pbrt's
             // lookup of (su·u + du, sv·v + dv) with v up is, in stored coordinates,
             // (su·u' + du, sv·v' + 1 − sv − dv).
-            let mut r = TextureRef::new(*texture);
-            if !map.is_identity() {
+            let mut r = TextureRef::new(texture as usize);
+            if (su, sv, du, dv) != (1.0, 1.0, 0.0, 0.0) {
                 r.transform = Some(UvTransform {
-                    offset: Vec2::new(map.du, 1.0 - map.sv - map.dv),
+                    offset: Vec2::new(du, 1.0 - sv - dv),
                     rotation: 0.0,
-                    scale: Vec2::new(map.su, map.sv),
+                    scale: Vec2::new(su, sv),
                 });
             }
-            return (Vec3::splat(*scale), Some(r));
+            return (Vec3::splat(scale * k), Some(r));
         }
-        let size = node.max_image(&self.image_jobs).clamp(BAKE_SIZE, 2048);
+        if let Some((c, r)) = self.tex.made.get(&i) {
+            return (*c, Some(*r));
+        }
         let index = self.scene.textures.len();
-        self.scene
-            .textures
-            .push(Texture::constant("pbrt baked texture", Vec4::ONE));
-        self.bake_jobs.push(BakeJob {
-            texture: index,
-            node: node.clone(),
-            size,
-        });
-        (Vec3::ONE, Some(TextureRef::new(index)))
+        let mut t = Texture::constant("pbrt procedural texture", Vec4::ONE);
+        t.procedural = Some(Box::new(self.tex.extract(i)));
+        self.scene.textures.push(t);
+        self.tex.procedural.push(index);
+        let r = TextureRef::new(index);
+        self.tex.made.insert(i, (Vec3::ONE, r));
+        (Vec3::ONE, Some(r))
     }
 
     pub(super) fn node_to_factor_public(&mut self, node: &TexNode) -> (Vec3, Option<TextureRef>) {
@@ -556,31 +638,21 @@ impl Loader {
         self.image_jobs = jobs;
     }
 
-    /// Bakes procedural textures (after images are decoded), in parallel.
-    pub(super) fn run_bake_jobs(&mut self) {
-        let jobs = std::mem::take(&mut self.bake_jobs);
+    /// Sets each procedural texture's single texel to its mean over [0, 1]² of pbrt's (u, v)
+    /// (after images are decoded): what a plain lookup and light-power estimates see.
+    pub(super) fn run_procedural_means(&mut self) {
+        let list = std::mem::take(&mut self.tex.procedural);
         let textures = &self.scene.textures;
-        let baked: Vec<(usize, Texture)> = jobs
+        let means: Vec<(usize, Vec3)> = list
             .par_iter()
-            .map(|j| {
-                let n = j.size.max(1);
-                let mut texels = Vec::with_capacity((n * n) as usize);
-                for row in 0..n {
-                    for col in 0..n {
-                        // Row 0 is the top of the image: pbrt's v = 1 there.
-                        let u = (col as f32 + 0.5) / n as f32;
-                        let v = 1.0 - (row as f32 + 0.5) / n as f32;
-                        texels.push(j.node.eval(textures, u, v).extend(1.0));
-                    }
-                }
-                (
-                    j.texture,
-                    Texture::image("pbrt baked texture", n, n, texels),
-                )
+            .filter_map(|&i| {
+                let p = textures[i].procedural.as_ref()?;
+                Some((i, grid_mean(|ctx| p.eval(textures, ctx))))
             })
             .collect();
-        for (i, t) in baked {
-            self.scene.textures[i] = t;
+        for (i, m) in means {
+            let t = &mut self.scene.textures[i];
+            t.texels = crate::material::texture::Texels::F32(vec![m.extend(1.0)]);
         }
     }
 
@@ -659,18 +731,29 @@ impl Loader {
         alpha.sqrt().clamp(0.0, 1.0)
     }
 
+    /// A node's mean over [0, 1]² of pbrt's (u, v) (images read as far as they are decoded).
     fn mean_over_unit_square(&self, n: &TexNode) -> Vec3 {
-        let mut s = Vec3::ZERO;
-        for i in 0..16 {
-            for j in 0..16 {
-                s += n.eval(
-                    &self.scene.textures,
-                    (i as f32 + 0.5) / 16.0,
-                    (j as f32 + 0.5) / 16.0,
-                );
+        match *n {
+            TexNode::Const(c) => c,
+            TexNode::Node(i) => grid_mean(|ctx| {
+                procedural::eval_node(&self.tex.nodes, i, &self.scene.textures, ctx)
+            }),
+        }
+    }
+
+    /// A node's value at pbrt's (u, v) = (0.5, 0.5).
+    fn value_at_centre(&self, n: &TexNode) -> Vec3 {
+        match *n {
+            TexNode::Const(c) => c,
+            TexNode::Node(i) => {
+                let ctx = TexCtx {
+                    uv: Vec2::splat(0.5),
+                    n: Vec3::Z,
+                    ..Default::default()
+                };
+                procedural::eval_node(&self.tex.nodes, i, &self.scene.textures, &ctx)
             }
         }
-        s / 256.0
     }
 
     /// A spectrum parameter the pbrt-v4 models take as a constant (layer albedo, diffuse
@@ -684,9 +767,9 @@ impl Loader {
         what: &str,
     ) -> Vec3 {
         let n = self.tex_param(p, key, false, default, at);
-        match n.constant() {
-            Some(c) => c,
-            None => {
+        match n {
+            TexNode::Const(c) => c,
+            TexNode::Node(_) => {
                 self.warn(format!(
                     "{at}: {what}: a textured \"{key}\" is not supported; its mean over [0,1]² is used"
                 ));
@@ -1067,7 +1150,7 @@ impl Loader {
             Some(TexOr::Texture(t)) => {
                 let n = self.lookup_texture(&t, false, at);
                 self.warn(format!("{at}: \"{key}\": a textured value (\"{t}\") is not supported; its value at the centre is used"));
-                n.eval(&self.scene.textures, 0.5, 0.5)
+                self.value_at_centre(&n)
             }
             None => self.reflectance_rgb(&SpectrumValue::Named(default.into()), at, key),
         }
@@ -1111,11 +1194,28 @@ impl Loader {
             filter: FilterMode::Bilinear,
             wrap: WrapMode::Repeat,
             at: at.to_string(),
-            size_hint: 0,
         });
         m.normal_texture = Some(crate::material::texture::TextureRef::new(index));
         m.normal_scale = 1.0;
     }
+}
+
+/// The mean of `f` over a [`MEAN_GRID`]² grid of cell centres of pbrt's (u, v) ∈ [0, 1]² (at
+/// the origin, normal +z, no footprint).
+fn grid_mean(f: impl Fn(&TexCtx) -> Vec3) -> Vec3 {
+    let n = MEAN_GRID;
+    let mut s = Vec3::ZERO;
+    for i in 0..n {
+        for j in 0..n {
+            let ctx = TexCtx {
+                uv: Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32),
+                n: Vec3::Z,
+                ..Default::default()
+            };
+            s += f(&ctx);
+        }
+    }
+    s / (n * n) as f32
 }
 
 /// Reads and decodes one image (PNG, JPEG, TGA, HDR via the `image` crate; EXR via the loader
@@ -1177,22 +1277,5 @@ mod tests {
         assert_eq!(t.texels.get(1), Vec4::new(4.0, 5.0, 6.0, 1.0));
         assert!(decode_pfm("x", &f[..f.len() - 1]).is_err());
         assert!(decode_pfm("x", b"PF\n999999 999999\n-1\n").is_err());
-    }
-
-    #[test]
-    fn checkerboard_alternates_in_pbrt_uv() {
-        let n = TexNode::Checker {
-            a: Box::new(TexNode::Const(Vec3::ONE)),
-            b: Box::new(TexNode::Const(Vec3::ZERO)),
-            map: UvMap {
-                su: 4.0,
-                sv: 4.0,
-                du: 0.0,
-                dv: 0.0,
-            },
-        };
-        assert_eq!(n.eval(&[], 0.1, 0.1), Vec3::ONE);
-        assert_eq!(n.eval(&[], 0.3, 0.1), Vec3::ZERO);
-        assert_eq!(n.eval(&[], 0.3, 0.3), Vec3::ONE);
     }
 }

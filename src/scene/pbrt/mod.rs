@@ -230,6 +230,8 @@ pub(crate) struct Loader {
     anonymous_materials: Vec<MatSpec>,
     pub(crate) float_textures: HashMap<String, TexNode>,
     pub(crate) spectrum_textures: HashMap<String, TexNode>,
+    /// Every texture node of the file ([`materials::TexArena`]).
+    pub(crate) tex: materials::TexArena,
     material_cache: HashMap<String, MaterialId>,
     /// Materials placed by a `NamedMaterial` not (yet) defined: pbrt-v4 creates named materials
     /// at the end of the world block, so a later `MakeNamedMaterial` still applies. Resolved in
@@ -244,7 +246,6 @@ pub(crate) struct Loader {
     settings: Settings,
     ply_jobs: Vec<PlyJob>,
     pub(crate) image_jobs: Vec<materials::ImageJob>,
-    pub(crate) bake_jobs: Vec<materials::BakeJob>,
     world_begun: bool,
     warned_once: std::collections::HashSet<String>,
     /// Named media: `Some(id)` when mapped, `None` for a type Trayecto lacks (warned once).
@@ -279,7 +280,7 @@ impl Loader {
             settings: Settings::default(),
             ply_jobs: Vec::new(),
             image_jobs: Vec::new(),
-            bake_jobs: Vec::new(),
+            tex: Default::default(),
             world_begun: false,
             warned_once: Default::default(),
             media: HashMap::new(),
@@ -1422,7 +1423,7 @@ impl Loader {
         self.load_plys()?;
         self.default_triangle_uvs();
         self.run_image_jobs();
-        self.run_bake_jobs();
+        self.run_procedural_means();
         self.camera_and_film()?;
         Ok(self.scene)
     }

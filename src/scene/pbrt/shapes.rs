@@ -315,9 +315,12 @@ impl Loader {
                     }
                     (positions, tris) = super::shapes::loop_subdivide(&positions, &tris);
                 }
+                // pbrt-v4 ends on the limit surface, with its limit normals.
+                let (positions, normals) = loop_limit(&positions, &tris);
                 let mut mesh = Mesh {
                     name: name.clone(),
                     positions,
+                    normals: Some(normals),
                     indices: tris,
                     ..Default::default()
                 };
@@ -358,7 +361,7 @@ impl Loader {
 
     fn alpha_node(&mut self, t: &str, at: &str) -> super::materials::TexNode {
         match self.float_textures.get(t) {
-            Some(n) => n.clone(),
+            Some(n) => *n,
             None => {
                 self.warn(format!(
                     "{at}: alpha texture \"{t}\" is not defined; the shape is opaque"
@@ -897,6 +900,192 @@ pub fn loop_subdivide(p: &[Vec3], tris: &[[u32; 3]]) -> (Vec<Vec3>, Vec<[u32; 3]
     (out, new_tris)
 }
 
+/// The one-ring of vertex `v` in the order pbrt-v4's `SDVertex::oneRing` walks it, in `ring`,
+/// from the faces `faces` around it: starting at a face's next vertex and crossing to the face
+/// across the edge (v, next) — clockwise seen from the side the triangles wind counter-clockwise
+/// towards; for a boundary vertex from the boundary neighbour at the end of that walk back to the
+/// other one. Returns whether `v` is on a boundary, or `None` where the faces do not form one
+/// fan (non-manifold or inconsistently wound), where the limit rules do not apply.
+fn one_ring(v: u32, faces: &[u32], tris: &[[u32; 3]], ring: &mut Vec<u32>) -> Option<bool> {
+    ring.clear();
+    // (next, prev) of v in each face.
+    let corner = |f: u32| -> (u32, u32) {
+        let t = tris[f as usize];
+        let k = t.iter().position(|&x| x == v).unwrap_or(0);
+        (t[(k + 1) % 3], t[(k + 2) % 3])
+    };
+    // The single face whose `pick` corner is `x`, or None (none, or several: not a fan).
+    let unique = |x: u32, pick: fn((u32, u32)) -> u32| -> Result<Option<u32>, ()> {
+        let mut found = None;
+        for &f in faces {
+            if pick(corner(f)) == x {
+                if found.is_some() {
+                    return Err(());
+                }
+                found = Some(f);
+            }
+        }
+        Ok(found)
+    };
+    let first = *faces.first()?;
+    // Walk in pbrt's `nextFace` direction: the face across (v, next) has `prev` = next.
+    let mut f = first;
+    let mut steps = 0;
+    let boundary = loop {
+        let (next, _) = corner(f);
+        match unique(next, |c| c.1).ok()? {
+            Some(g) if g == first => break false,
+            Some(g) => f = g,
+            None => break true,
+        }
+        steps += 1;
+        if steps > faces.len() {
+            return None;
+        }
+    };
+    if !boundary {
+        f = first;
+        loop {
+            let (next, _) = corner(f);
+            ring.push(next);
+            f = unique(next, |c| c.1).ok()??;
+            if f == first {
+                break;
+            }
+            if ring.len() > faces.len() {
+                return None;
+            }
+        }
+        return (ring.len() == faces.len()).then_some(false);
+    }
+    // Boundary: `f` is the last face in the next direction; walk back with `prevFace`.
+    ring.push(corner(f).0);
+    loop {
+        let (_, prev) = corner(f);
+        ring.push(prev);
+        match unique(prev, |c| c.0).ok()? {
+            Some(g) => f = g,
+            None => break,
+        }
+        if ring.len() > faces.len() + 1 {
+            return None;
+        }
+    }
+    (ring.len() == faces.len() + 1).then_some(true)
+}
+
+/// Loop's even-vertex weight β(n) for an interior vertex of valence n (Loop 1987; Warren's
+/// simplification 3/(8n), 3/16 for n = 3, as PBRT §3.8 and pbrt-v4 use).
+fn loop_beta(n: usize) -> f32 {
+    if n == 3 {
+        3.0 / 16.0
+    } else {
+        3.0 / (8.0 * n as f32)
+    }
+}
+
+/// Moves the vertices of a Loop-subdivided mesh to the limit surface and gives each its limit
+/// normal, the last step of pbrt-v4's `LoopSubdivide` (Loop 1987, §3.8 of PBRT 3rd ed.):
+/// interior vertices go to (1 − nγ)·v + γ·Σ ring with γ = 1/(n + 3/(8β(n))); boundary vertices
+/// to 3/5·v + 1/5·(their two boundary neighbours). The normal is S × T of the limit tangents,
+/// from the limit positions of the ordered one-ring: interior S = Σ cos(2πj/n)·p_j,
+/// T = Σ sin(2πj/n)·p_j; on a boundary S runs along it and T across it with the valence's
+/// weights (Hoppe et al. 1994). The ring's order is pbrt-v4's, so the normals point where
+/// pbrt-v4's do. A vertex whose faces do not form a fan keeps its position and gets the mean of
+/// its faces' normals, turned the same way.
+pub fn loop_limit(p: &[Vec3], tris: &[[u32; 3]]) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut faces_of: Vec<Vec<u32>> = vec![Vec::new(); p.len()];
+    for (f, t) in tris.iter().enumerate() {
+        for &v in t {
+            if !faces_of[v as usize].contains(&(f as u32)) {
+                faces_of[v as usize].push(f as u32);
+            }
+        }
+    }
+    let mut ring = Vec::new();
+    let rings: Vec<Option<(bool, Vec<u32>)>> = (0..p.len())
+        .map(|v| {
+            let b = one_ring(v as u32, &faces_of[v], tris, &mut ring)?;
+            Some((b, ring.clone()))
+        })
+        .collect();
+    let limit: Vec<Vec3> = p
+        .iter()
+        .zip(&rings)
+        .map(|(&v, r)| match r {
+            Some((false, ring)) => {
+                let n = ring.len() as f32;
+                let gamma = 1.0 / (n + 3.0 / (8.0 * loop_beta(ring.len())));
+                let sum: Vec3 = ring.iter().map(|&j| p[j as usize]).sum();
+                v * (1.0 - n * gamma) + sum * gamma
+            }
+            Some((true, ring)) => {
+                v * 0.6 + (p[ring[0] as usize] + p[ring[ring.len() - 1] as usize]) * 0.2
+            }
+            None => v,
+        })
+        .collect();
+    let normals = rings
+        .iter()
+        .enumerate()
+        .map(|(v, r)| {
+            let q = |j: u32| limit[j as usize];
+            let n = match r {
+                Some((false, ring)) => {
+                    let k = ring.len() as f32;
+                    let (mut s, mut t) = (Vec3::ZERO, Vec3::ZERO);
+                    for (j, &i) in ring.iter().enumerate() {
+                        let a = std::f32::consts::TAU * j as f32 / k;
+                        s += q(i) * a.cos();
+                        t += q(i) * a.sin();
+                    }
+                    s.cross(t)
+                }
+                Some((true, ring)) => {
+                    let k = ring.len();
+                    let pv = limit[v];
+                    let s = q(ring[k - 1]) - q(ring[0]);
+                    let t = match k {
+                        2 => q(ring[0]) + q(ring[1]) - pv * 2.0,
+                        3 => q(ring[1]) - pv,
+                        4 => {
+                            -q(ring[0]) + q(ring[1]) * 2.0 + q(ring[2]) * 2.0
+                                - q(ring[3])
+                                - pv * 2.0
+                        }
+                        _ => {
+                            let theta = std::f32::consts::PI / (k - 1) as f32;
+                            let mut t = (q(ring[0]) + q(ring[k - 1])) * theta.sin();
+                            for (j, &i) in ring.iter().enumerate().take(k - 1).skip(1) {
+                                t += q(i) * ((2.0 * theta.cos() - 2.0) * (j as f32 * theta).sin());
+                            }
+                            -t
+                        }
+                    };
+                    s.cross(t)
+                }
+                None => Vec3::ZERO,
+            }
+            .normalize_or_zero();
+            if n != Vec3::ZERO && n.is_finite() {
+                return n;
+            }
+            // The faces' normals, turned as pbrt-v4's ring order turns them (against the
+            // counter-clockwise side).
+            let sum: Vec3 = faces_of[v]
+                .iter()
+                .map(|&f| {
+                    let [a, b, c] = tris[f as usize].map(|i| limit[i as usize]);
+                    -(b - a).cross(c - a)
+                })
+                .sum();
+            let n = sum.normalize_or_zero();
+            if n == Vec3::ZERO { Vec3::Z } else { n }
+        })
+        .collect();
+    (limit, normals)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -915,6 +1104,54 @@ mod tests {
         assert_eq!(q.len(), 4 + 6);
         // A closed surface's vertices move towards the centroid.
         assert!(q[0].length() < p[0].length());
+    }
+
+    /// An octahedron's limit surface: every vertex is on the limit sphere-like surface, the
+    /// normals are unit and point inwards (pbrt-v4's ring order turns them against the
+    /// counter-clockwise side, which faces out here), and a regular vertex of a flat patch stays
+    /// in its plane with the plane's normal.
+    #[test]
+    fn loop_limit_positions_and_normals() {
+        let p = vec![Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
+        // Counter-clockwise seen from outside.
+        let t = vec![
+            [0, 2, 4],
+            [2, 1, 4],
+            [1, 3, 4],
+            [3, 0, 4],
+            [2, 0, 5],
+            [1, 2, 5],
+            [3, 1, 5],
+            [0, 3, 5],
+        ];
+        let (mut q, mut s) = (p.clone(), t.clone());
+        for _ in 0..2 {
+            (q, s) = loop_subdivide(&q, &s);
+        }
+        let (l, n) = loop_limit(&q, &s);
+        for (i, (x, m)) in l.iter().zip(&n).enumerate() {
+            assert!((m.length() - 1.0).abs() < 1e-4, "{i}");
+            assert!(m.dot(*x) < -0.8 * x.length(), "vertex {i}: {x} normal {m}");
+        }
+        // Symmetry: the six original vertices go to the same distance.
+        let r = l[0].length();
+        for v in &l[..6] {
+            assert!((v.length() - r).abs() < 1e-5);
+        }
+        // A regular interior vertex of a flat hexagonal fan keeps its place; the limit normal is
+        // the plane's (−z for counter-clockwise +z faces); boundary vertices stay in the plane.
+        let mut fan = vec![Vec3::ZERO];
+        for k in 0..6 {
+            let a = std::f32::consts::TAU * k as f32 / 6.0;
+            fan.push(Vec3::new(a.cos(), a.sin(), 0.0));
+        }
+        let tris: Vec<[u32; 3]> = (0..6).map(|k| [0, 1 + k, 1 + (k + 1) % 6]).collect();
+        let (l, n) = loop_limit(&fan, &tris);
+        assert!(l[0].length() < 1e-6);
+        for (v, m) in l.iter().zip(&n) {
+            assert!(v.z.abs() < 1e-6);
+            assert!((*m - -Vec3::Z).length() < 1e-5, "{m}");
+        }
     }
 
     #[test]
