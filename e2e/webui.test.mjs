@@ -376,6 +376,41 @@ test("Render final renders the framed view, the same image the viewport refined 
   assert.equal(same, 0, "the final image differs from the viewport's");
 });
 
+test("an orthographic scene camera is kept until the view moves, and the page says when it is not", async () => {
+  await openViewport({ scene: "orthographic.pbrt", output: "e2e-ortho", width: 64, height: 48, spp: 4,
+    max_depth: 5, view_spp: 4, exposure: 1 }, 4);
+  await page.selectOption("#tonemap", "clamp");
+  const note = () => page.evaluate(() => {
+    const p = document.getElementById("vp-projection");
+    return { hidden: p.hidden, text: p.textContent, projection: document.getElementById("viewport").dataset.projection };
+  });
+  let n = await note();
+  assert.equal(n.projection, "orthographic");
+  assert.ok(!n.hidden && /orthographic camera/.test(n.text) && !/Perspective/.test(n.text), n.text);
+  // Unmoved, Render final sends no camera: the scene's own (orthographic) camera renders, the
+  // same image the viewport refined to.
+  await page.click("#render-final");
+  await waitFinal();
+  const r = await (await fetch(BASE + "/api/renders")).json();
+  const job = r.renders.find((j) => j.output === "e2e-ortho");
+  assert.equal(job.camera, null, "the unmoved view sent a camera: " + JSON.stringify(job.camera));
+  assert.equal(await finalVsViewport(), 0, "the final image differs from the viewport's");
+  // An orbit turns it into a perspective view, and the note says so.
+  const g = (await viewport()).generation;
+  await page.focus("#viewport");
+  await page.keyboard.press("ArrowRight");
+  await waitNewView(g);
+  n = await note();
+  assert.equal(n.projection, "perspective");
+  assert.ok(!n.hidden && /^Perspective view/.test(n.text), n.text);
+  // Reset view returns to the scene's camera.
+  await page.click("#reset-view");
+  await settle(4);
+  n = await note();
+  assert.equal(n.projection, "orthographic");
+  assert.ok(!/Perspective/.test(n.text), n.text);
+});
+
 /** Mean display RGB (0-255) of a canvas. */
 async function meanRgb(id) {
   return page.evaluate((id) => {

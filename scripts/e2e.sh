@@ -54,6 +54,8 @@ mkdir -p "$tmp/scenes"
 cp ../shared/scenes/hdr/studio_small_03_1k.hdr "$tmp/scenes/"
 # A glTF quad with material variants (KHR_materials_variants) for the variant picker.
 cp scenes/gltf-files/quad_variants.gltf "$tmp/scenes/"
+# A pbrt-v4 scene with an orthographic camera (issue #16: the viewport keeps its projection).
+cp scenes/pbrt/orthographic.pbrt "$tmp/scenes/"
 "$bin" serve --port 0 --max-jobs 1 --scenes "$tmp/scenes" --output "$tmp/out" >"$tmp/server.log" 2>&1 &
 pid=$!
 addr="$(address_of "$tmp/server.log" "$pid")" || exit 1

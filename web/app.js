@@ -528,6 +528,11 @@ const vp = {
   scene: null,        // scene the orbit below belongs to
   home: null,         // the scene's own view {camera, bounds}
   orbit: null,        // {target, dist, yaw, pitch, up, A, B, fov, radius}
+  // Whether the user has orbited, dollied or panned away from the scene's own camera. Until
+  // then no camera is sent, so the viewport and "Render final" use the scene's camera as the
+  // command line does: its projection (orthographic, spherical), lens and screen window. The
+  // orbit is a perspective eye/target/fov, so a moved view of such a scene is perspective.
+  moved: false,
   sending: false, dirty: false, polling: false, repoll: false, generation: 0, shown: 0, lin: null, timer: null, sentAt: 0,
 };
 const V = {
@@ -568,20 +573,43 @@ function viewSize() {
   return [Math.max(1, Math.round(w * s)), Math.max(1, Math.round(h * s))];
 }
 const PITCH_MAX = 89 * Math.PI / 180;
+/** The camera to send: none while the view is the scene's own (see `vp.moved`). */
+function viewCamera() {
+  return vp.orbit && vp.moved ? orbitCamera(vp.orbit) : undefined;
+}
+/** Marks the view as moved by the user and says so when that loses the scene's projection. */
+function setMoved(moved) {
+  vp.moved = moved;
+  showProjection();
+}
+function showProjection() {
+  const p = $("vp-projection");
+  const proj = vp.home && vp.home.projection;
+  $("viewport").dataset.projection = vp.moved || !proj ? "perspective" : proj;
+  if (!proj || proj === "perspective") { p.hidden = true; p.textContent = ""; return; }
+  p.hidden = false;
+  p.textContent = vp.moved
+    ? `Perspective view: the scene's ${proj} camera is not kept once the view is moved (Render final ` +
+      `and Save camera use this perspective view). Reset view renders the scene's own camera again.`
+    : `The scene's ${proj} camera (the viewport and Render final use it until you move the view).`;
+}
 function orbitBy(dyaw, dpitch) {
   const o = vp.orbit; if (!o) return;
+  setMoved(true);
   o.yaw -= dyaw;
   o.pitch = Math.max(-PITCH_MAX, Math.min(PITCH_MAX, o.pitch + dpitch));
   sendView();
 }
 function dollyBy(factor) {
   const o = vp.orbit; if (!o) return;
+  setMoved(true);
   o.dist = Math.max(o.radius * 1e-3, Math.min(o.radius * 1e3, o.dist * factor));
   sendView();
 }
 /** Moves the target by (dx, dy) in view-height units along the camera's right and up. */
 function panBy(dx, dy) {
   const o = vp.orbit; if (!o) return;
+  setMoved(true);
   const c = orbitCamera(o);
   const fwd = V.norm(V.sub(c.target, c.eye));
   const right = V.norm(V.cross(fwd, o.up));
@@ -638,11 +666,11 @@ function setupViewport() {
   for (const f of ["exposure", "tonemap"]) $(f).addEventListener("input", redisplay);
   $("tonemap").addEventListener("change", redisplay);
   $("render-final").addEventListener("click", () => {
-    const camera = vp.orbit ? orbitCamera(vp.orbit) : undefined;
+    const camera = viewCamera();
     start(camera ? { camera } : {});
   });
   $("reset-view").addEventListener("click", () => {
-    if (vp.home) { vp.orbit = orbitFrom(vp.home); sendView(); }
+    if (vp.home) { vp.orbit = orbitFrom(vp.home); setMoved(false); sendView(); }
   });
   $("save-camera").addEventListener("click", () => {
     if (vp.orbit) download("camera.toml", cameraToml(orbitCamera(vp.orbit)));
@@ -687,6 +715,7 @@ function newScene() {
   vp.scene = $("scene").value;
   vp.home = null;
   vp.orbit = null;
+  setMoved(false);
   sendView();
 }
 /** Sends the current view; while a send is in flight the newest view waits, so at most one
@@ -706,7 +735,8 @@ async function sendView() {
   const view = { scene: vp.scene, width: w, height: h, spp, max_depth: body.max_depth,
     integrator: body.integrator, default_light: body.default_light, environment: body.environment,
     env_rotation: body.env_rotation, variant: body.variant };
-  if (vp.orbit) view.camera = orbitCamera(vp.orbit);
+  const camera = viewCamera();
+  if (camera) view.camera = camera;
   vp.sending = true;
   vp.sentAt = performance.now();
   try {
@@ -746,6 +776,7 @@ async function pollView() {
       if (s.view && !vp.home && vp.scene === $("scene").value) {
         vp.home = s.view;
         if (!vp.orbit) { vp.orbit = orbitFrom(s.view); c.dataset.orbit = "ready"; }
+        showProjection();
       }
       const current = s.generation === vp.generation;
       if (current && s.version > vp.shown) {

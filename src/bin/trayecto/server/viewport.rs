@@ -22,6 +22,7 @@ use std::time::{Duration, Instant};
 use trayecto::camera::CameraSpec;
 use trayecto::film::{Film, Image};
 use trayecto::render::{RenderObserver, RenderSettings};
+use trayecto::scene::{CameraDesc, Projection, SphericalMapping};
 use trayecto::world::{World, WorldOptions};
 
 /// Viewport sessions alive at once (each may hold a compiled scene in memory).
@@ -44,6 +45,7 @@ pub fn camera_json(c: &CameraSpec) -> Value {
 /// framing camera for a model without one) with its target moved to where the view ray passes
 /// the centre of the scene's bounds, and the bounds themselves.
 pub fn view_json(world: &World) -> Value {
+    let projection = projection_name(&world.camera.projection);
     let mut cam = CameraSpec::from_desc(&world.camera);
     let b = world.bounds;
     let finite = b.min.is_finite() && b.max.is_finite() && b.min.cmple(b.max).all();
@@ -57,8 +59,21 @@ pub fn view_json(world: &World) -> Value {
     }
     json!({
         "camera": camera_json(&cam),
+        "projection": projection,
         "bounds": if finite { json!({"min": b.min.to_array(), "max": b.max.to_array()}) } else { Value::Null },
     })
+}
+
+/// The name the page shows for a scene camera's projection. The orbit's `camera` is a
+/// perspective eye/target/up/fov: only a request without a camera renders the scene's own
+/// orthographic or spherical projection (and its off-centre screen window, kept in its matrix).
+pub fn projection_name(p: &Projection) -> &'static str {
+    match p {
+        Projection::Perspective => "perspective",
+        Projection::Orthographic { .. } => "orthographic",
+        Projection::Spherical(SphericalMapping::EqualArea) => "spherical (equal-area)",
+        Projection::Spherical(SphericalMapping::Equirectangular) => "spherical (equirectangular)",
+    }
 }
 
 /// What must match for the worker to reuse its world.
@@ -81,6 +96,17 @@ impl WorldKey {
             env_rotation: r.env_rotation,
         }
     }
+}
+
+/// A session's built scene: the world, what it was built from, and what the scene itself asks
+/// for that a request may not override.
+struct Built {
+    key: WorldKey,
+    world: World,
+    /// The scene's own camera (`world.camera` is replaced per view).
+    own_camera: CameraDesc,
+    /// The file's pixel filter (pbrt `PixelFilter`), used unless the request names one.
+    filter: Option<trayecto::film::filter::Filter>,
 }
 
 /// What the page reads back.
@@ -269,7 +295,7 @@ impl RenderObserver for Publish<'_> {
 /// The session's worker: waits for the newest request, renders it, and ends when the session
 /// is closed or idle.
 fn run(session: &Session) {
-    let mut world: Option<(WorldKey, World)> = None;
+    let mut world: Option<Built> = None;
     let mut seen = 0;
     loop {
         let (generation, request, since) = {
@@ -326,14 +352,14 @@ fn run(session: &Session) {
 
 fn render_view(
     session: &Session,
-    cache: &mut Option<(WorldKey, World)>,
+    cache: &mut Option<Built>,
     generation: u64,
     r: &RenderRequest,
     since: Instant,
 ) -> Result<(), String> {
     let key = WorldKey::of(r);
     let stale = || session.cancel.load(Ordering::Relaxed);
-    if cache.as_ref().is_none_or(|(k, _)| *k != key) {
+    if cache.as_ref().is_none_or(|b| b.key != key) {
         *cache = None;
         let t = Instant::now();
         let name_it = |m: String| match &r.source {
@@ -349,6 +375,7 @@ fn render_view(
         if stale() {
             return Ok(());
         }
+        let filter = scene.hints.filter;
         let options = WorldOptions {
             default_light: r.default_light,
             variant: r.variant.clone(),
@@ -362,25 +389,38 @@ fn render_view(
         st.view = Some(view);
         st.build_ms = Some(t.elapsed().as_secs_f64() * 1e3);
         drop(st);
-        *cache = Some((key, w));
+        *cache = Some(Built {
+            key,
+            own_camera: w.camera.clone(),
+            world: w,
+            filter,
+        });
     }
-    let world = &mut cache.as_mut().expect("built above").1;
-    // Without a camera the scene's own view is shown (the one `view` reports).
-    let default_view = lock(&session.status).view.clone();
-    let camera = match r.camera {
-        Some(c) => c,
-        None => default_view
-            .as_ref()
-            .and_then(|v| super::request::camera_field(&v["camera"]).ok())
-            .ok_or("the scene has no usable camera")?,
+    let Built {
+        world,
+        own_camera,
+        filter,
+        ..
+    } = cache.as_mut().expect("built above");
+    // Without a camera the scene's own camera is rendered as the command line renders it: its
+    // projection, lens and screen window, not the perspective eye/target/fov `view` reports
+    // for the orbit (issue #16). A camera from the page is a perspective view.
+    world.camera = match r.camera {
+        Some(c) => c.to_desc("viewport"),
+        None => own_camera.clone(),
     };
-    world.camera = camera.to_desc("viewport");
     if stale() {
         return Ok(());
     }
     lock(&session.status).state = "rendering";
+    // The scene file's pixel filter unless the request names one, as the final render's
+    // `RenderJob::resolve` does, so the viewport refines to the final render's image.
     let full = RenderSettings {
         time_limit: None,
+        filter: match filter {
+            Some(f) if !r.filter_given => *f,
+            _ => r.settings.filter,
+        },
         ..r.settings.clone()
     };
     // The quick first look: a quarter of the size, one sample per pixel.
