@@ -379,6 +379,9 @@ test("Render final renders the framed view, the same image the viewport refined 
 test("an orthographic scene camera is kept until the view moves, and the page says when it is not", async () => {
   await openViewport({ scene: "orthographic.pbrt", output: "e2e-ortho", width: 64, height: 48, spp: 4,
     max_depth: 5, view_spp: 4, exposure: 1 }, 4);
+  // The orbit flag may still be the first scene's: wait for this scene's view to arrive.
+  await page.waitForFunction(() => vp.home && vp.home.projection === "orthographic");
+  await settle(4);
   await page.selectOption("#tonemap", "clamp");
   const note = () => page.evaluate(() => {
     const p = document.getElementById("vp-projection");

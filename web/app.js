@@ -533,6 +533,7 @@ const vp = {
   // command line does: its projection (orthographic, spherical), lens and screen window. The
   // orbit is a perspective eye/target/fov, so a moved view of such a scene is perspective.
   moved: false,
+  homeGen: null,      // the first view request of `scene`: only its status may set `home`
   sending: false, dirty: false, polling: false, repoll: false, generation: 0, shown: 0, lin: null, timer: null, sentAt: 0,
 };
 const V = {
@@ -715,6 +716,7 @@ function newScene() {
   vp.scene = $("scene").value;
   vp.home = null;
   vp.orbit = null;
+  vp.homeGen = null;
   setMoved(false);
   sendView();
 }
@@ -739,6 +741,7 @@ async function sendView() {
   if (camera) view.camera = camera;
   vp.sending = true;
   vp.sentAt = performance.now();
+  const sentScene = vp.scene;
   try {
     const r = await api("POST", "/api/viewport?session=" + vp.session, view);
     if (r.ok) {
@@ -749,6 +752,7 @@ async function sendView() {
         $("viewport").dataset.samples = "0";
       }
       vp.generation = r.data.generation;
+      if (sentScene === vp.scene && vp.homeGen === null) vp.homeGen = vp.generation;
       $("viewport").dataset.generation = String(vp.generation);
     } else {
       $("vp-state").textContent = (r.data && (r.data.error + (r.data.fields ? ": " +
@@ -773,7 +777,10 @@ async function pollView() {
     const c = $("viewport");
     if (r && r.ok) {
       const s = r.data;
-      if (s.view && !vp.home && vp.scene === $("scene").value) {
+      // Only a status of this scene's requests carries its view (an earlier scene's may still
+      // be on show just after the choice).
+      if (s.view && !vp.home && vp.scene === $("scene").value && vp.homeGen !== null
+        && s.generation >= vp.homeGen) {
         vp.home = s.view;
         if (!vp.orbit) { vp.orbit = orbitFrom(s.view); c.dataset.orbit = "ready"; }
         showProjection();

@@ -361,6 +361,9 @@ fn render_view(
     let stale = || session.cancel.load(Ordering::Relaxed);
     if cache.as_ref().is_none_or(|b| b.key != key) {
         *cache = None;
+        // The old world's view must not be read as the new scene's (the page takes the first
+        // view it sees after choosing a scene as that scene's home view).
+        lock(&session.status).view = None;
         let t = Instant::now();
         let name_it = |m: String| match &r.source {
             SceneSource::File(p) => m.replace(&*p.to_string_lossy(), &r.scene),
