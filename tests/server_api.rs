@@ -204,6 +204,16 @@ fn get(s: &Server, path: &str) -> Reply {
     raw(s, &format!("GET {path}"), "", b"")
 }
 
+/// GETs `path` (a `/linear` endpoint), requires 200 and decodes its little-endian f32 body.
+fn get_floats(s: &Server, path: &str) -> Vec<f32> {
+    let r = get(s, path);
+    assert_eq!(r.status, 200, "{path}");
+    r.body
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+        .collect()
+}
+
 /// The job that writes `output`, as `GET /api/renders` lists it.
 fn listed_job(s: &Server, output: &str) -> Value {
     let list = get(s, "/api/renders").json();
@@ -1519,13 +1529,7 @@ fn the_linear_endpoint_serves_the_film_and_the_asked_layers() {
         ("normal", ["normal.X", "normal.Y", "normal.Z"]),
         ("albedo", ["albedo.R", "albedo.G", "albedo.B"]),
     ] {
-        let r = get(&s, &format!("/api/renders/{id}/linear?layer={layer}"));
-        assert_eq!(r.status, 200, "{layer}");
-        let got: Vec<f32> = r
-            .body
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
-            .collect();
+        let got = get_floats(&s, &format!("/api/renders/{id}/linear?layer={layer}"));
         let ch: Vec<&Vec<f32>> = names
             .iter()
             .map(|n| &channels.iter().find(|(c, _)| c == n).unwrap().1)
@@ -1941,13 +1945,7 @@ fn the_sample_and_variance_layers_are_served_as_the_cli_writes_them() {
     // Side files beside the CLI's PNG.
     assert!(dir.join("cli.samples.png").is_file() && dir.join("cli.variance.png").is_file());
     for (layer, want) in [("samples", vec![3.0; 80]), ("variance", variance)] {
-        let r = get(&s, &format!("/api/renders/{id}/linear?layer={layer}"));
-        assert_eq!(r.status, 200, "{layer}");
-        let got: Vec<f32> = r
-            .body
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
-            .collect();
+        let got = get_floats(&s, &format!("/api/renders/{id}/linear?layer={layer}"));
         let want: Vec<f32> = want.iter().flat_map(|&v| [v; 3]).collect();
         assert_eq!(got, want, "{layer}");
     }
@@ -2024,13 +2022,7 @@ fn an_orthographic_scene_camera_renders_as_the_cli_does() {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    let lin = get(&s, "/api/viewport/ortho/linear");
-    assert_eq!(lin.status, 200);
-    let got: Vec<f32> = lin
-        .body
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
-        .collect();
+    let got = get_floats(&s, "/api/viewport/ortho/linear");
     let want: Vec<f32> = cli.data.iter().flat_map(|p| p.to_array()).collect();
     assert_eq!(got.len(), want.len());
     assert!(
