@@ -928,42 +928,20 @@ async fn render_linear(
             s.preview_version,
         )
     };
-    let (path, channels): (_, [&str; 3]) = match layer {
-        "beauty" => (exr, ["R", "G", "B"]),
-        "denoised" => (denoised, ["R", "G", "B"]),
-        "albedo"
-            if job
-                .request
-                .aovs
-                .contains(&trayecto::film::aov::AovKind::Albedo) =>
-        {
-            (exr, ["albedo.R", "albedo.G", "albedo.B"])
-        }
-        "normal"
-            if job
-                .request
-                .aovs
-                .contains(&trayecto::film::aov::AovKind::Normal) =>
-        {
-            (exr, ["normal.X", "normal.Y", "normal.Z"])
-        }
-        // One channel each, served as grey RGB like the other layers.
-        "samples"
-            if job
-                .request
-                .aovs
-                .contains(&trayecto::film::aov::AovKind::Samples) =>
-        {
-            (exr, ["samples.Y"; 3])
-        }
-        "variance"
-            if job
-                .request
-                .aovs
-                .contains(&trayecto::film::aov::AovKind::Variance) =>
-        {
-            (exr, ["variance.Y"; 3])
-        }
+    // The AOV layers served (when the request asked for them): the denoising guides and the
+    // film's statistics; a one-channel layer is served as grey RGB like the others.
+    let aov = matches!(layer, "albedo" | "normal" | "samples" | "variance")
+        .then(|| trayecto::film::aov::AovKind::from_name(layer))
+        .flatten()
+        .filter(|kind| job.request.aovs.contains(kind));
+    let (path, channels): (_, [&str; 3]) = match (layer, aov) {
+        ("beauty", _) => (exr, ["R", "G", "B"]),
+        ("denoised", _) => (denoised, ["R", "G", "B"]),
+        (_, Some(kind)) => match *kind.channels() {
+            [r, g, b] => (exr, [r, g, b]),
+            [y] => (exr, [y; 3]),
+            _ => unreachable!("AOV layers have one or three channels"),
+        },
         _ => {
             return error(
                 StatusCode::NOT_FOUND,
