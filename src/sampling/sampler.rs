@@ -222,9 +222,34 @@ impl SampleStream {
         u32_to_unit_f32(h as u32)
     }
 
+    /// The next number of the stream. The default sampler's path is inlined into the caller;
+    /// the others go through [`Self::other_1d`], so a stratified number costs no call, register
+    /// saves or jump over the sampler kinds (callgrind, 64², 16 spp: −0.7 % of the Cornell box's
+    /// instructions per sample, −0.6 % textured, −0.3 % veach; the same numbers).
+    #[inline]
     pub fn next_1d(&mut self) -> f32 {
         let d = self.dim;
         self.dim += 1;
+        if self.kind == SamplerKind::Stratified {
+            self.stratified_1d(d)
+        } else {
+            self.other_1d(d)
+        }
+    }
+
+    /// Dimension `d` of a stratified stream: one stratum of `spp` per sample, by a hashed
+    /// permutation, with a hashed jitter inside it.
+    #[inline(always)]
+    fn stratified_1d(&self, d: u32) -> f32 {
+        let n = self.spp;
+        let h = self.dim_hash(d);
+        let stratum = permute_masked(self.sample_mod, n, h as u32, self.mask_1d);
+        let jitter = self.random_h(h, 1);
+        ((stratum as f32 + jitter) / n as f32).min(ONE_MINUS_EPSILON)
+    }
+
+    #[inline(never)]
+    fn other_1d(&self, d: u32) -> f32 {
         match self.kind {
             SamplerKind::Independent => self.random(d, 0),
             SamplerKind::Sobol => {
@@ -236,13 +261,7 @@ impl SampleStream {
                 // Sobol dimension 0 is the bit reversal of the index: its reversed form is i.
                 u32_to_unit_f32(super::sobol::scramble_reversed(i, seed as u32))
             }
-            SamplerKind::Stratified | SamplerKind::PoissonDisk => {
-                let n = self.spp;
-                let h = self.dim_hash(d);
-                let stratum = permute_masked(self.sample_mod, n, h as u32, self.mask_1d);
-                let jitter = self.random_h(h, 1);
-                ((stratum as f32 + jitter) / n as f32).min(ONE_MINUS_EPSILON)
-            }
+            SamplerKind::Stratified | SamplerKind::PoissonDisk => self.stratified_1d(d),
         }
     }
 
@@ -253,9 +272,21 @@ impl SampleStream {
         self.dim += n;
     }
 
+    /// The next two numbers of the stream (one 2D point). Inlined for the default sampler as
+    /// [`Self::next_1d`] is.
+    #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         let d = self.dim;
         self.dim += 2;
+        if self.kind == SamplerKind::Stratified {
+            self.stratified_2d(d)
+        } else {
+            self.other_2d(d)
+        }
+    }
+
+    #[inline(never)]
+    fn other_2d(&self, d: u32) -> Vec2 {
         match self.kind {
             SamplerKind::Independent => Vec2::new(self.random(d, 0), self.random(d + 1, 0)),
             SamplerKind::Sobol => {
@@ -287,41 +318,45 @@ impl SampleStream {
                 );
                 super::poisson::shifted(j as usize, shift)
             }
-            SamplerKind::Stratified => {
-                // An nx × ny grid with at least spp cells; the permutation spreads the samples over
-                // distinct cells.
-                let (nx, ny) = (self.nx, self.ny);
-                let cells = nx * ny;
-                let h = self.dim_hash(d);
-                let cell = permute_masked(self.sample_mod, cells, h as u32, self.mask_2d);
-                // nx is a power of two for the usual square sample counts: shift, don't divide.
-                let (cx, cy) = if nx.is_power_of_two() {
-                    (cell & (nx - 1), cell >> nx.trailing_zeros())
-                } else {
-                    (cell % nx, cell / nx)
-                };
-                // Correlated multi-jittering (Kensler 2013, §4): inside its cell the sample takes
-                // the sub-column π₁(cy) of ny and the sub-row π₂(cx) of nx, with π₁, π₂ hashed
-                // permutations shared by the dimension's cells. The samples of a column then
-                // fill distinct sub-columns, so with nx·ny = spp the x (and y) projections are
-                // stratified into spp strata as well as the 2D cells (N-rooks): a 1D decision
-                // taken from x — NEE's light choice reusing its 2D number — is as stratified as
-                // a 1D request. Every point stays uniform: the cell is uniform, and given it
-                // the sub-cell is uniform over the permutations.
-                let hp = (h >> 32) as u32;
-                let sub_x = permute_masked(cy, ny, hp.wrapping_mul(0xa511_e9b3), self.mask_y);
-                let sub_y = permute_masked(cx, nx, hp.wrapping_mul(0x63d8_3595), self.mask_x);
-                // One 64-bit hash gives both jitters (24 bits each).
-                let j = mix64(h ^ self.sample_mix[1]);
-                let jx = u32_to_unit_f32(j as u32);
-                let jy = u32_to_unit_f32((j >> 32) as u32);
-                let (nxf, nyf) = (nx as f32, ny as f32);
-                Vec2::new(
-                    ((cx as f32 + (sub_x as f32 + jx) / nyf) / nxf).min(ONE_MINUS_EPSILON),
-                    ((cy as f32 + (sub_y as f32 + jy) / nxf) / nyf).min(ONE_MINUS_EPSILON),
-                )
-            }
+            SamplerKind::Stratified => self.stratified_2d(d),
         }
+    }
+
+    /// Dimensions `d`, `d + 1` of a stratified stream: correlated multi-jittered (below).
+    #[inline(always)]
+    fn stratified_2d(&self, d: u32) -> Vec2 {
+        // An nx × ny grid with at least spp cells; the permutation spreads the samples over
+        // distinct cells.
+        let (nx, ny) = (self.nx, self.ny);
+        let cells = nx * ny;
+        let h = self.dim_hash(d);
+        let cell = permute_masked(self.sample_mod, cells, h as u32, self.mask_2d);
+        // nx is a power of two for the usual square sample counts: shift, don't divide.
+        let (cx, cy) = if nx.is_power_of_two() {
+            (cell & (nx - 1), cell >> nx.trailing_zeros())
+        } else {
+            (cell % nx, cell / nx)
+        };
+        // Correlated multi-jittering (Kensler 2013, §4): inside its cell the sample takes
+        // the sub-column π₁(cy) of ny and the sub-row π₂(cx) of nx, with π₁, π₂ hashed
+        // permutations shared by the dimension's cells. The samples of a column then
+        // fill distinct sub-columns, so with nx·ny = spp the x (and y) projections are
+        // stratified into spp strata as well as the 2D cells (N-rooks): a 1D decision
+        // taken from x — NEE's light choice reusing its 2D number — is as stratified as
+        // a 1D request. Every point stays uniform: the cell is uniform, and given it
+        // the sub-cell is uniform over the permutations.
+        let hp = (h >> 32) as u32;
+        let sub_x = permute_masked(cy, ny, hp.wrapping_mul(0xa511_e9b3), self.mask_y);
+        let sub_y = permute_masked(cx, nx, hp.wrapping_mul(0x63d8_3595), self.mask_x);
+        // One 64-bit hash gives both jitters (24 bits each).
+        let j = mix64(h ^ self.sample_mix[1]);
+        let jx = u32_to_unit_f32(j as u32);
+        let jy = u32_to_unit_f32((j >> 32) as u32);
+        let (nxf, nyf) = (nx as f32, ny as f32);
+        Vec2::new(
+            ((cx as f32 + (sub_x as f32 + jx) / nyf) / nxf).min(ONE_MINUS_EPSILON),
+            ((cy as f32 + (sub_y as f32 + jy) / nxf) / nyf).min(ONE_MINUS_EPSILON),
+        )
     }
 }
 
