@@ -39,6 +39,13 @@ cases=(
   "raycast-albedo|$shared/gltf/BoxTextured/glTF-Binary/BoxTextured.glb|--integrator raycast --aov albedo"
   "raycast-uv|$shared/gltf/BoxTextured/glTF-Binary/BoxTextured.glb|--integrator raycast --aov uv"
   "raycast-barycentric|cornell|--integrator raycast --aov barycentric"
+  # A thin-lens camera (the lens dimensions are drawn), specular and coated BSDFs (NEE skipped at
+  # specular vertices), a many-light textured model, and the other samplers' streams.
+  "pbrt-thin-lens|scenes/pbrt/screenwindow.pbrt|"
+  "pbrt-roughness|scenes/pbrt/roughness.pbrt|"
+  "toycar|$shared/gltf-ext/ToyCar/glTF/ToyCar.gltf|"
+  "cornell-zsobol|cornell|--sampler zsobol"
+  "cornell-independent-aov|cornell|--sampler independent --aov albedo,normal"
 )
 
 failed=0

@@ -259,6 +259,14 @@ impl Camera {
         )
     }
 
+    /// Whether [`Self::generate_ray`] reads its `lens` sample: a thin lens (aperture above 0) on a
+    /// perspective or orthographic camera. A pinhole or spherical camera ignores it, so the
+    /// renderer skips those two sampler dimensions instead of computing numbers it would drop.
+    #[inline]
+    pub fn uses_lens(&self) -> bool {
+        self.aperture_radius > 0.0 && !matches!(self.projection, Projection::Spherical(_))
+    }
+
     /// The primary ray through `film`; `lens` in [0,1)² picks the point on the aperture.
     #[inline]
     pub fn generate_ray(&self, film: Vec2, lens: Vec2) -> Ray {

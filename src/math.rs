@@ -53,16 +53,78 @@ pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
         offset = -offset;
     }
     let po = p + offset;
-    Vec3::new(
-        away_by_one_ulp(po.x, offset.x),
-        away_by_one_ulp(po.y, offset.y),
-        away_by_one_ulp(po.z, offset.z),
-    )
+    away_by_one_ulp3(po, offset)
+}
+
+/// [`away_by_one_ulp`] on the three components at once. On x86_64 it is the same integer and
+/// compare operations on the lanes of one SSE2 register (SSE2 is part of the x86_64 baseline, so
+/// no runtime feature detection is needed). Callgrind, 64², 16 spp: the scalar form's branches
+/// and selects were ~25 instructions per component, and a shadow ray spawns two offset points
+/// (`Ray::spawn_to`, ~200 instructions per call, 4.7 % of the Cornell box's instructions); with
+/// this step the Cornell box takes 1.3 % fewer instructions per sample, textured 1.3 %, veach
+/// 0.7 %, and the signs of the offsets no longer feed branches. The result is bit-identical to
+/// the scalar form (unit test below, special values included).
+#[inline]
+fn away_by_one_ulp3(v: Vec3, dir: Vec3) -> Vec3 {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: the SSE and SSE2 intrinsics need only those CPU features, which every x86_64
+    // CPU has (the target's baseline); they touch no memory. `unsafe` because Rust asks it of
+    // `#[target_feature]` functions called outside a function that lists the feature; the
+    // reason to use them is measured above.
+    unsafe {
+        use std::arch::x86_64::*;
+        let vf = _mm_setr_ps(v.x, v.y, v.z, 0.0);
+        let df = _mm_setr_ps(dir.x, dir.y, dir.z, 0.0);
+        let zero = _mm_setzero_ps();
+        let vb = _mm_castps_si128(vf);
+        let db = _mm_castps_si128(df);
+        // Lanes left as they are: dir == ±0, or v infinite or NaN (|bits| ≥ 0x7f800000).
+        let abs_v = _mm_and_si128(vb, _mm_set1_epi32(0x7fff_ffff));
+        let keep = _mm_or_si128(
+            _mm_castps_si128(_mm_cmpeq_ps(df, zero)),
+            _mm_cmpgt_epi32(abs_v, _mm_set1_epi32(0x7f7f_ffff)),
+        );
+        // ±0 becomes the zero on dir's side (its sign bit).
+        let v_zero = _mm_castps_si128(_mm_cmpeq_ps(vf, zero));
+        let dir_sign = _mm_and_si128(db, _mm_set1_epi32(i32::MIN));
+        let v2 = _mm_or_si128(
+            _mm_and_si128(v_zero, dir_sign),
+            _mm_andnot_si128(v_zero, vb),
+        );
+        // `grows` (all ones, i.e. −1) when v2's sign agrees with dir < 0: the step is +1 then
+        // and −1 otherwise, i.e. v2 − 1 − 2·grows.
+        let v_neg = _mm_srai_epi32(v2, 31);
+        let dir_neg = _mm_castps_si128(_mm_cmplt_ps(df, zero));
+        let grows = _mm_cmpeq_epi32(v_neg, dir_neg);
+        let stepped = _mm_sub_epi32(
+            _mm_sub_epi32(v2, _mm_set1_epi32(1)),
+            _mm_add_epi32(grows, grows),
+        );
+        let out = _mm_castsi128_ps(_mm_or_si128(
+            _mm_and_si128(keep, vb),
+            _mm_andnot_si128(keep, stepped),
+        ));
+        Vec3::new(
+            _mm_cvtss_f32(out),
+            _mm_cvtss_f32(_mm_shuffle_ps::<0b01_01_01_01>(out, out)),
+            _mm_cvtss_f32(_mm_shuffle_ps::<0b10_10_10_10>(out, out)),
+        )
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        Vec3::new(
+            away_by_one_ulp(v.x, dir.x),
+            away_by_one_ulp(v.y, dir.y),
+            away_by_one_ulp(v.z, dir.z),
+        )
+    }
 }
 
 /// `next_float_up(v)` if `dir > 0`, `next_float_down(v)` if `dir < 0`, else `v`. The signs of the
 /// offset are random from ray to ray, so this is written with selects rather than the branches of
-/// the two functions (it runs three times per bounce and shadow ray).
+/// the two functions (it runs three times per bounce and shadow ray). On x86_64 the renderer runs
+/// [`away_by_one_ulp3`] instead, which the tests hold to this definition.
+#[cfg(any(test, not(target_arch = "x86_64")))]
 #[inline]
 fn away_by_one_ulp(v: f32, dir: f32) -> f32 {
     if dir == 0.0 || !v.is_finite() {
@@ -193,6 +255,61 @@ mod tests {
             assert_eq!(away_by_one_ulp(v, 0.0).to_bits(), v.to_bits(), "{v} still");
         }
         assert_eq!(away_by_one_ulp(f32::INFINITY, -1.0), f32::INFINITY);
+    }
+
+    /// The three-lane step is the scalar one bit for bit, for every pairing of special and
+    /// ordinary values (zeros of both signs, subnormals, extremes, infinities, NaNs) with
+    /// directions of both signs, zero and NaN, and for hashed random bit patterns.
+    #[test]
+    fn three_lane_ulp_step_is_the_scalar_one() {
+        let specials = [
+            0.0f32,
+            -0.0,
+            1.0,
+            -1.0,
+            1e-45,
+            -1e-45,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            123.456,
+            -7.5e-20,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::NAN,
+        ];
+        let check = |v: Vec3, d: Vec3| {
+            let got = away_by_one_ulp3(v, d);
+            for (i, g) in got.to_array().into_iter().enumerate() {
+                let want = away_by_one_ulp(v[i], d[i]);
+                assert_eq!(
+                    g.to_bits(),
+                    want.to_bits(),
+                    "lane {i} of {v:?} towards {d:?}"
+                );
+            }
+        };
+        for &a in &specials {
+            for &b in &specials {
+                for &c in &specials {
+                    check(Vec3::new(a, b, c), Vec3::new(b, c, a));
+                    check(Vec3::new(a, b, c), Vec3::new(-c, a, -b));
+                }
+            }
+        }
+        let mut h = 0x9E37_79B9_7F4A_7C15u64;
+        for _ in 0..100_000 {
+            let mut next = || {
+                h = crate::sampling::rng::mix64(h.wrapping_add(0x9E37_79B9_7F4A_7C15));
+                f32::from_bits(h as u32)
+            };
+            check(
+                Vec3::new(next(), next(), next()),
+                Vec3::new(next(), next(), next()),
+            );
+        }
     }
 
     #[test]

@@ -669,7 +669,15 @@ fn camera_ray(
     y: u32,
 ) -> (crate::geometry::Ray, f32) {
     let jitter = stream.next_2d();
-    let lens = stream.next_2d();
+    // A pinhole camera ignores the lens numbers: skipping them keeps every later dimension where
+    // it was (the image is bit-identical) without the cost of a 2D sample (callgrind, Cornell
+    // box: a stratified 2D number is ~230 instructions, ~2 % of a sample).
+    let lens = if camera.uses_lens() {
+        stream.next_2d()
+    } else {
+        stream.skip(2);
+        crate::math::Vec2::ZERO
+    };
     let (film, weight) = filter.film_point(x, y, jitter);
     (camera.generate_ray(film, lens), weight)
 }

@@ -85,6 +85,12 @@ pub fn sample_ld(
     set: &PathSettings,
     stats: &mut RayStats,
 ) -> Vec3 {
+    // A specular vertex takes no light sample: its three numbers are skipped, not computed, so
+    // the later dimensions keep their meaning (the image is the same).
+    if v.bsdf.is_specular() {
+        s.skip(3);
+        return Vec3::ZERO;
+    }
     let u_spare = if world.light_count() > 1 {
         s.next_1d()
     } else {
@@ -92,9 +98,6 @@ pub fn sample_ld(
         0.0
     };
     let u_light = s.next_2d();
-    if v.bsdf.is_specular() {
-        return Vec3::ZERO;
-    }
     let Some(ls) = world.sample_light_reuse(&v.hit, v.ng, u_light, u_spare) else {
         return Vec3::ZERO;
     };

@@ -217,14 +217,14 @@ fn continue_path(
             break;
         }
         // Russian roulette: survive with probability q, and divide by it to stay unbiased. The
-        // number is drawn whether or not it is needed (q = 1), so every bounce of every sample
-        // takes the same sampler dimensions: a bounce's light and BSDF numbers then stay
+        // dimension is taken whether or not it is needed (q = 1), so every bounce of every
+        // sample takes the same sampler dimensions: a bounce's light and BSDF numbers then stay
         // stratified across the pixel's samples, which a draw made by some samples and not by
-        // others would shift out of step.
+        // others would shift out of step. With q = 1 the number is skipped, not computed.
         if depth >= set.rr_depth {
-            let u_rr = s.next_1d();
             let q = (beta.max_element() * eta_scale * set.rr_scale).min(1.0);
             if q < 1.0 {
+                let u_rr = s.next_1d();
                 if u_rr >= q {
                     if let Some((a, _)) = aov {
                         a.end_at(&Vertex::new(world, next, wo_next), wo_next);
@@ -232,6 +232,8 @@ fn continue_path(
                     break;
                 }
                 beta /= q;
+            } else {
+                s.skip(1);
             }
         }
         hit = next;

@@ -73,6 +73,9 @@ pub struct SampleStream {
     /// instructions were `permute`, callgrind).
     mask_x: u32,
     mask_y: u32,
+    /// `nx` and `ny` are powers of two above 1: the two sub-cell permutations of `next_2d` then
+    /// run side by side in one register ([`permute_pow2_pair`]).
+    pow2_xy: bool,
     /// ZSobol only: the sample's index in the image's sequence, `(morton(pixel) << log2 spp) |
     /// (sample mod 2^log2 spp)`, its number of base-4 digits, whether log2 spp is odd, and the
     /// hash of (seed, sample ÷ 2^log2 spp) that keys every dimension's scrambles.
@@ -97,6 +100,7 @@ pub struct SamplerSetup {
     mask_2d: u32,
     mask_x: u32,
     mask_y: u32,
+    pow2_xy: bool,
     /// ZSobol: ⌈log₂ spp⌉ and ⌈log₂ max(width, height)⌉ (16 until [`Self::for_image`] sets it).
     log2_spp: u32,
     log2_res: u32,
@@ -117,6 +121,7 @@ impl SamplerSetup {
             mask_2d: permute_mask(nx * ny),
             mask_x: permute_mask(nx),
             mask_y: permute_mask(ny),
+            pow2_xy: nx > 1 && ny > 1 && nx.is_power_of_two() && ny.is_power_of_two(),
             log2_spp: super::zsobol::ceil_log2(spp),
             log2_res: 16,
         }
@@ -174,6 +179,7 @@ impl SamplerSetup {
             mask_2d: self.mask_2d,
             mask_x: self.mask_x,
             mask_y: self.mask_y,
+            pow2_xy: self.pow2_xy,
             z_index,
             z_digits,
             z_odd: self.log2_spp % 2 == 1,
@@ -222,9 +228,34 @@ impl SampleStream {
         u32_to_unit_f32(h as u32)
     }
 
+    /// The next number of the stream. The default sampler's path is inlined into the caller;
+    /// the others go through [`Self::other_1d`], so a stratified number costs no call, register
+    /// saves or jump over the sampler kinds (callgrind, 64², 16 spp: −0.7 % of the Cornell box's
+    /// instructions per sample, −0.6 % textured, −0.3 % veach; the same numbers).
+    #[inline]
     pub fn next_1d(&mut self) -> f32 {
         let d = self.dim;
         self.dim += 1;
+        if self.kind == SamplerKind::Stratified {
+            self.stratified_1d(d)
+        } else {
+            self.other_1d(d)
+        }
+    }
+
+    /// Dimension `d` of a stratified stream: one stratum of `spp` per sample, by a hashed
+    /// permutation, with a hashed jitter inside it.
+    #[inline(always)]
+    fn stratified_1d(&self, d: u32) -> f32 {
+        let n = self.spp;
+        let h = self.dim_hash(d);
+        let stratum = permute_masked(self.sample_mod, n, h as u32, self.mask_1d);
+        let jitter = self.random_h(h, 1);
+        ((stratum as f32 + jitter) / n as f32).min(ONE_MINUS_EPSILON)
+    }
+
+    #[inline(never)]
+    fn other_1d(&self, d: u32) -> f32 {
         match self.kind {
             SamplerKind::Independent => self.random(d, 0),
             SamplerKind::Sobol => {
@@ -236,13 +267,7 @@ impl SampleStream {
                 // Sobol dimension 0 is the bit reversal of the index: its reversed form is i.
                 u32_to_unit_f32(super::sobol::scramble_reversed(i, seed as u32))
             }
-            SamplerKind::Stratified | SamplerKind::PoissonDisk => {
-                let n = self.spp;
-                let h = self.dim_hash(d);
-                let stratum = permute_masked(self.sample_mod, n, h as u32, self.mask_1d);
-                let jitter = self.random_h(h, 1);
-                ((stratum as f32 + jitter) / n as f32).min(ONE_MINUS_EPSILON)
-            }
+            SamplerKind::Stratified | SamplerKind::PoissonDisk => self.stratified_1d(d),
         }
     }
 
@@ -253,9 +278,21 @@ impl SampleStream {
         self.dim += n;
     }
 
+    /// The next two numbers of the stream (one 2D point). Inlined for the default sampler as
+    /// [`Self::next_1d`] is.
+    #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         let d = self.dim;
         self.dim += 2;
+        if self.kind == SamplerKind::Stratified {
+            self.stratified_2d(d)
+        } else {
+            self.other_2d(d)
+        }
+    }
+
+    #[inline(never)]
+    fn other_2d(&self, d: u32) -> Vec2 {
         match self.kind {
             SamplerKind::Independent => Vec2::new(self.random(d, 0), self.random(d + 1, 0)),
             SamplerKind::Sobol => {
@@ -287,41 +324,52 @@ impl SampleStream {
                 );
                 super::poisson::shifted(j as usize, shift)
             }
-            SamplerKind::Stratified => {
-                // An nx × ny grid with at least spp cells; the permutation spreads the samples over
-                // distinct cells.
-                let (nx, ny) = (self.nx, self.ny);
-                let cells = nx * ny;
-                let h = self.dim_hash(d);
-                let cell = permute_masked(self.sample_mod, cells, h as u32, self.mask_2d);
-                // nx is a power of two for the usual square sample counts: shift, don't divide.
-                let (cx, cy) = if nx.is_power_of_two() {
-                    (cell & (nx - 1), cell >> nx.trailing_zeros())
-                } else {
-                    (cell % nx, cell / nx)
-                };
-                // Correlated multi-jittering (Kensler 2013, §4): inside its cell the sample takes
-                // the sub-column π₁(cy) of ny and the sub-row π₂(cx) of nx, with π₁, π₂ hashed
-                // permutations shared by the dimension's cells. The samples of a column then
-                // fill distinct sub-columns, so with nx·ny = spp the x (and y) projections are
-                // stratified into spp strata as well as the 2D cells (N-rooks): a 1D decision
-                // taken from x — NEE's light choice reusing its 2D number — is as stratified as
-                // a 1D request. Every point stays uniform: the cell is uniform, and given it
-                // the sub-cell is uniform over the permutations.
-                let hp = (h >> 32) as u32;
-                let sub_x = permute_masked(cy, ny, hp.wrapping_mul(0xa511_e9b3), self.mask_y);
-                let sub_y = permute_masked(cx, nx, hp.wrapping_mul(0x63d8_3595), self.mask_x);
-                // One 64-bit hash gives both jitters (24 bits each).
-                let j = mix64(h ^ self.sample_mix[1]);
-                let jx = u32_to_unit_f32(j as u32);
-                let jy = u32_to_unit_f32((j >> 32) as u32);
-                let (nxf, nyf) = (nx as f32, ny as f32);
-                Vec2::new(
-                    ((cx as f32 + (sub_x as f32 + jx) / nyf) / nxf).min(ONE_MINUS_EPSILON),
-                    ((cy as f32 + (sub_y as f32 + jy) / nxf) / nyf).min(ONE_MINUS_EPSILON),
-                )
-            }
+            SamplerKind::Stratified => self.stratified_2d(d),
         }
+    }
+
+    /// Dimensions `d`, `d + 1` of a stratified stream: correlated multi-jittered (below).
+    #[inline(always)]
+    fn stratified_2d(&self, d: u32) -> Vec2 {
+        // An nx × ny grid with at least spp cells; the permutation spreads the samples over
+        // distinct cells.
+        let (nx, ny) = (self.nx, self.ny);
+        let cells = nx * ny;
+        let h = self.dim_hash(d);
+        let cell = permute_masked(self.sample_mod, cells, h as u32, self.mask_2d);
+        // nx is a power of two for the usual square sample counts: shift, don't divide.
+        let (cx, cy) = if nx.is_power_of_two() {
+            (cell & (nx - 1), cell >> nx.trailing_zeros())
+        } else {
+            (cell % nx, cell / nx)
+        };
+        // Correlated multi-jittering (Kensler 2013, §4): inside its cell the sample takes
+        // the sub-column π₁(cy) of ny and the sub-row π₂(cx) of nx, with π₁, π₂ hashed
+        // permutations shared by the dimension's cells. The samples of a column then
+        // fill distinct sub-columns, so with nx·ny = spp the x (and y) projections are
+        // stratified into spp strata as well as the 2D cells (N-rooks): a 1D decision
+        // taken from x — NEE's light choice reusing its 2D number — is as stratified as
+        // a 1D request. Every point stays uniform: the cell is uniform, and given it
+        // the sub-cell is uniform over the permutations.
+        let hp = (h >> 32) as u32;
+        let (px, py) = (hp.wrapping_mul(0xa511_e9b3), hp.wrapping_mul(0x63d8_3595));
+        let (sub_x, sub_y) = if self.pow2_xy {
+            permute_pow2_pair([cy, cx], [px, py], [self.mask_y, self.mask_x])
+        } else {
+            (
+                permute_masked(cy, ny, px, self.mask_y),
+                permute_masked(cx, nx, py, self.mask_x),
+            )
+        };
+        // One 64-bit hash gives both jitters (24 bits each).
+        let j = mix64(h ^ self.sample_mix[1]);
+        let jx = u32_to_unit_f32(j as u32);
+        let jy = u32_to_unit_f32((j >> 32) as u32);
+        let (nxf, nyf) = (nx as f32, ny as f32);
+        Vec2::new(
+            ((cx as f32 + (sub_x as f32 + jx) / nyf) / nxf).min(ONE_MINUS_EPSILON),
+            ((cy as f32 + (sub_y as f32 + jy) / nxf) / nyf).min(ONE_MINUS_EPSILON),
+        )
     }
 }
 
@@ -388,9 +436,103 @@ fn permute_masked(mut i: u32, l: u32, p: u32, w: u32) -> u32 {
     (if j >= l as u64 { j - l as u64 } else { j }) as u32
 }
 
+/// [`permute_masked`]`(i[k], w[k] + 1, p[k], w[k])` for k = 0, 1, where both `w[k] + 1` are
+/// powers of two above 1: Kensler's hash then ends inside the mask after one pass (no cycle
+/// walking) and the offset is a mask. On x86_64 the two permutations run in lanes 0 and 2 of one
+/// SSE2 register (`pmuludq` multiplies those lanes; what it leaves in lanes 1 and 3 is never
+/// read): the same 32-bit operations in the same order, so the same values (unit test below).
+/// The stratified 2D number's two sub-cell permutations were ~80 of its ~230 instructions
+/// (callgrind, Cornell box).
+#[inline(always)]
+fn permute_pow2_pair(i: [u32; 2], p: [u32; 2], w: [u32; 2]) -> (u32, u32) {
+    debug_assert!(w.iter().all(|&w| w > 0 && (w + 1).is_power_of_two()));
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE2 intrinsics only, which every x86_64 CPU has (the target's baseline); no memory
+    // is touched. `unsafe` because Rust asks it of `#[target_feature]` functions called outside
+    // a function that lists the feature.
+    unsafe {
+        use std::arch::x86_64::*;
+        let two = |a: u32, b: u32| _mm_setr_epi32(a as i32, 0, b as i32, 0);
+        let c = |k: u32| _mm_set1_epi32(k as i32);
+        let pv = two(p[0], p[1]);
+        let wv = two(w[0], w[1]);
+        // i ^= (i & w) >> s
+        let fold = |x: __m128i, s: i32| -> __m128i {
+            let m = _mm_and_si128(x, wv);
+            let sh = match s {
+                1 => _mm_srli_epi32::<1>(m),
+                2 => _mm_srli_epi32::<2>(m),
+                4 => _mm_srli_epi32::<4>(m),
+                _ => _mm_srli_epi32::<11>(m),
+            };
+            _mm_xor_si128(x, sh)
+        };
+        // The two multiplications by (1 | p >> 27) and 0x6935fa69 folded (mod 2^32).
+        let k = two(
+            (1 | (p[0] >> 27)).wrapping_mul(0x6935fa69),
+            (1 | (p[1] >> 27)).wrapping_mul(0x6935fa69),
+        );
+        let mut x = _mm_xor_si128(two(i[0], i[1]), pv);
+        x = _mm_mul_epu32(x, c(0xe170893d));
+        x = _mm_xor_si128(x, _mm_srli_epi32::<16>(pv));
+        x = fold(x, 4);
+        x = _mm_xor_si128(x, _mm_srli_epi32::<8>(pv));
+        x = _mm_mul_epu32(x, c(0x0929eb3f));
+        x = _mm_xor_si128(x, _mm_srli_epi32::<23>(pv));
+        x = fold(x, 1);
+        x = _mm_mul_epu32(x, k);
+        x = fold(x, 11);
+        x = _mm_mul_epu32(x, c(0x74dcb303));
+        x = fold(x, 2);
+        x = _mm_mul_epu32(x, c(0x9e501cc3));
+        x = fold(x, 2);
+        x = _mm_mul_epu32(x, c(0xc860a3df));
+        x = _mm_and_si128(x, wv);
+        x = _mm_xor_si128(x, _mm_srli_epi32::<5>(x));
+        x = _mm_and_si128(_mm_add_epi32(x, pv), wv);
+        (
+            _mm_cvtsi128_si32(x) as u32,
+            _mm_cvtsi128_si32(_mm_srli_si128::<8>(x)) as u32,
+        )
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        (
+            permute_masked(i[0], w[0] + 1, p[0], w[0]),
+            permute_masked(i[1], w[1] + 1, p[1], w[1]),
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The paired power-of-two permutations are the scalar ones, value for value, over every
+    /// index of sizes 2 to 1024 and hashed keys (including 0 and all ones).
+    #[test]
+    fn paired_pow2_permutations_are_the_scalar_ones() {
+        let mut keys = vec![0u32, u32::MAX, 0x8000_0000, 1];
+        let mut h = 17u64;
+        for _ in 0..60 {
+            h = mix64(h.wrapping_add(0x9E37_79B9_7F4A_7C15));
+            keys.push(h as u32);
+            keys.push((h >> 32) as u32);
+        }
+        for la in (1..=10).map(|b| 1u32 << b) {
+            for lb in [2u32, 4, 8, 64, 1024] {
+                for (n, &pa) in keys.iter().enumerate() {
+                    let pb = keys[(n * 7 + 3) % keys.len()];
+                    for i in 0..la.max(lb) {
+                        let (ia, ib) = (i % la, (i * 5 + 1) % lb);
+                        let got = permute_pow2_pair([ia, ib], [pa, pb], [la - 1, lb - 1]);
+                        let want = (permute(ia, la, pa), permute(ib, lb, pb));
+                        assert_eq!(got, want, "sizes {la} {lb}, keys {pa:#x} {pb:#x}, i {i}");
+                    }
+                }
+            }
+        }
+    }
 
     /// Samples past `spp` (a render resumed beyond its count) repeat the strata of sample
     /// `sample mod spp` with fresh jitter: the stream's index into the permutations wraps.

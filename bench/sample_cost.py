@@ -1,0 +1,116 @@
+#!/usr/bin/env python3
+"""Issue #23's time per sample on compare.py's small scenes, as compare.py runs Trayecto: the
+built-in Cornell box and the exported textured and veach scenes (bench/out/<scene>/<scene>.glb,
+written by `python3 bench/compare.py --quick --scenes textured,veach`), default settings.
+
+    python3 bench/sample_cost.py callgrind [--bins A B ...] [--scenes ...] [--spp 16] [--top 12]
+    python3 bench/sample_cost.py wall [--bins A B ...] [--scenes ...] [--rounds 5]
+
+callgrind: `valgrind --tool=callgrind --toggle-collect='trayecto::render::render_range_aovs::*'
+BIN render SCENE --width 64 --height 64 --spp N --threads 1 --seed 1` (load-independent): the
+render's instructions divided by the camera samples (64 x 64 x N), and the functions with the
+most exclusive instructions per sample (inlined code counts in the function it was inlined into).
+
+wall: `BIN render SCENE --width 64 --height 64 --spp 64 --threads 2` (compare.py's quick top
+ladder point), binaries alternated inside every round so a slow spell of the shared machine falls
+on all of them; the `rendered` phase the CLI prints. Prints per scene and binary the median and
+min-max in ms, and each binary's time over the first's, computed per round (median, min-max).
+"""
+import argparse
+import collections
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.normpath(os.path.join(HERE, ".."))
+SCENES = {
+    "cornell": "cornell",
+    "textured": os.path.join(HERE, "out", "textured", "textured.glb"),
+    "veach": os.path.join(HERE, "out", "veach", "veach.glb"),
+}
+FUNC = re.compile(r"\s*([0-9,]+) \([^)]*\)\s+(\S+?):(.*?)( \[.*\])?$")
+
+
+def scene_path(name):
+    path = SCENES[name]
+    if path != name and not os.path.exists(path):
+        sys.exit(f"{path} is missing: run `python3 bench/compare.py --quick --scenes {name}` once")
+    return path
+
+
+def render(exe, scene, out, spp, threads, wrap=()):
+    cmd = [*wrap, exe, "render", scene, "-o", out, "--width", "64", "--height", "64", "--spp", str(spp),
+           "--threads", str(threads), "--seed", "1"]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed: {r.stderr.strip()[-500:]}")
+    for line in r.stderr.splitlines():
+        words = line.split()
+        if line.startswith("rendered") and "ms" in words:
+            return float(words[words.index("ms") - 1])
+    sys.exit(f"no render time in the output of {exe} {scene}")
+
+
+def callgrind(args, tmp):
+    samples = 64 * 64 * args.spp
+    for s in args.scenes:
+        for b in args.bins:
+            out = os.path.join(tmp, "cg.out")
+            render(b, scene_path(s), os.path.join(tmp, "c.exr"), args.spp, 1,
+                   ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+                    "--toggle-collect=trayecto::render::render_range_aovs::*"])
+            ann = subprocess.run(["callgrind_annotate", "--threshold=100", out], capture_output=True,
+                                 text=True).stdout
+            total = 0
+            per_fn = collections.Counter()
+            for line in ann.splitlines():
+                if "PROGRAM TOTALS" in line:
+                    total = int(line.split()[0].replace(",", ""))
+                    continue
+                m = FUNC.match(line)
+                if m:
+                    per_fn[m.group(3).strip()] += int(m.group(1).replace(",", ""))
+            print(f"\n{s}, {b}: {total / samples:.0f} instructions per sample ({total:,} over {samples} samples)")
+            for name, ir in per_fn.most_common(args.top):
+                print(f"  {ir / samples:7.0f} {100 * ir / max(total, 1):5.1f} %  {name[:110]}")
+
+
+def wall(args, tmp):
+    times = {(s, b): [] for s in args.scenes for b in args.bins}
+    for r in range(args.rounds):
+        for s in args.scenes:
+            for b in (args.bins if r % 2 == 0 else args.bins[::-1]):
+                times[(s, b)].append(render(b, scene_path(s), os.path.join(tmp, "w.exr"), 64, 2))
+        print(f"round {r + 1}: load {os.getloadavg()[0]:.1f}", flush=True)
+    print("\n| scene | binary | render ms, median (min-max) | time / first binary's, per round: median (min-max) |")
+    print("|---|---|---|---|")
+    for s in args.scenes:
+        base = times[(s, args.bins[0])]
+        for b in args.bins:
+            t = times[(s, b)]
+            ratio = [x / y for x, y in zip(t, base)]
+            print(f"| {s} | {b} | {statistics.median(t):.1f} ({min(t):.1f}-{max(t):.1f}) | "
+                  f"{statistics.median(ratio):.3f} ({min(ratio):.3f}-{max(ratio):.3f}) |")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("mode", choices=["wall", "callgrind"])
+    ap.add_argument("--bins", nargs="+", default=[os.path.join(ROOT, "target", "release", "trayecto")])
+    ap.add_argument("--scenes", nargs="+", choices=list(SCENES), default=list(SCENES))
+    ap.add_argument("--spp", type=int, default=16, help="callgrind: samples per pixel")
+    ap.add_argument("--top", type=int, default=12, help="callgrind: functions listed per run")
+    ap.add_argument("--rounds", type=int, default=5, help="wall: interleaved rounds")
+    args = ap.parse_args()
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+    with tempfile.TemporaryDirectory() as tmp:
+        (wall if args.mode == "wall" else callgrind)(args, tmp)
+    print(f"load average {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
