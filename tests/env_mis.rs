@@ -106,7 +106,7 @@ fn check(degrees: f32) {
         println!("map turned {degrees}°, {what}: {got:.5} vs quadrature {expected:.5} ({rel:+.4})");
         // 10⁶ direct-light samples of one integrand: the mean's noise is ~0.05 % (measured
         // −0.04 % … −0.08 % at 256 spp). With BSDF-sampled escapes weighed against the full
-        // density while NEE draws from the compensated one, the upright map is 0.36 % dark.
+        // density while NEE draws from the compensated one, the upright map is 0.32 % dark.
         assert!(
             rel.abs() < 0.0025,
             "map turned {degrees}°, {what}: mean {got} vs albedo/π·E = {expected} ({rel:+.4})"
