@@ -8,7 +8,7 @@ mod common;
 use common::*;
 use trayecto::geometry::Ray;
 use trayecto::geometry::primitive::{NO_LIGHT, PrimRef, PrimitiveKind, SurfaceHit};
-use trayecto::light::{Light, LightSamplerKind};
+use trayecto::light::{EnvPdf, Light, LightSamplerKind};
 use trayecto::material::Material;
 use trayecto::math::{Mat4, Vec2, Vec3, Vec4};
 use trayecto::render::RenderSettings;
@@ -224,7 +224,7 @@ fn sampled_pmf_equals_emitter_pdf() {
             );
             // The same choice through the world query, then the hit its shadow ray reaches.
             let hit = receiver(p, n);
-            let Some(ls) = world.sample_light(&hit, n, u, u2) else {
+            let Some(ls) = world.sample_light(&hit, n, u, u2, EnvPdf::Full) else {
                 continue;
             };
             assert_eq!(ls.pmf.to_bits(), pmf.to_bits());
@@ -424,7 +424,7 @@ fn bvh_next_event_estimates_have_lower_variance() {
             for _ in 0..n {
                 let u = rng.next_f32();
                 let u2 = Vec2::new(rng.next_f32(), rng.next_f32());
-                let Some(ls) = world.sample_light(&hit, Vec3::Y, u, u2) else {
+                let Some(ls) = world.sample_light(&hit, Vec3::Y, u, u2, EnvPdf::Full) else {
                     continue;
                 };
                 let cos = ls.wi.dot(Vec3::Y);

@@ -7,7 +7,7 @@
 
 mod common;
 use trayecto::geometry::primitive::{NO_LIGHT, PrimRef, SurfaceHit};
-use trayecto::light::LightSamplerKind;
+use trayecto::light::{EnvPdf, LightSamplerKind};
 use trayecto::material::Material;
 use trayecto::math::{Mat4, Vec2, Vec3, Vec4};
 use trayecto::sampling::rng::Pcg32;
@@ -149,8 +149,14 @@ fn compare(world: &World, kind: SamplerKind, spp: u32) -> (f64, f64) {
                 let mut st = setup.stream(key, s);
                 let u1 = st.next_1d();
                 let u2 = st.next_2d();
-                means[0] += estimate(world, world.sample_light(&hit, Vec3::Y, u1, u2));
-                means[1] += estimate(world, world.sample_light_reuse(&hit, Vec3::Y, u2, u1));
+                means[0] += estimate(
+                    world,
+                    world.sample_light(&hit, Vec3::Y, u1, u2, EnvPdf::Full),
+                );
+                means[1] += estimate(
+                    world,
+                    world.sample_light_reuse(&hit, Vec3::Y, u2, u1, EnvPdf::Full),
+                );
             }
             for k in 0..2 {
                 let m = means[k] / spp as f64;
@@ -256,7 +262,9 @@ fn sphere_lights_are_sampled_over_their_cone() {
             let mut misses = 0;
             for _ in 0..n {
                 let u = Vec2::new(rng.next_f32(), rng.next_f32());
-                let ls = world.sample_light(&hit, Vec3::Y, 0.5, u).unwrap();
+                let ls = world
+                    .sample_light(&hit, Vec3::Y, 0.5, u, EnvPdf::Full)
+                    .unwrap();
                 // The pdf MIS would use for a BSDF-sampled ray in the same direction.
                 // (A direction at the cone's very edge may graze past in f32: counted.)
                 let ray = trayecto::geometry::Ray::new(p, ls.wi);

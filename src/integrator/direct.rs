@@ -5,7 +5,7 @@
 use super::RayStats;
 use super::path::PathSettings;
 use crate::geometry::primitive::SurfaceHit;
-use crate::light::Light;
+use crate::light::{EnvPdf, Light};
 use crate::material::Bsdf;
 use crate::material::local_shading::{ShadingModel, brdf};
 use crate::math::{Frame, Vec3};
@@ -98,7 +98,7 @@ pub fn sample_ld(
         0.0
     };
     let u_light = s.next_2d();
-    let Some(ls) = world.sample_light_reuse(&v.hit, v.ng, u_light, u_spare) else {
+    let Some(ls) = world.sample_light_reuse(&v.hit, v.ng, u_light, u_spare, set.env_pdf()) else {
         return Vec3::ZERO;
     };
     if !(set.nee || ls.delta) {
@@ -184,7 +184,8 @@ pub fn shade_local(
         for _ in 0..AREA_SAMPLES {
             let u_light = s.next_1d();
             let u = s.next_2d();
-            let Some(ls) = world.sample_light(hit, ng, u_light, u) else {
+            // Environment samples are skipped below, so their density does not matter.
+            let Some(ls) = world.sample_light(hit, ng, u_light, u, EnvPdf::Full) else {
                 continue;
             };
             // Only area-light samples count here (the others are evaluated exactly above): they

@@ -16,6 +16,7 @@ use super::aov::AovPath;
 use super::direct::{Vertex, sample_ld};
 use crate::geometry::Ray;
 use crate::geometry::primitive::{NO_LIGHT, SurfaceHit};
+use crate::light::EnvPdf;
 use crate::math::Vec3;
 use crate::sampling::SampleStream;
 use crate::sampling::warp::power_heuristic;
@@ -57,6 +58,22 @@ impl Default for PathSettings {
     }
 }
 
+impl PathSettings {
+    /// The environment-map density next-event estimation draws from, and that BSDF-sampled
+    /// escapes weigh their MIS against: the MIS-compensated one when light samples are combined
+    /// with BSDF sampling by MIS (which then finds the directions it leaves out, with weight 1),
+    /// the full one when light samples must reach every direction on their own (MIS off; with
+    /// NEE off no light is sampled and the choice does not matter).
+    #[inline]
+    pub fn env_pdf(&self) -> EnvPdf {
+        if self.nee && self.mis {
+            EnvPdf::Compensated
+        } else {
+            EnvPdf::Full
+        }
+    }
+}
+
 /// Radiance arriving at the camera along `ray`.
 pub fn radiance(
     world: &World,
@@ -94,7 +111,7 @@ fn radiance_impl(
 ) -> Vec3 {
     stats.rays += 1;
     let Some(hit) = world.intersect_filtered(ray, &set.footprint) else {
-        return world.escaped(ray.d.normalize()).0;
+        return world.escaped(ray.d.normalize(), EnvPdf::Full).0;
     };
     let wo = -ray.d.normalize();
     let mut l = world.emitted(&hit, wo);
@@ -184,7 +201,7 @@ fn continue_path(
         let ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
         stats.rays += 1;
         let Some(next) = world.intersect_filtered(&ray, &set.footprint) else {
-            let (le, pdf_light) = world.escaped(wi);
+            let (le, pdf_light) = world.escaped(wi, set.env_pdf());
             if le != Vec3::ZERO {
                 let weight = if bs.specular || !set.nee {
                     1.0

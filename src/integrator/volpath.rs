@@ -250,7 +250,7 @@ pub fn radiance(
 
         // --- Escaped: lights at infinity.
         let Some(hit) = hit else {
-            let (le, pdf_light) = world.escaped(ray.d);
+            let (le, pdf_light) = world.escaped(ray.d, set.env_pdf());
             if le != Vec3::ZERO {
                 l += emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set);
             }
@@ -424,7 +424,7 @@ fn sample_ld(
         light: NO_LIGHT,
         prim: crate::geometry::PrimRef(0),
     };
-    let Some(ls) = world.sample_light(&here, n_offset, u_light, u2) else {
+    let Some(ls) = world.sample_light(&here, n_offset, u_light, u2, set.env_pdf()) else {
         return Vec3::ZERO;
     };
     if !(set.nee || ls.delta) {

@@ -17,6 +17,60 @@ use crate::math::{Mat3, PI, Vec2, Vec3, luminance};
 use crate::sampling::Distribution1D;
 use std::path::Path;
 
+/// Which density [`EnvMap::sample`] draws directions from and [`EnvMap::pdf`] reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum EnvPdf {
+    /// In proportion to radiance: every direction the map lights is reachable.
+    #[default]
+    Full,
+    /// MIS-compensated (radiance above the map's mean only): for next-event estimation that is
+    /// combined by MIS with BSDF or phase-function sampling, never on its own.
+    Compensated,
+}
+
+/// A piecewise-constant 2D distribution over the texels: a marginal over rows and a
+/// conditional over each row's texels.
+#[derive(Clone, Debug)]
+struct TexelDistribution {
+    rows: Vec<Distribution1D>,
+    marginal: Distribution1D,
+}
+
+impl TexelDistribution {
+    /// From per-texel weights (row-major, `w` per row). A row's marginal weight is its true
+    /// mean: `Distribution1D` would make an all-zero row uniform, and such a row must keep
+    /// probability 0.
+    fn new(w: usize, weights: &[f32]) -> TexelDistribution {
+        let mut rows = Vec::with_capacity(weights.len() / w);
+        let mut row_weights = Vec::with_capacity(weights.len() / w);
+        for row in weights.chunks_exact(w) {
+            let sum: f64 = row.iter().map(|&v| v as f64).sum();
+            row_weights.push((sum / w as f64) as f32);
+            rows.push(Distribution1D::new(row));
+        }
+        TexelDistribution {
+            marginal: Distribution1D::new(&row_weights),
+            rows,
+        }
+    }
+
+    /// (uv, texel column, texel row, pdf in the unit square).
+    #[inline]
+    fn sample(&self, u: Vec2) -> (Vec2, usize, usize, f32) {
+        let (v, pdf_v, row) = self.marginal.sample_continuous(u.y);
+        let (uu, pdf_u, col) = self.rows[row].sample_continuous(u.x);
+        (Vec2::new(uu, v), col, row, pdf_u * pdf_v)
+    }
+
+    /// The density in the unit square on texel (x, y).
+    #[inline]
+    fn pdf(&self, x: usize, y: usize) -> f32 {
+        let pm = self.marginal.func[y] / self.marginal.func_int;
+        let row = &self.rows[y];
+        pm * (row.func[x] / row.func_int)
+    }
+}
+
 /// How an environment image covers the sphere.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum EnvMapping {
@@ -40,8 +94,16 @@ pub struct EnvMap {
     pub to_local: Mat3,
     /// |det to_world|, for the solid-angle Jacobian of a non-rigid light transform.
     det: f32,
-    rows: Vec<Distribution1D>,
-    marginal: Distribution1D,
+    /// Texels in proportion to their radiance (per solid angle): the density a light sample
+    /// must have when it is the only strategy that can find a direction.
+    full: TexelDistribution,
+    /// The MIS-compensated density (Karlík et al. 2019, "MIS compensation: optimizing sampling
+    /// techniques in multiple importance sampling"; pbrt-v4's `compensatedDistribution`):
+    /// radiance minus the map's mean, clamped at 0. Directions dimmer than the mean are left to
+    /// BSDF sampling, which finds them with MIS weight 1, and the light samples go to the
+    /// bright parts. Only valid when combined by MIS with a strategy that covers every
+    /// direction. `None` when nothing is brighter than the mean (a constant map).
+    compensated: Option<TexelDistribution>,
     /// Mean luminance over the sphere (per steradian), for light selection by power.
     pub mean_luminance: f32,
 }
@@ -142,14 +204,14 @@ impl EnvMap {
                 }
             })
             .collect();
-        let mut rows = Vec::with_capacity(h as usize);
-        let mut row_weights = Vec::with_capacity(h as usize);
         // ∫ L dω with each row's exact solid angle Δφ·(cos θ0 − cos θ1) (the sampling weights
         // below use sin θ at the row centre, which only needs to be proportional).
         let mut integral = 0.0f64;
+        // Each row's sampling factor for its texels' solid angle: sin θ at the row centre
+        // (equirectangular), 1 (equal-area).
+        let mut sin_theta = Vec::with_capacity(h as usize);
         for y in 0..h as usize {
-            // Each texel's solid angle (exact) and the factor the sampling weight carries for it.
-            let (row_omega, sin_theta) = match mapping {
+            let (row_omega, st) = match mapping {
                 EnvMapping::Equirectangular => {
                     let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
                     (
@@ -159,21 +221,30 @@ impl EnvMap {
                 }
                 EnvMapping::EqualArea => (4.0 * PI as f64 / (w as f64 * h as f64), 1.0),
             };
-            let weights: Vec<f32> = (0..w as usize)
-                .map(|x| luminance(texels[y * w as usize + x] * scale).max(0.0) * sin_theta)
-                .collect();
-            let sum: f64 = weights.iter().map(|&v| v as f64).sum();
             let lum_sum: f64 = (0..w as usize)
                 .map(|x| luminance(texels[y * w as usize + x] * scale).max(0.0) as f64)
                 .sum();
             integral += lum_sum * row_omega;
-            // The marginal needs each row's true mean, which Distribution1D replaces by 1 for an
-            // all-zero row; compute it here.
-            row_weights.push((sum / w as f64) as f32);
-            rows.push(Distribution1D::new(&weights));
+            sin_theta.push(st);
         }
-        let marginal = Distribution1D::new(&row_weights);
         let mean_luminance = (integral / (4.0 * PI as f64)) as f32;
+        // Both densities are per texel (luminance − offset)⁺ × the texel's solid-angle factor,
+        // so that per solid angle they are proportional to (radiance − offset)⁺.
+        let weights = |offset: f32| -> Vec<f32> {
+            texels
+                .iter()
+                .enumerate()
+                .map(|(i, &t)| (luminance(t * scale) - offset).max(0.0) * sin_theta[i / w as usize])
+                .collect()
+        };
+        let full_weights = weights(0.0);
+        let compensated_weights = weights(mean_luminance);
+        // A map (nearly) constant to rounding has nothing above its mean but rounding noise,
+        // which must not become the whole light-sampling density: then NEE keeps the full one.
+        let sum = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>();
+        let compensated = (sum(&compensated_weights) > 1e-3 * sum(&full_weights))
+            .then(|| TexelDistribution::new(w as usize, &compensated_weights));
+        let full = TexelDistribution::new(w as usize, &full_weights);
         let to_local = to_world.inverse();
         let det = to_world.determinant().abs();
         EnvMap {
@@ -185,8 +256,8 @@ impl EnvMap {
             mapping,
             to_world,
             to_local,
-            rows,
-            marginal,
+            full,
+            compensated,
             mean_luminance,
         }
     }
@@ -224,6 +295,34 @@ impl EnvMap {
         (y * w + x, 1.0 / (self.det * len * len * len))
     }
 
+    /// The unfiltered radiance of the texel world direction `d` falls in (what the sampling
+    /// densities are built from).
+    #[cfg(test)]
+    fn texel_radiance(&self, d: Vec3) -> Vec3 {
+        if self.mapping == EnvMapping::EqualArea {
+            return self.texels[self.equal_area_texel(d).0] * self.scale;
+        }
+        let uv = Self::dir_to_uv(self.to_local * d);
+        let (w, h) = (self.width as usize, self.height as usize);
+        let x = ((uv.x * w as f32) as usize).min(w - 1);
+        let y = ((uv.y * h as f32) as usize).min(h - 1);
+        self.texels[y * w + x] * self.scale
+    }
+
+    /// The world direction through texel (x, y)'s centre.
+    #[cfg(test)]
+    fn texel_direction(&self, x: usize, y: usize) -> Vec3 {
+        let uv = Vec2::new(
+            (x as f32 + 0.5) / self.width as f32,
+            (y as f32 + 0.5) / self.height as f32,
+        );
+        let local = match self.mapping {
+            EnvMapping::EqualArea => equal_area::square_to_sphere(uv),
+            EnvMapping::Equirectangular => Self::uv_to_dir(uv),
+        };
+        (self.to_world * local).normalize()
+    }
+
     /// Radiance arriving from world direction `d` (unit): bilinearly filtered (equirectangular)
     /// or the nearest texel (equal-area, as pbrt-v4).
     #[inline]
@@ -248,16 +347,24 @@ impl EnvMap {
         (a * (1.0 - ty) + b * ty) * self.scale
     }
 
-    /// Samples a world direction toward the map; returns (direction, radiance, solid-angle pdf).
+    /// The distribution `which` names (the full one for a map with no compensated one).
     #[inline]
-    pub fn sample(&self, u: Vec2) -> Option<(Vec3, Vec3, f32)> {
-        let (v, pdf_v, row) = self.marginal.sample_continuous(u.y);
-        let (uu, pdf_u, col) = self.rows[row].sample_continuous(u.x);
-        let uv = Vec2::new(uu, v);
+    fn distribution(&self, which: EnvPdf) -> &TexelDistribution {
+        match (which, &self.compensated) {
+            (EnvPdf::Compensated, Some(c)) => c,
+            _ => &self.full,
+        }
+    }
+
+    /// Samples a world direction toward the map from the density `which`; returns (direction,
+    /// radiance, solid-angle pdf).
+    #[inline]
+    pub fn sample(&self, u: Vec2, which: EnvPdf) -> Option<(Vec3, Vec3, f32)> {
+        let (uv, col, row, pdf_uv) = self.distribution(which).sample(u);
         if self.mapping == EnvMapping::EqualArea {
             // Uniform Jacobian: dω = 4π du dv. The radiance is the sampled texel's, so the
             // estimate L / pdf is exact for the piecewise-constant map.
-            if !(pdf_u * pdf_v > 0.0) {
+            if !(pdf_uv > 0.0) {
                 return None;
             }
             let m = self.to_world * equal_area::square_to_sphere(uv);
@@ -268,26 +375,25 @@ impl EnvMap {
             // The map-to-world Jacobian (see `equal_area_texel`): |M w| = len.
             let jacobian = len * len * len / self.det;
             let l = self.texels[row * self.width as usize + col] * self.scale;
-            return Some((m / len, l, pdf_u * pdf_v * jacobian / (4.0 * PI)));
+            return Some((m / len, l, pdf_uv * jacobian / (4.0 * PI)));
         }
         let sin_theta = (uv.y * PI).sin();
-        if !(sin_theta > 0.0) || !(pdf_u * pdf_v > 0.0) {
+        if !(sin_theta > 0.0) || !(pdf_uv > 0.0) {
             return None;
         }
-        let pdf = pdf_u * pdf_v / (2.0 * PI * PI * sin_theta);
+        let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
         let d = (self.to_world * Self::uv_to_dir(uv)).normalize();
         Some((d, self.eval(d), pdf))
     }
 
-    /// Solid-angle pdf with which [`EnvMap::sample`] produces world direction `d`.
+    /// Solid-angle pdf with which [`EnvMap::sample`] with `which` produces world direction `d`.
     #[inline]
-    pub fn pdf(&self, d: Vec3) -> f32 {
+    pub fn pdf(&self, d: Vec3, which: EnvPdf) -> f32 {
+        let dist = self.distribution(which);
         if self.mapping == EnvMapping::EqualArea {
             let (i, jacobian) = self.equal_area_texel(d);
             let (y, x) = (i / self.width as usize, i % self.width as usize);
-            let pm = self.marginal.func[y] / self.marginal.func_int;
-            let row = &self.rows[y];
-            return pm * (row.func[x] / row.func_int) * jacobian / (4.0 * PI);
+            return dist.pdf(x, y) * jacobian / (4.0 * PI);
         }
         let uv = Self::dir_to_uv(self.to_local * d);
         let sin_theta = (uv.y * PI).sin();
@@ -297,10 +403,7 @@ impl EnvMap {
         let (w, h) = (self.width as usize, self.height as usize);
         let x = ((uv.x * w as f32) as usize).min(w - 1);
         let y = ((uv.y * h as f32) as usize).min(h - 1);
-        let pm = self.marginal.func[y] / self.marginal.func_int;
-        let row = &self.rows[y];
-        let pc = row.func[x] / row.func_int;
-        pm * pc / (2.0 * PI * PI * sin_theta)
+        dist.pdf(x, y) / (2.0 * PI * PI * sin_theta)
     }
 }
 
@@ -376,7 +479,7 @@ mod tests {
             for x in 0..w {
                 let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
                 let d = EnvMap::uv_to_dir(uv);
-                let pdf = m.pdf(d);
+                let pdf = m.pdf(d, EnvPdf::Full);
                 assert!(
                     (pdf / uniform - 1.0).abs() < 1e-3,
                     "pdf at texel ({x}, {y}) = {pdf}, 1/4π = {uniform}"
@@ -395,7 +498,7 @@ mod tests {
             for j in 0..2 * n {
                 let phi = PI * (j as f32 + 0.5) / n as f32;
                 let d = Vec3::new(st * phi.cos(), ct, st * phi.sin());
-                total += (m.pdf(d) * st) as f64;
+                total += (m.pdf(d, EnvPdf::Full) * st) as f64;
             }
         }
         total *= (PI as f64 / n as f64).powi(2);
@@ -403,13 +506,13 @@ mod tests {
         for i in 0..16 {
             for j in 0..16 {
                 let u = Vec2::new((i as f32 + 0.37) / 16.0, (j as f32 + 0.61) / 16.0);
-                let (d, l, pdf) = m.sample(u).expect("a sample");
+                let (d, l, pdf) = m.sample(u, EnvPdf::Full).expect("a sample");
                 assert!((d.length() - 1.0).abs() < 1e-5);
                 assert!((l - Vec3::splat(2.0)).abs().max_element() < 1e-5, "{l}");
                 assert!(
-                    (pdf / m.pdf(d) - 1.0).abs() < 1e-3,
+                    (pdf / m.pdf(d, EnvPdf::Full) - 1.0).abs() < 1e-3,
                     "sample pdf {pdf} vs pdf(d) {}",
-                    m.pdf(d)
+                    m.pdf(d, EnvPdf::Full)
                 );
             }
         }
@@ -436,11 +539,11 @@ mod tests {
         for i in 0..64 {
             for j in 0..64 {
                 let u = Vec2::new((i as f32 + 0.31) / 64.0, (j as f32 + 0.77) / 64.0);
-                let (d, li, pdf) = m.sample(u).expect("a sample");
+                let (d, li, pdf) = m.sample(u, EnvPdf::Full).expect("a sample");
                 assert!((d.length() - 1.0).abs() < 1e-5);
                 assert!((li - l).abs().max_element() < 1e-5);
                 assert!((pdf / uniform - 1.0).abs() < 1e-4, "{pdf}");
-                assert!((m.pdf(d) / uniform - 1.0).abs() < 1e-4);
+                assert!((m.pdf(d, EnvPdf::Full) / uniform - 1.0).abs() < 1e-4);
                 assert!((m.eval(d) - l).abs().max_element() < 1e-5);
             }
         }
@@ -466,5 +569,113 @@ mod tests {
         let singular = Mat3::from_diagonal(Vec3::new(1.0, 0.0, 1.0));
         assert!(EnvMap::load_mapped(&path, Vec3::ONE, singular, EnvMapping::EqualArea).is_err());
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// The MIS-compensated density is a density (integrates to 1), is what `sample` reports
+    /// for the directions it returns, is 0 wherever the radiance is at most the map's mean and
+    /// elsewhere proportional to (radiance − mean); a constant map has none and falls back to
+    /// the full density. Both mappings, a rotated map.
+    #[test]
+    fn compensated_density_is_radiance_above_the_mean() {
+        let (w, h) = (32u32, 16u32);
+        // A dim gradient, one bright "lamp" of 2×2 texels and a medium stripe.
+        let texels: Vec<Vec3> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let v = if (10..12).contains(&x) && (4..6).contains(&y) {
+                    500.0
+                } else if y == 12 {
+                    3.0
+                } else {
+                    0.05 + 0.02 * x as f32
+                };
+                Vec3::new(v, 0.9 * v, 0.8 * v)
+            })
+            .collect();
+        let rot = Mat3::from_axis_angle(Vec3::new(0.3, 1.0, -0.2).normalize(), 0.7);
+        for mapping in [EnvMapping::Equirectangular, EnvMapping::EqualArea] {
+            let (w, h) = if mapping == EnvMapping::EqualArea {
+                (16, 16)
+            } else {
+                (w, h)
+            };
+            let m = EnvMap::from_texels_mapped(
+                w,
+                h,
+                texels[..(w * h) as usize].to_vec(),
+                Vec3::ONE,
+                rot,
+                mapping,
+            );
+            assert!(m.compensated.is_some(), "{mapping:?}");
+            // ∫ pdf dω = 1: the midpoint rule on a grid of the map's own parameterisation, 8
+            // cells per texel side, so the densities are constant or ∝ 1/sin θ on each cell
+            // (dω = sin θ dθ dφ, or 4π du dv for the equal-area square).
+            let (nx, ny) = (8 * w as usize, 8 * h as usize);
+            let mut total = [0.0f64; 2];
+            for i in 0..ny {
+                for j in 0..nx {
+                    let uv = Vec2::new((j as f32 + 0.5) / nx as f32, (i as f32 + 0.5) / ny as f32);
+                    let (local, dw) = match mapping {
+                        EnvMapping::Equirectangular => (
+                            EnvMap::uv_to_dir(uv),
+                            2.0 * PI * PI * (uv.y * PI).sin() / (nx * ny) as f32,
+                        ),
+                        EnvMapping::EqualArea => (
+                            equal_area::square_to_sphere(uv),
+                            4.0 * PI / (nx * ny) as f32,
+                        ),
+                    };
+                    let d = (rot * local).normalize();
+                    total[0] += (m.pdf(d, EnvPdf::Full) * dw) as f64;
+                    total[1] += (m.pdf(d, EnvPdf::Compensated) * dw) as f64;
+                }
+            }
+            for t in total {
+                assert!((t - 1.0).abs() < 1e-3, "{mapping:?}: ∫ pdf dω = {t}");
+            }
+            let mean = m.mean_luminance;
+            let mut ratios = Vec::new();
+            for i in 0..64 {
+                for j in 0..64 {
+                    let u = Vec2::new((i as f32 + 0.37) / 64.0, (j as f32 + 0.61) / 64.0);
+                    let (d, _, pdf) = m.sample(u, EnvPdf::Compensated).expect("a sample");
+                    assert!((pdf / m.pdf(d, EnvPdf::Compensated) - 1.0).abs() < 1e-3);
+                    // Per solid angle the full density is ∝ L and the compensated one
+                    // ∝ (L − mean)⁺ of the texel sampled (the texel's own radiance: `eval`
+                    // filters, the densities do not).
+                    let l = luminance(m.texel_radiance(d));
+                    assert!(
+                        l > mean,
+                        "{mapping:?}: sampled a texel of L = {l} ≤ mean {mean}"
+                    );
+                    ratios.push(
+                        m.pdf(d, EnvPdf::Full) / m.pdf(d, EnvPdf::Compensated) * (l - mean) / l,
+                    );
+                }
+            }
+            let (lo, hi) = ratios
+                .iter()
+                .fold((f32::MAX, 0.0f32), |(a, b), &r| (a.min(r), b.max(r)));
+            assert!(
+                hi / lo - 1.0 < 1e-3,
+                "{mapping:?}: not ∝ (L − mean): {lo}..{hi}"
+            );
+            // Directions no brighter than the mean are left to BSDF sampling.
+            for i in 0..(w * h) as usize {
+                let (x, y) = (i % w as usize, i / w as usize);
+                let d = m.texel_direction(x, y);
+                let l = luminance(m.texel_radiance(d));
+                assert_eq!(
+                    m.pdf(d, EnvPdf::Compensated) == 0.0,
+                    l <= mean,
+                    "{mapping:?}: texel ({x}, {y}) L = {l}, mean {mean}"
+                );
+            }
+        }
+        let flat = EnvMap::from_texels(8, 4, vec![Vec3::splat(0.7); 32], Vec3::ONE, rot);
+        assert!(flat.compensated.is_none());
+        let d = Vec3::new(0.2, 0.9, -0.3).normalize();
+        assert_eq!(flat.pdf(d, EnvPdf::Compensated), flat.pdf(d, EnvPdf::Full));
     }
 }

@@ -18,7 +18,7 @@ pub mod emission;
 pub mod envmap;
 pub mod equal_area;
 pub use bvh::{LightBounds, LightBvh};
-pub use envmap::{EnvMap, EnvMapping};
+pub use envmap::{EnvMap, EnvMapping, EnvPdf};
 
 /// How next-event estimation chooses a light (`--light-sampler`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -596,12 +596,15 @@ impl LightSet {
         n_offset: Vec3,
         u_light: f32,
         u: Vec2,
+        env: EnvPdf,
     ) -> Option<LightSample> {
         if self.lights.is_empty() {
             return None;
         }
         let (index, pmf) = self.choose(hit.p, n_offset, u_light)?;
-        self.sample_chosen(geometry, materials, textures, hit, n_offset, index, pmf, u)
+        self.sample_chosen(
+            geometry, materials, textures, hit, n_offset, index, pmf, u, env,
+        )
     }
 
     /// [`Self::sample`] with the light chosen by `u.x` and the point placed on it by `u.x`
@@ -624,6 +627,7 @@ impl LightSet {
         n_offset: Vec3,
         u: Vec2,
         u_spare: f32,
+        env: EnvPdf,
     ) -> Option<LightSample> {
         if self.lights.is_empty() {
             return None;
@@ -631,10 +635,13 @@ impl LightSet {
         let (index, pmf, rest) = self.choose_remap(hit.p, n_offset, u.x)?;
         let x = if pmf >= MIN_REUSE_PMF { rest } else { u_spare };
         let u = Vec2::new(x, u.y);
-        self.sample_chosen(geometry, materials, textures, hit, n_offset, index, pmf, u)
+        self.sample_chosen(
+            geometry, materials, textures, hit, n_offset, index, pmf, u, env,
+        )
     }
 
-    /// Samples light `index`, chosen with probability `pmf`, with `u`.
+    /// Samples light `index`, chosen with probability `pmf`, with `u`; an environment map
+    /// from the density `env`.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn sample_chosen(
@@ -647,6 +654,7 @@ impl LightSet {
         index: usize,
         pmf: f32,
         u: Vec2,
+        env: EnvPdf,
     ) -> Option<LightSample> {
         let p = hit.p;
         match &self.lights[index] {
@@ -689,7 +697,7 @@ impl LightSet {
                 })
             }
             Light::Environment { map } => {
-                let (wi, li, pdf) = map.sample(u)?;
+                let (wi, li, pdf) = map.sample(u, env)?;
                 if li == Vec3::ZERO {
                     return None;
                 }
@@ -741,9 +749,10 @@ impl LightSet {
     }
 
     /// Radiance from the lights at infinity along an escaping ray direction `d` (unit), and for
-    /// each such light its NEE pdf (selection included), summed for MIS.
+    /// each such light its NEE pdf (selection included; environment maps' density `env`),
+    /// summed for MIS.
     #[inline]
-    pub fn escaped(&self, d: Vec3) -> (Vec3, f32) {
+    pub fn escaped(&self, d: Vec3, env: EnvPdf) -> (Vec3, f32) {
         let mut l = Vec3::ZERO;
         let mut pdf = 0.0;
         for &i in &self.infinite {
@@ -754,7 +763,7 @@ impl LightSet {
                 }
                 Light::Environment { map } => {
                     l += map.eval(d);
-                    pdf += self.pmf_infinite(i) * map.pdf(d);
+                    pdf += self.pmf_infinite(i) * map.pdf(d, env);
                 }
                 _ => {}
             }

@@ -6,7 +6,7 @@
 use super::World;
 use crate::geometry::primitive::{Intersection, NO_LIGHT};
 use crate::geometry::{Ray, SurfaceHit};
-use crate::light::{Light, LightSample};
+use crate::light::{EnvPdf, Light, LightSample};
 use crate::material::local_shading::LocalSurface;
 use crate::material::{Bsdf, Material, eval, normal_map};
 use crate::math::{Vec2, Vec3};
@@ -101,17 +101,21 @@ impl World {
     }
 
     /// Radiance from the lights at infinity along an escaping ray's unit direction `d`, and the
-    /// solid-angle pdf with which NEE would have sampled `d` (selection included), for MIS.
+    /// solid-angle pdf with which NEE drawing environment directions from `env` would have
+    /// sampled `d` (selection included), for MIS.
     #[inline]
-    pub fn escaped(&self, d: Vec3) -> (Vec3, f32) {
-        self.lights.escaped(d)
+    pub fn escaped(&self, d: Vec3, env: EnvPdf) -> (Vec3, f32) {
+        self.lights.escaped(d, env)
     }
 
     /// Next-event estimation from `hit` (Mitsuba's `sample_emitter_direction`, pbrt's
     /// `SampleLd`): picks a light with `u_light` (by power, or by the light BVH's importance from
     /// `hit.p` and `n_offset`) and a point or direction on it with `u`. The shadow ray leaves
     /// `hit` offset along `n_offset` (the geometric normal on the side the light is sampled
-    /// from, zero in a medium); it is not traced here.
+    /// from, zero in a medium); it is not traced here. An environment map is sampled from the
+    /// density `env`: [`EnvPdf::Compensated`] only when the sample is combined by MIS with a
+    /// strategy that reaches every direction (it leaves directions dimmer than the map's mean
+    /// to that strategy).
     #[inline]
     pub fn sample_light(
         &self,
@@ -119,6 +123,7 @@ impl World {
         n_offset: Vec3,
         u_light: f32,
         u: Vec2,
+        env: EnvPdf,
     ) -> Option<LightSample> {
         self.lights.sample(
             &self.geometry,
@@ -128,6 +133,7 @@ impl World {
             n_offset,
             u_light,
             u,
+            env,
         )
     }
 
@@ -141,6 +147,7 @@ impl World {
         n_offset: Vec3,
         u: Vec2,
         u_spare: f32,
+        env: EnvPdf,
     ) -> Option<LightSample> {
         self.lights.sample_reuse(
             &self.geometry,
@@ -150,6 +157,7 @@ impl World {
             n_offset,
             u,
             u_spare,
+            env,
         )
     }
 
