@@ -100,9 +100,10 @@ impl CharlieFit {
         }
     }
 
-    /// The white sheen lobe D(h)·V(L, V), both directions above (cosines > 0).
+    /// The white sheen lobe D(h)·V(L, V), both directions above (cosines > 0). `lambda_o` is
+    /// Λ(wo.z) when the caller has it ([`Sheen::lambda_of`]), else it is computed here.
     #[inline]
-    fn lobe(&self, wo: Vec3, wi: Vec3) -> f32 {
+    fn lobe(&self, lambda_o: Option<f32>, wo: Vec3, wi: Vec3) -> f32 {
         let (no, ni) = (wo.z, wi.z);
         if no <= 0.0 || ni <= 0.0 {
             return 0.0;
@@ -112,7 +113,8 @@ impl CharlieFit {
             return 0.0;
         }
         let h = h.normalize();
-        let v = 1.0 / ((1.0 + self.lambda(no) + self.lambda(ni)) * 4.0 * no * ni);
+        let lambda_o = lambda_o.unwrap_or_else(|| self.lambda(no));
+        let v = 1.0 / ((1.0 + lambda_o + self.lambda(ni)) * 4.0 * no * ni);
         charlie_d(self.alpha, h.z) * v.clamp(0.0, 1.0)
     }
 }
@@ -120,7 +122,7 @@ impl CharlieFit {
 /// The white sheen lobe D(h)·V(L, V) for α, both directions above (cosines > 0).
 #[inline]
 pub fn lobe(alpha: f32, wo: Vec3, wi: Vec3) -> f32 {
-    CharlieFit::new(alpha).lobe(wo, wi)
+    CharlieFit::new(alpha).lobe(None, wo, wi)
 }
 
 const TABLE_MU: usize = 32;
@@ -194,21 +196,52 @@ impl Sheen {
     /// The sheen lobe's value f_sheen(wo, wi) (both above).
     #[inline]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        self.color * self.fit.lobe(wo, wi)
+        self.eval_with(None, wo, wi)
+    }
+
+    /// [`Sheen::eval`] given Λ(wo.z) ([`Sheen::lambda_of`]) if the caller kept it for `wo`.
+    #[inline]
+    pub fn eval_with(&self, lambda_o: Option<f32>, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.color * self.fit.lobe(lambda_o, wo, wi)
     }
 
     /// What the sheen leaves of the base: min(1 − c·E(N·V), 1 − c·E(N·L)).
     #[inline]
     pub fn base_scale(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.base_scale_with(None, wo, wi)
+    }
+
+    /// [`Sheen::base_scale`] given E(N·V) ([`Sheen::albedo_of`]) if the caller kept it for `wo`.
+    #[inline]
+    pub fn base_scale_with(&self, e_o: Option<f32>, wo: Vec3, wi: Vec3) -> f32 {
         let c = self.color.max_element();
-        let e = albedo(wo.z.abs(), self.roughness).max(albedo(wi.z.abs(), self.roughness));
+        let e_o = e_o.unwrap_or_else(|| self.albedo_of(wo));
+        let e = e_o.max(albedo(wi.z.abs(), self.roughness));
         (1.0 - c * e).max(0.0)
     }
 
     /// The share of the base the sheen takes from `wo` (for choosing the lobe): c·E(N·V).
     #[inline]
     pub fn weight(&self, wo: Vec3) -> f32 {
-        self.color.max_element() * albedo(wo.z.abs(), self.roughness)
+        self.weight_with(None, wo)
+    }
+
+    /// [`Sheen::weight`] given E(N·V) if the caller kept it for `wo`.
+    #[inline]
+    pub fn weight_with(&self, e_o: Option<f32>, wo: Vec3) -> f32 {
+        self.color.max_element() * e_o.unwrap_or_else(|| self.albedo_of(wo))
+    }
+
+    /// E(N·V) = E(|wo.z|): the one albedo-table lookup of `wo`.
+    #[inline]
+    pub fn albedo_of(&self, wo: Vec3) -> f32 {
+        albedo(wo.z.abs(), self.roughness)
+    }
+
+    /// Λ(wo.z) of the lobe's visibility term (its value for `wo` above the surface).
+    #[inline]
+    pub fn lambda_of(&self, wo: Vec3) -> f32 {
+        self.fit.lambda(wo.z)
     }
 }
 
