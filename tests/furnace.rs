@@ -183,6 +183,7 @@ fn metals_lose_exactly_their_single_scattering_deficit() {
             specular: m.specular,
             coat: None,
             ext: Default::default(),
+            wo_terms: None,
         })
     };
     for (roughness, spp) in [(0.0f32, 16u32), (0.5, 32), (1.0, 32)] {

@@ -47,6 +47,7 @@ impl Vertex {
             let n = if ns.dot(hit.ns) < 0.0 { -n } else { n };
             bsdf.set_coat_normal(frame.to_local(n), frame.to_local(ng));
         }
+        bsdf.prepare(wo_local);
         Vertex {
             hit,
             bsdf,

@@ -153,6 +153,7 @@ impl Bsdf {
                     specular,
                     coat,
                     ext,
+                    wo_terms: None,
                 })
             }
         }

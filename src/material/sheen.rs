@@ -27,11 +27,14 @@ use crate::math::{PI, Vec3};
 /// The smallest sheen α: below it sin^(1/α) underflows everywhere except exactly at grazing.
 pub const MIN_SHEEN_ALPHA: f32 = 1e-3;
 
-/// A sheen layer: colour (linear RGB, each ≤ 1) and glTF roughness in [0, 1].
+/// A sheen layer: colour (linear RGB, each ≤ 1) and glTF roughness in [0, 1], with the terms of
+/// its lobe that depend on the roughness alone ([`CharlieFit`]), computed once per hit instead
+/// of in every evaluation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sheen {
     pub color: Vec3,
     pub roughness: f32,
+    fit: CharlieFit,
 }
 
 #[inline]
@@ -48,44 +51,78 @@ pub fn charlie_d(alpha: f32, cos_h: f32) -> f32 {
     (2.0 + inv) * sin2.powf(0.5 * inv) / (2.0 * PI)
 }
 
-/// Estevez & Kulla's fitted L(x) (table 1), interpolated between α = 0 and 1 by (1 − α)².
-#[inline]
-fn charlie_l(x: f32, alpha: f32) -> f32 {
-    let t = (1.0 - alpha) * (1.0 - alpha);
-    let mix = |a1: f32, a0: f32| a1 + (a0 - a1) * t;
-    let a = mix(21.5473, 25.3245);
-    let b = mix(3.82987, 3.32435);
-    let c = mix(0.19823, 0.16801);
-    let d = mix(-1.97760, -1.27393);
-    let e = mix(-4.32054, -4.85967);
-    a / (1.0 + b * x.powf(c)) + d * x + e
+/// Estevez & Kulla's fitted L(x) (table 1) at one α: its five coefficients, interpolated between
+/// α = 0 and 1 by (1 − α)², and L(½), which Λ uses for every cosine ≥ ½. All depend on α
+/// only; ToyCar's fabric evaluated them (a `powf` among them) twice per lobe evaluation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct CharlieFit {
+    alpha: f32,
+    a: f32,
+    b: f32,
+    c: f32,
+    d: f32,
+    e: f32,
+    l_half: f32,
 }
 
-/// Λ(cos θ) of the Charlie distribution (Estevez & Kulla 2017 eq. 3 with the fit).
-#[inline]
-fn charlie_lambda(cos: f32, alpha: f32) -> f32 {
-    let c = cos.abs();
-    if c < 0.5 {
-        charlie_l(c, alpha).exp()
-    } else {
-        (2.0 * charlie_l(0.5, alpha) - charlie_l(1.0 - c, alpha)).exp()
+impl CharlieFit {
+    #[inline]
+    fn new(alpha: f32) -> CharlieFit {
+        let t = (1.0 - alpha) * (1.0 - alpha);
+        let mix = |a1: f32, a0: f32| a1 + (a0 - a1) * t;
+        let mut fit = CharlieFit {
+            alpha,
+            a: mix(21.5473, 25.3245),
+            b: mix(3.82987, 3.32435),
+            c: mix(0.19823, 0.16801),
+            d: mix(-1.97760, -1.27393),
+            e: mix(-4.32054, -4.85967),
+            l_half: 0.0,
+        };
+        fit.l_half = fit.l(0.5);
+        fit
+    }
+
+    /// L(x).
+    #[inline]
+    fn l(&self, x: f32) -> f32 {
+        self.a / (1.0 + self.b * x.powf(self.c)) + self.d * x + self.e
+    }
+
+    /// Λ(cos θ) of the Charlie distribution (Estevez & Kulla 2017 eq. 3 with the fit).
+    #[inline]
+    fn lambda(&self, cos: f32) -> f32 {
+        let c = cos.abs();
+        if c < 0.5 {
+            self.l(c).exp()
+        } else {
+            (2.0 * self.l_half - self.l(1.0 - c)).exp()
+        }
+    }
+
+    /// The white sheen lobe D(h)·V(L, V), both directions above (cosines > 0). `lambda_o` is
+    /// Λ(wo.z) when the caller has it ([`Sheen::lambda_of`]), else it is computed here.
+    #[inline]
+    fn lobe(&self, lambda_o: Option<f32>, wo: Vec3, wi: Vec3) -> f32 {
+        let (no, ni) = (wo.z, wi.z);
+        if no <= 0.0 || ni <= 0.0 {
+            return 0.0;
+        }
+        let h = wo + wi;
+        if h.length_squared() == 0.0 {
+            return 0.0;
+        }
+        let h = h.normalize();
+        let lambda_o = lambda_o.unwrap_or_else(|| self.lambda(no));
+        let v = 1.0 / ((1.0 + lambda_o + self.lambda(ni)) * 4.0 * no * ni);
+        charlie_d(self.alpha, h.z) * v.clamp(0.0, 1.0)
     }
 }
 
 /// The white sheen lobe D(h)·V(L, V) for α, both directions above (cosines > 0).
 #[inline]
 pub fn lobe(alpha: f32, wo: Vec3, wi: Vec3) -> f32 {
-    let (no, ni) = (wo.z, wi.z);
-    if no <= 0.0 || ni <= 0.0 {
-        return 0.0;
-    }
-    let h = wo + wi;
-    if h.length_squared() == 0.0 {
-        return 0.0;
-    }
-    let h = h.normalize();
-    let v = 1.0 / ((1.0 + charlie_lambda(no, alpha) + charlie_lambda(ni, alpha)) * 4.0 * no * ni);
-    charlie_d(alpha, h.z) * v.clamp(0.0, 1.0)
+    CharlieFit::new(alpha).lobe(None, wo, wi)
 }
 
 const TABLE_MU: usize = 32;
@@ -130,9 +167,12 @@ pub fn albedo(mu: f32, roughness: f32) -> f32 {
     let t = table();
     let x = mu.clamp(0.0, 1.0) * (TABLE_MU - 1) as f32;
     let y = roughness.clamp(0.0, 1.0) * (TABLE_R - 1) as f32;
+    // Through i32: x and y are in [0, 31] (or NaN, which both conversions send to 0), where it
+    // is the same truncation as `as usize`, in one instruction instead of the unsigned 64-bit
+    // conversion's range checks.
     let (x0, y0) = (
-        (x as usize).min(TABLE_MU - 2),
-        (y as usize).min(TABLE_R - 2),
+        (x as i32 as usize).min(TABLE_MU - 2),
+        (y as i32 as usize).min(TABLE_R - 2),
     );
     let (fx, fy) = (x - x0 as f32, y - y0 as f32);
     let at = |i: usize, j: usize| t[j * TABLE_MU + i];
@@ -145,30 +185,63 @@ impl Sheen {
     /// `None` when the colour is black (the extension's "no sheen").
     pub fn new(color: Vec3, roughness: f32) -> Option<Sheen> {
         let color = color.clamp(Vec3::ZERO, Vec3::ONE);
-        (color.max_element() > 0.0).then_some(Sheen {
+        let roughness = roughness.clamp(0.0, 1.0);
+        (color.max_element() > 0.0).then(|| Sheen {
             color,
-            roughness: roughness.clamp(0.0, 1.0),
+            roughness,
+            fit: CharlieFit::new(alpha_of(roughness)),
         })
     }
 
     /// The sheen lobe's value f_sheen(wo, wi) (both above).
     #[inline]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        self.color * lobe(alpha_of(self.roughness), wo, wi)
+        self.eval_with(None, wo, wi)
+    }
+
+    /// [`Sheen::eval`] given Λ(wo.z) ([`Sheen::lambda_of`]) if the caller kept it for `wo`.
+    #[inline]
+    pub fn eval_with(&self, lambda_o: Option<f32>, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.color * self.fit.lobe(lambda_o, wo, wi)
     }
 
     /// What the sheen leaves of the base: min(1 − c·E(N·V), 1 − c·E(N·L)).
     #[inline]
     pub fn base_scale(&self, wo: Vec3, wi: Vec3) -> f32 {
+        self.base_scale_with(None, wo, wi)
+    }
+
+    /// [`Sheen::base_scale`] given E(N·V) ([`Sheen::albedo_of`]) if the caller kept it for `wo`.
+    #[inline]
+    pub fn base_scale_with(&self, e_o: Option<f32>, wo: Vec3, wi: Vec3) -> f32 {
         let c = self.color.max_element();
-        let e = albedo(wo.z.abs(), self.roughness).max(albedo(wi.z.abs(), self.roughness));
+        let e_o = e_o.unwrap_or_else(|| self.albedo_of(wo));
+        let e = e_o.max(albedo(wi.z.abs(), self.roughness));
         (1.0 - c * e).max(0.0)
     }
 
     /// The share of the base the sheen takes from `wo` (for choosing the lobe): c·E(N·V).
     #[inline]
     pub fn weight(&self, wo: Vec3) -> f32 {
-        self.color.max_element() * albedo(wo.z.abs(), self.roughness)
+        self.weight_with(None, wo)
+    }
+
+    /// [`Sheen::weight`] given E(N·V) if the caller kept it for `wo`.
+    #[inline]
+    pub fn weight_with(&self, e_o: Option<f32>, wo: Vec3) -> f32 {
+        self.color.max_element() * e_o.unwrap_or_else(|| self.albedo_of(wo))
+    }
+
+    /// E(N·V) = E(|wo.z|): the one albedo-table lookup of `wo`.
+    #[inline]
+    pub fn albedo_of(&self, wo: Vec3) -> f32 {
+        albedo(wo.z.abs(), self.roughness)
+    }
+
+    /// Λ(wo.z) of the lobe's visibility term (its value for `wo` above the surface).
+    #[inline]
+    pub fn lambda_of(&self, wo: Vec3) -> f32 {
+        self.fit.lambda(wo.z)
     }
 }
 

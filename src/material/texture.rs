@@ -309,7 +309,13 @@ impl UvTransform {
     #[inline]
     pub fn apply(&self, uv: Vec2) -> Vec2 {
         let s = uv * self.scale;
-        let (sin, cos) = self.rotation.sin_cos();
+        // Most transforms only scale and offset: skip the sine and cosine of +0, which are
+        // exactly (0, 1) (the bit test leaves −0, whose sine is −0, to `sin_cos`).
+        let (sin, cos) = if self.rotation.to_bits() == 0 {
+            (0.0, 1.0)
+        } else {
+            self.rotation.sin_cos()
+        };
         // glTF's rotation is counter-clockwise in UV space with v pointing down.
         Vec2::new(cos * s.x + sin * s.y, -sin * s.x + cos * s.y) + self.offset
     }
@@ -332,6 +338,35 @@ impl TextureRef {
             transform: None,
         }
     }
+}
+
+/// The four texels of a bilinear lookup, decoded by `f`. Spelled out: `[T; 4]::map` compiled to
+/// an out-of-line `try_map` call per lookup (84 instructions of ToyCar's ~350 per lookup).
+#[inline(always)]
+fn fetch4(i: [usize; 4], f: impl Fn(usize) -> Vec4) -> [Vec4; 4] {
+    [f(i[0]), f(i[1]), f(i[2]), f(i[3])]
+}
+
+/// ⌊x⌋ as an integer and as a float, bit for bit `(x.floor() as i64, x.floor())`. The target's
+/// baseline x86-64 has no rounding instruction (SSE4.1), so `f32::floor` is a call into libm;
+/// below 2²³ in magnitude truncation and one compare give the same value inline (the truncated
+/// integer is exact there). −0 (whose floor keeps its sign), larger, infinite and NaN inputs
+/// take `floor` itself.
+#[inline]
+pub(crate) fn floor_i64(x: f32) -> (i64, f32) {
+    if x.abs() < 8_388_608.0 {
+        let t = x as i32;
+        let (i, f) = if (t as f32) > x {
+            (t - 1, (t - 1) as f32)
+        } else {
+            (t, t as f32)
+        };
+        if f != 0.0 || x.is_sign_positive() {
+            return (i as i64, f);
+        }
+    }
+    let f = x.floor();
+    (f as i64, f)
 }
 
 /// sRGB electro-optical transfer function (IEC 61966-2-1).
@@ -408,6 +443,27 @@ impl Texture {
         v as usize
     }
 
+    /// The wrapped indices of texel `i` and of its neighbour `i + 1`: what [`Texture::wrap`]
+    /// gives for each, with one division instead of two (a bilinear lookup's two columns or two
+    /// rows). `i` inside `[0, n − 1)`, the common case, needs none. Always inlined: as a call it
+    /// cost ToyCar ~20 instructions per lookup.
+    #[inline(always)]
+    fn wrap_pair(i: i64, n: u32, mode: WrapMode) -> (usize, usize) {
+        let n64 = n as i64;
+        if i >= 0 && i < n64 - 1 {
+            return (i as usize, i as usize + 1);
+        }
+        match mode {
+            // (i + 1) mod n is i mod n + 1, or 0 where that reaches n.
+            WrapMode::Repeat => {
+                let a = i.rem_euclid(n64);
+                let b = if a + 1 == n64 { 0 } else { a + 1 };
+                (a as usize, b as usize)
+            }
+            _ => (Self::wrap(i, n, mode), Self::wrap(i + 1, n, mode)),
+        }
+    }
+
     #[inline]
     fn index(&self, x: i64, y: i64) -> usize {
         self.index_in(self.width, self.height, x, y)
@@ -430,9 +486,7 @@ impl Texture {
         let x = uv.x * self.width as f32;
         let y = uv.y * self.height as f32;
         match self.filter {
-            FilterMode::Nearest => self
-                .texels
-                .get(self.index(x.floor() as i64, y.floor() as i64)),
+            FilterMode::Nearest => self.texels.get(self.index(floor_i64(x).0, floor_i64(y).0)),
             FilterMode::Bilinear => self.bilinear(self.width, self.height, &self.texels, x, y),
         }
     }
@@ -442,31 +496,31 @@ impl Texture {
     #[inline]
     fn bilinear(&self, width: u32, height: u32, texels: &Texels, x: f32, y: f32) -> Vec4 {
         let (fx, fy) = (x - 0.5, y - 0.5);
-        let (x0, y0) = (fx.floor(), fy.floor());
-        let (tx, ty) = (fx - x0, fy - y0);
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let i = [
-            self.index_in(width, height, x0, y0),
-            self.index_in(width, height, x0 + 1, y0),
-            self.index_in(width, height, x0, y0 + 1),
-            self.index_in(width, height, x0 + 1, y0 + 1),
-        ];
+        let ((x0, x0f), (y0, y0f)) = (floor_i64(fx), floor_i64(fy));
+        let (tx, ty) = (fx - x0f, fy - y0f);
+        // Each axis is wrapped once for both of its texels (ToyCar: the eight separate wraps, a
+        // 64-bit division each for repeating textures, were a quarter of a lookup's
+        // instructions).
+        let (xa, xb) = Self::wrap_pair(x0, width, self.wrap_s);
+        let (ya, yb) = Self::wrap_pair(y0, height, self.wrap_t);
+        let (ra, rb) = (ya * width as usize, yb * width as usize);
+        let i = [ra + xa, ra + xb, rb + xa, rb + xb];
         // One match per lookup, not per texel: the storage kind picks the decoder once.
         let [t00, t10, t01, t11] = match texels {
             Texels::Srgb8(v) => {
                 let (c, a) = (&*SRGB8_TO_LINEAR, &*UNORM8_TO_F32);
-                i.map(|i| decode8(c, a, v[i]))
+                fetch4(i, |i| decode8(c, a, v[i]))
             }
             Texels::Unorm8(v) => {
                 let a = &*UNORM8_TO_F32;
-                i.map(|i| decode8(a, a, v[i]))
+                fetch4(i, |i| decode8(a, a, v[i]))
             }
             Texels::Unorm8Recip(v) => {
                 let a = &*UNORM8_TO_F32_RECIP;
-                i.map(|i| decode8(a, a, v[i]))
+                fetch4(i, |i| decode8(a, a, v[i]))
             }
-            Texels::Unorm16(v) => i.map(|i| decode16(v[i])),
-            Texels::F32(v) => i.map(|i| v[i]),
+            Texels::Unorm16(v) => fetch4(i, |i| decode16(v[i])),
+            Texels::F32(v) => fetch4(i, |i| v[i]),
         };
         let a = t00 * (1.0 - tx) + t10 * tx;
         let b = t01 * (1.0 - tx) + t11 * tx;
@@ -602,6 +656,179 @@ mod tests {
         }
     }
 
+    /// `floor_i64` is bit for bit `floor` (value, sign of zero, integer) on a sweep of ordinary
+    /// values and on the edges: ±0, halves, integers and their neighbours, 2²³ ± 1 ulp, huge,
+    /// infinite, NaN, subnormal. Fails if the truncation path drops the −1 step for negative
+    /// non-integers or turns −0 into +0.
+    #[test]
+    fn fast_floor_is_floor() {
+        let mut xs: Vec<f32> = vec![
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1.0 + f32::EPSILON,
+            1.0 - f32::EPSILON / 2.0,
+            -(1.0 - f32::EPSILON / 2.0),
+            8_388_607.5,
+            -8_388_607.5,
+            8_388_608.0,
+            -8_388_608.0,
+            f32::from_bits(8_388_608f32.to_bits() - 1),
+            -f32::from_bits(8_388_608f32.to_bits() - 1),
+            1e20,
+            -1e20,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            f32::MIN_POSITIVE / 4.0,
+            -f32::MIN_POSITIVE / 4.0,
+        ];
+        let mut h = 0x9e37_79b9u32;
+        for _ in 0..100_000 {
+            h ^= h << 13;
+            h ^= h >> 17;
+            h ^= h << 5;
+            xs.push((h as f32 / u32::MAX as f32 - 0.5) * 8192.0);
+        }
+        for k in -300..300 {
+            let x = k as f32;
+            xs.extend([
+                x,
+                f32::from_bits(x.to_bits() + 1),
+                f32::from_bits(x.to_bits().max(1) - 1),
+            ]);
+        }
+        for x in xs {
+            let (i, f) = floor_i64(x);
+            let r = x.floor();
+            assert_eq!(f.to_bits(), r.to_bits(), "floor({x:e})");
+            assert_eq!(i, r as i64, "floor({x:e}) as i64");
+        }
+    }
+
+    /// `wrap_pair(i)` is `(wrap(i), wrap(i + 1))` for every wrap mode, size and index around and
+    /// far outside the texture. Fails if the repeating neighbour does not wrap to 0 at n − 1.
+    #[test]
+    fn wrap_pair_is_two_wraps() {
+        for mode in [
+            WrapMode::Repeat,
+            WrapMode::ClampToEdge,
+            WrapMode::MirroredRepeat,
+        ] {
+            for n in 1..7u32 {
+                for i in (-40..40).chain([i64::MIN / 4, -1 << 40, 1 << 40, i64::MAX / 4]) {
+                    assert_eq!(
+                        Texture::wrap_pair(i, n, mode),
+                        (Texture::wrap(i, n, mode), Texture::wrap(i + 1, n, mode)),
+                        "{mode:?} n={n} i={i}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The bilinear lookup as it was before it shared wraps between texels (`floor`, one wrap
+    /// per texel): the optimised lookup must return the same bits for every storage kind and
+    /// wrap mode at random and edge coordinates. Fails with any change to the texel indices,
+    /// the weights or the decoding.
+    #[test]
+    fn bilinear_matches_the_per_texel_reference() {
+        fn reference(t: &Texture, uv: Vec2) -> Vec4 {
+            let (fx, fy) = (uv.x * t.width as f32 - 0.5, uv.y * t.height as f32 - 0.5);
+            let (x0, y0) = (fx.floor(), fy.floor());
+            let (tx, ty) = (fx - x0, fy - y0);
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            let g = |x, y| t.texels.get(t.index_in(t.width, t.height, x, y));
+            let a = g(x0, y0) * (1.0 - tx) + g(x0 + 1, y0) * tx;
+            let b = g(x0, y0 + 1) * (1.0 - tx) + g(x0 + 1, y0 + 1) * tx;
+            a * (1.0 - ty) + b * ty
+        }
+        let (w, h) = (5u32, 3u32);
+        let texels: Vec<Vec4> = (0..w * h)
+            .map(|i| {
+                let c = |k: u32| ((i * 37 + k * 101) % 256) as f32 / 255.0;
+                Vec4::new(c(0), c(1), c(2), c(3))
+            })
+            .collect();
+        let kinds = [
+            Texels::Srgb8(
+                texels
+                    .iter()
+                    .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
+                    .collect(),
+            ),
+            Texels::Unorm8(
+                texels
+                    .iter()
+                    .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
+                    .collect(),
+            ),
+            Texels::Unorm8Recip(
+                texels
+                    .iter()
+                    .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
+                    .collect(),
+            ),
+            Texels::Unorm16(
+                texels
+                    .iter()
+                    .map(|v| v.to_array().map(|c| (c * 65535.0) as u16))
+                    .collect(),
+            ),
+            Texels::F32(texels.iter().map(|v| *v * 3.0 - Vec4::ONE).collect()),
+        ];
+        let mut uvs: Vec<Vec2> = Vec::new();
+        let mut s = 0x1234_5678u32;
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            (s as f32 / u32::MAX as f32 - 0.5) * 6.0
+        };
+        for _ in 0..5_000 {
+            uvs.push(Vec2::new(next(), next()));
+        }
+        for k in -12..=12 {
+            // Texel edges and centres, where the floor and the wrap change.
+            let e = k as f32 / 10.0;
+            uvs.extend([
+                Vec2::new(e, 1.0 - e),
+                Vec2::new(0.1 / w as f32 * k as f32, e),
+            ]);
+        }
+        uvs.extend([
+            Vec2::ZERO,
+            Vec2::ONE,
+            Vec2::new(1e9, -1e9),
+            Vec2::new(-0.0, 0.0),
+        ]);
+        for texels in kinds {
+            for (ws, wt) in [
+                (WrapMode::Repeat, WrapMode::Repeat),
+                (WrapMode::ClampToEdge, WrapMode::MirroredRepeat),
+                (WrapMode::MirroredRepeat, WrapMode::ClampToEdge),
+            ] {
+                let t = Texture {
+                    wrap_s: ws,
+                    wrap_t: wt,
+                    ..Texture::with_texels("t", w, h, texels.clone())
+                };
+                for &uv in &uvs {
+                    let (a, b) = (t.lookup(uv), reference(&t, uv));
+                    assert_eq!(
+                        a.to_array().map(f32::to_bits),
+                        b.to_array().map(f32::to_bits),
+                        "{} {ws:?}/{wt:?} at {uv:?}: {a:?} vs {b:?}",
+                        t.texels.kind()
+                    );
+                }
+            }
+        }
+    }
+
     #[test]
     fn nearest_and_wrap_modes() {
         let mut t = checker();
@@ -660,6 +887,40 @@ mod tests {
             assert!((linear_to_srgb(srgb_to_linear(c)) - c).abs() < 1e-5);
         }
         assert!((srgb_to_linear(0.5) - 0.214).abs() < 1e-3);
+    }
+
+    /// `UvTransform::apply` skips `sin_cos` for a rotation of +0 and uses (0, 1): that must be
+    /// what `sin_cos` gives, bit for bit, or unrotated transforms would move; and −0, whose sine
+    /// is −0, must still go through `sin_cos` (mirrored offsets keep their sign of zero).
+    #[test]
+    fn unrotated_transform_is_the_rotated_formula_at_zero() {
+        let (s, c) = 0f32.sin_cos();
+        assert_eq!((s.to_bits(), c.to_bits()), (0f32.to_bits(), 1f32.to_bits()));
+        for rotation in [0.0f32, -0.0] {
+            // A zero offset and uv keep the sign of zero visible: at uv (0, 0) the v result is
+            // −sin·0 + cos·(−0) − 0, which is +0 for sin = −0 and −0 for sin = +0.
+            let t = UvTransform {
+                offset: Vec2::new(-0.0, -0.0),
+                rotation,
+                scale: Vec2::new(3.0, -2.0),
+            };
+            let (sin, cos) = rotation.sin_cos();
+            for uv in [
+                Vec2::ZERO,
+                Vec2::new(0.0, -0.0),
+                Vec2::new(0.3, 0.7),
+                Vec2::new(-5.5, 1e-3),
+            ] {
+                let sc = uv * t.scale;
+                let want = Vec2::new(cos * sc.x + sin * sc.y, -sin * sc.x + cos * sc.y) + t.offset;
+                let got = t.apply(uv);
+                assert_eq!(
+                    (got.x.to_bits(), got.y.to_bits()),
+                    (want.x.to_bits(), want.y.to_bits()),
+                    "rotation {rotation:?} uv {uv:?}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -90,6 +90,24 @@ pub struct MetallicRoughness {
     /// f_coat. Its normal is +z until [`crate::material::Bsdf::set_coat_normal`] places it.
     pub coat: Option<Clearcoat>,
     pub ext: Extensions,
+    /// The terms that depend on the outgoing direction alone, for the one `wo` of the path
+    /// vertex ([`MetallicRoughness::prepare`]); `None` computes them at every use.
+    pub wo_terms: Option<WoTerms>,
+}
+
+/// What [`MetallicRoughness`] computes from `wo` alone, kept for one `wo`. A path vertex
+/// evaluates, samples and takes pdfs with the same `wo` several times (NEE's eval and pdf, the
+/// BSDF sample's lobe choice, pdf and value): ToyCar recomputed the specular-lobe probability
+/// ~2.3 times per vertex, the sheen's albedo-table lookup of `wo` ~4 times and its Λ(wo) (a
+/// `powf` and an `exp`) twice. The values are those the uncached code computes, from the same
+/// inputs, so results are bit-identical; a different `wo` (bit for bit) falls back to computing.
+#[derive(Clone, Copy, Debug)]
+pub struct WoTerms {
+    wo: [u32; 3],
+    spec_probability: f32,
+    /// E(N·V) and Λ(wo.z) of the sheen (0 without one).
+    sheen_albedo: f32,
+    sheen_lambda: f32,
 }
 
 /// Mirror through the surface plane (a view from behind a thin sheet, evaluated from the front).
@@ -99,6 +117,32 @@ fn mirror_z(w: Vec3) -> Vec3 {
 }
 
 impl MetallicRoughness {
+    /// Keeps the terms that depend on `wo` alone ([`WoTerms`]) for the calls with this `wo`.
+    #[inline]
+    pub fn prepare(&mut self, wo: Vec3) {
+        self.wo_terms = None;
+        self.wo_terms = Some(WoTerms {
+            wo: wo.to_array().map(f32::to_bits),
+            spec_probability: self.spec_probability(wo),
+            sheen_albedo: self.ext.sheen.map_or(0.0, |s| s.albedo_of(wo)),
+            sheen_lambda: self.ext.sheen.map_or(0.0, |s| s.lambda_of(wo)),
+        });
+    }
+
+    /// The kept [`WoTerms`] if they are `wo`'s.
+    #[inline]
+    fn terms(&self, wo: Vec3) -> Option<&WoTerms> {
+        self.wo_terms
+            .as_ref()
+            .filter(|t| t.wo == wo.to_array().map(f32::to_bits))
+    }
+
+    /// The sheen's probability of being sampled from `wo` ([`sheen_probability`]).
+    #[inline]
+    fn sheen_probability(&self, s: &Sheen, wo: Vec3) -> f32 {
+        sheen_share(s.weight_with(self.terms(wo).map(|t| t.sheen_albedo), wo))
+    }
+
     /// True when the diffuse lobe transmits (KHR_materials_diffuse_transmission).
     #[inline]
     pub fn transmits(&self) -> bool {
@@ -166,7 +210,12 @@ impl MetallicRoughness {
         let under = if wo.z > 0.0 && wi.z > 0.0 {
             match &self.ext.sheen {
                 None => self.eval_above(wo, wi),
-                Some(s) => s.eval(wo, wi) + self.eval_above(wo, wi) * s.base_scale(wo, wi),
+                Some(s) => {
+                    let t = self.terms(wo);
+                    s.eval_with(t.map(|t| t.sheen_lambda), wo, wi)
+                        + self.eval_above(wo, wi)
+                            * s.base_scale_with(t.map(|t| t.sheen_albedo), wo, wi)
+                }
             }
         } else {
             Vec3::ZERO
@@ -248,7 +297,7 @@ impl MetallicRoughness {
         let under = match &self.ext.sheen {
             None => base,
             Some(s) => {
-                let p = sheen_probability(s, wo);
+                let p = self.sheen_probability(s, wo);
                 let sheen = if wi.z > 0.0 {
                     warp::uniform_cone_pdf(0.0)
                 } else {
@@ -289,7 +338,25 @@ impl MetallicRoughness {
     /// one (reflected or transmitted) with `u_lobe`.
     #[inline]
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        let (b, wo, _, flipped) = self.canonical(wo, wo);
+        if self.transmits() && wo.z < 0.0 {
+            let (b, wo, _, flipped) = self.canonical(wo, wo);
+            return b.sample_canonical(wo, u_lobe, u, flipped);
+        }
+        // Not mirrored: `canonical` would only copy the BSDF (200 bytes, a `memcpy` call).
+        self.sample_canonical(wo, u_lobe, u, false)
+    }
+
+    /// [`MetallicRoughness::sample`] for the configuration [`MetallicRoughness::canonical`]
+    /// gives; `flipped` mirrors the sampled direction back.
+    #[inline]
+    fn sample_canonical(
+        &self,
+        wo: Vec3,
+        u_lobe: f32,
+        u: Vec2,
+        flipped: bool,
+    ) -> Option<BsdfSample> {
+        let b = self;
         if wo.z <= 0.0 && (b.transmits() || b.coat.is_none()) {
             return None;
         }
@@ -325,7 +392,7 @@ impl MetallicRoughness {
             u_lobe = ((u_lobe - p_coat) / (1.0 - p_coat)).min(1.0 - f32::EPSILON);
         }
         if let Some(s) = &self.ext.sheen {
-            let p = sheen_probability(s, wo);
+            let p = self.sheen_probability(s, wo);
             if u_lobe < p {
                 return Some(warp::uniform_cone(u, 0.0));
             }
@@ -422,6 +489,9 @@ impl MetallicRoughness {
     /// with Fresnel evaluated at the viewing angle.
     #[inline]
     fn spec_probability(&self, wo: Vec3) -> f32 {
+        if let Some(t) = self.terms(wo) {
+            return t.spec_probability;
+        }
         let (base, metallic) = (self.base, self.metallic);
         let f_d = schlick(self.f0_dielectric, wo.z) * self.specular;
         let w_spec = luminance(f_d * (1.0 - metallic) + schlick(base, wo.z) * metallic);
@@ -490,6 +560,89 @@ pub(crate) fn coat_probability(c: &Clearcoat, wo: Vec3) -> f32 {
 /// keeps, (1 − c·E)·½, clamped like the coat's.
 #[inline]
 pub(crate) fn sheen_probability(s: &Sheen, wo: Vec3) -> f32 {
-    let w = s.weight(wo);
+    sheen_share(s.weight(wo))
+}
+
+/// [`sheen_probability`] from the sheen's weight c·E(N·V).
+#[inline]
+fn sheen_share(w: f32) -> f32 {
     (w / (w + 0.5 * (1.0 - w))).clamp(0.05, 0.95)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bits(v: Vec3) -> [u32; 3] {
+        v.to_array().map(f32::to_bits)
+    }
+
+    /// A prepared BSDF ([`MetallicRoughness::prepare`]) gives the same bits as an unprepared one
+    /// for eval, pdf and sample at the prepared `wo`, and at other `wo` (where the kept terms do
+    /// not apply), for a sheen + clearcoat material like ToyCar's fabric and body, with and
+    /// without diffuse transmission. Fails if a kept term is computed from anything but what
+    /// the uncached code uses (checked: Λ of a cosine scaled by 0.9999, the specular
+    /// probability of `wo` scaled by 0.97; the mirrored `wo` is no test, Schlick takes |cos|).
+    #[test]
+    fn prepared_terms_change_no_bit() {
+        let mut h = 0x2545_f491u32;
+        fn next(h: &mut u32) -> f32 {
+            *h ^= *h << 13;
+            *h ^= *h >> 17;
+            *h ^= *h << 5;
+            *h as f32 / u32::MAX as f32
+        }
+        fn dir(h: &mut u32, upper: bool) -> Vec3 {
+            let (a, b) = (next(h), next(h));
+            let z = if upper { a.max(1e-3) } else { 2.0 * a - 1.0 };
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = 2.0 * std::f32::consts::PI * b;
+            Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        }
+        for case in 0..6 {
+            let mut ext = Extensions {
+                sheen: Sheen::new(Vec3::new(0.8, 0.5, 0.3), 0.2 + 0.15 * case as f32),
+                ..Default::default()
+            };
+            if case % 3 == 2 {
+                ext.diffuse_transmission = 0.4;
+                ext.diffuse_transmission_color = Vec3::new(0.9, 0.7, 0.5);
+            }
+            let coat = (case % 2 == 1).then(|| {
+                Clearcoat::new(0.9, 0.3, Vec3::new(0.2, -0.1, 1.0))
+                    .with_outside(Vec3::new(0.05, 0.1, 1.0))
+            });
+            let plain = MetallicRoughness {
+                base: Vec3::new(0.6, 0.3, 0.2),
+                metallic: 0.1 * case as f32,
+                ggx: Ggx::new(0.2 + 0.05 * case as f32),
+                f0_dielectric: Vec3::splat(0.04),
+                specular: 1.0,
+                coat,
+                ext,
+                wo_terms: None,
+            };
+            for _ in 0..300 {
+                let wo = dir(&mut h, case % 3 != 2);
+                let mut prepared = plain;
+                prepared.prepare(wo);
+                for _ in 0..8 {
+                    let wi = dir(&mut h, false);
+                    let other = dir(&mut h, false);
+                    for w in [wo, other] {
+                        assert_eq!(bits(prepared.eval(w, wi)), bits(plain.eval(w, wi)));
+                        assert_eq!(prepared.pdf(w, wi).to_bits(), plain.pdf(w, wi).to_bits());
+                        let (ul, uv) = (next(&mut h), Vec2::new(next(&mut h), next(&mut h)));
+                        let (a, b) = (prepared.sample(w, ul, uv), plain.sample(w, ul, uv));
+                        assert_eq!(a.is_some(), b.is_some(), "case {case}");
+                        if let (Some(a), Some(b)) = (a, b) {
+                            assert_eq!(bits(a.wi), bits(b.wi));
+                            assert_eq!(bits(a.f), bits(b.f), "case {case} wo {w:?}");
+                            assert_eq!(a.pdf.to_bits(), b.pdf.to_bits());
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
