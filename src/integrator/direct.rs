@@ -92,7 +92,9 @@ pub fn sample_ld(
         0.0
     };
     let u_light = s.next_2d();
-    if v.bsdf.is_specular() {
+    // A black BSDF would make `f` zero below: skip the light choice (the estimate, the rays
+    // traced and the numbers drawn are the same).
+    if v.bsdf.is_specular() || v.bsdf.is_black() {
         return Vec3::ZERO;
     }
     let Some(ls) = world.sample_light_reuse(&v.hit, v.ng, u_light, u_spare) else {

@@ -308,11 +308,12 @@ impl ChildPair {
         let dc2 = vx * vx + vy * vy + vz * vz;
         let d2 = dc2.max(self.half_diag);
         // `normalize_or_zero`: v · (1/|v|) if that reciprocal is finite and positive, else 0.
+        // Here v · 0 instead: it differs from 0 only in the sign of zeros (a finite v with dc2
+        // 0 or ∞), which no later step can tell apart (the unit test covers p at a centre).
         let rcp = Vec4::ONE / sqrt4(dc2);
-        let ok = rcp.abs().cmplt(Vec4::INFINITY) & rcp.cmpgt(Vec4::ZERO);
-        let wix = Vec4::select(ok, vx * rcp, Vec4::ZERO);
-        let wiy = Vec4::select(ok, vy * rcp, Vec4::ZERO);
-        let wiz = Vec4::select(ok, vz * rcp, Vec4::ZERO);
+        let ok = rcp.cmplt(Vec4::INFINITY) & rcp.cmpgt(Vec4::ZERO);
+        let rcp = Vec4::select(ok, rcp, Vec4::ZERO);
+        let (wix, wiy, wiz) = (vx * rcp, vy * rcp, vz * rcp);
         let cos_w = self.wx * wix + self.wy * wiy + self.wz * wiz;
         let cos_w = Vec4::select(self.two_sided, cos_w.abs(), cos_w);
         let sin_w = safe_sqrt4(Vec4::ONE - cos_w * cos_w);
