@@ -711,12 +711,12 @@ mod tests {
             phi: 0.1 + 10.0 * rng.next_f32(),
             w: unit(rng),
             cos_theta_o,
-            cos_theta_e: if rng.next_u32() % 2 == 0 {
+            cos_theta_e: if rng.next_u32().is_multiple_of(2) {
                 0.0
             } else {
                 rng.next_f32()
             },
-            two_sided: rng.next_u32() % 2 == 0,
+            two_sided: rng.next_u32().is_multiple_of(2),
         }
     }
 
@@ -741,19 +741,18 @@ mod tests {
                         - Vec3::splat(3.0)
                 }
             };
-            let n = if rng.next_u32() % 4 == 0 {
+            let n = if rng.next_u32().is_multiple_of(4) {
                 Vec3::ZERO
             } else {
                 unit(&mut rng)
             };
             let lanes = quad.importance(p, n).to_array();
-            for k in 0..4 {
+            for (k, lane) in lanes.iter().enumerate() {
                 let scalar = lbs.get(k).map_or(0.0, |lb| lb.importance(p, n));
                 assert_eq!(
-                    lanes[k].to_bits(),
+                    lane.to_bits(),
                     scalar.to_bits(),
-                    "{lbs:?} lane {k} p {p} n {n}: {} vs scalar {scalar}",
-                    lanes[k]
+                    "{lbs:?} lane {k} p {p} n {n}: {lane} vs scalar {scalar}"
                 );
                 nonzero += (scalar > 0.0) as u32;
             }
