@@ -86,9 +86,10 @@ pub fn sample_ld(
     set: &PathSettings,
     stats: &mut RayStats,
 ) -> Vec3 {
-    // A specular vertex takes no light sample: its three numbers are skipped, not computed, so
-    // the later dimensions keep their meaning (the image is the same).
-    if v.bsdf.is_specular() {
+    // A specular vertex takes no light sample, and a black BSDF would make `f` zero below: their
+    // three numbers are skipped, not computed, so the later dimensions keep their meaning (the
+    // estimate, the rays traced and the image are the same).
+    if v.bsdf.is_specular() || v.bsdf.is_black() {
         s.skip(3);
         return Vec3::ZERO;
     }

@@ -135,6 +135,15 @@ impl Bsdf {
         }
     }
 
+    /// True if the BSDF is zero for every pair of directions: a black Lambertian surface, such
+    /// as an emitter without a base colour (glTF emitters usually have none). Light sampling
+    /// there can only return zero, so next-event estimation skips it (the choice of a light
+    /// in a light BVH is the costly part of NEE).
+    #[inline]
+    pub fn is_black(&self) -> bool {
+        matches!(self, Bsdf::Diffuse(d) if d.albedo == Vec3::ZERO)
+    }
+
     /// True if every lobe is a Dirac delta (light sampling is pointless).
     #[inline]
     pub fn is_specular(&self) -> bool {
@@ -232,6 +241,37 @@ impl Bsdf {
             Bsdf::DiffuseTransmission(b) => b.reflectance + b.transmittance,
             Bsdf::Layered(b) => b.albedo(),
             Bsdf::GltfTransmission(b) => b.tint,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// NEE skips vertices whose BSDF `is_black` (the image must not change): such a BSDF must
+    /// be zero for every pair of directions, and a BSDF that reflects anything is not black.
+    #[test]
+    fn a_black_bsdf_is_zero_everywhere_and_no_other_is_black() {
+        let dir = |k: u32| {
+            let (a, b) = (k as f32 * 0.37, k as f32 * 0.11);
+            Vec3::new(a.cos() * b.sin(), a.sin() * b.sin(), b.cos()).normalize()
+        };
+        let black = Bsdf::Diffuse(Diffuse { albedo: Vec3::ZERO });
+        assert!(black.is_black());
+        for i in 0..40 {
+            for j in 0..40 {
+                assert_eq!(black.eval(dir(i), dir(j)), Vec3::ZERO);
+            }
+        }
+        for b in [
+            Bsdf::Diffuse(Diffuse {
+                albedo: Vec3::new(0.0, 0.0, 1e-6),
+            }),
+            Bsdf::dielectric(1.5, 0.3, Vec3::ONE),
+            Bsdf::thin_dielectric(1.5, 0.0, Vec3::ONE),
+        ] {
+            assert!(!b.is_black(), "{b:?}");
         }
     }
 }
