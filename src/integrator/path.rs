@@ -111,7 +111,7 @@ fn radiance_impl(
 ) -> Vec3 {
     stats.rays += 1;
     let Some(hit) = world.intersect_filtered(ray, &set.footprint) else {
-        return world.escaped(ray.d.normalize(), EnvPdf::Full).0;
+        return world.escaped(ray.d.normalize());
     };
     let wo = -ray.d.normalize();
     let mut l = world.emitted(&hit, wo);
@@ -201,8 +201,8 @@ fn continue_path(
         let ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
         stats.rays += 1;
         let Some(next) = world.intersect_filtered(&ray, &set.footprint) else {
-            let (le, pdf_light) = world.escaped(wi, set.env_pdf());
-            if le != Vec3::ZERO {
+            // Each light at infinity weighed against its own NEE density.
+            l += world.escaped_mis(wi, set.env_pdf(), |le, pdf_light| {
                 let weight = if bs.specular || !set.nee {
                     1.0
                 } else if !set.mis {
@@ -210,8 +210,8 @@ fn continue_path(
                 } else {
                     power_heuristic(bs.pdf, pdf_light)
                 };
-                l += beta * le * weight;
-            }
+                beta * le * weight
+            });
             break;
         };
         let wo_next = -wi;

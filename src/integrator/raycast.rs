@@ -17,7 +17,6 @@ use super::RayStats;
 use super::direct::shade_local;
 use super::whitted::ShadingModel;
 use crate::geometry::Ray;
-use crate::light::EnvPdf;
 use crate::math::Vec3;
 use crate::sampling::SampleStream;
 use crate::world::World;
@@ -76,7 +75,7 @@ pub fn radiance(
     stats.rays += 1;
     let Some(isect) = world.intersect_raw(ray) else {
         return match aov {
-            Aov::Shaded => world.escaped(ray.d.normalize(), EnvPdf::Full).0,
+            Aov::Shaded => world.escaped(ray.d.normalize()),
             _ => Vec3::ZERO,
         };
     };

@@ -250,10 +250,10 @@ pub fn radiance(
 
         // --- Escaped: lights at infinity.
         let Some(hit) = hit else {
-            let (le, pdf_light) = world.escaped(ray.d, set.env_pdf());
-            if le != Vec3::ZERO {
-                l += emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set);
-            }
+            // Each light at infinity weighed against its own NEE density.
+            l += world.escaped_mis(ray.d, set.env_pdf(), |le, pdf_light| {
+                emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set)
+            });
             return l;
         };
 

@@ -15,7 +15,6 @@
 
 use super::RayStats;
 use crate::geometry::Ray;
-use crate::light::EnvPdf;
 use crate::material::local_shading::LocalSurface;
 pub use crate::material::local_shading::ShadingModel;
 use crate::material::microfacet::{fresnel_dielectric, reflect, refract};
@@ -86,7 +85,7 @@ fn trace(
     stats.rays += 1;
     let d = ray.d.normalize();
     let Some(mut hit) = world.intersect(ray) else {
-        return world.escaped(d, EnvPdf::Full).0;
+        return world.escaped(d);
     };
     let wo = -d;
     // The shading normal of every lobe below (local shading, mirror and refraction directions)

@@ -748,27 +748,51 @@ impl LightSet {
         pmf * d2 / (cos_l * area)
     }
 
-    /// Radiance from the lights at infinity along an escaping ray direction `d` (unit), and for
-    /// each such light its NEE pdf (selection included; environment maps' density `env`),
-    /// summed for MIS.
+    /// Radiance from the lights at infinity along an escaping ray direction `d` (unit), unweighted
+    /// (what a camera ray or a path without NEE sees).
     #[inline]
-    pub fn escaped(&self, d: Vec3, env: EnvPdf) -> (Vec3, f32) {
+    pub fn escaped(&self, d: Vec3) -> Vec3 {
         let mut l = Vec3::ZERO;
-        let mut pdf = 0.0;
         for &i in &self.infinite {
             match &self.lights[i as usize] {
-                Light::Uniform { radiance } => {
-                    l += *radiance;
-                    pdf += self.pmf_infinite(i) * warp::UNIFORM_SPHERE_PDF;
-                }
-                Light::Environment { map } => {
-                    l += map.eval(d);
-                    pdf += self.pmf_infinite(i) * map.pdf(d, env);
-                }
+                Light::Uniform { radiance } => l += *radiance,
+                Light::Environment { map } => l += map.eval(d),
                 _ => {}
             }
         }
-        (l, pdf)
+        l
+    }
+
+    /// The lights at infinity along an escaping BSDF- or phase-sampled direction `d` (unit), for
+    /// MIS: `contribution(le, pdf)` is called once per light with that light's radiance and the
+    /// solid-angle pdf with which NEE samples `d` from *that* light (selection included;
+    /// environment maps from the density `env`), and the results are summed. Each light is
+    /// weighed against its own NEE density because NEE estimates one light at a time (Veach
+    /// 1997, §9.2: the weights of a direction must sum to one per integrand, here per light); the
+    /// sum of the radiances weighed against the sum of the pdfs is biased when two lights at
+    /// infinity overlap, e.g. a scene's uniform background and an `--env` map (−1.5 % on a
+    /// diffuse quad). pbrt-v4's path integrator loops over its infinite lights the same way.
+    #[inline]
+    pub fn escaped_mis(
+        &self,
+        d: Vec3,
+        env: EnvPdf,
+        mut contribution: impl FnMut(Vec3, f32) -> Vec3,
+    ) -> Vec3 {
+        let mut l = Vec3::ZERO;
+        for &i in &self.infinite {
+            let (le, pdf) = match &self.lights[i as usize] {
+                Light::Uniform { radiance } => {
+                    (*radiance, self.pmf_infinite(i) * warp::UNIFORM_SPHERE_PDF)
+                }
+                Light::Environment { map } => (map.eval(d), self.pmf_infinite(i) * map.pdf(d, env)),
+                _ => continue,
+            };
+            if le != Vec3::ZERO {
+                l += contribution(le, pdf);
+            }
+        }
+        l
     }
 }
 

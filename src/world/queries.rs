@@ -100,12 +100,25 @@ impl World {
         eval::emitted(material, &self.textures, hit, wo)
     }
 
-    /// Radiance from the lights at infinity along an escaping ray's unit direction `d`, and the
-    /// solid-angle pdf with which NEE drawing environment directions from `env` would have
-    /// sampled `d` (selection included), for MIS.
+    /// Radiance from the lights at infinity along an escaping ray's unit direction `d`,
+    /// unweighted (camera rays, paths without NEE).
     #[inline]
-    pub fn escaped(&self, d: Vec3, env: EnvPdf) -> (Vec3, f32) {
-        self.lights.escaped(d, env)
+    pub fn escaped(&self, d: Vec3) -> Vec3 {
+        self.lights.escaped(d)
+    }
+
+    /// The lights at infinity along a sampled escaping direction `d`, each light's radiance
+    /// passed to `contribution(le, pdf)` with the solid-angle pdf with which NEE (drawing
+    /// environment directions from `env`) would have sampled `d` from that light, selection
+    /// included; the results summed (see `LightSet::escaped_mis`).
+    #[inline]
+    pub fn escaped_mis(
+        &self,
+        d: Vec3,
+        env: EnvPdf,
+        contribution: impl FnMut(Vec3, f32) -> Vec3,
+    ) -> Vec3 {
+        self.lights.escaped_mis(d, env, contribution)
     }
 
     /// Next-event estimation from `hit` (Mitsuba's `sample_emitter_direction`, pbrt's
