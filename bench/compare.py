@@ -1094,20 +1094,51 @@ def rel_mse(x, ref):
     return float(np.mean((x.astype(np.float64) - ref) ** 2 / (ref.astype(np.float64) ** 2 + 1e-2)))
 
 
+# Bounds of the error-vs-spp slope used to extrapolate outside a ladder (see time_to_error).
+SLOPE_BOUNDS = (-2.0, -0.5)
+
+
 def time_to_error(points, target):
-    """points: [(error, time)], error decreasing with time. Log-log interpolation; outside the
-    ladder, extrapolation with error ∝ 1/time (slope -1). Returns (time, extrapolated)."""
-    pts = sorted((e, t) for e, t in points if e > 0 and t > 0)
+    """points: [(spp, error, time)] of one renderer's ladder. Returns (time to reach `target`
+    error, extrapolated?). Inside the ladder: log-log interpolation of time against error between
+    the two ladder points (in spp order) whose errors enclose the target. Outside it the model is
+    the renderer's own: error ∝ spp^s, s the log-log slope of its two ladder points nearest the
+    target (clamped to SLOPE_BOUNDS; -1 with a single point), and time affine in spp with the
+    marginal cost of that segment (a render's fixed cost, e.g. thread start-up or a JIT's kernel
+    launch, is not multiplied). Until session 11 the extrapolation assumed time ∝ 1/error from the
+    end point, which charged the fixed cost again for every doubling and ignored a sampler whose
+    error falls faster than 1/spp: both overstated a noisier peer's time, in Trayecto's favour."""
+    pts = sorted((n, e, t) for n, e, t in points if n > 0 and e > 0 and t > 0)
     if not pts:
         return None, False
-    for (e0, t0), (e1, t1) in zip(pts, pts[1:]):
-        if e0 <= target <= e1:
+    for (n0, e0, t0), (n1, e1, t1) in zip(pts, pts[1:]):
+        if min(e0, e1) <= target <= max(e0, e1):
             if e1 == e0:
-                return t0, False
+                return min(t0, t1), False
             a = (math.log(target) - math.log(e0)) / (math.log(e1) - math.log(e0))
             return math.exp(math.log(t0) + a * (math.log(t1) - math.log(t0))), False
-    e, t = pts[0] if target < pts[0][0] else pts[-1]
-    return t * e / target, True
+    below = target < pts[-1][1]  # more spp than the ladder's top are needed
+    seg = pts[-2:] if below else pts[:2]
+    n_end, e_end, t_end = seg[-1] if below else seg[0]
+    slope, cost = -1.0, t_end / n_end
+    if len(seg) == 2:
+        (n0, e0, t0), (n1, e1, t1) = seg
+        if n1 != n0:
+            slope = math.log(e1 / e0) / math.log(n1 / n0)
+            slope = min(max(slope, SLOPE_BOUNDS[0]), SLOPE_BOUNDS[1])
+            if t1 > t0:
+                cost = (t1 - t0) / (n1 - n0)
+    n_needed = n_end * (target / e_end) ** (1.0 / slope)
+    if below:
+        return t_end + (n_needed - n_end) * cost, True
+    # Fewer spp than the ladder's bottom: no fixed cost is known below it; proportional time
+    # (the faster estimate, i.e. in the peer's favour).
+    return t_end * n_needed / n_end, True
+
+
+def ladder_points(res, times=None):
+    """(spp, error, time) of a result's ladder; `times` replaces the (median) times, e.g. one round's."""
+    return [(p["spp"], p["relmse"], t) for p, t in zip(res["ladder"], times or [p["time"] for p in res["ladder"]])]
 
 
 def fmt_ratio(x, base):
@@ -1151,12 +1182,16 @@ def main():
     ap.add_argument("--references-only", action="store_true",
                     help="render (and cache in bench/out/) the missing references, time nothing, write no table")
     ap.add_argument("--results", default=os.path.join(HERE, "results.md"))
+    ap.add_argument("--self-test", action="store_true",
+                    help="check the scoring (interpolation, extrapolation, summary) on synthetic ladders and exit")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--scene", help=argparse.SUPPRESS)
     ap.add_argument("--jobs", help=argparse.SUPPRESS)
     ap.add_argument("--trayecto", help=argparse.SUPPRESS)
     args = ap.parse_args()
 
+    if args.self_test:
+        return self_test()
     if args.worker:
         {"prepare": worker_prepare, "mitsuba_scalar": worker_mitsuba, "mitsuba_llvm": worker_mitsuba,
          "cycles": worker_cycles, "trayecto": worker_trayecto, "pbrt": worker_pbrt}[args.worker](args)
@@ -1235,10 +1270,13 @@ def main():
                 results[(scene, r)] = f"n/a (scene export failed: {prep_err})"
             elif kind == "cycles" and scene in FILE_SCENES:
                 results[(scene, r)] = "n/a (scene not exported to Blender)"
+                results.setdefault((scene, "_not_applicable"), set()).add(r)
             elif kind.startswith("mitsuba") and scene in PBRT_SCENES:
                 results[(scene, r)] = "n/a (Mitsuba 3 does not read pbrt-v4 files)"
+                results.setdefault((scene, "_not_applicable"), set()).add(r)
             elif kind == "pbrt" and scene not in PBRT_FILES:
                 results[(scene, r)] = "n/a (no pbrt-v4 version of this scene)"
+                results.setdefault((scene, "_not_applicable"), set()).add(r)
             elif kind == "pbrt" and not os.path.exists(PBRT_EXE):
                 results[(scene, r)] = f"n/a (no pbrt-v4 binary at {PBRT_EXE})"
             elif kind == "trayecto" and not args.trayecto:
@@ -1354,18 +1392,20 @@ def main():
 
                     def score(v):
                         if target is not None:
-                            t, _ = time_to_error([(p["relmse"], p["time"]) for p in v["ladder"]], target)
+                            t, _ = time_to_error(ladder_points(v), target)
                             if t:
                                 return t
                         top = v["ladder"][-1]
                         return top["relmse"] * top["time"]
                     best = min(ok, key=lambda k: score(ok[k]))
-                    entry = dict(ok[best], sampler=best, round_times=[], round_ladders=[], sweep=pre_sweep)
+                    entry = dict(ok[best], sampler=best, round_times=[], round_ladders=[], round_ids=[],
+                                 sweep=pre_sweep)
                     results[(scene, r)] = entry
                     got = ok[best]
                 else:
                     got = ok[entry["sampler"]]
                 entry["round_times"].append(got["times"])
+                entry["round_ids"].append(rnd)
                 entry["round_ladders"].append([p["relmse"] for p in got["ladder"]])
                 for k, p in enumerate(entry["ladder"]):
                     p["time"] = float(np.median([times[k] for times in entry["round_times"]]))
@@ -1390,51 +1430,136 @@ def main():
 
 
 def tte_ratios(res, base, target):
-    """(time to `target` error of res / of base, [the same ratio round by round]); None if n/a."""
-    t_res, _ = time_to_error([(p["relmse"], p["time"]) for p in res["ladder"]], target)
-    t_base, _ = time_to_error([(p["relmse"], p["time"]) for p in base["ladder"]], target)
+    """(time to `target` error of res / of base, [the same ratio round by round], extrapolated?);
+    None if n/a. Rounds are paired by their number: a round one renderer lost (killed, failed) is
+    left out, never paired with another round of the other."""
+    t_res, extra = time_to_error(ladder_points(res), target)
+    t_base, _ = time_to_error(ladder_points(base), target)
+    mine_by = dict(zip(res.get("round_ids") or range(len(res["round_times"])), res["round_times"]))
+    base_by = dict(zip(base.get("round_ids") or range(len(base["round_times"])), base["round_times"]))
     per_round = []
-    for mine, theirs in zip(res["round_times"], base["round_times"]):
-        t_mine, _ = time_to_error([(p["relmse"], t) for p, t in zip(res["ladder"], mine)], target)
-        t_b, _ = time_to_error([(p["relmse"], t) for p, t in zip(base["ladder"], theirs)], target)
+    for rnd in sorted(set(mine_by) & set(base_by)):
+        t_mine, _ = time_to_error(ladder_points(res, mine_by[rnd]), target)
+        t_b, _ = time_to_error(ladder_points(base, base_by[rnd]), target)
         if t_mine and t_b:
             per_round.append(t_mine / t_b)
-    return (t_res / t_base if t_res and t_base else None), per_round
+    return (t_res / t_base if t_res and t_base else None), per_round, extra
 
 
-def summary(results, scenes, renderers):
+def summary(results, scenes, renderers, rounds):
     """Per scene: the best peer configuration (least time to Trayecto's top-of-ladder error) and
-    whether Trayecto's time to that error is at most half of it (issue #23's goal)."""
+    whether Trayecto's time to that error is at most half of it (issue #23's goal). A peer that
+    applies to the scene but failed or was killed is listed, and then the goal can read "no" but
+    never "yes": the missing peer might have been the best one."""
     L = ["## Summary: Trayecto's time to equal error against the best peer configuration", "",
          "Ratio = the best peer's time to reach Trayecto's error at the top of the ladder / Trayecto's time "
-         "(≥ 2 is issue #23's goal; below 1 the peer is faster). Brackets: lowest and highest round.", "",
-         "| scene | best peer (sampler) | ratio (rounds) | goal ≥ 2× | Trayecto must get faster by | peers run |",
-         "|---|---|---|---|---|---|"]
+         "(≥ 2 is issue #23's goal; below 1 the peer is faster). Brackets: lowest and highest round, "
+         "each round's times against Trayecto's of the same round. '~': the peer's time is extrapolated "
+         "outside its ladder (see the note at the end). 'Trayecto must get faster by' = 2 / ratio. "
+         "A peer that failed or was killed makes the goal 'undecided', never 'yes'.", "",
+         "| scene | best peer (sampler) | ratio (rounds) | goal ≥ 2× | Trayecto must get faster by | peers run "
+         "| peers failed |",
+         "|---|---|---|---|---|---|---|"]
     for scene in scenes:
         base = results.get((scene, "trayecto"))
+        not_applicable = results.get((scene, "_not_applicable"), set())
+        failed = [r for r in renderers if not r.startswith("trayecto") and r not in not_applicable
+                  and not isinstance(results.get((scene, r)), dict)]
+        reasons = {r: results.get((scene, r)) or "not run" for r in failed}
+        if isinstance(base, dict):
+            target = base["ladder"][-1]["relmse"]
+            peers = []
+            for r in renderers:
+                res = results.get((scene, r))
+                if r.startswith("trayecto") or not isinstance(res, dict):
+                    continue
+                ratio, per_round, extra = tte_ratios(res, base, target)
+                if ratio:
+                    peers.append((ratio, r, res.get("sampler"), per_round, extra))
+                else:
+                    failed.append(r)
+                    reasons[r] = "no time to Trayecto's error"
+        failed_s = "; ".join(f"{r}: {reasons[r]}" for r in failed) or "none"
         if not isinstance(base, dict):
-            L.append(f"| {scene} | n/a (no Trayecto result: {base}) | | | | |")
+            L.append(f"| {scene} | n/a (no Trayecto result: {base}) | n/a | undecided | n/a | | {failed_s} |")
             continue
-        target = base["ladder"][-1]["relmse"]
-        peers = []
-        for r in renderers:
-            res = results.get((scene, r))
-            if r.startswith("trayecto") or not isinstance(res, dict):
-                continue
-            ratio, per_round = tte_ratios(res, base, target)
-            if ratio:
-                peers.append((ratio, r, res.get("sampler"), per_round))
         if not peers:
-            L.append(f"| {scene} | n/a (no peer result) | | | | |")
+            L.append(f"| {scene} | n/a (no peer result) | n/a | undecided | n/a | | {failed_s} |")
             continue
-        ratio, r, smp, per_round = min(peers)
-        spread = f" ({min(per_round):.2f}–{max(per_round):.2f})" if len(per_round) > 1 else ""
-        met = "yes" if ratio >= 2 else "no"
+        n_rounds = rounds
+        ratio, r, smp, per_round, extra = min(peers)
+        if len(per_round) > 1:
+            spread = f" ({min(per_round):.2f}–{max(per_round):.2f}"
+            spread += f", {len(per_round)} of {n_rounds} rounds)" if len(per_round) < n_rounds else ")"
+        else:
+            spread = f" ({len(per_round)} round: no spread)"
+        if ratio < 2:
+            met = "no"
+        elif failed:
+            met = "undecided (a peer failed)"
+        else:
+            met = "yes"
         short = "—" if ratio >= 2 else f"{2 / ratio:.2f}×"
-        L.append(f"| {scene} | {r}{f' ({smp})' if smp else ''} | {ratio:.2f}×{spread} | {met} | {short} | "
-                 f"{', '.join(p[1] for p in sorted(peers, key=lambda p: p[1]))} |")
+        L.append(f"| {scene} | {r}{f' ({smp})' if smp else ''} | {'~' if extra else ''}{ratio:.2f}×{spread} | "
+                 f"{met} | {short} | {', '.join(p[1] for p in sorted(peers, key=lambda p: p[1]))} | {failed_s} |")
     L.append("")
     return L
+
+
+def self_test():
+    """Checks of the scoring logic on synthetic ladders (`--self-test`; no renderer, no numpy)."""
+    def close(a, b):
+        assert abs(a - b) <= 1e-9 * max(1.0, abs(b)), (a, b)
+    # Inside the ladder: exact at a ladder point, log-log between two.
+    pts = [(4, 0.16, 1.0), (16, 0.04, 4.0), (64, 0.01, 16.0)]
+    t, extra = time_to_error(pts, 0.04)
+    close(t, 4.0)
+    assert not extra
+    t, _ = time_to_error(pts, 0.02)
+    close(t, 8.0)
+    # Beyond the top, error ∝ 1/spp and a fixed cost of 1 s per render: 4x the top's spp costs
+    # 4x the marginal time plus the fixed cost once (the old rule, time ∝ 1/error, said 4 x 17).
+    pts = [(4, 0.16, 2.0), (16, 0.04, 5.0), (64, 0.01, 17.0)]
+    t, extra = time_to_error(pts, 0.0025)
+    close(t, 17.0 + 192 * 0.25)
+    assert extra
+    # A sampler whose error falls as spp^-1.5 needs fewer samples than 1/spp would say.
+    pts = [(16, 0.008, 1.0), (64, 0.001, 4.0)]
+    t, _ = time_to_error(pts, 0.000125)
+    close(t, 4.0 + (256 - 64) / 16)
+    # The slope is clamped: a flat pair of points does not make the time infinite.
+    t, _ = time_to_error([(16, 0.01, 1.0), (64, 0.0099, 4.0)], 0.001)
+    assert t is not None and t < 1e6
+    # The summary: a killed peer never makes the goal "yes"; rounds are paired by number.
+    def res(times_by_round, errs, ids):
+        ladder = [{"spp": n, "relmse": e, "time": sorted(r[i] for r in times_by_round)[len(times_by_round) // 2]}
+                  for i, (n, e) in enumerate(zip((4, 16, 64), errs))]
+        return {"ladder": ladder, "round_times": times_by_round, "round_ids": ids, "sampler": None}
+    base = res([[1, 4, 16], [2, 8, 32]], [0.16, 0.04, 0.01], [0, 1])
+    slow = res([[2.5, 10, 40], [6, 24, 96]], [0.16, 0.04, 0.01], [0, 1])
+    results = {("s", "trayecto"): base, ("s", "mitsuba_llvm"): slow,
+               ("s", "cycles"): "n/a (timeout after 60 s)"}
+    row = next(ln for ln in summary(results, ["s"], ["trayecto", "mitsuba_llvm", "cycles"], 2)
+               if ln.startswith("| s |"))
+    assert "× (2.50–3.00) | undecided" in row and "cycles: n/a (timeout after 60 s)" in row, row
+    del results[("s", "cycles")]
+    row = next(ln for ln in summary(results, ["s"], ["trayecto", "mitsuba_llvm"], 2) if ln.startswith("| s |"))
+    assert "| yes |" in row and "| none |" in row, row
+    # A structurally absent peer (Cycles on a pbrt scene) is not a failure.
+    results[("s", "cycles")] = "n/a (scene not exported to Blender)"
+    results[("s", "_not_applicable")] = {"cycles"}
+    row = next(ln for ln in summary(results, ["s"], ["trayecto", "mitsuba_llvm", "cycles"], 2)
+               if ln.startswith("| s |"))
+    assert "| yes |" in row, row
+    # The peer lost round 0: its round 1 is paired with Trayecto's round 1 only.
+    results[("s", "mitsuba_llvm")] = res([[4, 16, 64]], [0.16, 0.04, 0.01], [1])
+    _, per_round, _ = tte_ratios(results[("s", "mitsuba_llvm")], base, 0.01)
+    assert len(per_round) == 1 and abs(per_round[0] - 2.0) < 1e-9, per_round  # 64 / 32, not 64 / 16
+    row = next(ln for ln in summary(results, ["s"], ["trayecto", "mitsuba_llvm", "cycles"], 2)
+               if ln.startswith("| s |"))
+    assert "1 round: no spread" in row, row
+    print("compare.py self-test: ok")
+    return 0
 
 
 def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
@@ -1468,7 +1593,7 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
     w(f"- time limit: {args.time_limit:.0f} s per sampler probe (a ladder worker {2 * args.repeat} x that, a "
       "reference 2 x ref/top spp x that); a worker over its limit is killed and shown as 'n/a (timeout after N s)'")
     w("")
-    L.extend(summary(results, scenes, renderers))
+    L.extend(summary(results, scenes, renderers, 1 if args.references_only else args.rounds))
     for scene in scenes:
         w(f"## {scene}")
         w("")
@@ -1501,7 +1626,7 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
         w("|" + "---|" * (2 * len(ladder) + 6))
         base_tte = None
         if base:
-            base_tte, _ = time_to_error([(p["relmse"], p["time"]) for p in base["ladder"]], target)
+            base_tte, _ = time_to_error(ladder_points(base), target)
         for r in renderers:
             res = results.get((scene, r))
             if not isinstance(res, dict):
@@ -1513,13 +1638,15 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
             top = by.get(ladder[-1])
             ratio = fmt_ratio(top["time"], base["ladder"][-1]["time"]) if (base and top) else "n/a"
             if target is not None:
-                tte, extra = time_to_error([(p["relmse"], p["time"]) for p in res["ladder"]], target)
+                tte, extra = time_to_error(ladder_points(res), target)
                 tte_s = f"{'~' if extra else ''}{tte:.3f} s" if tte else "n/a"
                 tte_r = fmt_ratio(tte, base_tte)
                 # The same ratio round by round (each round's times against Trayecto's of that round).
-                _, per_round = tte_ratios(res, base, target)
+                _, per_round, _ = tte_ratios(res, base, target)
                 if len(per_round) > 1 and r != "trayecto":
                     tte_r += f" ({min(per_round):.2f}–{max(per_round):.2f})"
+                if len(res["round_times"]) < args.rounds:
+                    tte_r += f" ({len(res['round_times'])} of {args.rounds} rounds)"
             else:
                 tte_s, tte_r = "n/a (no Trayecto result)", "n/a"
             mean = res["ref_mean"]
@@ -1542,7 +1669,9 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
                 for smp, v in res["sweep"].items()))
             w("")
     w("Ratios are the renderer's time over Trayecto's (above 1: Trayecto is faster). '~': extrapolated "
-      "outside the renderer's ladder assuming error ∝ 1/time.")
+      "outside the renderer's ladder with its own error-vs-spp slope between its two ladder points nearest "
+      f"the target (clamped to {SLOPE_BOUNDS[0]:g}…{SLOPE_BOUNDS[1]:g}) and its time affine in spp with that "
+      "segment's marginal cost per sample (before session 11: error ∝ 1/time, which favoured Trayecto).")
     return "\n".join(L) + "\n"
 
 
