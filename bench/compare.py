@@ -1089,6 +1089,58 @@ def run_worker(kind, scene, args, jobs=None, timeout=None, sampler=None):
     return None, reason.replace("|", "/")[:160]
 
 
+def file_digest(path, _cache={}):
+    """sha256 of a file's bytes (cached per run by path, size and mtime)."""
+    import hashlib
+    st = os.stat(path)
+    key = (path, st.st_size, st.st_mtime_ns)
+    if key not in _cache:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+        _cache[key] = h.hexdigest()
+    return _cache[key]
+
+
+def ref_fingerprint(scene, kind, args):
+    """What a cached reference was rendered from: the renderer (Trayecto's and pbrt-v4's binary
+    bytes, Mitsuba's and bpy's versions) and the scene's input files. A reference is reused only
+    when this matches: a reference from an older Trayecto binary or an older export of the scene
+    would put the difference between the two into every error (before session 11 any cached
+    reference of the same size and spp was reused)."""
+    import hashlib
+    parts = [kind]
+    if kind == "trayecto":
+        parts.append(file_digest(args.trayecto))
+    elif kind == "pbrt":
+        parts.append(file_digest(PBRT_EXE))
+    elif kind.startswith("mitsuba"):
+        import mitsuba
+        parts.append(mitsuba.__version__)
+    elif kind == "cycles":
+        parts.append(BPY_VERSION)
+    if scene in FILE_SCENES:
+        files = [os.path.join(ROOT, FILE_SCENES[scene])] + ([PBRT_FILES[scene]] if kind == "pbrt" and scene in PBRT_FILES else [])
+    elif scene == "cornell" and kind != "cycles":
+        files = []  # built into Trayecto and Mitsuba
+    else:
+        d = os.path.join(OUT, scene)
+        # The exports (the .blend is left out: Blender writes it differently every time).
+        files = sorted(glob.glob(os.path.join(d, "*.glb")) + glob.glob(os.path.join(d, "*.ply"))
+                       + glob.glob(os.path.join(d, "scene.json")) + glob.glob(os.path.join(d, "*.png")))
+    parts += [f"{os.path.relpath(f, ROOT)}:{file_digest(f)}" for f in files if os.path.exists(f)]
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()
+
+
+def ref_is_current(ref_path, fingerprint):
+    try:
+        with open(ref_path + ".done") as f:
+            return json.load(f).get("fingerprint") == fingerprint and os.path.exists(ref_path)
+    except (OSError, ValueError):
+        return False
+
+
 def rel_mse(x, ref):
     import numpy as np
     return float(np.mean((x.astype(np.float64) - ref) ** 2 / (ref.astype(np.float64) ** 2 + 1e-2)))
@@ -1295,7 +1347,9 @@ def main():
                 else:
                     samplers = [fixed or None]
                 ref_path = os.path.join(OUT, f"{scene}_{kind}_{args.res}px_{ref_spp}spp_ref.npy")
-                if not rnd and not os.path.exists(ref_path + ".done"):
+                if not rnd:
+                    fingerprint = ref_fingerprint(scene, kind, args)
+                if not rnd and not ref_is_current(ref_path, fingerprint):
                     # The renderer's own reference, with its default sampler.
                     print(f"[{scene}] {r}: reference {ref_spp} spp", flush=True)
                     res, err = run_worker(kind, scene, args, [{"spp": ref_spp, "seed": 100000, "reference": True,
@@ -1307,7 +1361,7 @@ def main():
                         live.remove(r)
                         continue
                     with open(ref_path + ".done", "w") as f:
-                        f.write(json.dumps({"time": res["runs"][0]["time"]}))
+                        f.write(json.dumps({"time": res["runs"][0]["time"], "fingerprint": fingerprint}))
                     if res.get("crashes"):
                         results[(scene, "_pbrt_crashes")] = results.get((scene, "_pbrt_crashes"), 0) + res["crashes"]
                 if args.references_only:
@@ -1369,7 +1423,8 @@ def main():
                         results[(scene, "_pbrt_crashes")] = results.get((scene, "_pbrt_crashes"), 0) + res["crashes"]
                     if jobs[0].get("reference"):
                         with open(ref_path + ".done", "w") as f:
-                            f.write(json.dumps({"time": runs[0]["time"]}))
+                            f.write(json.dumps({"time": runs[0]["time"],
+                                                "fingerprint": ref_fingerprint(scene, kind, args)}))
                         ref_time = runs[0]["time"]
                         runs = runs[1:]
                     ref = np.load(ref_path).astype(np.float64)
@@ -1558,6 +1613,25 @@ def self_test():
     row = next(ln for ln in summary(results, ["s"], ["trayecto", "mitsuba_llvm", "cycles"], 2)
                if ln.startswith("| s |"))
     assert "1 round: no spread" in row, row
+    # A cached reference is reused only with the same fingerprint (renderer binary and scene files).
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        ref = os.path.join(d, "ref.npy")
+        open(ref, "wb").close()
+        with open(ref + ".done", "w") as f:
+            json.dump({"time": 1.0, "fingerprint": "a"}, f)
+        assert ref_is_current(ref, "a") and not ref_is_current(ref, "b")
+        with open(ref + ".done", "w") as f:
+            json.dump({"time": 1.0}, f)  # written before fingerprints existed
+        assert not ref_is_current(ref, "a")
+        exe = os.path.join(d, "trayecto")
+        with open(exe, "wb") as f:
+            f.write(b"old")
+        args = argparse.Namespace(trayecto=exe)
+        old = ref_fingerprint("fog", "trayecto", args)
+        with open(exe, "wb") as f:
+            f.write(b"new binary")
+        assert ref_fingerprint("fog", "trayecto", args) != old
     print("compare.py self-test: ok")
     return 0
 
