@@ -55,8 +55,13 @@ Error: relMSE = mean over pixels and channels of (x - ref)^2 / (ref^2 + 1e-2), w
 renderer's OWN high-spp reference (so it measures noise, not model differences). The references'
 mean RGB are compared with Trayecto's as a sanity check that the scenes are equivalent.
 Time to equal error: the target is Trayecto's relMSE at its largest ladder spp; every renderer's
-time to reach it is interpolated log-log between its ladder points (extrapolated with slope -1,
-i.e. error proportional to 1/time, outside the ladder; marked '~').
+time to reach it is interpolated log-log between its ladder points; outside the ladder it is
+extrapolated (marked '~') with the renderer's own error-vs-spp slope and its time affine in spp
+(see time_to_error). The summary's goal reads "yes" only if every peer that applies to the scene
+ran: a failed or killed peer makes it "undecided". `--self-test` checks this scoring.
+
+References are cached in bench/out/ with a fingerprint of the renderer (binary bytes or version)
+and the scene's files; a reference whose fingerprint differs is rendered again.
 
 Internally the script calls itself as a worker in subprocesses (`--worker ...`), one per renderer
 and scene, so a crash or missing feature in one renderer gives 'n/a (reason)' and the run goes on.
@@ -693,6 +698,7 @@ def worker_mitsuba(args):
         sampler.set_sample_count(job["spp"])
         if sampler.sample_count() != job["spp"]:
             raise RuntimeError(f"{args.mitsuba_sampler} rounds {job['spp']} spp to {sampler.sample_count()}")
+    warmed = set()  # sample counts whose kernels Dr.Jit has compiled (and cached) in this process
     for job in jobs:
         spp, seed, path = job["spp"], job["seed"], job["out"]
         chunk = min(spp, max(1, (1 << 22) // (args.res * args.res))) if variant == "llvm_ad_rgb" else spp
@@ -700,10 +706,14 @@ def worker_mitsuba(args):
         repeats = 1 if job.get("reference") else args.repeat
         while done < spp:
             n = min(chunk, spp - done)
-            if variant == "llvm_ad_rgb" and not job.get("reference"):
-                img = mi.render(scene, spp=n, seed=seed + 7919)  # warm-up: compile the kernels
+            if variant == "llvm_ad_rgb" and not job.get("reference") and n not in warmed:
+                # Warm-up: compile the kernels once per sample count (the seed is not baked into
+                # them, so later chunks and repetitions of the same count reuse them; until session
+                # 11 every chunk was rendered twice, which tripled a 256²/256-spp point's cost).
+                img = mi.render(scene, spp=n, seed=seed + 7919)
                 dr.eval(img)
                 dr.sync_thread()
+                warmed.add(n)
             best, arr = None, None
             for _ in range(repeats):
                 t = time.perf_counter()
