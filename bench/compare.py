@@ -1676,6 +1676,14 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
     opts += f" --ladder {','.join(map(str, ladder))}" if ladder != ([4, 16, 64] if args.quick else [4, 16, 64, 256]) else ""
     opts += f" --ref-spp {ref_spp}" if ref_spp != (512 if args.quick else 4096) else ""
     opts += f" --time-limit {args.time_limit:g}" if args.time_limit != (300.0 if args.quick else 1800.0) else ""
+    # Every other option that changes what is measured (until session 11 these were left out, so
+    # the printed command did not reproduce e.g. a run with fewer Mitsuba samplers).
+    opts += f" --mitsuba-samplers {','.join(args.mitsuba_samplers)}" if args.mitsuba_samplers != MITSUBA_SAMPLERS else ""
+    opts += f" --pbrt-samplers {','.join(args.pbrt_samplers)}" if args.pbrt_samplers != PBRT_SAMPLERS else ""
+    opts += f" --threads {args.threads}" if args.threads != (os.cpu_count() or 1) else ""
+    opts += f" --subdiv {args.subdiv}" if args.subdiv != 8 else ""
+    opts += f" --trayecto-bin {args.trayecto_bin}" if args.trayecto_bin else ""
+    opts += f" --results {os.path.relpath(args.results, ROOT)}" if os.path.abspath(args.results) != os.path.join(HERE, "results.md") else ""
     w(f"- command: `python3 bench/compare.py{opts}`")
     w(f"- time limit: {args.time_limit:.0f} s per sampler probe (a ladder worker {2 * args.repeat} x that, a "
       "reference 2 x ref/top spp x that); a worker over its limit is killed and shown as 'n/a (timeout after N s)'")
