@@ -1146,9 +1146,32 @@ def ref_fingerprint(scene, kind, args):
 def ref_is_current(ref_path, fingerprint):
     try:
         with open(ref_path + ".done") as f:
-            return json.load(f).get("fingerprint") == fingerprint and os.path.exists(ref_path)
+            done = json.load(f)
+        return (done.get("fingerprint") == fingerprint and "ref_noise" in done
+                and os.path.exists(ref_path))
     except (OSError, ValueError):
         return False
+
+
+def combine_reference_halves(a, b, n_a, n_b):
+    """The reference from two independent renders of n_a and n_b spp (different seeds), and the
+    reference's own relMSE (its noise, in rel_mse's units) estimated from their difference:
+    Var(ref) = E[(a - b)^2] n_a n_b / (n_a + n_b)^2 for independent halves, whatever the sampler.
+    That noise is added to every error measured against the reference, and it differs between
+    renderers (Mitsuba's reference uses `independent`, Trayecto's its stratified default):
+    subtracting it (score) leaves the renderer's own error."""
+    import numpy as np
+    a, b = a.astype(np.float64), b.astype(np.float64)
+    ref = (a * n_a + b * n_b) / (n_a + n_b)
+    noise = float(np.mean((a - b) ** 2 / (ref ** 2 + 1e-2))) * n_a * n_b / (n_a + n_b) ** 2
+    return ref, noise
+
+
+def score_error(x, ref, ref_noise):
+    """rel_mse against the reference minus the reference's own noise (combine_reference_halves),
+    floored at a hundredth of the raw value (the estimate is itself noisy)."""
+    raw = rel_mse(x, ref)
+    return max(raw - ref_noise, 0.01 * raw)
 
 
 def rel_mse(x, ref):
@@ -1363,22 +1386,33 @@ def main():
                 if not rnd:
                     fingerprint = ref_fingerprint(scene, kind, args)
                 if not rnd and not ref_is_current(ref_path, fingerprint):
-                    # The renderer's own reference, with its default sampler.
-                    print(f"[{scene}] {r}: reference {ref_spp} spp", flush=True)
-                    res, err = run_worker(kind, scene, args, [{"spp": ref_spp, "seed": 100000, "reference": True,
-                                                               "out": ref_path}], timeout=ref_limit,
-                                          sampler=None if kind in sweeping else (fixed or None))
+                    # The renderer's own reference, with its default sampler, in two independent
+                    # halves (seeds 100000, 200000): their difference measures the reference's own
+                    # noise, which score_error takes out of every error.
+                    print(f"[{scene}] {r}: reference {ref_spp} spp (two halves)", flush=True)
+                    halves = [ref_spp // 2, ref_spp - ref_spp // 2]
+                    res, err = run_worker(kind, scene, args,
+                                          [{"spp": n, "seed": 100000 * (i + 1), "reference": True,
+                                            "out": ref_path[:-4] + f"_half{i}.npy"} for i, n in enumerate(halves)],
+                                          timeout=ref_limit, sampler=None if kind in sweeping else (fixed or None))
                     if res is None:
                         results[(scene, r)] = f"n/a ({err})"
                         print(f"[{scene}] {r}: n/a ({err})", flush=True)
                         live.remove(r)
                         continue
+                    ref, ref_noise = combine_reference_halves(np.load(res["runs"][0]["out"]), np.load(res["runs"][1]["out"]),
+                                                              *halves)
+                    np.save(ref_path, ref.astype(np.float32))
                     with open(ref_path + ".done", "w") as f:
-                        f.write(json.dumps({"time": res["runs"][0]["time"], "fingerprint": fingerprint}))
+                        f.write(json.dumps({"time": sum(run["time"] for run in res["runs"]),
+                                            "fingerprint": fingerprint, "ref_noise": ref_noise}))
                     if res.get("crashes"):
                         results[(scene, "_pbrt_crashes")] = results.get((scene, "_pbrt_crashes"), 0) + res["crashes"]
                 if args.references_only:
                     continue
+                with open(ref_path + ".done") as f:
+                    ref_noise = json.load(f)["ref_noise"]
+                results[(scene, "_ref_noise_" + kind)] = ref_noise
                 pre_sweep = None
                 if len(samplers) > 1:
                     # Mitsuba's samplers, each at the ladder's top spp; the least time × error
@@ -1399,7 +1433,7 @@ def main():
                             if res is None:
                                 pre_sweep[smp] = f"n/a ({err})"
                             else:
-                                e, t = rel_mse(np.load(out), ref), res["runs"][0]["time"]
+                                e, t = score_error(np.load(out), ref, ref_noise), res["runs"][0]["time"]
                                 if pas and smp in pre_sweep:
                                     prev = pre_sweep[smp]
                                     pre_sweep[smp] = {"relmse": (prev["relmse"] + e) / 2, "time": min(prev["time"], t)}
@@ -1414,19 +1448,15 @@ def main():
                         samplers = [min(ok_sweep, key=lambda k: ok_sweep[k]["relmse"] * ok_sweep[k]["time"])]
                     else:
                         samplers = samplers[:1]
-                need_ref = False
                 sweep = {}
                 for k, smp in enumerate(samplers):
                     tag = r.replace(":", "-") + (f"-{smp}" if smp and kind in sweeping else "")
-                    jobs = []
-                    if need_ref and k == 0:
-                        jobs.append({"spp": ref_spp, "seed": 100000, "reference": True, "out": ref_path})
-                    jobs += [{"spp": sp, "seed": i + 1 + 1000 * rnd, "out": os.path.join(OUT, f"{scene}_{tag}_{sp}.npy")}
+                    jobs = [{"spp": sp, "seed": i + 1 + 1000 * rnd, "out": os.path.join(OUT, f"{scene}_{tag}_{sp}.npy")}
                              for i, sp in enumerate(ladder)]
-                    what = (f"reference {ref_spp} spp + " if jobs[0].get("reference") else "") + f"ladder {ladder}"
+                    what = f"ladder {ladder}"
                     print(f"[{scene}] {r}{' ' + smp if smp else ''}: round {rnd + 1}/{args.rounds}: {what}", flush=True)
                     res, err = run_worker(kind, scene, args, jobs, sampler=smp,
-                                          timeout=ladder_limit + (ref_limit if jobs[0].get("reference") else 0))
+                                          timeout=ladder_limit)
                     if res is None:
                         print(f"[{scene}] {r} {smp or ''}: n/a ({err})", flush=True)
                         sweep[smp] = f"n/a ({err})"
@@ -1434,14 +1464,9 @@ def main():
                     runs = res["runs"]
                     if res.get("crashes"):
                         results[(scene, "_pbrt_crashes")] = results.get((scene, "_pbrt_crashes"), 0) + res["crashes"]
-                    if jobs[0].get("reference"):
-                        with open(ref_path + ".done", "w") as f:
-                            f.write(json.dumps({"time": runs[0]["time"],
-                                                "fingerprint": ref_fingerprint(scene, kind, args)}))
-                        ref_time = runs[0]["time"]
-                        runs = runs[1:]
                     ref = np.load(ref_path).astype(np.float64)
-                    pts = [{"spp": run["spp"], "relmse": rel_mse(np.load(run["out"]), ref), "time": run["time"],
+                    pts = [{"spp": run["spp"], "relmse": score_error(np.load(run["out"]), ref, ref_noise),
+                            "time": run["time"],
                             "rays": run.get("rays")} for run in runs]
                     sweep[smp] = {"ladder": pts, "times": [run["time"] for run in runs],
                                   "ref_mean": ref.reshape(-1, 3).mean(0).tolist(), "threads": res["threads"],
@@ -1632,8 +1657,11 @@ def self_test():
         ref = os.path.join(d, "ref.npy")
         open(ref, "wb").close()
         with open(ref + ".done", "w") as f:
-            json.dump({"time": 1.0, "fingerprint": "a"}, f)
+            json.dump({"time": 1.0, "fingerprint": "a", "ref_noise": 1e-4}, f)
         assert ref_is_current(ref, "a") and not ref_is_current(ref, "b")
+        with open(ref + ".done", "w") as f:
+            json.dump({"time": 1.0, "fingerprint": "a"}, f)  # made in one piece: noise unknown
+        assert not ref_is_current(ref, "a")
         with open(ref + ".done", "w") as f:
             json.dump({"time": 1.0}, f)  # written before fingerprints existed
         assert not ref_is_current(ref, "a")
@@ -1645,6 +1673,23 @@ def self_test():
         with open(exe, "wb") as f:
             f.write(b"new binary")
         assert ref_fingerprint("fog", "trayecto", args) != old
+    # The reference's noise from its halves: white noise of variance v per half of n spp each
+    # gives a reference of variance v / 2, which score_error takes out of an error.
+    try:
+        import numpy as np
+    except ImportError:
+        np = None
+    if np is not None:
+        rng = np.random.default_rng(5)
+        truth = np.full((256, 256, 3), 2.0)
+        a = truth + rng.normal(0, 0.2, truth.shape)
+        b = truth + rng.normal(0, 0.2, truth.shape)
+        ref, noise = combine_reference_halves(a, b, 64, 64)
+        expect = 0.04 / 2 / (4 + 1e-2)
+        assert abs(noise / expect - 1) < 0.02, (noise, expect)
+        x = truth + rng.normal(0, 0.4, truth.shape)  # a render of variance 0.16
+        assert abs(score_error(x, ref, noise) / (0.16 / (4 + 1e-2)) - 1) < 0.03
+        assert abs(rel_mse(x, ref) / (0.16 / (4 + 1e-2)) - 1) > 0.08  # the reference's noise is in there
     print("compare.py self-test: ok")
     return 0
 
@@ -1752,6 +1797,12 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
             w(f"| {name} | " + " | ".join(times) + f" | {ratio} | " + " | ".join(errs)
               + f" | {tte_s} | {tte_r} | {mean_s} | {mean_r} |")
         w("")
+        noise = [(k, results[(scene, "_ref_noise_" + k)]) for k in dict.fromkeys(r.split(":")[0] for r in renderers)
+                 if (scene, "_ref_noise_" + k) in results]
+        if noise:
+            w(f"Each reference's own noise (relMSE of a {ref_spp}-spp reference, estimated from its two independent "
+              "halves), subtracted from every error above: " + "; ".join(f"{k} {v:.3g}" for k, v in noise) + ".")
+            w("")
         for r in renderers:
             res = results.get((scene, r))
             if not isinstance(res, dict) or not res.get("sweep"):
