@@ -55,8 +55,13 @@ Error: relMSE = mean over pixels and channels of (x - ref)^2 / (ref^2 + 1e-2), w
 renderer's OWN high-spp reference (so it measures noise, not model differences). The references'
 mean RGB are compared with Trayecto's as a sanity check that the scenes are equivalent.
 Time to equal error: the target is Trayecto's relMSE at its largest ladder spp; every renderer's
-time to reach it is interpolated log-log between its ladder points (extrapolated with slope -1,
-i.e. error proportional to 1/time, outside the ladder; marked '~').
+time to reach it is interpolated log-log between its ladder points; outside the ladder it is
+extrapolated (marked '~') with the renderer's own error-vs-spp slope and its time affine in spp
+(see time_to_error). The summary's goal reads "yes" only if every peer that applies to the scene
+ran: a failed or killed peer makes it "undecided". `--self-test` checks this scoring.
+
+References are cached in bench/out/ with a fingerprint of the renderer (binary bytes or version)
+and the scene's files; a reference whose fingerprint differs is rendered again.
 
 Internally the script calls itself as a worker in subprocesses (`--worker ...`), one per renderer
 and scene, so a crash or missing feature in one renderer gives 'n/a (reason)' and the run goes on.
@@ -693,6 +698,7 @@ def worker_mitsuba(args):
         sampler.set_sample_count(job["spp"])
         if sampler.sample_count() != job["spp"]:
             raise RuntimeError(f"{args.mitsuba_sampler} rounds {job['spp']} spp to {sampler.sample_count()}")
+    warmed = set()  # sample counts whose kernels Dr.Jit has compiled (and cached) in this process
     for job in jobs:
         spp, seed, path = job["spp"], job["seed"], job["out"]
         chunk = min(spp, max(1, (1 << 22) // (args.res * args.res))) if variant == "llvm_ad_rgb" else spp
@@ -700,10 +706,14 @@ def worker_mitsuba(args):
         repeats = 1 if job.get("reference") else args.repeat
         while done < spp:
             n = min(chunk, spp - done)
-            if variant == "llvm_ad_rgb" and not job.get("reference"):
-                img = mi.render(scene, spp=n, seed=seed + 7919)  # warm-up: compile the kernels
+            if variant == "llvm_ad_rgb" and not job.get("reference") and n not in warmed:
+                # Warm-up: compile the kernels once per sample count (the seed is not baked into
+                # them, so later chunks and repetitions of the same count reuse them; until session
+                # 11 every chunk was rendered twice, which tripled a 256²/256-spp point's cost).
+                img = mi.render(scene, spp=n, seed=seed + 7919)
                 dr.eval(img)
                 dr.sync_thread()
+                warmed.add(n)
             best, arr = None, None
             for _ in range(repeats):
                 t = time.perf_counter()
@@ -1089,25 +1099,134 @@ def run_worker(kind, scene, args, jobs=None, timeout=None, sampler=None):
     return None, reason.replace("|", "/")[:160]
 
 
+def file_digest(path, _cache={}):
+    """sha256 of a file's bytes (cached per run by path, size and mtime)."""
+    import hashlib
+    st = os.stat(path)
+    key = (path, st.st_size, st.st_mtime_ns)
+    if key not in _cache:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+        _cache[key] = h.hexdigest()
+    return _cache[key]
+
+
+def ref_fingerprint(scene, kind, args):
+    """What a cached reference was rendered from: the renderer (Trayecto's and pbrt-v4's binary
+    bytes, Mitsuba's and bpy's versions) and the scene's input files. A reference is reused only
+    when this matches: a reference from an older Trayecto binary or an older export of the scene
+    would put the difference between the two into every error (before session 11 any cached
+    reference of the same size and spp was reused)."""
+    import hashlib
+    parts = [kind]
+    if kind == "trayecto":
+        parts.append(file_digest(args.trayecto))
+    elif kind == "pbrt":
+        parts.append(file_digest(PBRT_EXE))
+    elif kind.startswith("mitsuba"):
+        import mitsuba
+        parts.append(mitsuba.__version__)
+    elif kind == "cycles":
+        parts.append(BPY_VERSION)
+    if scene in FILE_SCENES:
+        files = [os.path.join(ROOT, FILE_SCENES[scene])] + ([PBRT_FILES[scene]] if kind == "pbrt" and scene in PBRT_FILES else [])
+    elif scene == "cornell" and kind != "cycles":
+        files = []  # built into Trayecto and Mitsuba
+    else:
+        d = os.path.join(OUT, scene)
+        # The exports (the .blend is left out: Blender writes it differently every time).
+        files = sorted(glob.glob(os.path.join(d, "*.glb")) + glob.glob(os.path.join(d, "*.ply"))
+                       + glob.glob(os.path.join(d, "scene.json")) + glob.glob(os.path.join(d, "*.png")))
+    parts += [f"{os.path.relpath(f, ROOT)}:{file_digest(f)}" for f in files if os.path.exists(f)]
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()
+
+
+def ref_is_current(ref_path, fingerprint):
+    try:
+        with open(ref_path + ".done") as f:
+            done = json.load(f)
+        return (done.get("fingerprint") == fingerprint and "ref_noise" in done
+                and os.path.exists(ref_path))
+    except (OSError, ValueError):
+        return False
+
+
+def combine_reference_halves(a, b, n_a, n_b):
+    """The reference from two independent renders of n_a and n_b spp (different seeds), and the
+    reference's own relMSE (its noise, in rel_mse's units) estimated from their difference:
+    Var(ref) = E[(a - b)^2] n_a n_b / (n_a + n_b)^2 for independent halves, whatever the sampler.
+    That noise is added to every error measured against the reference, and it differs between
+    renderers (Mitsuba's reference uses `independent`, Trayecto's its stratified default):
+    subtracting it (score) leaves the renderer's own error."""
+    import numpy as np
+    a, b = a.astype(np.float64), b.astype(np.float64)
+    ref = (a * n_a + b * n_b) / (n_a + n_b)
+    noise = float(np.mean((a - b) ** 2 / (ref ** 2 + 1e-2))) * n_a * n_b / (n_a + n_b) ** 2
+    return ref, noise
+
+
+def score_error(x, ref, ref_noise):
+    """rel_mse against the reference minus the reference's own noise (combine_reference_halves),
+    floored at a hundredth of the raw value (the estimate is itself noisy)."""
+    raw = rel_mse(x, ref)
+    return max(raw - ref_noise, 0.01 * raw)
+
+
 def rel_mse(x, ref):
     import numpy as np
     return float(np.mean((x.astype(np.float64) - ref) ** 2 / (ref.astype(np.float64) ** 2 + 1e-2)))
 
 
+# Bounds of the error-vs-spp slope used to extrapolate outside a ladder (see time_to_error): Monte
+# Carlo gives -1; the quick ladders of session 11 (cornell, textured, veach, highpoly; Trayecto and
+# Mitsuba llvm at its best sampler) measured -0.97 to -1.16 per segment. A firefly-ridden ladder
+# point (Mitsuba's 4-spp envlit: -2.5; its 4-spp fog images have relMSE 1e8) must not set it.
+SLOPE_BOUNDS = (-1.5, -0.75)
+
+
 def time_to_error(points, target):
-    """points: [(error, time)], error decreasing with time. Log-log interpolation; outside the
-    ladder, extrapolation with error ∝ 1/time (slope -1). Returns (time, extrapolated)."""
-    pts = sorted((e, t) for e, t in points if e > 0 and t > 0)
+    """points: [(spp, error, time)] of one renderer's ladder. Returns (time to reach `target`
+    error, extrapolated?). Inside the ladder: log-log interpolation of time against error between
+    the two ladder points (in spp order) whose errors enclose the target. Outside it the model is
+    the renderer's own: error ∝ spp^s, s the log-log slope of its two ladder points nearest the
+    target (clamped to SLOPE_BOUNDS; -1 with a single point), and time affine in spp with the
+    marginal cost of that segment (a render's fixed cost, e.g. thread start-up or a JIT's kernel
+    launch, is not multiplied). Until session 11 the extrapolation assumed time ∝ 1/error from the
+    end point, which charged the fixed cost again for every doubling and ignored a sampler whose
+    error falls faster than 1/spp: both overstated a noisier peer's time, in Trayecto's favour."""
+    pts = sorted((n, e, t) for n, e, t in points if n > 0 and e > 0 and t > 0)
     if not pts:
         return None, False
-    for (e0, t0), (e1, t1) in zip(pts, pts[1:]):
-        if e0 <= target <= e1:
+    for (n0, e0, t0), (n1, e1, t1) in zip(pts, pts[1:]):
+        if min(e0, e1) <= target <= max(e0, e1):
             if e1 == e0:
-                return t0, False
+                return min(t0, t1), False
             a = (math.log(target) - math.log(e0)) / (math.log(e1) - math.log(e0))
             return math.exp(math.log(t0) + a * (math.log(t1) - math.log(t0))), False
-    e, t = pts[0] if target < pts[0][0] else pts[-1]
-    return t * e / target, True
+    below = target < pts[-1][1]  # more spp than the ladder's top are needed
+    seg = pts[-2:] if below else pts[:2]
+    n_end, e_end, t_end = seg[-1] if below else seg[0]
+    slope, cost = -1.0, t_end / n_end
+    if len(seg) == 2:
+        (n0, e0, t0), (n1, e1, t1) = seg
+        if n1 != n0:
+            slope = math.log(e1 / e0) / math.log(n1 / n0)
+            slope = min(max(slope, SLOPE_BOUNDS[0]), SLOPE_BOUNDS[1])
+            if t1 > t0:
+                cost = (t1 - t0) / (n1 - n0)
+    n_needed = n_end * (target / e_end) ** (1.0 / slope)
+    if below:
+        return t_end + (n_needed - n_end) * cost, True
+    # Fewer spp than the ladder's bottom: no fixed cost is known below it; proportional time
+    # (the faster estimate, i.e. in the peer's favour).
+    return t_end * n_needed / n_end, True
+
+
+def ladder_points(res, times=None):
+    """(spp, error, time) of a result's ladder; `times` replaces the (median) times, e.g. one round's."""
+    return [(p["spp"], p["relmse"], t) for p, t in zip(res["ladder"], times or [p["time"] for p in res["ladder"]])]
 
 
 def fmt_ratio(x, base):
@@ -1151,12 +1270,16 @@ def main():
     ap.add_argument("--references-only", action="store_true",
                     help="render (and cache in bench/out/) the missing references, time nothing, write no table")
     ap.add_argument("--results", default=os.path.join(HERE, "results.md"))
+    ap.add_argument("--self-test", action="store_true",
+                    help="check the scoring (interpolation, extrapolation, summary) on synthetic ladders and exit")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--scene", help=argparse.SUPPRESS)
     ap.add_argument("--jobs", help=argparse.SUPPRESS)
     ap.add_argument("--trayecto", help=argparse.SUPPRESS)
     args = ap.parse_args()
 
+    if args.self_test:
+        return self_test()
     if args.worker:
         {"prepare": worker_prepare, "mitsuba_scalar": worker_mitsuba, "mitsuba_llvm": worker_mitsuba,
          "cycles": worker_cycles, "trayecto": worker_trayecto, "pbrt": worker_pbrt}[args.worker](args)
@@ -1235,10 +1358,13 @@ def main():
                 results[(scene, r)] = f"n/a (scene export failed: {prep_err})"
             elif kind == "cycles" and scene in FILE_SCENES:
                 results[(scene, r)] = "n/a (scene not exported to Blender)"
+                results.setdefault((scene, "_not_applicable"), set()).add(r)
             elif kind.startswith("mitsuba") and scene in PBRT_SCENES:
                 results[(scene, r)] = "n/a (Mitsuba 3 does not read pbrt-v4 files)"
+                results.setdefault((scene, "_not_applicable"), set()).add(r)
             elif kind == "pbrt" and scene not in PBRT_FILES:
                 results[(scene, r)] = "n/a (no pbrt-v4 version of this scene)"
+                results.setdefault((scene, "_not_applicable"), set()).add(r)
             elif kind == "pbrt" and not os.path.exists(PBRT_EXE):
                 results[(scene, r)] = f"n/a (no pbrt-v4 binary at {PBRT_EXE})"
             elif kind == "trayecto" and not args.trayecto:
@@ -1257,23 +1383,36 @@ def main():
                 else:
                     samplers = [fixed or None]
                 ref_path = os.path.join(OUT, f"{scene}_{kind}_{args.res}px_{ref_spp}spp_ref.npy")
-                if not rnd and not os.path.exists(ref_path + ".done"):
-                    # The renderer's own reference, with its default sampler.
-                    print(f"[{scene}] {r}: reference {ref_spp} spp", flush=True)
-                    res, err = run_worker(kind, scene, args, [{"spp": ref_spp, "seed": 100000, "reference": True,
-                                                               "out": ref_path}], timeout=ref_limit,
-                                          sampler=None if kind in sweeping else (fixed or None))
+                if not rnd:
+                    fingerprint = ref_fingerprint(scene, kind, args)
+                if not rnd and not ref_is_current(ref_path, fingerprint):
+                    # The renderer's own reference, with its default sampler, in two independent
+                    # halves (seeds 100000, 200000): their difference measures the reference's own
+                    # noise, which score_error takes out of every error.
+                    print(f"[{scene}] {r}: reference {ref_spp} spp (two halves)", flush=True)
+                    halves = [ref_spp // 2, ref_spp - ref_spp // 2]
+                    res, err = run_worker(kind, scene, args,
+                                          [{"spp": n, "seed": 100000 * (i + 1), "reference": True,
+                                            "out": ref_path[:-4] + f"_half{i}.npy"} for i, n in enumerate(halves)],
+                                          timeout=ref_limit, sampler=None if kind in sweeping else (fixed or None))
                     if res is None:
                         results[(scene, r)] = f"n/a ({err})"
                         print(f"[{scene}] {r}: n/a ({err})", flush=True)
                         live.remove(r)
                         continue
+                    ref, ref_noise = combine_reference_halves(np.load(res["runs"][0]["out"]), np.load(res["runs"][1]["out"]),
+                                                              *halves)
+                    np.save(ref_path, ref.astype(np.float32))
                     with open(ref_path + ".done", "w") as f:
-                        f.write(json.dumps({"time": res["runs"][0]["time"]}))
+                        f.write(json.dumps({"time": sum(run["time"] for run in res["runs"]),
+                                            "fingerprint": fingerprint, "ref_noise": ref_noise}))
                     if res.get("crashes"):
                         results[(scene, "_pbrt_crashes")] = results.get((scene, "_pbrt_crashes"), 0) + res["crashes"]
                 if args.references_only:
                     continue
+                with open(ref_path + ".done") as f:
+                    ref_noise = json.load(f)["ref_noise"]
+                results[(scene, "_ref_noise_" + kind)] = ref_noise
                 pre_sweep = None
                 if len(samplers) > 1:
                     # Mitsuba's samplers, each at the ladder's top spp; the least time × error
@@ -1294,7 +1433,7 @@ def main():
                             if res is None:
                                 pre_sweep[smp] = f"n/a ({err})"
                             else:
-                                e, t = rel_mse(np.load(out), ref), res["runs"][0]["time"]
+                                e, t = score_error(np.load(out), ref, ref_noise), res["runs"][0]["time"]
                                 if pas and smp in pre_sweep:
                                     prev = pre_sweep[smp]
                                     pre_sweep[smp] = {"relmse": (prev["relmse"] + e) / 2, "time": min(prev["time"], t)}
@@ -1309,19 +1448,15 @@ def main():
                         samplers = [min(ok_sweep, key=lambda k: ok_sweep[k]["relmse"] * ok_sweep[k]["time"])]
                     else:
                         samplers = samplers[:1]
-                need_ref = False
                 sweep = {}
                 for k, smp in enumerate(samplers):
                     tag = r.replace(":", "-") + (f"-{smp}" if smp and kind in sweeping else "")
-                    jobs = []
-                    if need_ref and k == 0:
-                        jobs.append({"spp": ref_spp, "seed": 100000, "reference": True, "out": ref_path})
-                    jobs += [{"spp": sp, "seed": i + 1 + 1000 * rnd, "out": os.path.join(OUT, f"{scene}_{tag}_{sp}.npy")}
+                    jobs = [{"spp": sp, "seed": i + 1 + 1000 * rnd, "out": os.path.join(OUT, f"{scene}_{tag}_{sp}.npy")}
                              for i, sp in enumerate(ladder)]
-                    what = (f"reference {ref_spp} spp + " if jobs[0].get("reference") else "") + f"ladder {ladder}"
+                    what = f"ladder {ladder}"
                     print(f"[{scene}] {r}{' ' + smp if smp else ''}: round {rnd + 1}/{args.rounds}: {what}", flush=True)
                     res, err = run_worker(kind, scene, args, jobs, sampler=smp,
-                                          timeout=ladder_limit + (ref_limit if jobs[0].get("reference") else 0))
+                                          timeout=ladder_limit)
                     if res is None:
                         print(f"[{scene}] {r} {smp or ''}: n/a ({err})", flush=True)
                         sweep[smp] = f"n/a ({err})"
@@ -1329,13 +1464,9 @@ def main():
                     runs = res["runs"]
                     if res.get("crashes"):
                         results[(scene, "_pbrt_crashes")] = results.get((scene, "_pbrt_crashes"), 0) + res["crashes"]
-                    if jobs[0].get("reference"):
-                        with open(ref_path + ".done", "w") as f:
-                            f.write(json.dumps({"time": runs[0]["time"]}))
-                        ref_time = runs[0]["time"]
-                        runs = runs[1:]
                     ref = np.load(ref_path).astype(np.float64)
-                    pts = [{"spp": run["spp"], "relmse": rel_mse(np.load(run["out"]), ref), "time": run["time"],
+                    pts = [{"spp": run["spp"], "relmse": score_error(np.load(run["out"]), ref, ref_noise),
+                            "time": run["time"],
                             "rays": run.get("rays")} for run in runs]
                     sweep[smp] = {"ladder": pts, "times": [run["time"] for run in runs],
                                   "ref_mean": ref.reshape(-1, 3).mean(0).tolist(), "threads": res["threads"],
@@ -1354,18 +1485,20 @@ def main():
 
                     def score(v):
                         if target is not None:
-                            t, _ = time_to_error([(p["relmse"], p["time"]) for p in v["ladder"]], target)
+                            t, _ = time_to_error(ladder_points(v), target)
                             if t:
                                 return t
                         top = v["ladder"][-1]
                         return top["relmse"] * top["time"]
                     best = min(ok, key=lambda k: score(ok[k]))
-                    entry = dict(ok[best], sampler=best, round_times=[], round_ladders=[], sweep=pre_sweep)
+                    entry = dict(ok[best], sampler=best, round_times=[], round_ladders=[], round_ids=[],
+                                 sweep=pre_sweep)
                     results[(scene, r)] = entry
                     got = ok[best]
                 else:
                     got = ok[entry["sampler"]]
                 entry["round_times"].append(got["times"])
+                entry["round_ids"].append(rnd)
                 entry["round_ladders"].append([p["relmse"] for p in got["ladder"]])
                 for k, p in enumerate(entry["ladder"]):
                     p["time"] = float(np.median([times[k] for times in entry["round_times"]]))
@@ -1390,51 +1523,175 @@ def main():
 
 
 def tte_ratios(res, base, target):
-    """(time to `target` error of res / of base, [the same ratio round by round]); None if n/a."""
-    t_res, _ = time_to_error([(p["relmse"], p["time"]) for p in res["ladder"]], target)
-    t_base, _ = time_to_error([(p["relmse"], p["time"]) for p in base["ladder"]], target)
+    """(time to `target` error of res / of base, [the same ratio round by round], extrapolated?);
+    None if n/a. Rounds are paired by their number: a round one renderer lost (killed, failed) is
+    left out, never paired with another round of the other."""
+    t_res, extra = time_to_error(ladder_points(res), target)
+    t_base, _ = time_to_error(ladder_points(base), target)
+    mine_by = dict(zip(res.get("round_ids") or range(len(res["round_times"])), res["round_times"]))
+    base_by = dict(zip(base.get("round_ids") or range(len(base["round_times"])), base["round_times"]))
     per_round = []
-    for mine, theirs in zip(res["round_times"], base["round_times"]):
-        t_mine, _ = time_to_error([(p["relmse"], t) for p, t in zip(res["ladder"], mine)], target)
-        t_b, _ = time_to_error([(p["relmse"], t) for p, t in zip(base["ladder"], theirs)], target)
+    for rnd in sorted(set(mine_by) & set(base_by)):
+        t_mine, _ = time_to_error(ladder_points(res, mine_by[rnd]), target)
+        t_b, _ = time_to_error(ladder_points(base, base_by[rnd]), target)
         if t_mine and t_b:
             per_round.append(t_mine / t_b)
-    return (t_res / t_base if t_res and t_base else None), per_round
+    return (t_res / t_base if t_res and t_base else None), per_round, extra
 
 
-def summary(results, scenes, renderers):
+def summary(results, scenes, renderers, rounds):
     """Per scene: the best peer configuration (least time to Trayecto's top-of-ladder error) and
-    whether Trayecto's time to that error is at most half of it (issue #23's goal)."""
+    whether Trayecto's time to that error is at most half of it (issue #23's goal). A peer that
+    applies to the scene but failed or was killed is listed, and then the goal can read "no" but
+    never "yes": the missing peer might have been the best one."""
     L = ["## Summary: Trayecto's time to equal error against the best peer configuration", "",
          "Ratio = the best peer's time to reach Trayecto's error at the top of the ladder / Trayecto's time "
-         "(≥ 2 is issue #23's goal; below 1 the peer is faster). Brackets: lowest and highest round.", "",
-         "| scene | best peer (sampler) | ratio (rounds) | goal ≥ 2× | Trayecto must get faster by | peers run |",
-         "|---|---|---|---|---|---|"]
+         "(≥ 2 is issue #23's goal; below 1 the peer is faster). Brackets: lowest and highest round, "
+         "each round's times against Trayecto's of the same round. '~': the peer's time is extrapolated "
+         "outside its ladder (see the note at the end). 'Trayecto must get faster by' = 2 / ratio. "
+         "A peer that failed or was killed makes the goal 'undecided', never 'yes'.", "",
+         "| scene | best peer (sampler) | ratio (rounds) | goal ≥ 2× | Trayecto must get faster by | peers run "
+         "| peers failed |",
+         "|---|---|---|---|---|---|---|"]
     for scene in scenes:
         base = results.get((scene, "trayecto"))
+        not_applicable = results.get((scene, "_not_applicable"), set())
+        failed = [r for r in renderers if not r.startswith("trayecto") and r not in not_applicable
+                  and not isinstance(results.get((scene, r)), dict)]
+        reasons = {r: results.get((scene, r)) or "not run" for r in failed}
+        if isinstance(base, dict):
+            target = base["ladder"][-1]["relmse"]
+            peers = []
+            for r in renderers:
+                res = results.get((scene, r))
+                if r.startswith("trayecto") or not isinstance(res, dict):
+                    continue
+                ratio, per_round, extra = tte_ratios(res, base, target)
+                if ratio:
+                    peers.append((ratio, r, res.get("sampler"), per_round, extra))
+                else:
+                    failed.append(r)
+                    reasons[r] = "no time to Trayecto's error"
+        failed_s = "; ".join(f"{r}: {reasons[r]}" for r in failed) or "none"
         if not isinstance(base, dict):
-            L.append(f"| {scene} | n/a (no Trayecto result: {base}) | | | | |")
+            L.append(f"| {scene} | n/a (no Trayecto result: {base}) | n/a | undecided | n/a | | {failed_s} |")
             continue
-        target = base["ladder"][-1]["relmse"]
-        peers = []
-        for r in renderers:
-            res = results.get((scene, r))
-            if r.startswith("trayecto") or not isinstance(res, dict):
-                continue
-            ratio, per_round = tte_ratios(res, base, target)
-            if ratio:
-                peers.append((ratio, r, res.get("sampler"), per_round))
         if not peers:
-            L.append(f"| {scene} | n/a (no peer result) | | | | |")
+            L.append(f"| {scene} | n/a (no peer result) | n/a | undecided | n/a | | {failed_s} |")
             continue
-        ratio, r, smp, per_round = min(peers)
-        spread = f" ({min(per_round):.2f}–{max(per_round):.2f})" if len(per_round) > 1 else ""
-        met = "yes" if ratio >= 2 else "no"
+        n_rounds = rounds
+        ratio, r, smp, per_round, extra = min(peers)
+        if len(per_round) > 1:
+            spread = f" ({min(per_round):.2f}–{max(per_round):.2f}"
+            spread += f", {len(per_round)} of {n_rounds} rounds)" if len(per_round) < n_rounds else ")"
+        else:
+            spread = f" ({len(per_round)} round: no spread)"
+        if ratio < 2:
+            met = "no"
+        elif failed:
+            met = "undecided (a peer failed)"
+        else:
+            met = "yes"
         short = "—" if ratio >= 2 else f"{2 / ratio:.2f}×"
-        L.append(f"| {scene} | {r}{f' ({smp})' if smp else ''} | {ratio:.2f}×{spread} | {met} | {short} | "
-                 f"{', '.join(p[1] for p in sorted(peers, key=lambda p: p[1]))} |")
+        L.append(f"| {scene} | {r}{f' ({smp})' if smp else ''} | {'~' if extra else ''}{ratio:.2f}×{spread} | "
+                 f"{met} | {short} | {', '.join(p[1] for p in sorted(peers, key=lambda p: p[1]))} | {failed_s} |")
     L.append("")
     return L
+
+
+def self_test():
+    """Checks of the scoring logic on synthetic ladders (`--self-test`; no renderer, no numpy)."""
+    def close(a, b):
+        assert abs(a - b) <= 1e-9 * max(1.0, abs(b)), (a, b)
+    # Inside the ladder: exact at a ladder point, log-log between two.
+    pts = [(4, 0.16, 1.0), (16, 0.04, 4.0), (64, 0.01, 16.0)]
+    t, extra = time_to_error(pts, 0.04)
+    close(t, 4.0)
+    assert not extra
+    t, _ = time_to_error(pts, 0.02)
+    close(t, 8.0)
+    # Beyond the top, error ∝ 1/spp and a fixed cost of 1 s per render: 4x the top's spp costs
+    # 4x the marginal time plus the fixed cost once (the old rule, time ∝ 1/error, said 4 x 17).
+    pts = [(4, 0.16, 2.0), (16, 0.04, 5.0), (64, 0.01, 17.0)]
+    t, extra = time_to_error(pts, 0.0025)
+    close(t, 17.0 + 192 * 0.25)
+    assert extra
+    # A sampler whose error falls as spp^-1.5 needs fewer samples than 1/spp would say.
+    pts = [(16, 0.008, 1.0), (64, 0.001, 4.0)]
+    t, _ = time_to_error(pts, 0.000125)
+    close(t, 4.0 + (256 - 64) / 16)
+    # The slope is clamped: a flat pair of points does not make the time infinite.
+    t, _ = time_to_error([(16, 0.01, 1.0), (64, 0.0099, 4.0)], 0.001)
+    assert t is not None and t < 1e6
+    # The summary: a killed peer never makes the goal "yes"; rounds are paired by number.
+    def res(times_by_round, errs, ids):
+        ladder = [{"spp": n, "relmse": e, "time": sorted(r[i] for r in times_by_round)[len(times_by_round) // 2]}
+                  for i, (n, e) in enumerate(zip((4, 16, 64), errs))]
+        return {"ladder": ladder, "round_times": times_by_round, "round_ids": ids, "sampler": None}
+    base = res([[1, 4, 16], [2, 8, 32]], [0.16, 0.04, 0.01], [0, 1])
+    slow = res([[2.5, 10, 40], [6, 24, 96]], [0.16, 0.04, 0.01], [0, 1])
+    results = {("s", "trayecto"): base, ("s", "mitsuba_llvm"): slow,
+               ("s", "cycles"): "n/a (timeout after 60 s)"}
+    row = next(ln for ln in summary(results, ["s"], ["trayecto", "mitsuba_llvm", "cycles"], 2)
+               if ln.startswith("| s |"))
+    assert "× (2.50–3.00) | undecided" in row and "cycles: n/a (timeout after 60 s)" in row, row
+    del results[("s", "cycles")]
+    row = next(ln for ln in summary(results, ["s"], ["trayecto", "mitsuba_llvm"], 2) if ln.startswith("| s |"))
+    assert "| yes |" in row and "| none |" in row, row
+    # A structurally absent peer (Cycles on a pbrt scene) is not a failure.
+    results[("s", "cycles")] = "n/a (scene not exported to Blender)"
+    results[("s", "_not_applicable")] = {"cycles"}
+    row = next(ln for ln in summary(results, ["s"], ["trayecto", "mitsuba_llvm", "cycles"], 2)
+               if ln.startswith("| s |"))
+    assert "| yes |" in row, row
+    # The peer lost round 0: its round 1 is paired with Trayecto's round 1 only.
+    results[("s", "mitsuba_llvm")] = res([[4, 16, 64]], [0.16, 0.04, 0.01], [1])
+    _, per_round, _ = tte_ratios(results[("s", "mitsuba_llvm")], base, 0.01)
+    assert len(per_round) == 1 and abs(per_round[0] - 2.0) < 1e-9, per_round  # 64 / 32, not 64 / 16
+    row = next(ln for ln in summary(results, ["s"], ["trayecto", "mitsuba_llvm", "cycles"], 2)
+               if ln.startswith("| s |"))
+    assert "1 round: no spread" in row, row
+    # A cached reference is reused only with the same fingerprint (renderer binary and scene files).
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        ref = os.path.join(d, "ref.npy")
+        open(ref, "wb").close()
+        with open(ref + ".done", "w") as f:
+            json.dump({"time": 1.0, "fingerprint": "a", "ref_noise": 1e-4}, f)
+        assert ref_is_current(ref, "a") and not ref_is_current(ref, "b")
+        with open(ref + ".done", "w") as f:
+            json.dump({"time": 1.0, "fingerprint": "a"}, f)  # made in one piece: noise unknown
+        assert not ref_is_current(ref, "a")
+        with open(ref + ".done", "w") as f:
+            json.dump({"time": 1.0}, f)  # written before fingerprints existed
+        assert not ref_is_current(ref, "a")
+        exe = os.path.join(d, "trayecto")
+        with open(exe, "wb") as f:
+            f.write(b"old")
+        args = argparse.Namespace(trayecto=exe)
+        old = ref_fingerprint("fog", "trayecto", args)
+        with open(exe, "wb") as f:
+            f.write(b"new binary")
+        assert ref_fingerprint("fog", "trayecto", args) != old
+    # The reference's noise from its halves: white noise of variance v per half of n spp each
+    # gives a reference of variance v / 2, which score_error takes out of an error.
+    try:
+        import numpy as np
+    except ImportError:
+        np = None
+    if np is not None:
+        rng = np.random.default_rng(5)
+        truth = np.full((256, 256, 3), 2.0)
+        a = truth + rng.normal(0, 0.2, truth.shape)
+        b = truth + rng.normal(0, 0.2, truth.shape)
+        ref, noise = combine_reference_halves(a, b, 64, 64)
+        expect = 0.04 / 2 / (4 + 1e-2)
+        assert abs(noise / expect - 1) < 0.02, (noise, expect)
+        x = truth + rng.normal(0, 0.4, truth.shape)  # a render of variance 0.16
+        assert abs(score_error(x, ref, noise) / (0.16 / (4 + 1e-2)) - 1) < 0.03
+        assert abs(rel_mse(x, ref) / (0.16 / (4 + 1e-2)) - 1) > 0.08  # the reference's noise is in there
+    print("compare.py self-test: ok")
+    return 0
 
 
 def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
@@ -1464,11 +1721,19 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
     opts += f" --ladder {','.join(map(str, ladder))}" if ladder != ([4, 16, 64] if args.quick else [4, 16, 64, 256]) else ""
     opts += f" --ref-spp {ref_spp}" if ref_spp != (512 if args.quick else 4096) else ""
     opts += f" --time-limit {args.time_limit:g}" if args.time_limit != (300.0 if args.quick else 1800.0) else ""
+    # Every other option that changes what is measured (until session 11 these were left out, so
+    # the printed command did not reproduce e.g. a run with fewer Mitsuba samplers).
+    opts += f" --mitsuba-samplers {','.join(args.mitsuba_samplers)}" if args.mitsuba_samplers != MITSUBA_SAMPLERS else ""
+    opts += f" --pbrt-samplers {','.join(args.pbrt_samplers)}" if args.pbrt_samplers != PBRT_SAMPLERS else ""
+    opts += f" --threads {args.threads}" if args.threads != (os.cpu_count() or 1) else ""
+    opts += f" --subdiv {args.subdiv}" if args.subdiv != 8 else ""
+    opts += f" --trayecto-bin {args.trayecto_bin}" if args.trayecto_bin else ""
+    opts += f" --results {os.path.relpath(args.results, ROOT)}" if os.path.abspath(args.results) != os.path.join(HERE, "results.md") else ""
     w(f"- command: `python3 bench/compare.py{opts}`")
     w(f"- time limit: {args.time_limit:.0f} s per sampler probe (a ladder worker {2 * args.repeat} x that, a "
       "reference 2 x ref/top spp x that); a worker over its limit is killed and shown as 'n/a (timeout after N s)'")
     w("")
-    L.extend(summary(results, scenes, renderers))
+    L.extend(summary(results, scenes, renderers, 1 if args.references_only else args.rounds))
     for scene in scenes:
         w(f"## {scene}")
         w("")
@@ -1501,7 +1766,7 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
         w("|" + "---|" * (2 * len(ladder) + 6))
         base_tte = None
         if base:
-            base_tte, _ = time_to_error([(p["relmse"], p["time"]) for p in base["ladder"]], target)
+            base_tte, _ = time_to_error(ladder_points(base), target)
         for r in renderers:
             res = results.get((scene, r))
             if not isinstance(res, dict):
@@ -1513,13 +1778,15 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
             top = by.get(ladder[-1])
             ratio = fmt_ratio(top["time"], base["ladder"][-1]["time"]) if (base and top) else "n/a"
             if target is not None:
-                tte, extra = time_to_error([(p["relmse"], p["time"]) for p in res["ladder"]], target)
+                tte, extra = time_to_error(ladder_points(res), target)
                 tte_s = f"{'~' if extra else ''}{tte:.3f} s" if tte else "n/a"
                 tte_r = fmt_ratio(tte, base_tte)
                 # The same ratio round by round (each round's times against Trayecto's of that round).
-                _, per_round = tte_ratios(res, base, target)
+                _, per_round, _ = tte_ratios(res, base, target)
                 if len(per_round) > 1 and r != "trayecto":
                     tte_r += f" ({min(per_round):.2f}–{max(per_round):.2f})"
+                if len(res["round_times"]) < args.rounds:
+                    tte_r += f" ({len(res['round_times'])} of {args.rounds} rounds)"
             else:
                 tte_s, tte_r = "n/a (no Trayecto result)", "n/a"
             mean = res["ref_mean"]
@@ -1530,6 +1797,12 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
             w(f"| {name} | " + " | ".join(times) + f" | {ratio} | " + " | ".join(errs)
               + f" | {tte_s} | {tte_r} | {mean_s} | {mean_r} |")
         w("")
+        noise = [(k, results[(scene, "_ref_noise_" + k)]) for k in dict.fromkeys(r.split(":")[0] for r in renderers)
+                 if (scene, "_ref_noise_" + k) in results]
+        if noise:
+            w(f"Each reference's own noise (relMSE of a {ref_spp}-spp reference, estimated from its two independent "
+              "halves), subtracted from every error above: " + "; ".join(f"{k} {v:.3g}" for k, v in noise) + ".")
+            w("")
         for r in renderers:
             res = results.get((scene, r))
             if not isinstance(res, dict) or not res.get("sweep"):
@@ -1542,7 +1815,9 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
                 for smp, v in res["sweep"].items()))
             w("")
     w("Ratios are the renderer's time over Trayecto's (above 1: Trayecto is faster). '~': extrapolated "
-      "outside the renderer's ladder assuming error ∝ 1/time.")
+      "outside the renderer's ladder with its own error-vs-spp slope between its two ladder points nearest "
+      f"the target (clamped to {SLOPE_BOUNDS[0]:g}…{SLOPE_BOUNDS[1]:g}) and its time affine in spp with that "
+      "segment's marginal cost per sample (before session 11: error ∝ 1/time, which favoured Trayecto).")
     return "\n".join(L) + "\n"
 
 

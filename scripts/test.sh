@@ -19,6 +19,9 @@ echo "== cargo test"
 # `cargo bench`: their timings do not belong in the test suite.
 cargo test
 
+echo "== benchmark scoring (bench/compare.py --self-test: synthetic ladders, no renderer)"
+python3 bench/compare.py --self-test
+
 echo "== farm driver (Python, Dask LocalCluster)"
 ./scripts/farm-test.sh
 
