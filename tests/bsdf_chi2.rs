@@ -504,6 +504,22 @@ fn synthetic_env() -> EnvMap {
     EnvMap::from_texels(w, h, texels, Vec3::ONE, rot)
 }
 
+/// Chi-square test of an environment map's sampling against its `pdf` for the density `which`
+/// (`support_tol`: the share of samples allowed in cells the quadrature misses), and the pdf
+/// integrates to one.
+fn env_chi2(map: &EnvMap, which: EnvPdf, name: &str, support_tol: f64) {
+    let i = chi2_support(
+        name,
+        |r| {
+            map.sample(Vec2::new(r.next_f32(), r.next_f32()), which)
+                .map(|(d, _, _)| d)
+        },
+        |d| map.pdf(d, which),
+        support_tol,
+    );
+    assert!((i - 1.0).abs() < 5e-3, "{name}: pdf integrates to {i}");
+}
+
 /// Both densities: the full one and the MIS-compensated one (radiance above the map's mean).
 #[test]
 fn environment_map_sampling_matches_pdf() {
@@ -512,16 +528,7 @@ fn environment_map_sampling_matches_pdf() {
         let name = format!("environment map, {which:?} density");
         // The compensated density is zero on texels at most as bright as the mean, whose
         // edges cut chi-square cells in slivers the quadrature can miss.
-        let i = chi2_support(
-            &name,
-            |r| {
-                map.sample(Vec2::new(r.next_f32(), r.next_f32()), which)
-                    .map(|(d, _, _)| d)
-            },
-            |d| map.pdf(d, which),
-            1e-4,
-        );
-        assert!((i - 1.0).abs() < 5e-3, "{name}: pdf integrates to {i}");
+        env_chi2(&map, which, &name, 1e-4);
         // The sample's pdf and radiance are pdf() and eval(), except where rounding of the
         // rotated direction puts a sample on the far side of a pixel edge.
         let mut rng = Pcg32::new(1, 2);
@@ -577,23 +584,15 @@ fn equal_area_environment_sampling_matches_pdf() {
             let map = EnvMap::from_texels_mapped(n, n, texels, Vec3::ONE, m, EnvMapping::EqualArea);
             let name = format!("{name}, {which:?} density");
             // The black texel's edges cut chi-square cells in slivers the quadrature can miss.
-            let i = chi2_support(
-                &name,
-                |r| {
-                    map.sample(Vec2::new(r.next_f32(), r.next_f32()), which)
-                        .map(|(d, _, _)| d)
-                },
-                |d| map.pdf(d, which),
-                // Half the texels have compensated density zero: many more edges than the
-                // one black texel. A sample in a texel whose density is truly zero would fail
-                // the pdf comparison below.
-                if which == EnvPdf::Compensated {
-                    1e-3
-                } else {
-                    1e-4
-                },
-            );
-            assert!((i - 1.0).abs() < 5e-3, "{name}: pdf integrates to {i}");
+            // Half the texels have compensated density zero: many more edges than the one
+            // black texel. A sample in a texel whose density is truly zero would fail the pdf
+            // comparison below.
+            let support_tol = if which == EnvPdf::Compensated {
+                1e-3
+            } else {
+                1e-4
+            };
+            env_chi2(&map, which, &name, support_tol);
             let mut rng = Pcg32::new(1, 2);
             let mut mismatched = 0;
             for _ in 0..10_000 {
