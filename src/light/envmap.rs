@@ -204,6 +204,8 @@ impl EnvMap {
                 }
             })
             .collect();
+        // Each texel's luminance, computed once: the integral and both densities read it.
+        let lum: Vec<f32> = texels.iter().map(|&t| luminance(t * scale)).collect();
         // ∫ L dω with each row's exact solid angle Δφ·(cos θ0 − cos θ1) (the sampling weights
         // below use sin θ at the row centre, which only needs to be proportional).
         let mut integral = 0.0f64;
@@ -221,8 +223,9 @@ impl EnvMap {
                 }
                 EnvMapping::EqualArea => (4.0 * PI as f64 / (w as f64 * h as f64), 1.0),
             };
-            let lum_sum: f64 = (0..w as usize)
-                .map(|x| luminance(texels[y * w as usize + x] * scale).max(0.0) as f64)
+            let lum_sum: f64 = lum[y * w as usize..(y + 1) * w as usize]
+                .iter()
+                .map(|&l| l.max(0.0) as f64)
                 .sum();
             integral += lum_sum * row_omega;
             sin_theta.push(st);
@@ -231,10 +234,9 @@ impl EnvMap {
         // Both densities are per texel (luminance − offset)⁺ × the texel's solid-angle factor,
         // so that per solid angle they are proportional to (radiance − offset)⁺.
         let weights = |offset: f32| -> Vec<f32> {
-            texels
-                .iter()
+            lum.iter()
                 .enumerate()
-                .map(|(i, &t)| (luminance(t * scale) - offset).max(0.0) * sin_theta[i / w as usize])
+                .map(|(i, &l)| (l - offset).max(0.0) * sin_theta[i / w as usize])
                 .collect()
         };
         let full_weights = weights(0.0);
