@@ -753,25 +753,14 @@ mod tests {
                 Vec4::new(c(0), c(1), c(2), c(3))
             })
             .collect();
+        let bytes: Vec<[u8; 4]> = texels
+            .iter()
+            .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
+            .collect();
         let kinds = [
-            Texels::Srgb8(
-                texels
-                    .iter()
-                    .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
-                    .collect(),
-            ),
-            Texels::Unorm8(
-                texels
-                    .iter()
-                    .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
-                    .collect(),
-            ),
-            Texels::Unorm8Recip(
-                texels
-                    .iter()
-                    .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
-                    .collect(),
-            ),
+            Texels::Srgb8(bytes.clone()),
+            Texels::Unorm8(bytes.clone()),
+            Texels::Unorm8Recip(bytes),
             Texels::Unorm16(
                 texels
                     .iter()
