@@ -332,7 +332,27 @@ impl EnvMap {
         if self.mapping == EnvMapping::EqualArea {
             return self.texels[self.equal_area_texel(d).0] * self.scale;
         }
+        self.eval_uv(Self::dir_to_uv(self.to_local * d))
+    }
+
+    /// [`EnvMap::eval`] and [`EnvMap::pdf`] of one direction, mapping it to the image once (an
+    /// escaped BSDF sample needs both; the mapping's `atan2`/`acos` dominate each).
+    #[inline]
+    pub fn eval_pdf(&self, d: Vec3, which: EnvPdf) -> (Vec3, f32) {
+        if self.mapping == EnvMapping::EqualArea {
+            let (i, jacobian) = self.equal_area_texel(d);
+            return (
+                self.texels[i] * self.scale,
+                self.equal_area_pdf(i, jacobian, which),
+            );
+        }
         let uv = Self::dir_to_uv(self.to_local * d);
+        (self.eval_uv(uv), self.pdf_uv(uv, which))
+    }
+
+    /// The bilinearly filtered radiance at map coordinates `uv` (equirectangular).
+    #[inline]
+    fn eval_uv(&self, uv: Vec2) -> Vec3 {
         let (w, h) = (self.width as i64, self.height as i64);
         let x = uv.x * w as f32 - 0.5;
         let y = uv.y * h as f32 - 0.5;
@@ -391,13 +411,23 @@ impl EnvMap {
     /// Solid-angle pdf with which [`EnvMap::sample`] with `which` produces world direction `d`.
     #[inline]
     pub fn pdf(&self, d: Vec3, which: EnvPdf) -> f32 {
-        let dist = self.distribution(which);
         if self.mapping == EnvMapping::EqualArea {
             let (i, jacobian) = self.equal_area_texel(d);
-            let (y, x) = (i / self.width as usize, i % self.width as usize);
-            return dist.pdf(x, y) * jacobian / (4.0 * PI);
+            return self.equal_area_pdf(i, jacobian, which);
         }
-        let uv = Self::dir_to_uv(self.to_local * d);
+        self.pdf_uv(Self::dir_to_uv(self.to_local * d), which)
+    }
+
+    /// The equal-area map's solid-angle pdf on texel `i` with the light transform's Jacobian.
+    #[inline]
+    fn equal_area_pdf(&self, i: usize, jacobian: f32, which: EnvPdf) -> f32 {
+        let (y, x) = (i / self.width as usize, i % self.width as usize);
+        self.distribution(which).pdf(x, y) * jacobian / (4.0 * PI)
+    }
+
+    /// The equirectangular map's solid-angle pdf at map coordinates `uv`.
+    #[inline]
+    fn pdf_uv(&self, uv: Vec2, which: EnvPdf) -> f32 {
         let sin_theta = (uv.y * PI).sin();
         if !(sin_theta > 0.0) {
             return 0.0;
@@ -405,7 +435,7 @@ impl EnvMap {
         let (w, h) = (self.width as usize, self.height as usize);
         let x = ((uv.x * w as f32) as usize).min(w - 1);
         let y = ((uv.y * h as f32) as usize).min(h - 1);
-        dist.pdf(x, y) / (2.0 * PI * PI * sin_theta)
+        self.distribution(which).pdf(x, y) / (2.0 * PI * PI * sin_theta)
     }
 }
 

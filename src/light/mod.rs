@@ -785,7 +785,10 @@ impl LightSet {
                 Light::Uniform { radiance } => {
                     (*radiance, self.pmf_infinite(i) * warp::UNIFORM_SPHERE_PDF)
                 }
-                Light::Environment { map } => (map.eval(d), self.pmf_infinite(i) * map.pdf(d, env)),
+                Light::Environment { map } => {
+                    let (le, pdf) = map.eval_pdf(d, env);
+                    (le, self.pmf_infinite(i) * pdf)
+                }
                 _ => continue,
             };
             if le != Vec3::ZERO {
