@@ -49,33 +49,18 @@ impl std::str::FromStr for SamplerKind {
 /// The random numbers of one camera sample of one pixel.
 #[derive(Clone, Debug)]
 pub struct SampleStream {
-    kind: SamplerKind,
+    /// The render's sampler, seed, sample count and everything derived from them (grid, masks,
+    /// reciprocals), copied in once per camera sample so the generators read it from the stream.
+    setup: SamplerSetup,
     /// Hash of (seed, pixel): fixed for the pixel.
     pixel_key: u64,
     sample: u32,
-    spp: u32,
     dim: u32,
     /// `mix64(sample ^ salt << 32)` for salts 0 and 1: the sample's half of every `random` hash,
     /// the same for every dimension, so it is computed once per stream rather than per number.
     sample_mix: [u64; 2],
-    /// The stratified 2D grid (`nx × ny ≥ spp` cells), fixed for the stream.
-    nx: u32,
-    ny: u32,
     /// `sample % spp`, the index the stratified permutations act on.
     sample_mod: u32,
-    /// Power-of-two masks for `permute` over `spp` strata and over the `nx × ny` cells, computed
-    /// once per stream instead of once per number (callgrind: 8 % of the sampler's instructions).
-    /// `mask_1d` also bounds the Sobol index shuffle to the pixel's power-of-two block.
-    mask_1d: u32,
-    mask_2d: u32,
-    /// The masks of `nx` and `ny` for the correlated multi-jitter permutations of `next_2d`
-    /// (`permute` recomputed them per call: with the call, ~9 % of ToyCar's render
-    /// instructions were `permute`, callgrind).
-    mask_x: u32,
-    mask_y: u32,
-    /// `nx` and `ny` are powers of two above 1: the two sub-cell permutations of `next_2d` then
-    /// run side by side in one register ([`permute_pow2_pair`]).
-    pow2_xy: bool,
     /// ZSobol only: the sample's index in the image's sequence, `(morton(pixel) << log2 spp) |
     /// (sample mod 2^log2 spp)`, its number of base-4 digits, whether log2 spp is odd, and the
     /// hash of (seed, sample ÷ 2^log2 spp) that keys every dimension's scrambles.
@@ -94,13 +79,34 @@ pub struct SamplerSetup {
     kind: SamplerKind,
     seed: u64,
     spp: u32,
+    /// The stratified 2D grid (`nx × ny ≥ spp` cells, `cells` of them).
     nx: u32,
     ny: u32,
+    cells: u32,
+    /// Power-of-two masks for `permute` over `spp` strata and over the `nx × ny` cells.
+    /// `mask_1d` also bounds the Sobol index shuffle to the pixel's power-of-two block.
     mask_1d: u32,
     mask_2d: u32,
+    /// The masks of `nx` and `ny` for the correlated multi-jitter permutations of `next_2d`.
     mask_x: u32,
     mask_y: u32,
+    /// `spp` is a power of two (1 included): a stratified 1D number's permutation is one pass of
+    /// Kensler's hash ([`permute_pow2`]) and its division by `spp` an exact multiplication.
+    pow2_1d: bool,
+    /// `nx` and `ny` are powers of two above 1 (so is `cells`): the 2D number's cell permutation
+    /// is one pass, its two sub-cell permutations run side by side in one register
+    /// ([`permute_pow2_pair`]), and its divisions are exact multiplications.
     pow2_xy: bool,
+    /// log₂ nx when `pow2_xy`: the cell's row is `cell >> log2_nx`.
+    log2_nx: u32,
+    /// `spp`, `nx` and `ny` as floats, and their reciprocals (used only where exact: powers of
+    /// two, for which x / n and x · (1/n) are the same float).
+    spp_f: f32,
+    nx_f: f32,
+    ny_f: f32,
+    inv_spp: f32,
+    inv_nx: f32,
+    inv_ny: f32,
     /// ZSobol: ⌈log₂ spp⌉ and ⌈log₂ max(width, height)⌉ (16 until [`Self::for_image`] sets it).
     log2_spp: u32,
     log2_res: u32,
@@ -111,17 +117,27 @@ impl SamplerSetup {
         let spp = spp.max(1);
         let nx = (spp as f32).sqrt().ceil() as u32;
         let ny = spp.div_ceil(nx);
+        let pow2_xy = nx > 1 && ny > 1 && nx.is_power_of_two() && ny.is_power_of_two();
         SamplerSetup {
             kind,
             seed,
             spp,
             nx,
             ny,
+            cells: nx * ny,
             mask_1d: permute_mask(spp),
             mask_2d: permute_mask(nx * ny),
             mask_x: permute_mask(nx),
             mask_y: permute_mask(ny),
-            pow2_xy: nx > 1 && ny > 1 && nx.is_power_of_two() && ny.is_power_of_two(),
+            pow2_1d: spp.is_power_of_two(),
+            pow2_xy,
+            log2_nx: nx.trailing_zeros(),
+            spp_f: spp as f32,
+            nx_f: nx as f32,
+            ny_f: ny as f32,
+            inv_spp: 1.0 / spp as f32,
+            inv_nx: 1.0 / nx as f32,
+            inv_ny: 1.0 / ny as f32,
             log2_spp: super::zsobol::ceil_log2(spp),
             log2_res: 16,
         }
@@ -162,24 +178,16 @@ impl SamplerSetup {
             z_key = hash_words(&[self.seed, cycle, 0x07a5_0b01]);
         }
         SampleStream {
-            kind: self.kind,
+            setup: *self,
             pixel_key,
             sample,
-            spp: self.spp,
             dim: 0,
             sample_mix: [mix64(sample as u64), mix64((sample as u64) ^ (1 << 32))],
-            nx: self.nx,
-            ny: self.ny,
             sample_mod: if sample < self.spp {
                 sample
             } else {
                 sample % self.spp
             },
-            mask_1d: self.mask_1d,
-            mask_2d: self.mask_2d,
-            mask_x: self.mask_x,
-            mask_y: self.mask_y,
-            pow2_xy: self.pow2_xy,
             z_index,
             z_digits,
             z_odd: self.log2_spp % 2 == 1,
@@ -236,7 +244,7 @@ impl SampleStream {
     pub fn next_1d(&mut self) -> f32 {
         let d = self.dim;
         self.dim += 1;
-        if self.kind == SamplerKind::Stratified {
+        if self.setup.kind == SamplerKind::Stratified {
             self.stratified_1d(d)
         } else {
             self.other_1d(d)
@@ -247,19 +255,28 @@ impl SampleStream {
     /// permutation, with a hashed jitter inside it.
     #[inline(always)]
     fn stratified_1d(&self, d: u32) -> f32 {
-        let n = self.spp;
+        let st = &self.setup;
         let h = self.dim_hash(d);
-        let stratum = permute_masked(self.sample_mod, n, h as u32, self.mask_1d);
         let jitter = self.random_h(h, 1);
-        ((stratum as f32 + jitter) / n as f32).min(ONE_MINUS_EPSILON)
+        // Strata and cells are below 2³¹: `as i32 as f32` is the same float as `as f32` from
+        // u32, in one conversion instead of a widening and a 64-bit one.
+        let u = if st.pow2_1d {
+            let stratum = permute_pow2(self.sample_mod, h as u32, st.mask_1d);
+            (stratum as i32 as f32 + jitter) * st.inv_spp
+        } else {
+            let stratum = permute_masked(self.sample_mod, st.spp, h as u32, st.mask_1d);
+            (stratum as i32 as f32 + jitter) / st.spp_f
+        };
+        u.min(ONE_MINUS_EPSILON)
     }
 
     #[inline(never)]
     fn other_1d(&self, d: u32) -> f32 {
-        match self.kind {
+        match self.setup.kind {
             SamplerKind::Independent => self.random(d, 0),
             SamplerKind::Sobol => {
-                let x = super::sobol::scrambled_1d(self.sample, self.mask_1d, self.dim_hash(d));
+                let x =
+                    super::sobol::scrambled_1d(self.sample, self.setup.mask_1d, self.dim_hash(d));
                 u32_to_unit_f32(x)
             }
             SamplerKind::ZSobol => {
@@ -284,7 +301,7 @@ impl SampleStream {
     pub fn next_2d(&mut self) -> Vec2 {
         let d = self.dim;
         self.dim += 2;
-        if self.kind == SamplerKind::Stratified {
+        if self.setup.kind == SamplerKind::Stratified {
             self.stratified_2d(d)
         } else {
             self.other_2d(d)
@@ -293,11 +310,11 @@ impl SampleStream {
 
     #[inline(never)]
     fn other_2d(&self, d: u32) -> Vec2 {
-        match self.kind {
+        match self.setup.kind {
             SamplerKind::Independent => Vec2::new(self.random(d, 0), self.random(d + 1, 0)),
             SamplerKind::Sobol => {
                 let (x, y) =
-                    super::sobol::scrambled_2d(self.sample, self.mask_1d, self.dim_hash(d));
+                    super::sobol::scrambled_2d(self.sample, self.setup.mask_1d, self.dim_hash(d));
                 Vec2::new(u32_to_unit_f32(x), u32_to_unit_f32(y))
             }
             SamplerKind::ZSobol => {
@@ -315,7 +332,7 @@ impl SampleStream {
                 // own shift.
                 let size = super::poisson::PATTERN_SIZE as u32;
                 let cycle = self.sample / size;
-                let n = self.spp.min(size);
+                let n = self.setup.spp.min(size);
                 let salt = self.dim_hash(d) ^ mix64(cycle as u64 + 1);
                 let j = permute(self.sample % n, n, salt as u32);
                 let shift = Vec2::new(
@@ -331,45 +348,49 @@ impl SampleStream {
     /// Dimensions `d`, `d + 1` of a stratified stream: correlated multi-jittered (below).
     #[inline(always)]
     fn stratified_2d(&self, d: u32) -> Vec2 {
-        // An nx × ny grid with at least spp cells; the permutation spreads the samples over
-        // distinct cells.
-        let (nx, ny) = (self.nx, self.ny);
-        let cells = nx * ny;
+        let st = &self.setup;
         let h = self.dim_hash(d);
-        let cell = permute_masked(self.sample_mod, cells, h as u32, self.mask_2d);
-        // nx is a power of two for the usual square sample counts: shift, don't divide.
-        let (cx, cy) = if nx.is_power_of_two() {
-            (cell & (nx - 1), cell >> nx.trailing_zeros())
-        } else {
-            (cell % nx, cell / nx)
-        };
-        // Correlated multi-jittering (Kensler 2013, §4): inside its cell the sample takes
-        // the sub-column π₁(cy) of ny and the sub-row π₂(cx) of nx, with π₁, π₂ hashed
-        // permutations shared by the dimension's cells. The samples of a column then
-        // fill distinct sub-columns, so with nx·ny = spp the x (and y) projections are
-        // stratified into spp strata as well as the 2D cells (N-rooks): a 1D decision
-        // taken from x — NEE's light choice reusing its 2D number — is as stratified as
-        // a 1D request. Every point stays uniform: the cell is uniform, and given it
-        // the sub-cell is uniform over the permutations.
+        // Correlated multi-jittering (Kensler 2013, §4): an nx × ny grid with at least spp
+        // cells, a hashed permutation spreading the samples over distinct cells; inside its
+        // cell the sample takes the sub-column π₁(cy) of ny and the sub-row π₂(cx) of nx, with
+        // π₁, π₂ hashed permutations shared by the dimension's cells. The samples of a column
+        // then fill distinct sub-columns, so with nx·ny = spp the x (and y) projections are
+        // stratified into spp strata as well as the 2D cells (N-rooks): a 1D decision taken
+        // from x — NEE's light choice reusing its 2D number — is as stratified as a 1D
+        // request. Every point stays uniform: the cell is uniform, and given it the sub-cell
+        // is uniform over the permutations.
         let hp = (h >> 32) as u32;
         let (px, py) = (hp.wrapping_mul(0xa511_e9b3), hp.wrapping_mul(0x63d8_3595));
-        let (sub_x, sub_y) = if self.pow2_xy {
-            permute_pow2_pair([cy, cx], [px, py], [self.mask_y, self.mask_x])
-        } else {
-            (
-                permute_masked(cy, ny, px, self.mask_y),
-                permute_masked(cx, nx, py, self.mask_x),
-            )
-        };
         // One 64-bit hash gives both jitters (24 bits each).
         let j = mix64(h ^ self.sample_mix[1]);
         let jx = u32_to_unit_f32(j as u32);
         let jy = u32_to_unit_f32((j >> 32) as u32);
-        let (nxf, nyf) = (nx as f32, ny as f32);
-        Vec2::new(
-            ((cx as f32 + (sub_x as f32 + jx) / nyf) / nxf).min(ONE_MINUS_EPSILON),
-            ((cy as f32 + (sub_y as f32 + jy) / nxf) / nyf).min(ONE_MINUS_EPSILON),
-        )
+        let (x, y) = if st.pow2_xy {
+            // The usual square sample counts (4, 16, 64, 256): every permutation is one pass,
+            // the row a shift, and dividing by nx or ny multiplying by its exact reciprocal.
+            let cell = permute_pow2(self.sample_mod, h as u32, st.mask_2d);
+            let (cx, cy) = (cell & st.mask_x, cell >> st.log2_nx);
+            let (sub_x, sub_y) = permute_pow2_pair([cy, cx], [px, py], [st.mask_y, st.mask_x]);
+            (
+                (cx as i32 as f32 + (sub_x as i32 as f32 + jx) * st.inv_ny) * st.inv_nx,
+                (cy as i32 as f32 + (sub_y as i32 as f32 + jy) * st.inv_nx) * st.inv_ny,
+            )
+        } else {
+            let (nx, ny) = (st.nx, st.ny);
+            let cell = permute_masked(self.sample_mod, st.cells, h as u32, st.mask_2d);
+            let (cx, cy) = if nx.is_power_of_two() {
+                (cell & (nx - 1), cell >> nx.trailing_zeros())
+            } else {
+                (cell % nx, cell / nx)
+            };
+            let sub_x = permute_masked(cy, ny, px, st.mask_y);
+            let sub_y = permute_masked(cx, nx, py, st.mask_x);
+            (
+                (cx as i32 as f32 + (sub_x as i32 as f32 + jx) / st.ny_f) / st.nx_f,
+                (cy as i32 as f32 + (sub_y as i32 as f32 + jy) / st.nx_f) / st.ny_f,
+            )
+        };
+        Vec2::new(x.min(ONE_MINUS_EPSILON), y.min(ONE_MINUS_EPSILON))
     }
 }
 
@@ -400,24 +421,7 @@ fn permute_masked(mut i: u32, l: u32, p: u32, w: u32) -> u32 {
         return 0;
     }
     loop {
-        i ^= p;
-        i = i.wrapping_mul(0xe170893d);
-        i ^= p >> 16;
-        i ^= (i & w) >> 4;
-        i ^= p >> 8;
-        i = i.wrapping_mul(0x0929eb3f);
-        i ^= p >> 23;
-        i ^= (i & w) >> 1;
-        i = i.wrapping_mul(1 | (p >> 27));
-        i = i.wrapping_mul(0x6935fa69);
-        i ^= (i & w) >> 11;
-        i = i.wrapping_mul(0x74dcb303);
-        i ^= (i & w) >> 2;
-        i = i.wrapping_mul(0x9e501cc3);
-        i ^= (i & w) >> 2;
-        i = i.wrapping_mul(0xc860a3df);
-        i &= w;
-        i ^= i >> 5;
+        i = kensler_hash(i, p, w);
         if i < l {
             break;
         }
@@ -436,6 +440,38 @@ fn permute_masked(mut i: u32, l: u32, p: u32, w: u32) -> u32 {
     (if j >= l as u64 { j - l as u64 } else { j }) as u32
 }
 
+/// One pass of Kensler's hash over `[0, w]` (2013, listing 3; the loop of [`permute_masked`]).
+#[inline(always)]
+fn kensler_hash(mut i: u32, p: u32, w: u32) -> u32 {
+    i ^= p;
+    i = i.wrapping_mul(0xe170893d);
+    i ^= p >> 16;
+    i ^= (i & w) >> 4;
+    i ^= p >> 8;
+    i = i.wrapping_mul(0x0929eb3f);
+    i ^= p >> 23;
+    i ^= (i & w) >> 1;
+    i = i.wrapping_mul(1 | (p >> 27));
+    i = i.wrapping_mul(0x6935fa69);
+    i ^= (i & w) >> 11;
+    i = i.wrapping_mul(0x74dcb303);
+    i ^= (i & w) >> 2;
+    i = i.wrapping_mul(0x9e501cc3);
+    i ^= (i & w) >> 2;
+    i = i.wrapping_mul(0xc860a3df);
+    i &= w;
+    i ^ (i >> 5)
+}
+
+/// [`permute_masked`]`(i, w + 1, p, w)` for `w + 1` a power of two (1 included): the hash then
+/// ends inside the mask after one pass (`i & w` and `i ^ i >> 5` stay below w + 1), so no cycle
+/// walking and no `l <= 1` test (for w = 0 the masked offset is 0, as `permute_masked` returns),
+/// and Kensler's final `(i + p) mod l` is a mask.
+#[inline(always)]
+fn permute_pow2(i: u32, p: u32, w: u32) -> u32 {
+    kensler_hash(i, p, w).wrapping_add(p) & w
+}
+
 /// [`permute_masked`]`(i[k], w[k] + 1, p[k], w[k])` for k = 0, 1, where both `w[k] + 1` are
 /// powers of two above 1: Kensler's hash then ends inside the mask after one pass (no cycle
 /// walking) and the offset is a mask. On x86_64 the two permutations run in lanes 0 and 2 of one
@@ -443,15 +479,34 @@ fn permute_masked(mut i: u32, l: u32, p: u32, w: u32) -> u32 {
 /// read): the same 32-bit operations in the same order, so the same values (unit test below).
 /// The stratified 2D number's two sub-cell permutations were ~80 of its ~230 instructions
 /// (callgrind, Cornell box).
+///
+/// The multiplications are `pmuludq` written as inline assembly: given `_mm_mul_epu32`, LLVM
+/// sees through its masking of lanes 1 and 3 and lowers four of the six products as full 64-bit
+/// lane multiplications (three `pmuludq`, two shifts and an add each), 16 more instructions per
+/// 2D number (objdump of `next_2d`, session 12); only the low 32 bits of lanes 0 and 2 are
+/// read, which one `pmuludq` gives.
 #[inline(always)]
 fn permute_pow2_pair(i: [u32; 2], p: [u32; 2], w: [u32; 2]) -> (u32, u32) {
     debug_assert!(w.iter().all(|&w| w > 0 && (w + 1).is_power_of_two()));
     #[cfg(target_arch = "x86_64")]
-    // SAFETY: SSE2 intrinsics only, which every x86_64 CPU has (the target's baseline); no memory
-    // is touched. `unsafe` because Rust asks it of `#[target_feature]` functions called outside
-    // a function that lists the feature.
+    // SAFETY: SSE2 intrinsics and one SSE2 instruction as inline assembly, which every x86_64
+    // CPU has (the target's baseline); no memory is touched. `unsafe` because Rust asks it of
+    // `#[target_feature]` functions called outside a function that lists the feature, and of
+    // `asm!`.
     unsafe {
         use std::arch::x86_64::*;
+        // Lanes 0 and 2 times lanes 0 and 2 of `k`, 64-bit products (`_mm_mul_epu32`), opaque
+        // to LLVM's rewriting (above).
+        let mul = |x: __m128i, k: __m128i| -> __m128i {
+            let mut r = x;
+            std::arch::asm!(
+                "pmuludq {r}, {k}",
+                r = inout(xmm_reg) r,
+                k = in(xmm_reg) k,
+                options(pure, nomem, nostack, preserves_flags)
+            );
+            r
+        };
         let two = |a: u32, b: u32| _mm_setr_epi32(a as i32, 0, b as i32, 0);
         let c = |k: u32| _mm_set1_epi32(k as i32);
         let pv = two(p[0], p[1]);
@@ -473,20 +528,20 @@ fn permute_pow2_pair(i: [u32; 2], p: [u32; 2], w: [u32; 2]) -> (u32, u32) {
             (1 | (p[1] >> 27)).wrapping_mul(0x6935fa69),
         );
         let mut x = _mm_xor_si128(two(i[0], i[1]), pv);
-        x = _mm_mul_epu32(x, c(0xe170893d));
+        x = mul(x, c(0xe170893d));
         x = _mm_xor_si128(x, _mm_srli_epi32::<16>(pv));
         x = fold(x, 4);
         x = _mm_xor_si128(x, _mm_srli_epi32::<8>(pv));
-        x = _mm_mul_epu32(x, c(0x0929eb3f));
+        x = mul(x, c(0x0929eb3f));
         x = _mm_xor_si128(x, _mm_srli_epi32::<23>(pv));
         x = fold(x, 1);
-        x = _mm_mul_epu32(x, k);
+        x = mul(x, k);
         x = fold(x, 11);
-        x = _mm_mul_epu32(x, c(0x74dcb303));
+        x = mul(x, c(0x74dcb303));
         x = fold(x, 2);
-        x = _mm_mul_epu32(x, c(0x9e501cc3));
+        x = mul(x, c(0x9e501cc3));
         x = fold(x, 2);
-        x = _mm_mul_epu32(x, c(0xc860a3df));
+        x = mul(x, c(0xc860a3df));
         x = _mm_and_si128(x, wv);
         x = _mm_xor_si128(x, _mm_srli_epi32::<5>(x));
         x = _mm_and_si128(_mm_add_epi32(x, pv), wv);
@@ -529,6 +584,27 @@ mod tests {
                         let want = (permute(ia, la, pa), permute(ib, lb, pb));
                         assert_eq!(got, want, "sizes {la} {lb}, keys {pa:#x} {pb:#x}, i {i}");
                     }
+                }
+            }
+        }
+    }
+
+    /// The one-pass power-of-two permutation is the cycle-walking one, for every size from 1 to
+    /// 4096 and hashed keys.
+    #[test]
+    fn one_pass_pow2_permutation_is_permute() {
+        let mut h = 5u64;
+        for b in 0..=12 {
+            let l = 1u32 << b;
+            for k in 0..40 {
+                h = mix64(h.wrapping_add(k));
+                let p = if k == 0 { u32::MAX } else { h as u32 };
+                for i in 0..l.min(300) {
+                    assert_eq!(
+                        permute_pow2(i, p, l - 1),
+                        permute(i, l, p),
+                        "l {l} p {p:#x}"
+                    );
                 }
             }
         }
