@@ -160,9 +160,12 @@ fn shuffle(index: u32, mask: u32, seed: u32) -> u32 {
 pub fn scrambled_2d(index: u32, mask: u32, seed: u64) -> (u32, u32) {
     let i = shuffle(index, mask, seed as u32);
     let s = super::rng::mix64(seed);
+    // `nested_uniform_scramble(sobol(i, d), ·)` with the scramble taking reversed bits: dimension
+    // 0 reversed is i itself, dimension 1 reversed comes from the byte tables (four look-ups
+    // instead of a loop over i's bits and two bit reversals; unit test below).
     (
-        nested_uniform_scramble(sobol(i, 0), s as u32),
-        nested_uniform_scramble(sobol(i, 1), (s >> 32) as u32),
+        scramble_reversed(i, s as u32),
+        scramble_reversed(sobol_dim1_reversed(i), (s >> 32) as u32),
     )
 }
 
@@ -170,7 +173,8 @@ pub fn scrambled_2d(index: u32, mask: u32, seed: u64) -> (u32, u32) {
 #[inline]
 pub fn scrambled_1d(index: u32, mask: u32, seed: u64) -> u32 {
     let i = shuffle(index, mask, seed as u32);
-    nested_uniform_scramble(sobol(i, 0), (seed >> 32) as u32)
+    // Dimension 0 is the bit reversal of i: scrambling it reversed is scrambling i.
+    scramble_reversed(i, (seed >> 32) as u32)
 }
 
 #[cfg(test)]
@@ -219,6 +223,30 @@ mod tests {
                 scramble_reversed(sobol_dim1_reversed(x), i),
                 nested_uniform_scramble(sobol_dim1(x), i)
             );
+        }
+    }
+
+    /// The scramblers' shortcuts (reversed dimension 0 is the index, reversed dimension 1 from
+    /// the byte tables) give what the definitions give: Owen-scrambled `sobol(i, d)`.
+    #[test]
+    fn scrambled_points_are_the_scrambled_sobol_points() {
+        let mut seed = 3u64;
+        for n in 0..4000u32 {
+            seed = super::super::rng::mix64(seed.wrapping_add(n as u64));
+            let (index, mask) = match n % 3 {
+                0 => (n % 64, 63),
+                1 => (n, 1023),
+                _ => (seed as u32 >> (n % 32), 15),
+            };
+            let i = shuffle(index, mask, seed as u32);
+            let s = super::super::rng::mix64(seed);
+            let want = (
+                nested_uniform_scramble(sobol(i, 0), s as u32),
+                nested_uniform_scramble(sobol(i, 1), (s >> 32) as u32),
+            );
+            assert_eq!(scrambled_2d(index, mask, seed), want, "index {index}");
+            let want_1d = nested_uniform_scramble(sobol(i, 0), (seed >> 32) as u32);
+            assert_eq!(scrambled_1d(index, mask, seed), want_1d, "index {index}");
         }
     }
 
