@@ -82,7 +82,7 @@ pub fn ceil_log2(n: u32) -> u32 {
 ///
 /// The digits are read from the top of a register rotated by two bits per place and the
 /// permuted ones shifted into the result from below, with the permutation a byte table indexed
-/// by (permutation, digit): no shift by a variable amount (x86 takes those from `cl` only), 17
+/// by (permutation, digit): no shift by a variable amount (x86 takes those from `cl` only), 20
 /// instructions per place where the loop indexing places by their shift took 25 (objdump,
 /// session 12). Same digits, same hash chain, so the same index.
 #[inline]
