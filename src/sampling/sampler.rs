@@ -258,14 +258,15 @@ impl SampleStream {
         let st = &self.setup;
         let h = self.dim_hash(d);
         let jitter = self.random_h(h, 1);
-        // Strata and cells are below 2³¹: `as i32 as f32` is the same float as `as f32` from
-        // u32, in one conversion instead of a widening and a 64-bit one.
         let u = if st.pow2_1d {
+            // A power-of-two spp is at most 2³¹, so the stratum is below 2³¹: `as i32 as f32`
+            // is the same float as `as f32` from u32, in one conversion instead of a widening
+            // and a 64-bit one.
             let stratum = permute_pow2(self.sample_mod, h as u32, st.mask_1d);
             (stratum as i32 as f32 + jitter) * st.inv_spp
         } else {
             let stratum = permute_masked(self.sample_mod, st.spp, h as u32, st.mask_1d);
-            (stratum as i32 as f32 + jitter) / st.spp_f
+            (stratum as f32 + jitter) / st.spp_f
         };
         u.min(ONE_MINUS_EPSILON)
     }
@@ -365,6 +366,8 @@ impl SampleStream {
         let j = mix64(h ^ self.sample_mix[1]);
         let jx = u32_to_unit_f32(j as u32);
         let jy = u32_to_unit_f32((j >> 32) as u32);
+        // The grid's sides are at most 2¹⁶ (nx = ⌈√spp⌉), so cells and sub-cells convert
+        // through i32 exactly (one conversion each, as in `stratified_1d`).
         let (x, y) = if st.pow2_xy {
             // The usual square sample counts (4, 16, 64, 256): every permutation is one pass,
             // the row a shift, and dividing by nx or ny multiplying by its exact reciprocal.
