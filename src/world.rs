@@ -157,9 +157,25 @@ impl World {
     /// path this way instead of moving 144-byte hits (each move a `memcpy` call).
     #[inline]
     pub fn intersect_into(&self, ray: &Ray, hit: &mut SurfaceHit) -> bool {
-        let Some(isect) = self.accel.intersect(&self.geometry, ray) else {
-            return false;
-        };
+        match self.candidate(ray) {
+            Some(isect) => self.complete_into(ray, isect, hit),
+            None => false,
+        }
+    }
+
+    /// The accelerator's closest hit along `ray`, cut-out holes not yet skipped: `None` means
+    /// the ray leaves the scene. [`World::complete_into`] finishes it. A caller that would
+    /// have to set up storage for the hit first can ask this before (a missed camera ray then
+    /// costs no set-up).
+    #[inline]
+    pub fn candidate(&self, ray: &Ray) -> Option<Intersection> {
+        self.accel.intersect(&self.geometry, ray)
+    }
+
+    /// [`World::intersect_into`] from the [`World::candidate`] `isect` of `ray`: skips cut-out
+    /// holes, then expands the hit into `hit`; `false` when only holes were found.
+    #[inline]
+    pub fn complete_into(&self, ray: &Ray, isect: Intersection, hit: &mut SurfaceHit) -> bool {
         if !self.has_cutouts {
             self.geometry.surface_hit_into(ray, &isect, hit);
             return true;
@@ -199,7 +215,22 @@ impl World {
         footprint: &crate::camera::Footprint,
         hit: &mut SurfaceHit,
     ) -> bool {
-        if !self.intersect_into(ray, hit) {
+        match self.candidate(ray) {
+            Some(isect) => self.complete_filtered_into(ray, isect, footprint, hit),
+            None => false,
+        }
+    }
+
+    /// [`World::intersect_filtered_into`] from the [`World::candidate`] `isect` of `ray`.
+    #[inline]
+    pub fn complete_filtered_into(
+        &self,
+        ray: &Ray,
+        isect: Intersection,
+        footprint: &crate::camera::Footprint,
+        hit: &mut SurfaceHit,
+    ) -> bool {
+        if !self.complete_into(ray, isect, hit) {
             return false;
         }
         if let Some((dpdx, dpdy)) = footprint.dp_dxy(hit.p, hit.ng) {

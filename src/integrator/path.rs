@@ -111,9 +111,12 @@ fn radiance_impl(
 ) -> Vec3 {
     stats.rays += 1;
     // The path's one vertex storage: each bounce's hit is intersected into it and shaded in
-    // place (`Vertex::shade`), never moved.
+    // place (`Vertex::shade`), never moved. Set up only once the camera ray hits something.
+    let Some(isect) = world.candidate(ray) else {
+        return world.escaped(ray.d.normalize());
+    };
     let mut v = Vertex::unshaded(SurfaceHit::EMPTY);
-    if !world.intersect_filtered_into(ray, &set.footprint, &mut v.hit) {
+    if !world.complete_filtered_into(ray, isect, &set.footprint, &mut v.hit) {
         return world.escaped(ray.d.normalize());
     }
     let wo = -ray.d.normalize();
