@@ -480,8 +480,10 @@ impl Texture {
         yi * width as usize + xi
     }
 
-    /// Looks up (u, v) with v = 0 at the top row (glTF convention).
-    #[inline]
+    /// Looks up (u, v) with v = 0 at the top row (glTF convention). Always inlined (into
+    /// [`Texture::lookup_filtered`]): the call cost ToyCar ~2 instructions per lookup
+    /// (callgrind: the two functions 9.05 M -> 8.63 M instructions for 210 k lookups).
+    #[inline(always)]
     pub fn lookup(&self, uv: Vec2) -> Vec4 {
         if !uv.is_finite() {
             return self.texels.get(0);
