@@ -547,6 +547,134 @@ impl GeometryStore {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::Mat4;
+
+    /// One primitive of each kind: a triangle with normals, uvs and vertex colours, a sphere, a
+    /// rotated box and a quad, each with its own material and light.
+    fn store() -> GeometryStore {
+        let mut g = GeometryStore::default();
+        g.triangles.push(TriangleVerts {
+            p0: Vec3::new(-1.0, -1.0, 0.0),
+            p1: Vec3::new(1.0, -1.0, 0.2),
+            p2: Vec3::new(0.0, 1.0, -0.1),
+        });
+        g.tri_mesh.push((0, 0));
+        g.tri_light.push(NO_LIGHT);
+        g.meshes.push(MeshAttributes {
+            indices: vec![[0, 1, 2]],
+            normals: Some(vec![
+                Vec3::new(0.1, 0.0, 1.0),
+                Vec3::new(0.0, 0.2, 1.0),
+                Vec3::new(-0.1, 0.1, 1.0),
+            ]),
+            uv0: Some(vec![Vec2::ZERO, Vec2::X, Vec2::new(0.5, 1.0)]),
+            colors: Some(vec![
+                Vec4::ONE,
+                Vec4::splat(0.5),
+                Vec4::new(0.2, 0.4, 0.6, 0.8),
+            ]),
+            material: 3,
+            ..Default::default()
+        });
+        g.spheres.push(AnalyticPrim {
+            shape: Sphere {
+                center: Vec3::new(0.0, 0.0, -3.0),
+                radius: 1.5,
+            },
+            material: 1,
+            light: 7,
+        });
+        let m = Mat4::from_rotation_y(0.4) * Mat4::from_rotation_x(-0.3);
+        g.cuboids.push(AnalyticPrim {
+            shape: Cuboid::new(Bounds3::new(Vec3::splat(-0.7), Vec3::splat(0.7)), m),
+            material: 2,
+            light: NO_LIGHT,
+        });
+        g.quads.push(AnalyticPrim {
+            shape: Quad::new(Vec3::new(-2.0, -2.0, -1.0), Vec3::X * 4.0, Vec3::Y * 4.0),
+            material: 4,
+            light: 5,
+        });
+        g
+    }
+
+    /// `surface_hit_into` leaves nothing of the hit its storage held before: on storage holding
+    /// another hit (every field different, uv derivatives and colour included), each primitive
+    /// kind's hit is the one `surface_hit` builds from fresh storage, field by field and bit for
+    /// bit (compared through `Debug`, which prints every float exactly). Fails if a field the
+    /// primitive does not set (a triangle's colour without vertex colours, a sphere's derivatives)
+    /// is left over from the previous hit.
+    #[test]
+    fn surface_hit_into_overwrites_every_field() {
+        let g = store();
+        let stale = SurfaceHit {
+            t: 9.0,
+            p: Vec3::splat(9.0),
+            p_error: Vec3::splat(0.5),
+            ng: Vec3::X,
+            ns: Vec3::Y,
+            tangent: Vec3::Z,
+            bitangent_sign: -1.0,
+            uv: [Vec2::splat(0.3), Vec2::splat(0.7)],
+            duv: [Vec4::splat(0.01), Vec4::splat(0.02)],
+            color: Vec4::splat(0.25),
+            material: 99,
+            light: 42,
+            prim: PrimRef::new(PrimitiveKind::Quad, 5),
+        };
+        let mut kinds = 0;
+        for prim in g.all_prims() {
+            for k in 0..16 {
+                let (x, y) = ((k % 4) as f32 * 0.1 - 0.15, (k / 4) as f32 * 0.1 - 0.15);
+                let ray = Ray::new(Vec3::new(x, y, 5.0), Vec3::new(-x * 0.1, y * 0.05, -1.0));
+                let Some(isect) = g.intersect(prim, &ray, f32::INFINITY) else {
+                    continue;
+                };
+                let fresh = g.surface_hit(&ray, &isect);
+                let mut reused = stale;
+                g.surface_hit_into(&ray, &isect, &mut reused);
+                assert_eq!(format!("{reused:?}"), format!("{fresh:?}"), "{prim:?}");
+                assert_eq!(fresh.material, g.material(prim));
+                assert_eq!(fresh.light, g.light(prim));
+                if k == 0 {
+                    kinds += 1;
+                }
+            }
+        }
+        assert_eq!(kinds, 4, "every primitive kind is hit");
+    }
+
+    /// A box hit expanded at the accelerator's distance (`Cuboid::hit_at`, what `surface_hit`
+    /// uses) is the hit a full box test finds, bit for bit, for rays from outside and from
+    /// inside a rotated box, whatever `t_max` the accelerator's test had. Fails if the face is
+    /// placed at another distance or in another frame.
+    #[test]
+    fn a_box_hit_at_the_accelerators_distance_is_the_full_test() {
+        let g = store();
+        let c = &g.cuboids[0].shape;
+        let mut tested = 0;
+        for k in 0..200 {
+            let a = k as f32 * 0.61;
+            let b = k as f32 * 0.23;
+            let d = Vec3::new(a.cos() * b.sin(), a.sin() * b.sin(), b.cos());
+            let o = if k % 2 == 0 {
+                -d * 4.0 + Vec3::new(0.1, -0.2, 0.05)
+            } else {
+                Vec3::new(0.1, -0.2, 0.05)
+            };
+            let ray = Ray::new(o, d * (1.0 + (k % 3) as f32));
+            let Some(full) = c.intersect(&ray, f32::INFINITY) else {
+                continue;
+            };
+            for t_max in [f32::INFINITY, full.t * 1.5, full.t * 1.0001] {
+                let t = c.intersect_t(&ray, t_max).expect("hit below t_max");
+                assert_eq!(t.to_bits(), full.t.to_bits());
+                assert_eq!(format!("{:?}", c.hit_at(&ray, t)), format!("{full:?}"));
+            }
+            tested += 1;
+        }
+        assert!(tested > 150, "{tested}");
+    }
 
     #[test]
     fn prim_ref_round_trips() {
