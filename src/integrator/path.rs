@@ -110,16 +110,23 @@ fn radiance_impl(
     mut aov: Option<&mut AovPath>,
 ) -> Vec3 {
     stats.rays += 1;
-    let Some(hit) = world.intersect_filtered(ray, &set.footprint) else {
+    // The path's one vertex storage: each bounce's hit is intersected into it and shaded in
+    // place (`Vertex::shade`), never moved. Set up only once the camera ray hits something.
+    let Some(isect) = world.candidate(ray) else {
         return world.escaped(ray.d.normalize());
     };
+    let mut v = Vertex::unshaded(SurfaceHit::EMPTY);
+    if !world.complete_filtered_into(ray, isect, &set.footprint, &mut v.hit) {
+        return world.escaped(ray.d.normalize());
+    }
     let wo = -ray.d.normalize();
-    let mut l = world.emitted(&hit, wo);
+    let mut l = world.emitted(&v.hit, wo);
     if set.max_depth == 0 {
         if let Some(a) = aov {
             // No scattering vertex is built for the radiance: build one for the AOVs.
-            let v = Vertex::new(world, hit, wo);
-            a.first(world, &v, wo, hit.t * ray.d.length());
+            let depth = v.hit.t * ray.d.length();
+            v.shade(world, wo);
+            a.first(world, &v, wo, depth);
             a.end_at(&v, wo);
         }
         return l;
@@ -129,21 +136,29 @@ fn radiance_impl(
     if let Some(a) = aov.as_deref_mut() {
         a.sample.first = None;
     }
-    let depth0 = aov.is_some().then(|| hit.t * ray.d.length());
-    for _ in 0..n {
+    let depth0 = aov.is_some().then(|| v.hit.t * ray.d.length());
+    for i in 1..=n {
         // The first continuation records the AOVs.
         let rec = aov.take().map(|a| (a, depth0.unwrap_or(0.0)));
-        sum += continue_path(world, hit, wo, s, set, stats, rec);
+        // Every continuation but the last starts from a copy of the hit; the last takes the
+        // storage itself.
+        sum += if i < n {
+            let mut copy = Vertex::unshaded(v.hit);
+            continue_path(world, &mut copy, wo, s, set, stats, rec)
+        } else {
+            continue_path(world, &mut v, wo, s, set, stats, rec)
+        };
     }
     l += sum / n as f32;
     l
 }
 
-/// Scatters from `hit` (reached with direction `-wo`) until the path ends; returns the radiance
-/// it gathers, not counting `hit`'s own emission.
+/// Scatters from `v.hit` (reached with direction `-wo`, not yet shaded) until the path ends;
+/// returns the radiance it gathers, not counting the hit's own emission. `v` is the path's
+/// vertex storage: each bounce's hit is intersected into `v.hit` and shaded there.
 fn continue_path(
     world: &World,
-    mut hit: SurfaceHit,
+    v: &mut Vertex,
     mut wo: Vec3,
     s: &mut SampleStream,
     set: &PathSettings,
@@ -160,17 +175,17 @@ fn continue_path(
     // `sample_ld`), BSDF lobe (1D) and direction (2D), and from `rr_depth` on Russian roulette
     // (1D).
     loop {
-        let v = Vertex::new(world, hit, wo);
+        v.shade(world, wo);
         if let Some((a, first_depth)) = aov.as_mut() {
             if depth == 0 {
-                a.first(world, &v, wo, *first_depth);
+                a.first(world, v, wo, *first_depth);
             }
-            a.vertex(&v, wo);
+            a.vertex(v, wo);
             if a.is_done() {
                 aov = None;
             }
         }
-        l += sample_ld(world, &v, beta, s, set, stats);
+        l += sample_ld(world, v, beta, s, set, stats);
 
         // BSDF sampling: choose the next direction.
         let u_lobe = if v.bsdf.has_one_lobe() {
@@ -200,7 +215,9 @@ fn continue_path(
 
         let ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
         stats.rays += 1;
-        let Some(next) = world.intersect_filtered(&ray, &set.footprint) else {
+        // The next hit overwrites this vertex's; MIS below still needs where it was.
+        let (p, ng) = (v.hit.p, v.ng);
+        if !world.intersect_filtered_into(&ray, &set.footprint, &mut v.hit) {
             // Each light at infinity weighed against its own NEE density.
             l += world.escaped_mis(wi, set.env_pdf(), |le, pdf_light| {
                 let weight = if bs.specular || !set.nee {
@@ -213,23 +230,25 @@ fn continue_path(
                 beta * le * weight
             });
             break;
-        };
+        }
+        let next = &v.hit;
         let wo_next = -wi;
-        let le = world.emitted(&next, wo_next);
+        let le = world.emitted(next, wo_next);
         if le != Vec3::ZERO {
             let weight = if bs.specular || !set.nee || next.light == NO_LIGHT {
                 1.0
             } else if !set.mis {
                 0.0
             } else {
-                let pdf_light = world.emitter_pdf(v.hit.p, v.ng, &next);
+                let pdf_light = world.emitter_pdf(p, ng, next);
                 power_heuristic(bs.pdf, pdf_light)
             };
             l += beta * le * weight;
         }
         if depth >= set.max_depth {
             if let Some((a, _)) = aov {
-                a.end_at(&Vertex::new(world, next, wo_next), wo_next);
+                v.shade(world, wo_next);
+                a.end_at(v, wo_next);
             }
             break;
         }
@@ -244,7 +263,8 @@ fn continue_path(
                 let u_rr = s.next_1d();
                 if u_rr >= q {
                     if let Some((a, _)) = aov {
-                        a.end_at(&Vertex::new(world, next, wo_next), wo_next);
+                        v.shade(world, wo_next);
+                        a.end_at(v, wo_next);
                     }
                     break;
                 }
@@ -253,7 +273,6 @@ fn continue_path(
                 s.skip(1);
             }
         }
-        hit = next;
         wo = wo_next;
     }
     l

@@ -350,23 +350,26 @@ fn fetch4(i: [usize; 4], f: impl Fn(usize) -> Vec4) -> [Vec4; 4] {
 /// ⌊x⌋ as an integer and as a float, bit for bit `(x.floor() as i64, x.floor())`. The target's
 /// baseline x86-64 has no rounding instruction (SSE4.1), so `f32::floor` is a call into libm;
 /// below 2²³ in magnitude truncation and one compare give the same value inline (the truncated
-/// integer is exact there). −0 (whose floor keeps its sign), larger, infinite and NaN inputs
-/// take `floor` itself.
+/// integer is exact there). Every float of magnitude ≥ 2²³ is an integer, its own floor, and so
+/// are ±∞ and NaN (`floor` returns them unchanged), so no input needs the call: without it a
+/// bilinear lookup is a leaf function (the call's register saves and spills were ~10 % of its
+/// instructions). −0 keeps its sign, as `floor(−0) = −0`.
 #[inline]
 pub(crate) fn floor_i64(x: f32) -> (i64, f32) {
-    if x.abs() < 8_388_608.0 {
-        let t = x as i32;
-        let (i, f) = if (t as f32) > x {
-            (t - 1, (t - 1) as f32)
-        } else {
-            (t, t as f32)
-        };
-        if f != 0.0 || x.is_sign_positive() {
-            return (i as i64, f);
-        }
+    if !(x.abs() < 8_388_608.0) {
+        return (x as i64, x);
     }
-    let f = x.floor();
-    (f as i64, f)
+    let t = x as i32;
+    let (i, f) = if (t as f32) > x {
+        (t - 1, (t - 1) as f32)
+    } else {
+        (t, t as f32)
+    };
+    if f == 0.0 && x.is_sign_negative() {
+        // x is −0 (a negative non-zero x above −1 floors to −1).
+        return (0, x);
+    }
+    (i as i64, f)
 }
 
 /// sRGB electro-optical transfer function (IEC 61966-2-1).
@@ -477,8 +480,10 @@ impl Texture {
         yi * width as usize + xi
     }
 
-    /// Looks up (u, v) with v = 0 at the top row (glTF convention).
-    #[inline]
+    /// Looks up (u, v) with v = 0 at the top row (glTF convention). Always inlined (into
+    /// [`Texture::lookup_filtered`]): the call cost ToyCar ~2 instructions per lookup
+    /// (callgrind: the two functions 9.05 M -> 8.63 M instructions for 210 k lookups).
+    #[inline(always)]
     pub fn lookup(&self, uv: Vec2) -> Vec4 {
         if !uv.is_finite() {
             return self.texels.get(0);

@@ -45,8 +45,9 @@ impl World {
     }
 
     /// pbrt-v4's `GetBSDF` order: a normal map if the material has one, else its bump map.
+    /// `material` is [`World::surface_material`] of `hit`.
     #[inline]
-    fn perturb_shading(&self, material: &Material, hit: &mut SurfaceHit) {
+    pub fn perturb_shading(&self, material: &Material, hit: &mut SurfaceHit) {
         if material.normal_texture.is_some() {
             normal_map::apply_normal_map(material, &self.textures, hit);
         } else if material.pbrt.displacement.is_some()
@@ -62,6 +63,14 @@ impl World {
     pub fn bsdf(&self, hit: &mut SurfaceHit) -> Bsdf {
         let material = self.surface_material(hit);
         self.perturb_shading(material, hit);
+        self.material_bsdf(material, hit)
+    }
+
+    /// The BSDF of `material` ([`World::surface_material`] of `hit`) at `hit`, whose shading
+    /// frame [`World::perturb_shading`] has already set: the second half of [`World::bsdf`],
+    /// for a caller that resolves the material once for several queries.
+    #[inline]
+    pub fn material_bsdf(&self, material: &Material, hit: &SurfaceHit) -> Bsdf {
         Bsdf::from_material(material, &self.textures, hit)
     }
 
@@ -69,7 +78,12 @@ impl World {
     /// Must be asked before [`World::bsdf`] applies the base's normal map, which the coat ignores.
     #[inline]
     pub fn clearcoat_normal(&self, hit: &SurfaceHit) -> Option<Vec3> {
-        let material = self.surface_material(hit);
+        self.material_clearcoat_normal(self.surface_material(hit), hit)
+    }
+
+    /// [`World::clearcoat_normal`] with `material` = [`World::surface_material`] of `hit`.
+    #[inline]
+    pub fn material_clearcoat_normal(&self, material: &Material, hit: &SurfaceHit) -> Option<Vec3> {
         (material.clearcoat > 0.0).then(|| eval::clearcoat_normal(material, &self.textures, hit))
     }
 
