@@ -319,7 +319,7 @@ impl ChildQuad {
     }
 
     /// [`LightBounds::importance`] of the four lanes, step for step.
-    #[inline]
+    #[inline(always)]
     fn importance(&self, p: Vec3, n: Vec3) -> Vec4 {
         // v = p − centre; dc2 = |v|² as `Vec3::distance_squared` sums it.
         let vx = Vec4::splat(p.x) - self.cx;
@@ -374,6 +374,8 @@ pub struct LightBvh {
     trails: Vec<Option<u64>>,
     /// Total power of the lights in the tree.
     pub total_power: f32,
+    /// The CPU has AVX2: [`Self::sample_remap`] and [`Self::pmf`] run their AVX2 copies.
+    avx2: bool,
 }
 
 /// A light being placed in the tree.
@@ -424,6 +426,7 @@ impl LightBvh {
             root: None,
             trails: vec![None; light_count],
             total_power: 0.0,
+            avx2: detect_avx2(),
         };
         if items.is_empty() {
             return bvh;
@@ -486,7 +489,7 @@ impl LightBvh {
     /// The probabilities of choosing each child of the interior node whose children's bounds
     /// are `quads[quad]` from (`p`, `n`) (importance over the sum), or `None` if no child can
     /// light the point.
-    #[inline]
+    #[inline(always)]
     fn child_probabilities(&self, quad: u32, p: Vec3, n: Vec3) -> Option<Vec4> {
         let c = self.quads[quad as usize].importance(p, n);
         let total = (c.x + c.y) + (c.z + c.w);
@@ -513,7 +516,39 @@ impl LightBvh {
 
     /// [`Self::sample`] that also returns `u` as remapped at the last level, uniform on [0, 1)
     /// given the choice (see `Distribution1D::sample_discrete_remap`).
-    pub fn sample_remap(&self, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32, f32)> {
+    #[inline]
+    pub fn sample_remap(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is only set when `is_x86_feature_detected!("avx2")` said the CPU
+            // has it (`detect_avx2`).
+            return unsafe { self.sample_remap_avx2(p, n, u) };
+        }
+        self.sample_remap_impl(p, n, u)
+    }
+
+    /// [`Self::sample_remap`] compiled for the build's baseline CPU (SSE2 on x86-64).
+    pub fn sample_remap_portable(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
+        self.sample_remap_impl(p, n, u)
+    }
+
+    /// [`Self::sample_remap`] compiled with AVX2 enabled: the same SSE operations in VEX form
+    /// (three operands, so the register copies of the two-operand SSE form go away) and
+    /// `blendvps` for the lane selects. No FMA (not enabled, and Rust never contracts
+    /// `a * b + c` by itself), so every float is the portable path's bit for bit (a unit test
+    /// checks it). Measured reason for the second copy: BENCHMARKS.md, "Session 12: light
+    /// choice".
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn sample_remap_avx2(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
+        self.sample_remap_impl(p, n, u)
+    }
+
+    #[inline(always)]
+    fn sample_remap_impl(&self, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32, f32)> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -554,7 +589,33 @@ impl LightBvh {
     /// The probability with which [`LightBvh::sample`] from (`p`, `n`) chooses light `light`
     /// (an index into the light set): the same products along the light's path. 0 for lights
     /// not in the tree.
+    #[inline]
     pub fn pmf(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `sample_remap`.
+            return unsafe { self.pmf_avx2(light, p, n) };
+        }
+        self.pmf_impl(light, p, n)
+    }
+
+    /// [`Self::pmf`] compiled for the build's baseline CPU.
+    pub fn pmf_portable(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
+        self.pmf_impl(light, p, n)
+    }
+
+    /// [`Self::pmf`] compiled with AVX2 (see [`Self::sample_remap_avx2`]).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn pmf_avx2(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
+        self.pmf_impl(light, p, n)
+    }
+
+    #[inline(always)]
+    fn pmf_impl(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
         let Some(Some(trail)) = self.trails.get(light as usize) else {
             return 0.0;
         };
@@ -581,6 +642,19 @@ impl LightBvh {
                 }
             }
         }
+    }
+}
+
+/// Whether the running CPU has AVX2 (false off x86-64). `TRAYECTO_NO_AVX2=1` forces the portable
+/// code, as for the geometry BVH.
+fn detect_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::env::var_os("TRAYECTO_NO_AVX2").is_none()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 
@@ -759,5 +833,55 @@ mod tests {
         }
         // The cases are not all trivially zero.
         assert!(nonzero > 20_000, "{nonzero}");
+    }
+
+    /// The AVX2 copies of the descent and of `pmf` must give the portable code's results bit
+    /// for bit (determinism across machines): random trees of every kind of bounds, receivers
+    /// on surfaces and in media.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_descent_and_pmf_are_the_portable_ones_bit_for_bit() {
+        if !std::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 on this CPU: nothing to compare");
+            return;
+        }
+        let mut rng = Pcg32::new(12, 3);
+        let mut chosen = 0;
+        for count in [1usize, 2, 3, 5, 17, 300] {
+            let lights: Vec<(u32, LightBounds)> =
+                (0..count).map(|i| (i as u32, bounds(&mut rng))).collect();
+            let bvh = LightBvh::new(&lights, count);
+            for _ in 0..2000 {
+                let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0
+                    - Vec3::splat(4.0);
+                let n = if rng.next_u32().is_multiple_of(4) {
+                    Vec3::ZERO
+                } else {
+                    unit(&mut rng)
+                };
+                let u = rng.next_f32();
+                let portable = bvh.sample_remap_portable(p, n, u);
+                // SAFETY: AVX2 was detected above.
+                let avx2 = unsafe { bvh.sample_remap_avx2(p, n, u) };
+                let bits =
+                    |r: Option<(u32, f32, f32)>| r.map(|(l, a, b)| (l, a.to_bits(), b.to_bits()));
+                assert_eq!(
+                    bits(portable),
+                    bits(avx2),
+                    "{count} lights, p {p} n {n} u {u}"
+                );
+                chosen += portable.is_some() as u32;
+                let light = rng.next_u32() % count as u32;
+                // SAFETY: as above.
+                let pmf_avx2 = unsafe { bvh.pmf_avx2(light, p, n) };
+                assert_eq!(
+                    bvh.pmf_portable(light, p, n).to_bits(),
+                    pmf_avx2.to_bits(),
+                    "{count} lights, light {light}, p {p} n {n}"
+                );
+            }
+        }
+        // Most receivers are lit by some light (the comparison is not of `None`s).
+        assert!(chosen > 6000, "{chosen}");
     }
 }
