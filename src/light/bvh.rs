@@ -200,26 +200,22 @@ fn cone_union(wa: Vec3, cos_a: f32, wb: Vec3, cos_b: f32) -> (Vec3, f32) {
     (w, theta_o.cos())
 }
 
-/// No child in this slot of a [`Node::Interior`].
+/// No child in this slot of a [`ChildQuad`] (its lane has zero power, so it is never chosen).
 const NO_CHILD: u32 = u32::MAX;
-
-/// A node of the flattened four-way tree (plain data).
-#[derive(Clone, Copy, Debug)]
-enum Node {
-    /// `light`: the light's index in the light set.
-    Leaf { light: u32 },
-    /// Up to four children (node indices, [`NO_CHILD`] for empty slots); `quad` indexes
-    /// [`LightBvh::quads`], their bounds side by side.
-    Interior { children: [u32; 4], quad: u32 },
-}
+/// A [`ChildQuad::children`] entry with this bit set is a leaf: the light (its index in the light
+/// set) is the other 31 bits. Without it, the entry is the child's index in [`LightBvh::quads`].
+const LEAF_BIT: u32 = 1 << 31;
 
 /// The bounds of an interior node's (up to) four children side by side in SIMD lanes, with the
 /// parts of [`LightBounds::importance`] that depend only on the node precomputed (box centre,
 /// half diagonal, squared bounding-sphere radius, sin θo); an empty slot has zero power.
 /// [`ChildQuad::importance`] gives the four children's importance in one pass with the same
 /// IEEE operations in the same order as the scalar function (bit for bit, a unit test checks
-/// it).
+/// it). An interior node of the four-way tree *is* its `ChildQuad`: the children's indices sit
+/// beside their bounds, so a descent step reads one 256-byte, cache-line-aligned block (four
+/// lines) and no separate node array.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
 struct ChildQuad {
     cx: Vec4,
     cy: Vec4,
@@ -236,6 +232,9 @@ struct ChildQuad {
     cos_e: Vec4,
     phi: Vec4,
     two_sided: BVec4A,
+    /// Per lane: the child's index in [`LightBvh::quads`], or [`LEAF_BIT`] | its light, or
+    /// [`NO_CHILD`].
+    children: [u32; 4],
 }
 
 /// √x per lane, an exactly rounded IEEE square root like `f32::sqrt`.
@@ -315,6 +314,7 @@ impl ChildQuad {
                 lb[2].two_sided,
                 lb[3].two_sided,
             ),
+            children: [NO_CHILD; 4],
         }
     }
 
@@ -362,9 +362,11 @@ impl ChildQuad {
 /// The light BVH over a scene's bounded lights.
 #[derive(Clone, Debug, Default)]
 pub struct LightBvh {
-    nodes: Vec<Node>,
-    /// Per interior node, its children's bounds ([`ChildQuad`]).
+    /// The interior nodes of the four-way tree, the root first: each its children's bounds and
+    /// indices ([`ChildQuad`]).
     quads: Vec<ChildQuad>,
+    /// A tree of one light: that light (there are no interior nodes).
+    root_leaf: Option<u32>,
     /// Number of lights in the tree.
     lights: usize,
     /// The root's bounds, for a tree of one light (a lone leaf has had no importance test).
@@ -420,8 +422,8 @@ impl LightBvh {
             })
             .collect();
         let mut bvh = LightBvh {
-            nodes: Vec::with_capacity(2 * items.len()),
             quads: Vec::with_capacity(items.len() / 2),
+            root_leaf: None,
             lights: items.len(),
             root: None,
             trails: vec![None; light_count],
@@ -434,20 +436,27 @@ impl LightBvh {
         let root = build(&mut items, 0);
         bvh.total_power = root.bounds().phi;
         bvh.root = Some(*root.bounds());
-        bvh.flatten(&root, 0, 0);
+        let root = bvh.flatten(&root, 0, 0);
+        if root & LEAF_BIT != 0 {
+            bvh.root_leaf = Some(root & !LEAF_BIT);
+        }
         bvh
     }
 
-    /// Appends `b`'s subtree as four-way nodes and returns its node index. An interior node
-    /// of the binary tree takes its grandchildren as its four children (a leaf child takes one
-    /// slot itself), so a descent step chooses among four boxes at once, by the importance of
-    /// the tighter boxes two levels down, with one SIMD evaluation for two binary levels.
+    /// Appends `b`'s subtree as four-way nodes and returns its [`ChildQuad::children`] entry
+    /// (its quad index, or [`LEAF_BIT`] | light for a leaf). An interior node of the binary tree
+    /// takes its grandchildren as its four children (a leaf child takes one slot itself), so a
+    /// descent step chooses among four boxes at once, by the importance of the tighter boxes
+    /// two levels down, with one SIMD evaluation for two binary levels.
     fn flatten(&mut self, b: &Build, trail: u64, depth: u32) -> u32 {
-        let at = self.nodes.len() as u32;
         match b {
             Build::Leaf(_, light) => {
+                assert!(
+                    *light < LEAF_BIT,
+                    "light index {light} does not fit the tree"
+                );
                 self.trails[*light as usize] = Some(trail);
-                self.nodes.push(Node::Leaf { light: *light });
+                LEAF_BIT | *light
             }
             Build::Interior(_, children) => {
                 let mut slots: Vec<&Build> = Vec::with_capacity(4);
@@ -457,28 +466,20 @@ impl LightBvh {
                         Build::Interior(_, g) => slots.extend(g.iter()),
                     }
                 }
-                let quad = self.quads.len() as u32;
+                let at = self.quads.len();
                 let bounds: Vec<LightBounds> = slots.iter().map(|s| *s.bounds()).collect();
                 self.quads.push(ChildQuad::new(&bounds));
-                self.nodes.push(Node::Interior {
-                    children: [NO_CHILD; 4],
-                    quad,
-                });
-                let mut ids = [NO_CHILD; 4];
                 for (k, s) in slots.iter().enumerate() {
-                    ids[k] = self.flatten(s, trail | ((k as u64) << (2 * depth)), depth + 1);
+                    let id = self.flatten(s, trail | ((k as u64) << (2 * depth)), depth + 1);
+                    self.quads[at].children[k] = id;
                 }
-                self.nodes[at as usize] = Node::Interior {
-                    children: ids,
-                    quad,
-                };
+                at as u32
             }
         }
-        at
     }
 
     pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
+        self.lights == 0
     }
 
     /// Number of lights in the tree.
@@ -486,12 +487,11 @@ impl LightBvh {
         self.lights
     }
 
-    /// The probabilities of choosing each child of the interior node whose children's bounds
-    /// are `quads[quad]` from (`p`, `n`) (importance over the sum), or `None` if no child can
-    /// light the point.
+    /// The probabilities of choosing each child of the interior node `quad` from (`p`, `n`)
+    /// (importance over the sum), or `None` if no child can light the point.
     #[inline(always)]
-    fn child_probabilities(&self, quad: u32, p: Vec3, n: Vec3) -> Option<Vec4> {
-        let c = self.quads[quad as usize].importance(p, n);
+    fn child_probabilities(quad: &ChildQuad, p: Vec3, n: Vec3) -> Option<Vec4> {
+        let c = quad.importance(p, n);
         let total = (c.x + c.y) + (c.z + c.w);
         if !(total > 0.0) {
             return None;
@@ -549,40 +549,36 @@ impl LightBvh {
 
     #[inline(always)]
     fn sample_remap_impl(&self, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32, f32)> {
-        if self.nodes.is_empty() {
-            return None;
+        if let Some(light) = self.root_leaf {
+            return self.lone_light_reaches(p, n).then_some((light, 1.0, u));
         }
-        let mut i = 0usize;
+        let mut quad = self.quads.first()?;
         let mut pmf = 1.0f32;
         loop {
-            match self.nodes[i] {
-                Node::Leaf { light } => {
-                    if i == 0 && !self.lone_light_reaches(p, n) {
-                        return None;
+            let probs = Self::child_probabilities(quad, p, n)?.to_array();
+            // The slot whose share of [0, 1) holds u; rounding can leave u past the last
+            // share, which then takes it (the last slot of positive probability).
+            let (mut k, mut below) = (0, 0.0f32);
+            let mut sum = 0.0f32;
+            for (j, &pj) in probs.iter().enumerate() {
+                if pj > 0.0 {
+                    (k, below) = (j, sum);
+                    if u < sum + pj {
+                        break;
                     }
-                    return (pmf > 0.0).then_some((light, pmf, u));
-                }
-                Node::Interior { children, quad } => {
-                    let probs = self.child_probabilities(quad, p, n)?.to_array();
-                    // The slot whose share of [0, 1) holds u; rounding can leave u past the
-                    // last share, which then takes it (the last slot of positive probability).
-                    let (mut k, mut below) = (0, 0.0f32);
-                    let mut sum = 0.0f32;
-                    for (j, &pj) in probs.iter().enumerate() {
-                        if pj > 0.0 {
-                            (k, below) = (j, sum);
-                            if u < sum + pj {
-                                break;
-                            }
-                            sum += pj;
-                        }
-                    }
-                    let pk = probs[k];
-                    u = ((u - below).max(0.0) / pk).min(ONE_MINUS_EPSILON);
-                    pmf *= pk;
-                    i = children[k] as usize;
+                    sum += pj;
                 }
             }
+            let pk = probs[k];
+            u = ((u - below).max(0.0) / pk).min(ONE_MINUS_EPSILON);
+            pmf *= pk;
+            // A slot of positive probability holds a child (empty slots have no power).
+            let child = quad.children[k];
+            debug_assert_ne!(child, NO_CHILD);
+            if child & LEAF_BIT != 0 {
+                return (pmf > 0.0).then_some((child & !LEAF_BIT, pmf, u));
+            }
+            quad = &self.quads[child as usize];
         }
     }
 
@@ -619,28 +615,30 @@ impl LightBvh {
         let Some(Some(trail)) = self.trails.get(light as usize) else {
             return 0.0;
         };
-        let mut i = 0usize;
+        if self.root_leaf.is_some() {
+            debug_assert_eq!(self.root_leaf, Some(light));
+            return if self.lone_light_reaches(p, n) {
+                1.0
+            } else {
+                0.0
+            };
+        }
+        let mut quad = &self.quads[0];
         let mut pmf = 1.0f32;
         let mut depth = 0u32;
         loop {
-            match self.nodes[i] {
-                Node::Leaf { light: leaf } => {
-                    debug_assert_eq!(leaf, light);
-                    if i == 0 && !self.lone_light_reaches(p, n) {
-                        return 0.0;
-                    }
-                    return pmf;
-                }
-                Node::Interior { children, quad } => {
-                    let Some(probs) = self.child_probabilities(quad, p, n) else {
-                        return 0.0;
-                    };
-                    let k = ((trail >> (2 * depth)) & 3) as usize;
-                    pmf *= probs.to_array()[k];
-                    i = children[k] as usize;
-                    depth += 1;
-                }
+            let Some(probs) = Self::child_probabilities(quad, p, n) else {
+                return 0.0;
+            };
+            let k = ((trail >> (2 * depth)) & 3) as usize;
+            pmf *= probs.to_array()[k];
+            let child = quad.children[k];
+            if child & LEAF_BIT != 0 {
+                debug_assert_eq!(child & !LEAF_BIT, light);
+                return pmf;
             }
+            quad = &self.quads[child as usize];
+            depth += 1;
         }
     }
 }
