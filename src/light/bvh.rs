@@ -260,10 +260,31 @@ fn safe_sqrt4(x: Vec4) -> Vec4 {
     sqrt4(x.max(Vec4::ZERO))
 }
 
+/// `Vec4::select(mask, a, b)` for masks of whole lanes (comparison results). With `BLEND`
+/// (only in the AVX2-compiled copies) it is one SSE4.1 `blendvps`, which picks by each lane's
+/// sign bit — the same lanes for such masks — instead of SSE2's and/andnot/or.
+#[inline(always)]
+fn select4<const BLEND: bool>(mask: BVec4A, a: Vec4, b: Vec4) -> Vec4 {
+    #[cfg(target_arch = "x86_64")]
+    if BLEND {
+        // SAFETY: `BLEND` is true only in code reached from the `#[target_feature(enable =
+        // "avx2")]` copies, which run only on CPUs with AVX2 (which implies SSE4.1), and in a
+        // unit test that checks for SSE4.1 first.
+        return unsafe {
+            Vec4::from(std::arch::x86_64::_mm_blendv_ps(
+                b.into(),
+                a.into(),
+                mask.into(),
+            ))
+        };
+    }
+    Vec4::select(mask, a, b)
+}
+
 /// [`cos_sub_clamped`] per lane.
 #[inline(always)]
-fn cos_sub_clamped4(sin_a: Vec4, cos_a: Vec4, sin_b: Vec4, cos_b: Vec4) -> Vec4 {
-    Vec4::select(cos_a.cmpgt(cos_b), Vec4::ONE, cos_a * cos_b + sin_a * sin_b)
+fn cos_sub_clamped4<const BLEND: bool>(sin_a: Vec4, cos_a: Vec4, sin_b: Vec4, cos_b: Vec4) -> Vec4 {
+    select4::<BLEND>(cos_a.cmpgt(cos_b), Vec4::ONE, cos_a * cos_b + sin_a * sin_b)
 }
 
 /// [`sin_sub_clamped`] per lane.
@@ -318,9 +339,10 @@ impl ChildQuad {
         }
     }
 
-    /// [`LightBounds::importance`] of the four lanes, step for step.
+    /// [`LightBounds::importance`] of the four lanes, step for step (`BLEND`: see
+    /// [`select4`]).
     #[inline(always)]
-    fn importance(&self, p: Vec3, n: Vec3) -> Vec4 {
+    fn importance<const BLEND: bool>(&self, p: Vec3, n: Vec3) -> Vec4 {
         // v = p − centre; dc2 = |v|² as `Vec3::distance_squared` sums it.
         let vx = Vec4::splat(p.x) - self.cx;
         let vy = Vec4::splat(p.y) - self.cy;
@@ -338,16 +360,16 @@ impl ChildQuad {
         let cos_w = Vec4::select(self.two_sided, cos_w.abs(), cos_w);
         let sin_w = safe_sqrt4(Vec4::ONE - cos_w * cos_w);
         let inside = dc2.cmplt(self.r2) | !dc2.cmpgt(Vec4::ZERO);
-        let cos_b = Vec4::select(inside, Vec4::NEG_ONE, safe_sqrt4(Vec4::ONE - self.r2 / dc2));
+        let cos_b = select4::<BLEND>(inside, Vec4::NEG_ONE, safe_sqrt4(Vec4::ONE - self.r2 / dc2));
         let sin_b = safe_sqrt4(Vec4::ONE - cos_b * cos_b);
-        let cos_x = cos_sub_clamped4(sin_w, cos_w, self.sin_o, self.cos_o);
+        let cos_x = cos_sub_clamped4::<BLEND>(sin_w, cos_w, self.sin_o, self.cos_o);
         let sin_x = sin_sub_clamped4(sin_w, cos_w, self.sin_o, self.cos_o);
-        let cos_p = cos_sub_clamped4(sin_x, cos_x, sin_b, cos_b);
+        let cos_p = cos_sub_clamped4::<BLEND>(sin_x, cos_x, sin_b, cos_b);
         let mut importance = self.phi * cos_p / d2;
         if n != Vec3::ZERO {
             let cos_i = (wix * n.x + wiy * n.y + wiz * n.z).abs();
             let sin_i = safe_sqrt4(Vec4::ONE - cos_i * cos_i);
-            importance *= cos_sub_clamped4(sin_i, cos_i, sin_b, cos_b);
+            importance *= cos_sub_clamped4::<BLEND>(sin_i, cos_i, sin_b, cos_b);
         }
         // Zero where the cone test fails, and for zero or NaN importance.
         let keep = !cos_p.cmple(self.cos_e) & importance.cmpgt(Vec4::ZERO);
@@ -490,8 +512,8 @@ impl LightBvh {
     /// The probabilities of choosing each child of the interior node `quad` from (`p`, `n`)
     /// (importance over the sum), or `None` if no child can light the point.
     #[inline(always)]
-    fn child_probabilities(quad: &ChildQuad, p: Vec3, n: Vec3) -> Option<Vec4> {
-        let c = quad.importance(p, n);
+    fn child_probabilities<const AVX2: bool>(quad: &ChildQuad, p: Vec3, n: Vec3) -> Option<Vec4> {
+        let c = quad.importance::<AVX2>(p, n);
         let total = (c.x + c.y) + (c.z + c.w);
         if !(total > 0.0) {
             return None;
@@ -524,17 +546,17 @@ impl LightBvh {
             // has it (`detect_avx2`).
             return unsafe { self.sample_remap_avx2(p, n, u) };
         }
-        self.sample_remap_impl(p, n, u)
+        self.sample_remap_impl::<false>(p, n, u)
     }
 
     /// [`Self::sample_remap`] compiled for the build's baseline CPU (SSE2 on x86-64).
     pub fn sample_remap_portable(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
-        self.sample_remap_impl(p, n, u)
+        self.sample_remap_impl::<false>(p, n, u)
     }
 
     /// [`Self::sample_remap`] compiled with AVX2 enabled: the same SSE operations in VEX form
     /// (three operands, so the register copies of the two-operand SSE form go away) and
-    /// `blendvps` for the lane selects. No FMA (not enabled, and Rust never contracts
+    /// `blendvps` for four lane selects ([`select4`]). No FMA (not enabled, and Rust never contracts
     /// `a * b + c` by itself), so every float is the portable path's bit for bit (a unit test
     /// checks it). Measured reason for the second copy: BENCHMARKS.md, "Session 12: light
     /// choice".
@@ -544,18 +566,23 @@ impl LightBvh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     pub unsafe fn sample_remap_avx2(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
-        self.sample_remap_impl(p, n, u)
+        self.sample_remap_impl::<true>(p, n, u)
     }
 
     #[inline(always)]
-    fn sample_remap_impl(&self, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32, f32)> {
+    fn sample_remap_impl<const AVX2: bool>(
+        &self,
+        p: Vec3,
+        n: Vec3,
+        mut u: f32,
+    ) -> Option<(u32, f32, f32)> {
         if let Some(light) = self.root_leaf {
             return self.lone_light_reaches(p, n).then_some((light, 1.0, u));
         }
         let mut quad = self.quads.first()?;
         let mut pmf = 1.0f32;
         loop {
-            let probs = Self::child_probabilities(quad, p, n)?.to_array();
+            let probs = Self::child_probabilities::<AVX2>(quad, p, n)?.to_array();
             // The slot whose share of [0, 1) holds u; rounding can leave u past the last
             // share, which then takes it (the last slot of positive probability).
             let (mut k, mut below) = (0, 0.0f32);
@@ -592,12 +619,12 @@ impl LightBvh {
             // SAFETY: as in `sample_remap`.
             return unsafe { self.pmf_avx2(light, p, n) };
         }
-        self.pmf_impl(light, p, n)
+        self.pmf_impl::<false>(light, p, n)
     }
 
     /// [`Self::pmf`] compiled for the build's baseline CPU.
     pub fn pmf_portable(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
-        self.pmf_impl(light, p, n)
+        self.pmf_impl::<false>(light, p, n)
     }
 
     /// [`Self::pmf`] compiled with AVX2 (see [`Self::sample_remap_avx2`]).
@@ -607,11 +634,11 @@ impl LightBvh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     pub unsafe fn pmf_avx2(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
-        self.pmf_impl(light, p, n)
+        self.pmf_impl::<true>(light, p, n)
     }
 
     #[inline(always)]
-    fn pmf_impl(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
+    fn pmf_impl<const AVX2: bool>(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
         let Some(Some(trail)) = self.trails.get(light as usize) else {
             return 0.0;
         };
@@ -627,7 +654,7 @@ impl LightBvh {
         let mut pmf = 1.0f32;
         let mut depth = 0u32;
         loop {
-            let Some(probs) = Self::child_probabilities(quad, p, n) else {
+            let Some(probs) = Self::child_probabilities::<AVX2>(quad, p, n) else {
                 return 0.0;
             };
             let k = ((trail >> (2 * depth)) & 3) as usize;
@@ -818,7 +845,17 @@ mod tests {
             } else {
                 unit(&mut rng)
             };
-            let lanes = quad.importance(p, n).to_array();
+            let lanes = quad.importance::<false>(p, n).to_array();
+            // The blendvps form of the selects (the AVX2 copies') gives the same lanes.
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("sse4.1") {
+                let blend = quad.importance::<true>(p, n).to_array();
+                assert_eq!(
+                    blend.map(f32::to_bits),
+                    lanes.map(f32::to_bits),
+                    "{lbs:?} p {p} n {n}"
+                );
+            }
             for (k, lane) in lanes.iter().enumerate() {
                 let scalar = lbs.get(k).map_or(0.0, |lb| lb.importance(p, n));
                 assert_eq!(
