@@ -200,26 +200,22 @@ fn cone_union(wa: Vec3, cos_a: f32, wb: Vec3, cos_b: f32) -> (Vec3, f32) {
     (w, theta_o.cos())
 }
 
-/// No child in this slot of a [`Node::Interior`].
+/// No child in this slot of a [`ChildQuad`] (its lane has zero power, so it is never chosen).
 const NO_CHILD: u32 = u32::MAX;
-
-/// A node of the flattened four-way tree (plain data).
-#[derive(Clone, Copy, Debug)]
-enum Node {
-    /// `light`: the light's index in the light set.
-    Leaf { light: u32 },
-    /// Up to four children (node indices, [`NO_CHILD`] for empty slots); `quad` indexes
-    /// [`LightBvh::quads`], their bounds side by side.
-    Interior { children: [u32; 4], quad: u32 },
-}
+/// A [`ChildQuad::children`] entry with this bit set is a leaf: the light (its index in the light
+/// set) is the other 31 bits. Without it, the entry is the child's index in [`LightBvh::quads`].
+const LEAF_BIT: u32 = 1 << 31;
 
 /// The bounds of an interior node's (up to) four children side by side in SIMD lanes, with the
 /// parts of [`LightBounds::importance`] that depend only on the node precomputed (box centre,
 /// half diagonal, squared bounding-sphere radius, sin θo); an empty slot has zero power.
 /// [`ChildQuad::importance`] gives the four children's importance in one pass with the same
 /// IEEE operations in the same order as the scalar function (bit for bit, a unit test checks
-/// it).
+/// it). An interior node of the four-way tree *is* its `ChildQuad`: the children's indices sit
+/// beside their bounds, so a descent step reads one 256-byte, cache-line-aligned block (four
+/// lines) and no separate node array.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
 struct ChildQuad {
     cx: Vec4,
     cy: Vec4,
@@ -236,6 +232,9 @@ struct ChildQuad {
     cos_e: Vec4,
     phi: Vec4,
     two_sided: BVec4A,
+    /// Per lane: the child's index in [`LightBvh::quads`], or [`LEAF_BIT`] | its light, or
+    /// [`NO_CHILD`].
+    children: [u32; 4],
 }
 
 /// √x per lane, an exactly rounded IEEE square root like `f32::sqrt`.
@@ -261,10 +260,31 @@ fn safe_sqrt4(x: Vec4) -> Vec4 {
     sqrt4(x.max(Vec4::ZERO))
 }
 
+/// `Vec4::select(mask, a, b)` for masks of whole lanes (comparison results). With `BLEND`
+/// (only in the AVX2-compiled copies) it is one SSE4.1 `blendvps`, which picks by each lane's
+/// sign bit — the same lanes for such masks — instead of SSE2's and/andnot/or.
+#[inline(always)]
+fn select4<const BLEND: bool>(mask: BVec4A, a: Vec4, b: Vec4) -> Vec4 {
+    #[cfg(target_arch = "x86_64")]
+    if BLEND {
+        // SAFETY: `BLEND` is true only in code reached from the `#[target_feature(enable =
+        // "avx2")]` copies, which run only on CPUs with AVX2 (which implies SSE4.1), and in a
+        // unit test that checks for SSE4.1 first.
+        return unsafe {
+            Vec4::from(std::arch::x86_64::_mm_blendv_ps(
+                b.into(),
+                a.into(),
+                mask.into(),
+            ))
+        };
+    }
+    Vec4::select(mask, a, b)
+}
+
 /// [`cos_sub_clamped`] per lane.
 #[inline(always)]
-fn cos_sub_clamped4(sin_a: Vec4, cos_a: Vec4, sin_b: Vec4, cos_b: Vec4) -> Vec4 {
-    Vec4::select(cos_a.cmpgt(cos_b), Vec4::ONE, cos_a * cos_b + sin_a * sin_b)
+fn cos_sub_clamped4<const BLEND: bool>(sin_a: Vec4, cos_a: Vec4, sin_b: Vec4, cos_b: Vec4) -> Vec4 {
+    select4::<BLEND>(cos_a.cmpgt(cos_b), Vec4::ONE, cos_a * cos_b + sin_a * sin_b)
 }
 
 /// [`sin_sub_clamped`] per lane.
@@ -315,12 +335,14 @@ impl ChildQuad {
                 lb[2].two_sided,
                 lb[3].two_sided,
             ),
+            children: [NO_CHILD; 4],
         }
     }
 
-    /// [`LightBounds::importance`] of the four lanes, step for step.
-    #[inline]
-    fn importance(&self, p: Vec3, n: Vec3) -> Vec4 {
+    /// [`LightBounds::importance`] of the four lanes, step for step (`BLEND`: see
+    /// [`select4`]).
+    #[inline(always)]
+    fn importance<const BLEND: bool>(&self, p: Vec3, n: Vec3) -> Vec4 {
         // v = p − centre; dc2 = |v|² as `Vec3::distance_squared` sums it.
         let vx = Vec4::splat(p.x) - self.cx;
         let vy = Vec4::splat(p.y) - self.cy;
@@ -338,16 +360,16 @@ impl ChildQuad {
         let cos_w = Vec4::select(self.two_sided, cos_w.abs(), cos_w);
         let sin_w = safe_sqrt4(Vec4::ONE - cos_w * cos_w);
         let inside = dc2.cmplt(self.r2) | !dc2.cmpgt(Vec4::ZERO);
-        let cos_b = Vec4::select(inside, Vec4::NEG_ONE, safe_sqrt4(Vec4::ONE - self.r2 / dc2));
+        let cos_b = select4::<BLEND>(inside, Vec4::NEG_ONE, safe_sqrt4(Vec4::ONE - self.r2 / dc2));
         let sin_b = safe_sqrt4(Vec4::ONE - cos_b * cos_b);
-        let cos_x = cos_sub_clamped4(sin_w, cos_w, self.sin_o, self.cos_o);
+        let cos_x = cos_sub_clamped4::<BLEND>(sin_w, cos_w, self.sin_o, self.cos_o);
         let sin_x = sin_sub_clamped4(sin_w, cos_w, self.sin_o, self.cos_o);
-        let cos_p = cos_sub_clamped4(sin_x, cos_x, sin_b, cos_b);
+        let cos_p = cos_sub_clamped4::<BLEND>(sin_x, cos_x, sin_b, cos_b);
         let mut importance = self.phi * cos_p / d2;
         if n != Vec3::ZERO {
             let cos_i = (wix * n.x + wiy * n.y + wiz * n.z).abs();
             let sin_i = safe_sqrt4(Vec4::ONE - cos_i * cos_i);
-            importance *= cos_sub_clamped4(sin_i, cos_i, sin_b, cos_b);
+            importance *= cos_sub_clamped4::<BLEND>(sin_i, cos_i, sin_b, cos_b);
         }
         // Zero where the cone test fails, and for zero or NaN importance.
         let keep = !cos_p.cmple(self.cos_e) & importance.cmpgt(Vec4::ZERO);
@@ -362,9 +384,11 @@ impl ChildQuad {
 /// The light BVH over a scene's bounded lights.
 #[derive(Clone, Debug, Default)]
 pub struct LightBvh {
-    nodes: Vec<Node>,
-    /// Per interior node, its children's bounds ([`ChildQuad`]).
+    /// The interior nodes of the four-way tree, the root first: each its children's bounds and
+    /// indices ([`ChildQuad`]).
     quads: Vec<ChildQuad>,
+    /// A tree of one light: that light (there are no interior nodes).
+    root_leaf: Option<u32>,
     /// Number of lights in the tree.
     lights: usize,
     /// The root's bounds, for a tree of one light (a lone leaf has had no importance test).
@@ -374,6 +398,8 @@ pub struct LightBvh {
     trails: Vec<Option<u64>>,
     /// Total power of the lights in the tree.
     pub total_power: f32,
+    /// The CPU has AVX2: [`Self::sample_remap`] and [`Self::pmf`] run their AVX2 copies.
+    avx2: bool,
 }
 
 /// A light being placed in the tree.
@@ -418,12 +444,13 @@ impl LightBvh {
             })
             .collect();
         let mut bvh = LightBvh {
-            nodes: Vec::with_capacity(2 * items.len()),
             quads: Vec::with_capacity(items.len() / 2),
+            root_leaf: None,
             lights: items.len(),
             root: None,
             trails: vec![None; light_count],
             total_power: 0.0,
+            avx2: detect_avx2(),
         };
         if items.is_empty() {
             return bvh;
@@ -431,20 +458,27 @@ impl LightBvh {
         let root = build(&mut items, 0);
         bvh.total_power = root.bounds().phi;
         bvh.root = Some(*root.bounds());
-        bvh.flatten(&root, 0, 0);
+        let root = bvh.flatten(&root, 0, 0);
+        if root & LEAF_BIT != 0 {
+            bvh.root_leaf = Some(root & !LEAF_BIT);
+        }
         bvh
     }
 
-    /// Appends `b`'s subtree as four-way nodes and returns its node index. An interior node
-    /// of the binary tree takes its grandchildren as its four children (a leaf child takes one
-    /// slot itself), so a descent step chooses among four boxes at once, by the importance of
-    /// the tighter boxes two levels down, with one SIMD evaluation for two binary levels.
+    /// Appends `b`'s subtree as four-way nodes and returns its [`ChildQuad::children`] entry
+    /// (its quad index, or [`LEAF_BIT`] | light for a leaf). An interior node of the binary tree
+    /// takes its grandchildren as its four children (a leaf child takes one slot itself), so a
+    /// descent step chooses among four boxes at once, by the importance of the tighter boxes
+    /// two levels down, with one SIMD evaluation for two binary levels.
     fn flatten(&mut self, b: &Build, trail: u64, depth: u32) -> u32 {
-        let at = self.nodes.len() as u32;
         match b {
             Build::Leaf(_, light) => {
+                assert!(
+                    *light < LEAF_BIT,
+                    "light index {light} does not fit the tree"
+                );
                 self.trails[*light as usize] = Some(trail);
-                self.nodes.push(Node::Leaf { light: *light });
+                LEAF_BIT | *light
             }
             Build::Interior(_, children) => {
                 let mut slots: Vec<&Build> = Vec::with_capacity(4);
@@ -454,28 +488,20 @@ impl LightBvh {
                         Build::Interior(_, g) => slots.extend(g.iter()),
                     }
                 }
-                let quad = self.quads.len() as u32;
+                let at = self.quads.len();
                 let bounds: Vec<LightBounds> = slots.iter().map(|s| *s.bounds()).collect();
                 self.quads.push(ChildQuad::new(&bounds));
-                self.nodes.push(Node::Interior {
-                    children: [NO_CHILD; 4],
-                    quad,
-                });
-                let mut ids = [NO_CHILD; 4];
                 for (k, s) in slots.iter().enumerate() {
-                    ids[k] = self.flatten(s, trail | ((k as u64) << (2 * depth)), depth + 1);
+                    let id = self.flatten(s, trail | ((k as u64) << (2 * depth)), depth + 1);
+                    self.quads[at].children[k] = id;
                 }
-                self.nodes[at as usize] = Node::Interior {
-                    children: ids,
-                    quad,
-                };
+                at as u32
             }
         }
-        at
     }
 
     pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
+        self.lights == 0
     }
 
     /// Number of lights in the tree.
@@ -483,12 +509,11 @@ impl LightBvh {
         self.lights
     }
 
-    /// The probabilities of choosing each child of the interior node whose children's bounds
-    /// are `quads[quad]` from (`p`, `n`) (importance over the sum), or `None` if no child can
-    /// light the point.
-    #[inline]
-    fn child_probabilities(&self, quad: u32, p: Vec3, n: Vec3) -> Option<Vec4> {
-        let c = self.quads[quad as usize].importance(p, n);
+    /// The probabilities of choosing each child of the interior node `quad` from (`p`, `n`)
+    /// (importance over the sum), or `None` if no child can light the point.
+    #[inline(always)]
+    fn child_probabilities<const AVX2: bool>(quad: &ChildQuad, p: Vec3, n: Vec3) -> Option<Vec4> {
+        let c = quad.importance::<AVX2>(p, n);
         let total = (c.x + c.y) + (c.z + c.w);
         if !(total > 0.0) {
             return None;
@@ -513,74 +538,148 @@ impl LightBvh {
 
     /// [`Self::sample`] that also returns `u` as remapped at the last level, uniform on [0, 1)
     /// given the choice (see `Distribution1D::sample_discrete_remap`).
-    pub fn sample_remap(&self, p: Vec3, n: Vec3, mut u: f32) -> Option<(u32, f32, f32)> {
-        if self.nodes.is_empty() {
-            return None;
+    #[inline]
+    pub fn sample_remap(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is only set when `is_x86_feature_detected!("avx2")` said the CPU
+            // has it (`detect_avx2`).
+            return unsafe { self.sample_remap_avx2(p, n, u) };
         }
-        let mut i = 0usize;
+        self.sample_remap_impl::<false>(p, n, u)
+    }
+
+    /// [`Self::sample_remap`] compiled for the build's baseline CPU (SSE2 on x86-64).
+    pub fn sample_remap_portable(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
+        self.sample_remap_impl::<false>(p, n, u)
+    }
+
+    /// [`Self::sample_remap`] compiled with AVX2 enabled: the same SSE operations in VEX form
+    /// (three operands, so the register copies of the two-operand SSE form go away) and
+    /// `blendvps` for four lane selects ([`select4`]). No FMA (not enabled, and Rust never contracts
+    /// `a * b + c` by itself), so every float is the portable path's bit for bit (a unit test
+    /// checks it). Measured reason for the second copy: BENCHMARKS.md, "Session 12: light
+    /// choice".
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn sample_remap_avx2(&self, p: Vec3, n: Vec3, u: f32) -> Option<(u32, f32, f32)> {
+        self.sample_remap_impl::<true>(p, n, u)
+    }
+
+    #[inline(always)]
+    fn sample_remap_impl<const AVX2: bool>(
+        &self,
+        p: Vec3,
+        n: Vec3,
+        mut u: f32,
+    ) -> Option<(u32, f32, f32)> {
+        if let Some(light) = self.root_leaf {
+            return self.lone_light_reaches(p, n).then_some((light, 1.0, u));
+        }
+        let mut quad = self.quads.first()?;
         let mut pmf = 1.0f32;
         loop {
-            match self.nodes[i] {
-                Node::Leaf { light } => {
-                    if i == 0 && !self.lone_light_reaches(p, n) {
-                        return None;
+            let probs = Self::child_probabilities::<AVX2>(quad, p, n)?.to_array();
+            // The slot whose share of [0, 1) holds u; rounding can leave u past the last
+            // share, which then takes it (the last slot of positive probability).
+            let (mut k, mut below) = (0, 0.0f32);
+            let mut sum = 0.0f32;
+            for (j, &pj) in probs.iter().enumerate() {
+                if pj > 0.0 {
+                    (k, below) = (j, sum);
+                    if u < sum + pj {
+                        break;
                     }
-                    return (pmf > 0.0).then_some((light, pmf, u));
-                }
-                Node::Interior { children, quad } => {
-                    let probs = self.child_probabilities(quad, p, n)?.to_array();
-                    // The slot whose share of [0, 1) holds u; rounding can leave u past the
-                    // last share, which then takes it (the last slot of positive probability).
-                    let (mut k, mut below) = (0, 0.0f32);
-                    let mut sum = 0.0f32;
-                    for (j, &pj) in probs.iter().enumerate() {
-                        if pj > 0.0 {
-                            (k, below) = (j, sum);
-                            if u < sum + pj {
-                                break;
-                            }
-                            sum += pj;
-                        }
-                    }
-                    let pk = probs[k];
-                    u = ((u - below).max(0.0) / pk).min(ONE_MINUS_EPSILON);
-                    pmf *= pk;
-                    i = children[k] as usize;
+                    sum += pj;
                 }
             }
+            let pk = probs[k];
+            u = ((u - below).max(0.0) / pk).min(ONE_MINUS_EPSILON);
+            pmf *= pk;
+            // A slot of positive probability holds a child (empty slots have no power).
+            let child = quad.children[k];
+            debug_assert_ne!(child, NO_CHILD);
+            if child & LEAF_BIT != 0 {
+                return (pmf > 0.0).then_some((child & !LEAF_BIT, pmf, u));
+            }
+            quad = &self.quads[child as usize];
         }
     }
 
     /// The probability with which [`LightBvh::sample`] from (`p`, `n`) chooses light `light`
     /// (an index into the light set): the same products along the light's path. 0 for lights
     /// not in the tree.
+    #[inline]
     pub fn pmf(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `sample_remap`.
+            return unsafe { self.pmf_avx2(light, p, n) };
+        }
+        self.pmf_impl::<false>(light, p, n)
+    }
+
+    /// [`Self::pmf`] compiled for the build's baseline CPU.
+    pub fn pmf_portable(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
+        self.pmf_impl::<false>(light, p, n)
+    }
+
+    /// [`Self::pmf`] compiled with AVX2 (see [`Self::sample_remap_avx2`]).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn pmf_avx2(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
+        self.pmf_impl::<true>(light, p, n)
+    }
+
+    #[inline(always)]
+    fn pmf_impl<const AVX2: bool>(&self, light: u32, p: Vec3, n: Vec3) -> f32 {
         let Some(Some(trail)) = self.trails.get(light as usize) else {
             return 0.0;
         };
-        let mut i = 0usize;
+        if self.root_leaf.is_some() {
+            debug_assert_eq!(self.root_leaf, Some(light));
+            return if self.lone_light_reaches(p, n) {
+                1.0
+            } else {
+                0.0
+            };
+        }
+        let mut quad = &self.quads[0];
         let mut pmf = 1.0f32;
         let mut depth = 0u32;
         loop {
-            match self.nodes[i] {
-                Node::Leaf { light: leaf } => {
-                    debug_assert_eq!(leaf, light);
-                    if i == 0 && !self.lone_light_reaches(p, n) {
-                        return 0.0;
-                    }
-                    return pmf;
-                }
-                Node::Interior { children, quad } => {
-                    let Some(probs) = self.child_probabilities(quad, p, n) else {
-                        return 0.0;
-                    };
-                    let k = ((trail >> (2 * depth)) & 3) as usize;
-                    pmf *= probs.to_array()[k];
-                    i = children[k] as usize;
-                    depth += 1;
-                }
+            let Some(probs) = Self::child_probabilities::<AVX2>(quad, p, n) else {
+                return 0.0;
+            };
+            let k = ((trail >> (2 * depth)) & 3) as usize;
+            pmf *= probs.to_array()[k];
+            let child = quad.children[k];
+            if child & LEAF_BIT != 0 {
+                debug_assert_eq!(child & !LEAF_BIT, light);
+                return pmf;
             }
+            quad = &self.quads[child as usize];
+            depth += 1;
         }
+    }
+}
+
+/// Whether the running CPU has AVX2 (false off x86-64). `TRAYECTO_NO_AVX2=1` forces the portable
+/// code, as for the geometry BVH.
+fn detect_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::env::var_os("TRAYECTO_NO_AVX2").is_none()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 
@@ -746,7 +845,17 @@ mod tests {
             } else {
                 unit(&mut rng)
             };
-            let lanes = quad.importance(p, n).to_array();
+            let lanes = quad.importance::<false>(p, n).to_array();
+            // The blendvps form of the selects (the AVX2 copies') gives the same lanes.
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("sse4.1") {
+                let blend = quad.importance::<true>(p, n).to_array();
+                assert_eq!(
+                    blend.map(f32::to_bits),
+                    lanes.map(f32::to_bits),
+                    "{lbs:?} p {p} n {n}"
+                );
+            }
             for (k, lane) in lanes.iter().enumerate() {
                 let scalar = lbs.get(k).map_or(0.0, |lb| lb.importance(p, n));
                 assert_eq!(
@@ -759,5 +868,55 @@ mod tests {
         }
         // The cases are not all trivially zero.
         assert!(nonzero > 20_000, "{nonzero}");
+    }
+
+    /// The AVX2 copies of the descent and of `pmf` must give the portable code's results bit
+    /// for bit (determinism across machines): random trees of every kind of bounds, receivers
+    /// on surfaces and in media.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_descent_and_pmf_are_the_portable_ones_bit_for_bit() {
+        if !std::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 on this CPU: nothing to compare");
+            return;
+        }
+        let mut rng = Pcg32::new(12, 3);
+        let mut chosen = 0;
+        for count in [1usize, 2, 3, 5, 17, 300] {
+            let lights: Vec<(u32, LightBounds)> =
+                (0..count).map(|i| (i as u32, bounds(&mut rng))).collect();
+            let bvh = LightBvh::new(&lights, count);
+            for _ in 0..2000 {
+                let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0
+                    - Vec3::splat(4.0);
+                let n = if rng.next_u32().is_multiple_of(4) {
+                    Vec3::ZERO
+                } else {
+                    unit(&mut rng)
+                };
+                let u = rng.next_f32();
+                let portable = bvh.sample_remap_portable(p, n, u);
+                // SAFETY: AVX2 was detected above.
+                let avx2 = unsafe { bvh.sample_remap_avx2(p, n, u) };
+                let bits =
+                    |r: Option<(u32, f32, f32)>| r.map(|(l, a, b)| (l, a.to_bits(), b.to_bits()));
+                assert_eq!(
+                    bits(portable),
+                    bits(avx2),
+                    "{count} lights, p {p} n {n} u {u}"
+                );
+                chosen += portable.is_some() as u32;
+                let light = rng.next_u32() % count as u32;
+                // SAFETY: as above.
+                let pmf_avx2 = unsafe { bvh.pmf_avx2(light, p, n) };
+                assert_eq!(
+                    bvh.pmf_portable(light, p, n).to_bits(),
+                    pmf_avx2.to_bits(),
+                    "{count} lights, light {light}, p {p} n {n}"
+                );
+            }
+        }
+        // Most receivers are lit by some light (the comparison is not of `None`s).
+        assert!(chosen > 6000, "{chosen}");
     }
 }

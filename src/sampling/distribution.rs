@@ -82,6 +82,20 @@ impl Distribution1D {
     /// times the interval's width: callers that need many bits check the probability.
     #[inline]
     pub fn sample_discrete_remap(&self, u: f32) -> (usize, f32, f32) {
+        if self.func.len() == 1 {
+            // One entry (a scene with one light, e.g. the Cornell box): the general path's
+            // numbers are known without the CDF search: cdf = [0, 1], so the remap is u
+            // itself, and the probability is w / (w · 1) = 1 exactly (`func_int` is w: the
+            // f64 sum of one f32 divided by 1 is exact; and 1 / 1 for the all-zero fallback).
+            // A unit test checks this equals the general path bit for bit.
+            return (0, 1.0, u.clamp(0.0, ONE_MINUS_EPSILON));
+        }
+        self.sample_discrete_remap_general(u)
+    }
+
+    /// [`Self::sample_discrete_remap`] by the CDF search, for any number of entries.
+    #[inline]
+    fn sample_discrete_remap_general(&self, u: f32) -> (usize, f32, f32) {
         let (i, pmf) = self.sample_discrete(u);
         let width = self.cdf[i + 1] - self.cdf[i];
         let rest = if width > 0.0 {
@@ -162,6 +176,40 @@ mod tests {
         }
         let (i, _, rest) = d.sample_discrete_remap(d.cdf[2]);
         assert_eq!((i, rest), (2, 0.0));
+    }
+
+    /// The one-entry shortcut returns what the CDF search returns, bit for bit, for weights
+    /// of every kind (zero and non-finite ones fall back to uniform) and numbers at and past
+    /// the ends of [0, 1).
+    #[test]
+    fn one_entry_shortcut_is_the_general_path_bit_for_bit() {
+        let weights = [
+            1.0,
+            0.3,
+            7.0e-3,
+            3.0e38,
+            1.0e-40,
+            f32::MIN_POSITIVE,
+            0.0,
+            -2.0,
+            f32::NAN,
+            f32::INFINITY,
+        ];
+        let mut us = vec![0.0, -0.0, 1.0, 1.5, -0.25, ONE_MINUS_EPSILON, 1.0e-30];
+        us.extend((0..1000).map(|k| (k as f32 + 0.37) / 1000.0));
+        for w in weights {
+            let d = Distribution1D::new(&[w]);
+            for &u in &us {
+                let (i, pmf, rest) = d.sample_discrete_remap(u);
+                let (gi, gpmf, grest) = d.sample_discrete_remap_general(u);
+                assert_eq!(
+                    (i, pmf.to_bits(), rest.to_bits()),
+                    (gi, gpmf.to_bits(), grest.to_bits()),
+                    "w {w} u {u}: ({i}, {pmf}, {rest}) vs ({gi}, {gpmf}, {grest})"
+                );
+                assert_eq!(pmf.to_bits(), d.discrete_pdf(0).to_bits(), "w {w}");
+            }
+        }
     }
 
     #[test]
