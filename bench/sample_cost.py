@@ -69,11 +69,19 @@ def callgrind(args, tmp):
             per_fn = collections.Counter()
             for line in ann.splitlines():
                 if "PROGRAM TOTALS" in line:
-                    total = int(line.split()[0].replace(",", ""))
+                    # callgrind_annotate prints "." for a zero count.
+                    word = line.split()[0].replace(",", "")
+                    total = int(word) if word.isdigit() else 0
                     continue
                 m = FUNC.match(line)
                 if m:
                     per_fn[m.group(3).strip()] += int(m.group(1).replace(",", ""))
+            if total == 0:
+                # The toggle matched no call: LLVM inlined the render closure in this build (it
+                # did on one branch of session 12). Say so instead of dividing nothing.
+                sys.exit(f"callgrind collected nothing for {b}: `trayecto::render::render_range_aovs::*` "
+                         "is inlined in this build; measure with --toggle-collect="
+                         "'trayecto::integrator::path::radiance' as bench/ray_cost.py does")
             print(f"\n{s}, {b}: {total / samples:.0f} instructions per sample ({total:,} over {samples} samples)")
             for name, ir in per_fn.most_common(args.top):
                 print(f"  {ir / samples:7.0f} {100 * ir / max(total, 1):5.1f} %  {name[:110]}")
