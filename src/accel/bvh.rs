@@ -23,7 +23,7 @@
 use super::split::Reference;
 use crate::geometry::PrimitiveKind;
 use crate::geometry::primitive::Intersection;
-use crate::geometry::triangle::{TriangleEdges, Triangles8};
+use crate::geometry::triangle::TriangleEdges;
 use crate::geometry::{Bounds3, GeometryStore, PrimRef, Ray, RayInv};
 use crate::math::{Vec3, gamma};
 
@@ -31,10 +31,6 @@ const BINS: usize = 16;
 const MAX_LEAF: usize = 8;
 /// Cost of one traversal step relative to one primitive test (PBRT uses 1/8).
 const TRAVERSAL_COST: f32 = 0.125;
-/// Cost of testing a leaf of up to `MAX_LEAF` triangles at once ([`Triangles8`]) relative to one
-/// primitive test. Chosen by callgrind on ToyCar (closest-hit instructions per call with 1.0 /
-/// 1.5 / 2.5 / 4.0 / no such leaves: 1351 / 1350 / 1357 / 1449 / 1549, BENCHMARKS.md).
-const TRI_LEAF_COST: f32 = 1.5;
 /// Below this many primitives a subtree is built on the current thread.
 const PARALLEL_THRESHOLD: usize = 4096;
 /// Depth past which splits are by median; with at most 2^32 primitives the binary tree stays under
@@ -49,22 +45,12 @@ pub const WIDTH: usize = 8;
 const STACK_SIZE: usize = (WIDTH - 1) * MAX_BINARY_DEPTH + 1;
 /// Marks an unused lane of a node (its box is also empty, so it is never hit).
 const EMPTY_LANE: u32 = u32::MAX;
-/// Set in a leaf's `count` when all its primitives are triangles held in `Bvh::tri_soa`: the leaf
-/// is tested as one [`Triangles8`] (the low bits are the primitive count).
-const TRI_LEAF: u32 = 1 << 31;
-
-/// The number of primitives of a leaf from its node `count` (the [`TRI_LEAF`] flag removed).
-#[inline(always)]
-fn leaf_len(count: u32) -> usize {
-    (count & !TRI_LEAF) as usize
-}
 
 /// A wide node: the boxes of up to `WIDTH` children, one array per axis and side so the slab test
 /// runs on all lanes at once: `planes[axis]` holds the lanes' minima on `axis`, `planes[3 + axis]`
 /// their maxima (one array, so a ray picks its near and far plane of each axis by an index it
 /// computes once, not by a select per node). A child with `count[i] > 0` is a leaf holding the
-/// primitives `first[i] .. first[i] + leaf_len(count[i])` of `Bvh::prims` (`count[i]` carries the
-/// [`TRI_LEAF`] flag of an all-triangle leaf); with `count[i] == 0`, `first[i]`
+/// primitives `first[i] .. first[i] + count[i]` of `Bvh::prims`; with `count[i] == 0`, `first[i]`
 /// is the index of a child node (or `EMPTY_LANE`).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
@@ -110,17 +96,12 @@ impl BvhNode {
 pub struct Bvh {
     pub nodes: Vec<BvhNode>,
     pub prims: Vec<PrimRef>,
-    /// The triangles again, in leaf order, as vertex and edges (so the leaf test does not
-    /// subtract them again) in structure-of-arrays form: row `c` (`c` = 0..9: `p0`, `e1`, `e2`,
-    /// x y z each) starts at `c · tri_stride`, and its entry `k` belongs to `prims[k]` (other
-    /// primitive kinds leave zeros). A leaf's triangles are eight consecutive floats of each row,
-    /// which the AVX2 leaf test loads as one register per row ([`Triangles8`]); rows are padded
-    /// with `WIDTH − 1` zeros so that load stays in bounds at the last leaf. Read from
-    /// consecutive memory instead of from wherever the mesh put them: on a 1M-triangle mesh the
-    /// indirection into `GeometryStore::triangles` was a cache miss per triangle (BENCHMARKS.md).
-    /// 36 bytes per primitive, as the array of `TriangleEdges` it replaces.
-    tri_soa: Vec<f32>,
-    tri_stride: usize,
+    /// The triangles again, in leaf order (`tri_verts[k]` belongs to `prims[k]`; other primitive
+    /// kinds leave a placeholder), as vertex and edges so the leaf test does not subtract them
+    /// again. A leaf's triangles are then read from consecutive memory instead of from wherever
+    /// the mesh put them: on a 1M-triangle mesh the indirection into `GeometryStore::triangles`
+    /// was a cache miss per triangle (BENCHMARKS.md). 36 bytes per triangle.
+    tri_verts: Vec<TriangleEdges>,
     bounds: Bounds3,
     /// References the tree was built over (primitives plus the extra pieces of split triangles).
     references: usize,
@@ -317,36 +298,19 @@ impl Bvh {
     pub fn build_split(geometry: &GeometryStore, budget: f32) -> Bvh {
         let refs = super::split::references(geometry, budget);
         let mut bvh = Self::build_references(refs);
-        let stride = bvh.prims.len() + WIDTH - 1;
-        let mut soa = vec![0.0f32; 9 * stride];
-        for (k, p) in bvh.prims.iter().enumerate() {
-            if p.kind() == PrimitiveKind::Triangle {
-                let t = geometry.triangles[p.index()].edges();
-                for (c, v) in [t.p0, t.e1, t.e2].into_iter().enumerate() {
-                    for axis in 0..3 {
-                        soa[(3 * c + axis) * stride + k] = v[axis];
-                    }
-                }
-            }
-        }
-        // Flag the leaves whose primitives are all triangles (the others, holding a sphere, box
-        // or quad, are tested one primitive at a time in leaf order).
-        let prims = &bvh.prims;
-        for n in &mut bvh.nodes {
-            for lane in 0..WIDTH {
-                let (first, c) = (n.first[lane] as usize, n.count[lane]);
-                if c > 0
-                    && prims[first..first + leaf_len(c)]
-                        .iter()
-                        .all(|p| p.kind() == PrimitiveKind::Triangle)
-                {
-                    debug_assert!(leaf_len(c) <= WIDTH);
-                    n.count[lane] |= TRI_LEAF;
-                }
-            }
-        }
-        bvh.tri_soa = soa;
-        bvh.tri_stride = stride;
+        let placeholder = TriangleEdges {
+            p0: Vec3::ZERO,
+            e1: Vec3::ZERO,
+            e2: Vec3::ZERO,
+        };
+        bvh.tri_verts = bvh
+            .prims
+            .iter()
+            .map(|p| match p.kind() {
+                PrimitiveKind::Triangle => geometry.triangles[p.index()].edges(),
+                _ => placeholder,
+            })
+            .collect();
         bvh
     }
 
@@ -360,63 +324,15 @@ impl Bvh {
         t_max: f32,
     ) -> Option<Intersection> {
         let prim = self.prims[k];
-        if prim.kind() == PrimitiveKind::Triangle && !self.tri_soa.is_empty() {
-            let row = |c: usize| self.tri_soa[c * self.tri_stride + k];
-            let t = TriangleEdges {
-                p0: Vec3::new(row(0), row(1), row(2)),
-                e1: Vec3::new(row(3), row(4), row(5)),
-                e2: Vec3::new(row(6), row(7), row(8)),
-            };
-            return t.intersect(ray, t_max).map(|h| Intersection {
+        match (prim.kind(), self.tri_verts.get(k)) {
+            (PrimitiveKind::Triangle, Some(t)) => t.intersect(ray, t_max).map(|h| Intersection {
                 t: h.t,
                 prim,
                 u: h.b1,
                 v: h.b2,
-            });
+            }),
+            _ => geometry.intersect(prim, ray, t_max),
         }
-        geometry.intersect(prim, ray, t_max)
-    }
-
-    /// The triangles of the leaf starting at `first` (eight lanes; those past the leaf's count
-    /// belong to the next leaves or the padding).
-    #[inline(always)]
-    fn leaf_triangles(&self, first: usize) -> Triangles8<'_> {
-        Triangles8::new(&self.tri_soa, first, self.tri_stride)
-    }
-
-    /// Closest hit in the leaf `first .. first + leaf_len(count)` closer than `t_max`, or
-    /// `None`: the same hit, tie rule included, as testing its primitives one after the other.
-    #[inline(always)]
-    fn intersect_leaf<const AVX2: bool>(
-        &self,
-        geometry: &GeometryStore,
-        first: usize,
-        count: u32,
-        ray: &Ray,
-        t_max: f32,
-    ) -> Option<Intersection> {
-        #[cfg(target_arch = "x86_64")]
-        if AVX2 && count & TRI_LEAF != 0 {
-            let count = leaf_len(count);
-            // SAFETY: `AVX2 = true` is only instantiated by `intersect_avx2` / `occluded_avx2`,
-            // which run only after AVX2 was detected (see `Bvh::intersect`).
-            let hit = unsafe { self.leaf_triangles(first).intersect_avx2(count, ray, t_max) };
-            return hit.map(|(lane, h)| Intersection {
-                t: h.t,
-                prim: self.prims[first + lane],
-                u: h.b1,
-                v: h.b2,
-            });
-        }
-        let mut best = None;
-        let mut t_max = t_max;
-        for k in first..first + leaf_len(count) {
-            if let Some(h) = self.intersect_prim(geometry, k, ray, t_max) {
-                t_max = h.t;
-                best = Some(h);
-            }
-        }
-        best
     }
 
     /// Builds over any set of primitives given their bounds (no splitting). Primitives with empty
@@ -450,8 +366,7 @@ impl Bvh {
             return Bvh {
                 nodes: Vec::new(),
                 prims: Vec::new(),
-                tri_soa: Vec::new(),
-                tri_stride: 0,
+                tri_verts: Vec::new(),
                 bounds: Bounds3::EMPTY,
                 references: 0,
                 avx2: false,
@@ -472,8 +387,7 @@ impl Bvh {
         Bvh {
             nodes,
             prims,
-            tri_soa: Vec::new(),
-            tri_stride: 0,
+            tri_verts: Vec::new(),
             bounds,
             references,
             avx2: detect_avx2(),
@@ -488,7 +402,7 @@ impl Bvh {
     pub fn heap_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<BvhNode>()
             + self.prims.len() * std::mem::size_of::<PrimRef>()
-            + self.tri_soa.len() * std::mem::size_of::<f32>()
+            + self.tri_verts.len() * std::mem::size_of::<TriangleEdges>()
     }
 
     pub fn stats(&self) -> BvhStats {
@@ -511,10 +425,9 @@ impl Bvh {
                 let area = n.lane_bounds(lane).surface_area() as f64 / root_area;
                 if n.count[lane] > 0 {
                     s.leaves += 1;
-                    let count = leaf_len(n.count[lane]);
-                    s.leaf_prims += count;
-                    s.max_leaf_size = s.max_leaf_size.max(count);
-                    s.sah_cost += area * count as f64;
+                    s.leaf_prims += n.count[lane] as usize;
+                    s.max_leaf_size = s.max_leaf_size.max(n.count[lane] as usize);
+                    s.sah_cost += area * n.count[lane] as f64;
                 } else if n.first[lane] != EMPTY_LANE {
                     s.sah_cost += area;
                     stack.push((n.first[lane] as usize, depth + 1));
@@ -659,11 +572,12 @@ impl Bvh {
                     node = e.first as usize;
                     break;
                 }
-                if let Some(h) =
-                    self.intersect_leaf::<AVX2>(geometry, e.first as usize, e.count, ray, t_max)
-                {
-                    t_max = h.t;
-                    best = Some(h);
+                let first = e.first as usize;
+                for k in first..first + e.count as usize {
+                    if let Some(h) = self.intersect_prim(geometry, k, ray, t_max) {
+                        t_max = h.t;
+                        best = Some(h);
+                    }
                 }
             }
         }
@@ -691,12 +605,11 @@ impl Bvh {
                     stack.set(sp, n.first[lane]);
                     sp += 1;
                 } else {
-                    let (first, count) = (n.first[lane] as usize, n.count[lane]);
-                    if self
-                        .intersect_leaf::<AVX2>(geometry, first, count, ray, t_max)
-                        .is_some()
-                    {
-                        return true;
+                    let first = n.first[lane] as usize;
+                    for k in first..first + n.count[lane] as usize {
+                        if self.intersect_prim(geometry, k, ray, t_max).is_some() {
+                            return true;
+                        }
                     }
                 }
             }
@@ -899,16 +812,6 @@ fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usize) -> Build
         if n <= MAX_LEAF && split_cost >= n as f32 {
             return leaf();
         }
-        // Up to eight triangles are tested at once (`Triangles8`): such a leaf costs about
-        // `TRI_LEAF_COST` primitive tests, whatever its size.
-        if n <= MAX_LEAF
-            && split_cost >= TRI_LEAF_COST
-            && prims
-                .iter()
-                .all(|p| p.prim.kind() == PrimitiveKind::Triangle)
-        {
-            return leaf();
-        }
         // Partition in place around the chosen bin boundary.
         let (lo, ext) = (
             centroid_bounds.min[axis],
@@ -1043,14 +946,6 @@ mod tests {
         assert!(
             hits > 500 && blocked > 300,
             "{hits} hits, {blocked} blocked"
-        );
-        // The leaves are tested as eight triangles at once (AVX2) and one by one (portable).
-        assert!(
-            bvh.nodes.iter().any(|n| n
-                .count
-                .iter()
-                .any(|&c| c & TRI_LEAF != 0 && leaf_len(c) > 1)),
-            "no all-triangle leaf of two or more"
         );
         // The tree really is wide: some node uses all its lanes.
         assert!(
@@ -1215,7 +1110,7 @@ mod tests {
         let mut seen = vec![false; 20_200];
         for n in &bvh.nodes {
             for lane in 0..WIDTH {
-                let (f, c) = (n.first[lane] as usize, leaf_len(n.count[lane]));
+                let (f, c) = (n.first[lane] as usize, n.count[lane] as usize);
                 if c == 0 {
                     continue;
                 }
