@@ -456,8 +456,11 @@ def bpy_manylight(bpy):
             for t in range(3):
                 ang = 2 * math.pi * t / 3 + rng.uniform(0, 0.5)
                 du, dv = size * math.cos(ang), size * math.sin(ang)
-                if on_ceiling:   # 0.005 below the ceiling, facing down (-y)
-                    verts.append((a + du, 0.995, b - dv))
+                if on_ceiling:   # 0.005 below the ceiling, facing down (-y): the corners run
+                    # clockwise seen from below. (Until session 12 they ran the other way, so the
+                    # ceiling's half of the emitters faced the ceiling and lit the room only
+                    # through it, for every renderer alike.)
+                    verts.append((a + du, 0.995, b + dv))
                 else:            # 0.005 in front of the back wall's upper half, facing +z
                     verts.append((a + du, 0.3 + 0.65 * (b + 0.95) / 1.9 + dv, -0.995))
             i = 3 * k
