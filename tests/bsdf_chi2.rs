@@ -265,18 +265,8 @@ fn plain_hit() -> trayecto::geometry::SurfaceHit {
     use trayecto::geometry::{PrimRef, PrimitiveKind, SurfaceHit};
     SurfaceHit {
         t: 1.0,
-        p: Vec3::ZERO,
-        p_error: Vec3::ZERO,
-        ng: Vec3::Z,
-        ns: Vec3::Z,
-        tangent: Vec3::X,
-        bitangent_sign: 1.0,
-        uv: [Vec2::ZERO; 2],
-        duv: [trayecto::math::Vec4::ZERO; 2],
-        color: trayecto::math::Vec4::ONE,
-        material: 0,
-        light: u32::MAX,
         prim: PrimRef::new(PrimitiveKind::Sphere, 0),
+        ..SurfaceHit::EMPTY
     }
 }
 

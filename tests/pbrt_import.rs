@@ -380,21 +380,13 @@ fn mix_material_is_chosen_per_hit_like_pbrt_v4() {
 fn mix_choice_has_the_amount_as_probability() {
     use trayecto::geometry::{PrimRef, PrimitiveKind, SurfaceHit};
     use trayecto::material::{Material, Mix, eval::resolve_mix};
-    use trayecto::math::{Vec2, Vec3, Vec4};
+    use trayecto::math::Vec3;
     let hit = |i: u32| SurfaceHit {
         t: 1.0 + i as f32 * 1e-3,
         p: Vec3::new(i as f32 * 0.37, (i % 97) as f32, 1.0),
-        p_error: Vec3::ZERO,
-        ng: Vec3::Z,
-        ns: Vec3::Z,
-        tangent: Vec3::X,
-        bitangent_sign: 1.0,
-        uv: [Vec2::ZERO; 2],
-        duv: [trayecto::math::Vec4::ZERO; 2],
-        color: Vec4::ONE,
         material: 2,
-        light: u32::MAX,
         prim: PrimRef::new(PrimitiveKind::Triangle, 0),
+        ..SurfaceHit::EMPTY
     };
     let mix = |a: u32, b: u32, amount: f32| Material {
         mix: Some(Mix {

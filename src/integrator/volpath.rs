@@ -42,7 +42,7 @@ use super::RayStats;
 use super::direct::Vertex;
 use super::path::PathSettings;
 use crate::geometry::Ray;
-use crate::geometry::primitive::{NO_LIGHT, SurfaceHit};
+use crate::geometry::primitive::SurfaceHit;
 use crate::material::Bsdf;
 use crate::math::{Frame, Vec3};
 use crate::medium::{HenyeyGreenstein, Medium, TrackStep};
@@ -401,28 +401,17 @@ fn sample_ld(
 ) -> Vec3 {
     let u_light = s.next_1d();
     let u2 = s.next_2d();
+    let n = if n_offset == Vec3::ZERO {
+        Vec3::Z
+    } else {
+        n_offset
+    };
     let here = SurfaceHit {
-        t: 0.0,
         p,
         p_error,
-        ng: if n_offset == Vec3::ZERO {
-            Vec3::Z
-        } else {
-            n_offset
-        },
-        ns: if n_offset == Vec3::ZERO {
-            Vec3::Z
-        } else {
-            n_offset
-        },
-        tangent: Vec3::X,
-        bitangent_sign: 1.0,
-        uv: [crate::math::Vec2::ZERO; 2],
-        duv: [crate::math::Vec4::ZERO; 2],
-        color: crate::math::Vec4::ONE,
-        material: 0,
-        light: NO_LIGHT,
-        prim: crate::geometry::PrimRef(0),
+        ng: n,
+        ns: n,
+        ..SurfaceHit::EMPTY
     };
     let Some(ls) = world.sample_light(&here, n_offset, u_light, u2, set.env_pdf()) else {
         return Vec3::ZERO;

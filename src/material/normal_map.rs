@@ -43,23 +43,13 @@ mod tests {
     use super::*;
     use crate::geometry::{PrimRef, PrimitiveKind};
     use crate::material::TextureRef;
-    use crate::math::{Vec2, Vec4};
+    use crate::math::Vec4;
 
     fn hit() -> SurfaceHit {
         SurfaceHit {
             t: 1.0,
-            p: Vec3::ZERO,
-            p_error: Vec3::ZERO,
-            ng: Vec3::Z,
-            ns: Vec3::Z,
-            tangent: Vec3::X,
-            bitangent_sign: 1.0,
-            uv: [Vec2::ZERO; 2],
-            duv: [Vec4::ZERO; 2],
-            color: Vec4::ONE,
-            material: 0,
-            light: u32::MAX,
             prim: PrimRef::new(PrimitiveKind::Sphere, 0),
+            ..SurfaceHit::EMPTY
         }
     }
 
