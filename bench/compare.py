@@ -610,6 +610,13 @@ def worker_prepare(args):
             "name": ob.name, "ply": ply, "base": list(g("Base Color"))[:3], "metallic": g("Metallic"),
             "roughness": g("Roughness"), "specular": g("Specular IOR Level"),
             "emission": [c * g("Emission Strength") for c in list(g("Emission Color"))[:3]],
+            # Flat-shaded objects (the boxes) must be shaded with their face normals, and a
+            # material without backface culling is two-sided (glTF doubleSided, Cycles): Mitsuba
+            # needs both said explicitly (its PLY shapes interpolate the exported vertex normals,
+            # its BSDFs are one-sided). Before session 12 it rendered the boxes with smeared
+            # normals and black inward-wound faces (textured: local differences up to 60 %).
+            "smooth": any(poly.use_smooth for poly in ob.data.polygons),
+            "double_sided": not ob.active_material.use_backface_culling,
             "albedo_tex": textures.get("albedo") if textured else None,
             "normal_tex": textures.get("normal") if textured else None,
         })
@@ -656,7 +663,10 @@ def mitsuba_scene_dict(mi, scene, res, sampler):
                         "roughness": o["roughness"], "specular": o["specular"]}
             else:
                 bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": o["base"]}}
-            shape = {"type": "ply", "filename": o["ply"], "bsdf": bsdf}
+            if o.get("double_sided", False) and max(o["emission"]) <= 0:
+                bsdf = {"type": "twosided", "bsdf": bsdf}
+            shape = {"type": "ply", "filename": o["ply"], "bsdf": bsdf,
+                     "face_normals": not o.get("smooth", True)}
             if max(o["emission"]) > 0:
                 shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": o["emission"]}}
             d[o["name"]] = shape
