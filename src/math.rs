@@ -212,6 +212,21 @@ pub fn mat4_is_finite(m: &Mat4) -> bool {
     m.to_cols_array().iter().all(|v| v.is_finite())
 }
 
+/// Whether the running CPU has AVX2 (false off x86-64), asked once when a structure with an
+/// AVX2-compiled copy of its hot loop is built (the geometry BVH's traversal, the light BVH's
+/// descent). `TRAYECTO_NO_AVX2=1` forces the portable code everywhere, to compare the two on one
+/// machine.
+pub fn detect_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::env::var_os("TRAYECTO_NO_AVX2").is_none()
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

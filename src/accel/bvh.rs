@@ -390,7 +390,7 @@ impl Bvh {
             tri_verts: Vec::new(),
             bounds,
             references,
-            avx2: detect_avx2(),
+            avx2: crate::math::detect_avx2(),
         }
     }
 
@@ -688,19 +688,6 @@ fn collapse(
     }
 }
 
-/// Whether the running CPU has AVX2 (false off x86-64). `TRAYECTO_NO_AVX2=1` forces the portable
-/// code, to compare the two on one machine.
-fn detect_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2") && std::env::var_os("TRAYECTO_NO_AVX2").is_none()
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 /// The bin of centroid coordinate `c` among `BINS` equal bins over `[lo, lo + ext]`.
 #[inline(always)]
 fn bin_of(c: f32, lo: f32, ext: f32) -> usize {
@@ -911,7 +898,7 @@ mod tests {
         let g = soup(5000, 11);
         let bvh = Bvh::build(&g);
         let brute = crate::accel::Accel::build(crate::accel::AccelKind::None, &g);
-        let has_avx2 = cfg!(target_arch = "x86_64") && detect_avx2();
+        let has_avx2 = cfg!(target_arch = "x86_64") && crate::math::detect_avx2();
         if !has_avx2 {
             eprintln!("no AVX2 on this CPU: only the portable traversal is checked");
         }

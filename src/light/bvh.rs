@@ -450,7 +450,7 @@ impl LightBvh {
             root: None,
             trails: vec![None; light_count],
             total_power: 0.0,
-            avx2: detect_avx2(),
+            avx2: crate::math::detect_avx2(),
         };
         if items.is_empty() {
             return bvh;
@@ -543,7 +543,7 @@ impl LightBvh {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is only set when `is_x86_feature_detected!("avx2")` said the CPU
-            // has it (`detect_avx2`).
+            // has it (`math::detect_avx2`).
             return unsafe { self.sample_remap_avx2(p, n, u) };
         }
         self.sample_remap_impl::<false>(p, n, u)
@@ -667,19 +667,6 @@ impl LightBvh {
             quad = &self.quads[child as usize];
             depth += 1;
         }
-    }
-}
-
-/// Whether the running CPU has AVX2 (false off x86-64). `TRAYECTO_NO_AVX2=1` forces the portable
-/// code, as for the geometry BVH.
-fn detect_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2") && std::env::var_os("TRAYECTO_NO_AVX2").is_none()
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
     }
 }
 
