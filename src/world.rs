@@ -148,19 +148,9 @@ impl World {
     /// skipped, see [`World::intersect_raw`].
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
+        let isect = self.candidate(ray)?;
         let mut hit = SurfaceHit::EMPTY;
-        self.intersect_into(ray, &mut hit).then_some(hit)
-    }
-
-    /// [`World::intersect`] written into `hit` (every field) when there is a hit; `false`, and
-    /// `hit` unspecified, when there is none. The path tracer keeps one hit's storage along a
-    /// path this way instead of moving 144-byte hits (each move a `memcpy` call).
-    #[inline]
-    pub fn intersect_into(&self, ray: &Ray, hit: &mut SurfaceHit) -> bool {
-        match self.candidate(ray) {
-            Some(isect) => self.complete_into(ray, isect, hit),
-            None => false,
-        }
+        self.complete_into(ray, isect, &mut hit).then_some(hit)
     }
 
     /// The accelerator's closest hit along `ray`, cut-out holes not yet skipped: `None` means
@@ -172,8 +162,10 @@ impl World {
         self.accel.intersect(&self.geometry, ray)
     }
 
-    /// [`World::intersect_into`] from the [`World::candidate`] `isect` of `ray`: skips cut-out
-    /// holes, then expands the hit into `hit`; `false` when only holes were found.
+    /// Finishes the [`World::candidate`] `isect` of `ray` into `hit` (every field): skips cut-out
+    /// holes, then expands the hit; `false` (and `hit` unspecified) when only holes were found.
+    /// Written in place so the path tracer keeps one hit's storage along a path instead of
+    /// moving 144-byte hits (each move a `memcpy` call).
     #[inline]
     pub fn complete_into(&self, ray: &Ray, isect: Intersection, hit: &mut SurfaceHit) -> bool {
         if !self.has_cutouts {
@@ -207,7 +199,7 @@ impl World {
             .then_some(hit)
     }
 
-    /// [`World::intersect_filtered`] written into `hit`, as [`World::intersect_into`].
+    /// [`World::intersect_filtered`] written into `hit`, as [`World::complete_into`] writes it.
     #[inline]
     pub fn intersect_filtered_into(
         &self,
