@@ -1180,6 +1180,75 @@ def combine_reference_halves(a, b, n_a, n_b):
     return ref, noise
 
 
+def reference_regions(a_halves, n_a, b_halves, n_b, block=8, min_rel=0.05, min_z=6.0):
+    """Compares two renderers' references block by block, beyond their noise: the image means can
+    agree while regions differ (session 12: Mitsuba's translation of the bpy scenes smeared vertex
+    normals over flat boxes and left inward faces black; textured's 16×16 blocks differed by up to
+    60 % with the means within 2 %). Each reference comes as its two independent halves (n_a, n_b
+    spp per half), so a block mean's variance is estimated per pixel from the halves' difference,
+    Var = (h0 - h1)^2 n0 n1 / (n0 + n1)^2 (as combine_reference_halves), summed over the block / N².
+    A block and channel is flagged when the references differ by more than `min_rel` of the brighter
+    (floored at 2 % of the image's mean, so dark corners do not flag on rounding) AND by more than
+    `min_z` standard deviations of the difference (fireflies make the halves' estimate heavy-tailed,
+    which only makes it flag less). Returns None when the shapes differ, else a dict: blocks (how many),
+    flagged [(row, col, channel, relative difference b/a - 1, z)], worst (the largest relative difference
+    of any block, flagged or not, with its z)."""
+    import numpy as np
+    (a0, a1), (b0, b1) = [[np.asarray(h, dtype=np.float64) for h in hs] for hs in (a_halves, b_halves)]
+    if a0.shape != b0.shape or a0.shape != a1.shape or b0.shape != b1.shape or a0.ndim != 3:
+        return None
+    h, w = a0.shape[0] // block * block, a0.shape[1] // block * block
+    if h == 0 or w == 0:
+        return None
+
+    def blocks(x):
+        return x[:h, :w].reshape(h // block, block, w // block, block, -1)
+
+    def stats(h0, h1, n0, n1):
+        n = n0 + n1
+        mean = blocks((h0 * n0 + h1 * n1) / n).mean(axis=(1, 3))
+        var = blocks((h0 - h1) ** 2 * n0 * n1 / n ** 2).sum(axis=(1, 3)) / block ** 4
+        return mean, var
+    (ma, va), (mb, vb) = stats(a0, a1, *n_a), stats(b0, b1, *n_b)
+    floor = 0.02 * np.maximum(ma.mean(axis=(0, 1)), 1e-6)
+    scale = np.maximum(np.maximum(np.abs(ma), np.abs(mb)), floor)
+    rel = (mb - ma) / scale
+    z = np.abs(mb - ma) / np.sqrt(va + vb + 1e-30)
+    flagged = [(int(i), int(j), int(c), float(rel[i, j, c]), float(z[i, j, c]))
+               for i, j, c in zip(*np.nonzero((np.abs(rel) > min_rel) & (z > min_z)))]
+    i, j, c = np.unravel_index(int(np.argmax(np.abs(rel))), rel.shape)
+    return {"blocks": int(rel.shape[0] * rel.shape[1]), "block": block, "flagged": flagged,
+            "worst": (int(i), int(j), int(c), float(rel[i, j, c]), float(z[i, j, c]))}
+
+
+def regions_line(kind, reg, min_rel=0.05):
+    """The report's sentence for reference_regions' result (kind's reference against Trayecto's)."""
+    if reg is None:
+        return f"{kind}: references not comparable block by block (different sizes)."
+    i, j, c, rel, z = reg["worst"]
+    where = f"block row {i}, column {j}, {'RGB'[c]}"
+    if not reg["flagged"]:
+        return (f"{kind}: agrees with Trayecto's reference in every {reg['block']}×{reg['block']}-pixel block "
+                f"(largest difference {100 * rel:+.1f} % at {where}, {z:.1f} σ).")
+    fb = sorted(reg["flagged"], key=lambda f: -abs(f[3]))
+    return (f"**WARNING** {kind}: {len({(f[0], f[1]) for f in fb})} of {reg['blocks']} "
+            f"{reg['block']}×{reg['block']}-pixel blocks differ from Trayecto's reference by more than "
+            f"{100 * min_rel:.0f} % and beyond both references' noise (largest {100 * fb[0][3]:+.1f} % at block row "
+            f"{fb[0][0]}, column {fb[0][1]}, {'RGB'[fb[0][2]]}, {fb[0][4]:.0f} σ): the two renderers do not render "
+            "the same image there (a translation error, a feature one of them lacks or models differently, such "
+            "as normal mapping, or a bias); their ratios above compare different images.")
+
+
+def ref_halves(scene, kind, res, ref_spp):
+    """The two halves of a cached reference (see main) and their spp, or None."""
+    import numpy as np
+    path = os.path.join(OUT, f"{scene}_{kind}_{res}px_{ref_spp}spp_ref")
+    files = [f"{path}_half{i}.npy" for i in range(2)]
+    if not all(os.path.exists(f) for f in files):
+        return None
+    return [np.load(f) for f in files], (ref_spp // 2, ref_spp - ref_spp // 2)
+
+
 def score_error(x, ref, ref_noise):
     """rel_mse against the reference minus the reference's own noise (combine_reference_halves),
     floored at a hundredth of the raw value (the estimate is itself noisy)."""
@@ -1703,6 +1772,21 @@ def self_test():
         x = truth + rng.normal(0, 0.4, truth.shape)  # a render of variance 0.16
         assert abs(score_error(x, ref, noise) / (0.16 / (4 + 1e-2)) - 1) < 0.03
         assert abs(rel_mse(x, ref) / (0.16 / (4 + 1e-2)) - 1) > 0.08  # the reference's noise is in there
+        # Region check: two noisy references of the same image agree; a 20 % change in one
+        # 8×8 block is found, and only there; halves of a different size are not compared.
+        truth = np.full((64, 64, 3), 1.0)
+        truth[:, 32:] = 0.05  # a dark half: its blocks must not flag on their relative noise
+        halves = [[truth + rng.normal(0, 0.3 * np.sqrt(truth), truth.shape) for _ in range(2)] for _ in range(2)]
+        reg = reference_regions(halves[0], (64, 64), halves[1], (64, 64))
+        assert reg["blocks"] == 64 and not reg["flagged"], reg
+        assert "agrees" in regions_line("mitsuba_llvm", reg)
+        bumped = [h.copy() for h in halves[1]]
+        for h in bumped:
+            h[16:24, 8:16, 1] *= 1.2
+        reg = reference_regions(halves[0], (64, 64), bumped, (64, 64))
+        assert {(f[0], f[1], f[2]) for f in reg["flagged"]} == {(2, 1, 1)}, reg["flagged"]
+        assert abs(reg["flagged"][0][3] - 0.2) < 0.05 and "WARNING" in regions_line("mitsuba_llvm", reg)
+        assert reference_regions(halves[0], (64, 64), [h[:32] for h in halves[1]], (64, 64)) is None
     print("compare.py self-test: ok")
     return 0
 
@@ -1816,6 +1900,21 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
             w(f"Each reference's own noise (relMSE of a {ref_spp}-spp reference, estimated from its two independent "
               "halves), subtracted from every error above: " + "; ".join(f"{k} {v:.3g}" for k, v in noise) + ".")
             w("")
+        # Each peer's reference against Trayecto's, region by region (reference_regions).
+        base_halves = ref_halves(scene, "trayecto", args.res, ref_spp) if base else None
+        if base_halves:
+            lines = []
+            for k in dict.fromkeys(r.split(":")[0] for r in renderers):
+                ran = any(isinstance(results.get((scene, r)), dict) for r in renderers if r.split(":")[0] == k)
+                other = ref_halves(scene, k, args.res, ref_spp) if k != "trayecto" and ran else None
+                if other:
+                    reg = reference_regions(base_halves[0], base_halves[1], other[0], other[1])
+                    lines.append(regions_line(k, reg))
+                    if reg and reg["flagged"]:
+                        print(f"[{scene}] {lines[-1]}", file=sys.stderr, flush=True)
+            if lines:
+                w("References region by region: " + " ".join(lines))
+                w("")
         for r in renderers:
             res = results.get((scene, r))
             if not isinstance(res, dict) or not res.get("sweep"):
