@@ -28,6 +28,9 @@ pub struct Vertex {
     pub frame: Frame,
     /// Direction toward where the path came from, in `frame`.
     pub wo_local: Vec3,
+    /// `bsdf.is_transmissive()`, kept from [`Vertex::shade`] (which needs it for the normals)
+    /// for [`Vertex::uniform_env_normal`], asked twice per vertex.
+    pub transmissive: bool,
 }
 
 impl Vertex {
@@ -52,7 +55,7 @@ impl Vertex {
     /// hemisphere reaches below the surface. Transmitting BSDFs need both hemispheres.
     #[inline]
     pub fn uniform_env_normal(&self, env: EnvPdf) -> Vec3 {
-        if env == EnvPdf::Compensated && !self.bsdf.is_transmissive() {
+        if env == EnvPdf::Compensated && !self.transmissive {
             self.ng
         } else {
             Vec3::ZERO
@@ -73,6 +76,7 @@ impl Vertex {
                 z: Vec3::Z,
             },
             wo_local: Vec3::Z,
+            transmissive: false,
         }
     }
 
@@ -90,7 +94,8 @@ impl Vertex {
         world.perturb_shading(material, &mut self.hit);
         self.bsdf = world.material_bsdf(material, &self.hit);
         let hit = &self.hit;
-        let (ng, ns) = oriented_normals(hit, wo, self.bsdf.is_transmissive());
+        let transmissive = self.bsdf.is_transmissive();
+        let (ng, ns) = oriented_normals(hit, wo, transmissive);
         let frame = Frame::from_normal_tangent(ns, hit.tangent);
         let wo_local = frame.to_local(wo);
         let flipped = ns.dot(hit.ns) < 0.0;
@@ -108,6 +113,7 @@ impl Vertex {
         self.ng = ng;
         self.frame = frame;
         self.wo_local = wo_local;
+        self.transmissive = transmissive;
     }
 }
 
