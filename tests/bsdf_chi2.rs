@@ -22,8 +22,9 @@ const N_SAMPLES: usize = 400_000;
 /// equal-area environment maps 2; the glTF BSDF extensions 13: sheen 3, anisotropy 3,
 /// iridescence 2, diffuse transmission 3, dispersion 2; the layered transmissive component 7:
 /// thick and thin from either side 4, dispersive 1, smooth under layers 2; the coat on
-/// transmissive materials reflecting below the base's plane 4.)
-const N_TESTS: usize = 73;
+/// transmissive materials reflecting below the base's plane 4; the uniform environment's light
+/// samples about a normal and over the sphere 3.)
+const N_TESTS: usize = 76;
 static CHI2_RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 fn ln_gamma(x: f64) -> f64 {
@@ -965,6 +966,107 @@ fn sphere_light_samples_are_uniform_over_its_cone() {
     assert!((integral - 1.0).abs() < 1e-2, "cone integral {integral}");
     assert!(pdf_errors < 50, "{pdf_errors} samples with a wrong pdf");
     assert!(misses < 50, "{misses} sampled directions miss the sphere");
+}
+
+/// Next-event estimation of a uniform environment (`light::sample_uniform_env`, the path
+/// tracer's NEE through `World::sample_light_reuse`): about an opaque vertex's normal the
+/// directions are cosine-weighted over its hemisphere and none points below it; with no normal
+/// (a medium, a transmitting BSDF, NEE without MIS) they are uniform over the sphere. The
+/// density the chi-square test checks the samples against is the one `World::escaped_mis`
+/// gives MIS of a BSDF-sampled escape with the same normal, so the two strategies' weights
+/// stay complementary; it must also be cos θ / π (or 1 / 4π) and integrate to 1, and every
+/// sample's own pdf must be it.
+#[test]
+fn uniform_environment_samples_match_the_mis_density() {
+    let mut scene = Scene::default();
+    let id = scene.add_material(Material::diffuse("grey", Vec3::splat(0.5)));
+    scene.add_object(
+        "ball",
+        Shape::Sphere {
+            center: Vec3::new(0.0, -3.0, 0.0),
+            radius: 0.5,
+        },
+        Mat4::IDENTITY,
+        id,
+    );
+    scene.lights.push(LightDesc::Ambient {
+        name: "sky".into(),
+        radiance: Vec3::new(0.8, 0.9, 1.0),
+    });
+    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    assert_eq!(world.lights.lights.len(), 1);
+    let mut hit = plain_hit();
+    hit.p = Vec3::new(0.3, 0.2, -0.1);
+    let inv_pi = 1.0 / std::f64::consts::PI;
+    for (name, n, env) in [
+        ("uniform environment about +z", Vec3::Z, EnvPdf::Compensated),
+        (
+            "uniform environment about a tilted normal",
+            Vec3::new(0.6, -0.48, 0.64),
+            EnvPdf::Compensated,
+        ),
+        (
+            "uniform environment over the sphere",
+            Vec3::ZERO,
+            EnvPdf::Full,
+        ),
+    ] {
+        // The MIS density of a direction, as the path tracer's escapes see it.
+        let mis_pdf = |d: Vec3| {
+            let mut pdf = -1.0f32;
+            world.escaped_mis(d, env, n, |_, p| {
+                pdf = p;
+                Vec3::ZERO
+            });
+            pdf
+        };
+        let analytic = |d: Vec3| {
+            if n == Vec3::ZERO {
+                0.25 * inv_pi
+            } else {
+                (n.dot(d) as f64).max(0.0) * inv_pi
+            }
+        };
+        let (mut drawn, mut below, mut pdf_errors) = (0usize, 0usize, 0usize);
+        let integral = chi2(
+            name,
+            |r| {
+                let u = Vec2::new(r.next_f32(), r.next_f32());
+                // The shadow ray leaves along the normal (or +z in a medium's stead).
+                let n_offset = if n == Vec3::ZERO { Vec3::Z } else { n };
+                let s = world.sample_light_reuse(&hit, n_offset, u, r.next_f32(), env, n)?;
+                drawn += 1;
+                if n != Vec3::ZERO && s.wi.dot(n) <= 0.0 {
+                    below += 1;
+                }
+                let want = mis_pdf(s.wi);
+                if (s.pmf * s.pdf - want).abs() > 1e-4 * want {
+                    pdf_errors += 1;
+                }
+                Some(s.wi)
+            },
+            mis_pdf,
+        );
+        assert!(
+            (integral - 1.0).abs() < 2e-3,
+            "{name}: pdf integrates to {integral}"
+        );
+        // Hardly any sample is lost to the horizon.
+        assert!(drawn > N_SAMPLES - 10, "{name}: only {drawn} samples drawn");
+        assert_eq!(below, 0, "{name}: {below} samples below the surface");
+        assert_eq!(
+            pdf_errors, 0,
+            "{name}: samples whose pdf is not the MIS density"
+        );
+        for k in 0..1000 {
+            let d = dir(-1.0 + 2.0 * (k as f64 + 0.5) / 1000.0, k as f64 * 2.399_963);
+            let (got, want) = (mis_pdf(d) as f64, analytic(d));
+            assert!(
+                (got - want).abs() <= 1e-5 * want.max(1e-3),
+                "{name}: density {got} at {d}, want {want}"
+            );
+        }
+    }
 }
 
 /// The Henyey–Greenstein phase function sampler (issue #18) against its own value, for forward,

@@ -13,6 +13,7 @@
 //! no closed form: it is pinned to a Mitsuba 3 furnace of the same scene.
 
 use std::sync::atomic::AtomicBool;
+use trayecto::integrator::{PathSettings, RayStats};
 use trayecto::material::bxdf::MetallicRoughness;
 use trayecto::material::{Bsdf, Material, MaterialModel, PbrtParams};
 use trayecto::math::{Mat4, PI, Vec3};
@@ -28,20 +29,36 @@ fn furnace_mean(material: Material, spp: u32) -> f32 {
 }
 
 fn furnace_mean_seed(material: Material, spp: u32, seed: u64) -> f32 {
+    let sphere = Shape::Sphere {
+        center: Vec3::ZERO,
+        radius: 1.0,
+    };
+    furnace_render(vec![(sphere, material)], PathSettings::default(), spp, seed).0
+}
+
+/// Renders `objects` (each its own material) in the furnace with the path settings `path`: the
+/// image mean and the rays traced.
+fn furnace_render(
+    objects: Vec<(Shape, Material)>,
+    path: PathSettings,
+    spp: u32,
+    seed: u64,
+) -> (f32, RayStats) {
     let vfov = 2.0 * (HALF_FRAME / DIST).atan().to_degrees();
     let scene = Scene {
         name: "furnace".into(),
-        objects: vec![Object {
-            name: "sphere".into(),
-            shape: Shape::Sphere {
-                center: Vec3::ZERO,
-                radius: 1.0,
-            },
-            transform: Mat4::IDENTITY,
-            material: 0,
-            medium: None,
-        }],
-        materials: vec![material],
+        objects: objects
+            .iter()
+            .enumerate()
+            .map(|(i, (shape, _))| Object {
+                name: format!("object {i}"),
+                shape: shape.clone(),
+                transform: Mat4::IDENTITY,
+                material: i,
+                medium: None,
+            })
+            .collect(),
+        materials: objects.into_iter().map(|(_, m)| m).collect(),
         lights: vec![LightDesc::Ambient {
             name: "env".into(),
             radiance: Vec3::ONE,
@@ -55,17 +72,19 @@ fn furnace_mean_seed(material: Material, spp: u32, seed: u64) -> f32 {
         )],
         ..Default::default()
     };
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(scene, &WorldOptions::default()).unwrap();
     let settings = RenderSettings {
         width: 32,
         height: 32,
         spp,
         seed,
+        path,
         ..Default::default()
     };
     let out = render(&world, &settings, &NoObserver, &AtomicBool::new(false)).unwrap();
     let sum: Vec3 = out.image.data.iter().copied().sum();
-    (sum / out.image.data.len() as f32).dot(Vec3::splat(1.0 / 3.0))
+    let mean = (sum / out.image.data.len() as f32).dot(Vec3::splat(1.0 / 3.0));
+    (mean, out.stats)
 }
 
 /// Ē = 2 ∫ E(μ) μ dμ, with E(μ) = ∫ f cos θi dωi by midpoint quadrature in (cos θi, φi).
@@ -154,6 +173,111 @@ fn metal(roughness: f32) -> Material {
 fn albedo_one_diffuse_returns_the_environment() {
     let m = furnace_mean(Material::diffuse("white", Vec3::ONE), 32);
     assert!((m - 1.0).abs() < 0.005, "diffuse furnace mean {m}");
+}
+
+/// The uniform environment is sampled about an opaque vertex's geometric normal
+/// (`light::sample_uniform_env`, cosine-weighted over its hemisphere): on a convex white sphere
+/// no light sample points into the surface, so every vertex traces its shadow ray (as many as
+/// the bounce rays, where sampling the whole sphere traced about half as many), and the image
+/// is still the environment: NEE's samples and the BSDF-sampled escapes, weighed against the
+/// same hemisphere density, add up to one.
+#[test]
+fn uniform_environment_light_samples_all_point_above_the_surface() {
+    let sphere = Shape::Sphere {
+        center: Vec3::ZERO,
+        radius: 1.0,
+    };
+    let spp = 16;
+    let (mean, stats) = furnace_render(
+        vec![(sphere, Material::diffuse("white", Vec3::ONE))],
+        PathSettings::default(),
+        spp,
+        3,
+    );
+    let camera_rays = 32 * 32 * spp as u64;
+    let bounces = stats.rays - camera_rays;
+    let ratio = stats.shadow_rays as f64 / bounces as f64;
+    println!("{stats:?}: {ratio:.4} shadow rays per bounce, mean {mean:.5}");
+    // A convex sphere: every camera ray that hits it bounces once and escapes.
+    assert!(bounces > camera_rays / 3, "{stats:?}");
+    assert!(
+        ratio > 0.999 && ratio <= 1.0,
+        "{ratio} shadow rays per bounce"
+    );
+    assert!((mean - 1.0).abs() < 0.003, "diffuse furnace mean {mean}");
+}
+
+/// Surfaces that see each other (two interpenetrating white spheres, a concave crease between
+/// them, so light samples are occluded and paths bounce several times) give radiance 1 in a
+/// uniform environment of radiance 1, with every estimator: NEE about the hemisphere combined
+/// by MIS with BSDF sampling (the default), NEE alone over the sphere, and BSDF sampling alone.
+/// A white rough metal sphere (roughness 0.5) in the same place gives its single-scattering
+/// deficit with each estimator: the glossy lobe weighs BSDF samples far from 1/2.
+#[test]
+fn every_estimator_returns_the_environment_between_facing_white_surfaces() {
+    let pair = |m: Material, n: Material| {
+        vec![
+            (
+                Shape::Sphere {
+                    center: Vec3::new(-0.55, 0.0, 0.0),
+                    radius: 0.7,
+                },
+                m,
+            ),
+            (
+                Shape::Sphere {
+                    center: Vec3::new(0.55, 0.1, -0.2),
+                    radius: 0.7,
+                },
+                n,
+            ),
+        ]
+    };
+    let white = || Material::diffuse("white", Vec3::ONE);
+    let estimators = [
+        ("NEE + MIS", true, true),
+        ("NEE alone", true, false),
+        ("BSDF alone", false, true),
+    ];
+    for (what, nee, mis) in estimators {
+        let path = PathSettings {
+            nee,
+            mis,
+            ..Default::default()
+        };
+        let (mean, stats) = furnace_render(pair(white(), white()), path, 32, 1);
+        println!("two white spheres, {what}: mean {mean:.5} ({stats:?})");
+        assert!(
+            (mean - 1.0).abs() < 0.004,
+            "two white spheres, {what}: mean {mean}"
+        );
+    }
+    // One sphere of white rough metal: the estimators must agree with each other.
+    let sphere = Shape::Sphere {
+        center: Vec3::ZERO,
+        radius: 1.0,
+    };
+    let means: Vec<f32> = estimators
+        .iter()
+        .map(|&(what, nee, mis)| {
+            let path = PathSettings {
+                nee,
+                mis,
+                ..Default::default()
+            };
+            let (mean, _) = furnace_render(vec![(sphere.clone(), metal(0.5))], path, 64, 2);
+            println!("rough metal sphere, {what}: mean {mean:.5}");
+            mean
+        })
+        .collect();
+    // Ē = 0.88232 at roughness 0.5 (see the test above).
+    let expected = expected_mean(0.88232);
+    for (&(what, _, _), mean) in estimators.iter().zip(&means) {
+        assert!(
+            (mean - expected).abs() < 0.004,
+            "rough metal sphere, {what}: mean {mean}, expected {expected}"
+        );
+    }
 }
 
 #[test]

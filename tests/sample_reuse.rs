@@ -155,7 +155,7 @@ fn compare(world: &World, kind: SamplerKind, spp: u32) -> (f64, f64) {
                 );
                 means[1] += estimate(
                     world,
-                    world.sample_light_reuse(&hit, Vec3::Y, u2, u1, EnvPdf::Full),
+                    world.sample_light_reuse(&hit, Vec3::Y, u2, u1, EnvPdf::Full, Vec3::ZERO),
                 );
             }
             for k in 0..2 {

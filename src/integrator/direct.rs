@@ -28,6 +28,9 @@ pub struct Vertex {
     pub frame: Frame,
     /// Direction toward where the path came from, in `frame`.
     pub wo_local: Vec3,
+    /// `bsdf.is_transmissive()`, kept from [`Vertex::shade`] (which needs it for the normals)
+    /// for [`Vertex::uniform_env_normal`], asked twice per vertex.
+    pub transmissive: bool,
 }
 
 impl Vertex {
@@ -37,6 +40,26 @@ impl Vertex {
         let mut v = Vertex::unshaded(hit);
         v.shade(world, wo);
         v
+    }
+
+    /// The normal NEE samples a uniform environment about from this vertex
+    /// (`light::sample_uniform_env`), and that MIS of an escaping BSDF sample from it must weigh
+    /// against: the oriented geometric normal when the BSDF only reflects and light samples are
+    /// combined with BSDF sampling by MIS (`env` compensated), zero (the whole sphere)
+    /// otherwise. A reflecting BSDF's integrand is zero below the geometric surface
+    /// (`Bsdf::side_consistent`), so half of the sphere's samples were thrown away; a direction
+    /// it can still reach below the plane (a normal-mapped edge case) gets light pdf 0 there and
+    /// is left to BSDF sampling with full weight (Veach 1997 §9.2), which is why NEE on its own
+    /// (MIS off) keeps the sphere. The geometric rather than the shading normal: the side test
+    /// is on it, the shadow ray leaves along it, and under a normal map the shading normal's
+    /// hemisphere reaches below the surface. Transmitting BSDFs need both hemispheres.
+    #[inline]
+    pub fn uniform_env_normal(&self, env: EnvPdf) -> Vec3 {
+        if env == EnvPdf::Compensated && !self.transmissive {
+            self.ng
+        } else {
+            Vec3::ZERO
+        }
     }
 
     /// A vertex holding `hit` whose shading is not built yet: storage that
@@ -53,6 +76,7 @@ impl Vertex {
                 z: Vec3::Z,
             },
             wo_local: Vec3::Z,
+            transmissive: false,
         }
     }
 
@@ -70,7 +94,8 @@ impl Vertex {
         world.perturb_shading(material, &mut self.hit);
         self.bsdf = world.material_bsdf(material, &self.hit);
         let hit = &self.hit;
-        let (ng, ns) = oriented_normals(hit, wo, self.bsdf.is_transmissive());
+        let transmissive = self.bsdf.is_transmissive();
+        let (ng, ns) = oriented_normals(hit, wo, transmissive);
         let frame = Frame::from_normal_tangent(ns, hit.tangent);
         let wo_local = frame.to_local(wo);
         let flipped = ns.dot(hit.ns) < 0.0;
@@ -88,6 +113,7 @@ impl Vertex {
         self.ng = ng;
         self.frame = frame;
         self.wo_local = wo_local;
+        self.transmissive = transmissive;
     }
 }
 
@@ -133,7 +159,9 @@ pub fn sample_ld(
         0.0
     };
     let u_light = s.next_2d();
-    let Some(ls) = world.sample_light_reuse(&v.hit, v.ng, u_light, u_spare, set.env_pdf()) else {
+    let env = set.env_pdf();
+    let uniform_n = v.uniform_env_normal(env);
+    let Some(ls) = world.sample_light_reuse(&v.hit, v.ng, u_light, u_spare, env, uniform_n) else {
         return Vec3::ZERO;
     };
     if !(set.nee || ls.delta) {

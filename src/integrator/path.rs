@@ -215,11 +215,13 @@ fn continue_path(
 
         let ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
         stats.rays += 1;
-        // The next hit overwrites this vertex's; MIS below still needs where it was.
+        // The next hit overwrites this vertex's; MIS below still needs where it was (and the
+        // normal its NEE sampled a uniform environment about).
         let (p, ng) = (v.hit.p, v.ng);
+        let uniform_n = v.uniform_env_normal(set.env_pdf());
         if !world.intersect_filtered_into(&ray, &set.footprint, &mut v.hit) {
             // Each light at infinity weighed against its own NEE density.
-            l += world.escaped_mis(wi, set.env_pdf(), |le, pdf_light| {
+            l += world.escaped_mis(wi, set.env_pdf(), uniform_n, |le, pdf_light| {
                 let weight = if bs.specular || !set.nee {
                     1.0
                 } else if !set.mis {

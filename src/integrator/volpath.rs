@@ -251,7 +251,8 @@ pub fn radiance(
         // --- Escaped: lights at infinity.
         let Some(hit) = hit else {
             // Each light at infinity weighed against its own NEE density.
-            l += world.escaped_mis(ray.d, set.env_pdf(), |le, pdf_light| {
+            // Its NEE samples a uniform environment over the whole sphere (`sample_light`).
+            l += world.escaped_mis(ray.d, set.env_pdf(), Vec3::ZERO, |le, pdf_light| {
                 emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set)
             });
             return l;

@@ -7,7 +7,7 @@ use crate::geometry::sample::{sample_sphere_cone, sphere_cone};
 use crate::geometry::{Bounds3, GeometryStore, Ray};
 use crate::material::eval::emitted;
 use crate::material::{Material, Texture};
-use crate::math::{PI, Vec2, Vec3, luminance};
+use crate::math::{Frame, PI, Vec2, Vec3, luminance};
 use crate::sampling::{Distribution1D, warp};
 use crate::scene::SpotFalloff;
 use std::sync::Arc;
@@ -189,6 +189,35 @@ fn toward(position: Vec3, p: Vec3) -> Option<(Vec3, f32)> {
         return None;
     }
     Some((to / d2.sqrt(), d2))
+}
+
+/// NEE's direction toward a uniform environment ([`Light::Uniform`]) from a receiver whose
+/// integrand can only be non-zero in the hemisphere of the unit normal `n`, and its solid-angle
+/// pdf: cosine-weighted about `n` (Malley's method, pdf cos θ / π, PBRT §13.6.3), so no sample
+/// points below the surface. With `n` zero (a point in a medium, a BSDF that transmits, or NEE
+/// not combined with BSDF sampling by MIS) it is uniform over the whole sphere, pdf 1 / 4π.
+/// `None` for the rare sample whose direction rounds onto the horizon (pdf 0 there).
+/// [`uniform_env_pdf`] is its density, which MIS of escaping BSDF samples must use.
+#[inline]
+pub fn sample_uniform_env(n: Vec3, u: Vec2) -> Option<(Vec3, f32)> {
+    if n == Vec3::ZERO {
+        return Some((warp::uniform_sphere(u), warp::UNIFORM_SPHERE_PDF));
+    }
+    let wi = Frame::from_normal(n).to_world(warp::cosine_hemisphere(u));
+    let pdf = uniform_env_pdf(n, wi);
+    (pdf > 0.0).then_some((wi, pdf))
+}
+
+/// The density of [`sample_uniform_env`] about `n` at the unit direction `wi`: cos θ / π above
+/// the plane of `n` and 0 below it (a direction the light sampler never produces, so a BSDF
+/// sample there takes the whole MIS weight, Veach 1997 §9.2); 1 / 4π everywhere for `n` zero.
+#[inline]
+pub fn uniform_env_pdf(n: Vec3, wi: Vec3) -> f32 {
+    if n == Vec3::ZERO {
+        warp::UNIFORM_SPHERE_PDF
+    } else {
+        warp::cosine_hemisphere_pdf(n.dot(wi))
+    }
 }
 
 /// A sampled light point as seen from a shading point.
@@ -585,7 +614,8 @@ impl LightSet {
 
     /// Picks a light (by power, or by the light BVH from `hit.p` and `n_offset`) and samples a
     /// point/direction on it as seen from `hit`. `n_offset` is also the receiver's normal for
-    /// the light BVH's importance (zero for a point in a medium).
+    /// the light BVH's importance (zero for a point in a medium). A uniform environment is
+    /// sampled over the whole sphere ([`Self::sample_reuse`] can take a hemisphere).
     #[allow(clippy::too_many_arguments)]
     pub fn sample(
         &self,
@@ -603,7 +633,16 @@ impl LightSet {
         }
         let (index, pmf) = self.choose(hit.p, n_offset, u_light)?;
         self.sample_chosen(
-            geometry, materials, textures, hit, n_offset, index, pmf, u, env,
+            geometry,
+            materials,
+            textures,
+            hit,
+            n_offset,
+            index,
+            pmf,
+            u,
+            env,
+            Vec3::ZERO,
         )
     }
 
@@ -616,7 +655,8 @@ impl LightSet {
     /// stratification is largely lost. Given the choice, the remapped x is uniform and
     /// independent of `u.y`, so the estimator is the same. A light chosen with probability under
     /// [`MIN_REUSE_PMF`] would get a remapped x of fewer than 12 bits (`u.x` has 24): it gets
-    /// `u_spare` (an independent uniform number) instead, which is just as uniform.
+    /// `u_spare` (an independent uniform number) instead, which is just as uniform. A uniform
+    /// environment is sampled about `uniform_n` ([`sample_uniform_env`]; zero for the sphere).
     #[allow(clippy::too_many_arguments)]
     pub fn sample_reuse(
         &self,
@@ -628,6 +668,7 @@ impl LightSet {
         u: Vec2,
         u_spare: f32,
         env: EnvPdf,
+        uniform_n: Vec3,
     ) -> Option<LightSample> {
         if self.lights.is_empty() {
             return None;
@@ -636,12 +677,12 @@ impl LightSet {
         let x = if pmf >= MIN_REUSE_PMF { rest } else { u_spare };
         let u = Vec2::new(x, u.y);
         self.sample_chosen(
-            geometry, materials, textures, hit, n_offset, index, pmf, u, env,
+            geometry, materials, textures, hit, n_offset, index, pmf, u, env, uniform_n,
         )
     }
 
     /// Samples light `index`, chosen with probability `pmf`, with `u`; an environment map
-    /// from the density `env`.
+    /// from the density `env`, a uniform environment about `uniform_n` ([`sample_uniform_env`]).
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn sample_chosen(
@@ -655,6 +696,7 @@ impl LightSet {
         pmf: f32,
         u: Vec2,
         env: EnvPdf,
+        uniform_n: Vec3,
     ) -> Option<LightSample> {
         let p = hit.p;
         match &self.lights[index] {
@@ -685,12 +727,12 @@ impl LightSet {
                 Some(LightSample { pmf, ..ls })
             }
             Light::Uniform { radiance } => {
-                let wi = warp::uniform_sphere(u);
+                let (wi, pdf) = sample_uniform_env(uniform_n, u)?;
                 let shadow = Ray::spawn(p, hit.p_error, n_offset, wi);
                 Some(LightSample {
                     wi,
                     li: *radiance,
-                    pdf: warp::UNIFORM_SPHERE_PDF,
+                    pdf,
                     pmf,
                     delta: false,
                     shadow,
@@ -772,19 +814,23 @@ impl LightSet {
     /// sum of the radiances weighed against the sum of the pdfs is biased when two lights at
     /// infinity overlap, e.g. a scene's uniform background and an `--env` map (−1.5 % on a
     /// diffuse quad). pbrt-v4's path integrator loops over its infinite lights the same way.
+    /// A uniform environment's density is [`uniform_env_pdf`] about `uniform_n`: the normal NEE
+    /// sampled it about at the vertex the direction left (zero: the sphere).
     #[inline]
     pub fn escaped_mis(
         &self,
         d: Vec3,
         env: EnvPdf,
+        uniform_n: Vec3,
         mut contribution: impl FnMut(Vec3, f32) -> Vec3,
     ) -> Vec3 {
         let mut l = Vec3::ZERO;
         for &i in &self.infinite {
             let (le, pdf) = match &self.lights[i as usize] {
-                Light::Uniform { radiance } => {
-                    (*radiance, self.pmf_infinite(i) * warp::UNIFORM_SPHERE_PDF)
-                }
+                Light::Uniform { radiance } => (
+                    *radiance,
+                    self.pmf_infinite(i) * uniform_env_pdf(uniform_n, d),
+                ),
                 Light::Environment { map } => {
                     let (le, pdf) = map.eval_pdf(d, env);
                     (le, self.pmf_infinite(i) * pdf)

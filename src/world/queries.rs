@@ -123,16 +123,18 @@ impl World {
 
     /// The lights at infinity along a sampled escaping direction `d`, each light's radiance
     /// passed to `contribution(le, pdf)` with the solid-angle pdf with which NEE (drawing
-    /// environment directions from `env`) would have sampled `d` from that light, selection
-    /// included; the results summed (see `LightSet::escaped_mis`).
+    /// environment directions from `env`, a uniform environment about `uniform_n`) would have
+    /// sampled `d` from that light, selection included; the results summed (see
+    /// `LightSet::escaped_mis`).
     #[inline]
     pub fn escaped_mis(
         &self,
         d: Vec3,
         env: EnvPdf,
+        uniform_n: Vec3,
         contribution: impl FnMut(Vec3, f32) -> Vec3,
     ) -> Vec3 {
-        self.lights.escaped_mis(d, env, contribution)
+        self.lights.escaped_mis(d, env, uniform_n, contribution)
     }
 
     /// Next-event estimation from `hit` (Mitsuba's `sample_emitter_direction`, pbrt's
@@ -166,7 +168,10 @@ impl World {
 
     /// [`World::sample_light`] with one 2D number for both the choice and the point (sample
     /// reuse, see `LightSet::sample_reuse`); `u_spare` stands in for the remapped x of lights
-    /// chosen too rarely for it to keep enough bits. The path tracer's NEE uses this.
+    /// chosen too rarely for it to keep enough bits. A uniform environment is sampled about
+    /// `uniform_n` (`light::sample_uniform_env`; zero for the whole sphere), which MIS of the
+    /// vertex's escaping BSDF samples must pass to [`World::escaped_mis`] too. The path
+    /// tracer's NEE uses this.
     #[inline]
     pub fn sample_light_reuse(
         &self,
@@ -175,6 +180,7 @@ impl World {
         u: Vec2,
         u_spare: f32,
         env: EnvPdf,
+        uniform_n: Vec3,
     ) -> Option<LightSample> {
         self.lights.sample_reuse(
             &self.geometry,
@@ -185,6 +191,7 @@ impl World {
             u,
             u_spare,
             env,
+            uniform_n,
         )
     }
 
