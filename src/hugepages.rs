@@ -322,7 +322,7 @@ mod tests {
             // A block aligned beyond the colour step keeps its alignment.
             let wide = Layout::from_size_align(THRESHOLD, 4096).unwrap();
             let w = a.alloc(wide);
-            assert!(!w.is_null() && w as usize % 4096 == 0);
+            assert!(!w.is_null() && (w as usize).is_multiple_of(4096));
             a.dealloc(w, wide);
         }
     }
