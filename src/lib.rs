@@ -15,7 +15,6 @@ pub mod camera;
 pub mod denoise;
 pub mod film;
 pub mod geometry;
-pub mod hugepages;
 pub mod integrator;
 pub mod light;
 pub mod material;

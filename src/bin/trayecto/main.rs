@@ -4,11 +4,6 @@
 mod cli;
 mod server;
 
-/// Large allocations (texels, BVH, meshes) on transparent huge pages: fewer TLB misses on real
-/// models (see `trayecto::hugepages` and BENCHMARKS.md "Session 13: data layout").
-#[global_allocator]
-static ALLOC: trayecto::hugepages::HugePageAlloc = trayecto::hugepages::HugePageAlloc;
-
 fn main() -> std::process::ExitCode {
     cli::main()
 }
