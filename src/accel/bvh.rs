@@ -96,17 +96,28 @@ impl BvhNode {
 pub struct Bvh {
     pub nodes: Vec<BvhNode>,
     pub prims: Vec<PrimRef>,
-    /// The triangles again, in leaf order (`tri_verts[k]` belongs to `prims[k]`; other primitive
-    /// kinds leave a placeholder), as vertex and edges so the leaf test does not subtract them
-    /// again. A leaf's triangles are then read from consecutive memory instead of from wherever
-    /// the mesh put them: on a 1M-triangle mesh the indirection into `GeometryStore::triangles`
-    /// was a cache miss per triangle (BENCHMARKS.md). 36 bytes per triangle.
-    tri_verts: Vec<TriangleEdges>,
+    /// The triangles again, in leaf order (`tri_verts[k]` belongs to `prims[k]` and repeats it;
+    /// other primitive kinds leave a placeholder triangle), as vertex and edges so the leaf test
+    /// does not subtract them again. A leaf's triangles are then read from consecutive memory
+    /// instead of from wherever the mesh put them: on a 1M-triangle mesh the indirection into
+    /// `GeometryStore::triangles` was a cache miss per triangle (BENCHMARKS.md). 40 bytes per
+    /// leaf entry.
+    tri_verts: Vec<LeafTri>,
     bounds: Bounds3,
     /// References the tree was built over (primitives plus the extra pieces of split triangles).
     references: usize,
     /// AVX2 was detected when the tree was built: traverse with the AVX2 copy of the code.
     avx2: bool,
+}
+
+/// One leaf entry as the leaf test reads it: the triangle and its primitive in one record, so a
+/// test loads one place instead of two arrays (`prims[k]` was a separate cache line: ToyCar
+/// 67 k of 1.75 M L1 data misses, BENCHMARKS.md "Session 13: data layout").
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+struct LeafTri {
+    tri: TriangleEdges,
+    prim: PrimRef,
 }
 
 #[derive(Clone, Copy)]
@@ -306,9 +317,12 @@ impl Bvh {
         bvh.tri_verts = bvh
             .prims
             .iter()
-            .map(|p| match p.kind() {
-                PrimitiveKind::Triangle => geometry.triangles[p.index()].edges(),
-                _ => placeholder,
+            .map(|&prim| LeafTri {
+                tri: match prim.kind() {
+                    PrimitiveKind::Triangle => geometry.triangles[prim.index()].edges(),
+                    _ => placeholder,
+                },
+                prim,
             })
             .collect();
         bvh
@@ -323,15 +337,18 @@ impl Bvh {
         ray: &Ray,
         t_max: f32,
     ) -> Option<Intersection> {
-        let prim = self.prims[k];
-        match (prim.kind(), self.tri_verts.get(k)) {
-            (PrimitiveKind::Triangle, Some(t)) => t.intersect(ray, t_max).map(|h| Intersection {
-                t: h.t,
-                prim,
-                u: h.b1,
-                v: h.b2,
-            }),
-            _ => geometry.intersect(prim, ray, t_max),
+        match self.tri_verts.get(k) {
+            Some(l) if l.prim.kind() == PrimitiveKind::Triangle => {
+                l.tri.intersect(ray, t_max).map(|h| Intersection {
+                    t: h.t,
+                    prim: l.prim,
+                    u: h.b1,
+                    v: h.b2,
+                })
+            }
+            Some(l) => geometry.intersect(l.prim, ray, t_max),
+            // Built by `build_from` (no leaf copy).
+            None => geometry.intersect(self.prims[k], ray, t_max),
         }
     }
 
@@ -402,7 +419,7 @@ impl Bvh {
     pub fn heap_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<BvhNode>()
             + self.prims.len() * std::mem::size_of::<PrimRef>()
-            + self.tri_verts.len() * std::mem::size_of::<TriangleEdges>()
+            + self.tri_verts.len() * std::mem::size_of::<LeafTri>()
     }
 
     pub fn stats(&self) -> BvhStats {
