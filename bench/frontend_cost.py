@@ -32,13 +32,9 @@ import sys
 import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.normpath(os.path.join(HERE, ".."))
-SHARED = os.path.normpath(os.path.join(ROOT, "..", "shared", "scenes"))
-SCENES = {
-    "cornell": "cornell",
-    "DamagedHelmet": os.path.join(SHARED, "gltf", "DamagedHelmet", "glTF", "DamagedHelmet.gltf"),
-    "ToyCar": os.path.join(SHARED, "gltf-ext", "ToyCar", "glTF", "ToyCar.gltf"),
-}
+sys.path.insert(0, HERE)
+from ray_cost import ROOT, SCENES  # noqa: E402  (the throughput bar's scenes, one definition)
+
 RAYS = re.compile(r"rays\s+(\d+) \(")
 RENDERED = re.compile(r"rendered \(\w+\)\s+([0-9.]+) ms")
 
