@@ -1349,9 +1349,11 @@ fn coated_conductor_fresnel_is_relative_to_the_coat_like_pbrt_v4() {
                 }
             }
         },
-        // With it: mean 0.1 %, worst 4×4 block 1.4 %, worst 8×8 5.6 % (the copper sphere's dim
-        // lower rim, 4–5 % darker: RGB copper against pbrt-v4's spectral one). Without it: worst
-        // 4×4 block 5.9 %, 8×8 14.2 %.
-        (0.02, 0.04, 0.07),
+        // With it: mean 0.13 %, worst 4×4 block 1.45 %, worst 8×8 4.5 % (the copper sphere's dim
+        // lower rim: RGB copper against pbrt-v4's spectral one). Without it: worst 4×4 block
+        // 5.8 %, 8×8 13.2 %. Until session 13 NEE drew the sky uniformly over the sphere and
+        // these were 5.6 % and 14.2 %, part noise; with the hemisphere sampling the noise fell,
+        // so the 8×8 tolerance is 6 % (was 7 %) and the feature must show beyond 12 %.
+        (0.02, 0.04, 0.06),
     );
 }
