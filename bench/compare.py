@@ -1239,6 +1239,25 @@ def regions_line(kind, reg, min_rel=0.05):
             "as normal mapping, or a bias); their ratios above compare different images.")
 
 
+def scene_regions(results, scene, renderers, res, ref_spp):
+    """reference_regions of every peer that ran on `scene` against Trayecto's reference, as
+    [(kind, result)], once per scene (the report is rewritten after every scene and only formats
+    them); a flagged comparison is also printed on stderr."""
+    base = ref_halves(scene, "trayecto", res, ref_spp)
+    if not isinstance(results.get((scene, "trayecto")), dict) or not base:
+        return []
+    out = []
+    for k in dict.fromkeys(r.split(":")[0] for r in renderers):
+        ran = any(isinstance(results.get((scene, r)), dict) for r in renderers if r.split(":")[0] == k)
+        other = ref_halves(scene, k, res, ref_spp) if k != "trayecto" and ran else None
+        if other:
+            reg = reference_regions(base[0], base[1], other[0], other[1])
+            out.append((k, reg))
+            if reg and reg["flagged"]:
+                print(f"[{scene}] {regions_line(k, reg)}", file=sys.stderr, flush=True)
+    return out
+
+
 def ref_halves(scene, kind, res, ref_spp):
     """The two halves of a cached reference (see main) and their spp, or None."""
     import numpy as np
@@ -1589,6 +1608,7 @@ def main():
                 loads.append(os.getloadavg()[0])
         if args.references_only:
             continue
+        results[(scene, "_regions")] = scene_regions(results, scene, renderers, args.res, ref_spp)
         # The table so far, after every scene, so an interrupted run keeps what it measured.
         done = scenes[:scenes.index(scene) + 1]
         with open(args.results, "w") as f:
@@ -1900,21 +1920,12 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
             w(f"Each reference's own noise (relMSE of a {ref_spp}-spp reference, estimated from its two independent "
               "halves), subtracted from every error above: " + "; ".join(f"{k} {v:.3g}" for k, v in noise) + ".")
             w("")
-        # Each peer's reference against Trayecto's, region by region (reference_regions).
-        base_halves = ref_halves(scene, "trayecto", args.res, ref_spp) if base else None
-        if base_halves:
-            lines = []
-            for k in dict.fromkeys(r.split(":")[0] for r in renderers):
-                ran = any(isinstance(results.get((scene, r)), dict) for r in renderers if r.split(":")[0] == k)
-                other = ref_halves(scene, k, args.res, ref_spp) if k != "trayecto" and ran else None
-                if other:
-                    reg = reference_regions(base_halves[0], base_halves[1], other[0], other[1])
-                    lines.append(regions_line(k, reg))
-                    if reg and reg["flagged"]:
-                        print(f"[{scene}] {lines[-1]}", file=sys.stderr, flush=True)
-            if lines:
-                w("References region by region: " + " ".join(lines))
-                w("")
+        # Each peer's reference against Trayecto's, region by region (scene_regions, run once
+        # per scene by main).
+        lines = [regions_line(k, reg) for k, reg in results.get((scene, "_regions"), [])]
+        if lines:
+            w("References region by region: " + " ".join(lines))
+            w("")
         for r in renderers:
             res = results.get((scene, r))
             if not isinstance(res, dict) or not res.get("sweep"):
