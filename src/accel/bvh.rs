@@ -96,13 +96,13 @@ impl BvhNode {
 pub struct Bvh {
     pub nodes: Vec<BvhNode>,
     pub prims: Vec<PrimRef>,
-    /// The triangles again, in leaf order (`tri_verts[k]` belongs to `prims[k]` and repeats it;
+    /// The triangles again, in leaf order (`leaf_tris[k]` belongs to `prims[k]` and repeats it;
     /// other primitive kinds leave a placeholder triangle), as vertex and edges so the leaf test
     /// does not subtract them again. A leaf's triangles are then read from consecutive memory
     /// instead of from wherever the mesh put them: on a 1M-triangle mesh the indirection into
     /// `GeometryStore::triangles` was a cache miss per triangle (BENCHMARKS.md). 40 bytes per
     /// leaf entry.
-    tri_verts: Vec<LeafTri>,
+    leaf_tris: Vec<LeafTri>,
     bounds: Bounds3,
     /// References the tree was built over (primitives plus the extra pieces of split triangles).
     references: usize,
@@ -314,7 +314,7 @@ impl Bvh {
             e1: Vec3::ZERO,
             e2: Vec3::ZERO,
         };
-        bvh.tri_verts = bvh
+        bvh.leaf_tris = bvh
             .prims
             .iter()
             .map(|&prim| LeafTri {
@@ -337,7 +337,7 @@ impl Bvh {
         ray: &Ray,
         t_max: f32,
     ) -> Option<Intersection> {
-        match self.tri_verts.get(k) {
+        match self.leaf_tris.get(k) {
             Some(l) if l.prim.kind() == PrimitiveKind::Triangle => {
                 l.tri.intersect(ray, t_max).map(|h| Intersection {
                     t: h.t,
@@ -383,7 +383,7 @@ impl Bvh {
             return Bvh {
                 nodes: Vec::new(),
                 prims: Vec::new(),
-                tri_verts: Vec::new(),
+                leaf_tris: Vec::new(),
                 bounds: Bounds3::EMPTY,
                 references: 0,
                 avx2: false,
@@ -404,7 +404,7 @@ impl Bvh {
         Bvh {
             nodes,
             prims,
-            tri_verts: Vec::new(),
+            leaf_tris: Vec::new(),
             bounds,
             references,
             avx2: crate::math::detect_avx2(),
@@ -419,7 +419,7 @@ impl Bvh {
     pub fn heap_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<BvhNode>()
             + self.prims.len() * std::mem::size_of::<PrimRef>()
-            + self.tri_verts.len() * std::mem::size_of::<LeafTri>()
+            + self.leaf_tris.len() * std::mem::size_of::<LeafTri>()
     }
 
     pub fn stats(&self) -> BvhStats {
