@@ -441,32 +441,64 @@ def bpy_textured(bpy):
 def bpy_manylight(bpy):
     """The Cornell box lit only by 4096 small one-sided emissive triangles on the ceiling and the
     upper back wall, in four groups whose radiance spans 1:64 (equal-radiance sampling wastes
-    shadow rays on the dim ones)."""
+    shadow rays on the dim ones).
+
+    Emitters that overlap (seen along the surface normal) never share a plane: each stands off its
+    wall by its own level, 0.005 + 0.005 k, the least level no overlapping emitter placed before it
+    took (greedy colouring of the bounding circles). Until session 14 all of them stood 0.005 off,
+    coplanar and often overlapping, so the scene had no single right image: a camera or BSDF ray
+    sees the union of stacked emitters, but next-event estimation summed them in Trayecto and
+    Mitsuba (a shadow ray ends a relative 1e-4 or 9e-4 short of its target, so a coplanar emitter
+    in front does not block it) and counted them as blocked in Cycles. At 64 px the floor and side
+    walls came out 1.25x Trayecto's own BSDF-only estimate with NEE (Mitsuba agreeing), and
+    Cycles' 0.9x its own. The 0.005 gap is above every renderer's shadow-ray shortening at this
+    scene's distances (<= 3.5): Trayecto's 1e-4 and Mitsuba's 8.9e-4 of the distance, i.e. at most
+    3.2e-3."""
     import numpy as np
     bpy_cornell(bpy, with_boxes=True)
     bpy.data.objects.remove(bpy.data.objects["light"])
     rng = np.random.default_rng(11)
-    for g, (strength, colour) in enumerate([(40.0, (1.0, 0.9, 0.7)), (10.0, (0.7, 0.8, 1.0)),
-                                            (2.5, (1.0, 0.6, 0.6)), (0.625, (0.6, 1.0, 0.6))]):
-        verts, faces = [], []
+    groups = [(40.0, (1.0, 0.9, 0.7)), (10.0, (0.7, 0.8, 1.0)), (2.5, (1.0, 0.6, 0.6)), (0.625, (0.6, 1.0, 0.6))]
+    # Draw every emitter first (the random sequence, and so the layout, is the one used before
+    # the depth levels existed), then give each its level, then build the meshes.
+    emitters = []  # (group, on_ceiling, centre (u, v) in the wall's plane, size, corner offsets)
+    for g in range(len(groups)):
         for k in range(1024):
             size = rng.uniform(0.01, 0.03)
             a, b = rng.uniform(-0.95, 0.95, size=2)
             on_ceiling = k % 2 == 0
+            # Ceiling: (u, v) = (x, z); back wall: (u, v) = (x, y).
+            centre = (a, b) if on_ceiling else (a, 0.3 + 0.65 * (b + 0.95) / 1.9)
+            corners = []
             for t in range(3):
                 ang = 2 * math.pi * t / 3 + rng.uniform(0, 0.5)
-                du, dv = size * math.cos(ang), size * math.sin(ang)
-                if on_ceiling:   # 0.005 below the ceiling, facing down (-y): the corners run
-                    # clockwise seen from below. (Until session 12 they ran the other way, so the
-                    # ceiling's half of the emitters faced the ceiling and lit the room only
-                    # through it, for every renderer alike.)
-                    verts.append((a + du, 0.995, b + dv))
-                else:            # 0.005 in front of the back wall's upper half, facing +z
-                    verts.append((a + du, 0.3 + 0.65 * (b + 0.95) / 1.9 + dv, -0.995))
-            i = 3 * k
+                corners.append((size * math.cos(ang), size * math.sin(ang)))
+            emitters.append((g, on_ceiling, centre, size, corners))
+    levels = []
+    for i, (g, ceil_i, c_i, s_i, _) in enumerate(emitters):
+        taken = {levels[j] for j in range(i) if emitters[j][1] == ceil_i
+                 and math.hypot(c_i[0] - emitters[j][2][0], c_i[1] - emitters[j][2][1]) < s_i + emitters[j][3]}
+        levels.append(next(n for n in range(len(taken) + 1) if n not in taken))
+    for g, (strength, colour) in enumerate(groups):
+        verts, faces = [], []
+        for (eg, on_ceiling, (cu, cv), _, corners), level in zip(emitters, levels):
+            if eg != g:
+                continue
+            off = 0.005 + 0.005 * level
+            for du, dv in corners:
+                if on_ceiling:   # below the ceiling, facing down (-y): the corners run clockwise
+                    # seen from below. (Until session 12 they ran the other way, so the ceiling's
+                    # half of the emitters faced the ceiling and lit the room only through it,
+                    # for every renderer alike.)
+                    verts.append((cu + du, 1.0 - off, cv + dv))
+                else:            # in front of the back wall's upper half, facing +z
+                    verts.append((cu + du, cv + dv, -1.0 + off))
+            i = len(faces) * 3
             faces.append((i, i + 1, i + 2))
         mat = bpy_material(bpy, f"emit{g}", (0, 0, 0), emission=colour, strength=strength)
         bpy_mesh(bpy, f"emitters{g}", verts, faces, mat)
+    print(f"manylight: emitters stand off their wall at {max(levels) + 1} depth levels "
+          f"(0.005 to {0.005 + 0.005 * max(levels):.3f})", flush=True)
 
 
 def bpy_envlit(bpy):
