@@ -639,7 +639,7 @@ def worker_prepare(args):
         p = ob.active_material.node_tree.nodes["Principled BSDF"]
         g = lambda k: p.inputs[k].default_value
         desc["objects"].append({
-            "name": ob.name, "ply": ply, "base": list(g("Base Color"))[:3], "metallic": g("Metallic"),
+            "name": ob.name, "ply": os.path.basename(ply), "base": list(g("Base Color"))[:3], "metallic": g("Metallic"),
             "roughness": g("Roughness"), "specular": g("Specular IOR Level"),
             "emission": [c * g("Emission Strength") for c in list(g("Emission Color"))[:3]],
             # Flat-shaded objects (the boxes) must be shaded with their face normals, and a
@@ -649,8 +649,8 @@ def worker_prepare(args):
             # normals and black inward-wound faces (textured: local differences up to 60 %).
             "smooth": any(poly.use_smooth for poly in ob.data.polygons),
             "double_sided": not ob.active_material.use_backface_culling,
-            "albedo_tex": textures.get("albedo") if textured else None,
-            "normal_tex": textures.get("normal") if textured else None,
+            "albedo_tex": os.path.basename(textures["albedo"]) if textured else None,
+            "normal_tex": os.path.basename(textures["normal"]) if textured else None,
         })
     glb = os.path.join(d, f"{args.scene}.glb")
     bpy.ops.object.select_all(action="SELECT")
@@ -674,7 +674,11 @@ def mitsuba_scene_dict(mi, scene, res, sampler):
     if scene == "cornell":
         d = mi.cornell_box()
     else:
-        desc = json.load(open(os.path.join(OUT, scene, "scene.json")))
+        # Its files are named relative to the scene's directory, so that a copy of bench/out
+        # (another checkout's) renders its own export. Until session 14 they were absolute: a
+        # copied scene.json made Mitsuba render the original directory's meshes.
+        sdir = os.path.join(OUT, scene)
+        desc = json.load(open(os.path.join(sdir, "scene.json")))
         m = desc["camera"]["matrix"]
         M = mi.ScalarTransform4f(m) @ mi.ScalarTransform4f().scale([-1, 1, -1])
         d = {"type": "scene", "integrator": {"type": "path"},
@@ -686,9 +690,9 @@ def mitsuba_scene_dict(mi, scene, res, sampler):
                         "metallic": o["metallic"], "roughness": o["roughness"]}
             elif o.get("albedo_tex"):
                 bsdf = {"type": "normalmap",
-                        "normalmap": {"type": "bitmap", "raw": True, "filename": o["normal_tex"]},
+                        "normalmap": {"type": "bitmap", "raw": True, "filename": os.path.join(sdir, o["normal_tex"])},
                         "bsdf": {"type": "diffuse",
-                                 "reflectance": {"type": "bitmap", "filename": o["albedo_tex"]}}}
+                                 "reflectance": {"type": "bitmap", "filename": os.path.join(sdir, o["albedo_tex"])}}}
             elif o["roughness"] < 0.99 or o["specular"] > 0:
                 # A Principled dielectric that is not plain Lambertian: Mitsuba's principled.
                 bsdf = {"type": "principled", "base_color": {"type": "rgb", "value": o["base"]},
@@ -697,7 +701,7 @@ def mitsuba_scene_dict(mi, scene, res, sampler):
                 bsdf = {"type": "diffuse", "reflectance": {"type": "rgb", "value": o["base"]}}
             if o.get("double_sided", False) and max(o["emission"]) <= 0:
                 bsdf = {"type": "twosided", "bsdf": bsdf}
-            shape = {"type": "ply", "filename": o["ply"], "bsdf": bsdf,
+            shape = {"type": "ply", "filename": os.path.join(sdir, o["ply"]), "bsdf": bsdf,
                      "face_normals": not o.get("smooth", True)}
             if max(o["emission"]) > 0:
                 shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": o["emission"]}}
