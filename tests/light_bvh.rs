@@ -202,7 +202,7 @@ fn auto_uses_the_bvh_for_many_lights_and_power_for_few() {
 /// (the pdf recomputed from the hit, so to rounding); lights are never chosen where their pmf is 0.
 #[test]
 fn sampled_pmf_equals_emitter_pdf() {
-    for kind in [LightSamplerKind::Bvh, LightSamplerKind::Bvh4] {
+    for kind in [LightSamplerKind::Bvh, LightSamplerKind::Bvh8] {
         sampled_pmf_equals_emitter_pdf_with(kind);
     }
 }
@@ -279,7 +279,7 @@ fn chi2_critical(k: f64) -> f64 {
 /// the eight-way tree.
 #[test]
 fn chi_square_over_emitter_choice() {
-    for kind in [LightSamplerKind::Bvh, LightSamplerKind::Bvh4] {
+    for kind in [LightSamplerKind::Bvh, LightSamplerKind::Bvh8] {
         chi_square_over_emitter_choice_with(kind);
     }
 }
@@ -382,7 +382,7 @@ fn bvh_images_agree_with_power_and_do_not_depend_on_threads() {
     let scene = many_lights(false);
     let power = build(&scene, LightSamplerKind::Power);
     let bvh = build(&scene, LightSamplerKind::Bvh);
-    let bvh4 = build(&scene, LightSamplerKind::Bvh4);
+    let bvh8 = build(&scene, LightSamplerKind::Bvh8);
     let mut s = settings(256);
     s.path.max_depth = 2;
     let converged = |w: &World, seed: u64| {
@@ -399,17 +399,17 @@ fn bvh_images_agree_with_power_and_do_not_depend_on_threads() {
         "bvh vs power at 2048 spp",
     );
     assert_means_close(
-        &converged(&bvh4, 5),
+        &converged(&bvh8, 5),
         &reference,
         0.02,
-        "bvh4 vs power at 2048 spp",
+        "bvh8 vs power at 2048 spp",
     );
     let mut one = s.clone();
     one.threads = Some(1);
     one.spp = 16;
     let mut two = one.clone();
     two.threads = Some(2);
-    for world in [&bvh, &bvh4] {
+    for world in [&bvh, &bvh8] {
         let (a, b) = (render_world(world, &one), render_world(world, &two));
         assert!(
             a.data

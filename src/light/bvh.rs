@@ -8,9 +8,9 @@
 //! them with pbrt's cost (power × orientation-cone measure M_Ω × box area, §12.6.3 eq. 12.6 and the
 //! regularisation K_r), and every interior node keeps the union of its children's bounds.
 //!
-//! The binary tree is flattened into an eight-way tree (the default, [`TreeWidth::Eight`]; a
-//! node's children are its binary great-grandchildren, [`ChildOct`]) or a four-way one
-//! ([`TreeWidth::Four`], `--light-sampler bvh4`: its grandchildren, [`ChildQuad`]); a leaf child
+//! The binary tree is flattened into a four-way tree (the default, [`TreeWidth::Four`]; a node's
+//! children are its binary grandchildren, [`ChildQuad`]) or an eight-way one
+//! ([`TreeWidth::Eight`], `--light-sampler bvh8`: its great-grandchildren, [`ChildOct`]); a leaf child
 //! higher up takes one slot itself. Sampling walks down from the root: at each node the
 //! children are given an importance as seen from the shading point (φ · cos θ′ / d², times
 //! cos θ′ᵢ for the receiver's normal, [`LightBounds::importance`]), all in one SIMD evaluation,
@@ -384,15 +384,15 @@ impl ChildQuad {
     }
 }
 
-/// Children per interior node of the light tree (`--light-sampler bvh`: eight, `bvh4`: four).
+/// Children per interior node of the light tree (`--light-sampler bvh`: four, `bvh8`: eight).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum TreeWidth {
     /// A node's children are its binary grandchildren ([`ChildQuad`], one SSE pass per step).
+    #[default]
     Four,
     /// A node's children are its binary great-grandchildren ([`ChildOct`], one AVX 256-bit
     /// pass per step where the CPU has AVX2, two SSE halves giving the same bits elsewhere):
     /// log₈ instead of log₄ steps, each choosing by the tighter boxes three levels down.
-    #[default]
     Eight,
 }
 

@@ -30,12 +30,12 @@ pub enum LightSamplerKind {
     /// In proportion to each light's power, wherever the shading point is.
     Power,
     /// The light BVH ([`bvh`]) for emitters, points and spots by their importance from the
-    /// shading point; lights at infinity beside it in proportion to power. Eight children per
-    /// tree node ([`TreeWidth::Eight`]).
+    /// shading point; lights at infinity beside it in proportion to power. Four children per
+    /// tree node ([`TreeWidth::Four`]).
     Bvh,
-    /// [`LightSamplerKind::Bvh`] with four children per tree node ([`TreeWidth::Four`], the
-    /// tree of sessions 11–13): more, narrower descent steps.
-    Bvh4,
+    /// [`LightSamplerKind::Bvh`] with eight children per tree node ([`TreeWidth::Eight`]):
+    /// fewer, wider descent steps. Not the default: BENCHMARKS.md "Session 14: light choice".
+    Bvh8,
 }
 
 /// Above this many bounded lights (emissive primitives, points, spots) `auto` uses the light BVH.
@@ -43,14 +43,14 @@ pub enum LightSamplerKind {
 pub const BVH_AUTO_THRESHOLD: usize = 16;
 
 impl LightSamplerKind {
-    pub const NAMES: [&'static str; 4] = ["auto", "power", "bvh", "bvh4"];
+    pub const NAMES: [&'static str; 4] = ["auto", "power", "bvh", "bvh8"];
 
     pub fn name(self) -> &'static str {
         match self {
             LightSamplerKind::Auto => "auto",
             LightSamplerKind::Power => "power",
             LightSamplerKind::Bvh => "bvh",
-            LightSamplerKind::Bvh4 => "bvh4",
+            LightSamplerKind::Bvh8 => "bvh8",
         }
     }
 }
@@ -62,7 +62,7 @@ impl std::str::FromStr for LightSamplerKind {
             "auto" => Ok(LightSamplerKind::Auto),
             "power" => Ok(LightSamplerKind::Power),
             "bvh" => Ok(LightSamplerKind::Bvh),
-            "bvh4" => Ok(LightSamplerKind::Bvh4),
+            "bvh8" => Ok(LightSamplerKind::Bvh8),
             _ => Err(format!(
                 "unknown light sampler '{s}' (expected one of: {})",
                 Self::NAMES.join(", ")
@@ -540,12 +540,12 @@ impl LightSet {
         let bounded = lights.iter().filter(|l| !l.is_infinite()).count();
         let use_tree = match kind {
             LightSamplerKind::Power => false,
-            LightSamplerKind::Bvh | LightSamplerKind::Bvh4 => true,
+            LightSamplerKind::Bvh | LightSamplerKind::Bvh8 => true,
             LightSamplerKind::Auto => bounded > BVH_AUTO_THRESHOLD,
         };
         let width = match kind {
-            LightSamplerKind::Bvh4 => TreeWidth::Four,
-            _ => TreeWidth::Eight,
+            LightSamplerKind::Bvh8 => TreeWidth::Eight,
+            _ => TreeWidth::Four,
         };
         let tree = use_tree.then(|| {
             let lb: Vec<(u32, LightBounds)> = lights
@@ -573,10 +573,10 @@ impl LightSet {
         }
     }
 
-    /// Which sampler chooses the lights: `Power`, `Bvh` or `Bvh4` (never `Auto`).
+    /// Which sampler chooses the lights: `Power`, `Bvh` or `Bvh8` (never `Auto`).
     pub fn sampler_kind(&self) -> LightSamplerKind {
         match &self.tree {
-            Some(t) if t.bvh.width() == TreeWidth::Four => LightSamplerKind::Bvh4,
+            Some(t) if t.bvh.width() == TreeWidth::Eight => LightSamplerKind::Bvh8,
             Some(_) => LightSamplerKind::Bvh,
             None => LightSamplerKind::Power,
         }
