@@ -32,6 +32,10 @@ SHARED = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "scenes"))
 SCENES = {
     "toycar": os.path.join(SHARED, "gltf-ext", "ToyCar", "glTF", "ToyCar.gltf"),
     "helmet": os.path.join(SHARED, "gltf", "DamagedHelmet", "glTF", "DamagedHelmet.gltf"),
+    # compare.py's many-light scenes (exported there into bench/out/), for the light BVH's width
+    # (session 14, BENCHMARKS "Session 14: light choice").
+    "veach": os.path.join(HERE, "out", "veach", "veach.glb"),
+    "manylight": os.path.join(HERE, "out", "manylight", "manylight.glb"),
 }
 OUT = os.path.join(HERE, "out", "env_hemi")
 

@@ -202,7 +202,14 @@ fn auto_uses_the_bvh_for_many_lights_and_power_for_few() {
 /// (the pdf recomputed from the hit, so to rounding); lights are never chosen where their pmf is 0.
 #[test]
 fn sampled_pmf_equals_emitter_pdf() {
-    let world = build(&many_lights(true), LightSamplerKind::Bvh);
+    for kind in [LightSamplerKind::Bvh, LightSamplerKind::Bvh8] {
+        sampled_pmf_equals_emitter_pdf_with(kind);
+    }
+}
+
+fn sampled_pmf_equals_emitter_pdf_with(kind: LightSamplerKind) {
+    let world = build(&many_lights(true), kind);
+    assert_eq!(world.lights.sampler_kind(), kind);
     let lights = &world.lights;
     assert!(lights.lights.len() > 240);
     let mut rng = Pcg32::new(3, 9);
@@ -268,10 +275,17 @@ fn chi2_critical(k: f64) -> f64 {
 }
 
 /// The choices follow the pmf: per receiver, 200 000 choices counted per light against
-/// N · pmf (cells with fewer than 5 expected pooled), and the pmfs sum to 1.
+/// N · pmf (cells with fewer than 5 expected pooled), and the pmfs sum to 1; for the four- and
+/// the eight-way tree.
 #[test]
 fn chi_square_over_emitter_choice() {
-    let world = build(&many_lights(true), LightSamplerKind::Bvh);
+    for kind in [LightSamplerKind::Bvh, LightSamplerKind::Bvh8] {
+        chi_square_over_emitter_choice_with(kind);
+    }
+}
+
+fn chi_square_over_emitter_choice_with(kind: LightSamplerKind) {
+    let world = build(&many_lights(true), kind);
     let lights = &world.lights;
     let n_lights = lights.lights.len();
     let mut rng = Pcg32::new(5, 1);
@@ -336,7 +350,7 @@ fn chi_square_over_emitter_choice() {
         let crit = chi2_critical((cells - 1) as f64);
         assert!(
             stat < crit,
-            "at {p}: chi² {stat:.1} over {cells} cells, critical {crit:.1}"
+            "{kind:?} at {p}: chi² {stat:.1} over {cells} cells, critical {crit:.1}"
         );
         // The importance is not uniform: the tree concentrates on some lights (and the floor
         // point sees one-sided emitters from behind, which get 0).
@@ -368,6 +382,7 @@ fn bvh_images_agree_with_power_and_do_not_depend_on_threads() {
     let scene = many_lights(false);
     let power = build(&scene, LightSamplerKind::Power);
     let bvh = build(&scene, LightSamplerKind::Bvh);
+    let bvh8 = build(&scene, LightSamplerKind::Bvh8);
     let mut s = settings(256);
     s.path.max_depth = 2;
     let converged = |w: &World, seed: u64| {
@@ -383,19 +398,28 @@ fn bvh_images_agree_with_power_and_do_not_depend_on_threads() {
         0.02,
         "bvh vs power at 2048 spp",
     );
+    assert_means_close(
+        &converged(&bvh8, 5),
+        &reference,
+        0.02,
+        "bvh8 vs power at 2048 spp",
+    );
     let mut one = s.clone();
     one.threads = Some(1);
     one.spp = 16;
     let mut two = one.clone();
     two.threads = Some(2);
-    let (a, b) = (render_world(&bvh, &one), render_world(&bvh, &two));
-    assert!(
-        a.data
-            .iter()
-            .zip(&b.data)
-            .all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits)),
-        "the light BVH's image depends on the thread count"
-    );
+    for world in [&bvh, &bvh8] {
+        let (a, b) = (render_world(world, &one), render_world(world, &two));
+        assert!(
+            a.data
+                .iter()
+                .zip(&b.data)
+                .all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits)),
+            "the light BVH's image depends on the thread count ({:?})",
+            world.lights.sampler_kind()
+        );
+    }
 }
 
 /// The purpose of the tree: next-event estimates of the direct irradiance at points on the

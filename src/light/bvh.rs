@@ -8,17 +8,20 @@
 //! them with pbrt's cost (power × orientation-cone measure M_Ω × box area, §12.6.3 eq. 12.6 and the
 //! regularisation K_r), and every interior node keeps the union of its children's bounds.
 //!
-//! The binary tree is flattened into a four-way tree: a node's children are its binary
-//! grandchildren (a leaf child takes one slot itself). Sampling walks down from the root: at each
-//! node the (up to) four children are given an importance as seen from the shading point
-//! (φ · cos θ′ / d², times cos θ′ᵢ for the receiver's normal, [`LightBounds::importance`]), all
-//! four in one SIMD evaluation ([`ChildQuad`]), and one is chosen in proportion to it, reusing the
-//! random number. Unlike pbrt, which chooses between the two children and then between their two,
-//! the choice uses the tighter boxes two levels down directly and skips the coarser level: half
-//! the evaluations, and on compare.py's manylight scene 11 % fewer instructions per sample with
-//! 2.4 % lower relMSE at 64 spp (BENCHMARKS.md, "Light BVH descent"). The probability of a light is
-//! the product of the choices along its path, and [`LightBvh::pmf`] recomputes it exactly — the
-//! same function of the same numbers — by walking the light's recorded path (its trail, two bits
+//! The binary tree is flattened into a four-way tree (the default, [`TreeWidth::Four`]; a node's
+//! children are its binary grandchildren, [`ChildQuad`]) or an eight-way one
+//! ([`TreeWidth::Eight`], `--light-sampler bvh8`: its great-grandchildren, [`ChildOct`]); a leaf child
+//! higher up takes one slot itself. Sampling walks down from the root: at each node the
+//! children are given an importance as seen from the shading point (φ · cos θ′ / d², times
+//! cos θ′ᵢ for the receiver's normal, [`LightBounds::importance`]), all in one SIMD evaluation,
+//! and one is chosen in proportion to it, reusing the random number. Unlike pbrt, which chooses
+//! between the two children at every binary level, the choice uses the tighter boxes two or
+//! three levels down directly and skips the coarser levels: fewer evaluations (four-way vs
+//! pbrt: on compare.py's manylight scene 11 % fewer instructions per sample with 2.4 % lower
+//! relMSE at 64 spp, BENCHMARKS.md "Light BVH descent"; eight-way vs four-way: "Session 14:
+//! light choice"). The probability of a light is the product of the choices along its path,
+//! and [`LightBvh::pmf`] recomputes it exactly — the same function of the same numbers — by
+//! walking the light's recorded path (its trail, two or three bits
 //! per level), so MIS weights use the probability with which the light was really sampled.
 
 use crate::geometry::Bounds3;
@@ -381,20 +384,390 @@ impl ChildQuad {
     }
 }
 
+/// Children per interior node of the light tree (`--light-sampler bvh`: four, `bvh8`: eight).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TreeWidth {
+    /// A node's children are its binary grandchildren ([`ChildQuad`], one SSE pass per step).
+    #[default]
+    Four,
+    /// A node's children are its binary great-grandchildren ([`ChildOct`], one AVX 256-bit
+    /// pass per step where the CPU has AVX2, two SSE halves giving the same bits elsewhere):
+    /// log₈ instead of log₄ steps, each choosing by the tighter boxes three levels down.
+    Eight,
+}
+
+/// The lane operations [`oct_importance`] is written in, so that the eight-way step's AVX form
+/// ([`Avx8`]) and its portable form (two [`Vec4`] halves) run the same IEEE operations in the
+/// same order, lane for lane: the same bits (a unit test checks both against the scalar
+/// [`LightBounds::importance`]).
+trait Lanes:
+    Copy
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Div<Output = Self>
+{
+    type Mask: Copy
+        + std::ops::BitAnd<Output = Self::Mask>
+        + std::ops::BitOr<Output = Self::Mask>
+        + std::ops::Not<Output = Self::Mask>;
+    fn splat(x: f32) -> Self;
+    /// Lanes `off..off + width` of `a`.
+    fn load(a: &[f32; 8], off: usize) -> Self;
+    fn sqrt(self) -> Self;
+    /// `maxps(self, o)`: `o` where either is NaN (as glam's `Vec4::max` on SSE).
+    fn max(self, o: Self) -> Self;
+    fn min(self, o: Self) -> Self;
+    fn abs(self) -> Self;
+    fn lt(self, o: Self) -> Self::Mask;
+    fn gt(self, o: Self) -> Self::Mask;
+    fn le(self, o: Self) -> Self::Mask;
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+}
+
+impl Lanes for Vec4 {
+    type Mask = BVec4A;
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Vec4::splat(x)
+    }
+    #[inline(always)]
+    fn load(a: &[f32; 8], off: usize) -> Self {
+        Vec4::from_slice(&a[off..off + 4])
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        sqrt4(self)
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        Vec4::max(self, o)
+    }
+    #[inline(always)]
+    fn min(self, o: Self) -> Self {
+        Vec4::min(self, o)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        Vec4::abs(self)
+    }
+    #[inline(always)]
+    fn lt(self, o: Self) -> BVec4A {
+        self.cmplt(o)
+    }
+    #[inline(always)]
+    fn gt(self, o: Self) -> BVec4A {
+        self.cmpgt(o)
+    }
+    #[inline(always)]
+    fn le(self, o: Self) -> BVec4A {
+        self.cmple(o)
+    }
+    #[inline(always)]
+    fn select(m: BVec4A, a: Self, b: Self) -> Self {
+        Vec4::select(m, a, b)
+    }
+}
+
+/// Eight f32 lanes in one AVX register. Only ever built inside the `#[target_feature(enable =
+/// "avx2")]` copies of the eight-way descent, which run only on CPUs with AVX2: that is the
+/// safety argument of every `unsafe` intrinsic call below (the functions are `inline(always)`,
+/// so they are compiled into those copies).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct Avx8(std::arch::x86_64::__m256);
+
+#[cfg(target_arch = "x86_64")]
+mod avx8 {
+    use super::{Avx8, Lanes};
+    use std::arch::x86_64::*;
+
+    macro_rules! binop {
+        ($tr:ident, $f:ident, $intr:ident) => {
+            impl std::ops::$tr for Avx8 {
+                type Output = Avx8;
+                #[inline(always)]
+                fn $f(self, o: Avx8) -> Avx8 {
+                    // SAFETY: see `Avx8`.
+                    Avx8(unsafe { $intr(self.0, o.0) })
+                }
+            }
+        };
+    }
+    binop!(Add, add, _mm256_add_ps);
+    binop!(Sub, sub, _mm256_sub_ps);
+    binop!(Mul, mul, _mm256_mul_ps);
+    binop!(Div, div, _mm256_div_ps);
+
+    /// A lane mask (all ones or all zeros per lane), as a comparison returns it.
+    #[derive(Clone, Copy)]
+    pub(super) struct Mask8(__m256);
+
+    impl std::ops::BitAnd for Mask8 {
+        type Output = Mask8;
+        #[inline(always)]
+        fn bitand(self, o: Mask8) -> Mask8 {
+            // SAFETY: see `Avx8`.
+            Mask8(unsafe { _mm256_and_ps(self.0, o.0) })
+        }
+    }
+    impl std::ops::BitOr for Mask8 {
+        type Output = Mask8;
+        #[inline(always)]
+        fn bitor(self, o: Mask8) -> Mask8 {
+            // SAFETY: see `Avx8`.
+            Mask8(unsafe { _mm256_or_ps(self.0, o.0) })
+        }
+    }
+    impl std::ops::Not for Mask8 {
+        type Output = Mask8;
+        #[inline(always)]
+        fn not(self) -> Mask8 {
+            // SAFETY: see `Avx8`.
+            Mask8(unsafe { _mm256_xor_ps(self.0, _mm256_castsi256_ps(_mm256_set1_epi32(-1))) })
+        }
+    }
+
+    impl Lanes for Avx8 {
+        type Mask = Mask8;
+        #[inline(always)]
+        fn splat(x: f32) -> Self {
+            // SAFETY: see `Avx8`.
+            Avx8(unsafe { _mm256_set1_ps(x) })
+        }
+        #[inline(always)]
+        fn load(a: &[f32; 8], off: usize) -> Self {
+            debug_assert_eq!(off, 0);
+            // SAFETY: see `Avx8`; `a` is eight readable f32 (unaligned load).
+            Avx8(unsafe { _mm256_loadu_ps(a.as_ptr()) })
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            // SAFETY: see `Avx8`.
+            Avx8(unsafe { _mm256_sqrt_ps(self.0) })
+        }
+        #[inline(always)]
+        fn max(self, o: Self) -> Self {
+            // SAFETY: see `Avx8`. Operand order as `_mm_max_ps` in glam's `Vec4::max`.
+            Avx8(unsafe { _mm256_max_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn min(self, o: Self) -> Self {
+            // SAFETY: see `Avx8`.
+            Avx8(unsafe { _mm256_min_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            // SAFETY: see `Avx8`. Clears the sign bit, as glam's `Vec4::abs`.
+            Avx8(unsafe {
+                _mm256_and_ps(self.0, _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff)))
+            })
+        }
+        #[inline(always)]
+        fn lt(self, o: Self) -> Mask8 {
+            // SAFETY: see `Avx8`. Ordered: false for NaN, as SSE's `cmpltps`.
+            Mask8(unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn gt(self, o: Self) -> Mask8 {
+            // SAFETY: see `Avx8`.
+            Mask8(unsafe { _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn le(self, o: Self) -> Mask8 {
+            // SAFETY: see `Avx8`.
+            Mask8(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn select(m: Mask8, a: Self, b: Self) -> Self {
+            // SAFETY: see `Avx8`. `blendvps` picks by each lane's sign bit: the same lanes
+            // for whole-lane masks as and/andnot/or.
+            Avx8(unsafe { _mm256_blendv_ps(b.0, a.0, m.0) })
+        }
+    }
+
+    impl Avx8 {
+        #[inline(always)]
+        pub(super) fn store(self, out: &mut [f32; 8]) {
+            // SAFETY: see `Avx8`; `out` is eight writable f32.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) }
+        }
+    }
+}
+
+/// The eight-way tree's interior node: its (up to) eight children's bounds lane by lane with
+/// the node-only parts of [`LightBounds::importance`] precomputed, as [`ChildQuad`] for four
+/// (empty slots have zero power), and the children's indices. 448 bytes, seven cache lines.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct ChildOct {
+    cx: [f32; 8],
+    cy: [f32; 8],
+    cz: [f32; 8],
+    half_diag: [f32; 8],
+    r2: [f32; 8],
+    wx: [f32; 8],
+    wy: [f32; 8],
+    wz: [f32; 8],
+    cos_o: [f32; 8],
+    sin_o: [f32; 8],
+    cos_e: [f32; 8],
+    phi: [f32; 8],
+    /// 1 for a two-sided child, else 0.
+    two_sided: [f32; 8],
+    children: [u32; 8],
+}
+
+impl ChildOct {
+    /// The lanes of `slots` (one to eight bounds); empty lanes repeat the first bounds with zero
+    /// power, so their importance is 0.
+    fn new(slots: &[LightBounds]) -> ChildOct {
+        let mut lb = [slots[0]; 8];
+        for (k, l) in lb.iter_mut().enumerate() {
+            match slots.get(k) {
+                Some(s) => *l = *s,
+                None => l.phi = 0.0,
+            }
+        }
+        // The same expressions as `LightBounds::importance` and `ChildQuad::new`.
+        let centre = |lb: &LightBounds| (lb.bounds.min + lb.bounds.max) * 0.5;
+        let diag = |lb: &LightBounds| (lb.bounds.max - lb.bounds.min).length();
+        let lanes = |f: &dyn Fn(&LightBounds) -> f32| lb.map(|l| f(&l));
+        ChildOct {
+            cx: lanes(&|lb| centre(lb).x),
+            cy: lanes(&|lb| centre(lb).y),
+            cz: lanes(&|lb| centre(lb).z),
+            half_diag: lanes(&|lb| diag(lb) * 0.5),
+            r2: lanes(&|lb| {
+                let d = diag(lb);
+                d * d * 0.25
+            }),
+            wx: lanes(&|lb| lb.w.x),
+            wy: lanes(&|lb| lb.w.y),
+            wz: lanes(&|lb| lb.w.z),
+            cos_o: lanes(&|lb| lb.cos_theta_o),
+            sin_o: lanes(&|lb| safe_sqrt(1.0 - lb.cos_theta_o * lb.cos_theta_o)),
+            cos_e: lanes(&|lb| lb.cos_theta_e),
+            phi: lanes(&|lb| lb.phi),
+            two_sided: lanes(&|lb| if lb.two_sided { 1.0 } else { 0.0 }),
+            children: [NO_CHILD; 8],
+        }
+    }
+
+    /// [`LightBounds::importance`] of lanes `off..off + width of L`, step for step as
+    /// [`ChildQuad::importance`].
+    #[inline(always)]
+    fn importance_lanes<L: Lanes>(&self, off: usize, p: Vec3, n: Vec3) -> L {
+        let ld = |a: &[f32; 8]| L::load(a, off);
+        let (zero, one) = (L::splat(0.0), L::splat(1.0));
+        let safe_sqrt = |x: L| x.max(zero).sqrt();
+        let cos_sub = |sin_a: L, cos_a: L, sin_b: L, cos_b: L| {
+            L::select(cos_a.gt(cos_b), one, cos_a * cos_b + sin_a * sin_b)
+        };
+        let sin_sub = |sin_a: L, cos_a: L, sin_b: L, cos_b: L| {
+            L::select(cos_a.gt(cos_b), zero, sin_a * cos_b - cos_a * sin_b)
+        };
+        let vx = L::splat(p.x) - ld(&self.cx);
+        let vy = L::splat(p.y) - ld(&self.cy);
+        let vz = L::splat(p.z) - ld(&self.cz);
+        let dc2 = vx * vx + vy * vy + vz * vz;
+        let d2 = dc2.max(ld(&self.half_diag));
+        let rcp = one / dc2.sqrt();
+        let ok = rcp.lt(L::splat(f32::INFINITY)) & rcp.gt(zero);
+        let rcp = L::select(ok, rcp, zero);
+        let (wix, wiy, wiz) = (vx * rcp, vy * rcp, vz * rcp);
+        let cos_w = ld(&self.wx) * wix + ld(&self.wy) * wiy + ld(&self.wz) * wiz;
+        let cos_w = L::select(ld(&self.two_sided).gt(zero), cos_w.abs(), cos_w);
+        let sin_w = safe_sqrt(one - cos_w * cos_w);
+        let r2 = ld(&self.r2);
+        let inside = dc2.lt(r2) | !dc2.gt(zero);
+        let cos_b = L::select(inside, L::splat(-1.0), safe_sqrt(one - r2 / dc2));
+        let sin_b = safe_sqrt(one - cos_b * cos_b);
+        let (sin_o, cos_o) = (ld(&self.sin_o), ld(&self.cos_o));
+        let cos_x = cos_sub(sin_w, cos_w, sin_o, cos_o);
+        let sin_x = sin_sub(sin_w, cos_w, sin_o, cos_o);
+        let cos_p = cos_sub(sin_x, cos_x, sin_b, cos_b);
+        let mut importance = ld(&self.phi) * cos_p / d2;
+        if n != Vec3::ZERO {
+            let cos_i = (wix * L::splat(n.x) + wiy * L::splat(n.y) + wiz * L::splat(n.z)).abs();
+            let sin_i = safe_sqrt(one - cos_i * cos_i);
+            importance = importance * cos_sub(sin_i, cos_i, sin_b, cos_b);
+        }
+        let keep = !cos_p.le(ld(&self.cos_e)) & importance.gt(zero);
+        L::select(keep, importance.min(L::splat(MAX_IMPORTANCE)), zero)
+    }
+
+    /// The eight children's importance: one AVX pass with `AVX2`, else two SSE halves (the
+    /// same bits).
+    #[cfg(test)]
+    #[inline(always)]
+    fn importance<const AVX2: bool>(&self, p: Vec3, n: Vec3) -> [f32; 8] {
+        let mut out = [0.0f32; 8];
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 {
+            self.importance_lanes::<Avx8>(0, p, n).store(&mut out);
+            return out;
+        }
+        let lo: Vec4 = self.importance_lanes(0, p, n);
+        let hi: Vec4 = self.importance_lanes(4, p, n);
+        lo.write_to_slice(&mut out[..4]);
+        hi.write_to_slice(&mut out[4..]);
+        out
+    }
+
+    /// The probabilities of choosing each child from (`p`, `n`) (importance over the sum, the
+    /// sum taken pairwise in a fixed order, the division per lane in one vector operation), or
+    /// `None` if no child can light the point.
+    #[inline(always)]
+    fn probabilities<const AVX2: bool>(&self, p: Vec3, n: Vec3) -> Option<[f32; 8]> {
+        let total =
+            |c: &[f32; 8]| ((c[0] + c[1]) + (c[2] + c[3])) + ((c[4] + c[5]) + (c[6] + c[7]));
+        let mut c = [0.0f32; 8];
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 {
+            let imp = self.importance_lanes::<Avx8>(0, p, n);
+            imp.store(&mut c);
+            let t = total(&c);
+            if !(t > 0.0) {
+                return None;
+            }
+            (imp / Avx8::splat(t)).store(&mut c);
+            return Some(c);
+        }
+        let lo: Vec4 = self.importance_lanes(0, p, n);
+        let hi: Vec4 = self.importance_lanes(4, p, n);
+        lo.write_to_slice(&mut c[..4]);
+        hi.write_to_slice(&mut c[4..]);
+        let t = total(&c);
+        if !(t > 0.0) {
+            return None;
+        }
+        (lo / t).write_to_slice(&mut c[..4]);
+        (hi / t).write_to_slice(&mut c[4..]);
+        Some(c)
+    }
+}
+
 /// The light BVH over a scene's bounded lights.
 #[derive(Clone, Debug, Default)]
 pub struct LightBvh {
     /// The interior nodes of the four-way tree, the root first: each its children's bounds and
     /// indices ([`ChildQuad`]).
     quads: Vec<ChildQuad>,
+    /// The interior nodes of the eight-way tree ([`TreeWidth::Eight`]; then `quads` is empty),
+    /// the root first.
+    octs: Vec<ChildOct>,
+    /// Children per interior node.
+    width: TreeWidth,
     /// A tree of one light: that light (there are no interior nodes).
     root_leaf: Option<u32>,
     /// Number of lights in the tree.
     lights: usize,
     /// The root's bounds, for a tree of one light (a lone leaf has had no importance test).
     root: Option<LightBounds>,
-    /// Per light of the light set: its path from the root (bits 2d and 2d + 1: the slot taken at
-    /// depth d), or `None` if the light is not in the tree.
+    /// Per light of the light set: its path from the root (bits 2d and 2d + 1 in the four-way
+    /// tree, 3d to 3d + 2 in the eight-way one: the slot taken at depth d), or `None` if the
+    /// light is not in the tree.
     trails: Vec<Option<u64>>,
     /// Total power of the lights in the tree.
     pub total_power: f32,
@@ -428,6 +801,15 @@ impl LightBvh {
     /// non-finite power or bounds are left out (they can never be chosen). `light_count` is the
     /// size of the light set.
     pub fn new(lights: &[(u32, LightBounds)], light_count: usize) -> LightBvh {
+        Self::with_width(lights, light_count, TreeWidth::default())
+    }
+
+    /// [`Self::new`] with `width` children per interior node.
+    pub fn with_width(
+        lights: &[(u32, LightBounds)],
+        light_count: usize,
+        width: TreeWidth,
+    ) -> LightBvh {
         let mut items: Vec<Item> = lights
             .iter()
             .filter(|(_, lb)| {
@@ -444,7 +826,9 @@ impl LightBvh {
             })
             .collect();
         let mut bvh = LightBvh {
-            quads: Vec::with_capacity(items.len() / 2),
+            quads: Vec::new(),
+            octs: Vec::new(),
+            width,
             root_leaf: None,
             lights: items.len(),
             root: None,
@@ -465,11 +849,14 @@ impl LightBvh {
         bvh
     }
 
-    /// Appends `b`'s subtree as four-way nodes and returns its [`ChildQuad::children`] entry
-    /// (its quad index, or [`LEAF_BIT`] | light for a leaf). An interior node of the binary tree
-    /// takes its grandchildren as its four children (a leaf child takes one slot itself), so a
-    /// descent step chooses among four boxes at once, by the importance of the tighter boxes
-    /// two levels down, with one SIMD evaluation for two binary levels.
+    /// Appends `b`'s subtree as four- or eight-way nodes and returns its children entry (its
+    /// node index, or [`LEAF_BIT`] | light for a leaf). An interior node of the binary tree takes
+    /// its grandchildren (four-way) or great-grandchildren (eight-way) as its children (a leaf
+    /// above that depth takes one slot itself), so a descent step chooses among four or eight
+    /// boxes at once, by the importance of the tighter boxes two or three levels down, with one
+    /// SIMD evaluation for two or three binary levels. A binary tree of depth D gives paths of
+    /// ⌈D/2⌉ or ⌈D/3⌉ steps of 2 or 3 trail bits: at most D + 2 ≤ 64 bits for the depths `build`
+    /// makes (≤ `COST_SPLIT_DEPTH` + 32 for up to 2³² lights, less one for the root's own split).
     fn flatten(&mut self, b: &Build, trail: u64, depth: u32) -> u32 {
         match b {
             Build::Leaf(_, light) => {
@@ -481,23 +868,52 @@ impl LightBvh {
                 LEAF_BIT | *light
             }
             Build::Interior(_, children) => {
-                let mut slots: Vec<&Build> = Vec::with_capacity(4);
-                for c in children.iter() {
-                    match c {
-                        Build::Leaf(..) => slots.push(c),
-                        Build::Interior(_, g) => slots.extend(g.iter()),
+                fn collect<'a>(b: &'a Build, levels: u32, slots: &mut Vec<&'a Build>) {
+                    match b {
+                        Build::Interior(_, g) if levels > 0 => {
+                            g.iter().for_each(|c| collect(c, levels - 1, slots))
+                        }
+                        _ => slots.push(b),
                     }
                 }
-                let at = self.quads.len();
+                let (levels, bits) = match self.width {
+                    TreeWidth::Four => (1, 2),
+                    TreeWidth::Eight => (2, 3),
+                };
+                assert!(
+                    bits * (depth + 1) <= 64,
+                    "light tree too deep for its trails"
+                );
+                let mut slots: Vec<&Build> = Vec::with_capacity(8);
+                for c in children.iter() {
+                    collect(c, levels, &mut slots);
+                }
                 let bounds: Vec<LightBounds> = slots.iter().map(|s| *s.bounds()).collect();
-                self.quads.push(ChildQuad::new(&bounds));
+                let at = match self.width {
+                    TreeWidth::Four => {
+                        self.quads.push(ChildQuad::new(&bounds));
+                        self.quads.len() - 1
+                    }
+                    TreeWidth::Eight => {
+                        self.octs.push(ChildOct::new(&bounds));
+                        self.octs.len() - 1
+                    }
+                };
                 for (k, s) in slots.iter().enumerate() {
-                    let id = self.flatten(s, trail | ((k as u64) << (2 * depth)), depth + 1);
-                    self.quads[at].children[k] = id;
+                    let id = self.flatten(s, trail | ((k as u64) << (bits * depth)), depth + 1);
+                    match self.width {
+                        TreeWidth::Four => self.quads[at].children[k] = id,
+                        TreeWidth::Eight => self.octs[at].children[k] = id,
+                    }
                 }
                 at as u32
             }
         }
+    }
+
+    /// Children per interior node.
+    pub fn width(&self) -> TreeWidth {
+        self.width
     }
 
     pub fn is_empty(&self) -> bool {
@@ -579,6 +995,9 @@ impl LightBvh {
         if let Some(light) = self.root_leaf {
             return self.lone_light_reaches(p, n).then_some((light, 1.0, u));
         }
+        if self.width == TreeWidth::Eight {
+            return self.sample_oct::<AVX2>(p, n, u);
+        }
         let mut quad = self.quads.first()?;
         let mut pmf = 1.0f32;
         loop {
@@ -606,6 +1025,41 @@ impl LightBvh {
                 return (pmf > 0.0).then_some((child & !LEAF_BIT, pmf, u));
             }
             quad = &self.quads[child as usize];
+        }
+    }
+
+    /// [`Self::sample_remap_impl`] in the eight-way tree: the same walk over eight slots.
+    #[inline(always)]
+    fn sample_oct<const AVX2: bool>(
+        &self,
+        p: Vec3,
+        n: Vec3,
+        mut u: f32,
+    ) -> Option<(u32, f32, f32)> {
+        let mut node = self.octs.first()?;
+        let mut pmf = 1.0f32;
+        loop {
+            let probs = node.probabilities::<AVX2>(p, n)?;
+            let (mut k, mut below) = (0, 0.0f32);
+            let mut sum = 0.0f32;
+            for (j, &pj) in probs.iter().enumerate() {
+                if pj > 0.0 {
+                    (k, below) = (j, sum);
+                    if u < sum + pj {
+                        break;
+                    }
+                    sum += pj;
+                }
+            }
+            let pk = probs[k];
+            u = ((u - below).max(0.0) / pk).min(ONE_MINUS_EPSILON);
+            pmf *= pk;
+            let child = node.children[k];
+            debug_assert_ne!(child, NO_CHILD);
+            if child & LEAF_BIT != 0 {
+                return (pmf > 0.0).then_some((child & !LEAF_BIT, pmf, u));
+            }
+            node = &self.octs[child as usize];
         }
     }
 
@@ -650,6 +1104,9 @@ impl LightBvh {
                 0.0
             };
         }
+        if self.width == TreeWidth::Eight {
+            return self.pmf_oct::<AVX2>(*trail, light, p, n);
+        }
         let mut quad = &self.quads[0];
         let mut pmf = 1.0f32;
         let mut depth = 0u32;
@@ -665,6 +1122,30 @@ impl LightBvh {
                 return pmf;
             }
             quad = &self.quads[child as usize];
+            depth += 1;
+        }
+    }
+}
+
+impl LightBvh {
+    /// [`Self::pmf_impl`] in the eight-way tree: three trail bits per step.
+    #[inline(always)]
+    fn pmf_oct<const AVX2: bool>(&self, trail: u64, light: u32, p: Vec3, n: Vec3) -> f32 {
+        let mut node = &self.octs[0];
+        let mut pmf = 1.0f32;
+        let mut depth = 0u32;
+        loop {
+            let Some(probs) = node.probabilities::<AVX2>(p, n) else {
+                return 0.0;
+            };
+            let k = ((trail >> (3 * depth)) & 7) as usize;
+            pmf *= probs[k];
+            let child = node.children[k];
+            if child & LEAF_BIT != 0 {
+                debug_assert_eq!(child & !LEAF_BIT, light);
+                return pmf;
+            }
+            node = &self.octs[child as usize];
             depth += 1;
         }
     }
@@ -857,9 +1338,109 @@ mod tests {
         assert!(nonzero > 20_000, "{nonzero}");
     }
 
+    /// The eight-way step's importance, as two SSE halves and (where the CPU has AVX2) as one
+    /// AVX pass, must be the scalar `LightBounds::importance` bit for bit, empty lanes none.
+    #[test]
+    fn child_oct_importance_is_the_scalar_importance_bit_for_bit() {
+        let mut rng = Pcg32::new(29, 5);
+        let mut nonzero = 0;
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = std::is_x86_feature_detected!("avx2");
+        for _ in 0..10_000 {
+            let count = 1 + (rng.next_u32() % 8) as usize;
+            let lbs: Vec<LightBounds> = (0..count).map(|_| bounds(&mut rng)).collect();
+            let oct = ChildOct::new(&lbs);
+            let a = lbs[(rng.next_u32() as usize) % count];
+            let p = match rng.next_u32() % 3 {
+                0 => (a.bounds.min + a.bounds.max) * 0.5,
+                1 => a.bounds.min,
+                _ => {
+                    Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0
+                        - Vec3::splat(3.0)
+                }
+            };
+            let n = if rng.next_u32().is_multiple_of(4) {
+                Vec3::ZERO
+            } else {
+                unit(&mut rng)
+            };
+            let lanes = oct.importance::<false>(p, n);
+            #[cfg(target_arch = "x86_64")]
+            if avx2 {
+                // SAFETY: AVX2 was detected above.
+                let wide = unsafe { oct_importance_avx2(&oct, p, n) };
+                assert_eq!(
+                    wide.map(f32::to_bits),
+                    lanes.map(f32::to_bits),
+                    "{lbs:?} p {p} n {n}"
+                );
+            }
+            for (k, lane) in lanes.iter().enumerate() {
+                let scalar = lbs.get(k).map_or(0.0, |lb| lb.importance(p, n));
+                assert_eq!(
+                    lane.to_bits(),
+                    scalar.to_bits(),
+                    "{lbs:?} lane {k} p {p} n {n}: {lane} vs scalar {scalar}"
+                );
+                nonzero += (scalar > 0.0) as u32;
+            }
+        }
+        assert!(nonzero > 20_000, "{nonzero}");
+    }
+
+    /// `ChildOct::importance::<true>` in a function compiled with AVX2, as the descent's.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn oct_importance_avx2(oct: &ChildOct, p: Vec3, n: Vec3) -> [f32; 8] {
+        oct.importance::<true>(p, n)
+    }
+
+    /// In both widths, the probability `sample` returns for a light is `pmf`'s bit for bit, the
+    /// pmfs over all lights sum to at most 1, and `pmf` is 0 for a light that cannot be chosen.
+    #[test]
+    fn sampled_pmf_is_the_pmf_walk_in_both_widths() {
+        let mut rng = Pcg32::new(41, 9);
+        for width in [TreeWidth::Four, TreeWidth::Eight] {
+            for count in [1usize, 2, 7, 9, 65, 700] {
+                let lights: Vec<(u32, LightBounds)> =
+                    (0..count).map(|i| (i as u32, bounds(&mut rng))).collect();
+                let bvh = LightBvh::with_width(&lights, count, width);
+                assert_eq!(bvh.width(), width);
+                for _ in 0..200 {
+                    let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0
+                        - Vec3::splat(4.0);
+                    let n = if rng.next_u32().is_multiple_of(4) {
+                        Vec3::ZERO
+                    } else {
+                        unit(&mut rng)
+                    };
+                    let total: f64 = (0..count as u32).map(|l| bvh.pmf(l, p, n) as f64).sum();
+                    assert!(
+                        total <= 1.0 + 1e-5,
+                        "{width:?} {count}: pmfs sum to {total}"
+                    );
+                    for _ in 0..20 {
+                        let Some((light, pmf)) = bvh.sample(p, n, rng.next_f32()) else {
+                            continue;
+                        };
+                        assert!(pmf > 0.0);
+                        assert_eq!(
+                            pmf.to_bits(),
+                            bvh.pmf(light, p, n).to_bits(),
+                            "{width:?} {count} lights: light {light} at p {p} n {n}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     /// The AVX2 copies of the descent and of `pmf` must give the portable code's results bit
     /// for bit (determinism across machines): random trees of every kind of bounds, receivers
-    /// on surfaces and in media.
+    /// on surfaces and in media, four- and eight-way.
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_descent_and_pmf_are_the_portable_ones_bit_for_bit() {
@@ -869,10 +1450,13 @@ mod tests {
         }
         let mut rng = Pcg32::new(12, 3);
         let mut chosen = 0;
-        for count in [1usize, 2, 3, 5, 17, 300] {
+        for (count, width) in [1usize, 2, 3, 5, 17, 300]
+            .into_iter()
+            .flat_map(|c| [(c, TreeWidth::Four), (c, TreeWidth::Eight)])
+        {
             let lights: Vec<(u32, LightBounds)> =
                 (0..count).map(|i| (i as u32, bounds(&mut rng))).collect();
-            let bvh = LightBvh::new(&lights, count);
+            let bvh = LightBvh::with_width(&lights, count, width);
             for _ in 0..2000 {
                 let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0
                     - Vec3::splat(4.0);
@@ -904,6 +1488,6 @@ mod tests {
             }
         }
         // Most receivers are lit by some light (the comparison is not of `None`s).
-        assert!(chosen > 6000, "{chosen}");
+        assert!(chosen > 12_000, "{chosen}");
     }
 }

@@ -17,7 +17,7 @@ pub mod default_light;
 pub mod emission;
 pub mod envmap;
 pub mod equal_area;
-pub use bvh::{LightBounds, LightBvh};
+pub use bvh::{LightBounds, LightBvh, TreeWidth};
 pub use envmap::{EnvMap, EnvMapping, EnvPdf};
 
 /// How next-event estimation chooses a light (`--light-sampler`).
@@ -30,8 +30,12 @@ pub enum LightSamplerKind {
     /// In proportion to each light's power, wherever the shading point is.
     Power,
     /// The light BVH ([`bvh`]) for emitters, points and spots by their importance from the
-    /// shading point; lights at infinity beside it in proportion to power.
+    /// shading point; lights at infinity beside it in proportion to power. Four children per
+    /// tree node ([`TreeWidth::Four`]).
     Bvh,
+    /// [`LightSamplerKind::Bvh`] with eight children per tree node ([`TreeWidth::Eight`]):
+    /// fewer, wider descent steps. Not the default: BENCHMARKS.md "Session 14: light choice".
+    Bvh8,
 }
 
 /// Above this many bounded lights (emissive primitives, points, spots) `auto` uses the light BVH.
@@ -39,13 +43,14 @@ pub enum LightSamplerKind {
 pub const BVH_AUTO_THRESHOLD: usize = 16;
 
 impl LightSamplerKind {
-    pub const NAMES: [&'static str; 3] = ["auto", "power", "bvh"];
+    pub const NAMES: [&'static str; 4] = ["auto", "power", "bvh", "bvh8"];
 
     pub fn name(self) -> &'static str {
         match self {
             LightSamplerKind::Auto => "auto",
             LightSamplerKind::Power => "power",
             LightSamplerKind::Bvh => "bvh",
+            LightSamplerKind::Bvh8 => "bvh8",
         }
     }
 }
@@ -57,6 +62,7 @@ impl std::str::FromStr for LightSamplerKind {
             "auto" => Ok(LightSamplerKind::Auto),
             "power" => Ok(LightSamplerKind::Power),
             "bvh" => Ok(LightSamplerKind::Bvh),
+            "bvh8" => Ok(LightSamplerKind::Bvh8),
             _ => Err(format!(
                 "unknown light sampler '{s}' (expected one of: {})",
                 Self::NAMES.join(", ")
@@ -534,8 +540,12 @@ impl LightSet {
         let bounded = lights.iter().filter(|l| !l.is_infinite()).count();
         let use_tree = match kind {
             LightSamplerKind::Power => false,
-            LightSamplerKind::Bvh => true,
+            LightSamplerKind::Bvh | LightSamplerKind::Bvh8 => true,
             LightSamplerKind::Auto => bounded > BVH_AUTO_THRESHOLD,
+        };
+        let width = match kind {
+            LightSamplerKind::Bvh8 => TreeWidth::Eight,
+            _ => TreeWidth::Four,
         };
         let tree = use_tree.then(|| {
             let lb: Vec<(u32, LightBounds)> = lights
@@ -546,7 +556,11 @@ impl LightSet {
                     light_bounds(l, geometry, materials, phi).map(|b| (i as u32, b))
                 })
                 .collect();
-            TreeSelection::new(LightBvh::new(&lb, lights.len()), &infinite, &powers)
+            TreeSelection::new(
+                LightBvh::with_width(&lb, lights.len(), width),
+                &infinite,
+                &powers,
+            )
         });
         LightSet {
             distribution: Distribution1D::new(&powers),
@@ -559,12 +573,12 @@ impl LightSet {
         }
     }
 
-    /// Which sampler chooses the lights: `Power` or `Bvh` (never `Auto`).
+    /// Which sampler chooses the lights: `Power`, `Bvh` or `Bvh8` (never `Auto`).
     pub fn sampler_kind(&self) -> LightSamplerKind {
-        if self.tree.is_some() {
-            LightSamplerKind::Bvh
-        } else {
-            LightSamplerKind::Power
+        match &self.tree {
+            Some(t) if t.bvh.width() == TreeWidth::Eight => LightSamplerKind::Bvh8,
+            Some(_) => LightSamplerKind::Bvh,
+            None => LightSamplerKind::Power,
         }
     }
 

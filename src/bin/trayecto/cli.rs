@@ -196,8 +196,9 @@ pub struct RenderArgs {
     #[arg(long, value_name = "NAME")]
     pub variant: Option<String>,
     /// How next-event estimation chooses a light: auto (the light BVH above 16 emitters, points
-    /// and spots, else power), power (in proportion to power) or bvh (the light BVH: by
-    /// importance from the shading point).
+    /// and spots, else power), power (in proportion to power), bvh (the light BVH: by
+    /// importance from the shading point) or bvh8 (the same with eight children per tree node
+    /// instead of four).
     #[arg(long, value_name = "SAMPLER", default_value = "auto")]
     pub light_sampler: LightSamplerKind,
     /// Texture filtering: none (each texture's own bilinear or nearest lookup at the hit) or
