@@ -32,6 +32,7 @@ pub enum SamplerKind {
     /// numbers (one 64-bit mix per 1D or 2D request): deep bounces' numbers are decorrelated by
     /// the path's scattering anyway, so their stratification buys little and costs ~100–200
     /// instructions per number (pbrt-v4's `PaddedSobolSampler` pads in the same spirit).
+    /// Opt-in: see BENCHMARKS.md "Session 14: path vertex cost" for why it is not the default.
     Padded,
 }
 
@@ -264,7 +265,7 @@ impl SampleStream {
         u32_to_unit_f32(h as u32)
     }
 
-    /// The next number of the stream. The default sampler's path is inlined into the caller;
+    /// The next number of the stream. The stratified and padded samplers' path is inlined into the caller;
     /// the others go through [`Self::other_1d`], so a stratified number costs no call, register
     /// saves or jump over the sampler kinds (callgrind, 64², 16 spp: −0.7 % of the Cornell box's
     /// instructions per sample, −0.6 % textured, −0.3 % veach; the same numbers).
@@ -343,7 +344,7 @@ impl SampleStream {
         self.dim += n;
     }
 
-    /// The next two numbers of the stream (one 2D point). Inlined for the default sampler as
+    /// The next two numbers of the stream (one 2D point). Inlined for those samplers as
     /// [`Self::next_1d`] is.
     #[inline(always)]
     pub fn next_2d(&mut self) -> Vec2 {
