@@ -27,7 +27,24 @@ pub enum SamplerKind {
     PoissonDisk,
     /// Morton-ordered Owen-scrambled Sobol over the whole image, see [`super::zsobol`].
     ZSobol,
+    /// `Stratified` for the first [`PADDED_DIMS`] dimensions (the camera and the first two
+    /// bounces' light and BSDF numbers, where stratification lowers the error), then hashed independent
+    /// numbers (one 64-bit mix per 1D or 2D request): deep bounces' numbers are decorrelated by
+    /// the path's scattering anyway, so their stratification buys little and costs ~100–200
+    /// instructions per number (pbrt-v4's `PaddedSobolSampler` pads in the same spirit).
+    /// Opt-in: see BENCHMARKS.md "Session 14: path vertex cost" for why it is not the default.
+    Padded,
 }
+
+/// The dimensions a [`SamplerKind::Padded`] stream stratifies before it hands out independent
+/// numbers: the camera's four (film jitter, lens) and the first two bounces' six each (light
+/// spare and 2D number, BSDF lobe and direction), i.e. a path's first two vertices; later
+/// vertices' numbers are hashed. Chosen by error per sample (16–24 seeds at 16, 64 and 256 spp)
+/// and callgrind instructions on compare.py's scenes (BENCHMARKS.md, "Session 14: path vertex
+/// cost"): padding from 10 (after the first vertex) saved 3–9 % of the instructions but added
+/// up to 6 % to the Cornell box's error at 64–256 spp; from 4 (the camera's only) the error
+/// rose by 25–100 %.
+pub const PADDED_DIMS: u32 = 16;
 
 impl std::str::FromStr for SamplerKind {
     type Err = String;
@@ -38,9 +55,10 @@ impl std::str::FromStr for SamplerKind {
             "sobol" => Ok(SamplerKind::Sobol),
             "poisson-disk" | "poisson" => Ok(SamplerKind::PoissonDisk),
             "zsobol" => Ok(SamplerKind::ZSobol),
+            "padded" => Ok(SamplerKind::Padded),
             other => Err(format!(
-                "unknown sampler '{other}' (expected independent, stratified, sobol, zsobol or \
-                 poisson-disk)"
+                "unknown sampler '{other}' (expected independent, stratified, padded, sobol, \
+                 zsobol or poisson-disk)"
             )),
         }
     }
@@ -77,6 +95,11 @@ pub struct SampleStream {
 #[derive(Clone, Copy, Debug)]
 pub struct SamplerSetup {
     kind: SamplerKind,
+    /// `Stratified` or `Padded`: the stratified path is inlined into `next_1d`/`next_2d`.
+    fast: bool,
+    /// Dimensions below this are stratified on the fast path; from it on they are independent
+    /// hashes (`u32::MAX` for `Stratified`: every dimension, its numbers unchanged).
+    strat_dims: u32,
     seed: u64,
     spp: u32,
     /// The stratified 2D grid (`nx × ny ≥ spp` cells, `cells` of them).
@@ -120,6 +143,12 @@ impl SamplerSetup {
         let pow2_xy = nx > 1 && ny > 1 && nx.is_power_of_two() && ny.is_power_of_two();
         SamplerSetup {
             kind,
+            fast: matches!(kind, SamplerKind::Stratified | SamplerKind::Padded),
+            strat_dims: if kind == SamplerKind::Padded {
+                PADDED_DIMS
+            } else {
+                u32::MAX
+            },
             seed,
             spp,
             nx,
@@ -236,7 +265,7 @@ impl SampleStream {
         u32_to_unit_f32(h as u32)
     }
 
-    /// The next number of the stream. The default sampler's path is inlined into the caller;
+    /// The next number of the stream. The stratified and padded samplers' path is inlined into the caller;
     /// the others go through [`Self::other_1d`], so a stratified number costs no call, register
     /// saves or jump over the sampler kinds (callgrind, 64², 16 spp: −0.7 % of the Cornell box's
     /// instructions per sample, −0.6 % textured, −0.3 % veach; the same numbers).
@@ -244,8 +273,12 @@ impl SampleStream {
     pub fn next_1d(&mut self) -> f32 {
         let d = self.dim;
         self.dim += 1;
-        if self.setup.kind == SamplerKind::Stratified {
-            self.stratified_1d(d)
+        if self.setup.fast {
+            if d < self.setup.strat_dims {
+                self.stratified_1d(d)
+            } else {
+                u32_to_unit_f32(self.padding(d) as u32)
+            }
         } else {
             self.other_1d(d)
         }
@@ -271,6 +304,19 @@ impl SampleStream {
         u.min(ONE_MINUS_EPSILON)
     }
 
+    /// A padded dimension's 64 hashed bits: one mix of (pixel, sample, dimension). The pixel
+    /// and sample halves are the hashes the stratified numbers already use (`pixel_key`,
+    /// `sample_mix[0]`), so the stream carries nothing new; the dimension is spread by the
+    /// golden-ratio-like odd constant of [`Self::dim_hash`] and a different one, so a padded
+    /// number is not any stratified number's jitter.
+    #[inline(always)]
+    fn padding(&self, d: u32) -> u64 {
+        mix64(
+            (self.pixel_key ^ self.sample_mix[0])
+                .wrapping_add((d as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
+        )
+    }
+
     #[inline(never)]
     fn other_1d(&self, d: u32) -> f32 {
         match self.setup.kind {
@@ -285,7 +331,9 @@ impl SampleStream {
                 // Sobol dimension 0 is the bit reversal of the index: its reversed form is i.
                 u32_to_unit_f32(super::sobol::scramble_reversed(i, seed as u32))
             }
-            SamplerKind::Stratified | SamplerKind::PoissonDisk => self.stratified_1d(d),
+            SamplerKind::Stratified | SamplerKind::Padded | SamplerKind::PoissonDisk => {
+                self.stratified_1d(d)
+            }
         }
     }
 
@@ -296,14 +344,19 @@ impl SampleStream {
         self.dim += n;
     }
 
-    /// The next two numbers of the stream (one 2D point). Inlined for the default sampler as
+    /// The next two numbers of the stream (one 2D point). Inlined for those samplers as
     /// [`Self::next_1d`] is.
     #[inline(always)]
     pub fn next_2d(&mut self) -> Vec2 {
         let d = self.dim;
         self.dim += 2;
-        if self.setup.kind == SamplerKind::Stratified {
-            self.stratified_2d(d)
+        if self.setup.fast {
+            if d < self.setup.strat_dims {
+                self.stratified_2d(d)
+            } else {
+                let h = self.padding(d);
+                Vec2::new(u32_to_unit_f32(h as u32), u32_to_unit_f32((h >> 32) as u32))
+            }
         } else {
             self.other_2d(d)
         }
@@ -342,7 +395,7 @@ impl SampleStream {
                 );
                 super::poisson::shifted(j as usize, shift)
             }
-            SamplerKind::Stratified => self.stratified_2d(d),
+            SamplerKind::Stratified | SamplerKind::Padded => self.stratified_2d(d),
         }
     }
 
@@ -709,7 +762,7 @@ mod tests {
     /// sequence is part of the determinism contract (every image depends on it), so a faster
     /// generator must give the same bits. The expected digests and first numbers were recorded
     /// from the session-12 start code (main c1e0c37).
-    fn pinned_numbers(kind: SamplerKind) -> Vec<f32> {
+    fn pinned_numbers(kind: SamplerKind, requests: u32) -> Vec<f32> {
         let mut out = Vec::new();
         for spp in [1u32, 4, 12, 16, 32, 64] {
             let setup = SamplerSetup::new(kind, 11 + spp as u64, spp).for_image(40, 30);
@@ -717,7 +770,7 @@ mod tests {
                 let key = setup.pixel_key(pixel);
                 for s in [0, spp / 2, spp - 1, spp + 1] {
                     let mut st = setup.stream(key, s);
-                    for d in 0..12u32 {
+                    for d in 0..requests {
                         match d % 4 {
                             0 | 2 => {
                                 let u = st.next_2d();
@@ -741,7 +794,7 @@ mod tests {
 
     #[test]
     fn every_sampler_gives_the_pinned_numbers() {
-        let pinned: [(SamplerKind, u64, [u32; 4]); 5] = [
+        let pinned: [(SamplerKind, u64, [u32; 4]); 6] = [
             (
                 SamplerKind::Independent,
                 0x8c7aa098ef249299,
@@ -767,10 +820,22 @@ mod tests {
                 0xa6e3df06703d0d06,
                 [0x3ebf4b20, 0x3e9a1e74, 0x3f2acfee, 0x3f16869e],
             ),
+            // Its first numbers are Stratified's; the digest differs from dimension 16 on.
+            (
+                SamplerKind::Padded,
+                0xb108f605e2b5ce4e,
+                [0x3ea747b4, 0x3e96e3fc, 0x3f57c612, 0x3f254804],
+            ),
         ];
         for (kind, want, first) in pinned {
-            let v = pinned_numbers(kind);
-            assert_eq!(v.len(), 1080);
+            // The padded sampler's requests reach past its stratified dimensions (18 + 18).
+            let (requests, len) = if kind == SamplerKind::Padded {
+                (24, 2160)
+            } else {
+                (12, 1080)
+            };
+            let v = pinned_numbers(kind, requests);
+            assert_eq!(v.len(), len);
             let got: Vec<u32> = v[..4].iter().map(|x| x.to_bits()).collect();
             let hex: Vec<String> = got.iter().map(|b| format!("{b:#010x}")).collect();
             println!("{kind:?}: {:#018x}, [{}]", digest(&v), hex.join(", "));
@@ -783,6 +848,107 @@ mod tests {
         }
     }
 
+    /// The padded sampler is the stratified one, bit for bit, on its first `PADDED_DIMS`
+    /// dimensions (1D and 2D requests, skips), and independent uniform numbers after them: each
+    /// padded dimension's numbers over many pixels and samples fill 16 bins evenly (chi-square),
+    /// the two halves of a padded 2D number and consecutive requests are uncorrelated, and a
+    /// pixel's samples are not stratified there (they would be if the padding still permuted
+    /// strata).
+    #[test]
+    fn padded_streams_stratify_only_the_first_dimensions() {
+        let spp = 16;
+        let strat = SamplerSetup::new(SamplerKind::Stratified, 7, spp).for_image(64, 64);
+        let pad = SamplerSetup::new(SamplerKind::Padded, 7, spp).for_image(64, 64);
+        // Requests as the pinned test makes them: 2D, 1D, 2D, skip, repeated. A 2D request
+        // starting at PADDED_DIMS - 1 is stratified in both of its dimensions; from
+        // PADDED_DIMS + 1 on every dimension is padded.
+        let first_padded = PADDED_DIMS + 1;
+        let dims = PADDED_DIMS + 13;
+        let mut padded: Vec<Vec<f32>> = vec![Vec::new(); dims as usize];
+        let mut full_strata = 0;
+        let mut stratified_checked = 0;
+        for px in 0..32u32 {
+            for py in 0..32u32 {
+                let mut strata = vec![0u32; spp as usize];
+                let (ks, kp) = (strat.pixel_key((px, py)), pad.pixel_key((px, py)));
+                for sample in 0..spp {
+                    let (mut a, mut b) = (strat.stream(ks, sample), pad.stream(kp, sample));
+                    let (mut d, mut j) = (0u32, 0u32);
+                    while d + 1 < dims {
+                        let (x, y) = match j % 4 {
+                            0 | 2 => {
+                                let (u, v) = (a.next_2d(), b.next_2d());
+                                (vec![u.x, u.y], vec![v.x, v.y])
+                            }
+                            1 => (vec![a.next_1d()], vec![b.next_1d()]),
+                            _ => {
+                                a.skip(1);
+                                b.skip(1);
+                                (vec![0.0], vec![0.0])
+                            }
+                        };
+                        for (i, (&xs, &ys)) in x.iter().zip(&y).enumerate() {
+                            let di = d + i as u32;
+                            assert!((0.0..1.0).contains(&ys), "dim {di}: {ys}");
+                            if d < PADDED_DIMS {
+                                assert_eq!(
+                                    xs.to_bits(),
+                                    ys.to_bits(),
+                                    "dim {di} must be stratified"
+                                );
+                                stratified_checked += 1;
+                            } else if j % 4 != 3 && di >= first_padded {
+                                padded[di as usize].push(ys);
+                                if di == first_padded + 1 {
+                                    strata[(ys * spp as f32) as usize] += 1;
+                                }
+                            }
+                        }
+                        d += x.len() as u32;
+                        j += 1;
+                    }
+                }
+                full_strata += strata.iter().all(|&c| c == 1) as u32;
+            }
+        }
+        assert!(stratified_checked >= 1024 * 16 * (PADDED_DIMS - 2));
+        // With independent numbers a pixel fills all 16 strata with probability 16!/16^16.
+        assert_eq!(
+            full_strata, 0,
+            "padded dimensions are still stratified per pixel"
+        );
+        let drawn: Vec<&Vec<f32>> = padded.iter().filter(|v| !v.is_empty()).collect();
+        assert!(drawn.len() >= 8, "{} padded dimensions drawn", drawn.len());
+        for (k, v) in drawn.iter().enumerate() {
+            let n = v.len() as f64;
+            let mut bins = [0f64; 16];
+            for &x in v.iter() {
+                bins[(x * 16.0) as usize] += 1.0;
+            }
+            let e = n / 16.0;
+            let chi2: f64 = bins.iter().map(|&o| (o - e) * (o - e) / e).sum();
+            // 15 degrees of freedom: P(chi2 > 45) < 1e-4.
+            assert!(
+                chi2 < 45.0,
+                "padded dimension {k}: chi2 {chi2:.1}, bins {bins:?}"
+            );
+        }
+        for w in drawn.windows(2) {
+            let n = w[0].len() as f64;
+            let cov = w[0]
+                .iter()
+                .zip(w[1].iter())
+                .map(|(&x, &y)| (x as f64 - 0.5) * (y as f64 - 0.5))
+                .sum::<f64>()
+                / n;
+            // Independent uniforms: the covariance is ~N(0, (1/12)²/n); 5 sigma.
+            assert!(
+                cov.abs() < 5.0 / 12.0 / n.sqrt(),
+                "padded dimensions correlate: {cov}"
+            );
+        }
+    }
+
     #[test]
     fn streams_are_deterministic_and_distinct() {
         for kind in [
@@ -791,6 +957,7 @@ mod tests {
             SamplerKind::Sobol,
             SamplerKind::PoissonDisk,
             SamplerKind::ZSobol,
+            SamplerKind::Padded,
         ] {
             let mut a = SampleStream::new(kind, 1, (0, 0), 3, 8);
             let mut b = SampleStream::new(kind, 1, (0, 0), 3, 8);

@@ -140,7 +140,7 @@ pub struct RenderArgs {
     /// Acceleration structure: bvh, grid or none.
     #[arg(long, default_value = "bvh")]
     pub accel: AccelKind,
-    /// Camera sample generator: independent, stratified, sobol, zsobol or poisson-disk.
+    /// Camera sample generator: independent, stratified, padded, sobol, zsobol or poisson-disk.
     #[arg(long, default_value = "stratified")]
     pub sampler: SamplerKind,
     /// Disable next-event estimation (light sampling) for area and environment lights.
