@@ -48,12 +48,12 @@ pub const WIDTH: usize = 8;
 const STACK_SIZE: usize = (WIDTH - 1) * MAX_BINARY_DEPTH + 1;
 /// Marks an unused lane of a node (its box is also empty, so it is never hit).
 const EMPTY_LANE: u32 = u32::MAX;
-/// How far above the closest hit's `t` a child's entry distance may be and still be visited, so
-/// an equal-`t` hit of a lower primitive is found whatever the tree (see `intersect_impl`):
-/// 1 + 2⁻¹⁸, about 32 ulps — more than the entry distance's rounding (γ₃ relative) plus the
-/// Möller–Trumbore `t`'s for rays that are not grazing. Costs nothing measurable: only children
-/// entered within that sliver beyond the hit are visited additionally.
-const TIE_SLACK: f32 = 1.0 + 1.0 / 262_144.0;
+/// How many ulps above the closest hit's `t` a child's entry distance may be and still be
+/// visited, so an equal-`t` hit of a lower primitive is found whatever the tree (see
+/// `intersect_impl`): more than the entry distance's rounding (γ₃ relative, a few ulps) plus the
+/// Möller–Trumbore `t`'s for rays that are not grazing. Only children entered within that sliver
+/// beyond the hit are visited additionally.
+const TIE_ULPS: u32 = 32;
 
 /// A wide node: the boxes of up to `WIDTH` children, one array per axis and side so the slab test
 /// runs on all lanes at once: `planes[axis]` holds the lanes' minima on `axis`, `planes[3 + axis]`
@@ -534,17 +534,16 @@ impl Bvh {
         let mut best: Option<Intersection> = None;
         // Ties are order-independent: at equal `t` the lowest primitive wins, as in brute force
         // (which tests primitives in `PrimRef` order and keeps the first). So the hit reported on
-        // coincident triangles does not depend on the tree's shape or visiting order. `t_max` is
-        // the closest hit so far; the leaf test's bound `t_test` is the next float above it once
-        // something is hit, so a hit at exactly `t_max` comes back and is kept only if its
-        // primitive is lower. Culling (`t_cull`) keeps a child whose entry distance is up to
-        // `TIE_SLACK` above `t_max`: a box's entry distance is rounded (γ₃, PBRT-v4 §6.8) and the
-        // triangle test's `t` too, so a coincident triangle lying on its box's near face can
+        // coincident triangles does not depend on the tree's shape or visiting order. A hit is
+        // ranked by one integer, `t`'s bits above its primitive's (a positive float's bits order
+        // as the float does), so "nearer, or as near and lower" is one compare. The leaf test's
+        // bound and the culling bound `t_cull` lie `TIE_ULPS` above the closest hit: a hit at
+        // exactly its `t` comes back to be ranked, and a child is visited if entered up to
+        // `TIE_ULPS` beyond it, because a box's entry distance is rounded (γ₃, PBRT-v4 §6.8) and
+        // the triangle test's `t` too, so a coincident triangle lying on its box's near face can
         // compute an entry a few ulps above the tie's `t`.
-        let mut t_max = ray.t_max;
-        let mut t_test = ray.t_max;
+        let mut best_key = u64::MAX;
         let mut t_cull = ray.t_max;
-        let mut best_prim = u32::MAX;
         let mut stack = TraversalStack::<Entry>::new();
         let mut sp = 0usize;
         let mut node = 0usize;
@@ -612,13 +611,13 @@ impl Bvh {
                 }
                 let first = e.first as usize;
                 for k in first..first + e.count as usize {
-                    if let Some(h) = self.intersect_prim(geometry, k, ray, t_test) {
-                        // `h.t < t_test`, so either nearer than `t_max` or equal to it.
-                        if h.t < t_max || h.prim.0 < best_prim {
-                            t_max = h.t;
-                            t_test = h.t.next_up();
-                            t_cull = h.t * TIE_SLACK;
-                            best_prim = h.prim.0;
+                    if let Some(h) = self.intersect_prim(geometry, k, ray, t_cull) {
+                        // `h.t` is positive and finite (the test requires 0 < t < bound).
+                        let key = (u64::from(h.t.to_bits()) << 32) | u64::from(h.prim.0);
+                        if key < best_key {
+                            best_key = key;
+                            // A larger float, or past ∞ a NaN that `min` turns into ∞.
+                            t_cull = f32::from_bits(h.t.to_bits() + TIE_ULPS).min(f32::INFINITY);
                             best = Some(h);
                         }
                     }
