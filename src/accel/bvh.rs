@@ -1106,8 +1106,8 @@ mod tests {
     /// Coincident triangles (three identical copies of two sheets of quads, one axis-aligned and
     /// one tilted, their copies at scattered positions of the triangle list, among a random soup):
     /// every tree shape and build order reports, at equal `t`, the lowest primitive, as brute
-    /// force does, in both traversal copies. Fails if the first leaf visited wins a tie (the tree
-    /// then decides which copy is reported).
+    /// force does, in both traversal copies, and so does the grid. Fails if the first leaf
+    /// visited wins a tie: the tree then decides which copy is reported.
     #[test]
     fn coincident_triangles_report_the_lowest_primitive_whatever_the_tree() {
         let mut g = soup(600, 31);
@@ -1186,6 +1186,10 @@ mod tests {
             Bvh::build_from(shuffled, bounds),
         ];
         let brute = crate::accel::Accel::build(crate::accel::AccelKind::None, &g);
+        // The grid needs no rule of its own: a cell lists its primitives in ascending order (a
+        // counting sort of `all_prims`), so the first equal-`t` hit in a cell is the lowest, and
+        // identical copies share their cells.
+        let grid = crate::accel::Accel::build(crate::accel::AccelKind::Grid, &g);
         let key = |h: Option<Intersection>| {
             h.map(|h| (h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()))
         };
@@ -1207,6 +1211,7 @@ mod tests {
                 assert_eq!(h.prim.index(), lowest[s], "brute force keeps the lowest");
                 sheet_hits += 1;
             }
+            assert_eq!(key(grid.intersect(&g, &ray)), key(want), "grid, ray {i}");
             for (n, bvh) in trees.iter().enumerate() {
                 assert_eq!(
                     key(bvh.intersect_portable(&g, &ray)),

@@ -293,17 +293,10 @@ impl Grid {
     pub fn intersect(&self, geometry: &GeometryStore, ray: &Ray) -> Option<Intersection> {
         let mut best: Option<Intersection> = None;
         let mut t_max = ray.t_max;
-        // At equal `t` the lowest primitive wins, as in brute force and the BVH (see
-        // `Bvh::intersect_impl`): once something is hit, the test's bound is the next float above
-        // it, and an equal-`t` hit is kept only for a lower primitive.
-        let mut t_test = ray.t_max;
         self.walk(ray, ray.t_max, |prims, t_exit| {
             for &p in prims {
-                if let Some(h) = geometry.intersect(p, ray, t_test)
-                    && (h.t < t_max || best.is_some_and(|b| h.prim.0 < b.prim.0))
-                {
+                if let Some(h) = geometry.intersect(p, ray, t_max) {
                     t_max = h.t;
-                    t_test = h.t.next_up();
                     best = Some(h);
                 }
             }
