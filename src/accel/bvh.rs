@@ -4,8 +4,11 @@
 //! 2008, "Shallow Bounding Volume Hierarchies"; Embree's BVH8) whose nodes keep their eight
 //! children's boxes in structure-of-arrays form, so one node visit is a single 8-lane slab test.
 //! Long triangles are first cut into several references with tighter boxes (`split.rs`), so the
-//! build sees boxes it can separate; a leaf keeps each primitive once. Traversal is front-to-back: hit children are pushed farthest first with their entry distance,
-//! and entries beyond the current closest hit are skipped when popped.
+//! build sees boxes it can separate; a leaf keeps each primitive once. Traversal is front-to-back:
+//! hit children are pushed farthest first with their entry distance, and entries beyond the
+//! current closest hit are skipped when popped. At equal `t` the lowest primitive wins (as in
+//! brute force), so the reported hit does not depend on the tree: coincident triangles give the
+//! same image whatever the tree's shape, leaf size or visiting order.
 //!
 //! Where the CPU has AVX2 (detected at run time, not `target-cpu=native`, so one binary runs
 //! everywhere) the traversal is compiled a second time with AVX2 enabled and the slab test is
@@ -45,6 +48,12 @@ pub const WIDTH: usize = 8;
 const STACK_SIZE: usize = (WIDTH - 1) * MAX_BINARY_DEPTH + 1;
 /// Marks an unused lane of a node (its box is also empty, so it is never hit).
 const EMPTY_LANE: u32 = u32::MAX;
+/// How many ulps above the closest hit's `t` a child's entry distance may be and still be
+/// visited, so an equal-`t` hit of a lower primitive is found whatever the tree (see
+/// `intersect_impl`): more than the entry distance's rounding (γ₃ relative, a few ulps) plus the
+/// Möller–Trumbore `t`'s for rays that are not grazing. Only children entered within that sliver
+/// beyond the hit are visited additionally.
+const TIE_ULPS: u32 = 32;
 
 /// A wide node: the boxes of up to `WIDTH` children, one array per axis and side so the slab test
 /// runs on all lanes at once: `planes[axis]` holds the lanes' minima on `axis`, `planes[3 + axis]`
@@ -523,13 +532,24 @@ impl Bvh {
         }
         let slab = SlabRay::new(ray, &RayInv::new(ray.d));
         let mut best: Option<Intersection> = None;
-        let mut t_max = ray.t_max;
+        // Ties are order-independent: at equal `t` the lowest primitive wins, as in brute force
+        // (which tests primitives in `PrimRef` order and keeps the first). So the hit reported on
+        // coincident triangles does not depend on the tree's shape or visiting order. A hit is
+        // ranked by one integer, `t`'s bits above its primitive's (a positive float's bits order
+        // as the float does), so "nearer, or as near and lower" is one compare. The leaf test's
+        // bound and the culling bound `t_cull` lie `TIE_ULPS` above the closest hit: a hit at
+        // exactly its `t` comes back to be ranked, and a child is visited if entered up to
+        // `TIE_ULPS` beyond it, because a box's entry distance is rounded (γ₃, PBRT-v4 §6.8) and
+        // the triangle test's `t` too, so a coincident triangle lying on its box's near face can
+        // compute an entry a few ulps above the tie's `t`.
+        let mut best_key = u64::MAX;
+        let mut t_cull = ray.t_max;
         let mut stack = TraversalStack::<Entry>::new();
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
             let n = &self.nodes[node];
-            let (t_enter, mut mask) = node_test::<AVX2>(&slab, n, t_max);
+            let (t_enter, mut mask) = node_test::<AVX2>(&slab, n, t_cull);
             let entry = |lane: usize| Entry {
                 first: n.first[lane],
                 count: n.count[lane],
@@ -579,7 +599,7 @@ impl Bvh {
                         }
                         sp -= 1;
                         let e = stack.get(sp);
-                        if e.t > t_max {
+                        if e.t > t_cull {
                             continue;
                         }
                         e
@@ -591,9 +611,15 @@ impl Bvh {
                 }
                 let first = e.first as usize;
                 for k in first..first + e.count as usize {
-                    if let Some(h) = self.intersect_prim(geometry, k, ray, t_max) {
-                        t_max = h.t;
-                        best = Some(h);
+                    if let Some(h) = self.intersect_prim(geometry, k, ray, t_cull) {
+                        // `h.t` is positive and finite (the test requires 0 < t < bound).
+                        let key = (u64::from(h.t.to_bits()) << 32) | u64::from(h.prim.0);
+                        if key < best_key {
+                            best_key = key;
+                            // A larger float, or past ∞ a NaN that `min` turns into ∞.
+                            t_cull = f32::from_bits(h.t.to_bits() + TIE_ULPS).min(f32::INFINITY);
+                            best = Some(h);
+                        }
                     }
                 }
             }
@@ -1075,6 +1101,132 @@ mod tests {
             seen[p.index()] = true;
         }
         assert!(seen.iter().all(|&s| s));
+    }
+
+    /// Coincident triangles (three identical copies of two sheets of quads, one axis-aligned and
+    /// one tilted, their copies at scattered positions of the triangle list, among a random soup):
+    /// every tree shape and build order reports, at equal `t`, the lowest primitive, as brute
+    /// force does, in both traversal copies, and so does the grid. Fails if the first leaf
+    /// visited wins a tie: the tree then decides which copy is reported.
+    #[test]
+    fn coincident_triangles_report_the_lowest_primitive_whatever_the_tree() {
+        let mut g = soup(600, 31);
+        let mut rng = crate::sampling::rng::Pcg32::new(31, 9);
+        // Two sheets: z = 0.3 (axis-aligned, its triangles lie on their boxes' faces) and a tilted
+        // one, 6×6 quads each.
+        let mut sheet = Vec::new();
+        for (origin, du, dv) in [
+            (
+                Vec3::new(-4.0, -4.0, 0.3),
+                Vec3::X * (8.0 / 6.0),
+                Vec3::Y * (8.0 / 6.0),
+            ),
+            (
+                Vec3::new(-4.0, -4.0, -3.0),
+                Vec3::new(8.0 / 6.0, 0.0, 0.4),
+                Vec3::new(0.0, 8.0 / 6.0, 0.7),
+            ),
+        ] {
+            for i in 0..6 {
+                for j in 0..6 {
+                    let p = origin + du * i as f32 + dv * j as f32;
+                    sheet.push(TriangleVerts {
+                        p0: p,
+                        p1: p + du,
+                        p2: p + du + dv,
+                    });
+                    sheet.push(TriangleVerts {
+                        p0: p,
+                        p1: p + du + dv,
+                        p2: p + dv,
+                    });
+                }
+            }
+        }
+        // Three copies of every sheet triangle, inserted at random positions: `group[id]` is the
+        // sheet triangle a primitive copies (or none).
+        let mut tris: Vec<(TriangleVerts, Option<usize>)> =
+            g.triangles.iter().map(|&t| (t, None)).collect();
+        for _ in 0..3 {
+            for (s, &t) in sheet.iter().enumerate() {
+                let at = (rng.next_f32() * tris.len() as f32) as usize % (tris.len() + 1);
+                tris.insert(at, (t, Some(s)));
+            }
+        }
+        let mut g2 = GeometryStore::default();
+        let mut mesh = MeshAttributes::default();
+        for (i, (t, _)) in tris.iter().enumerate() {
+            g2.triangles.push(*t);
+            g2.tri_mesh.push((0, i as u32));
+            g2.tri_light.push(crate::geometry::primitive::NO_LIGHT);
+            mesh.indices.push([0, 0, 0]);
+        }
+        g2.meshes.push(mesh);
+        g = g2;
+        let mut lowest = vec![usize::MAX; sheet.len()];
+        for (i, (_, s)) in tris.iter().enumerate() {
+            if let Some(s) = s {
+                lowest[*s] = lowest[*s].min(i);
+            }
+        }
+        let all = g.all_prims();
+        let bounds = |p: PrimRef| g.bounds(p);
+        let mut reversed = all.clone();
+        reversed.reverse();
+        let mut shuffled = all.clone();
+        for i in (1..shuffled.len()).rev() {
+            let j = (rng.next_f32() * (i + 1) as f32) as usize % (i + 1);
+            shuffled.swap(i, j);
+        }
+        let trees = [
+            Bvh::build_split(&g, 0.0),
+            Bvh::build_split(&g, 1.0),
+            Bvh::build_from(all, bounds),
+            Bvh::build_from(reversed, bounds),
+            Bvh::build_from(shuffled, bounds),
+        ];
+        let brute = crate::accel::Accel::build(crate::accel::AccelKind::None, &g);
+        // The grid needs no rule of its own: a cell lists its primitives in ascending order (a
+        // counting sort of `all_prims`), so the first equal-`t` hit in a cell is the lowest, and
+        // identical copies share their cells.
+        let grid = crate::accel::Accel::build(crate::accel::AccelKind::Grid, &g);
+        let key = |h: Option<Intersection>| {
+            h.map(|h| (h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()))
+        };
+        let has_avx2 = cfg!(target_arch = "x86_64") && crate::math::detect_avx2();
+        let mut sheet_hits = 0;
+        for i in 0..4000 {
+            let o = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 12.0;
+            // Half the rays aim at a random point of the sheets' area.
+            let d = if i % 2 == 0 {
+                Vec3::new(rng.next_f32() * 8.0 - 4.0, rng.next_f32() * 8.0 - 4.0, 0.3) - o
+            } else {
+                Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0
+            };
+            let ray = Ray::new(o, d);
+            let want = brute.intersect(&g, &ray);
+            if let Some(h) = want
+                && let Some(s) = tris[h.prim.index()].1
+            {
+                assert_eq!(h.prim.index(), lowest[s], "brute force keeps the lowest");
+                sheet_hits += 1;
+            }
+            assert_eq!(key(grid.intersect(&g, &ray)), key(want), "grid, ray {i}");
+            for (n, bvh) in trees.iter().enumerate() {
+                assert_eq!(
+                    key(bvh.intersect_portable(&g, &ray)),
+                    key(want),
+                    "tree {n}, ray {i}"
+                );
+                #[cfg(target_arch = "x86_64")]
+                if has_avx2 {
+                    // SAFETY: AVX2 was detected above.
+                    let h = unsafe { bvh.intersect_avx2(&g, &ray) };
+                    assert_eq!(key(h), key(want), "tree {n}, ray {i}, AVX2");
+                }
+            }
+        }
+        assert!(sheet_hits > 1000, "{sheet_hits} rays hit a sheet");
     }
 
     #[test]
