@@ -1002,21 +1002,8 @@ impl LightBvh {
         let mut pmf = 1.0f32;
         loop {
             let probs = Self::child_probabilities::<AVX2>(quad, p, n)?.to_array();
-            // The slot whose share of [0, 1) holds u; rounding can leave u past the last
-            // share, which then takes it (the last slot of positive probability).
-            let (mut k, mut below) = (0, 0.0f32);
-            let mut sum = 0.0f32;
-            for (j, &pj) in probs.iter().enumerate() {
-                if pj > 0.0 {
-                    (k, below) = (j, sum);
-                    if u < sum + pj {
-                        break;
-                    }
-                    sum += pj;
-                }
-            }
-            let pk = probs[k];
-            u = ((u - below).max(0.0) / pk).min(ONE_MINUS_EPSILON);
+            let (k, pk, u_next) = choose_slot(&probs, u);
+            u = u_next;
             pmf *= pk;
             // A slot of positive probability holds a child (empty slots have no power).
             let child = quad.children[k];
@@ -1040,19 +1027,8 @@ impl LightBvh {
         let mut pmf = 1.0f32;
         loop {
             let probs = node.probabilities::<AVX2>(p, n)?;
-            let (mut k, mut below) = (0, 0.0f32);
-            let mut sum = 0.0f32;
-            for (j, &pj) in probs.iter().enumerate() {
-                if pj > 0.0 {
-                    (k, below) = (j, sum);
-                    if u < sum + pj {
-                        break;
-                    }
-                    sum += pj;
-                }
-            }
-            let pk = probs[k];
-            u = ((u - below).max(0.0) / pk).min(ONE_MINUS_EPSILON);
+            let (k, pk, u_next) = choose_slot(&probs, u);
+            u = u_next;
             pmf *= pk;
             let child = node.children[k];
             debug_assert_ne!(child, NO_CHILD);
@@ -1153,6 +1129,27 @@ impl LightBvh {
 
 /// The largest f32 below 1.
 const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// One descent step of both tree widths: the slot whose share of [0, 1) holds `u`, its
+/// probability, and `u` remapped to [0, 1) within that share (so one number serves every level).
+/// Rounding can leave `u` past the last share, which then takes it (the last slot of positive
+/// probability).
+#[inline(always)]
+fn choose_slot(probs: &[f32], u: f32) -> (usize, f32, f32) {
+    let (mut k, mut below) = (0, 0.0f32);
+    let mut sum = 0.0f32;
+    for (j, &pj) in probs.iter().enumerate() {
+        if pj > 0.0 {
+            (k, below) = (j, sum);
+            if u < sum + pj {
+                break;
+            }
+            sum += pj;
+        }
+    }
+    let pk = probs[k];
+    (k, pk, ((u - below).max(0.0) / pk).min(ONE_MINUS_EPSILON))
+}
 
 fn build(items: &mut [Item], depth: usize) -> Build {
     if items.len() == 1 {
