@@ -275,9 +275,14 @@ impl EnvMap {
 
     #[inline]
     pub fn uv_to_dir(uv: Vec2) -> Vec3 {
-        let (theta, phi) = (uv.y * PI, uv.x * 2.0 * PI);
-        let (st, ct) = theta.sin_cos();
-        let (sp, cp) = phi.sin_cos();
+        let (st, ct) = (uv.y * PI).sin_cos();
+        Self::polar_to_dir(st, ct, uv.x)
+    }
+
+    /// [`EnvMap::uv_to_dir`] with θ's sine and cosine already known.
+    #[inline]
+    fn polar_to_dir(st: f32, ct: f32, u: f32) -> Vec3 {
+        let (sp, cp) = (u * 2.0 * PI).sin_cos();
         Vec3::new(st * sp, ct, -st * cp)
     }
 
@@ -356,16 +361,26 @@ impl EnvMap {
         let (w, h) = (self.width as i64, self.height as i64);
         let x = uv.x * w as f32 - 0.5;
         let y = uv.y * h as f32 - 0.5;
-        let (x0, y0) = (x.floor(), y.floor());
-        let (tx, ty) = (x - x0, y - y0);
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let texel = |xi: i64, yi: i64| {
-            let xi = xi.rem_euclid(w) as usize;
-            let yi = yi.clamp(0, h - 1) as usize;
-            self.texels[yi * w as usize + xi]
+        let ((x0, fx0), (y0, fy0)) = (floor_i64(x), floor_i64(y));
+        let (tx, ty) = (x - fx0, y - fy0);
+        // Columns wrap around, rows clamp. A direction's columns are x0 ∈ [−1, w − 1] and
+        // x0 + 1 ∈ [0, w]: one compare each instead of a division (`rem_euclid`), kept for
+        // anything else (non-finite coordinates).
+        let wrap = |xi: i64| {
+            if xi < 0 && xi >= -w {
+                (xi + w) as usize
+            } else if xi >= 0 && xi < w {
+                xi as usize
+            } else {
+                xi.rem_euclid(w) as usize
+            }
         };
-        let a = texel(x0, y0) * (1.0 - tx) + texel(x0 + 1, y0) * tx;
-        let b = texel(x0, y0 + 1) * (1.0 - tx) + texel(x0 + 1, y0 + 1) * tx;
+        let (c0, c1) = (wrap(x0), wrap(x0 + 1));
+        let r0 = y0.clamp(0, h - 1) as usize * w as usize;
+        let r1 = (y0 + 1).clamp(0, h - 1) as usize * w as usize;
+        let t = &self.texels;
+        let a = t[r0 + c0] * (1.0 - tx) + t[r0 + c1] * tx;
+        let b = t[r1 + c0] * (1.0 - tx) + t[r1 + c1] * tx;
         (a * (1.0 - ty) + b * ty) * self.scale
     }
 
@@ -399,12 +414,14 @@ impl EnvMap {
             let l = self.texels[row * self.width as usize + col] * self.scale;
             return Some((m / len, l, pdf_uv * jacobian / (4.0 * PI)));
         }
-        let sin_theta = (uv.y * PI).sin();
+        // sin θ once, for the Jacobian and the direction (glibc's `sincosf` and `sinf` agree bit
+        // for bit on [0, π], checked for every f32 there).
+        let (sin_theta, cos_theta) = (uv.y * PI).sin_cos();
         if !(sin_theta > 0.0) || !(pdf_uv > 0.0) {
             return None;
         }
         let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
-        let d = (self.to_world * Self::uv_to_dir(uv)).normalize();
+        let d = (self.to_world * Self::polar_to_dir(sin_theta, cos_theta, uv.x)).normalize();
         Some((d, self.eval(d), pdf))
     }
 
@@ -428,14 +445,36 @@ impl EnvMap {
     /// The equirectangular map's solid-angle pdf at map coordinates `uv`.
     #[inline]
     fn pdf_uv(&self, uv: Vec2, which: EnvPdf) -> f32 {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let x = ((uv.x * w as f32) as usize).min(w - 1);
+        let y = ((uv.y * h as f32) as usize).min(h - 1);
+        let p = self.distribution(which).pdf(x, y);
+        // Most texels have no compensated density: 0 without the sine (the same 0 it would
+        // divide to; a texel's density is finite and non-negative).
+        if p == 0.0 {
+            return 0.0;
+        }
         let sin_theta = (uv.y * PI).sin();
         if !(sin_theta > 0.0) {
             return 0.0;
         }
-        let (w, h) = (self.width as usize, self.height as usize);
-        let x = ((uv.x * w as f32) as usize).min(w - 1);
-        let y = ((uv.y * h as f32) as usize).min(h - 1);
-        self.distribution(which).pdf(x, y) / (2.0 * PI * PI * sin_theta)
+        p / (2.0 * PI * PI * sin_theta)
+    }
+}
+
+/// ⌊x⌋ as an integer and as a float, without a call: this build's target has no SSE4.1
+/// `roundss`, so `f32::floor` is a library call. Exact for |x| < 2²³ (every f32 there converts
+/// to i64 and back exactly, and truncation is ⌊x⌋ unless it rounded a negative non-integer up);
+/// larger or non-finite x go through `f32::floor` (NaN gives 0, as `NaN as i64` does).
+#[inline]
+fn floor_i64(x: f32) -> (i64, f32) {
+    if x.abs() < 8_388_608.0 {
+        let i = x as i64;
+        let i = if (i as f32) > x { i - 1 } else { i };
+        (i, i as f32)
+    } else {
+        let f = x.floor();
+        (f as i64, f)
     }
 }
 
