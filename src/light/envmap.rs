@@ -422,7 +422,12 @@ impl EnvMap {
         }
         let pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
         let d = (self.to_world * Self::polar_to_dir(sin_theta, cos_theta, uv.x)).normalize();
-        Some((d, self.eval(d), pdf))
+        // The radiance at the sampled map coordinates themselves: `eval(d)` would map `d` back
+        // to them (up to rounding) through the light transform, `atan2` and `acos`, the most
+        // expensive part of a light sample. The direction is the same (M⁻¹d ∝ the map direction
+        // for any invertible M), so the expected image is too; the bits move with the rounding
+        // the round trip no longer adds.
+        Some((d, self.eval_uv(uv), pdf))
     }
 
     /// Solid-angle pdf with which [`EnvMap::sample`] with `which` produces world direction `d`.
