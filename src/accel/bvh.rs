@@ -210,8 +210,7 @@ impl TriPacket {
             // [0, 1], not (b2 < 0 or b1 + b2 > 1), 0 < t < t_max.
             ok[i] = (det != 0.0)
                 & (det.abs() < f32::INFINITY)
-                & (b1 >= 0.0)
-                & (b1 <= 1.0)
+                & (0.0..=1.0).contains(&b1)
                 & !(b2 < 0.0)
                 & !(b1 + b2 > 1.0)
                 & (t > 0.0)
