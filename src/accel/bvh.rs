@@ -4,7 +4,8 @@
 //! 2008, "Shallow Bounding Volume Hierarchies"; Embree's BVH8) whose nodes keep their eight
 //! children's boxes in structure-of-arrays form, so one node visit is a single 8-lane slab test.
 //! Long triangles are first cut into several references with tighter boxes (`split.rs`), so the
-//! build sees boxes it can separate; a leaf keeps each primitive once. Traversal is front-to-back:
+//! build sees boxes it can separate; a leaf keeps each primitive once. A leaf of triangles holds
+//! them in packets of four (`TriPacket`) tested in SSE lanes at once. Traversal is front-to-back:
 //! hit children are pushed farthest first with their entry distance, and entries beyond the
 //! current closest hit are skipped when popped. At equal `t` the lowest primitive wins (as in
 //! brute force), so the reported hit does not depend on the tree: coincident triangles give the
@@ -1008,7 +1009,8 @@ fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usize) -> Build
         count: n,
     };
     // Two triangles share a leaf (half the nodes on big meshes; on small ones the same work as
-    // splitting them). Other primitives are split down to one per leaf: a quad, box or sphere test
+    // splitting them), and up to `MAX_TRI_LEAF` where the SAH prefers it (they are tested a
+    // packet at a time, see below). Other primitives are split down to one per leaf: a quad, box or sphere test
     // (~100 instructions with its dispatch) costs about two 4-wide node tests, and the walls of a
     // room have thin, barely overlapping boxes that the node test culls, where a shared leaf would
     // test every wall its combined box lets through (callgrind, built-in Cornell box: primitive
