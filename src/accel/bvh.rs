@@ -4,7 +4,8 @@
 //! 2008, "Shallow Bounding Volume Hierarchies"; Embree's BVH8) whose nodes keep their eight
 //! children's boxes in structure-of-arrays form, so one node visit is a single 8-lane slab test.
 //! Long triangles are first cut into several references with tighter boxes (`split.rs`), so the
-//! build sees boxes it can separate; a leaf keeps each primitive once. Traversal is front-to-back:
+//! build sees boxes it can separate; a leaf keeps each primitive once. A leaf of triangles holds
+//! them in packets of four (`TriPacket`) tested in SSE lanes at once. Traversal is front-to-back:
 //! hit children are pushed farthest first with their entry distance, and entries beyond the
 //! current closest hit are skipped when popped. At equal `t` the lowest primitive wins (as in
 //! brute force), so the reported hit does not depend on the tree: coincident triangles give the
@@ -105,13 +106,14 @@ impl BvhNode {
 pub struct Bvh {
     pub nodes: Vec<BvhNode>,
     pub prims: Vec<PrimRef>,
-    /// The triangles again, in leaf order (`leaf_tris[k]` belongs to `prims[k]` and repeats it;
-    /// other primitive kinds leave a placeholder triangle), as vertex and edges so the leaf test
-    /// does not subtract them again. A leaf's triangles are then read from consecutive memory
-    /// instead of from wherever the mesh put them: on a 1M-triangle mesh the indirection into
-    /// `GeometryStore::triangles` was a cache miss per triangle (BENCHMARKS.md). 40 bytes per
-    /// leaf entry.
-    leaf_tris: Vec<LeafTri>,
+    /// The triangles of every all-triangle leaf again, as vertex and edges in packets of
+    /// [`PACKET`] lanes (structure of arrays), so a leaf test is one ray against a packet's lanes
+    /// at once and the triangles are read from consecutive memory instead of from wherever the
+    /// mesh put them (on a 1M-triangle mesh that indirection was a cache miss per triangle,
+    /// BENCHMARKS.md). Such a leaf's lane has `count = PACKET_LEAF | packets` and `first` = its
+    /// first packet; other leaves (any non-triangle primitive, or trees built by `build_from`)
+    /// index `prims` and are tested one primitive at a time. 160 bytes per packet.
+    packets: Vec<TriPacket>,
     bounds: Bounds3,
     /// References the tree was built over (primitives plus the extra pieces of split triangles).
     references: usize,
@@ -119,14 +121,186 @@ pub struct Bvh {
     avx2: bool,
 }
 
-/// One leaf entry as the leaf test reads it: the triangle and its primitive in one record, so a
-/// test loads one place instead of two arrays (`prims[k]` was a separate cache line: ToyCar
-/// 67 k of 1.75 M L1 data misses, BENCHMARKS.md "Session 13: data layout").
+/// Lanes of a leaf's triangle packet (SSE width, the x86-64 baseline: every CPU runs the same
+/// code, so the AVX2 and portable traversals share it and its bits).
+const PACKET: usize = 4;
+/// Marks a leaf lane whose `first` indexes `Bvh::packets` (its `count`'s low bits are the number
+/// of packets) rather than `Bvh::prims`.
+const PACKET_LEAF: u32 = 1 << 31;
+/// The primitive of a packet lane that holds no triangle (its edges are zero, so it is never hit).
+const NO_PRIM: u32 = u32::MAX;
+/// Largest all-triangle leaf: two packets.
+const MAX_TRI_LEAF: usize = 2 * PACKET;
+/// Cost of one packet test in units of one scalar triangle test, for the SAH's leaf decision
+/// (callgrind: see BENCHMARKS.md "Session 15: leaf triangle packets").
+const PACKET_COST: f32 = 1.5;
+
+/// Up to [`PACKET`] triangles of one leaf in structure-of-arrays form: `v[0..3]` are the lanes'
+/// first vertices (x, y, z), `v[3..6]` their edges `p1 − p0` and `v[6..9]` their edges `p2 − p0`,
+/// exactly the values [`TriangleEdges`] holds, so a lane's test is bit-identical to the scalar
+/// one. Unused lanes have zero edges (a zero determinant: never hit) and `prim = NO_PRIM`.
 #[derive(Clone, Copy, Debug)]
-#[repr(C)]
-struct LeafTri {
-    tri: TriangleEdges,
-    prim: PrimRef,
+#[repr(C, align(32))]
+struct TriPacket {
+    v: [[f32; PACKET]; 9],
+    prim: [u32; PACKET],
+}
+
+/// The lanes of a packet the ray hits before `t_max` (bit `i` for lane `i`) and their `t` and
+/// barycentrics (meaningless in the other lanes).
+struct PacketHits {
+    mask: u32,
+    t: [f32; PACKET],
+    b1: [f32; PACKET],
+    b2: [f32; PACKET],
+}
+
+impl TriPacket {
+    const EMPTY: TriPacket = TriPacket {
+        v: [[0.0; PACKET]; 9],
+        prim: [NO_PRIM; PACKET],
+    };
+
+    fn set_lane(&mut self, lane: usize, tri: &TriangleEdges, prim: PrimRef) {
+        for axis in 0..3 {
+            self.v[axis][lane] = tri.p0[axis];
+            self.v[3 + axis][lane] = tri.e1[axis];
+            self.v[6 + axis][lane] = tri.e2[axis];
+        }
+        self.prim[lane] = prim.0;
+    }
+
+    /// [`TriangleEdges::intersect`] (Möller & Trumbore 1997) on every lane at once: per lane the
+    /// same IEEE operations on the same operands in the same order as the scalar test (glam's
+    /// `cross` and left-to-right `dot`; Rust never contracts to FMA), and the same acceptance
+    /// conditions. A lane's hit is therefore the scalar test's, bit for bit
+    /// (`tests::packet_test_matches_the_scalar_test`). Used where there is no SSE; on x86-64
+    /// [`Self::intersect`] computes the same in SSE intrinsics.
+    #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+    #[inline(always)]
+    fn intersect_lanes(&self, ray: &Ray, t_max: f32) -> PacketHits {
+        let [ox, oy, oz] = ray.o.to_array();
+        let [dx, dy, dz] = ray.d.to_array();
+        let v = &self.v;
+        let mut out = PacketHits {
+            mask: 0,
+            t: [0.0; PACKET],
+            b1: [0.0; PACKET],
+            b2: [0.0; PACKET],
+        };
+        let mut ok = [false; PACKET];
+        for i in 0..PACKET {
+            let (e1x, e1y, e1z) = (v[3][i], v[4][i], v[5][i]);
+            let (e2x, e2y, e2z) = (v[6][i], v[7][i], v[8][i]);
+            // pvec = d × e2
+            let px = dy * e2z - e2y * dz;
+            let py = dz * e2x - e2z * dx;
+            let pz = dx * e2y - e2x * dy;
+            let det = e1x * px + e1y * py + e1z * pz;
+            let inv_det = 1.0 / det;
+            // tvec = o − p0
+            let (tx, ty, tz) = (ox - v[0][i], oy - v[1][i], oz - v[2][i]);
+            let b1 = (tx * px + ty * py + tz * pz) * inv_det;
+            // qvec = tvec × e1
+            let qx = ty * e1z - e1y * tz;
+            let qy = tz * e1x - e1z * tx;
+            let qz = tx * e1y - e1x * ty;
+            let b2 = (dx * qx + dy * qy + dz * qz) * inv_det;
+            let t = (e2x * qx + e2y * qy + e2z * qz) * inv_det;
+            // The scalar test's rejections, negated: a non-zero finite determinant, b1 in
+            // [0, 1], not (b2 < 0 or b1 + b2 > 1), 0 < t < t_max.
+            ok[i] = (det != 0.0)
+                & (det.abs() < f32::INFINITY)
+                & (0.0..=1.0).contains(&b1)
+                & !(b2 < 0.0)
+                & !(b1 + b2 > 1.0)
+                & (t > 0.0)
+                & (t < t_max);
+            out.t[i] = t;
+            out.b1[i] = b1;
+            out.b2[i] = b2;
+        }
+        for (i, &ok) in ok.iter().enumerate() {
+            out.mask |= (ok as u32) << i;
+        }
+        out
+    }
+
+    /// The packet test: [`Self::intersect_lanes`] in SSE intrinsics (the x86-64 baseline, so
+    /// the AVX2 and portable traversals run this same code). Written out because LLVM kept the
+    /// arithmetic in vectors but scalarised the eight acceptance compares (21 `ucomiss` and as
+    /// many `set`s per packet; ToyCar's closest hit went 1337 → 1494 instructions per call with
+    /// that form, BENCHMARKS.md). Per lane the same IEEE operations in the same order; the
+    /// compares are the scalar test's, NaN included: `cmpneq` (unordered ≠) for `det != 0`,
+    /// ordered `<`, `≥`, `≤`, `>` where the scalar code tests them, and the unordered
+    /// `cmpnlt` / `cmpngt` for its negated `b2 < 0` / `b1 + b2 > 1`.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn intersect(&self, ray: &Ray, t_max: f32) -> PacketHits {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE and SSE2 are part of x86-64 itself (every x86-64 CPU has them and the build
+        // enables them), and the one memory access, the stores below, is in bounds.
+        unsafe {
+            let row = |k: usize| {
+                let r = &self.v[k];
+                _mm_set_ps(r[3], r[2], r[1], r[0])
+            };
+            let [ox, oy, oz] = ray.o.to_array().map(|x| _mm_set1_ps(x));
+            let [dx, dy, dz] = ray.d.to_array().map(|x| _mm_set1_ps(x));
+            let (zero, one) = (_mm_setzero_ps(), _mm_set1_ps(1.0));
+            let (mul, sub, add) = (_mm_mul_ps, _mm_sub_ps, _mm_add_ps);
+            let (e1x, e1y, e1z) = (row(3), row(4), row(5));
+            let (e2x, e2y, e2z) = (row(6), row(7), row(8));
+            // pvec = d × e2
+            let px = sub(mul(dy, e2z), mul(e2y, dz));
+            let py = sub(mul(dz, e2x), mul(e2z, dx));
+            let pz = sub(mul(dx, e2y), mul(e2x, dy));
+            let det = add(add(mul(e1x, px), mul(e1y, py)), mul(e1z, pz));
+            let inv_det = _mm_div_ps(one, det);
+            // tvec = o − p0
+            let (tx, ty, tz) = (sub(ox, row(0)), sub(oy, row(1)), sub(oz, row(2)));
+            let b1 = mul(add(add(mul(tx, px), mul(ty, py)), mul(tz, pz)), inv_det);
+            // qvec = tvec × e1
+            let qx = sub(mul(ty, e1z), mul(e1y, tz));
+            let qy = sub(mul(tz, e1x), mul(e1z, tx));
+            let qz = sub(mul(tx, e1y), mul(e1x, ty));
+            let b2 = mul(add(add(mul(dx, qx), mul(dy, qy)), mul(dz, qz)), inv_det);
+            let t = mul(add(add(mul(e2x, qx), mul(e2y, qy)), mul(e2z, qz)), inv_det);
+            let abs_det = _mm_andnot_ps(_mm_set1_ps(-0.0), det);
+            let ok = [
+                _mm_cmpneq_ps(det, zero),
+                _mm_cmplt_ps(abs_det, _mm_set1_ps(f32::INFINITY)),
+                _mm_cmpge_ps(b1, zero),
+                _mm_cmple_ps(b1, one),
+                _mm_cmpnlt_ps(b2, zero),
+                _mm_cmpngt_ps(add(b1, b2), one),
+                _mm_cmpgt_ps(t, zero),
+                _mm_cmplt_ps(t, _mm_set1_ps(t_max)),
+            ]
+            .into_iter()
+            .reduce(|a, b| _mm_and_ps(a, b))
+            .unwrap_or(zero);
+            let mut out = PacketHits {
+                mask: _mm_movemask_ps(ok) as u32,
+                t: [0.0; PACKET],
+                b1: [0.0; PACKET],
+                b2: [0.0; PACKET],
+            };
+            if out.mask != 0 {
+                // Each destination is a `[f32; 4]`: 16 writable bytes (unaligned stores).
+                _mm_storeu_ps(out.t.as_mut_ptr(), t);
+                _mm_storeu_ps(out.b1.as_mut_ptr(), b1);
+                _mm_storeu_ps(out.b2.as_mut_ptr(), b2);
+            }
+            out
+        }
+    }
+    /// The packet test where there is no SSE: [`Self::intersect_lanes`].
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline(always)]
+    fn intersect(&self, ray: &Ray, t_max: f32) -> PacketHits {
+        self.intersect_lanes(ray, t_max)
+    }
 }
 
 #[derive(Clone, Copy)]
@@ -318,47 +492,55 @@ impl Bvh {
     pub fn build_split(geometry: &GeometryStore, budget: f32) -> Bvh {
         let refs = super::split::references(geometry, budget);
         let mut bvh = Self::build_references(refs);
-        let placeholder = TriangleEdges {
-            p0: Vec3::ZERO,
-            e1: Vec3::ZERO,
-            e2: Vec3::ZERO,
-        };
-        bvh.leaf_tris = bvh
-            .prims
-            .iter()
-            .map(|&prim| LeafTri {
-                tri: match prim.kind() {
-                    PrimitiveKind::Triangle => geometry.triangles[prim.index()].edges(),
-                    _ => placeholder,
-                },
-                prim,
-            })
-            .collect();
+        // Every all-triangle leaf becomes packets (nodes in order, so the packets keep the
+        // leaves' depth-first order); the others keep their range of `prims`.
+        let Bvh { nodes, prims, .. } = &mut bvh;
+        let mut packets = Vec::with_capacity(prims.len() / PACKET + 1);
+        for node in nodes.iter_mut() {
+            for lane in 0..WIDTH {
+                let (first, count) = (node.first[lane] as usize, node.count[lane] as usize);
+                if count == 0 {
+                    continue;
+                }
+                let leaf = &prims[first..first + count];
+                if leaf.iter().any(|p| p.kind() != PrimitiveKind::Triangle) {
+                    continue;
+                }
+                node.first[lane] = packets.len() as u32;
+                node.count[lane] = PACKET_LEAF | count.div_ceil(PACKET) as u32;
+                for chunk in leaf.chunks(PACKET) {
+                    let mut packet = TriPacket::EMPTY;
+                    for (i, &prim) in chunk.iter().enumerate() {
+                        packet.set_lane(i, &geometry.triangles[prim.index()].edges(), prim);
+                    }
+                    packets.push(packet);
+                }
+            }
+        }
+        bvh.packets = packets;
         bvh
     }
 
-    /// Tests primitive `k` of the leaf order.
-    #[inline(always)]
-    fn intersect_prim(
-        &self,
-        geometry: &GeometryStore,
-        k: usize,
-        ray: &Ray,
-        t_max: f32,
-    ) -> Option<Intersection> {
-        match self.leaf_tris.get(k) {
-            Some(l) if l.prim.kind() == PrimitiveKind::Triangle => {
-                l.tri.intersect(ray, t_max).map(|h| Intersection {
-                    t: h.t,
-                    prim: l.prim,
-                    u: h.b1,
-                    v: h.b2,
-                })
-            }
-            Some(l) => geometry.intersect(l.prim, ray, t_max),
-            // Built by `build_from` (no leaf copy).
-            None => geometry.intersect(self.prims[k], ray, t_max),
+    /// The primitives of leaf lane `(first, count)` (a packet leaf's or a `prims` range's).
+    fn leaf_entries(&self, first: u32, count: u32) -> Vec<PrimRef> {
+        let first = first as usize;
+        if count & PACKET_LEAF == 0 {
+            return self.prims[first..first + count as usize].to_vec();
         }
+        let packets = &self.packets[first..first + (count & !PACKET_LEAF) as usize];
+        packets
+            .iter()
+            .flat_map(|p| p.prim)
+            .filter(|&p| p != NO_PRIM)
+            .map(PrimRef)
+            .collect()
+    }
+
+    /// The packets of packet leaf lane `(first, count)`.
+    #[inline(always)]
+    fn packet_leaf(&self, first: u32, count: u32) -> &[TriPacket] {
+        let first = first as usize;
+        &self.packets[first..first + (count & !PACKET_LEAF) as usize]
     }
 
     /// Builds over any set of primitives given their bounds (no splitting). Primitives with empty
@@ -392,7 +574,7 @@ impl Bvh {
             return Bvh {
                 nodes: Vec::new(),
                 prims: Vec::new(),
-                leaf_tris: Vec::new(),
+                packets: Vec::new(),
                 bounds: Bounds3::EMPTY,
                 references: 0,
                 avx2: false,
@@ -413,7 +595,7 @@ impl Bvh {
         Bvh {
             nodes,
             prims,
-            leaf_tris: Vec::new(),
+            packets: Vec::new(),
             bounds,
             references,
             avx2: crate::math::detect_avx2(),
@@ -424,11 +606,11 @@ impl Bvh {
         self.bounds
     }
 
-    /// Bytes held by the hierarchy (nodes, leaf order, the leaf-ordered triangle copy).
+    /// Bytes held by the hierarchy (nodes, leaf order, the leaves' triangle packets).
     pub fn heap_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<BvhNode>()
             + self.prims.len() * std::mem::size_of::<PrimRef>()
-            + self.leaf_tris.len() * std::mem::size_of::<LeafTri>()
+            + self.packets.len() * std::mem::size_of::<TriPacket>()
     }
 
     pub fn stats(&self) -> BvhStats {
@@ -450,10 +632,11 @@ impl Bvh {
             for lane in 0..WIDTH {
                 let area = n.lane_bounds(lane).surface_area() as f64 / root_area;
                 if n.count[lane] > 0 {
+                    let size = self.leaf_entries(n.first[lane], n.count[lane]).len();
                     s.leaves += 1;
-                    s.leaf_prims += n.count[lane] as usize;
-                    s.max_leaf_size = s.max_leaf_size.max(n.count[lane] as usize);
-                    s.sah_cost += area * n.count[lane] as f64;
+                    s.leaf_prims += size;
+                    s.max_leaf_size = s.max_leaf_size.max(size);
+                    s.sah_cost += area * size as f64;
                 } else if n.first[lane] != EMPTY_LANE {
                     s.sah_cost += area;
                     stack.push((n.first[lane] as usize, depth + 1));
@@ -609,16 +792,33 @@ impl Bvh {
                     node = e.first as usize;
                     break;
                 }
-                let first = e.first as usize;
-                for k in first..first + e.count as usize {
-                    if let Some(h) = self.intersect_prim(geometry, k, ray, t_cull) {
-                        // `h.t` is positive and finite (the test requires 0 < t < bound).
-                        let key = (u64::from(h.t.to_bits()) << 32) | u64::from(h.prim.0);
-                        if key < best_key {
-                            best_key = key;
-                            // A larger float, or past ∞ a NaN that `min` turns into ∞.
-                            t_cull = f32::from_bits(h.t.to_bits() + TIE_ULPS).min(f32::INFINITY);
-                            best = Some(h);
+                // A leaf: every hit is ranked (`rank`), a packet of triangles at a time or one
+                // other primitive at a time.
+                if e.count & PACKET_LEAF != 0 {
+                    for p in self.packet_leaf(e.first, e.count) {
+                        let hits = p.intersect(ray, t_cull);
+                        let mut mask = hits.mask;
+                        while mask != 0 {
+                            let i = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            rank(
+                                &mut best,
+                                &mut best_key,
+                                &mut t_cull,
+                                Intersection {
+                                    t: hits.t[i],
+                                    prim: PrimRef(p.prim[i]),
+                                    u: hits.b1[i],
+                                    v: hits.b2[i],
+                                },
+                            );
+                        }
+                    }
+                } else {
+                    let first = e.first as usize;
+                    for &prim in &self.prims[first..first + e.count as usize] {
+                        if let Some(h) = geometry.intersect(prim, ray, t_cull) {
+                            rank(&mut best, &mut best_key, &mut t_cull, h);
                         }
                     }
                 }
@@ -647,10 +847,16 @@ impl Bvh {
                 if n.count[lane] == 0 {
                     stack.set(sp, n.first[lane]);
                     sp += 1;
+                } else if n.count[lane] & PACKET_LEAF != 0 {
+                    for p in self.packet_leaf(n.first[lane], n.count[lane]) {
+                        if p.intersect(ray, t_max).mask != 0 {
+                            return true;
+                        }
+                    }
                 } else {
                     let first = n.first[lane] as usize;
-                    for k in first..first + n.count[lane] as usize {
-                        if self.intersect_prim(geometry, k, ray, t_max).is_some() {
+                    for &prim in &self.prims[first..first + n.count[lane] as usize] {
+                        if geometry.intersect(prim, ray, t_max).is_some() {
                             return true;
                         }
                     }
@@ -662,6 +868,22 @@ impl Bvh {
             sp -= 1;
             node = stack.get(sp) as usize;
         }
+    }
+}
+
+/// Ranks a closest-hit candidate (see `Bvh::intersect_impl`): it becomes `best` if nearer, or as
+/// near and of a lower primitive, and the culling bound moves to `TIE_ULPS` above it. The bound
+/// shrinks between a leaf's tests, and a hit that a shrunk bound rejects would have lost the
+/// ranking anyway (its key is larger), so the order of the tests does not matter.
+#[inline(always)]
+fn rank(best: &mut Option<Intersection>, best_key: &mut u64, t_cull: &mut f32, h: Intersection) {
+    // `h.t` is positive and finite (the tests require 0 < t < bound).
+    let key = (u64::from(h.t.to_bits()) << 32) | u64::from(h.prim.0);
+    if key < *best_key {
+        *best_key = key;
+        // A larger float, or past ∞ a NaN that `min` turns into ∞.
+        *t_cull = f32::from_bits(h.t.to_bits() + TIE_ULPS).min(f32::INFINITY);
+        *best = Some(h);
     }
 }
 
@@ -787,7 +1009,8 @@ fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usize) -> Build
         count: n,
     };
     // Two triangles share a leaf (half the nodes on big meshes; on small ones the same work as
-    // splitting them). Other primitives are split down to one per leaf: a quad, box or sphere test
+    // splitting them), and up to `MAX_TRI_LEAF` where the SAH prefers it (they are tested a
+    // packet at a time, see below). Other primitives are split down to one per leaf: a quad, box or sphere test
     // (~100 instructions with its dispatch) costs about two 4-wide node tests, and the walls of a
     // room have thin, barely overlapping boxes that the node test culls, where a shared leaf would
     // test every wall its combined box lets through (callgrind, built-in Cornell box: primitive
@@ -842,6 +1065,16 @@ fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usize) -> Build
         if n <= MAX_LEAF && split_cost >= n as f32 {
             return leaf();
         }
+        // Triangles are tested a packet at a time: up to `PACKET` of them in a leaf cost one
+        // packet test, so a leaf of a few triangles is kept where splitting it costs more.
+        if n <= MAX_TRI_LEAF
+            && split_cost >= PACKET_COST * n.div_ceil(PACKET) as f32
+            && prims
+                .iter()
+                .all(|p| p.prim.kind() == PrimitiveKind::Triangle)
+        {
+            return leaf();
+        }
         // Partition in place around the chosen bin boundary.
         let (lo, ext) = (
             centroid_bounds.min[axis],
@@ -879,7 +1112,7 @@ fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usize) -> Build
 mod tests {
     use super::*;
     use crate::geometry::primitive::MeshAttributes;
-    use crate::geometry::triangle::TriangleVerts;
+    use crate::geometry::triangle::{TriangleHit, TriangleVerts};
 
     /// A soup of random small triangles.
     fn soup(n: usize, seed: u64) -> GeometryStore {
@@ -1229,6 +1462,275 @@ mod tests {
         assert!(sheet_hits > 1000, "{sheet_hits} rays hit a sheet");
     }
 
+    /// A hostile set of triangles for the packet test: random ones, ones sharing edges and
+    /// vertices with them, duplicates, degenerate ones (a point, collinear vertices), huge and
+    /// tiny ones, and ones with NaN or infinite coordinates.
+    fn hostile_triangles(rng: &mut crate::sampling::rng::Pcg32) -> Vec<TriangleVerts> {
+        let mut p = |s: f32| (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * s;
+        let mut tris = Vec::new();
+        for _ in 0..40 {
+            let (a, b, c) = (p(4.0), p(4.0), p(4.0));
+            tris.push(TriangleVerts {
+                p0: a,
+                p1: b,
+                p2: c,
+            });
+            // Sharing the edge a–b (opposite winding) and the vertex c.
+            tris.push(TriangleVerts {
+                p0: b,
+                p1: a,
+                p2: p(4.0),
+            });
+            tris.push(TriangleVerts {
+                p0: c,
+                p1: p(4.0),
+                p2: p(4.0),
+            });
+        }
+        let a = p(2.0);
+        tris.push(tris[0]);
+        tris.push(TriangleVerts {
+            p0: a,
+            p1: a,
+            p2: a,
+        });
+        tris.push(TriangleVerts {
+            p0: a,
+            p1: a + Vec3::X,
+            p2: a + Vec3::X * 2.0,
+        });
+        tris.push(TriangleVerts {
+            p0: p(1e6),
+            p1: p(1e6),
+            p2: p(1e6),
+        });
+        tris.push(TriangleVerts {
+            p0: a,
+            p1: a + p(1e-5),
+            p2: a + p(1e-5),
+        });
+        tris.push(TriangleVerts {
+            p0: Vec3::new(f32::NAN, 0.0, 0.0),
+            p1: Vec3::X,
+            p2: Vec3::Y,
+        });
+        tris.push(TriangleVerts {
+            p0: Vec3::ZERO,
+            p1: Vec3::new(f32::INFINITY, 0.0, 0.0),
+            p2: Vec3::Y,
+        });
+        tris.push(TriangleVerts {
+            p0: Vec3::ZERO,
+            p1: Vec3::X,
+            p2: Vec3::new(0.0, f32::NEG_INFINITY, 1.0),
+        });
+        tris
+    }
+
+    /// One ray against packets of hostile triangles: every lane reports exactly the scalar
+    /// Möller–Trumbore's answer (hit or not, and `t` and barycentrics bit for bit). Rays are
+    /// random, aimed at vertices, edge points and the centre, lying in a triangle's plane
+    /// (parallel), with NaN, infinite or zero direction components, NaN origins, and with `t_max`
+    /// at the hit's exact `t` (which must reject it) or one ulp above. Fails if a lane rounds
+    /// differently (an operation reordered or fused) or any acceptance condition differs.
+    #[test]
+    fn packet_test_matches_the_scalar_test() {
+        let mut rng = crate::sampling::rng::Pcg32::new(17, 23);
+        let tris = hostile_triangles(&mut rng);
+        let prims: Vec<PrimRef> = (0..tris.len() as u32).map(PrimRef).collect();
+        let packets: Vec<TriPacket> = tris
+            .chunks(PACKET)
+            .zip(prims.chunks(PACKET))
+            .map(|(ts, ps)| {
+                let mut packet = TriPacket::EMPTY;
+                for (i, (t, &p)) in ts.iter().zip(ps).enumerate() {
+                    packet.set_lane(i, &t.edges(), p);
+                }
+                packet
+            })
+            .collect();
+        let (mut hits, mut edge_cases) = (0, 0);
+        let mut check = |ray: &Ray, t_max: f32| {
+            for (k, packet) in packets.iter().enumerate() {
+                // The SSE form (x86-64) and the lane-wise form (elsewhere) alike.
+                for got in [
+                    packet.intersect(ray, t_max),
+                    packet.intersect_lanes(ray, t_max),
+                ] {
+                    for lane in 0..PACKET {
+                        let Some(tri) = tris.get(k * PACKET + lane) else {
+                            assert_eq!(got.mask >> lane & 1, 0, "empty lane {lane} hit");
+                            continue;
+                        };
+                        let want = tri.edges().intersect(ray, t_max);
+                        let lane_hit = (got.mask >> lane & 1 == 1).then(|| TriangleHit {
+                            t: got.t[lane],
+                            b1: got.b1[lane],
+                            b2: got.b2[lane],
+                        });
+                        let bits = |h: Option<TriangleHit>| {
+                            h.map(|h| (h.t.to_bits(), h.b1.to_bits(), h.b2.to_bits()))
+                        };
+                        assert_eq!(
+                            bits(lane_hit),
+                            bits(want),
+                            "triangle {} {tri:?}, ray {ray:?}, t_max {t_max}",
+                            k * PACKET + lane
+                        );
+                        hits += want.is_some() as usize;
+                    }
+                }
+            }
+        };
+        let specials = [
+            0.0,
+            -0.0,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            1e-30,
+            1e30,
+        ];
+        for i in 0..6000 {
+            let o = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 8.0;
+            let tri = tris[(rng.next_f32() * tris.len() as f32) as usize % tris.len()];
+            // A target on the triangle: a vertex, an edge point, its centre, or a random point.
+            let (u, v) = match i % 5 {
+                0 => [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)][i / 5 % 3],
+                1 => {
+                    let s = rng.next_f32();
+                    [(s, 0.0), (0.0, s), (s, 1.0 - s)][i / 5 % 3]
+                }
+                2 => (1.0 / 3.0, 1.0 / 3.0),
+                _ => (rng.next_f32(), rng.next_f32()),
+            };
+            let target = tri.p0 + (tri.p1 - tri.p0) * u + (tri.p2 - tri.p0) * v;
+            let mut d = target - o;
+            match i % 7 {
+                // In the triangle's plane: along an edge from a vertex.
+                0 => {
+                    d = tri.p1 - tri.p0;
+                    let ray = Ray::new(tri.p0 - d * 0.5, d);
+                    check(&ray, f32::INFINITY);
+                }
+                1 => d[i % 3] = specials[i / 7 % specials.len()],
+                2 => d = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 2.0,
+                _ => {}
+            }
+            let mut ray = Ray::new(o, d);
+            if i % 11 == 0 {
+                ray.o[i % 3] = specials[i / 11 % specials.len()];
+            }
+            check(&ray, f32::INFINITY);
+            check(&ray, 1.0);
+            // `t_max` at a hit's exact `t` (rejected: t < t_max is strict), and one ulp above.
+            if let Some(h) = tri.edges().intersect(&ray, f32::INFINITY) {
+                edge_cases += 1;
+                check(&ray, h.t);
+                check(&ray, f32::from_bits(h.t.to_bits() + 1));
+            }
+        }
+        assert!(
+            hits > 5000 && edge_cases > 1500,
+            "{hits} hits, {edge_cases} aimed hits"
+        );
+    }
+
+    /// A closed, finely tessellated mesh (a bumpy sphere: every edge shared by two triangles,
+    /// every vertex by six) with a few quads among its triangles: the packet leaves and the mixed
+    /// ones find exactly the brute-force hits (t, primitive, barycentrics) and blockers, in both
+    /// traversal copies, for rays aimed at vertices, edge midpoints and random directions. The
+    /// tree really has packet leaves of several triangles. Fails if a packet lane is dropped or
+    /// misranked, or a shadow ray misses a blocker in a packet.
+    #[test]
+    fn packet_leaves_agree_with_brute_force_on_a_mesh() {
+        use crate::geometry::primitive::AnalyticPrim;
+        use crate::geometry::quad::Quad;
+        let (rings, segs) = (60usize, 90usize);
+        let vertex = |i: usize, j: usize| {
+            let th = std::f32::consts::PI * i as f32 / rings as f32;
+            let ph = 2.0 * std::f32::consts::PI * j as f32 / segs as f32;
+            let r = 2.0 + 0.1 * (5.0 * ph).sin() * (4.0 * th).cos();
+            Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()) * r
+        };
+        let mut g = GeometryStore::default();
+        let mut mesh = MeshAttributes::default();
+        for i in 0..rings {
+            for j in 0..segs {
+                let (a, b) = (vertex(i, j), vertex(i, (j + 1) % segs));
+                let (c, d) = (vertex(i + 1, j), vertex(i + 1, (j + 1) % segs));
+                for t in [[a, c, b], [b, c, d]] {
+                    g.tri_mesh.push((0, g.triangles.len() as u32));
+                    g.triangles.push(TriangleVerts {
+                        p0: t[0],
+                        p1: t[1],
+                        p2: t[2],
+                    });
+                    g.tri_light.push(crate::geometry::primitive::NO_LIGHT);
+                    mesh.indices.push([0, 0, 0]);
+                }
+            }
+        }
+        g.meshes.push(mesh);
+        for k in 0..6 {
+            let c = vertex(10 * k, 15 * k) * 1.02;
+            g.quads.push(AnalyticPrim {
+                shape: Quad::new(c, Vec3::X * 0.3, Vec3::Y * 0.3),
+                material: 0,
+                light: crate::geometry::primitive::NO_LIGHT,
+            });
+        }
+        let bvh = Bvh::build(&g);
+        let s = bvh.stats();
+        assert!(s.max_leaf_size > 2, "no leaf of several triangles: {s:?}");
+        assert!(
+            bvh.packets
+                .iter()
+                .any(|p| p.prim.iter().all(|&q| q != NO_PRIM))
+        );
+        let brute = crate::accel::Accel::build(crate::accel::AccelKind::None, &g);
+        let has_avx2 = cfg!(target_arch = "x86_64") && crate::math::detect_avx2();
+        let key = |h: Option<Intersection>| {
+            h.map(|h| (h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()))
+        };
+        let mut rng = crate::sampling::rng::Pcg32::new(3, 14);
+        let (mut hits, mut blocked) = (0, 0);
+        for i in 0..6000 {
+            let o = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 10.0;
+            let (ri, rj) = (
+                (rng.next_f32() * rings as f32) as usize % rings,
+                (rng.next_f32() * segs as f32) as usize,
+            );
+            let d = match i % 3 {
+                0 => vertex(ri, rj) - o,
+                1 => (vertex(ri, rj) + vertex(ri + 1, rj + 1)) * 0.5 - o,
+                _ => Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5,
+            };
+            let mut ray = Ray::new(o, d);
+            if i % 4 == 0 {
+                ray.t_max = 1.2 * rng.next_f32();
+            }
+            let want = key(brute.intersect(&g, &ray));
+            let any = brute.occluded(&g, &ray);
+            assert_eq!(key(bvh.intersect_portable(&g, &ray)), want, "ray {i}");
+            assert_eq!(bvh.occluded_portable(&g, &ray), any, "ray {i}");
+            #[cfg(target_arch = "x86_64")]
+            if has_avx2 {
+                // SAFETY: AVX2 was detected above.
+                unsafe {
+                    assert_eq!(key(bvh.intersect_avx2(&g, &ray)), want, "ray {i}, AVX2");
+                    assert_eq!(bvh.occluded_avx2(&g, &ray), any, "ray {i}, AVX2");
+                }
+            }
+            hits += want.is_some() as usize;
+            blocked += any as usize;
+        }
+        assert!(
+            hits > 3000 && blocked > 2000,
+            "{hits} hits, {blocked} blocked"
+        );
+    }
+
     #[test]
     fn bvh_structure_is_sound() {
         let g = soup(20_000, 2);
@@ -1266,11 +1768,10 @@ mod tests {
         let mut seen = vec![false; 20_200];
         for n in &bvh.nodes {
             for lane in 0..WIDTH {
-                let (f, c) = (n.first[lane] as usize, n.count[lane] as usize);
-                if c == 0 {
+                if n.count[lane] == 0 {
                     continue;
                 }
-                let leaf = &bvh.prims[f..f + c];
+                let leaf = &bvh.leaf_entries(n.first[lane], n.count[lane]);
                 for (i, p) in leaf.iter().enumerate() {
                     assert!(!leaf[..i].contains(p), "{p:?} twice in one leaf");
                     seen[p.index()] = true;
