@@ -133,6 +133,10 @@ fn assert_uniform(img: &Image, expected: f32, tol: f32, what: &str) {
             .sum::<f64>()
             / (n - 1.0);
         let bound = 4.0 * (var / n).sqrt();
+        println!(
+            "{what}: channel {c} mean {mean:.4}, 4 standard errors {bound:.4} ({:.2} % of {expected})",
+            100.0 * bound / expected as f64
+        );
         assert!(
             bound <= (tol * expected) as f64,
             "{what}: too noisy to test (4 standard errors = {bound:.4}, allowed {})",
@@ -162,8 +166,12 @@ fn furnace_box_returns_le_over_one_minus_albedo() {
     // so that estimator's variance is infinite and its mean over a finite image swings by ±5 %
     // from seed to seed (measured 2.45–2.55 for seeds 3–6). In the sphere the geometry term between
     // two points of the sphere is the constant 1/(4R²), so there it is tested tightly.
+    // 96 spp (was 48): with roulette from bounce 0 at albedo 0.8 deep bounces carry the image,
+    // and at 48 spp the precision guard (4 standard errors ≤ 1.5 %) read 1.22 % with the
+    // stratified sampler and 1.56 % with the padded one, 0.82 % and 1.09 % at 96 spp
+    // (BENCHMARKS.md, "Session 15: defaults"): the mean is now checked to within ±0.8–1.1 %.
     for (name, p) in configs().into_iter().filter(|(n, _)| *n != "nee, no mis") {
-        let img = render_scene(&scene, &with_path(base(24, 48), |s| *s = p));
+        let img = render_scene(&scene, &with_path(base(24, 96), |s| *s = p));
         assert_uniform(&img, 2.5, 0.015, name);
     }
 }

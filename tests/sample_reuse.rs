@@ -133,8 +133,8 @@ fn estimate(world: &World, ls: Option<trayecto::light::LightSample>) -> f64 {
 /// with the separate choice (1D chooses, 2D places) and with reuse (2D chooses and places, 1D
 /// spare). Returns the summed relative variances of the pixel means and checks that the
 /// means agree.
-fn compare(world: &World, kind: SamplerKind, spp: u32) -> (f64, f64) {
-    let setup = SamplerSetup::new(kind, 5, spp);
+fn compare(world: &World, kind: SamplerKind, seed: u64, spp: u32) -> (f64, f64) {
+    let setup = SamplerSetup::new(kind, seed, spp);
     let mut rng = Pcg32::new(21, 4);
     let (mut var_sep, mut var_reuse) = (0.0, 0.0);
     for r in 0..12 {
@@ -182,33 +182,54 @@ fn compare(world: &World, kind: SamplerKind, spp: u32) -> (f64, f64) {
     (var_sep, var_reuse)
 }
 
+/// The sampler seeds the variance ratios are averaged over, fixed before the eight-way tree's
+/// results with them were seen (BENCHMARKS.md, "Session 15: defaults"). One seed's ratio is
+/// noisy: with ZSobol on this 43-light scene it moved between 0.49 and 0.86 over seeds 1, 2, 3
+/// and 5 (session 14); the mean of eight is the estimator's, not one seed's, so the 0.8 bound is
+/// a stricter test than it was on one seed.
+const SEEDS: [u64; 8] = [6, 7, 8, 9, 10, 11, 12, 13];
+
+/// The mean over [`SEEDS`] of reuse's summed relative variance over the separate choice's.
+fn mean_ratio(world: &World, kind: SamplerKind) -> f64 {
+    let mut sum = 0.0;
+    for seed in SEEDS {
+        let (sep, reuse) = compare(world, kind, seed, 16);
+        println!("  {kind:?} seed {seed}: separate {sep:.4}, reuse {reuse:.4}");
+        sum += reuse / sep;
+    }
+    sum / SEEDS.len() as f64
+}
+
 #[test]
 fn reuse_keeps_the_mean_and_lowers_the_variance() {
-    for light_sampler in [LightSamplerKind::Power, LightSamplerKind::Bvh] {
+    for light_sampler in [
+        LightSamplerKind::Power,
+        LightSamplerKind::Bvh,
+        LightSamplerKind::Bvh8,
+    ] {
         let world = build(light_sampler);
+        assert_eq!(world.lights.sampler_kind(), light_sampler);
         for kind in [
             SamplerKind::Stratified,
             SamplerKind::Sobol,
             SamplerKind::ZSobol,
         ] {
-            let (sep, reuse) = compare(&world, kind, 16);
-            println!(
-                "{light_sampler:?} {kind:?}: relative variance separate {sep:.4}, reuse {reuse:.4}"
-            );
+            let ratio = mean_ratio(&world, kind);
+            println!("{light_sampler:?} {kind:?}: mean variance ratio reuse / separate {ratio:.3}");
             if std::env::var("NOASSERT").is_ok() {
                 continue;
             }
             assert!(
-                reuse < 0.8 * sep,
-                "{light_sampler:?} {kind:?}: reuse {reuse:.4} is not below 0.8 x separate {sep:.4}"
+                ratio < 0.8,
+                "{light_sampler:?} {kind:?}: reuse's variance is {ratio:.3} x the separate choice's, not below 0.8"
             );
         }
         // Independent numbers: no stratification to keep, the same variance within noise.
-        let (sep, reuse) = compare(&world, SamplerKind::Independent, 16);
-        println!("{light_sampler:?} Independent: separate {sep:.4}, reuse {reuse:.4}");
+        let ratio = mean_ratio(&world, SamplerKind::Independent);
+        println!("{light_sampler:?} Independent: mean variance ratio {ratio:.3}");
         assert!(
-            (reuse / sep - 1.0).abs() < 0.15,
-            "{light_sampler:?} independent: {reuse} vs {sep}"
+            (ratio - 1.0).abs() < 0.15,
+            "{light_sampler:?} independent: variance ratio {ratio}"
         );
     }
 }

@@ -23,7 +23,7 @@ pub use envmap::{EnvMap, EnvMapping, EnvPdf};
 /// How next-event estimation chooses a light (`--light-sampler`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum LightSamplerKind {
-    /// [`LightSamplerKind::Bvh`] when the scene has more than [`BVH_AUTO_THRESHOLD`] bounded
+    /// [`LightSamplerKind::Bvh8`] when the scene has more than [`BVH_AUTO_THRESHOLD`] bounded
     /// lights, else [`LightSamplerKind::Power`].
     #[default]
     Auto,
@@ -34,7 +34,8 @@ pub enum LightSamplerKind {
     /// tree node ([`TreeWidth::Four`]).
     Bvh,
     /// [`LightSamplerKind::Bvh`] with eight children per tree node ([`TreeWidth::Eight`]):
-    /// fewer, wider descent steps. Not the default: BENCHMARKS.md "Session 14: light choice".
+    /// fewer, wider descent steps and tighter boxes per choice; `auto`'s tree (BENCHMARKS.md,
+    /// "Session 14: light choice" and "Session 15: defaults").
     Bvh8,
 }
 
@@ -544,8 +545,8 @@ impl LightSet {
             LightSamplerKind::Auto => bounded > BVH_AUTO_THRESHOLD,
         };
         let width = match kind {
-            LightSamplerKind::Bvh8 => TreeWidth::Eight,
-            _ => TreeWidth::Four,
+            LightSamplerKind::Bvh8 | LightSamplerKind::Auto => TreeWidth::Eight,
+            LightSamplerKind::Bvh | LightSamplerKind::Power => TreeWidth::Four,
         };
         let tree = use_tree.then(|| {
             let lb: Vec<(u32, LightBounds)> = lights

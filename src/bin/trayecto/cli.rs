@@ -195,10 +195,10 @@ pub struct RenderArgs {
     /// Default: the file's default materials.
     #[arg(long, value_name = "NAME")]
     pub variant: Option<String>,
-    /// How next-event estimation chooses a light: auto (the light BVH above 16 emitters, points
-    /// and spots, else power), power (in proportion to power), bvh (the light BVH: by
-    /// importance from the shading point) or bvh8 (the same with eight children per tree node
-    /// instead of four).
+    /// How next-event estimation chooses a light: auto (bvh8 above 16 emitters, points and
+    /// spots, else power), power (in proportion to power), bvh (the light BVH: by importance
+    /// from the shading point, four children per tree node) or bvh8 (the same with eight
+    /// children per tree node).
     #[arg(long, value_name = "SAMPLER", default_value = "auto")]
     pub light_sampler: LightSamplerKind,
     /// Texture filtering: none (each texture's own bilinear or nearest lookup at the hit) or
