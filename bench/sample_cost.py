@@ -103,6 +103,20 @@ def callgrind(args, tmp):
                 print(f"  {ir / samples:7.0f} {100 * ir / max(total, 1):5.1f} %  {name[:110]}")
 
 
+def table(args, per, what, ratio_what, fmt):
+    """Prints the interleaved rounds `per[(scene, binary)]` as a table: each binary's median
+    (min-max) in `fmt`, and its ratio to the first binary's, taken per round."""
+    print(f"\n| scene | binary | {what}, median (min-max) | {ratio_what}, per round: median (min-max) |")
+    print("|---|---|---|---|")
+    for s in args.scenes:
+        base = per[(s, args.bins[0])]
+        for b in args.bins:
+            t = per[(s, b)]
+            ratio = [x / y for x, y in zip(t, base)]
+            print(f"| {s} | {b} | {statistics.median(t):{fmt}} ({min(t):{fmt}}-{max(t):{fmt}}) | "
+                  f"{statistics.median(ratio):.3f} ({min(ratio):.3f}-{max(ratio):.3f}) |")
+
+
 def wall(args, tmp):
     times = {(s, b): [] for s in args.scenes for b in args.bins}
     for r in range(args.rounds):
@@ -110,15 +124,7 @@ def wall(args, tmp):
             for b in (args.bins if r % 2 == 0 else args.bins[::-1]):
                 times[(s, b)].append(render(b, scene_path(s), os.path.join(tmp, "w.exr"), 64, 2))
         print(f"round {r + 1}: load {os.getloadavg()[0]:.1f}", flush=True)
-    print("\n| scene | binary | render ms, median (min-max) | time / first binary's, per round: median (min-max) |")
-    print("|---|---|---|---|")
-    for s in args.scenes:
-        base = times[(s, args.bins[0])]
-        for b in args.bins:
-            t = times[(s, b)]
-            ratio = [x / y for x, y in zip(t, base)]
-            print(f"| {s} | {b} | {statistics.median(t):.1f} ({min(t):.1f}-{max(t):.1f}) | "
-                  f"{statistics.median(ratio):.3f} ({min(ratio):.3f}-{max(ratio):.3f}) |")
+    table(args, times, "render ms", "time / first binary's", ".1f")
 
 
 def cpu(args, tmp):
@@ -131,15 +137,7 @@ def cpu(args, tmp):
                 t = render(b, scene_path(s), out, hi, 1, cpu=True) - render(b, scene_path(s), out, lo, 1, cpu=True)
                 per[(s, b)].append(t / (64 * 64 * (hi - lo)) * 1e9)
         print(f"round {r + 1}: load {os.getloadavg()[0]:.1f}", flush=True)
-    print("\n| scene | binary | CPU ns / sample, median (min-max) | / first binary's, per round: median (min-max) |")
-    print("|---|---|---|---|")
-    for s in args.scenes:
-        base = per[(s, args.bins[0])]
-        for b in args.bins:
-            t = per[(s, b)]
-            ratio = [x / y for x, y in zip(t, base)]
-            print(f"| {s} | {b} | {statistics.median(t):.0f} ({min(t):.0f}-{max(t):.0f}) | "
-                  f"{statistics.median(ratio):.3f} ({min(ratio):.3f}-{max(ratio):.3f}) |")
+    table(args, per, "CPU ns / sample", "/ first binary's", ".0f")
 
 
 def main():

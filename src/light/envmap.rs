@@ -13,7 +13,7 @@
 //!   proportional to the luminance of the function being integrated.
 
 use super::equal_area;
-use crate::math::{Mat3, PI, Vec2, Vec3, luminance};
+use crate::math::{Mat3, PI, Vec2, Vec3, floor_i64, luminance};
 use crate::sampling::Distribution1D;
 use std::path::Path;
 
@@ -464,22 +464,6 @@ impl EnvMap {
             return 0.0;
         }
         p / (2.0 * PI * PI * sin_theta)
-    }
-}
-
-/// ⌊x⌋ as an integer and as a float, without a call: this build's target has no SSE4.1
-/// `roundss`, so `f32::floor` is a library call. Exact for |x| < 2²³ (every f32 there converts
-/// to i64 and back exactly, and truncation is ⌊x⌋ unless it rounded a negative non-integer up);
-/// larger or non-finite x go through `f32::floor` (NaN gives 0, as `NaN as i64` does).
-#[inline]
-fn floor_i64(x: f32) -> (i64, f32) {
-    if x.abs() < 8_388_608.0 {
-        let i = x as i64;
-        let i = if (i as f32) > x { i - 1 } else { i };
-        (i, i as f32)
-    } else {
-        let f = x.floor();
-        (f as i64, f)
     }
 }
 

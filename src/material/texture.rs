@@ -10,7 +10,7 @@
 
 use std::sync::LazyLock;
 
-use crate::math::{Vec2, Vec4};
+use crate::math::{Vec2, Vec4, floor_i64};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum WrapMode {
@@ -347,31 +347,6 @@ fn fetch4(i: [usize; 4], f: impl Fn(usize) -> Vec4) -> [Vec4; 4] {
     [f(i[0]), f(i[1]), f(i[2]), f(i[3])]
 }
 
-/// ⌊x⌋ as an integer and as a float, bit for bit `(x.floor() as i64, x.floor())`. The target's
-/// baseline x86-64 has no rounding instruction (SSE4.1), so `f32::floor` is a call into libm;
-/// below 2²³ in magnitude truncation and one compare give the same value inline (the truncated
-/// integer is exact there). Every float of magnitude ≥ 2²³ is an integer, its own floor, and so
-/// are ±∞ and NaN (`floor` returns them unchanged), so no input needs the call: without it a
-/// bilinear lookup is a leaf function (the call's register saves and spills were ~10 % of its
-/// instructions). −0 keeps its sign, as `floor(−0) = −0`.
-#[inline]
-pub(crate) fn floor_i64(x: f32) -> (i64, f32) {
-    if !(x.abs() < 8_388_608.0) {
-        return (x as i64, x);
-    }
-    let t = x as i32;
-    let (i, f) = if (t as f32) > x {
-        (t - 1, (t - 1) as f32)
-    } else {
-        (t, t as f32)
-    };
-    if f == 0.0 && x.is_sign_negative() {
-        // x is −0 (a negative non-zero x above −1 floors to −1).
-        return (0, x);
-    }
-    (i as i64, f)
-}
-
 /// sRGB electro-optical transfer function (IEC 61966-2-1).
 #[inline]
 pub fn srgb_to_linear(c: f32) -> f32 {
@@ -658,59 +633,6 @@ mod tests {
             mipmap: true,
             mips: Vec::new(),
             procedural: None,
-        }
-    }
-
-    /// `floor_i64` is bit for bit `floor` (value, sign of zero, integer) on a sweep of ordinary
-    /// values and on the edges: ±0, halves, integers and their neighbours, 2²³ ± 1 ulp, huge,
-    /// infinite, NaN, subnormal. Fails if the truncation path drops the −1 step for negative
-    /// non-integers or turns −0 into +0.
-    #[test]
-    fn fast_floor_is_floor() {
-        let mut xs: Vec<f32> = vec![
-            0.0,
-            -0.0,
-            0.5,
-            -0.5,
-            1.0,
-            -1.0,
-            -1.0 + f32::EPSILON,
-            1.0 - f32::EPSILON / 2.0,
-            -(1.0 - f32::EPSILON / 2.0),
-            8_388_607.5,
-            -8_388_607.5,
-            8_388_608.0,
-            -8_388_608.0,
-            f32::from_bits(8_388_608f32.to_bits() - 1),
-            -f32::from_bits(8_388_608f32.to_bits() - 1),
-            1e20,
-            -1e20,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NAN,
-            f32::MIN_POSITIVE / 4.0,
-            -f32::MIN_POSITIVE / 4.0,
-        ];
-        let mut h = 0x9e37_79b9u32;
-        for _ in 0..100_000 {
-            h ^= h << 13;
-            h ^= h >> 17;
-            h ^= h << 5;
-            xs.push((h as f32 / u32::MAX as f32 - 0.5) * 8192.0);
-        }
-        for k in -300..300 {
-            let x = k as f32;
-            xs.extend([
-                x,
-                f32::from_bits(x.to_bits() + 1),
-                f32::from_bits(x.to_bits().max(1) - 1),
-            ]);
-        }
-        for x in xs {
-            let (i, f) = floor_i64(x);
-            let r = x.floor();
-            assert_eq!(f.to_bits(), r.to_bits(), "floor({x:e})");
-            assert_eq!(i, r as i64, "floor({x:e}) as i64");
         }
     }
 
