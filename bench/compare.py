@@ -51,6 +51,14 @@ run in --rounds interleaved rounds (default 3: every renderer's ladder, then aga
 spell of a shared machine falls on all renderers; the table gives median times over the rounds and
 the lowest and highest per-round ratio. References are rendered once.
 
+Error seeds (--error-seeds, default 8 in quick mode, 6 in full): a ladder point's error is the mean
+relMSE of that many independent renders (different seeds), the timed rounds' renders and untimed
+ones rendered after them with the same sampler. Error per sample does not depend on the machine's
+load, so these renders are not timed; they are there because per-pixel errors can be heavy-tailed
+(the envlit scene's floor caustics: ten pixels carried half of a 64-spp image's relMSE, and Mitsuba's
+relMSE at one ladder point moved 2.5x between two seeds), and a mean of two renders then decides a
+ratio by luck. The table gives the standard error of each top-of-ladder mean.
+
 Error: relMSE = mean over pixels and channels of (x - ref)^2 / (ref^2 + 1e-2), where ref is that
 renderer's OWN high-spp reference (so it measures noise, not model differences). The references'
 mean RGB are compared with Trayecto's as a sanity check that the scenes are equivalent.
@@ -752,10 +760,11 @@ def worker_mitsuba(args):
         spp, seed, path = job["spp"], job["seed"], job["out"]
         chunk = min(spp, max(1, (1 << 22) // (args.res * args.res))) if variant == "llvm_ad_rgb" else spp
         acc, done, total_t = None, 0, 0.0
-        repeats = 1 if job.get("reference") else args.repeat
+        # One render for a reference or an untimed error render (see --error-seeds).
+        repeats = 1 if job.get("reference") or job.get("untimed") else args.repeat
         while done < spp:
             n = min(chunk, spp - done)
-            if variant == "llvm_ad_rgb" and not job.get("reference") and n not in warmed:
+            if variant == "llvm_ad_rgb" and not (job.get("reference") or job.get("untimed")) and n not in warmed:
                 # Warm-up: compile the kernels once per sample count (the seed is not baked into
                 # them, so later chunks and repetitions of the same count reuse them; until session
                 # 11 every chunk was rendered twice, which tripled a 256²/256-spp point's cost).
@@ -846,7 +855,7 @@ def worker_cycles(args):
     out = []
     for job in json.loads(args.jobs):
         el, px = render(job["spp"], job["seed"])
-        for _ in range(0 if job.get("reference") else args.repeat - 1):
+        for _ in range(0 if job.get("reference") or job.get("untimed") else args.repeat - 1):
             el = min(el, render(job["spp"], job["seed"])[0])
         np.save(job["out"], px)
         out.append({"spp": job["spp"], "time": el, "out": job["out"]})
@@ -924,7 +933,7 @@ def worker_trayecto(args):
     for job in json.loads(args.jobs):
         exr = job["out"][:-4] + ".exr"
         t = None
-        for rep in range(1 if job.get("reference") else args.repeat):
+        for rep in range(1 if job.get("reference") or job.get("untimed") else args.repeat):
             # Repetitions write elsewhere, so the scored image is the first one.
             el, rays = run_trayecto(args.trayecto, scene, exr if rep == 0 else exr + ".rep.exr", size,
                                     job["spp"], job["seed"], args.threads, extra)
@@ -1098,7 +1107,7 @@ def worker_pbrt(args):
             raise RuntimeError(f"{sampler} rounds {spp} spp up to a power of two")
         exr = job["out"][:-4] + ".exr"
         t = None
-        for rep in range(1 if job.get("reference") else args.repeat):
+        for rep in range(1 if job.get("reference") or job.get("untimed") else args.repeat):
             el = run_pbrt(scene_file, exr if rep == 0 else exr + ".rep.exr", spp, job["seed"], args.threads)
             t = el if t is None else min(t, el)
         np.save(job["out"], read_exr_rgb(exr))
@@ -1404,6 +1413,9 @@ def main():
     ap.add_argument("--trayecto-bin", default=None, help="use this trayecto binary instead of cargo build")
     ap.add_argument("--no-pgo", action="store_true",
                     help="time the plain `cargo build --release` binary instead of the profile-guided build")
+    ap.add_argument("--error-seeds", type=int, default=None,
+                    help="independent renders whose mean relMSE is a ladder point's error: the timed rounds' "
+                         "plus untimed ones (default 8; full mode 6; never fewer than --rounds)")
     ap.add_argument("--references-only", action="store_true",
                     help="render (and cache in bench/out/) the missing references, time nothing, write no table")
     ap.add_argument("--results", default=os.path.join(HERE, "results.md"))
@@ -1425,6 +1437,7 @@ def main():
     args.res = args.res or (64 if args.quick else 256)
     args.rounds = args.rounds or (2 if args.quick else 3)
     args.repeat = args.repeat or (2 if args.quick else 3)
+    args.error_seeds = max(args.rounds, args.error_seeds or (8 if args.quick else 6))
     ladder = [int(s) for s in (args.ladder or ("4,16,64" if args.quick else "4,16,64,256")).split(",")]
     ref_spp = args.ref_spp or (512 if args.quick else 4096)
     args.mitsuba_samplers = args.mitsuba_samplers.split(",")
@@ -1639,9 +1652,37 @@ def main():
                 entry["round_ladders"].append([p["relmse"] for p in got["ladder"]])
                 for k, p in enumerate(entry["ladder"]):
                     p["time"] = float(np.median([times[k] for times in entry["round_times"]]))
-                    # Each round renders new seeds: the error is the rounds' mean too.
-                    p["relmse"] = float(np.mean([errs[k] for errs in entry["round_ladders"]]))
+                pool_errors(entry)
                 loads.append(os.getloadavg()[0])
+        # Untimed renders for the error (see --error-seeds): the seeds go on from the rounds'
+        # (i + 1 + 1000 * round), with the sampler the first round chose, all in one worker.
+        extra = 0 if args.references_only else args.error_seeds - args.rounds
+        for r in (list(live) if extra > 0 else []):
+            entry = results.get((scene, r))
+            if not isinstance(entry, dict):
+                continue
+            kind, _, fixed = r.partition(":")
+            smp = entry["sampler"] if kind in sweeping else (fixed or None)
+            tag = r.replace(":", "-") + (f"-{smp}" if smp and kind in sweeping else "")
+            jobs = [{"spp": sp, "seed": i + 1 + 1000 * (args.rounds + j), "untimed": True,
+                     "out": os.path.join(OUT, f"{scene}_{tag}_err{j}_{sp}.npy")}
+                    for j in range(extra) for i, sp in enumerate(ladder)]
+            print(f"[{scene}] {r}{' ' + smp if smp else ''}: {extra} untimed ladders for the error", flush=True)
+            res, err = run_worker(kind, scene, args, jobs, sampler=smp, timeout=ladder_limit * extra)
+            if res is None:
+                entry["error_note"] = f"untimed error renders failed ({err}); errors from the timed rounds only"
+                print(f"[{scene}] {r}: {entry['error_note']}", flush=True)
+                continue
+            ref_path = os.path.join(OUT, f"{scene}_{kind}_{args.res}px_{ref_spp}spp_ref.npy")
+            ref = np.load(ref_path).astype(np.float64)
+            ref_noise = results[(scene, "_ref_noise_" + kind)]
+            errs = [score_error(np.load(run["out"]), ref, ref_noise) for run in res["runs"]]
+            n = len(ladder)
+            entry["error_ladders"] = [errs[j * n:(j + 1) * n] for j in range(extra)]
+            pool_errors(entry)
+            print(f"[{scene}] {r}: relMSE over {len(entry['round_ladders']) + extra} seeds: " + ", ".join(
+                f"{p['spp']} spp {p['relmse']:.3g} ± {se:.2g}" for p, se in zip(entry["ladder"], entry["relmse_se"])),
+                flush=True)
         if args.references_only:
             continue
         results[(scene, "_regions")] = scene_regions(results, scene, renderers, args.res, ref_spp)
@@ -1658,6 +1699,22 @@ def main():
     print(md)
     print(f"wrote {args.results}")
     return 0
+
+
+def pool_errors(entry):
+    """A ladder point's error: the mean relMSE over every render of it, the timed rounds'
+    (`round_ladders`) and the untimed ones (`error_ladders`, see --error-seeds); `relmse_se` is the
+    standard error of each mean (sample standard deviation / sqrt(n); 0 for a single render)."""
+    import math
+    rows = entry["round_ladders"] + entry.get("error_ladders", [])
+    entry["relmse_se"] = []
+    for k, p in enumerate(entry["ladder"]):
+        xs = [row[k] for row in rows]
+        m = sum(xs) / len(xs)
+        p["relmse"] = m
+        var = sum((x - m) ** 2 for x in xs) / (len(xs) - 1) if len(xs) > 1 else 0.0
+        entry["relmse_se"].append(math.sqrt(var / len(xs)))
+    entry["error_renders"] = len(rows)
 
 
 def tte_ratios(res, base, target):
@@ -1761,6 +1818,20 @@ def self_test():
     # The slope is clamped: a flat pair of points does not make the time infinite.
     t, _ = time_to_error([(16, 0.01, 1.0), (64, 0.0099, 4.0)], 0.001)
     assert t is not None and t < 1e6
+    # Pooled errors (--error-seeds): every render of a ladder point counts once, timed or not;
+    # the standard error is the sample deviation over sqrt(n), and a single render has none.
+    entry = {"ladder": [{"spp": 4, "relmse": 9.0}, {"spp": 16, "relmse": 9.0}],
+             "round_ladders": [[0.4, 0.1], [0.2, 0.3]], "error_ladders": [[0.6, 0.2], [0.4, 0.2]]}
+    pool_errors(entry)
+    close(entry["ladder"][0]["relmse"], 0.4)
+    close(entry["ladder"][1]["relmse"], 0.2)
+    close(entry["relmse_se"][0], (0.08 / 3) ** 0.5 / 2)
+    close(entry["relmse_se"][1], (0.02 / 3) ** 0.5 / 2)
+    assert entry["error_renders"] == 4
+    entry = {"ladder": [{"spp": 4, "relmse": 9.0}], "round_ladders": [[0.3]]}
+    pool_errors(entry)
+    close(entry["ladder"][0]["relmse"], 0.3)
+    close(entry["relmse_se"][0], 0.0)
     # The summary: a killed peer never makes the goal "yes"; rounds are paired by number.
     def res(times_by_round, errs, ids):
         ladder = [{"spp": n, "relmse": e, "time": sorted(r[i] for r in times_by_round)[len(times_by_round) // 2]}
@@ -1860,7 +1931,9 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
     w(f"- {args.res}×{args.res} pixels ({'pbrt scenes keep their aspect: ' + sizes if sizes else 'every scene'}), "
       f"ladder {ladder} spp, references {ref_spp} spp; {args.rounds} interleaved "
       f"rounds, each timing a ladder point as the best of {args.repeat} renders; times are the rounds' medians, "
-      f"ratios in brackets the lowest and highest round; run took {elapsed:.0f} s")
+      f"ratios in brackets the lowest and highest round; each ladder point's relMSE is the mean of "
+      f"{args.error_seeds} independent renders (the timed rounds' and untimed ones, --error-seeds); "
+      f"run took {elapsed:.0f} s")
     w(f"- Trayecto build: {args.trayecto_build}")
     w(f"- 1-minute load average over the run (sampled after every ladder): min {min(loads):.2f}, median "
       f"{sorted(loads)[len(loads) // 2]:.2f}, max {max(loads):.2f} on {os.cpu_count()} CPUs. Other jobs shared the "
@@ -1873,6 +1946,8 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
     opts += f" --res {args.res}" if args.res != (64 if args.quick else 256) else ""
     opts += f" --ladder {','.join(map(str, ladder))}" if ladder != ([4, 16, 64] if args.quick else [4, 16, 64, 256]) else ""
     opts += f" --ref-spp {ref_spp}" if ref_spp != (512 if args.quick else 4096) else ""
+    opts += (f" --error-seeds {args.error_seeds}"
+             if args.error_seeds != max(args.rounds, 8 if args.quick else 6) else "")
     opts += f" --time-limit {args.time_limit:g}" if args.time_limit != (300.0 if args.quick else 1800.0) else ""
     # Every other option that changes what is measured (until session 11 these were left out, so
     # the printed command did not reproduce e.g. a run with fewer Mitsuba samplers).
@@ -1950,6 +2025,14 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
             w(f"| {name} | " + " | ".join(times) + f" | {ratio} | " + " | ".join(errs)
               + f" | {tte_s} | {tte_r} | {mean_s} | {mean_r} |")
         w("")
+        se = [(r, results[(scene, r)]) for r in renderers if isinstance(results.get((scene, r)), dict)]
+        if se:
+            w(f"Top-of-ladder relMSE (@{ladder[-1]} spp) as mean ± standard error over its independent renders: "
+              + "; ".join(f"{r} {v['ladder'][-1]['relmse']:.3g} ± {v['relmse_se'][-1]:.2g} "
+                          f"({v.get('error_renders', 1)} renders"
+                          + (f"; {v['error_note']}" if v.get("error_note") else "") + ")"
+                          for r, v in se if v.get("relmse_se")) + ".")
+            w("")
         noise = [(k, results[(scene, "_ref_noise_" + k)]) for k in dict.fromkeys(r.split(":")[0] for r in renderers)
                  if (scene, "_ref_noise_" + k) in results]
         if noise:
