@@ -46,6 +46,8 @@ cases=(
   "toycar|$shared/gltf-ext/ToyCar/glTF/ToyCar.gltf|"
   # ToyCar by its 2 720 emissive triangles alone: every light choice walks the light BVH.
   "toycar-emitters|$shared/gltf-ext/ToyCar/glTF/ToyCar.gltf|--default-light off"
+  "toycar-bvh4|$shared/gltf-ext/ToyCar/glTF/ToyCar.gltf|--default-light off --light-sampler bvh"
+  "toycar-power|$shared/gltf-ext/ToyCar/glTF/ToyCar.gltf|--default-light off --light-sampler power"
   "cornell-zsobol|cornell|--sampler zsobol"
   "cornell-independent-aov|cornell|--sampler independent --aov albedo,normal"
 )

@@ -209,32 +209,125 @@ const NO_CHILD: u32 = u32::MAX;
 /// set) is the other 31 bits. Without it, the entry is the child's index in [`LightBvh::quads`].
 const LEAF_BIT: u32 = 1 << 31;
 
-/// The bounds of an interior node's (up to) four children side by side in SIMD lanes, with the
-/// parts of [`LightBounds::importance`] that depend only on the node precomputed (box centre,
-/// half diagonal, squared bounding-sphere radius, sin θo); an empty slot has zero power.
-/// [`ChildQuad::importance`] gives the four children's importance in one pass with the same
-/// IEEE operations in the same order as the scalar function (bit for bit, a unit test checks
-/// it). An interior node of the four-way tree *is* its `ChildQuad`: the children's indices sit
-/// beside their bounds, so a descent step reads one 256-byte, cache-line-aligned block (four
+/// The bounds of an interior node's children side by side in SIMD lanes (four for the four-way
+/// tree's [`ChildQuad`], eight for the eight-way tree's [`ChildOct`]), with the parts of
+/// [`LightBounds::importance`] that depend only on the node precomputed (box centre, half
+/// diagonal, squared bounding-sphere radius, sin θo); an empty slot has zero power.
+/// [`BoundsLanes::importance_lanes`] gives the children's importance in one pass with the same
+/// IEEE operations in the same order as the scalar function (bit for bit, unit tests check it
+/// for both widths and every lane type).
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+struct BoundsLanes<const N: usize> {
+    cx: [f32; N],
+    cy: [f32; N],
+    cz: [f32; N],
+    /// |diagonal| / 2: the floor of d².
+    half_diag: [f32; N],
+    /// |diagonal|² / 4: the squared radius of the box's bounding sphere.
+    r2: [f32; N],
+    wx: [f32; N],
+    wy: [f32; N],
+    wz: [f32; N],
+    cos_o: [f32; N],
+    sin_o: [f32; N],
+    cos_e: [f32; N],
+    phi: [f32; N],
+    /// 1 for a two-sided child, else 0.
+    two_sided: [f32; N],
+}
+
+impl<const N: usize> BoundsLanes<N> {
+    /// The lanes of `slots` (one to `N` bounds); empty lanes repeat the first bounds with zero
+    /// power, so their importance is 0.
+    fn new(slots: &[LightBounds]) -> BoundsLanes<N> {
+        let mut lb = [slots[0]; N];
+        for (k, l) in lb.iter_mut().enumerate() {
+            match slots.get(k) {
+                Some(s) => *l = *s,
+                None => l.phi = 0.0,
+            }
+        }
+        // The same expressions as `LightBounds::importance`, so the values are bit-identical.
+        let centre = |lb: &LightBounds| (lb.bounds.min + lb.bounds.max) * 0.5;
+        let diag = |lb: &LightBounds| (lb.bounds.max - lb.bounds.min).length();
+        let lanes = |f: &dyn Fn(&LightBounds) -> f32| lb.map(|l| f(&l));
+        BoundsLanes {
+            cx: lanes(&|lb| centre(lb).x),
+            cy: lanes(&|lb| centre(lb).y),
+            cz: lanes(&|lb| centre(lb).z),
+            half_diag: lanes(&|lb| diag(lb) * 0.5),
+            r2: lanes(&|lb| {
+                let d = diag(lb);
+                d * d * 0.25
+            }),
+            wx: lanes(&|lb| lb.w.x),
+            wy: lanes(&|lb| lb.w.y),
+            wz: lanes(&|lb| lb.w.z),
+            cos_o: lanes(&|lb| lb.cos_theta_o),
+            sin_o: lanes(&|lb| safe_sqrt(1.0 - lb.cos_theta_o * lb.cos_theta_o)),
+            cos_e: lanes(&|lb| lb.cos_theta_e),
+            phi: lanes(&|lb| lb.phi),
+            two_sided: lanes(&|lb| if lb.two_sided { 1.0 } else { 0.0 }),
+        }
+    }
+
+    /// [`LightBounds::importance`] of lanes `off..off + width of L`, step for step.
+    #[inline(always)]
+    fn importance_lanes<L: Lanes>(&self, off: usize, p: Vec3, n: Vec3) -> L {
+        let ld = |a: &[f32; N]| L::load(a, off);
+        let (zero, one) = (L::splat(0.0), L::splat(1.0));
+        let safe_sqrt = |x: L| x.max(zero).sqrt();
+        let cos_sub = |sin_a: L, cos_a: L, sin_b: L, cos_b: L| {
+            L::select(cos_a.gt(cos_b), one, cos_a * cos_b + sin_a * sin_b)
+        };
+        let sin_sub = |sin_a: L, cos_a: L, sin_b: L, cos_b: L| {
+            L::select(cos_a.gt(cos_b), zero, sin_a * cos_b - cos_a * sin_b)
+        };
+        // v = p − centre; dc2 = |v|² as `Vec3::distance_squared` sums it.
+        let vx = L::splat(p.x) - ld(&self.cx);
+        let vy = L::splat(p.y) - ld(&self.cy);
+        let vz = L::splat(p.z) - ld(&self.cz);
+        let dc2 = vx * vx + vy * vy + vz * vz;
+        let d2 = dc2.max(ld(&self.half_diag));
+        // `normalize_or_zero`: v · (1/|v|) if that reciprocal is finite and positive, else 0.
+        // Here v · 0 instead: it differs from 0 only in the sign of zeros (a finite v with dc2
+        // 0 or ∞), which no later step can tell apart (the unit tests cover p at a centre).
+        let rcp = one / dc2.sqrt();
+        let ok = rcp.lt(L::splat(f32::INFINITY)) & rcp.gt(zero);
+        let rcp = L::select(ok, rcp, zero);
+        let (wix, wiy, wiz) = (vx * rcp, vy * rcp, vz * rcp);
+        let cos_w = ld(&self.wx) * wix + ld(&self.wy) * wiy + ld(&self.wz) * wiz;
+        let cos_w = L::select(ld(&self.two_sided).gt(zero), cos_w.abs(), cos_w);
+        let sin_w = safe_sqrt(one - cos_w * cos_w);
+        let r2 = ld(&self.r2);
+        let inside = dc2.lt(r2) | !dc2.gt(zero);
+        let cos_b = L::select(inside, L::splat(-1.0), safe_sqrt(one - r2 / dc2));
+        let sin_b = safe_sqrt(one - cos_b * cos_b);
+        let (sin_o, cos_o) = (ld(&self.sin_o), ld(&self.cos_o));
+        let cos_x = cos_sub(sin_w, cos_w, sin_o, cos_o);
+        let sin_x = sin_sub(sin_w, cos_w, sin_o, cos_o);
+        let cos_p = cos_sub(sin_x, cos_x, sin_b, cos_b);
+        let mut importance = ld(&self.phi) * cos_p / d2;
+        if n != Vec3::ZERO {
+            let cos_i = (wix * L::splat(n.x) + wiy * L::splat(n.y) + wiz * L::splat(n.z)).abs();
+            let sin_i = safe_sqrt(one - cos_i * cos_i);
+            importance = importance * cos_sub(sin_i, cos_i, sin_b, cos_b);
+        }
+        // Zero where the cone test fails, and for zero or NaN importance.
+        let keep = !cos_p.le(ld(&self.cos_e)) & importance.gt(zero);
+        L::select(keep, importance.min(L::splat(MAX_IMPORTANCE)), zero)
+    }
+}
+
+/// An interior node of the four-way tree: its (up to) four children's bounds in SSE lanes
+/// ([`BoundsLanes`]) and their indices. The node *is* its `ChildQuad`: the children's indices
+/// sit beside their bounds, so a descent step reads one 256-byte, cache-line-aligned block (four
 /// lines) and no separate node array.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct ChildQuad {
-    cx: Vec4,
-    cy: Vec4,
-    cz: Vec4,
-    /// |diagonal| / 2: the floor of d².
-    half_diag: Vec4,
-    /// |diagonal|² / 4: the squared radius of the box's bounding sphere.
-    r2: Vec4,
-    wx: Vec4,
-    wy: Vec4,
-    wz: Vec4,
-    cos_o: Vec4,
-    sin_o: Vec4,
-    cos_e: Vec4,
-    phi: Vec4,
-    two_sided: BVec4A,
+    lanes: BoundsLanes<4>,
     /// Per lane: the child's index in [`LightBvh::quads`], or [`LEAF_BIT`] | its light, or
     /// [`NO_CHILD`].
     children: [u32; 4],
@@ -256,131 +349,18 @@ fn sqrt4(v: Vec4) -> Vec4 {
     }
 }
 
-/// [`safe_sqrt`] per lane. `max(x, 0)` is 0 for a NaN `x` on both paths (`f32::max` returns the
-/// other operand; SSE's `maxps` returns its second).
-#[inline(always)]
-fn safe_sqrt4(x: Vec4) -> Vec4 {
-    sqrt4(x.max(Vec4::ZERO))
-}
-
-/// `Vec4::select(mask, a, b)` for masks of whole lanes (comparison results). With `BLEND`
-/// (only in the AVX2-compiled copies) it is one SSE4.1 `blendvps`, which picks by each lane's
-/// sign bit — the same lanes for such masks — instead of SSE2's and/andnot/or.
-#[inline(always)]
-fn select4<const BLEND: bool>(mask: BVec4A, a: Vec4, b: Vec4) -> Vec4 {
-    #[cfg(target_arch = "x86_64")]
-    if BLEND {
-        // SAFETY: `BLEND` is true only in code reached from the `#[target_feature(enable =
-        // "avx2")]` copies, which run only on CPUs with AVX2 (which implies SSE4.1), and in a
-        // unit test that checks for SSE4.1 first.
-        return unsafe {
-            Vec4::from(std::arch::x86_64::_mm_blendv_ps(
-                b.into(),
-                a.into(),
-                mask.into(),
-            ))
-        };
-    }
-    Vec4::select(mask, a, b)
-}
-
-/// [`cos_sub_clamped`] per lane.
-#[inline(always)]
-fn cos_sub_clamped4<const BLEND: bool>(sin_a: Vec4, cos_a: Vec4, sin_b: Vec4, cos_b: Vec4) -> Vec4 {
-    select4::<BLEND>(cos_a.cmpgt(cos_b), Vec4::ONE, cos_a * cos_b + sin_a * sin_b)
-}
-
-/// [`sin_sub_clamped`] per lane.
-#[inline(always)]
-fn sin_sub_clamped4(sin_a: Vec4, cos_a: Vec4, sin_b: Vec4, cos_b: Vec4) -> Vec4 {
-    Vec4::select(
-        cos_a.cmpgt(cos_b),
-        Vec4::ZERO,
-        sin_a * cos_b - cos_a * sin_b,
-    )
-}
-
 impl ChildQuad {
-    /// The lanes of `slots` (one to four bounds); empty lanes repeat the first bounds with zero
-    /// power, so their importance is 0.
     fn new(slots: &[LightBounds]) -> ChildQuad {
-        let mut lb = [slots[0]; 4];
-        for (k, l) in lb.iter_mut().enumerate() {
-            match slots.get(k) {
-                Some(s) => *l = *s,
-                None => l.phi = 0.0,
-            }
-        }
-        // The same expressions as `LightBounds::importance`, so the values are bit-identical.
-        let centre = |lb: &LightBounds| (lb.bounds.min + lb.bounds.max) * 0.5;
-        let diag = |lb: &LightBounds| (lb.bounds.max - lb.bounds.min).length();
-        let lanes =
-            |f: &dyn Fn(&LightBounds) -> f32| Vec4::new(f(&lb[0]), f(&lb[1]), f(&lb[2]), f(&lb[3]));
         ChildQuad {
-            cx: lanes(&|lb| centre(lb).x),
-            cy: lanes(&|lb| centre(lb).y),
-            cz: lanes(&|lb| centre(lb).z),
-            half_diag: lanes(&|lb| diag(lb) * 0.5),
-            r2: lanes(&|lb| {
-                let d = diag(lb);
-                d * d * 0.25
-            }),
-            wx: lanes(&|lb| lb.w.x),
-            wy: lanes(&|lb| lb.w.y),
-            wz: lanes(&|lb| lb.w.z),
-            cos_o: lanes(&|lb| lb.cos_theta_o),
-            sin_o: lanes(&|lb| safe_sqrt(1.0 - lb.cos_theta_o * lb.cos_theta_o)),
-            cos_e: lanes(&|lb| lb.cos_theta_e),
-            phi: lanes(&|lb| lb.phi),
-            two_sided: BVec4A::new(
-                lb[0].two_sided,
-                lb[1].two_sided,
-                lb[2].two_sided,
-                lb[3].two_sided,
-            ),
+            lanes: BoundsLanes::new(slots),
             children: [NO_CHILD; 4],
         }
     }
 
-    /// [`LightBounds::importance`] of the four lanes, step for step (`BLEND`: see
-    /// [`select4`]).
+    /// The four children's [`LightBounds::importance`] in one SSE pass.
     #[inline(always)]
-    fn importance<const BLEND: bool>(&self, p: Vec3, n: Vec3) -> Vec4 {
-        // v = p − centre; dc2 = |v|² as `Vec3::distance_squared` sums it.
-        let vx = Vec4::splat(p.x) - self.cx;
-        let vy = Vec4::splat(p.y) - self.cy;
-        let vz = Vec4::splat(p.z) - self.cz;
-        let dc2 = vx * vx + vy * vy + vz * vz;
-        let d2 = dc2.max(self.half_diag);
-        // `normalize_or_zero`: v · (1/|v|) if that reciprocal is finite and positive, else 0.
-        // Here v · 0 instead: it differs from 0 only in the sign of zeros (a finite v with dc2
-        // 0 or ∞), which no later step can tell apart (the unit test covers p at a centre).
-        let rcp = Vec4::ONE / sqrt4(dc2);
-        let ok = rcp.cmplt(Vec4::INFINITY) & rcp.cmpgt(Vec4::ZERO);
-        let rcp = Vec4::select(ok, rcp, Vec4::ZERO);
-        let (wix, wiy, wiz) = (vx * rcp, vy * rcp, vz * rcp);
-        let cos_w = self.wx * wix + self.wy * wiy + self.wz * wiz;
-        let cos_w = Vec4::select(self.two_sided, cos_w.abs(), cos_w);
-        let sin_w = safe_sqrt4(Vec4::ONE - cos_w * cos_w);
-        let inside = dc2.cmplt(self.r2) | !dc2.cmpgt(Vec4::ZERO);
-        let cos_b = select4::<BLEND>(inside, Vec4::NEG_ONE, safe_sqrt4(Vec4::ONE - self.r2 / dc2));
-        let sin_b = safe_sqrt4(Vec4::ONE - cos_b * cos_b);
-        let cos_x = cos_sub_clamped4::<BLEND>(sin_w, cos_w, self.sin_o, self.cos_o);
-        let sin_x = sin_sub_clamped4(sin_w, cos_w, self.sin_o, self.cos_o);
-        let cos_p = cos_sub_clamped4::<BLEND>(sin_x, cos_x, sin_b, cos_b);
-        let mut importance = self.phi * cos_p / d2;
-        if n != Vec3::ZERO {
-            let cos_i = (wix * n.x + wiy * n.y + wiz * n.z).abs();
-            let sin_i = safe_sqrt4(Vec4::ONE - cos_i * cos_i);
-            importance *= cos_sub_clamped4::<BLEND>(sin_i, cos_i, sin_b, cos_b);
-        }
-        // Zero where the cone test fails, and for zero or NaN importance.
-        let keep = !cos_p.cmple(self.cos_e) & importance.cmpgt(Vec4::ZERO);
-        Vec4::select(
-            keep,
-            importance.min(Vec4::splat(MAX_IMPORTANCE)),
-            Vec4::ZERO,
-        )
+    fn importance(&self, p: Vec3, n: Vec3) -> Vec4 {
+        self.lanes.importance_lanes(0, p, n)
     }
 }
 
@@ -413,7 +393,7 @@ trait Lanes:
         + std::ops::Not<Output = Self::Mask>;
     fn splat(x: f32) -> Self;
     /// Lanes `off..off + width` of `a`.
-    fn load(a: &[f32; 8], off: usize) -> Self;
+    fn load(a: &[f32], off: usize) -> Self;
     fn sqrt(self) -> Self;
     /// `maxps(self, o)`: `o` where either is NaN (as glam's `Vec4::max` on SSE).
     fn max(self, o: Self) -> Self;
@@ -432,7 +412,7 @@ impl Lanes for Vec4 {
         Vec4::splat(x)
     }
     #[inline(always)]
-    fn load(a: &[f32; 8], off: usize) -> Self {
+    fn load(a: &[f32], off: usize) -> Self {
         Vec4::from_slice(&a[off..off + 4])
     }
     #[inline(always)]
@@ -536,8 +516,8 @@ mod avx8 {
             Avx8(unsafe { _mm256_set1_ps(x) })
         }
         #[inline(always)]
-        fn load(a: &[f32; 8], off: usize) -> Self {
-            debug_assert_eq!(off, 0);
+        fn load(a: &[f32], off: usize) -> Self {
+            let a = &a[off..off + 8];
             // SAFETY: see `Avx8`; `a` is eight readable f32 (unaligned load).
             Avx8(unsafe { _mm256_loadu_ps(a.as_ptr()) })
         }
@@ -595,106 +575,28 @@ mod avx8 {
     }
 }
 
-/// The eight-way tree's interior node: its (up to) eight children's bounds lane by lane with
-/// the node-only parts of [`LightBounds::importance`] precomputed, as [`ChildQuad`] for four
-/// (empty slots have zero power), and the children's indices. 448 bytes, seven cache lines.
+/// The eight-way tree's interior node: its (up to) eight children's bounds lane by lane
+/// ([`BoundsLanes`], as [`ChildQuad`] for four) and the children's indices. 448 bytes, seven
+/// cache lines.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct ChildOct {
-    cx: [f32; 8],
-    cy: [f32; 8],
-    cz: [f32; 8],
-    half_diag: [f32; 8],
-    r2: [f32; 8],
-    wx: [f32; 8],
-    wy: [f32; 8],
-    wz: [f32; 8],
-    cos_o: [f32; 8],
-    sin_o: [f32; 8],
-    cos_e: [f32; 8],
-    phi: [f32; 8],
-    /// 1 for a two-sided child, else 0.
-    two_sided: [f32; 8],
+    lanes: BoundsLanes<8>,
     children: [u32; 8],
 }
 
 impl ChildOct {
-    /// The lanes of `slots` (one to eight bounds); empty lanes repeat the first bounds with zero
-    /// power, so their importance is 0.
     fn new(slots: &[LightBounds]) -> ChildOct {
-        let mut lb = [slots[0]; 8];
-        for (k, l) in lb.iter_mut().enumerate() {
-            match slots.get(k) {
-                Some(s) => *l = *s,
-                None => l.phi = 0.0,
-            }
-        }
-        // The same expressions as `LightBounds::importance` and `ChildQuad::new`.
-        let centre = |lb: &LightBounds| (lb.bounds.min + lb.bounds.max) * 0.5;
-        let diag = |lb: &LightBounds| (lb.bounds.max - lb.bounds.min).length();
-        let lanes = |f: &dyn Fn(&LightBounds) -> f32| lb.map(|l| f(&l));
         ChildOct {
-            cx: lanes(&|lb| centre(lb).x),
-            cy: lanes(&|lb| centre(lb).y),
-            cz: lanes(&|lb| centre(lb).z),
-            half_diag: lanes(&|lb| diag(lb) * 0.5),
-            r2: lanes(&|lb| {
-                let d = diag(lb);
-                d * d * 0.25
-            }),
-            wx: lanes(&|lb| lb.w.x),
-            wy: lanes(&|lb| lb.w.y),
-            wz: lanes(&|lb| lb.w.z),
-            cos_o: lanes(&|lb| lb.cos_theta_o),
-            sin_o: lanes(&|lb| safe_sqrt(1.0 - lb.cos_theta_o * lb.cos_theta_o)),
-            cos_e: lanes(&|lb| lb.cos_theta_e),
-            phi: lanes(&|lb| lb.phi),
-            two_sided: lanes(&|lb| if lb.two_sided { 1.0 } else { 0.0 }),
+            lanes: BoundsLanes::new(slots),
             children: [NO_CHILD; 8],
         }
     }
 
-    /// [`LightBounds::importance`] of lanes `off..off + width of L`, step for step as
-    /// [`ChildQuad::importance`].
+    /// [`BoundsLanes::importance_lanes`] of this node.
     #[inline(always)]
     fn importance_lanes<L: Lanes>(&self, off: usize, p: Vec3, n: Vec3) -> L {
-        let ld = |a: &[f32; 8]| L::load(a, off);
-        let (zero, one) = (L::splat(0.0), L::splat(1.0));
-        let safe_sqrt = |x: L| x.max(zero).sqrt();
-        let cos_sub = |sin_a: L, cos_a: L, sin_b: L, cos_b: L| {
-            L::select(cos_a.gt(cos_b), one, cos_a * cos_b + sin_a * sin_b)
-        };
-        let sin_sub = |sin_a: L, cos_a: L, sin_b: L, cos_b: L| {
-            L::select(cos_a.gt(cos_b), zero, sin_a * cos_b - cos_a * sin_b)
-        };
-        let vx = L::splat(p.x) - ld(&self.cx);
-        let vy = L::splat(p.y) - ld(&self.cy);
-        let vz = L::splat(p.z) - ld(&self.cz);
-        let dc2 = vx * vx + vy * vy + vz * vz;
-        let d2 = dc2.max(ld(&self.half_diag));
-        let rcp = one / dc2.sqrt();
-        let ok = rcp.lt(L::splat(f32::INFINITY)) & rcp.gt(zero);
-        let rcp = L::select(ok, rcp, zero);
-        let (wix, wiy, wiz) = (vx * rcp, vy * rcp, vz * rcp);
-        let cos_w = ld(&self.wx) * wix + ld(&self.wy) * wiy + ld(&self.wz) * wiz;
-        let cos_w = L::select(ld(&self.two_sided).gt(zero), cos_w.abs(), cos_w);
-        let sin_w = safe_sqrt(one - cos_w * cos_w);
-        let r2 = ld(&self.r2);
-        let inside = dc2.lt(r2) | !dc2.gt(zero);
-        let cos_b = L::select(inside, L::splat(-1.0), safe_sqrt(one - r2 / dc2));
-        let sin_b = safe_sqrt(one - cos_b * cos_b);
-        let (sin_o, cos_o) = (ld(&self.sin_o), ld(&self.cos_o));
-        let cos_x = cos_sub(sin_w, cos_w, sin_o, cos_o);
-        let sin_x = sin_sub(sin_w, cos_w, sin_o, cos_o);
-        let cos_p = cos_sub(sin_x, cos_x, sin_b, cos_b);
-        let mut importance = ld(&self.phi) * cos_p / d2;
-        if n != Vec3::ZERO {
-            let cos_i = (wix * L::splat(n.x) + wiy * L::splat(n.y) + wiz * L::splat(n.z)).abs();
-            let sin_i = safe_sqrt(one - cos_i * cos_i);
-            importance = importance * cos_sub(sin_i, cos_i, sin_b, cos_b);
-        }
-        let keep = !cos_p.le(ld(&self.cos_e)) & importance.gt(zero);
-        L::select(keep, importance.min(L::splat(MAX_IMPORTANCE)), zero)
+        self.lanes.importance_lanes(off, p, n)
     }
 
     /// The eight children's importance: one AVX pass with `AVX2`, else two SSE halves (the
@@ -929,7 +831,7 @@ impl LightBvh {
     /// (importance over the sum), or `None` if no child can light the point.
     #[inline(always)]
     fn child_probabilities<const AVX2: bool>(quad: &ChildQuad, p: Vec3, n: Vec3) -> Option<Vec4> {
-        let c = quad.importance::<AVX2>(p, n);
+        let c = quad.importance(p, n);
         let total = (c.x + c.y) + (c.z + c.w);
         if !(total > 0.0) {
             return None;
@@ -972,7 +874,7 @@ impl LightBvh {
 
     /// [`Self::sample_remap`] compiled with AVX2 enabled: the same SSE operations in VEX form
     /// (three operands, so the register copies of the two-operand SSE form go away) and
-    /// `blendvps` for four lane selects ([`select4`]). No FMA (not enabled, and Rust never contracts
+    /// AVX's 256-bit form of the eight-way tree's step ([`Avx8`]). No FMA (not enabled, and Rust never contracts
     /// `a * b + c` by itself), so every float is the portable path's bit for bit (a unit test
     /// checks it). Measured reason for the second copy: BENCHMARKS.md, "Session 12: light
     /// choice".
@@ -1310,13 +1212,14 @@ mod tests {
             } else {
                 unit(&mut rng)
             };
-            let lanes = quad.importance::<false>(p, n).to_array();
-            // The blendvps form of the selects (the AVX2 copies') gives the same lanes.
+            let lanes = quad.importance(p, n).to_array();
+            // The copy compiled with AVX2 enabled (the descent's) gives the same lanes.
             #[cfg(target_arch = "x86_64")]
-            if std::is_x86_feature_detected!("sse4.1") {
-                let blend = quad.importance::<true>(p, n).to_array();
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 was detected just above.
+                let vex = unsafe { quad_importance_avx2(&quad, p, n) };
                 assert_eq!(
-                    blend.map(f32::to_bits),
+                    vex.map(f32::to_bits),
                     lanes.map(f32::to_bits),
                     "{lbs:?} p {p} n {n}"
                 );
@@ -1383,6 +1286,16 @@ mod tests {
             }
         }
         assert!(nonzero > 20_000, "{nonzero}");
+    }
+
+    /// `ChildQuad::importance` in a function compiled with AVX2, as the descent's.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn quad_importance_avx2(quad: &ChildQuad, p: Vec3, n: Vec3) -> [f32; 4] {
+        quad.importance(p, n).to_array()
     }
 
     /// `ChildOct::importance::<true>` in a function compiled with AVX2, as the descent's.
