@@ -28,3 +28,9 @@ pub mod scene;
 pub mod spectrum;
 pub mod split;
 pub mod world;
+
+/// The render identity of this build: a SHA-256 (hex) of the crate's sources, `Cargo.toml`,
+/// `Cargo.lock`, the enabled features and the target, computed by `build.rs`. It changes whenever
+/// the code that makes the image may have changed, which `CARGO_PKG_VERSION` does not: partial
+/// films record it and merge only parts with the same identity (docs/DESIGN.md, partial films).
+pub const RENDER_IDENTITY: &str = env!("TRAYECTO_RENDER_IDENTITY");

@@ -588,12 +588,6 @@ impl RenderJob {
         } else {
             String::new()
         };
-        let frame = FrameId {
-            scene: self.scene.clone(),
-            digest,
-            settings: settings.clone(),
-            world: self.world.clone(),
-        };
         let scene_name = scene.name.clone();
         let camera_count = scene.cameras.len();
 
@@ -604,6 +598,14 @@ impl RenderJob {
         let build_time = t.elapsed();
         observer.stage_finished(Stage::Build, build_time);
         world.warnings.iter().for_each(|w| warn(w.clone()));
+        // After the build: partial films record the light sampler `auto` resolved to.
+        let frame = FrameId {
+            scene: self.scene.clone(),
+            digest,
+            settings: settings.clone(),
+            world: self.world.clone(),
+            light_sampler: world.lights.sampler_kind(),
+        };
         info(format!(
             "scene '{}': {} triangles, {} primitives, {} materials, {} lights ({} area), {} cameras",
             scene_name,

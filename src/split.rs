@@ -21,6 +21,8 @@ pub struct FrameId {
     pub digest: String,
     pub settings: RenderSettings,
     pub world: WorldOptions,
+    /// The light sampler the built world uses (never `auto`: [`crate::light::LightSet::sampler_kind`]).
+    pub light_sampler: crate::light::LightSamplerKind,
 }
 
 impl FrameId {
@@ -30,6 +32,7 @@ impl FrameId {
             &self.digest,
             &self.settings,
             &self.world,
+            self.light_sampler,
             samples,
             discarded,
         )

@@ -123,6 +123,49 @@ fn parts_rendered_by_separate_processes_merge_to_the_single_render() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("name the output FILE.trp"));
 }
 
+/// A part's header names the light sampler the render used, resolved from `auto` by the scene's
+/// light count (power for cornell, the 8-wide light BVH above 16 lights), and the build's render
+/// identity; `auto` itself never appears.
+#[test]
+fn parts_record_the_resolved_light_sampler_and_the_render_identity() {
+    let d = dir("identity");
+    ok(render(
+        &["--spp", "4", "--samples", "0..2"],
+        &d.join("cornell.trp"),
+    ));
+    let p = Part::read(&d.join("cornell.trp")).unwrap();
+    assert_eq!(p.header.render_identity, trayecto::RENDER_IDENTITY);
+    assert_eq!(p.header.render_identity.len(), 64);
+    assert_eq!(p.header.settings["light_sampler"], "power");
+    // 17 point lights: more than `auto`'s threshold of 16.
+    let mut text = String::from(
+        "Camera \"perspective\"\nFilm \"rgb\" \"integer xresolution\" [ 8 ] \"integer yresolution\" [ 8 ]\nWorldBegin\n",
+    );
+    for i in 0..17 {
+        text += &format!(
+            "LightSource \"point\" \"point3 from\" [ {} 0.5 -1 ]\n",
+            i as f32 * 0.1 - 0.8
+        );
+    }
+    text += "Shape \"trianglemesh\" \"point3 P\" [ -1 -1 2 1 -1 2 1 1 2 ] \"integer indices\" [ 0 1 2 ]\n";
+    let scene = d.join("many.pbrt");
+    std::fs::write(&scene, text).unwrap();
+    for (extra, want) in [(&[][..], "bvh8"), (&["--light-sampler", "bvh"][..], "bvh")] {
+        let out = d.join(format!("many-{want}.trp"));
+        ok(bin()
+            .arg("render")
+            .arg(&scene)
+            .args(["-q", "--spp", "2", "--samples", "0..1"])
+            .args(extra)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap());
+        let p = Part::read(&out).unwrap();
+        assert_eq!(p.header.settings["light_sampler"], want, "{extra:?}");
+    }
+}
+
 /// Sends SIGINT (what Ctrl-C sends) to a child process.
 fn sigint(pid: u32) {
     let s = Command::new("kill")

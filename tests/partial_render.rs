@@ -53,6 +53,7 @@ fn part_of(world: &World, s: &RenderSettings, a: u32, b: u32) -> Part {
         "digest",
         s,
         &WorldOptions::default(),
+        world.lights.sampler_kind(),
         [a, b],
         r.film.discarded,
     );
@@ -155,6 +156,31 @@ fn merge_refuses_mismatched_overlapping_and_missing_parts() {
     h.header.trayecto_version = "0.0.1".into();
     let m = merge_err(vec![named("a.trp", &a), named("b.trp", &h)], true);
     assert!(m.contains("version"), "{m}");
+    // Another build of the same version (another render identity): refused, naming both.
+    let mut h = b.clone();
+    h.header.render_identity = "0badc0de".repeat(8);
+    let m = merge_err(vec![named("a.trp", &a), named("b.trp", &h)], true);
+    let ours = &trayecto::RENDER_IDENTITY[..16];
+    assert!(
+        m.contains("b.trp")
+            && m.contains("another build")
+            && m.contains("0badc0de0badc0de")
+            && m.contains(ours),
+        "{m}"
+    );
+    // Its header records this build's identity and the resolved light sampler (cornell's two
+    // lights: `auto` is the power distribution), not `auto`.
+    assert_eq!(a.header.render_identity, trayecto::RENDER_IDENTITY);
+    assert_eq!(
+        a.header.settings.get("light_sampler").map(|s| s.as_str()),
+        Some("power")
+    );
+    let mut h = b.clone();
+    h.header
+        .settings
+        .insert("light_sampler".into(), "bvh8".into());
+    let m = merge_err(vec![named("a.trp", &a), named("b.trp", &h)], true);
+    assert!(m.contains("'light_sampler'") && m.contains("bvh8"), "{m}");
 
     // Overlap: 0..5 and 4..13.
     let c = part_of(&world, &s, 4, SPP);
@@ -218,6 +244,23 @@ fn hostile_partial_films_are_refused_with_a_message() {
         out.extend_from_slice(&bytes[12 + hlen..]);
         out
     };
+    // A format-1 part (before render identities): refused with a message saying why and what to
+    // do, whether or not its header has the field.
+    let v1 = rewrite("\"format\":2", "\"format\":1");
+    check("format1.trp", &v1, "render it again");
+    let no_id = {
+        let id = format!(",\"render_identity\":\"{}\"", trayecto::RENDER_IDENTITY);
+        let h = header
+            .replacen("\"format\":2", "\"format\":1", 1)
+            .replacen(&id, "", 1);
+        assert!(!h.contains("render_identity"), "{h}");
+        let mut out = b"TRAYPART".to_vec();
+        out.extend_from_slice(&(h.len() as u32).to_le_bytes());
+        out.extend_from_slice(h.as_bytes());
+        out.extend_from_slice(&bytes[12 + hlen..]);
+        out
+    };
+    check("format1-old.trp", &no_id, "before render identities");
     check(
         "range.trp",
         &rewrite("\"samples\":[0,3]", "\"samples\":[0,99]"),
@@ -287,6 +330,7 @@ fn a_resumed_render_equals_an_uninterrupted_one() {
             "d",
             &s,
             &WorldOptions::default(),
+            world.lights.sampler_kind(),
             [0, stopped.done],
             stopped.film.discarded,
         );

@@ -513,28 +513,151 @@ fn hostile_mix_bump_and_camera_input() {
     }
 }
 
+/// The surfaces of a pbrt scene as a per-pixel map: the index of the material each pixel shows,
+/// or `None` where the pixel is within `margin` pixels of another surface (or the sky), so that
+/// no sample of it, spread by pbrt-v4's Gaussian filter of radius 1.5, comes from elsewhere. From
+/// the `MaterialId` AOV (the most frequent first-hit material of the pixel's samples).
+fn material_regions(scene: &Scene, margin: i32) -> Vec<Option<usize>> {
+    use std::sync::atomic::AtomicBool;
+    use trayecto::film::aov::AovKind;
+    use trayecto::world::{World, WorldOptions};
+    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let s = RenderSettings {
+        width: scene.hints.width.unwrap(),
+        height: scene.hints.height.unwrap(),
+        spp: 16,
+        ..Default::default()
+    };
+    let layers =
+        trayecto::render::render_aovs(&world, &s, &[AovKind::MaterialId], &AtomicBool::new(false))
+            .unwrap();
+    let (w, h) = (s.width as i32, s.height as i32);
+    // 0 is the sky, material i is i + 1.
+    let id = |x: i32, y: i32| layers[0].get(x as u32, y as u32, 0) as i32;
+    let mut out = Vec::with_capacity((w * h) as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let c = id(x, y);
+            let pure = (-margin..=margin).all(|dy| {
+                (-margin..=margin).all(|dx| {
+                    let (u, v) = (x + dx, y + dy);
+                    u >= 0 && v >= 0 && u < w && v < h && id(u, v) == c
+                })
+            });
+            out.push((pure && c > 0).then(|| (c - 1) as usize));
+        }
+    }
+    out
+}
+
+/// The ratios (tile mean of `img`) / (tile mean of `reference`) over the 4 × 4-pixel tiles lying
+/// wholly in `region`, averaged without the highest and lowest tenth of them (at least one each),
+/// and the number of tiles. Trimmed rather than the ratio of the region's sums: a 64-spp render
+/// of rough metal and glass lit by point lights has fireflies (one put the glass region's mean at
+/// 1.31× pbrt-v4's on one seed), and a firefly moves one tile, which is dropped. Not the median:
+/// the coated-copper wall's tiles spread over 0.85–1.0, and its median jumped by ±0.025 between
+/// seeds where the trimmed mean moves ±0.01.
+fn region_trimmed_ratio(
+    img: &Image,
+    reference: &Image,
+    regions: &[Option<usize>],
+    region: usize,
+) -> (f64, usize) {
+    let lum = |p: trayecto::math::Vec3| (p.x + p.y + p.z) as f64;
+    let mut ratios = Vec::new();
+    for ty in 0..img.height / 4 {
+        for tx in 0..img.width / 4 {
+            let (mut a, mut b, mut inside) = (0.0, 0.0, true);
+            for y in ty * 4..ty * 4 + 4 {
+                for x in tx * 4..tx * 4 + 4 {
+                    let i = (y * img.width + x) as usize;
+                    inside &= regions[i] == Some(region);
+                    a += lum(img.data[i]);
+                    b += lum(reference.data[i]);
+                }
+            }
+            if inside {
+                ratios.push(a / b);
+            }
+        }
+    }
+    assert!(ratios.len() >= 5, "region {region}: {} tiles", ratios.len());
+    ratios.sort_by(f64::total_cmp);
+    let k = (ratios.len() / 10).max(1);
+    let kept = &ratios[k..ratios.len() - k];
+    (kept.iter().sum::<f64>() / kept.len() as f64, ratios.len())
+}
+
 /// pbrt-v4 roughness textures (checkerboard, bilerp; `roughness`, `interface.roughness`,
 /// `uroughness`/`vroughness` with `remaproughness false`) on conductor, coateddiffuse,
-/// coatedconductor and dielectric. Without them (each surface at its mean roughness, the old
-/// behaviour) the highlights lose their pattern.
+/// coatedconductor and dielectric, compared with pbrt-v4 surface by surface (the regions of
+/// [`material_regions`], [`region_trimmed_ratio`] of each against pbrt-v4's image):
+///
+/// - the checker-rough silver floor and the rough glass panel, where Trayecto and pbrt-v4 agree,
+///   within `TIGHT` of pbrt-v4;
+/// - the two coated walls against pbrt-v4 *times its known overcount*: pbrt-v4's layered BSDF
+///   weighs a walk leaving through a rough coat with an MIS weight that sums to more than one
+///   with the competing connection's (README, "What the roughness scene's worst blocks are";
+///   `layered.rs`, `pbrt_v4_exit_weights_overcount_light_leaving_a_rough_coat`), so Trayecto,
+///   which weighs them correctly, is darker there. `COATED` holds the ratios measured converged
+///   (Trayecto at 2048 spp, seeds 1 and 2, against the 1024-spp reference: 0.917–0.918 and
+///   0.925–0.926), within `COATED_TOL`: a coated BSDF 5 % off moves its wall's ratio by ~0.046.
+///
+/// Measured (BENCHMARKS.md, "Session 16: an honest roughness test"): at this test's 128 spp,
+/// seeds 1–8, the ratios are within 0.025 of 1 on the floor and 0.027 on the glass (converged
+/// 0.986 and 0.985: both reflect or show the coated walls), and within 0.010 of `COATED`.
+/// Without the textures (each surface at its mean roughness, the old behaviour; 16 spp suffice)
+/// the floor's ratio is 1.19–1.23: its highlights lose their pattern.
 #[test]
 fn textured_roughness_matches_pbrt_v4() {
+    // (material name prefix, expected ratio to pbrt-v4, tolerance)
+    const TIGHT: f64 = 0.04;
+    const COATED: [f64; 2] = [0.917, 0.926];
+    const COATED_TOL: f64 = 0.025;
+    let expect: [(&str, f64, f64); 4] = [
+        ("conductor", 1.0, TIGHT),
+        ("dielectric", 1.0, TIGHT),
+        ("coateddiffuse", COATED[0], COATED_TOL),
+        ("coatedconductor", COATED[1], COATED_TOL),
+    ];
     let scene = load(&repo("scenes/pbrt/roughness.pbrt"));
     assert!(
         warnings_about(&scene, "rough").is_empty(),
         "{:?}",
         scene.warnings
     );
-    feature_against_pbrt_v4(
-        "roughness",
-        &scene,
-        |s| {
-            for m in &mut s.materials {
-                m.pbrt.conductor_roughness = Default::default();
-                m.pbrt.interface_roughness = Default::default();
-            }
-        },
-        (0.03, 0.1, 0.15),
+    let reference = read_exr(&repo("tests/references/pbrt/roughness.exr"));
+    let regions = material_regions(&scene, 2);
+    let material = |prefix: &str| {
+        let found: Vec<usize> = (0..scene.materials.len())
+            .filter(|&i| scene.materials[i].name.starts_with(&format!("{prefix} (")))
+            .collect();
+        assert_eq!(found.len(), 1, "{prefix}: {found:?}");
+        found[0]
+    };
+    // The largest |ratio − expected| / tolerance over the surfaces (at most 1 passes).
+    let worst = |img: &Image, label: &str| -> f64 {
+        let mut worst: f64 = 0.0;
+        for (prefix, want, tol) in expect {
+            let (ratio, tiles) = region_trimmed_ratio(img, &reference, &regions, material(prefix));
+            eprintln!(
+                "roughness{label}: {prefix}: ratio to pbrt-v4 {ratio:.4} over {tiles} tiles (expected {want} ± {tol})"
+            );
+            worst = worst.max((ratio - want).abs() / tol);
+        }
+        worst
+    };
+    let on = worst(&render(&scene, 128), "");
+    let mut off = scene.clone();
+    for m in &mut off.materials {
+        m.pbrt.conductor_roughness = Default::default();
+        m.pbrt.interface_roughness = Default::default();
+    }
+    let off = worst(&render(&off, 16), " without the textures");
+    assert!(on <= 1.0, "a surface is off by {on:.2} tolerances");
+    assert!(
+        off > 3.0,
+        "the scene does not show the feature: without it the worst surface is only {off:.2} tolerances off"
     );
 }
 

@@ -15,7 +15,8 @@
 //! The header names the scene by content (a SHA-256 of the scene file's bytes and of everything
 //! the loader read from it, see [`crate::scene::digest`]), lists every setting that changes the
 //! image, the image size, the frame's samples per pixel, the sample range it holds, the fixed-point
-//! format and the Trayecto version. Reading checks everything a hostile or truncated file could get
+//! format, the Trayecto version and the render identity ([`crate::RENDER_IDENTITY`], a hash of the
+//! sources of the build). Reading checks everything a hostile or truncated file could get
 //! wrong before allocating, and that every sum is within what its count of samples can reach.
 
 use super::{FRAC_BITS, Film, SAMPLE_LIMIT};
@@ -28,7 +29,9 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 pub const MAGIC: &[u8; 8] = b"TRAYPART";
-pub const FORMAT_VERSION: u32 = 1;
+/// 2 added `render_identity` and the resolved `light_sampler` setting; format-1 parts (which
+/// have neither) are refused with a message saying to render them again.
+pub const FORMAT_VERSION: u32 = 2;
 pub const MAX_HEADER: u32 = 1 << 20;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -37,6 +40,11 @@ pub struct PartHeader {
     pub format: u32,
     /// `CARGO_PKG_VERSION` of the Trayecto that rendered it.
     pub trayecto_version: String,
+    /// [`crate::RENDER_IDENTITY`] of the build that rendered it: two builds of one version can
+    /// render different images, so parts merge only when this matches. Empty when absent (a
+    /// format-1 part, refused by [`Part::read`] before anything else is checked).
+    #[serde(default)]
+    pub render_identity: String,
     /// The scene as it was named on the command line (for messages only: machines may see the
     /// same scene at different paths).
     pub scene: String,
@@ -87,8 +95,18 @@ fn format_err(path: &Path, message: impl Into<String>) -> PartError {
 /// The settings that change the image, as name → value strings (floats in Rust's shortest
 /// round-trip form, so equal strings mean equal values). Thread count, exposure and tone mapping
 /// are left out: they do not change the film. The environment map's path is left out too (machines
-/// may mount it elsewhere); its content is part of the scene digest.
-pub fn image_settings(s: &RenderSettings, w: &WorldOptions) -> BTreeMap<String, String> {
+/// may mount it elsewhere); its content is part of the scene digest. `light_sampler` is the
+/// sampler the built world uses ([`crate::light::LightSet::sampler_kind`]), never `auto`: `auto`
+/// resolves to different samplers by light count and version.
+pub fn image_settings(
+    s: &RenderSettings,
+    w: &WorldOptions,
+    light_sampler: crate::light::LightSamplerKind,
+) -> BTreeMap<String, String> {
+    debug_assert!(
+        light_sampler != crate::light::LightSamplerKind::Auto,
+        "image_settings wants the resolved light sampler"
+    );
     let mut m = BTreeMap::new();
     let mut put = |k: &str, v: String| {
         m.insert(k.to_string(), v);
@@ -132,30 +150,31 @@ pub fn image_settings(s: &RenderSettings, w: &WorldOptions) -> BTreeMap<String, 
     if w.env_rotation != 0.0 {
         put("env_rotation", format!("{:?}", w.env_rotation));
     }
-    // Only when chosen explicitly, so that partial films written before the option existed (all
-    // `auto`) still merge with new ones.
-    if w.light_sampler != crate::light::LightSamplerKind::Auto {
-        put("light_sampler", w.light_sampler.name().to_string());
-    }
+    // Always, and the resolved kind: `auto` picks power / bvh / bvh8 by the scene's light count,
+    // and has picked differently in different versions.
+    put("light_sampler", light_sampler.name().to_string());
     m
 }
 
 impl PartHeader {
-    /// The header of the part `samples` of a frame.
+    /// The header of the part `samples` of a frame, rendered with the light sampler
+    /// `light_sampler` (resolved: the built world's [`crate::light::LightSet::sampler_kind`]).
     pub fn new(
         scene: &str,
         scene_digest: &str,
         settings: &RenderSettings,
         world: &WorldOptions,
+        light_sampler: crate::light::LightSamplerKind,
         samples: [u32; 2],
         discarded: u64,
     ) -> PartHeader {
         PartHeader {
             format: FORMAT_VERSION,
             trayecto_version: env!("CARGO_PKG_VERSION").to_string(),
+            render_identity: crate::RENDER_IDENTITY.to_string(),
             scene: scene.to_string(),
             scene_digest: scene_digest.to_string(),
-            settings: image_settings(settings, world),
+            settings: image_settings(settings, world, light_sampler),
             // The film's size: the crop window's when cropped (the window itself is a setting).
             width: settings.film_window().width(),
             height: settings.film_window().height(),
@@ -178,6 +197,16 @@ impl PartHeader {
                 &self.trayecto_version,
                 &other.trayecto_version,
             );
+        }
+        if self.render_identity != other.render_identity {
+            let short = |s: &str| s[..s.len().min(16)].to_string();
+            return Some(format!(
+                "it was rendered by another build (render identity {} there but {} here): builds \
+                 of the same version can render different images, so render every part with one \
+                 binary",
+                short(&other.render_identity),
+                short(&self.render_identity)
+            ));
         }
         if self.scene_digest != other.scene_digest {
             return Some(format!(
@@ -292,6 +321,16 @@ impl Part {
             .map_err(|_| format_err(path, "the header is truncated"))?;
         let h: PartHeader = serde_json::from_slice(&hbytes)
             .map_err(|e| format_err(path, format!("bad header: {e}")))?;
+        if h.format == 1 {
+            return Err(format_err(
+                path,
+                format!(
+                    "format version 1, from a Trayecto before render identities: it does not say \
+                     which build rendered it, so it cannot be merged safely; render it again \
+                     (this Trayecto reads format {FORMAT_VERSION})"
+                ),
+            ));
+        }
         if h.format != FORMAT_VERSION {
             return Err(format_err(
                 path,
@@ -382,7 +421,7 @@ impl Part {
 }
 
 /// Merges parts of one frame in sample order. Refuses parts that do not belong to the same frame
-/// (scene, settings, size, version), that overlap, or that leave a gap; `complete` also requires
+/// (scene, settings, size, version, render identity), that overlap, or that leave a gap; `complete` also requires
 /// the parts to cover every sample of the frame (the merged part is otherwise a longer range, to
 /// be merged further). The result is exact: the same film whichever way the frame was split.
 pub fn merge(parts: Vec<(PathBuf, Part)>, complete: bool) -> Result<Part, PartError> {
