@@ -72,9 +72,9 @@ pub enum Texels {
     /// 8-bit RGBA; RGB sRGB-encoded (decoded by [`SRGB8_TO_LINEAR`]), alpha linear.
     Srgb8(Vec<[u8; 4]>),
     /// 8-bit RGBA, every channel linear (normal, metallic-roughness, occlusion maps), decoded
-    /// by [`UNORM8_TO_F32`].
+    /// to [`UNORM8_TO_F32`]'s values (computed per lane at lookup, `decode_unorm8`).
     Unorm8(Vec<[u8; 4]>),
-    /// 8-bit RGBA, every channel linear, decoded by [`UNORM8_TO_F32_RECIP`] (the loaders pick
+    /// 8-bit RGBA, every channel linear, decoded to [`UNORM8_TO_F32_RECIP`]'s values (the loaders pick
     /// whichever table reproduces the `image` crate's float conversion of the file exactly).
     Unorm8Recip(Vec<[u8; 4]>),
     /// 16-bit RGBA, every channel linear (`v / 65535`, as the `image` crate converts).
