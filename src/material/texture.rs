@@ -72,9 +72,9 @@ pub enum Texels {
     /// 8-bit RGBA; RGB sRGB-encoded (decoded by [`SRGB8_TO_LINEAR`]), alpha linear.
     Srgb8(Vec<[u8; 4]>),
     /// 8-bit RGBA, every channel linear (normal, metallic-roughness, occlusion maps), decoded
-    /// by [`UNORM8_TO_F32`].
+    /// to [`UNORM8_TO_F32`]'s values (computed per lane at lookup, `decode_unorm8`).
     Unorm8(Vec<[u8; 4]>),
-    /// 8-bit RGBA, every channel linear, decoded by [`UNORM8_TO_F32_RECIP`] (the loaders pick
+    /// 8-bit RGBA, every channel linear, decoded to [`UNORM8_TO_F32_RECIP`]'s values (the loaders pick
     /// whichever table reproduces the `image` crate's float conversion of the file exactly).
     Unorm8Recip(Vec<[u8; 4]>),
     /// 16-bit RGBA, every channel linear (`v / 65535`, as the `image` crate converts).
@@ -104,6 +104,22 @@ pub(crate) fn decode8(lut: &[f32; 256], alpha: &[f32; 256], p: [u8; 4]) -> Vec4 
         lut[p[2] as usize],
         alpha[p[3] as usize],
     )
+}
+
+/// An 8-bit linear texel decoded by arithmetic instead of [`UNORM8_TO_F32`]: `i as f32 / 255`
+/// per channel, the very operation that built the table (integers below 2²⁴ convert exactly and
+/// IEEE division rounds each lane alike, so the bits are the table's; the test
+/// `unorm8_arithmetic_is_the_table` checks all 256 codes). Four lanes in one division instead of
+/// four table loads assembled into a vector: ToyCar's normal and metallic-roughness lookups.
+#[inline(always)]
+pub(crate) fn decode_unorm8(p: [u8; 4]) -> Vec4 {
+    Vec4::new(p[0] as f32, p[1] as f32, p[2] as f32, p[3] as f32) / 255.0
+}
+
+/// [`decode_unorm8`] for [`UNORM8_TO_F32_RECIP`]: `i as f32 × (1/255)` per lane, as the table.
+#[inline(always)]
+pub(crate) fn decode_unorm8_recip(p: [u8; 4]) -> Vec4 {
+    Vec4::new(p[0] as f32, p[1] as f32, p[2] as f32, p[3] as f32) * (1.0 / 255.0)
 }
 
 #[inline]
@@ -187,8 +203,8 @@ impl Texels {
     pub fn get(&self, i: usize) -> Vec4 {
         match self {
             Texels::Srgb8(v) => decode8(&SRGB8_TO_LINEAR, &UNORM8_TO_F32, v[i]),
-            Texels::Unorm8(v) => decode8(&UNORM8_TO_F32, &UNORM8_TO_F32, v[i]),
-            Texels::Unorm8Recip(v) => decode8(&UNORM8_TO_F32_RECIP, &UNORM8_TO_F32_RECIP, v[i]),
+            Texels::Unorm8(v) => decode_unorm8(v[i]),
+            Texels::Unorm8Recip(v) => decode_unorm8_recip(v[i]),
             Texels::Unorm16(v) => decode16(v[i]),
             Texels::F32(v) => v[i],
         }
@@ -491,14 +507,8 @@ impl Texture {
                 let (c, a) = (&*SRGB8_TO_LINEAR, &*UNORM8_TO_F32);
                 fetch4(i, |i| decode8(c, a, v[i]))
             }
-            Texels::Unorm8(v) => {
-                let a = &*UNORM8_TO_F32;
-                fetch4(i, |i| decode8(a, a, v[i]))
-            }
-            Texels::Unorm8Recip(v) => {
-                let a = &*UNORM8_TO_F32_RECIP;
-                fetch4(i, |i| decode8(a, a, v[i]))
-            }
+            Texels::Unorm8(v) => fetch4(i, |i| decode_unorm8(v[i])),
+            Texels::Unorm8Recip(v) => fetch4(i, |i| decode_unorm8_recip(v[i])),
             Texels::Unorm16(v) => fetch4(i, |i| decode16(v[i])),
             Texels::F32(v) => fetch4(i, |i| v[i]),
         };
@@ -794,6 +804,27 @@ mod tests {
             let t = Texels::compact(v);
             assert_eq!(t.kind(), "f32", "{odd}");
             assert_eq!(t.get(17).y.to_bits(), odd.to_bits());
+        }
+    }
+
+    /// The arithmetic 8-bit decoders are their tables bit for bit, in every lane, for every code
+    /// (fails if, say, `decode_unorm8` multiplied by 1/255: codes differ by one ulp).
+    #[test]
+    fn unorm8_arithmetic_is_the_table() {
+        for i in 0..=255u8 {
+            let p = [i, i.wrapping_add(85), i.wrapping_add(170), 255 - i];
+            let table = decode8(&UNORM8_TO_F32, &UNORM8_TO_F32, p);
+            let recip = decode8(&UNORM8_TO_F32_RECIP, &UNORM8_TO_F32_RECIP, p);
+            assert_eq!(
+                decode_unorm8(p).to_array().map(f32::to_bits),
+                table.to_array().map(f32::to_bits),
+                "code {i}"
+            );
+            assert_eq!(
+                decode_unorm8_recip(p).to_array().map(f32::to_bits),
+                recip.to_array().map(f32::to_bits),
+                "code {i}"
+            );
         }
     }
 
