@@ -134,6 +134,11 @@ const MAX_TRI_LEAF: usize = 2 * PACKET;
 /// Cost of one packet test in units of one scalar triangle test, for the SAH's leaf decision
 /// (callgrind: see BENCHMARKS.md "Session 15: leaf triangle packets").
 const PACKET_COST: f32 = 1.5;
+/// Cost of a two-packet leaf in units of one packet test: the AVX2 traversal tests both packets
+/// in one 8-lane pass ([`TriPacket::intersect_pair_avx`]), so it costs less than two packet
+/// tests. 2 (the packets one by one) → 1.5 → 1.2: ToyCar 8 926 → 7 993 → 7 902 nodes, render
+/// instructions per ray 3077 → 3071 → 3072 (BENCHMARKS.md "Session 16: ToyCar's traversal cost").
+const PAIR_COST: f32 = 1.5;
 
 /// Up to [`PACKET`] triangles of one leaf in structure-of-arrays form: `v[0..3]` are the lanes'
 /// first vertices (x, y, z), `v[3..6]` their edges `p1 − p0` and `v[6..9]` their edges `p2 − p0`,
@@ -147,12 +152,13 @@ struct TriPacket {
 }
 
 /// The lanes of a packet the ray hits before `t_max` (bit `i` for lane `i`) and their `t` and
-/// barycentrics (meaningless in the other lanes).
-struct PacketHits {
+/// barycentrics (meaningless in the other lanes). `N = 2 · PACKET` for the two packets of a leaf
+/// tested at once ([`TriPacket::intersect_pair_avx`]): lanes `0..4` are the first packet's.
+struct PacketHits<const N: usize = PACKET> {
     mask: u32,
-    t: [f32; PACKET],
-    b1: [f32; PACKET],
-    b2: [f32; PACKET],
+    t: [f32; N],
+    b1: [f32; N],
+    b2: [f32; N],
 }
 
 impl TriPacket {
@@ -301,6 +307,82 @@ impl TriPacket {
     fn intersect(&self, ray: &Ray, t_max: f32) -> PacketHits {
         self.intersect_lanes(ray, t_max)
     }
+
+    /// [`Self::intersect`] on both packets of a two-packet leaf at once, in 256-bit AVX lanes:
+    /// lanes `0..4` are `pair[0]`'s, `4..8` `pair[1]`'s. Per lane exactly the SSE test's (and so
+    /// the scalar Möller–Trumbore's) operations in the same order, no FMA, and the same eight
+    /// acceptance compares with the same NaN behaviour: `_CMP_NEQ_UQ` is SSE's `cmpneq`,
+    /// `_CMP_NLT_UQ` / `_CMP_NGT_UQ` its `cmpnlt` / `cmpngt`, and the ordered `LT`/`GE`/`LE`/`GT`
+    /// its `cmplt`/`cmpge`/`cmple`/`cmpgt` (the quiet and signalling forms give the same
+    /// result; only the exception flag differs, and nothing reads it). So a lane's hit is the
+    /// scalar test's bit for bit (`tests::packet_test_matches_the_scalar_test`). Both packets
+    /// are tested against the same `t_max`, where the SSE loop tests the second against a bound
+    /// the first's hits may have lowered; the ranking (`rank`) is the same either way, since a
+    /// hit beyond the lowered bound has a larger key than the hit that lowered it. Why: one
+    /// 8-lane test costs about what one 4-lane test does, and ToyCar's leaves are mostly of two
+    /// packets (BENCHMARKS.md "Session 16: ToyCar's traversal cost").
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline]
+    fn intersect_pair_avx(pair: &[TriPacket; 2], ray: &Ray, t_max: f32) -> PacketHits<8> {
+        use std::arch::x86_64::*;
+        let (a, b) = (&pair[0].v, &pair[1].v);
+        // Row `k` of both packets: the first's four lanes low, the second's high.
+        // SAFETY: each row is a `[f32; 4]`, 16 readable bytes (unaligned loads).
+        let row = |k: usize| unsafe { _mm256_loadu2_m128(b[k].as_ptr(), a[k].as_ptr()) };
+        let [ox, oy, oz] = ray.o.to_array().map(|x| _mm256_set1_ps(x));
+        let [dx, dy, dz] = ray.d.to_array().map(|x| _mm256_set1_ps(x));
+        let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
+        let mul = |x, y| _mm256_mul_ps(x, y);
+        let sub = |x, y| _mm256_sub_ps(x, y);
+        let add = |x, y| _mm256_add_ps(x, y);
+        let (e1x, e1y, e1z) = (row(3), row(4), row(5));
+        let (e2x, e2y, e2z) = (row(6), row(7), row(8));
+        // pvec = d × e2
+        let px = sub(mul(dy, e2z), mul(e2y, dz));
+        let py = sub(mul(dz, e2x), mul(e2z, dx));
+        let pz = sub(mul(dx, e2y), mul(e2x, dy));
+        let det = add(add(mul(e1x, px), mul(e1y, py)), mul(e1z, pz));
+        let inv_det = _mm256_div_ps(one, det);
+        // tvec = o − p0
+        let (tx, ty, tz) = (sub(ox, row(0)), sub(oy, row(1)), sub(oz, row(2)));
+        let b1 = mul(add(add(mul(tx, px), mul(ty, py)), mul(tz, pz)), inv_det);
+        // qvec = tvec × e1
+        let qx = sub(mul(ty, e1z), mul(e1y, tz));
+        let qy = sub(mul(tz, e1x), mul(e1z, tx));
+        let qz = sub(mul(tx, e1y), mul(e1x, ty));
+        let b2 = mul(add(add(mul(dx, qx), mul(dy, qy)), mul(dz, qz)), inv_det);
+        let t = mul(add(add(mul(e2x, qx), mul(e2y, qy)), mul(e2z, qz)), inv_det);
+        let abs_det = _mm256_andnot_ps(_mm256_set1_ps(-0.0), det);
+        let ok = [
+            _mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(abs_det, _mm256_set1_ps(f32::INFINITY)),
+            _mm256_cmp_ps::<_CMP_GE_OQ>(b1, zero),
+            _mm256_cmp_ps::<_CMP_LE_OQ>(b1, one),
+            _mm256_cmp_ps::<_CMP_NLT_UQ>(b2, zero),
+            _mm256_cmp_ps::<_CMP_NGT_UQ>(add(b1, b2), one),
+            _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(t, _mm256_set1_ps(t_max)),
+        ]
+        .into_iter()
+        .reduce(|x, y| _mm256_and_ps(x, y))
+        .unwrap_or(zero);
+        let mut out = PacketHits {
+            mask: _mm256_movemask_ps(ok) as u32,
+            t: [0.0; 8],
+            b1: [0.0; 8],
+            b2: [0.0; 8],
+        };
+        if out.mask != 0 {
+            // SAFETY: each destination is a `[f32; 8]`: 32 writable bytes (unaligned stores).
+            unsafe {
+                _mm256_storeu_ps(out.t.as_mut_ptr(), t);
+                _mm256_storeu_ps(out.b1.as_mut_ptr(), b1);
+                _mm256_storeu_ps(out.b2.as_mut_ptr(), b2);
+            }
+        }
+        out
+    }
 }
 
 #[derive(Clone, Copy)]
@@ -341,6 +423,10 @@ pub struct BvhStats {
     pub references: usize,
     /// Primitive entries in the leaves (a split triangle may sit in several leaves).
     pub leaf_prims: usize,
+    /// Triangle packets of the all-triangle leaves ([`PACKET`] lanes, 160 bytes each).
+    pub packets: usize,
+    /// Of those leaves, the ones of two packets (tested 8 lanes at once where AVX is there).
+    pub two_packet_leaves: usize,
     /// The SAH cost of the wide tree (Goldsmith & Salmon 1987; MacDonald & Booth 1990): the
     /// expected number of wide-node tests plus primitive tests of a ray that crosses the root
     /// box, for uniformly distributed rays: Σ over nodes of A(node)/A(root) + Σ over leaves of
@@ -635,6 +721,11 @@ impl Bvh {
                     let size = self.leaf_entries(n.first[lane], n.count[lane]).len();
                     s.leaves += 1;
                     s.leaf_prims += size;
+                    if n.count[lane] & PACKET_LEAF != 0 {
+                        let packets = (n.count[lane] & !PACKET_LEAF) as usize;
+                        s.packets += packets;
+                        s.two_packet_leaves += (packets == 2) as usize;
+                    }
                     s.max_leaf_size = s.max_leaf_size.max(size);
                     s.sah_cost += area * size as f64;
                 } else if n.first[lane] != EMPTY_LANE {
@@ -795,7 +886,31 @@ impl Bvh {
                 // A leaf: every hit is ranked (`rank`), a packet of triangles at a time or one
                 // other primitive at a time.
                 if e.count & PACKET_LEAF != 0 {
-                    for p in self.packet_leaf(e.first, e.count) {
+                    let packets = self.packet_leaf(e.first, e.count);
+                    #[cfg(target_arch = "x86_64")]
+                    if AVX2 && let Ok(pair) = <&[TriPacket; 2]>::try_from(packets) {
+                        // SAFETY: `AVX2 = true` only runs after AVX2 (so AVX) was detected
+                        // (see `node_test`).
+                        let hits = unsafe { TriPacket::intersect_pair_avx(pair, ray, t_cull) };
+                        let mut mask = hits.mask;
+                        while mask != 0 {
+                            let i = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            rank(
+                                &mut best,
+                                &mut best_key,
+                                &mut t_cull,
+                                Intersection {
+                                    t: hits.t[i],
+                                    prim: PrimRef(pair[i / PACKET].prim[i % PACKET]),
+                                    u: hits.b1[i],
+                                    v: hits.b2[i],
+                                },
+                            );
+                        }
+                        continue;
+                    }
+                    for p in packets {
                         let hits = p.intersect(ray, t_cull);
                         let mut mask = hits.mask;
                         while mask != 0 {
@@ -848,7 +963,16 @@ impl Bvh {
                     stack.set(sp, n.first[lane]);
                     sp += 1;
                 } else if n.count[lane] & PACKET_LEAF != 0 {
-                    for p in self.packet_leaf(n.first[lane], n.count[lane]) {
+                    let packets = self.packet_leaf(n.first[lane], n.count[lane]);
+                    #[cfg(target_arch = "x86_64")]
+                    if AVX2 && let Ok(pair) = <&[TriPacket; 2]>::try_from(packets) {
+                        // SAFETY: as in `intersect_impl`.
+                        if unsafe { TriPacket::intersect_pair_avx(pair, ray, t_max) }.mask != 0 {
+                            return true;
+                        }
+                        continue;
+                    }
+                    for p in packets {
                         if p.intersect(ray, t_max).mask != 0 {
                             return true;
                         }
@@ -1066,9 +1190,10 @@ fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usize) -> Build
             return leaf();
         }
         // Triangles are tested a packet at a time: up to `PACKET` of them in a leaf cost one
-        // packet test, so a leaf of a few triangles is kept where splitting it costs more.
+        // packet test, up to `2 · PACKET` one 8-lane pair test, so a leaf of a few triangles is
+        // kept where splitting it costs more.
         if n <= MAX_TRI_LEAF
-            && split_cost >= PACKET_COST * n.div_ceil(PACKET) as f32
+            && split_cost >= PACKET_COST * if n <= PACKET { 1.0 } else { PAIR_COST }
             && prims
                 .iter()
                 .all(|p| p.prim.kind() == PrimitiveKind::Triangle)
@@ -1531,8 +1656,9 @@ mod tests {
     /// Möller–Trumbore's answer (hit or not, and `t` and barycentrics bit for bit). Rays are
     /// random, aimed at vertices, edge points and the centre, lying in a triangle's plane
     /// (parallel), with NaN, infinite or zero direction components, NaN origins, and with `t_max`
-    /// at the hit's exact `t` (which must reject it) or one ulp above. Fails if a lane rounds
-    /// differently (an operation reordered or fused) or any acceptance condition differs.
+    /// at the hit's exact `t` (which must reject it) or one ulp above. The SSE, lane-wise and
+    /// (with AVX) 8-lane two-packet forms alike. Fails if a lane rounds differently (an
+    /// operation reordered or fused) or any acceptance condition differs.
     #[test]
     fn packet_test_matches_the_scalar_test() {
         let mut rng = crate::sampling::rng::Pcg32::new(17, 23);
@@ -1549,8 +1675,44 @@ mod tests {
                 packet
             })
             .collect();
-        let (mut hits, mut edge_cases) = (0, 0);
+        let has_avx = cfg!(target_arch = "x86_64") && crate::math::detect_avx2();
+        if !has_avx {
+            eprintln!("no AVX2 on this CPU: the 8-lane pair test is not checked");
+        }
+        let (mut hits, mut edge_cases, mut pair_lanes) = (0, 0, 0);
         let mut check = |ray: &Ray, t_max: f32| {
+            // The 8-lane test of two consecutive packets (every pair, so each packet is tested
+            // as a first and as a second half): lane `i` is packet `k + i / 4`'s lane `i % 4`.
+            #[cfg(target_arch = "x86_64")]
+            if has_avx {
+                for k in 0..packets.len() - 1 {
+                    let pair = <&[TriPacket; 2]>::try_from(&packets[k..k + 2]).unwrap();
+                    // SAFETY: AVX2 (so AVX) was detected above.
+                    let got = unsafe { TriPacket::intersect_pair_avx(pair, ray, t_max) };
+                    for lane in 0..2 * PACKET {
+                        let index = k * PACKET + lane;
+                        let Some(tri) = tris.get(index) else {
+                            assert_eq!(got.mask >> lane & 1, 0, "empty lane {lane} hit");
+                            continue;
+                        };
+                        let want = tri.edges().intersect(ray, t_max);
+                        let lane_hit = (got.mask >> lane & 1 == 1).then(|| TriangleHit {
+                            t: got.t[lane],
+                            b1: got.b1[lane],
+                            b2: got.b2[lane],
+                        });
+                        let bits = |h: Option<TriangleHit>| {
+                            h.map(|h| (h.t.to_bits(), h.b1.to_bits(), h.b2.to_bits()))
+                        };
+                        assert_eq!(
+                            bits(lane_hit),
+                            bits(want),
+                            "8-lane: triangle {index} {tri:?}, ray {ray:?}, t_max {t_max}",
+                        );
+                        pair_lanes += want.is_some() as usize;
+                    }
+                }
+            }
             for (k, packet) in packets.iter().enumerate() {
                 // The SSE form (x86-64) and the lane-wise form (elsewhere) alike.
                 for got in [
@@ -1634,14 +1796,16 @@ mod tests {
             hits > 5000 && edge_cases > 1500,
             "{hits} hits, {edge_cases} aimed hits"
         );
+        assert!(!has_avx || pair_lanes > 5000, "{pair_lanes} 8-lane hits");
     }
 
     /// A closed, finely tessellated mesh (a bumpy sphere: every edge shared by two triangles,
     /// every vertex by six) with a few quads among its triangles: the packet leaves and the mixed
     /// ones find exactly the brute-force hits (t, primitive, barycentrics) and blockers, in both
     /// traversal copies, for rays aimed at vertices, edge midpoints and random directions. The
-    /// tree really has packet leaves of several triangles. Fails if a packet lane is dropped or
-    /// misranked, or a shadow ray misses a blocker in a packet.
+    /// tree really has packet leaves of several triangles, of one packet and of two (which the
+    /// AVX2 copies test 8 lanes at once). Fails if a packet lane is dropped or misranked, or a
+    /// shadow ray misses a blocker in a packet.
     #[test]
     fn packet_leaves_agree_with_brute_force_on_a_mesh() {
         use crate::geometry::primitive::AnalyticPrim;
@@ -1683,6 +1847,11 @@ mod tests {
         let bvh = Bvh::build(&g);
         let s = bvh.stats();
         assert!(s.max_leaf_size > 2, "no leaf of several triangles: {s:?}");
+        // Leaves of two packets (the AVX copies test them 8 lanes at once) and of one.
+        assert!(
+            s.two_packet_leaves > 100 && s.packets > 2 * s.two_packet_leaves + 100,
+            "{s:?}"
+        );
         assert!(
             bvh.packets
                 .iter()

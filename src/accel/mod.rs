@@ -58,8 +58,8 @@ impl Accel {
             Accel::Bvh(b) => {
                 let s = b.stats();
                 format!(
-                    "bvh ({} nodes, {} references, {} in leaves, SAH cost {:.1})",
-                    s.nodes, s.references, s.leaf_prims, s.sah_cost
+                    "bvh ({} nodes, {} references, {} in leaves, {} packets ({} leaves of two), SAH cost {:.1})",
+                    s.nodes, s.references, s.leaf_prims, s.packets, s.two_packet_leaves, s.sah_cost
                 )
             }
             Accel::None(p) => format!("none ({} primitives tested per ray)", p.len()),
