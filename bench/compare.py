@@ -1303,10 +1303,15 @@ def scene_regions(results, scene, renderers, res, ref_spp):
     return out
 
 
+def ref_path_of(scene, kind, res, ref_spp):
+    """Where a renderer's cached reference of `scene` is (`.npy`; its halves and `.done` beside it)."""
+    return os.path.join(OUT, f"{scene}_{kind}_{res}px_{ref_spp}spp_ref.npy")
+
+
 def ref_halves(scene, kind, res, ref_spp):
     """The two halves of a cached reference (see main) and their spp, or None."""
     import numpy as np
-    path = os.path.join(OUT, f"{scene}_{kind}_{res}px_{ref_spp}spp_ref")
+    path = ref_path_of(scene, kind, res, ref_spp)[:-4]
     files = [f"{path}_half{i}.npy" for i in range(2)]
     if not all(os.path.exists(f) for f in files):
         return None
@@ -1532,7 +1537,7 @@ def main():
                     samplers = [fixed] if fixed else (sweeping[kind] if not rnd else [entry["sampler"]])
                 else:
                     samplers = [fixed or None]
-                ref_path = os.path.join(OUT, f"{scene}_{kind}_{args.res}px_{ref_spp}spp_ref.npy")
+                ref_path = ref_path_of(scene, kind, args.res, ref_spp)
                 if not rnd:
                     fingerprint = ref_fingerprint(scene, kind, args)
                 if not rnd and not ref_is_current(ref_path, fingerprint):
@@ -1673,8 +1678,7 @@ def main():
                 entry["error_note"] = f"untimed error renders failed ({err}); errors from the timed rounds only"
                 print(f"[{scene}] {r}: {entry['error_note']}", flush=True)
                 continue
-            ref_path = os.path.join(OUT, f"{scene}_{kind}_{args.res}px_{ref_spp}spp_ref.npy")
-            ref = np.load(ref_path).astype(np.float64)
+            ref = np.load(ref_path_of(scene, kind, args.res, ref_spp)).astype(np.float64)
             ref_noise = results[(scene, "_ref_noise_" + kind)]
             errs = [score_error(np.load(run["out"]), ref, ref_noise) for run in res["runs"]]
             n = len(ladder)
@@ -1705,7 +1709,6 @@ def pool_errors(entry):
     """A ladder point's error: the mean relMSE over every render of it, the timed rounds'
     (`round_ladders`) and the untimed ones (`error_ladders`, see --error-seeds); `relmse_se` is the
     standard error of each mean (sample standard deviation / sqrt(n); 0 for a single render)."""
-    import math
     rows = entry["round_ladders"] + entry.get("error_ladders", [])
     entry["relmse_se"] = []
     for k, p in enumerate(entry["ladder"]):
