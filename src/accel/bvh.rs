@@ -176,130 +176,24 @@ impl TriPacket {
         self.prim[lane] = prim.0;
     }
 
-    /// [`TriangleEdges::intersect`] (Möller & Trumbore 1997) on every lane at once: per lane the
-    /// same IEEE operations on the same operands in the same order as the scalar test (glam's
-    /// `cross` and left-to-right `dot`; Rust never contracts to FMA), and the same acceptance
-    /// conditions. A lane's hit is therefore the scalar test's, bit for bit
-    /// (`tests::packet_test_matches_the_scalar_test`). Used where there is no SSE; on x86-64
-    /// [`Self::intersect`] computes the same in SSE intrinsics.
+    /// [`TriangleEdges::intersect`] (Möller & Trumbore 1997) on every lane at once, in plain
+    /// per-lane arithmetic ([`Scalar4`]). Used where there is no SSE; on x86-64
+    /// [`Self::intersect`] runs the same [`moller_trumbore`] in SSE lanes.
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
     #[inline(always)]
     fn intersect_lanes(&self, ray: &Ray, t_max: f32) -> PacketHits {
-        let [ox, oy, oz] = ray.o.to_array();
-        let [dx, dy, dz] = ray.d.to_array();
-        let v = &self.v;
-        let mut out = PacketHits {
-            mask: 0,
-            t: [0.0; PACKET],
-            b1: [0.0; PACKET],
-            b2: [0.0; PACKET],
-        };
-        let mut ok = [false; PACKET];
-        for i in 0..PACKET {
-            let (e1x, e1y, e1z) = (v[3][i], v[4][i], v[5][i]);
-            let (e2x, e2y, e2z) = (v[6][i], v[7][i], v[8][i]);
-            // pvec = d × e2
-            let px = dy * e2z - e2y * dz;
-            let py = dz * e2x - e2z * dx;
-            let pz = dx * e2y - e2x * dy;
-            let det = e1x * px + e1y * py + e1z * pz;
-            let inv_det = 1.0 / det;
-            // tvec = o − p0
-            let (tx, ty, tz) = (ox - v[0][i], oy - v[1][i], oz - v[2][i]);
-            let b1 = (tx * px + ty * py + tz * pz) * inv_det;
-            // qvec = tvec × e1
-            let qx = ty * e1z - e1y * tz;
-            let qy = tz * e1x - e1z * tx;
-            let qz = tx * e1y - e1x * ty;
-            let b2 = (dx * qx + dy * qy + dz * qz) * inv_det;
-            let t = (e2x * qx + e2y * qy + e2z * qz) * inv_det;
-            // The scalar test's rejections, negated: a non-zero finite determinant, b1 in
-            // [0, 1], not (b2 < 0 or b1 + b2 > 1), 0 < t < t_max.
-            ok[i] = (det != 0.0)
-                & (det.abs() < f32::INFINITY)
-                & (0.0..=1.0).contains(&b1)
-                & !(b2 < 0.0)
-                & !(b1 + b2 > 1.0)
-                & (t > 0.0)
-                & (t < t_max);
-            out.t[i] = t;
-            out.b1[i] = b1;
-            out.b2[i] = b2;
-        }
-        for (i, &ok) in ok.iter().enumerate() {
-            out.mask |= (ok as u32) << i;
-        }
-        out
+        moller_trumbore(|k| Scalar4(self.v[k]), ray, t_max)
     }
 
-    /// The packet test: [`Self::intersect_lanes`] in SSE intrinsics (the x86-64 baseline, so
-    /// the AVX2 and portable traversals run this same code). Written out because LLVM kept the
-    /// arithmetic in vectors but scalarised the eight acceptance compares (21 `ucomiss` and as
-    /// many `set`s per packet; ToyCar's closest hit went 1337 → 1494 instructions per call with
-    /// that form, BENCHMARKS.md). Per lane the same IEEE operations in the same order; the
-    /// compares are the scalar test's, NaN included: `cmpneq` (unordered ≠) for `det != 0`,
-    /// ordered `<`, `≥`, `≤`, `>` where the scalar code tests them, and the unordered
-    /// `cmpnlt` / `cmpngt` for its negated `b2 < 0` / `b1 + b2 > 1`.
+    /// The packet test: [`moller_trumbore`] in SSE lanes ([`Sse4`], the x86-64 baseline, so the
+    /// AVX2 and portable traversals run this same code). Intrinsics because LLVM kept the plain
+    /// form's arithmetic in vectors but scalarised its eight acceptance compares (21 `ucomiss`
+    /// and as many `set`s per packet; ToyCar's closest hit went 1337 → 1494 instructions per call
+    /// with that form, BENCHMARKS.md).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     fn intersect(&self, ray: &Ray, t_max: f32) -> PacketHits {
-        use std::arch::x86_64::*;
-        // SAFETY: SSE and SSE2 are part of x86-64 itself (every x86-64 CPU has them and the build
-        // enables them), and the one memory access, the stores below, is in bounds.
-        unsafe {
-            let row = |k: usize| {
-                let r = &self.v[k];
-                _mm_set_ps(r[3], r[2], r[1], r[0])
-            };
-            let [ox, oy, oz] = ray.o.to_array().map(|x| _mm_set1_ps(x));
-            let [dx, dy, dz] = ray.d.to_array().map(|x| _mm_set1_ps(x));
-            let (zero, one) = (_mm_setzero_ps(), _mm_set1_ps(1.0));
-            let (mul, sub, add) = (_mm_mul_ps, _mm_sub_ps, _mm_add_ps);
-            let (e1x, e1y, e1z) = (row(3), row(4), row(5));
-            let (e2x, e2y, e2z) = (row(6), row(7), row(8));
-            // pvec = d × e2
-            let px = sub(mul(dy, e2z), mul(e2y, dz));
-            let py = sub(mul(dz, e2x), mul(e2z, dx));
-            let pz = sub(mul(dx, e2y), mul(e2x, dy));
-            let det = add(add(mul(e1x, px), mul(e1y, py)), mul(e1z, pz));
-            let inv_det = _mm_div_ps(one, det);
-            // tvec = o − p0
-            let (tx, ty, tz) = (sub(ox, row(0)), sub(oy, row(1)), sub(oz, row(2)));
-            let b1 = mul(add(add(mul(tx, px), mul(ty, py)), mul(tz, pz)), inv_det);
-            // qvec = tvec × e1
-            let qx = sub(mul(ty, e1z), mul(e1y, tz));
-            let qy = sub(mul(tz, e1x), mul(e1z, tx));
-            let qz = sub(mul(tx, e1y), mul(e1x, ty));
-            let b2 = mul(add(add(mul(dx, qx), mul(dy, qy)), mul(dz, qz)), inv_det);
-            let t = mul(add(add(mul(e2x, qx), mul(e2y, qy)), mul(e2z, qz)), inv_det);
-            let abs_det = _mm_andnot_ps(_mm_set1_ps(-0.0), det);
-            let ok = [
-                _mm_cmpneq_ps(det, zero),
-                _mm_cmplt_ps(abs_det, _mm_set1_ps(f32::INFINITY)),
-                _mm_cmpge_ps(b1, zero),
-                _mm_cmple_ps(b1, one),
-                _mm_cmpnlt_ps(b2, zero),
-                _mm_cmpngt_ps(add(b1, b2), one),
-                _mm_cmpgt_ps(t, zero),
-                _mm_cmplt_ps(t, _mm_set1_ps(t_max)),
-            ]
-            .into_iter()
-            .reduce(|a, b| _mm_and_ps(a, b))
-            .unwrap_or(zero);
-            let mut out = PacketHits {
-                mask: _mm_movemask_ps(ok) as u32,
-                t: [0.0; PACKET],
-                b1: [0.0; PACKET],
-                b2: [0.0; PACKET],
-            };
-            if out.mask != 0 {
-                // Each destination is a `[f32; 4]`: 16 writable bytes (unaligned stores).
-                _mm_storeu_ps(out.t.as_mut_ptr(), t);
-                _mm_storeu_ps(out.b1.as_mut_ptr(), b1);
-                _mm_storeu_ps(out.b2.as_mut_ptr(), b2);
-            }
-            out
-        }
+        moller_trumbore(|k| Sse4::row(self, k), ray, t_max)
     }
     /// The packet test where there is no SSE: [`Self::intersect_lanes`].
     #[cfg(not(target_arch = "x86_64"))]
@@ -308,81 +202,366 @@ impl TriPacket {
         self.intersect_lanes(ray, t_max)
     }
 
-    /// [`Self::intersect`] on both packets of a two-packet leaf at once, in 256-bit AVX lanes:
-    /// lanes `0..4` are `pair[0]`'s, `4..8` `pair[1]`'s. Per lane exactly the SSE test's (and so
-    /// the scalar Möller–Trumbore's) operations in the same order, no FMA, and the same eight
-    /// acceptance compares with the same NaN behaviour: `_CMP_NEQ_UQ` is SSE's `cmpneq`,
-    /// `_CMP_NLT_UQ` / `_CMP_NGT_UQ` its `cmpnlt` / `cmpngt`, and the ordered `LT`/`GE`/`LE`/`GT`
-    /// its `cmplt`/`cmpge`/`cmple`/`cmpgt` (the quiet and signalling forms give the same
-    /// result; only the exception flag differs, and nothing reads it). So a lane's hit is the
-    /// scalar test's bit for bit (`tests::packet_test_matches_the_scalar_test`). Both packets
-    /// are tested against the same `t_max`, where the SSE loop tests the second against a bound
-    /// the first's hits may have lowered; the ranking (`rank`) is the same either way, since a
-    /// hit beyond the lowered bound has a larger key than the hit that lowered it. Why: one
-    /// 8-lane test costs about what one 4-lane test does, and ToyCar's leaves are mostly of two
-    /// packets (BENCHMARKS.md "Session 16: ToyCar's traversal cost").
+    /// [`Self::intersect`] on both packets of a two-packet leaf at once, in 256-bit AVX lanes
+    /// ([`Avx8`]): lanes `0..4` are `pair[0]`'s, `4..8` `pair[1]`'s. Both packets are tested
+    /// against the same `t_max`, where the SSE loop tests the second against a bound the first's
+    /// hits may have lowered; the ranking (`rank`) is the same either way, since a hit beyond the
+    /// lowered bound has a larger key than the hit that lowered it. Why: one 8-lane test costs
+    /// about what one 4-lane test does, and ToyCar's leaves are mostly of two packets
+    /// (BENCHMARKS.md "Session 16: ToyCar's traversal cost").
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     #[inline]
     fn intersect_pair_avx(pair: &[TriPacket; 2], ray: &Ray, t_max: f32) -> PacketHits<8> {
-        use std::arch::x86_64::*;
-        let (a, b) = (&pair[0].v, &pair[1].v);
-        // Row `k` of both packets: the first's four lanes low, the second's high.
-        // SAFETY: each row is a `[f32; 4]`, 16 readable bytes (unaligned loads).
-        let row = |k: usize| unsafe { _mm256_loadu2_m128(b[k].as_ptr(), a[k].as_ptr()) };
-        let [ox, oy, oz] = ray.o.to_array().map(|x| _mm256_set1_ps(x));
-        let [dx, dy, dz] = ray.d.to_array().map(|x| _mm256_set1_ps(x));
-        let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
-        let mul = |x, y| _mm256_mul_ps(x, y);
-        let sub = |x, y| _mm256_sub_ps(x, y);
-        let add = |x, y| _mm256_add_ps(x, y);
-        let (e1x, e1y, e1z) = (row(3), row(4), row(5));
-        let (e2x, e2y, e2z) = (row(6), row(7), row(8));
-        // pvec = d × e2
-        let px = sub(mul(dy, e2z), mul(e2y, dz));
-        let py = sub(mul(dz, e2x), mul(e2z, dx));
-        let pz = sub(mul(dx, e2y), mul(e2x, dy));
-        let det = add(add(mul(e1x, px), mul(e1y, py)), mul(e1z, pz));
-        let inv_det = _mm256_div_ps(one, det);
-        // tvec = o − p0
-        let (tx, ty, tz) = (sub(ox, row(0)), sub(oy, row(1)), sub(oz, row(2)));
-        let b1 = mul(add(add(mul(tx, px), mul(ty, py)), mul(tz, pz)), inv_det);
-        // qvec = tvec × e1
-        let qx = sub(mul(ty, e1z), mul(e1y, tz));
-        let qy = sub(mul(tz, e1x), mul(e1z, tx));
-        let qz = sub(mul(tx, e1y), mul(e1x, ty));
-        let b2 = mul(add(add(mul(dx, qx), mul(dy, qy)), mul(dz, qz)), inv_det);
-        let t = mul(add(add(mul(e2x, qx), mul(e2y, qy)), mul(e2z, qz)), inv_det);
-        let abs_det = _mm256_andnot_ps(_mm256_set1_ps(-0.0), det);
-        let ok = [
-            _mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero),
-            _mm256_cmp_ps::<_CMP_LT_OQ>(abs_det, _mm256_set1_ps(f32::INFINITY)),
-            _mm256_cmp_ps::<_CMP_GE_OQ>(b1, zero),
-            _mm256_cmp_ps::<_CMP_LE_OQ>(b1, one),
-            _mm256_cmp_ps::<_CMP_NLT_UQ>(b2, zero),
-            _mm256_cmp_ps::<_CMP_NGT_UQ>(add(b1, b2), one),
-            _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero),
-            _mm256_cmp_ps::<_CMP_LT_OQ>(t, _mm256_set1_ps(t_max)),
-        ]
-        .into_iter()
-        .reduce(|x, y| _mm256_and_ps(x, y))
-        .unwrap_or(zero);
-        let mut out = PacketHits {
-            mask: _mm256_movemask_ps(ok) as u32,
-            t: [0.0; 8],
-            b1: [0.0; 8],
-            b2: [0.0; 8],
+        // SAFETY: this function only runs where AVX is enabled (`target_feature`), which is the
+        // one thing an `Avx8` needs.
+        moller_trumbore(
+            |k| unsafe { Avx8::load_pair(&pair[0].v[k], &pair[1].v[k]) },
+            ray,
+            t_max,
+        )
+    }
+}
+
+/// The lane operations [`moller_trumbore`] is written in: one generic test serves the 4-lane SSE
+/// packet test ([`Sse4`]), the 8-lane AVX test of a leaf's two packets ([`Avx8`]) and the plain
+/// per-lane form where there is no SSE ([`Scalar4`]). Every implementation runs, per lane, the
+/// IEEE operation its name says (no FMA), so all three give the scalar test's bits.
+trait MtLanes: Copy {
+    /// Lanes (bits of the hit mask).
+    const N: usize;
+    /// A per-lane comparison result.
+    type Mask: Copy;
+    fn splat(x: f32) -> Self;
+    fn add(self, o: Self) -> Self;
+    fn sub(self, o: Self) -> Self;
+    fn mul(self, o: Self) -> Self;
+    fn div(self, o: Self) -> Self;
+    /// `|self|` (the sign bit cleared).
+    fn abs(self) -> Self;
+    /// `self != o`, true where either is NaN (unordered; SSE `cmpneq`).
+    fn ne_unord(self, o: Self) -> Self::Mask;
+    /// `!(self < o)`, true where either is NaN (SSE `cmpnlt`).
+    fn nlt_unord(self, o: Self) -> Self::Mask;
+    /// `!(self > o)`, true where either is NaN (SSE `cmpngt`).
+    fn ngt_unord(self, o: Self) -> Self::Mask;
+    /// The ordered comparisons: false where either is NaN.
+    fn lt(self, o: Self) -> Self::Mask;
+    fn le(self, o: Self) -> Self::Mask;
+    fn gt(self, o: Self) -> Self::Mask;
+    fn ge(self, o: Self) -> Self::Mask;
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// Bit `i` set where lane `i` of `m` is true.
+    fn bits(m: Self::Mask) -> u32;
+    /// Writes the lanes to `out[..N]`.
+    fn store(self, out: &mut [f32]);
+}
+
+/// Möller & Trumbore (1997) on every lane of `row(0..9)` (the packets' first vertices, edges
+/// `p1 − p0` and edges `p2 − p0`, x, y, z each): per lane the same IEEE operations on the same
+/// operands in the same order as the scalar [`TriangleEdges::intersect`] (glam's `cross` and
+/// left-to-right `dot`; Rust never contracts to FMA), and the same acceptance conditions with the
+/// same NaN behaviour, so a lane's hit is the scalar test's, bit for bit
+/// (`tests::packet_test_matches_the_scalar_test` checks every form).
+#[inline(always)]
+fn moller_trumbore<L: MtLanes, const N: usize>(
+    row: impl Fn(usize) -> L,
+    ray: &Ray,
+    t_max: f32,
+) -> PacketHits<N> {
+    debug_assert_eq!(L::N, N);
+    let [ox, oy, oz] = ray.o.to_array().map(L::splat);
+    let [dx, dy, dz] = ray.d.to_array().map(L::splat);
+    let (zero, one) = (L::splat(0.0), L::splat(1.0));
+    let (e1x, e1y, e1z) = (row(3), row(4), row(5));
+    let (e2x, e2y, e2z) = (row(6), row(7), row(8));
+    // pvec = d × e2
+    let px = dy.mul(e2z).sub(e2y.mul(dz));
+    let py = dz.mul(e2x).sub(e2z.mul(dx));
+    let pz = dx.mul(e2y).sub(e2x.mul(dy));
+    let det = e1x.mul(px).add(e1y.mul(py)).add(e1z.mul(pz));
+    let inv_det = one.div(det);
+    // tvec = o − p0
+    let (tx, ty, tz) = (ox.sub(row(0)), oy.sub(row(1)), oz.sub(row(2)));
+    let b1 = tx.mul(px).add(ty.mul(py)).add(tz.mul(pz)).mul(inv_det);
+    // qvec = tvec × e1
+    let qx = ty.mul(e1z).sub(e1y.mul(tz));
+    let qy = tz.mul(e1x).sub(e1z.mul(tx));
+    let qz = tx.mul(e1y).sub(e1x.mul(ty));
+    let b2 = dx.mul(qx).add(dy.mul(qy)).add(dz.mul(qz)).mul(inv_det);
+    let t = e2x.mul(qx).add(e2y.mul(qy)).add(e2z.mul(qz)).mul(inv_det);
+    // The scalar test's rejections, negated: a non-zero finite determinant, b1 in [0, 1], not
+    // (b2 < 0 or b1 + b2 > 1), 0 < t < t_max.
+    let ok = [
+        det.ne_unord(zero),
+        det.abs().lt(L::splat(f32::INFINITY)),
+        b1.ge(zero),
+        b1.le(one),
+        b2.nlt_unord(zero),
+        b1.add(b2).ngt_unord(one),
+        t.gt(zero),
+        t.lt(L::splat(t_max)),
+    ]
+    .into_iter()
+    .reduce(L::and)
+    .unwrap_or_else(|| zero.lt(zero));
+    let mut out = PacketHits {
+        mask: L::bits(ok),
+        t: [0.0; N],
+        b1: [0.0; N],
+        b2: [0.0; N],
+    };
+    if out.mask != 0 {
+        t.store(&mut out.t);
+        b1.store(&mut out.b1);
+        b2.store(&mut out.b2);
+    }
+    out
+}
+
+/// Four lanes in plain per-lane arithmetic (the packet test where there is no SSE).
+#[derive(Clone, Copy)]
+struct Scalar4([f32; PACKET]);
+
+impl Scalar4 {
+    #[inline(always)]
+    fn map2(self, o: Self, f: impl Fn(f32, f32) -> f32) -> Self {
+        Scalar4(std::array::from_fn(|i| f(self.0[i], o.0[i])))
+    }
+    #[inline(always)]
+    fn test(self, o: Self, f: impl Fn(f32, f32) -> bool) -> [bool; PACKET] {
+        std::array::from_fn(|i| f(self.0[i], o.0[i]))
+    }
+}
+
+impl MtLanes for Scalar4 {
+    const N: usize = PACKET;
+    type Mask = [bool; PACKET];
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Scalar4([x; PACKET])
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        self.map2(o, |a, b| a + b)
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        self.map2(o, |a, b| a - b)
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        self.map2(o, |a, b| a * b)
+    }
+    #[inline(always)]
+    fn div(self, o: Self) -> Self {
+        self.map2(o, |a, b| a / b)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        Scalar4(self.0.map(f32::abs))
+    }
+    #[inline(always)]
+    fn ne_unord(self, o: Self) -> Self::Mask {
+        self.test(o, |a, b| a != b)
+    }
+    #[inline(always)]
+    fn nlt_unord(self, o: Self) -> Self::Mask {
+        self.test(o, |a, b| !(a < b))
+    }
+    #[inline(always)]
+    fn ngt_unord(self, o: Self) -> Self::Mask {
+        self.test(o, |a, b| !(a > b))
+    }
+    #[inline(always)]
+    fn lt(self, o: Self) -> Self::Mask {
+        self.test(o, |a, b| a < b)
+    }
+    #[inline(always)]
+    fn le(self, o: Self) -> Self::Mask {
+        self.test(o, |a, b| a <= b)
+    }
+    #[inline(always)]
+    fn gt(self, o: Self) -> Self::Mask {
+        self.test(o, |a, b| a > b)
+    }
+    #[inline(always)]
+    fn ge(self, o: Self) -> Self::Mask {
+        self.test(o, |a, b| a >= b)
+    }
+    #[inline(always)]
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        std::array::from_fn(|i| a[i] & b[i])
+    }
+    #[inline(always)]
+    fn bits(m: Self::Mask) -> u32 {
+        m.iter().enumerate().map(|(i, &x)| (x as u32) << i).sum()
+    }
+    #[inline(always)]
+    fn store(self, out: &mut [f32]) {
+        out[..PACKET].copy_from_slice(&self.0);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+use lanes_x86::{Avx8, Sse4};
+
+/// The SSE and AVX forms of [`MtLanes`]. The compares map one to one: `cmpneq` / `_CMP_NEQ_UQ`
+/// for `ne_unord`, `cmpnlt` / `_CMP_NLT_UQ` and `cmpngt` / `_CMP_NGT_UQ` for the negated ones,
+/// and the ordered `cmplt`/`cmple`/`cmpgt`/`cmpge` / `_CMP_*_OQ` for the rest (the quiet and
+/// signalling AVX predicates give the same result; only the exception flag differs, and nothing
+/// reads it).
+#[cfg(target_arch = "x86_64")]
+mod lanes_x86 {
+    use super::{MtLanes, PACKET, TriPacket};
+    use std::arch::x86_64::*;
+
+    /// Four SSE lanes. SSE and SSE2 are part of x86-64 itself (every x86-64 CPU has them and
+    /// the build enables them), so every intrinsic below may run anywhere this compiles.
+    #[derive(Clone, Copy)]
+    pub(super) struct Sse4(__m128);
+
+    impl Sse4 {
+        /// Row `k` of `p`, by an aligned load: LLVM then folds it into the arithmetic, where an
+        /// unaligned one costs a separate `movups` in the non-VEX SSE code of the portable
+        /// traversal (ToyCar: +0.4 % render instructions with `_mm_loadu_ps` or `_mm_set_ps`).
+        #[inline(always)]
+        pub(super) fn row(p: &TriPacket, k: usize) -> Sse4 {
+            let r = &p.v[k];
+            // SAFETY: a `TriPacket` is 32-byte aligned and its rows are 16 bytes each, so row `k`
+            // starts on a 16-byte boundary: 16 readable, aligned bytes. SSE: see `Sse4`.
+            Sse4(unsafe { _mm_load_ps(r.as_ptr()) })
+        }
+    }
+
+    /// Eight AVX lanes. Only made by `Avx8::load_pair`, whose callers run with AVX enabled
+    /// (`TriPacket::intersect_pair_avx` is `#[target_feature(enable = "avx")]`), and every
+    /// method is inlined into them: so every AVX intrinsic below runs where AVX is.
+    #[derive(Clone, Copy)]
+    pub(super) struct Avx8(__m256);
+
+    impl Avx8 {
+        /// `lo` in lanes `0..4`, `hi` in lanes `4..8`.
+        ///
+        /// # Safety
+        /// The CPU must have AVX.
+        #[inline(always)]
+        pub(super) unsafe fn load_pair(lo: &[f32; PACKET], hi: &[f32; PACKET]) -> Avx8 {
+            // SAFETY: each row is 16 readable bytes (unaligned loads); AVX: the caller's.
+            Avx8(unsafe { _mm256_loadu2_m128(hi.as_ptr(), lo.as_ptr()) })
+        }
+    }
+
+    /// One `MtLanes` implementation per register width: `$lanes` lanes of `$ty`, the
+    /// intrinsics named by the rest.
+    macro_rules! mt_lanes {
+        ($(#[$attr:meta])* $ty:ident, $reg:ty, $lanes:expr, $set1:ident, $add:ident, $sub:ident, $mul:ident,
+         $div:ident, $andnot:ident, $and:ident, $movemask:ident, $storeu:ident,
+         $cmp:ident : $neq:expr, $nlt:expr, $ngt:expr, $lt:expr, $le:expr, $gt:expr, $ge:expr) => {
+            $(#[$attr])*
+            impl MtLanes for $ty {
+                const N: usize = $lanes;
+                type Mask = $reg;
+                // SAFETY (every method): the instruction set is there, see the type's comment.
+                #[inline(always)]
+                fn splat(x: f32) -> Self {
+                    $ty(unsafe { $set1(x) })
+                }
+                #[inline(always)]
+                fn add(self, o: Self) -> Self {
+                    $ty(unsafe { $add(self.0, o.0) })
+                }
+                #[inline(always)]
+                fn sub(self, o: Self) -> Self {
+                    $ty(unsafe { $sub(self.0, o.0) })
+                }
+                #[inline(always)]
+                fn mul(self, o: Self) -> Self {
+                    $ty(unsafe { $mul(self.0, o.0) })
+                }
+                #[inline(always)]
+                fn div(self, o: Self) -> Self {
+                    $ty(unsafe { $div(self.0, o.0) })
+                }
+                #[inline(always)]
+                fn abs(self) -> Self {
+                    $ty(unsafe { $andnot($set1(-0.0), self.0) })
+                }
+                #[inline(always)]
+                fn ne_unord(self, o: Self) -> $reg {
+                    unsafe { $cmp::<{ $neq }>(self.0, o.0) }
+                }
+                #[inline(always)]
+                fn nlt_unord(self, o: Self) -> $reg {
+                    unsafe { $cmp::<{ $nlt }>(self.0, o.0) }
+                }
+                #[inline(always)]
+                fn ngt_unord(self, o: Self) -> $reg {
+                    unsafe { $cmp::<{ $ngt }>(self.0, o.0) }
+                }
+                #[inline(always)]
+                fn lt(self, o: Self) -> $reg {
+                    unsafe { $cmp::<{ $lt }>(self.0, o.0) }
+                }
+                #[inline(always)]
+                fn le(self, o: Self) -> $reg {
+                    unsafe { $cmp::<{ $le }>(self.0, o.0) }
+                }
+                #[inline(always)]
+                fn gt(self, o: Self) -> $reg {
+                    unsafe { $cmp::<{ $gt }>(self.0, o.0) }
+                }
+                #[inline(always)]
+                fn ge(self, o: Self) -> $reg {
+                    unsafe { $cmp::<{ $ge }>(self.0, o.0) }
+                }
+                #[inline(always)]
+                fn and(a: $reg, b: $reg) -> $reg {
+                    unsafe { $and(a, b) }
+                }
+                #[inline(always)]
+                fn bits(m: $reg) -> u32 {
+                    unsafe { $movemask(m) as u32 }
+                }
+                #[inline(always)]
+                fn store(self, out: &mut [f32]) {
+                    let out = &mut out[..$lanes];
+                    // SAFETY: `out` is `$lanes` writable f32 (unaligned store).
+                    unsafe { $storeu(out.as_mut_ptr(), self.0) }
+                }
+            }
         };
-        if out.mask != 0 {
-            // SAFETY: each destination is a `[f32; 8]`: 32 writable bytes (unaligned stores).
-            unsafe {
-                _mm256_storeu_ps(out.t.as_mut_ptr(), t);
-                _mm256_storeu_ps(out.b1.as_mut_ptr(), b1);
-                _mm256_storeu_ps(out.b2.as_mut_ptr(), b2);
+    }
+
+    /// SSE's compares as one const-generic function, like AVX's `_mm256_cmp_ps`, so both widths
+    /// are spelled by the same macro; the predicate numbers are AVX's (`_CMP_*`), each mapped to
+    /// the SSE compare with the same result.
+    #[inline(always)]
+    unsafe fn sse_cmp<const P: i32>(a: __m128, b: __m128) -> __m128 {
+        // SAFETY: SSE, see `Sse4`.
+        unsafe {
+            match P {
+                _CMP_NEQ_UQ => _mm_cmpneq_ps(a, b),
+                _CMP_NLT_UQ => _mm_cmpnlt_ps(a, b),
+                _CMP_NGT_UQ => _mm_cmpngt_ps(a, b),
+                _CMP_LT_OQ => _mm_cmplt_ps(a, b),
+                _CMP_LE_OQ => _mm_cmple_ps(a, b),
+                _CMP_GT_OQ => _mm_cmpgt_ps(a, b),
+                _CMP_GE_OQ => _mm_cmpge_ps(a, b),
+                _ => unreachable!("no SSE compare for predicate {P}"),
             }
         }
-        out
     }
+
+    mt_lanes!(
+        Sse4, __m128, 4, _mm_set1_ps, _mm_add_ps, _mm_sub_ps, _mm_mul_ps, _mm_div_ps,
+        _mm_andnot_ps, _mm_and_ps, _mm_movemask_ps, _mm_storeu_ps,
+        sse_cmp: _CMP_NEQ_UQ, _CMP_NLT_UQ, _CMP_NGT_UQ, _CMP_LT_OQ, _CMP_LE_OQ, _CMP_GT_OQ,
+        _CMP_GE_OQ);
+    mt_lanes!(Avx8, __m256, 8, _mm256_set1_ps, _mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps,
+        _mm256_div_ps, _mm256_andnot_ps, _mm256_and_ps, _mm256_movemask_ps, _mm256_storeu_ps,
+        _mm256_cmp_ps: _CMP_NEQ_UQ, _CMP_NLT_UQ, _CMP_NGT_UQ, _CMP_LT_OQ, _CMP_LE_OQ,
+        _CMP_GT_OQ, _CMP_GE_OQ);
 }
 
 #[derive(Clone, Copy)]
