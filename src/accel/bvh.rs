@@ -103,136 +103,8 @@ impl BvhNode {
     }
 }
 
-/// The traversal's form of a [`BvhNode`]: each child box plane as one byte on a per-node, per-axis
-/// grid `origin + q · scale` (dequantised by [`dequant`]), rounded OUTWARD (a plane never moves
-/// into its exact box), so a quantised box contains the exact one (Ylitie et al. 2017,
-/// "Efficient Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs", §3.1, with the
-/// plane rebuilt in f32 by the same mul and add in the build and both traversal copies). 128 B
-/// (two cache lines) instead of 256: ToyCar's 2 MB of nodes against a 1 MB L2 per core.
-///
-/// Why the images stay bit-identical: the slab test then runs on planes that are ≤ the exact
-/// minima and ≥ the exact maxima, and rounded subtraction and multiplication are monotone, so
-/// every computed entry distance is ≤ the exact box's computed one and every exit ≥: the
-/// quantised traversal visits a superset of what the exact one visits, the tie rule makes the
-/// visiting order irrelevant, and `TIE_ULPS` needs no change (entries only got smaller).
-/// `count` is the [`BvhNode`]'s with [`PACKET_LEAF`] moved to bit 7 ([`wide_count`]); `valid`
-/// has bit `i` set for the lanes that hold a child (an empty lane cannot be given an empty box
-/// on the grid that misses every ray, as the exact node's ±∞ planes did).
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(64))]
-pub struct QNode {
-    origin: [f32; 3],
-    scale: [f32; 3],
-    /// `q[axis]` the lanes' minima on `axis`, `q[3 + axis]` their maxima (as `BvhNode::planes`).
-    q: [[u8; WIDTH]; 6],
-    first: [u32; WIDTH],
-    count: [u8; WIDTH],
-    valid: u8,
-}
-
-/// A grid plane: `origin + q · scale`, one rounded multiply and one rounded add (never fused, so
-/// the build, the portable and the AVX2 traversal compute the same bits).
-#[inline(always)]
-fn dequant(origin: f32, scale: f32, q: u8) -> f32 {
-    origin + f32::from(q) * scale
-}
-
-/// A [`QNode`] lane's count in [`BvhNode`] form (`PACKET_LEAF | packets`, or a `prims` count).
-#[inline(always)]
-fn wide_count(c: u8) -> u32 {
-    let c = u32::from(c);
-    (c & 0x7f) | ((c & 0x80) << 24)
-}
-
-impl QNode {
-    /// Quantises `n`: per axis the grid spans the union of its children's boxes, with the
-    /// smallest scale (from `(max − min) / 255` up) whose top plane reaches the union's max;
-    /// each child's min is rounded down and its max up on that grid, checked with [`dequant`]
-    /// itself so the containment holds for the f32 planes the traversal computes.
-    fn quantise(n: &BvhNode) -> QNode {
-        let mut qn = QNode {
-            origin: [0.0; 3],
-            scale: [1.0; 3],
-            q: [[255; WIDTH], [255; WIDTH], [255; WIDTH], [0; WIDTH], [0; WIDTH], [0; WIDTH]],
-            first: n.first,
-            count: [0; WIDTH],
-            valid: 0,
-        };
-        let mut union = Bounds3::EMPTY;
-        for lane in 0..WIDTH {
-            let b = n.lane_bounds(lane);
-            let used = n.count[lane] > 0 || n.first[lane] != EMPTY_LANE;
-            if used && b.min.cmple(b.max).all() {
-                qn.valid |= 1 << lane;
-                union = union.union(&b);
-            }
-            let c = n.count[lane];
-            debug_assert!(c & !PACKET_LEAF < 0x80);
-            qn.count[lane] = ((c & 0x7f) | ((c & PACKET_LEAF) >> 24)) as u8;
-        }
-        if qn.valid == 0 {
-            return qn;
-        }
-        for axis in 0..3 {
-            let (lo, hi) = (union.min[axis], union.max[axis]);
-            let origin = lo;
-            let mut scale = ((f64::from(hi) - f64::from(lo)) / 255.0) as f32;
-            if !(scale > 0.0) {
-                scale = f32::from_bits(1);
-            }
-            // The top plane must reach `hi` and lie strictly above the bottom one. A few ulps
-            // up fix the rounding; a flat or far-from-origin axis (ulp(origin) ≫ extent / 255)
-            // needs the scale doubled up to an ulp of the origin. `f32::MAX` always works
-            // (255 · MAX = ∞ ≥ hi, and 0 · MAX = 0 keeps the bottom plane at `origin`).
-            let mut tries = 0;
-            while !(dequant(origin, scale, 255) >= hi && dequant(origin, scale, 255) > origin) {
-                scale = if tries < 8 {
-                    scale.next_up()
-                } else {
-                    (scale * 2.0).min(f32::MAX)
-                };
-                tries += 1;
-            }
-            qn.origin[axis] = origin;
-            qn.scale[axis] = scale;
-            for lane in 0..WIDTH {
-                if qn.valid & (1 << lane) == 0 {
-                    continue;
-                }
-                let (bmin, bmax) = (n.planes[axis][lane], n.planes[3 + axis][lane]);
-                let grid = |x: f32| (f64::from(x) - f64::from(origin)) / f64::from(scale);
-                // The f64 guess is within a step or two; the loops make it exact. They end:
-                // plane 0 is `origin` ≤ every min, plane 255 ≥ `hi` ≥ every max.
-                let mut qlo = grid(bmin).floor().clamp(0.0, 255.0) as u8;
-                while qlo > 0 && dequant(origin, scale, qlo) > bmin {
-                    qlo -= 1;
-                }
-                let mut qhi = grid(bmax).ceil().clamp(0.0, 255.0) as u8;
-                while qhi < 255 && dequant(origin, scale, qhi) < bmax {
-                    qhi += 1;
-                }
-                qn.q[axis][lane] = qlo;
-                qn.q[3 + axis][lane] = qhi;
-            }
-        }
-        qn
-    }
-
-    /// The (dequantised) box of `lane`.
-    fn lane_bounds(&self, lane: usize) -> Bounds3 {
-        let p = |row: usize| dequant(self.origin[row % 3], self.scale[row % 3], self.q[row][lane]);
-        Bounds3 {
-            min: Vec3::new(p(0), p(1), p(2)),
-            max: Vec3::new(p(3), p(4), p(5)),
-        }
-    }
-}
-
 pub struct Bvh {
-    /// The exact nodes (build, statistics, tests); traversal reads `qnodes`.
     pub nodes: Vec<BvhNode>,
-    /// `nodes` quantised ([`QNode`]), same indices.
-    qnodes: Vec<QNode>,
     pub prims: Vec<PrimRef>,
     /// The triangles of every all-triangle leaf again, as vertex and edges in packets of
     /// [`PACKET`] lanes (structure of arrays), so a leaf test is one ray against a packet's lanes
@@ -589,17 +461,16 @@ impl SlabRay {
     /// Far distances are enlarged by 1 + 2γ₃ so the test stays conservative under rounding
     /// (PBRT-v4 eq. 6.17); min/max are written so a NaN (0·∞) operand is ignored, not propagated.
     #[inline(always)]
-    fn test(&self, n: &QNode, t_max: f32) -> ([f32; WIDTH], u32) {
+    fn test(&self, n: &BvhNode, t_max: f32) -> ([f32; WIDTH], u32) {
         let g = 1.0 + 2.0 * gamma(3);
         let mut t0 = [0.0f32; WIDTH];
         let mut t1 = [t_max; WIDTH];
         for axis in 0..3 {
-            let (near, far) = (&n.q[self.near[axis]], &n.q[self.far[axis]]);
+            let (near, far) = (&n.planes[self.near[axis]], &n.planes[self.far[axis]]);
             let (o, inv) = (self.o[axis], self.inv[axis]);
-            let (origin, scale) = (n.origin[axis], n.scale[axis]);
             for lane in 0..WIDTH {
-                let tn = (dequant(origin, scale, near[lane]) - o) * inv;
-                let tf = (dequant(origin, scale, far[lane]) - o) * inv * g;
+                let tn = (near[lane] - o) * inv;
+                let tf = (far[lane] - o) * inv * g;
                 t0[lane] = if tn > t0[lane] { tn } else { t0[lane] };
                 t1[lane] = if tf < t1[lane] { tf } else { t1[lane] };
             }
@@ -608,7 +479,7 @@ impl SlabRay {
         for lane in 0..WIDTH {
             mask |= ((t0[lane] <= t1[lane]) as u32) << lane;
         }
-        (t0, mask & u32::from(n.valid))
+        (t0, mask)
     }
 }
 
@@ -619,35 +490,31 @@ impl SlabRay {
     /// selects of the portable code, NaN included; `≤` is the ordered compare).
     #[target_feature(enable = "avx2")]
     #[inline]
-    fn test_avx2(&self, n: &QNode, t_max: f32) -> ([f32; WIDTH], u32) {
+    fn test_avx2(&self, n: &BvhNode, t_max: f32) -> ([f32; WIDTH], u32) {
         use std::arch::x86_64::*;
         let g = _mm256_set1_ps(1.0 + 2.0 * gamma(3));
         let mut t0 = _mm256_setzero_ps();
         let mut t1 = _mm256_set1_ps(t_max);
-        let q = n.q.as_ptr();
+        let planes = n.planes.as_ptr();
         for axis in 0..3 {
             let o = _mm256_set1_ps(self.o[axis]);
             let inv = _mm256_set1_ps(self.inv[axis]);
-            let origin = _mm256_set1_ps(n.origin[axis]);
-            let scale = _mm256_set1_ps(n.scale[axis]);
-            // `dequant` per lane: u8 → i32 → f32 (exact), times the scale, plus the origin.
-            let plane = |row: *const [u8; WIDTH]| {
-                // SAFETY: `row` is one of the node's six `[u8; 8]` rows: 8 readable bytes.
-                let q8 = unsafe { _mm_loadl_epi64(row as *const __m128i) };
-                let qf = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(q8));
-                _mm256_add_ps(origin, _mm256_mul_ps(qf, scale))
-            };
             // SAFETY: `near` and `far` are row indices below 6 (`SlabRay::new` makes them
-            // `axis` or `3 + axis`). Unchecked because the per-node bounds checks (or the select
-            // of min/max this replaces) cost ~6 % of ToyCar's traversal instructions (callgrind).
-            let (near, far) = unsafe { (plane(q.add(self.near[axis])), plane(q.add(self.far[axis]))) };
+            // `axis` or `3 + axis`), so each row is a `[f32; 8]` of the node: 32 readable bytes
+            // (unaligned load). Unchecked because the per-node bounds checks (or the select of
+            // min/max this replaces) cost ~6 % of ToyCar's traversal instructions (callgrind).
+            let (near, far) = unsafe {
+                (
+                    _mm256_loadu_ps((*planes.add(self.near[axis])).as_ptr()),
+                    _mm256_loadu_ps((*planes.add(self.far[axis])).as_ptr()),
+                )
+            };
             let tn = _mm256_mul_ps(_mm256_sub_ps(near, o), inv);
             let tf = _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(far, o), inv), g);
             t0 = _mm256_max_ps(tn, t0);
             t1 = _mm256_min_ps(tf, t1);
         }
         let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32;
-        let mask = mask & u32::from(n.valid);
         let mut out = [0.0f32; WIDTH];
         // SAFETY: `out` is `[f32; 8]`: 32 writable bytes (unaligned store).
         unsafe { _mm256_storeu_ps(out.as_mut_ptr(), t0) };
@@ -657,7 +524,7 @@ impl SlabRay {
 
 /// The node test a traversal copy uses: portable, or AVX2 (only in the copies compiled with it).
 #[inline(always)]
-fn node_test<const AVX2: bool>(slab: &SlabRay, n: &QNode, t_max: f32) -> ([f32; WIDTH], u32) {
+fn node_test<const AVX2: bool>(slab: &SlabRay, n: &BvhNode, t_max: f32) -> ([f32; WIDTH], u32) {
     #[cfg(target_arch = "x86_64")]
     if AVX2 {
         // SAFETY: `AVX2 = true` is only instantiated by `intersect_avx2` / `occluded_avx2`, which
@@ -737,8 +604,6 @@ impl Bvh {
             }
         }
         bvh.packets = packets;
-        // The leaves' `first` / `count` changed: quantise again (one pass, O(nodes)).
-        bvh.qnodes = bvh.nodes.iter().map(QNode::quantise).collect();
         bvh
     }
 
@@ -794,7 +659,6 @@ impl Bvh {
         if build.is_empty() {
             return Bvh {
                 nodes: Vec::new(),
-                qnodes: Vec::new(),
                 prims: Vec::new(),
                 packets: Vec::new(),
                 bounds: Bounds3::EMPTY,
@@ -814,10 +678,8 @@ impl Bvh {
             }
             BuildNode::Interior { .. } => collapse(&root, 0, &build, &mut nodes, &mut prims),
         }
-        let qnodes = nodes.iter().map(QNode::quantise).collect();
         Bvh {
             nodes,
-            qnodes,
             prims,
             packets: Vec::new(),
             bounds,
@@ -833,7 +695,6 @@ impl Bvh {
     /// Bytes held by the hierarchy (nodes, leaf order, the leaves' triangle packets).
     pub fn heap_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<BvhNode>()
-            + self.qnodes.len() * std::mem::size_of::<QNode>()
             + self.prims.len() * std::mem::size_of::<PrimRef>()
             + self.packets.len() * std::mem::size_of::<TriPacket>()
     }
@@ -940,7 +801,7 @@ impl Bvh {
         geometry: &GeometryStore,
         ray: &Ray,
     ) -> Option<Intersection> {
-        if self.qnodes.is_empty() {
+        if self.nodes.is_empty() {
             return None;
         }
         let slab = SlabRay::new(ray, &RayInv::new(ray.d));
@@ -961,11 +822,11 @@ impl Bvh {
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
-            let n = &self.qnodes[node];
+            let n = &self.nodes[node];
             let (t_enter, mut mask) = node_test::<AVX2>(&slab, n, t_cull);
             let entry = |lane: usize| Entry {
                 first: n.first[lane],
-                count: wide_count(n.count[lane]),
+                count: n.count[lane],
                 t: t_enter[lane],
             };
             // The next child to visit, if this node has one: the nearest hit child. The others
@@ -1084,7 +945,7 @@ impl Bvh {
     /// the first blocker ends the walk.
     #[inline(always)]
     fn occluded_impl<const AVX2: bool>(&self, geometry: &GeometryStore, ray: &Ray) -> bool {
-        if self.qnodes.is_empty() {
+        if self.nodes.is_empty() {
             return false;
         }
         let slab = SlabRay::new(ray, &RayInv::new(ray.d));
@@ -1093,17 +954,16 @@ impl Bvh {
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
-            let n = &self.qnodes[node];
-            let (_, mut mask) = node_test::<AVX2>(&slab, n, t_max);
+            let (_, mut mask) = node_test::<AVX2>(&slab, &self.nodes[node], t_max);
+            let n = &self.nodes[node];
             while mask != 0 {
                 let lane = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                let count = wide_count(n.count[lane]);
-                if count == 0 {
+                if n.count[lane] == 0 {
                     stack.set(sp, n.first[lane]);
                     sp += 1;
-                } else if count & PACKET_LEAF != 0 {
-                    let packets = self.packet_leaf(n.first[lane], count);
+                } else if n.count[lane] & PACKET_LEAF != 0 {
+                    let packets = self.packet_leaf(n.first[lane], n.count[lane]);
                     #[cfg(target_arch = "x86_64")]
                     if AVX2 && let Ok(pair) = <&[TriPacket; 2]>::try_from(packets) {
                         // SAFETY: as in `intersect_impl`.
@@ -1119,7 +979,7 @@ impl Bvh {
                     }
                 } else {
                     let first = n.first[lane] as usize;
-                    for &prim in &self.prims[first..first + count as usize] {
+                    for &prim in &self.prims[first..first + n.count[lane] as usize] {
                         if geometry.intersect(prim, ray, t_max).is_some() {
                             return true;
                         }
