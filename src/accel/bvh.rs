@@ -737,42 +737,6 @@ impl Bvh {
         s
     }
 
-    /// Asks the cache for the memory a hit child lane `(first, count)` will read (its node's
-    /// four lines, or its leaf's one or two packets), called for the children that wait on the
-    /// stack or behind a sibling, so their misses overlap the work done before they are visited.
-    /// ToyCar's tree is 2 MB of nodes and 6.6 MB of packets against a 1 MB L2 (BENCHMARKS.md
-    /// "Session 17: traversal memory"). Only in the AVX2 copy; the hint changes no result.
-    #[inline(always)]
-    fn prefetch<const AVX2: bool>(&self, first: u32, count: u32) {
-        #[cfg(target_arch = "x86_64")]
-        if AVX2 {
-            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            // SAFETY: a prefetch never faults and its data is not observed, so any address is
-            // sound; `wrapping_add` keeps the pointer arithmetic defined (the lanes of a built
-            // tree index in bounds anyway).
-            unsafe {
-                if count == 0 {
-                    let p = self.nodes.as_ptr().wrapping_add(first as usize) as *const i8;
-                    _mm_prefetch::<_MM_HINT_T0>(p);
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(128));
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(192));
-                } else if count & PACKET_LEAF != 0 {
-                    // 160 B per packet, 32-aligned: one packet spans three lines, two up to six.
-                    let p = self.packets.as_ptr().wrapping_add(first as usize) as *const i8;
-                    _mm_prefetch::<_MM_HINT_T0>(p);
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(159));
-                    if count & !PACKET_LEAF > 1 {
-                        _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(223));
-                        _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(287));
-                        _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(319));
-                    }
-                }
-            }
-        }
-    }
-
     /// Closest hit, visiting nearer children first so far subtrees are culled by the shrinking
     /// `t_max`.
     #[inline]
@@ -880,15 +844,12 @@ impl Bvh {
                     // Insertion sort of the (at most `WIDTH`) entries of this node; among equal
                     // distances the later lane ends up nearer the top, as before.
                     let base = sp;
-                    let e = entry(lane);
-                    self.prefetch::<AVX2>(e.first, e.count);
-                    stack.set(sp, e);
+                    stack.set(sp, entry(lane));
                     sp += 1;
                     while mask != 0 {
                         let lane = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
                         let e = entry(lane);
-                        self.prefetch::<AVX2>(e.first, e.count);
                         let mut i = sp;
                         while i > base && stack.get(i - 1).t < e.t {
                             stack.set(i, stack.get(i - 1));
@@ -995,15 +956,6 @@ impl Bvh {
         loop {
             let (_, mut mask) = node_test::<AVX2>(&slab, &self.nodes[node], t_max);
             let n = &self.nodes[node];
-            // With two or more children hit, all but the first wait: fetch them now.
-            if AVX2 && mask & (mask - 1) != 0 {
-                let mut m = mask & (mask - 1);
-                while m != 0 {
-                    let lane = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    self.prefetch::<AVX2>(n.first[lane], n.count[lane]);
-                }
-            }
             while mask != 0 {
                 let lane = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
