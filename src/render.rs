@@ -1,7 +1,9 @@
 //! The render driver: splits the image into tiles, renders them in parallel passes (so front ends
 //! can show a progressive preview), accumulates the film and reports statistics. Every sample is a
-//! pure function of (seed, pixel, sample index), and the film adds tiles in a fixed order, so the
-//! image is bit-identical for any thread count.
+//! pure function of (seed, pixel, sample index), and the film adds each pass's tiles in a fixed
+//! order, pass after pass, so the image is bit-identical for any thread count. Passes are
+//! pipelined: workers start the next pass's tiles while the current one's last tiles finish
+//! (see `render_in_pool`).
 
 use crate::film::aov::{AovKind, Layer};
 use crate::film::filter::{Filter, FilterSampler};
@@ -257,9 +259,13 @@ pub fn adaptive_mask(
     n
 }
 
-/// Receives progress from the driver. Called from the driver's thread only.
+/// Receives progress from the driver.
 pub trait RenderObserver: Sync {
-    /// After each pass: the film so far, samples per pixel done and planned.
+    /// After each pass: the film so far, samples per pixel done and planned. Called once per
+    /// complete pass, in pass order and never concurrently with itself, from the worker thread
+    /// that finished the pass (the other workers go on with the next pass meanwhile); the film
+    /// holds exactly the passes done. Setting the cancel flag here stops the render with this
+    /// film: no later pass is added.
     fn pass_done(&self, _film: &Film, _samples_done: u32, _spp: u32) {}
     /// After each tile (from worker threads): tiles done and total over the whole render.
     fn tile_done(&self, _done: u64, _total: u64) {}
