@@ -19,7 +19,9 @@ the CLI's "rendered" phase time:
   busy 2       the 2-thread render's workers' time running or runnable (schedstat: CPU +
                run-queue wait, so the machine's share of the cores does not count against us)
                / (2 × render wall): 1 − our own idle (a worker asleep: no job, a barrier).
-               Needs workers named `render-N` (this session's binaries); n/a otherwise;
+               Needs workers named `render-N` (this session's binaries); n/a otherwise.
+               Trust it when util 1 is near 1: on a saturated machine rayon's idle workers
+               spin and yield before sleeping, stay runnable, and their idle counts as busy;
   util 2       render CPU (user+sys) at 2 threads / (2 × render wall): below 1 is idle time,
                ours (workers with nothing to do) or the machine's (our threads not scheduled);
   util 1       the same at 1 thread / (1 × wall): what the machine gave one thread, so a
