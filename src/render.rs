@@ -1,7 +1,9 @@
 //! The render driver: splits the image into tiles, renders them in parallel passes (so front ends
 //! can show a progressive preview), accumulates the film and reports statistics. Every sample is a
-//! pure function of (seed, pixel, sample index), and the film adds tiles in a fixed order, so the
-//! image is bit-identical for any thread count.
+//! pure function of (seed, pixel, sample index), and the film adds each pass's tiles in a fixed
+//! order, pass after pass, so the image is bit-identical for any thread count. Passes are
+//! pipelined: workers start the next pass's tiles while the current one's last tiles finish
+//! (see `render_in_pool`).
 
 use crate::film::aov::{AovKind, Layer};
 use crate::film::filter::{Filter, FilterSampler};
@@ -11,7 +13,8 @@ use crate::integrator::{IntegratorKind, PathSettings, RayStats, path, raycast, w
 use crate::sampling::{SampleStream, SamplerKind, SamplerSetup};
 use crate::world::World;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Condvar, Mutex, MutexGuard, RwLock};
 use std::time::{Duration, Instant};
 
 pub const MAX_DIMENSION: u32 = 16384;
@@ -256,9 +259,13 @@ pub fn adaptive_mask(
     n
 }
 
-/// Receives progress from the driver. Called from the driver's thread only.
+/// Receives progress from the driver.
 pub trait RenderObserver: Sync {
-    /// After each pass: the film so far, samples per pixel done and planned.
+    /// After each pass: the film so far, samples per pixel done and planned. Called once per
+    /// complete pass, in pass order and never concurrently with itself, from the worker thread
+    /// that finished the pass (the other workers go on with the next pass meanwhile); the film
+    /// holds exactly the passes done. Setting the cancel flag here stops the render with this
+    /// film: no later pass is added.
     fn pass_done(&self, _film: &Film, _samples_done: u32, _spp: u32) {}
     /// After each tile (from worker threads): tiles done and total over the whole render.
     fn tile_done(&self, _done: u64, _total: u64) {}
@@ -431,6 +438,9 @@ pub fn render_range_aovs(
     match settings.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
+            // Named so profilers and `bench/scaling.py` (which reads their scheduler
+            // statistics) can tell the render's workers from the others.
+            .thread_name(|i| format!("render-{i}"))
             .build()
             .map_err(|e| RenderError::ThreadPool(n, e.to_string()))?
             .install(run),
@@ -475,7 +485,7 @@ fn render_in_pool(
         }
     }
     let first = range_start.samples.start;
-    let (mut film, from) = match range_start.resume {
+    let (film, from) = match range_start.resume {
         Some((film, at)) => (film, at),
         None => (Film::new(fw, fh), first),
     };
@@ -487,8 +497,6 @@ fn render_in_pool(
         .collect();
     let total_tiles = (tiles.len() * passes.len()) as u64;
     let tiles_done = AtomicU64::new(0);
-    let mut stats = RayStats::default();
-    let mut done = from;
     let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h);
     let filter = FilterSampler::new(&settings.filter);
     // Adaptive sampling: which pixels the next pass renders (decided between passes).
@@ -497,143 +505,272 @@ fn render_in_pool(
     let track = settings.tracks_variance();
     let pixels = (fw * fh) as usize;
     // In-loop AOVs: one accumulator per film pixel; each pass's tiles fill blocks of their own,
-    // added here once the pass is complete (like the film's blocks).
-    let mut aov_film: Option<Vec<PixelAovs>> =
+    // added once the pass is complete (like the film's blocks).
+    let aov_film: Option<Vec<PixelAovs>> =
         record_aovs.then(|| vec![PixelAovs::default(); (fw * fh) as usize]);
     let (mut active, mut scratch) = if adaptive {
         (vec![true; pixels], vec![false; pixels])
     } else {
         (Vec::new(), Vec::new())
     };
+    // A resumed film may already be clean everywhere: then no pass runs.
+    if let Some(t) = settings.noise_threshold
+        && !passes.is_empty()
+        && from >= ADAPTIVE_MIN_SAMPLES
+        && adaptive_mask(&film, t, &mut active, &mut scratch) == 0
+    {
+        return Ok(FilmRender {
+            film,
+            start: first,
+            done: from,
+            cancelled: false,
+            stopped_early: true,
+            stats: RayStats::default(),
+            render_time: start.elapsed(),
+            aovs: aov_film,
+        });
+    }
     let deadline = settings
         .time_limit
         .map(|t| start + Duration::from_secs_f64(t));
-    let timed_out = AtomicBool::new(false);
-    let mut stopped_early = false;
-    for &(s0, s1) in &passes {
-        if let Some(t) = settings.noise_threshold
-            && done >= ADAPTIVE_MIN_SAMPLES
-            && adaptive_mask(&film, t, &mut active, &mut scratch) == 0
-        {
-            stopped_early = true;
-            break;
+
+    // Pipelined passes (issue #23). A barrier after every pass left all cores but one idle while
+    // the pass's last tiles finished, and during the serial film update and `pass_done`. Instead
+    // every worker takes (pass, tile) jobs from one counter in order, so it starts the next
+    // pass's tiles while others finish the current one; the worker that completes a pass's last
+    // tile commits it: its blocks go into the film in tile order, then `pass_done`. Passes are
+    // committed strictly in order, so the film, the stats and the AOV sums (floats: their order
+    // matters) see exactly the additions of the barrier version, and each `pass_done` sees the
+    // film of complete passes only. Blocks of a finished but uncommitted pass wait in `slots`.
+    //
+    // A worker may run `lookahead` passes ahead of the oldest uncommitted one: 1 (which bounds
+    // the blocks held to two passes' worth), 0 with adaptive sampling, whose next pass renders
+    // the pixels chosen from the film of every pass before it (a barrier, as before).
+    let lookahead = if adaptive { 0 } else { 1 };
+    let n_tiles = tiles.len();
+    let ring = lookahead + 1;
+    type Tile = (FilmBlock, RayStats, Vec<PixelAovs>);
+    let slots: Vec<Mutex<Option<Tile>>> = (0..n_tiles * ring).map(|_| Mutex::new(None)).collect();
+    // Tiles still to render per pass.
+    let left: Vec<AtomicUsize> = passes.iter().map(|_| AtomicUsize::new(n_tiles)).collect();
+    let next_job = AtomicUsize::new(0);
+    // Passes from this index on are neither rendered nor committed (cancel, time limit, adaptive
+    // sampling found the film clean, a panic).
+    let halt = AtomicUsize::new(passes.len());
+    // Passes committed (mirrors `Commit::committed`, readable without the commit lock, which
+    // is held during `pass_done`); `wake` tells waiting workers that it or `halt` changed.
+    let committed = AtomicUsize::new(0);
+    let wake = (Mutex::new(()), Condvar::new());
+    let saw_cancel = AtomicBool::new(false);
+    struct Commit {
+        film: Film,
+        stats: RayStats,
+        aovs: Option<Vec<PixelAovs>>,
+        done: u32,
+        committed: usize,
+        cancelled: bool,
+        scratch: Vec<bool>,
+    }
+    let state = Mutex::new(Commit {
+        film,
+        stats: RayStats::default(),
+        aovs: aov_film,
+        done: from,
+        committed: 0,
+        cancelled: false,
+        scratch,
+    });
+    let active = RwLock::new(active);
+    let notify = || {
+        let _g = lock(&wake.0);
+        wake.1.notify_all();
+    };
+    let stop = |pass: usize| {
+        halt.fetch_min(pass, Ordering::SeqCst);
+        notify();
+    };
+
+    let render_tile = |s0: u32, s1: u32, (x0, y0, tw, th): (u32, u32, u32, u32)| -> Tile {
+        let mut block = if track {
+            FilmBlock::tracked(x0, y0, tw, th)
+        } else {
+            FilmBlock::new(x0, y0, tw, th)
+        };
+        let mut st = RayStats::default();
+        let mut aov_block = Vec::new();
+        if record_aovs {
+            aov_block = vec![PixelAovs::default(); (tw * th) as usize];
         }
-        // The first pass always completes; later ones are abandoned whole when time runs out.
-        let may_time_out = deadline.filter(|_| done > from);
-        if may_time_out.is_some_and(|d| Instant::now() >= d) {
-            stopped_early = true;
-            break;
-        }
-        let active = &active;
-        type Tile = (FilmBlock, RayStats, Vec<PixelAovs>);
-        let blocks: Vec<Tile> = tiles
-            .par_iter()
-            .map(|&(x0, y0, tw, th)| {
-                let mut block = if track {
-                    FilmBlock::tracked(x0, y0, tw, th)
-                } else {
-                    FilmBlock::new(x0, y0, tw, th)
-                };
-                let mut st = RayStats::default();
-                let mut aov_block = Vec::new();
-                if cancel.load(Ordering::Relaxed) {
-                    return (block, st, aov_block);
-                }
-                if let Some(d) = may_time_out
-                    && (timed_out.load(Ordering::Relaxed) || Instant::now() >= d)
+        // Only adaptive renders take the lock; nothing writes it while a pass renders.
+        let mask = adaptive.then(|| active.read().unwrap_or_else(|e| e.into_inner()));
+        for fy in y0..y0 + th {
+            for fx in x0..x0 + tw {
+                if let Some(m) = &mask
+                    && !m[(fy * fw + fx) as usize]
                 {
-                    timed_out.store(true, Ordering::Relaxed);
-                    return (block, st, aov_block);
+                    continue;
                 }
-                if record_aovs {
-                    aov_block = vec![PixelAovs::default(); (tw * th) as usize];
-                }
-                for fy in y0..y0 + th {
-                    for fx in x0..x0 + tw {
-                        if adaptive && !active[(fy * fw + fx) as usize] {
-                            continue;
-                        }
-                        let (x, y) = (fx + win.x0, fy + win.y0);
-                        let pixel_key = sampler.pixel_key((x, y));
-                        let slot = ((fy - y0) * tw + (fx - x0)) as usize;
-                        for s in s0..s1 {
-                            let mut stream = sampler.stream(pixel_key, s);
-                            let l = if record_aovs {
-                                let mut rec = AovPath::new();
-                                let l = sample_pixel_aov(
-                                    world,
-                                    &camera,
-                                    &filter,
-                                    settings,
-                                    &mut stream,
-                                    (x, y),
-                                    &mut st,
-                                    &mut rec,
-                                );
-                                aov_block[slot].add(&rec.sample);
-                                l
-                            } else {
-                                sample_pixel(
-                                    world,
-                                    &camera,
-                                    &filter,
-                                    settings,
-                                    &mut stream,
-                                    x,
-                                    y,
-                                    &mut st,
-                                )
-                            };
-                            if track {
-                                block.add_tracked(fx, fy, l);
-                            } else {
-                                block.add(fx, fy, l);
-                            }
-                        }
+                let (x, y) = (fx + win.x0, fy + win.y0);
+                let pixel_key = sampler.pixel_key((x, y));
+                let slot = ((fy - y0) * tw + (fx - x0)) as usize;
+                for s in s0..s1 {
+                    let mut stream = sampler.stream(pixel_key, s);
+                    let l = if record_aovs {
+                        let mut rec = AovPath::new();
+                        let l = sample_pixel_aov(
+                            world,
+                            &camera,
+                            &filter,
+                            settings,
+                            &mut stream,
+                            (x, y),
+                            &mut st,
+                            &mut rec,
+                        );
+                        aov_block[slot].add(&rec.sample);
+                        l
+                    } else {
+                        sample_pixel(
+                            world,
+                            &camera,
+                            &filter,
+                            settings,
+                            &mut stream,
+                            x,
+                            y,
+                            &mut st,
+                        )
+                    };
+                    if track {
+                        block.add_tracked(fx, fy, l);
+                    } else {
+                        block.add(fx, fy, l);
                     }
-                }
-                let done = tiles_done.fetch_add(1, Ordering::Relaxed) + 1;
-                observer.tile_done(done, total_tiles);
-                (block, st, aov_block)
-            })
-            .collect();
-        let cancelled = cancel.load(Ordering::Relaxed);
-        if cancelled || timed_out.load(Ordering::Relaxed) {
-            // Tiles skipped after the flag was set make this pass incomplete: drop all of it.
-            return Ok(FilmRender {
-                film,
-                start: first,
-                done,
-                cancelled,
-                stopped_early: !cancelled,
-                stats,
-                render_time: start.elapsed(),
-                aovs: aov_film,
-            });
-        }
-        for (b, st, ab) in &blocks {
-            film.add_block(b);
-            stats += *st;
-            if let Some(af) = aov_film.as_mut() {
-                for (k, px) in ab.iter().enumerate() {
-                    let (fx, fy) = (b.x0 + k as u32 % b.w, b.y0 + k as u32 / b.w);
-                    af[(fy * fw + fx) as usize].merge(px);
                 }
             }
         }
-        done = s1;
-        observer.pass_done(&film, s1, settings.spp);
-    }
+        (block, st, aov_block)
+    };
+
+    // Commits every complete pass at the head of the queue, in order.
+    let commit = || {
+        let mut c = lock(&state);
+        loop {
+            let p = c.committed;
+            if p >= halt.load(Ordering::SeqCst) || left[p].load(Ordering::Acquire) != 0 {
+                break;
+            }
+            // A cancel (also one set by the previous `pass_done`) drops every pass not yet in.
+            if cancel.load(Ordering::Relaxed) {
+                c.cancelled = true;
+                stop(p);
+                break;
+            }
+            let c = &mut *c;
+            for slot in &slots[(p % ring) * n_tiles..][..n_tiles] {
+                let (b, st, ab) = lock(slot).take().expect("a complete pass has every tile");
+                c.film.add_block(&b);
+                c.stats += st;
+                if let Some(af) = c.aovs.as_mut() {
+                    for (k, px) in ab.iter().enumerate() {
+                        let (fx, fy) = (b.x0 + k as u32 % b.w, b.y0 + k as u32 / b.w);
+                        af[(fy * fw + fx) as usize].merge(px);
+                    }
+                }
+            }
+            c.done = passes[p].1;
+            observer.pass_done(&c.film, c.done, settings.spp);
+            c.committed = p + 1;
+            if let Some(t) = settings.noise_threshold
+                && p + 1 < passes.len()
+                && c.done >= ADAPTIVE_MIN_SAMPLES
+            {
+                let mut a = active.write().unwrap_or_else(|e| e.into_inner());
+                if adaptive_mask(&c.film, t, &mut a, &mut c.scratch) == 0 {
+                    halt.fetch_min(p + 1, Ordering::SeqCst);
+                }
+            }
+            committed.store(p + 1, Ordering::SeqCst);
+            notify();
+        }
+    };
+
+    let worker = || {
+        // A panicking tile would leave its pass incomplete forever and the other workers
+        // waiting for it: stop everything so the panic reaches the caller.
+        let _unwind = OnUnwind(|| stop(0));
+        loop {
+            let j = next_job.fetch_add(1, Ordering::Relaxed);
+            let (q, t) = (j / n_tiles, j % n_tiles);
+            if q >= halt.load(Ordering::SeqCst) {
+                break;
+            }
+            if committed.load(Ordering::SeqCst) + lookahead < q {
+                let mut g = lock(&wake.0);
+                while committed.load(Ordering::SeqCst) + lookahead < q
+                    && q < halt.load(Ordering::SeqCst)
+                {
+                    g = wake.1.wait(g).unwrap_or_else(|e| e.into_inner());
+                }
+                drop(g);
+                if q >= halt.load(Ordering::SeqCst) {
+                    break;
+                }
+            }
+            if cancel.load(Ordering::Relaxed) {
+                saw_cancel.store(true, Ordering::Relaxed);
+                stop(q);
+                break;
+            }
+            // The first pass always completes; later ones are abandoned whole when time runs
+            // out (a pass with a tile skipped is never committed).
+            if q > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
+                stop(q);
+                break;
+            }
+            let (s0, s1) = passes[q];
+            let tile = render_tile(s0, s1, tiles[t]);
+            *lock(&slots[(q % ring) * n_tiles + t]) = Some(tile);
+            let n = tiles_done.fetch_add(1, Ordering::Relaxed) + 1;
+            observer.tile_done(n, total_tiles);
+            if left[q].fetch_sub(1, Ordering::AcqRel) == 1 {
+                commit();
+            }
+        }
+    };
+    rayon::scope(|s| {
+        for _ in 0..rayon::current_num_threads() {
+            s.spawn(|_| worker());
+        }
+    });
+    let c = state.into_inner().unwrap_or_else(|e| e.into_inner());
+    let complete = c.committed == passes.len();
+    let cancelled = !complete && (c.cancelled || saw_cancel.load(Ordering::Relaxed));
     Ok(FilmRender {
-        film,
+        film: c.film,
         start: first,
-        done,
-        cancelled: false,
-        stopped_early,
-        stats,
+        done: c.done,
+        cancelled,
+        stopped_early: !complete && !cancelled,
+        stats: c.stats,
         render_time: start.elapsed(),
-        aovs: aov_film,
+        aovs: c.aovs,
     })
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Runs its closure when dropped during a panic.
+struct OnUnwind<F: Fn()>(F);
+
+impl<F: Fn()> Drop for OnUnwind<F> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            (self.0)()
+        }
+    }
 }
 
 /// The traced AOV layers among `kinds` ([`AovKind::is_traced`]; the film's own statistics come

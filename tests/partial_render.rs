@@ -384,3 +384,57 @@ fn render_range_refuses_bad_ranges() {
     assert!(run(4, 8, Some((Film::new(20, 14), 2))).contains("outside"));
     assert!(run(0, 8, Some((Film::new(3, 3), 2))).contains("3x3"));
 }
+
+/// Records every film `pass_done` is shown.
+struct Record(std::sync::Mutex<Vec<(u32, Film)>>);
+
+impl RenderObserver for Record {
+    fn pass_done(&self, film: &Film, done: u32, _spp: u32) {
+        self.0.lock().unwrap().push((done, film.clone()));
+    }
+}
+
+/// Passes are pipelined (workers start the next pass's tiles while the last ones of a pass
+/// finish): `pass_done` still sees every pass once, in order, with a film that holds exactly
+/// the samples of the passes done (none of the next pass's), and the same films for 1, 2 and 3
+/// threads. 48×40 pixels make 9 tiles; 20 spp make passes of 1, 1, 2, 4, 8, 4 samples.
+#[test]
+fn pass_done_sees_each_complete_pass_in_order_for_any_thread_count() {
+    let world = world();
+    let ends: Vec<u32> = trayecto::render::pass_schedule(20)
+        .iter()
+        .map(|p| p.1)
+        .collect();
+    assert_eq!(ends, [1, 2, 4, 8, 16, 20]);
+    let mut seen = Vec::new();
+    for threads in [1, 2, 3] {
+        let s = RenderSettings {
+            width: 48,
+            height: 40,
+            spp: 20,
+            threads: Some(threads),
+            ..settings(SamplerKind::Stratified)
+        };
+        let rec = Record(Default::default());
+        let start = RangeStart {
+            samples: 0..s.spp,
+            resume: None,
+        };
+        let r = render_range(&world, &s, start, &rec, &AtomicBool::new(false)).unwrap();
+        assert!(!r.cancelled && !r.stopped_early && r.done == 20);
+        let films = rec.0.into_inner().unwrap();
+        assert_eq!(films.iter().map(|f| f.0).collect::<Vec<_>>(), ends);
+        for (done, film) in &films {
+            assert!(
+                film.counts().iter().all(|&c| c == *done),
+                "{threads} threads: the film shown after {done} samples holds other counts"
+            );
+        }
+        assert_eq!(films.last().unwrap().1, r.film);
+        seen.push(films);
+    }
+    assert!(
+        seen[0] == seen[1] && seen[1] == seen[2],
+        "films differ between thread counts"
+    );
+}
