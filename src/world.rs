@@ -122,6 +122,12 @@ impl World {
             &footprint_means,
             options.light_sampler,
         );
+        // Lookups from here on read the textures tiled (cache-line tiles, `TexelLayout`): after
+        // the pyramids and the light estimates above, which read them row-major.
+        {
+            use rayon::prelude::*;
+            textures.par_iter_mut().for_each(Texture::tile);
+        }
         let cutout: Vec<bool> = materials
             .iter()
             .map(|m| m.alpha_mode != AlphaMode::Opaque)

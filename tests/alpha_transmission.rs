@@ -171,6 +171,7 @@ fn mask_follows_the_base_colour_texture_alpha() {
         mipmap: true,
         mips: Vec::new(),
         procedural: None,
+        layout: Default::default(),
     };
     let sheet = Material {
         base_color_texture: Some(TextureRef::new(0)),

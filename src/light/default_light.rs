@@ -91,6 +91,7 @@ pub fn peak_emission(material: &Material, textures: &[Texture]) -> Vec3 {
         let max = textures
             .get(t.texture)
             .map(|tex| {
+                // Storage order: a tiled texture's padding repeats its own texels.
                 tex.texels
                     .iter()
                     .fold(Vec3::ZERO, |m, texel| m.max(texel.truncate()))

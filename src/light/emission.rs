@@ -55,10 +55,9 @@ pub fn footprint_mean(texture: &Texture, tref: &TextureRef, uvs: [Vec2; 3]) -> O
     let mut sum = [0.0f64; 3];
     for &(ya, yb) in &ys {
         for y in ya..=yb {
-            let row = (y * w) as usize;
             for &(xa, xb) in &xs {
                 for x in xa as usize..=xb as usize {
-                    let t = texture.texels.get(row + x);
+                    let t = texture.texel(x, y as usize);
                     // Negative texels would let a sum hide a non-zero one: count magnitudes.
                     sum[0] += t.x.abs() as f64;
                     sum[1] += t.y.abs() as f64;
@@ -128,6 +127,7 @@ mod tests {
             mipmap: true,
             mips: Vec::new(),
             procedural: None,
+            layout: Default::default(),
         }
     }
 

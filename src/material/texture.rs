@@ -226,6 +226,33 @@ impl Texels {
         self.iter().collect()
     }
 
+    /// These texels (row-major, `w` × `h`) in 4 × 4 tiles ([`TexelLayout`]).
+    pub fn tiled(&self, w: u32, h: u32) -> (Texels, TexelLayout) {
+        let (w, h) = (w as usize, h as usize);
+        match self {
+            Texels::Srgb8(v) => {
+                let (v, l) = TexelLayout::tile(v, w, h);
+                (Texels::Srgb8(v), l)
+            }
+            Texels::Unorm8(v) => {
+                let (v, l) = TexelLayout::tile(v, w, h);
+                (Texels::Unorm8(v), l)
+            }
+            Texels::Unorm8Recip(v) => {
+                let (v, l) = TexelLayout::tile(v, w, h);
+                (Texels::Unorm8Recip(v), l)
+            }
+            Texels::Unorm16(v) => {
+                let (v, l) = TexelLayout::tile(v, w, h);
+                (Texels::Unorm16(v), l)
+            }
+            Texels::F32(v) => {
+                let (v, l) = TexelLayout::tile(v, w, h);
+                (Texels::F32(v), l)
+            }
+        }
+    }
+
     /// `v` (linear RGBA) stored in this storage's kind, rounded to its nearest codes (for MIP
     /// levels: an 8-bit image's pyramid stays 8-bit). The 8-bit linear kinds both store as
     /// [`Texels::Unorm8`].
@@ -298,6 +325,9 @@ pub struct Texture {
     /// A pbrt-v4 procedural texture evaluated per hit ([`super::eval::sample_texture`]); its
     /// `texels` then hold one texel, its mean, which plain lookups and light-power estimates use.
     pub procedural: Option<Box<super::procedural::Procedural>>,
+    /// Where each level-0 texel lives in `texels`: row-major as loaded; tiled once the world is
+    /// compiled ([`Texture::tile`]). Read texels by position through [`Texture::texel`].
+    pub layout: TexelLayout,
 }
 
 /// One level of a MIP pyramid: half the size of the level below (rounded down, at least 1),
@@ -307,6 +337,112 @@ pub struct MipLevel {
     pub width: u32,
     pub height: u32,
     pub texels: Texels,
+    /// Where each texel of this level lives in `texels`.
+    pub layout: TexelLayout,
+}
+
+/// Bytes per cache line: the unit a tiled level's tiles are aligned to.
+const CACHE_LINE: usize = 64;
+
+/// Side of the square tiles of [`Texture::tile`], as a power of two: 4 × 4 texels, so an 8-bit
+/// tile is 64 bytes, one cache line.
+pub const TILE_LOG2: u32 = 2;
+const TILE: usize = 1 << TILE_LOG2;
+const TILE_MASK: usize = TILE - 1;
+
+/// How a level's texels are ordered in its [`Texels`] storage.
+///
+/// Row-major (the default: images as loaded) puts texel (x, y) at `y·w + x`, so the two rows of
+/// a bilinear footprint are `4·w` bytes apart (4 KiB for a 1024-wide 8-bit image): two cache
+/// lines, and two pages, per lookup. Tiled stores the image as 4 × 4 tiles, each contiguous,
+/// tiles row by row, the last column and row of tiles padded: texel (x, y) is at
+/// `base + (⌊y/4⌋·tiles_x + ⌊x/4⌋)·16 + (y mod 4)·4 + x mod 4`, so most footprints fall in one
+/// tile, one cache line (the blocked texture layouts of texture caches: Hakura & Gupta 1997,
+/// "The Design and Analysis of a Cache Architecture for Texture Mapping"). `base` pads the
+/// start so that tiles begin on a cache line. Only addresses change: the texels read, and so
+/// every lookup's bits, are the same in both layouts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct TexelLayout {
+    /// Tiled (else row-major).
+    pub tiled: bool,
+    /// Tiled: index of texel (0, 0).
+    pub base: usize,
+    /// Tiled: texels per row of tiles, `16 · tiles_x`.
+    pub tile_row: usize,
+}
+
+impl TexelLayout {
+    /// The part of texel (x, ·)'s index that depends on its column (tiled).
+    #[inline(always)]
+    fn tiled_col(x: usize) -> usize {
+        ((x & !TILE_MASK) << TILE_LOG2) | (x & TILE_MASK)
+    }
+
+    /// The part of texel (·, y)'s index that depends on its row (tiled).
+    #[inline(always)]
+    fn tiled_row(self, y: usize) -> usize {
+        self.base + (y >> TILE_LOG2) * self.tile_row + ((y & TILE_MASK) << TILE_LOG2)
+    }
+
+    /// Storage index of texel (x, y), 0 ≤ x < `width`, of a level laid out this way.
+    #[inline(always)]
+    pub fn index(self, width: u32, x: usize, y: usize) -> usize {
+        if self.tiled {
+            self.tiled_row(y) + Self::tiled_col(x)
+        } else {
+            y * width as usize + x
+        }
+    }
+
+    /// Storage indices of texels (xa, ya), (xb, ya), (xa, yb), (xb, yb): a bilinear footprint,
+    /// with one test of the layout (it is the same for every lookup of a texture, so the branch
+    /// predicts; a branch-free form with variable shifts cost ~20 instructions per lookup).
+    #[inline(always)]
+    fn quad(self, width: u32, xa: usize, xb: usize, ya: usize, yb: usize) -> [usize; 4] {
+        let ((ra, rb), (ca, cb)) = if self.tiled {
+            (
+                (self.tiled_row(ya), self.tiled_row(yb)),
+                (Self::tiled_col(xa), Self::tiled_col(xb)),
+            )
+        } else {
+            ((ya * width as usize, yb * width as usize), (xa, xb))
+        };
+        [ra + ca, ra + cb, rb + ca, rb + cb]
+    }
+
+    /// `v` (row-major, `w` × `h`) reordered into 4 × 4 tiles, with the layout that addresses
+    /// the result. Padding (the start, for alignment, and the partial tiles at the right and
+    /// bottom edges) repeats the nearest edge texel; lookups never read it.
+    fn tile<T: Copy>(v: &[T], w: usize, h: usize) -> (Vec<T>, TexelLayout) {
+        assert_eq!(v.len(), w * h, "texel count of a {w}x{h} level");
+        let t = TILE;
+        let (tiles_x, tiles_y) = (w.div_ceil(t), h.div_ceil(t));
+        let size = std::mem::size_of::<T>();
+        let mut out = Vec::with_capacity(tiles_x * tiles_y * t * t + CACHE_LINE / size);
+        // The allocation's offset within a cache line, rounded up to whole texels (the vector
+        // never reallocates: its capacity covers the padding). A clone loses the alignment, not
+        // the correctness: `base` is an index, not an address.
+        let misalign = out.as_ptr() as usize % CACHE_LINE;
+        let base = ((CACHE_LINE - misalign) % CACHE_LINE).div_ceil(size);
+        out.resize(base, v[0]);
+        for ty in 0..tiles_y {
+            for tx in 0..tiles_x {
+                for r in 0..t {
+                    let row = &v[(ty * t + r).min(h - 1) * w..][..w];
+                    match row.get(tx * t..tx * t + t) {
+                        Some(run) => out.extend_from_slice(run),
+                        None => out.extend((0..t).map(|c| row[(tx * t + c).min(w - 1)])),
+                    }
+                }
+            }
+        }
+        let layout = TexelLayout {
+            tiled: true,
+            base,
+            tile_row: tiles_x * t * t,
+        };
+        (out, layout)
+    }
 }
 
 /// The largest derivative of a UV footprint, (∂u/∂x, ∂v/∂x, ∂u/∂y, ∂v/∂y) per pixel, below which
@@ -403,6 +539,7 @@ impl Texture {
             mipmap: true,
             mips: Vec::new(),
             procedural: None,
+            layout: TexelLayout::default(),
         }
     }
 
@@ -419,6 +556,7 @@ impl Texture {
             mipmap: false,
             mips: Vec::new(),
             procedural: None,
+            layout: TexelLayout::default(),
         }
     }
 
@@ -460,15 +598,45 @@ impl Texture {
 
     #[inline]
     fn index(&self, x: i64, y: i64) -> usize {
-        self.index_in(self.width, self.height, x, y)
+        self.index_in(self.width, self.height, self.layout, x, y)
     }
 
-    /// Texel index of (x, y) in a `width` × `height` level, after the wrap modes.
+    /// Storage index of texel (x, y) of a `width` × `height` level laid out as `layout`, after
+    /// the wrap modes.
     #[inline]
-    fn index_in(&self, width: u32, height: u32, x: i64, y: i64) -> usize {
+    fn index_in(&self, width: u32, height: u32, layout: TexelLayout, x: i64, y: i64) -> usize {
         let xi = Self::wrap(x, width, self.wrap_s);
         let yi = Self::wrap(y, height, self.wrap_t);
-        yi * width as usize + xi
+        layout.index(width, xi, yi)
+    }
+
+    /// Level-0 texel (x, y), 0 ≤ x < width, 0 ≤ y < height (top row 0), whatever the layout.
+    #[inline]
+    pub fn texel(&self, x: usize, y: usize) -> Vec4 {
+        debug_assert!(x < self.width as usize && y < self.height as usize);
+        self.texels.get(self.layout.index(self.width, x, y))
+    }
+
+    /// Every level-0 texel, row by row from the top (the order images are stored in).
+    pub fn texels_row_major(&self) -> impl Iterator<Item = Vec4> + '_ {
+        let (w, h) = (self.width as usize, self.height as usize);
+        (0..h).flat_map(move |y| (0..w).map(move |x| self.texel(x, y)))
+    }
+
+    /// Reorders level 0 and every MIP level into 4 × 4 tiles ([`TexelLayout`]): the same texels at new indices, so lookups return the same bits and a
+    /// bilinear footprint mostly reads one cache line instead of two rows `4·width` bytes apart.
+    /// Done once the world is compiled (after MIP building and light estimates). 1 × 1 levels
+    /// and already tiled textures stay as they are.
+    pub fn tile(&mut self) {
+        if self.layout.tiled || self.texels.len() <= 1 {
+            return;
+        }
+        (self.texels, self.layout) = self.texels.tiled(self.width, self.height);
+        for m in &mut self.mips {
+            if m.texels.len() > 1 {
+                (m.texels, m.layout) = m.texels.tiled(m.width, m.height);
+            }
+        }
     }
 
     /// Looks up (u, v) with v = 0 at the top row (glTF convention). Always inlined (into
@@ -483,14 +651,24 @@ impl Texture {
         let y = uv.y * self.height as f32;
         match self.filter {
             FilterMode::Nearest => self.texels.get(self.index(floor_i64(x).0, floor_i64(y).0)),
-            FilterMode::Bilinear => self.bilinear(self.width, self.height, &self.texels, x, y),
+            FilterMode::Bilinear => {
+                self.bilinear(self.width, self.height, &self.texels, self.layout, x, y)
+            }
         }
     }
 
     /// Bilinear interpolation between the texel centres of a `width` × `height` level at
     /// (x, y) in that level's texel units.
     #[inline]
-    fn bilinear(&self, width: u32, height: u32, texels: &Texels, x: f32, y: f32) -> Vec4 {
+    fn bilinear(
+        &self,
+        width: u32,
+        height: u32,
+        texels: &Texels,
+        layout: TexelLayout,
+        x: f32,
+        y: f32,
+    ) -> Vec4 {
         let (fx, fy) = (x - 0.5, y - 0.5);
         let ((x0, x0f), (y0, y0f)) = (floor_i64(fx), floor_i64(fy));
         let (tx, ty) = (fx - x0f, fy - y0f);
@@ -499,8 +677,7 @@ impl Texture {
         // instructions).
         let (xa, xb) = Self::wrap_pair(x0, width, self.wrap_s);
         let (ya, yb) = Self::wrap_pair(y0, height, self.wrap_t);
-        let (ra, rb) = (ya * width as usize, yb * width as usize);
-        let i = [ra + xa, ra + xb, rb + xa, rb + xb];
+        let i = layout.quad(width, xa, xb, ya, yb);
         // One match per lookup, not per texel: the storage kind picks the decoder once.
         let [t00, t10, t01, t11] = match texels {
             Texels::Srgb8(v) => {
@@ -551,13 +728,13 @@ impl Texture {
         let l0 = level.floor();
         let t = level - l0;
         let at = |l: usize| -> Vec4 {
-            let (w, h, texels) = if l == 0 {
-                (self.width, self.height, &self.texels)
+            let (w, h, texels, layout) = if l == 0 {
+                (self.width, self.height, &self.texels, self.layout)
             } else {
                 let m = &self.mips[l - 1];
-                (m.width, m.height, &m.texels)
+                (m.width, m.height, &m.texels, m.layout)
             };
-            self.bilinear(w, h, texels, uv.x * w as f32, uv.y * h as f32)
+            self.bilinear(w, h, texels, layout, uv.x * w as f32, uv.y * h as f32)
         };
         let l0 = l0 as usize;
         let a = at(l0);
@@ -574,7 +751,12 @@ impl Texture {
     /// stored in its image's storage kind (8-bit stays 8-bit), so the pyramid adds about a
     /// third to the texel memory.
     pub fn build_mips(&mut self) {
-        if !self.mipmap || !self.mips.is_empty() || self.width * self.height <= 1 {
+        // Tiling comes after the pyramid (World::build); a tiled texture gets none.
+        if self.layout.tiled
+            || !self.mipmap
+            || !self.mips.is_empty()
+            || self.width * self.height <= 1
+        {
             return;
         }
         let (mut w, mut h) = (self.width as usize, self.height as usize);
@@ -596,6 +778,7 @@ impl Texture {
                 width: nw as u32,
                 height: nh as u32,
                 texels: self.texels.encode_like(&next),
+                layout: TexelLayout::default(),
             });
             (w, h, cur) = (nw, nh, next);
         }
@@ -611,8 +794,13 @@ impl Texture {
 
     /// Average texel value (for light power estimates).
     pub fn average(&self) -> Vec4 {
-        let sum: Vec4 = self.texels.iter().sum();
-        sum / self.texels.len().max(1) as f32
+        if !self.layout.tiled {
+            let sum: Vec4 = self.texels.iter().sum();
+            return sum / self.texels.len().max(1) as f32;
+        }
+        // Row by row, as the row-major sum: the rounding does not depend on the layout.
+        let sum: Vec4 = self.texels_row_major().sum();
+        sum / (self.width as usize * self.height as usize).max(1) as f32
     }
 
     /// Replaces every texel by `f(texel)`; the result is stored as float.
@@ -643,6 +831,7 @@ mod tests {
             mipmap: true,
             mips: Vec::new(),
             procedural: None,
+            layout: TexelLayout::default(),
         }
     }
 
@@ -678,7 +867,7 @@ mod tests {
             let (x0, y0) = (fx.floor(), fy.floor());
             let (tx, ty) = (fx - x0, fy - y0);
             let (x0, y0) = (x0 as i64, y0 as i64);
-            let g = |x, y| t.texels.get(t.index_in(t.width, t.height, x, y));
+            let g = |x, y| t.texels.get(t.index_in(t.width, t.height, t.layout, x, y));
             let a = g(x0, y0) * (1.0 - tx) + g(x0 + 1, y0) * tx;
             let b = g(x0, y0 + 1) * (1.0 - tx) + g(x0 + 1, y0 + 1) * tx;
             a * (1.0 - ty) + b * ty
@@ -947,6 +1136,172 @@ mod tests {
             // About a third more memory (a 2D pyramid: 1/4 + 1/16 + … of level 0).
             let extra = t.mip_bytes() as f32 / t.texel_bytes() as f32;
             assert!(extra > 0.2 && extra < 0.4, "{extra}");
+        }
+    }
+
+    /// Distinct texels (every channel differs between texels) of a `w` × `h` image.
+    fn distinct(w: u32, h: u32) -> Vec<Vec4> {
+        (0..w * h)
+            .map(|i| {
+                Vec4::new(
+                    i as f32,
+                    i as f32 + 0.25,
+                    -(i as f32),
+                    1.0 / (i as f32 + 1.0),
+                )
+            })
+            .collect()
+    }
+
+    /// Every texel of a tiled level is addressable at its own index, inside the storage, and
+    /// reads back as the row-major texel, for odd, non-power-of-two, thin and 1 × 1 sizes; the
+    /// average keeps its bits; 8-bit tiles start on a cache line. Fails with a wrong tile stride
+    /// (e.g. `tiles_x` rounded down instead of up: two texels of a 5-wide image collide).
+    #[test]
+    fn tiled_layout_addresses_every_texel_once() {
+        for (w, h) in [
+            (1, 1),
+            (1, 7),
+            (7, 1),
+            (2, 2),
+            (3, 5),
+            (4, 4),
+            (5, 3),
+            (8, 8),
+            (13, 6),
+            (37, 23),
+            (64, 17),
+        ] {
+            {
+                let s = TILE_LOG2;
+                let plain = Texture::with_texels("d", w, h, Texels::F32(distinct(w, h)));
+                let mut t = plain.clone();
+                t.tile();
+                if w * h == 1 {
+                    assert_eq!(t, plain, "a 1x1 texture stays as it is");
+                    continue;
+                }
+                assert!(t.layout.tiled);
+                // Whole tiles: the padded size, plus at most a cache line for alignment.
+                let tiles = (w as usize).div_ceil(4) * (h as usize).div_ceil(4);
+                assert!(t.texels.len() >= tiles * 16 && t.texels.len() < tiles * 16 + 4);
+                let mut seen = vec![false; t.texels.len()];
+                for y in 0..h as usize {
+                    for x in 0..w as usize {
+                        let i = t.layout.index(w, x, y);
+                        assert!(i < t.texels.len(), "{w}x{h} s={s} ({x},{y}) -> {i}");
+                        assert!(!seen[i], "{w}x{h} s={s}: ({x},{y}) shares index {i}");
+                        seen[i] = true;
+                        assert_eq!(t.texel(x, y), plain.texel(x, y), "{w}x{h} s={s} ({x},{y})");
+                    }
+                }
+                let stored: Vec<Vec4> = t.texels_row_major().collect();
+                assert_eq!(stored, plain.texels.to_f32());
+                // Bits, not just values: the mean of the light estimates must not move.
+                assert_eq!(
+                    t.average().to_array().map(f32::to_bits),
+                    plain.average().to_array().map(f32::to_bits)
+                );
+            }
+            let mut t = Texture::with_texels(
+                "b",
+                w,
+                h,
+                Texels::Unorm8(vec![[7, 8, 9, 10]; (w * h) as usize]),
+            );
+            t.tile();
+            if let Texels::Unorm8(v) = &t.texels {
+                let addr = v.as_ptr() as usize + t.layout.base * 4;
+                assert!(
+                    w * h == 1 || addr.is_multiple_of(CACHE_LINE),
+                    "{w}x{h}: tiles at {addr:#x}"
+                );
+            }
+        }
+    }
+
+    /// Tiling changes where texels live, never a lookup: nearest, bilinear and trilinear lookups
+    /// of the tiled texture return the row-major texture's bits for every storage kind and wrap
+    /// mode, at random, edge and far-away coordinates, on odd and power-of-two sizes. Fails with
+    /// any addressing error (swapping `col`'s low bits for the next tile's: thousands of lookups
+    /// differ).
+    #[test]
+    fn tiled_lookups_are_bit_identical() {
+        let mut state = 0x9e37_79b9u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32
+        };
+        for (w, h) in [(1, 1), (1, 6), (5, 3), (8, 8), (37, 23), (64, 17)] {
+            let texels = ramp(w, h);
+            let bytes: Vec<[u8; 4]> = texels
+                .iter()
+                .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
+                .collect();
+            let kinds = [
+                Texels::Srgb8(bytes.clone()),
+                Texels::Unorm8(bytes.clone()),
+                Texels::Unorm8Recip(bytes),
+                Texels::Unorm16(
+                    texels
+                        .iter()
+                        .map(|v| v.to_array().map(|c| (c * 65535.0) as u16))
+                        .collect(),
+                ),
+                Texels::F32(texels.clone()),
+            ];
+            for kind in kinds {
+                for (ws, wt) in [
+                    (WrapMode::Repeat, WrapMode::Repeat),
+                    (WrapMode::ClampToEdge, WrapMode::MirroredRepeat),
+                    (WrapMode::MirroredRepeat, WrapMode::ClampToEdge),
+                ] {
+                    for filter in [FilterMode::Nearest, FilterMode::Bilinear] {
+                        let mut plain = Texture {
+                            wrap_s: ws,
+                            wrap_t: wt,
+                            filter,
+                            ..Texture::with_texels("t", w, h, kind.clone())
+                        };
+                        plain.build_mips();
+                        let mut tiled = plain.clone();
+                        tiled.tile();
+                        assert_eq!(tiled.layout.tiled, w * h > 1);
+                        let mut uvs: Vec<Vec2> = (0..600)
+                            .map(|_| Vec2::new(next() * 5.0 - 2.0, next() * 5.0 - 2.0))
+                            .collect();
+                        for k in -8..=8 {
+                            let e = k as f32 / 4.0;
+                            uvs.extend([
+                                Vec2::new(e, 0.0),
+                                Vec2::new(0.0, e),
+                                Vec2::new(e, 1.0 - e),
+                                Vec2::new(k as f32 / w as f32, k as f32 / h as f32),
+                            ]);
+                        }
+                        uvs.extend([Vec2::new(1e9, -1e9), Vec2::new(f32::NAN, 0.5)]);
+                        for &uv in &uvs {
+                            let bits = |t: &Texture, duv: Vec4| {
+                                t.lookup_filtered(uv, duv).to_array().map(f32::to_bits)
+                            };
+                            for duv in [
+                                Vec4::ZERO,
+                                Vec4::new(3.0 / w as f32, 0.0, 0.0, 2.5 / h as f32),
+                                Vec4::splat(next() * 0.5),
+                            ] {
+                                assert_eq!(
+                                    bits(&tiled, duv),
+                                    bits(&plain, duv),
+                                    "{} {w}x{h} {ws:?}/{wt:?} {filter:?} uv {uv:?} duv {duv:?}",
+                                    kind.kind()
+                                );
+                            }
+                        }
+                    }
+                }
+            }
         }
     }
 

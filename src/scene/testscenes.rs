@@ -100,6 +100,7 @@ pub fn checker(name: &str, size: u32, cells: u32, a: Vec3, b: Vec3) -> Texture {
         mipmap: true,
         mips: Vec::new(),
         procedural: None,
+        layout: Default::default(),
     }
 }
 
