@@ -879,22 +879,8 @@ mod tests {
                 Vec4::new(c(0), c(1), c(2), c(3))
             })
             .collect();
-        let bytes: Vec<[u8; 4]> = texels
-            .iter()
-            .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
-            .collect();
-        let kinds = [
-            Texels::Srgb8(bytes.clone()),
-            Texels::Unorm8(bytes.clone()),
-            Texels::Unorm8Recip(bytes),
-            Texels::Unorm16(
-                texels
-                    .iter()
-                    .map(|v| v.to_array().map(|c| (c * 65535.0) as u16))
-                    .collect(),
-            ),
-            Texels::F32(texels.iter().map(|v| *v * 3.0 - Vec4::ONE).collect()),
-        ];
+        // The float kind spans [−1, 2], beyond what the fixed-point kinds can hold.
+        let kinds = storage_kinds(&texels, |v| v * 3.0 - Vec4::ONE);
         let mut uvs: Vec<Vec2> = Vec::new();
         let mut s = 0x1234_5678u32;
         let mut next = || {
@@ -1077,6 +1063,27 @@ mod tests {
         let p = r.apply(Vec2::new(1.0, 0.0));
         assert!((p - Vec2::new(0.0, -1.0)).length() < 1e-6);
     }
+    /// `texels` (components in [0, 1]) in every storage kind: the 8-bit ones (sRGB, linear and
+    /// linear-by-division), 16-bit, and float with `float` applied to each texel.
+    fn storage_kinds(texels: &[Vec4], float: impl Fn(Vec4) -> Vec4) -> [Texels; 5] {
+        let bytes: Vec<[u8; 4]> = texels
+            .iter()
+            .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
+            .collect();
+        [
+            Texels::Srgb8(bytes.clone()),
+            Texels::Unorm8(bytes.clone()),
+            Texels::Unorm8Recip(bytes),
+            Texels::Unorm16(
+                texels
+                    .iter()
+                    .map(|v| v.to_array().map(|c| (c * 65535.0) as u16))
+                    .collect(),
+            ),
+            Texels::F32(texels.iter().map(|&v| float(v)).collect()),
+        ]
+    }
+
     fn ramp(w: u32, h: u32) -> Vec<Vec4> {
         (0..w * h)
             .map(|i| {
@@ -1236,22 +1243,7 @@ mod tests {
         };
         for (w, h) in [(1, 1), (1, 6), (5, 3), (8, 8), (37, 23), (64, 17)] {
             let texels = ramp(w, h);
-            let bytes: Vec<[u8; 4]> = texels
-                .iter()
-                .map(|v| v.to_array().map(|c| (c * 255.0) as u8))
-                .collect();
-            let kinds = [
-                Texels::Srgb8(bytes.clone()),
-                Texels::Unorm8(bytes.clone()),
-                Texels::Unorm8Recip(bytes),
-                Texels::Unorm16(
-                    texels
-                        .iter()
-                        .map(|v| v.to_array().map(|c| (c * 65535.0) as u16))
-                        .collect(),
-                ),
-                Texels::F32(texels.clone()),
-            ];
+            let kinds = storage_kinds(&texels, |v| v);
             for kind in kinds {
                 for (ws, wt) in [
                     (WrapMode::Repeat, WrapMode::Repeat),
