@@ -49,18 +49,24 @@ ROOT = os.path.normpath(os.path.join(HERE, ".."))
 DRAGON = os.path.join(HERE, "out", "dragon")
 
 
-def phases(exe, args):
-    r = subprocess.run([exe, "render", *args], capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"trayecto failed: {r.stderr.strip().splitlines()[-1:]}")
+def parse_phases(text):
+    """{phase name: seconds} from the CLI's phase report in `text` (its stderr), plus the scene
+    summary line as "summary"."""
     out = {}
-    for line in r.stderr.splitlines():
+    for line in text.splitlines():
         w = line.split()
         if "ms" in w and not line.startswith("total"):
             out[line.split("  ")[0].strip()] = float(w[w.index("ms") - 1]) / 1000.0
         if line.startswith("scene '"):
             out["summary"] = line
     return out
+
+
+def phases(exe, args):
+    r = subprocess.run([exe, "render", *args], capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"trayecto failed: {r.stderr.strip().splitlines()[-1:]}")
+    return parse_phases(r.stderr)
 
 
 def dragon_levels():
@@ -79,11 +85,9 @@ def dragon_levels():
     return paths
 
 
-SHARED = os.path.normpath(os.path.join(ROOT, "..", "shared", "scenes"))
-SCENES = {
-    "cornell": "cornell",
-    "ToyCar": os.path.join(SHARED, "gltf-ext", "ToyCar", "glTF", "ToyCar.gltf"),
-}
+sys.path.insert(0, HERE)
+from ray_cost import SCENES, spread  # noqa: E402  (the throughput bar's scenes and its median (min–max))
+
 CASES = ["cornell:128:64", "cornell:512:4", "ToyCar:256:16"]
 
 
@@ -131,17 +135,9 @@ def timed(exe, scene, threads, size, spp, out):
         text = err.read().decode()
     if p.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed: {text.strip()[-500:]}")
-    wall = None
-    for line in text.splitlines():
-        if line.startswith("rendered ("):
-            w = line.split()
-            wall = float(w[w.index("ms") - 1]) / 1000.0
+    wall = next((t for k, t in parse_phases(text).items() if k.startswith("rendered (")), None)
     wanted = sum(c + q for c, q in seen.values()) / 1e9 if seen else None
     return wall, ru.ru_utime + ru.ru_stime, wanted
-
-
-def spread(xs, fmt="{:.3f}"):
-    return f"{fmt.format(statistics.median(xs))} ({fmt.format(min(xs))}–{fmt.format(max(xs))})"
 
 
 def threads_bench(bins, cases, rounds):
