@@ -19,6 +19,9 @@ the CLI's "rendered" phase time:
   busy 2       the 2-thread render's workers' time running or runnable (schedstat: CPU +
                run-queue wait, so the machine's share of the cores does not count against us)
                / (2 × render wall): 1 − our own idle (a worker asleep: no job, a barrier).
+               From an extra 2-thread render per round and binary whose workers are polled
+               every 2 ms; the timed renders above are not polled (the poller would share
+               the cores with the two workers and bias the ratio).
                Needs workers named `render-N` (this session's binaries); n/a otherwise.
                Trust it when util 1 is near 1: on a saturated machine rayon's idle workers
                spin and yield before sleeping, stay runnable, and their idle counts as busy;
@@ -112,20 +115,22 @@ def render_threads(pid):
     return out
 
 
-def timed(exe, scene, threads, size, spp, out):
+def timed(exe, scene, threads, size, spp, out, poll=False):
     """(render wall s, process CPU s, render workers' CPU + run-queue wait s) of one render.
 
-    The workers' schedstat is polled every 2 ms while the process runs and the last reading
-    of each worker kept: time a worker was running (CPU) or runnable but not given a core
-    (wait: the machine's idle). Over the render's wall time the rest is time it slept: our
-    idle (no job, a barrier). None when the binary does not name its workers."""
+    With `poll`, the workers' schedstat is polled every 2 ms while the process runs and the
+    last reading of each worker kept: time a worker was running (CPU) or runnable but not
+    given a core (wait: the machine's idle). Over the render's wall time the rest is time it
+    slept: our idle (no job, a barrier). None without `poll` or when the binary does not name
+    its workers. The poller itself takes a share of the cores, so the timed runs of the wall
+    ratio do not poll; `busy 2` comes from a render of its own."""
     cmd = [exe, "render", SCENES.get(scene, scene), "--width", str(size), "--height", str(size),
            "--spp", str(spp), "--threads", str(threads), "-o", out]
     seen = {}
     with tempfile.TemporaryFile() as err:
         p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)
         while True:
-            pid, status, ru = os.wait4(p.pid, os.WNOHANG)
+            pid, status, ru = os.wait4(p.pid, os.WNOHANG if poll else 0)
             if pid:
                 break
             seen.update(render_threads(p.pid))
@@ -158,19 +163,24 @@ def threads_bench(bins, cases, rounds):
             got = {}
             k = r % len(runs)
             for b, th in runs[k:] + runs[:k]:
-                wall, cpu, wanted = timed(b, scene, th, size, spp, out)
-                got[(b, th)] = (wall, max(cpu - fixed[(b, th)], 0.0), wanted)
+                wall, cpu, _ = timed(b, scene, th, size, spp, out)
+                got[(b, th)] = (wall, max(cpu - fixed[(b, th)], 0.0))
+            # The workers' busy share, from a polled 2-thread render of its own (its wall time
+            # is not used for the ratio: the poller shares the cores with the two workers).
+            polled = {b: timed(b, scene, 2, size, spp, out, poll=True) for b in bins}
             line = []
             for b in bins:
-                (w1, c1, _), (w2, c2, q2) = got[(b, 1)], got[(b, 2)]
+                (w1, c1), (w2, c2) = got[(b, 1)], got[(b, 2)]
+                wp, _, q2 = polled[b]
+                busy2 = None if q2 is None else q2 / (2 * wp)
                 v = res[b]
                 v["ratio"].append(w1 / w2)
                 v["util2"].append(c2 / (2 * w2))
                 v["util1"].append(c1 / w1)
                 v["cpu"].append(c2 / c1)
-                busy = "n/a" if q2 is None else f"{q2 / (2 * w2):.3f}"
-                if q2 is not None:
-                    v["busy2"].append(q2 / (2 * w2))
+                busy = "n/a" if busy2 is None else f"{busy2:.3f}"
+                if busy2 is not None:
+                    v["busy2"].append(busy2)
                 line.append(f"{name[b]}: 1 thread {w1:.3f} s, 2 threads {w2:.3f} s, ratio {w1 / w2:.3f}, "
                             f"busy2 {busy}, util2 {c2 / (2 * w2):.3f}, util1 {c1 / w1:.3f}, "
                             f"cpu ratio {c2 / c1:.3f}")

@@ -561,14 +561,12 @@ fn render_in_pool(
     // is held during `pass_done`); `wake` tells waiting workers that it or `halt` changed.
     let committed = AtomicUsize::new(0);
     let wake = (Mutex::new(()), Condvar::new());
-    let saw_cancel = AtomicBool::new(false);
     struct Commit {
         film: Film,
         stats: RayStats,
         aovs: Option<Vec<PixelAovs>>,
         done: u32,
         committed: usize,
-        cancelled: bool,
         scratch: Vec<bool>,
     }
     let state = Mutex::new(Commit {
@@ -577,7 +575,6 @@ fn render_in_pool(
         aovs: aov_film,
         done: from,
         committed: 0,
-        cancelled: false,
         scratch,
     });
     let active = RwLock::new(active);
@@ -662,7 +659,6 @@ fn render_in_pool(
             }
             // A cancel (also one set by the previous `pass_done`) drops every pass not yet in.
             if cancel.load(Ordering::Relaxed) {
-                c.cancelled = true;
                 stop(p);
                 break;
             }
@@ -718,7 +714,6 @@ fn render_in_pool(
                 }
             }
             if cancel.load(Ordering::Relaxed) {
-                saw_cancel.store(true, Ordering::Relaxed);
                 stop(q);
                 break;
             }
@@ -745,7 +740,10 @@ fn render_in_pool(
     });
     let c = state.into_inner().unwrap_or_else(|e| e.into_inner());
     let complete = c.committed == passes.len();
-    let cancelled = !complete && (c.cancelled || saw_cancel.load(Ordering::Relaxed));
+    // An incomplete render with the flag set was cancelled (whichever check saw it first: a
+    // worker before its tile or the commit before a pass), else it stopped early (time limit,
+    // adaptive sampling's clean film).
+    let cancelled = !complete && cancel.load(Ordering::Relaxed);
     Ok(FilmRender {
         film: c.film,
         start: first,

@@ -109,9 +109,19 @@ impl World {
             mut textures,
             ..
         } = scene;
-        if options.texture_filter == crate::material::texture::TextureFilter::Trilinear {
+        // MIP pyramids (they read level 0 row-major), then every level stored in cache-line
+        // tiles (`TexelLayout`), in one parallel pass over the textures. Lookups from here on
+        // read them tiled; the light estimates below see the same values (lookups return the same
+        // bits in either layout, `Texture::average` sums row by row in both).
+        {
             use rayon::prelude::*;
-            textures.par_iter_mut().for_each(Texture::build_mips);
+            let mips = options.texture_filter == crate::material::texture::TextureFilter::Trilinear;
+            textures.par_iter_mut().for_each(|t| {
+                if mips {
+                    t.build_mips();
+                }
+                t.tile();
+            });
         }
         let lights = LightSet::new(
             lights,
@@ -122,12 +132,6 @@ impl World {
             &footprint_means,
             options.light_sampler,
         );
-        // Lookups from here on read the textures tiled (cache-line tiles, `TexelLayout`): after
-        // the pyramids and the light estimates above, which read them row-major.
-        {
-            use rayon::prelude::*;
-            textures.par_iter_mut().for_each(Texture::tile);
-        }
         let cutout: Vec<bool> = materials
             .iter()
             .map(|m| m.alpha_mode != AlphaMode::Opaque)
