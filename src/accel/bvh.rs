@@ -727,93 +727,15 @@ fn node_test<const AVX2: bool>(slab: &SlabRay, n: &BvhNode, t_max: f32) -> ([f32
     slab.test(n, t_max)
 }
 
-/// The lanes of `n` that are interior children (`count == 0`; an unused lane too, but it is never
-/// hit), as a bit mask.
-#[inline(always)]
-fn interior_lanes<const AVX2: bool>(n: &BvhNode) -> u32 {
-    #[cfg(target_arch = "x86_64")]
-    if AVX2 {
-        use std::arch::x86_64::*;
-        // SAFETY: `AVX2 = true` only runs after AVX2 was detected (see `node_test`);
-        // `BvhNode::count` is `[u32; 8]`: 32 readable bytes.
-        return unsafe {
-            let count = _mm256_loadu_si256(n.count.as_ptr().cast());
-            let zero = _mm256_cmpeq_epi32(count, _mm256_setzero_si256());
-            _mm256_movemask_ps(_mm256_castsi256_ps(zero)) as u32
-        };
-    }
-    let mut mask = 0;
-    for (lane, &c) in n.count.iter().enumerate() {
-        mask |= ((c == 0) as u32) << lane;
-    }
-    mask
-}
-
-/// For each mask of eight lanes, its set lanes' numbers in increasing order, one per byte (the
-/// rest zero): the permutation that packs those lanes to the front.
-static PACK_LANES: [u64; 256] = {
-    let mut table = [0u64; 256];
-    let mut mask = 0;
-    while mask < 256 {
-        let (mut lane, mut k, mut v) = (0, 0, 0u64);
-        while lane < WIDTH {
-            if mask & (1 << lane) != 0 {
-                v |= (lane as u64) << (8 * k);
-                k += 1;
-            }
-            lane += 1;
-        }
-        table[mask] = v;
-        mask += 1;
-    }
-    table
-};
-
-/// Pushes the `first` (child node) of every lane set in `lanes`, in lane order. AVX2: one
-/// permute packs them (table [`PACK_LANES`]) and one 8-lane store pushes them; the slots above
-/// the new top are written but never read.
-#[inline(always)]
-fn push_lanes<const AVX2: bool>(
-    n: &BvhNode,
-    lanes: u32,
-    stack: &mut TraversalStack<u32>,
-    sp: &mut usize,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if AVX2 {
-        use std::arch::x86_64::*;
-        assert!(*sp + WIDTH <= ENTRY_STACK, "traversal stack overflow");
-        // SAFETY: `AVX2 = true` only runs after AVX2 was detected (see `node_test`);
-        // `BvhNode::first` is `[u32; 8]` (32 readable bytes) and slots `sp .. sp + WIDTH` lie in
-        // the stack (checked above: 32 writable bytes).
-        unsafe {
-            let order = _mm_cvtsi64_si128(PACK_LANES[(lanes & 0xff) as usize] as i64);
-            let first = _mm256_loadu_si256(n.first.as_ptr().cast());
-            let packed = _mm256_permutevar8x32_epi32(first, _mm256_cvtepu8_epi32(order));
-            _mm256_storeu_si256(stack.0.as_mut_ptr().add(*sp).cast(), packed);
-        }
-        *sp += lanes.count_ones() as usize;
-        return;
-    }
-    let mut lanes = lanes;
-    while lanes != 0 {
-        let lane = lanes.trailing_zeros() as usize;
-        lanes &= lanes - 1;
-        stack.set(*sp, n.first[lane]);
-        *sp += 1;
-    }
-}
-
 /// The traversal stack, left uninitialised: zeroing it per ray was a `memset` that cost ~2% of all
 /// instructions on the Cornell box (callgrind). Entries are only read below the stack pointer,
 /// after having been written.
-/// [`ENTRY_STACK`] slots, as the AVX2 shadow walk pushes a node's children with one 8-lane store.
-struct TraversalStack<T: Copy>([std::mem::MaybeUninit<T>; ENTRY_STACK]);
+struct TraversalStack<T: Copy>([std::mem::MaybeUninit<T>; STACK_SIZE]);
 
 impl<T: Copy> TraversalStack<T> {
     #[inline(always)]
     fn new() -> Self {
-        TraversalStack([std::mem::MaybeUninit::uninit(); ENTRY_STACK])
+        TraversalStack([std::mem::MaybeUninit::uninit(); STACK_SIZE])
     }
 
     #[inline(always)]
@@ -1406,21 +1328,15 @@ impl Bvh {
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
+            let (_, mut mask) = node_test::<AVX2>(&slab, &self.nodes[node], t_max);
             let n = &self.nodes[node];
-            let (_, mask) = node_test::<AVX2>(&slab, n, t_max);
-            // The hit interior children are pushed first, in lane order, all at once; then the
-            // hit leaves are tested in lane order. The same leaf tests in the same order as
-            // pushing and testing lane by lane (pushes made before a blocker is found do not
-            // matter, and without one the stack ends the same), without a branch per lane on
-            // "node or leaf", which mispredicted ~1.9 times per ToyCar shadow ray (cachegrind,
-            // BENCHMARKS.md "Session 18").
-            let inner = mask & interior_lanes::<AVX2>(n);
-            push_lanes::<AVX2>(n, inner, &mut stack, &mut sp);
-            let mut leaves = mask & !inner;
-            while leaves != 0 {
-                let lane = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                if n.count[lane] & PACKET_LEAF != 0 {
+            while mask != 0 {
+                let lane = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if n.count[lane] == 0 {
+                    stack.set(sp, n.first[lane]);
+                    sp += 1;
+                } else if n.count[lane] & PACKET_LEAF != 0 {
                     let packets = self.packet_leaf(n.first[lane], n.count[lane]);
                     #[cfg(target_arch = "x86_64")]
                     if AVX2 && let Ok(pair) = <&[TriPacket; 2]>::try_from(packets) {
