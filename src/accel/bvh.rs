@@ -2321,7 +2321,7 @@ mod tests {
         for round in 0..20_000 {
             let mut n = BvhNode::EMPTY;
             for lane in 0..WIDTH {
-                if rng.next_u32() % 5 == 0 {
+                if rng.next_u32().is_multiple_of(5) {
                     continue;
                 }
                 // Overlapping boxes around the origin, as near the root of a real tree.
