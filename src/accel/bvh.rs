@@ -671,6 +671,24 @@ impl SlabRay {
     #[inline]
     fn test_avx2(&self, n: &BvhNode, t_max: f32) -> ([f32; WIDTH], u32) {
         use std::arch::x86_64::*;
+        let (t0, hit) = self.test_avx2_vectors(n, t_max);
+        let mask = _mm256_movemask_ps(hit) as u32;
+        let mut out = [0.0f32; WIDTH];
+        // SAFETY: `out` is `[f32; 8]`: 32 writable bytes (unaligned store).
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), t0) };
+        (out, mask)
+    }
+
+    /// [`SlabRay::test_avx2`] left in registers: the entry distances and the lanes' hit compare
+    /// (all ones where the child is hit).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn test_avx2_vectors(
+        &self,
+        n: &BvhNode,
+        t_max: f32,
+    ) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
+        use std::arch::x86_64::*;
         let g = _mm256_set1_ps(1.0 + 2.0 * gamma(3));
         let mut t0 = _mm256_setzero_ps();
         let mut t1 = _mm256_set1_ps(t_max);
@@ -693,11 +711,7 @@ impl SlabRay {
             t0 = _mm256_max_ps(tn, t0);
             t1 = _mm256_min_ps(tf, t1);
         }
-        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32;
-        let mut out = [0.0f32; WIDTH];
-        // SAFETY: `out` is `[f32; 8]`: 32 writable bytes (unaligned store).
-        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), t0) };
-        (out, mask)
+        (t0, _mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1))
     }
 }
 
@@ -738,11 +752,225 @@ impl<T: Copy> TraversalStack<T> {
 }
 
 /// A stack entry: a child lane's `first`, `count` and entry distance.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 struct Entry {
     first: u32,
     count: u32,
     t: f32,
+}
+
+/// Slots of the closest-hit stack: [`STACK_SIZE`] plus one node's worth, because the AVX2 walk
+/// writes all `WIDTH` sorted lanes of a node at once (the missed ones land above the top and
+/// are never read).
+const ENTRY_STACK: usize = STACK_SIZE + WIDTH;
+
+/// The closest-hit walk's stack of [`Entry`]s as three arrays (structure of arrays), so the AVX2
+/// walk pushes a node's sorted children with one 8-lane store per field. Left uninitialised as
+/// [`TraversalStack`] is; slots are read only below the stack pointer, after being written.
+struct EntryStack {
+    first: [std::mem::MaybeUninit<u32>; ENTRY_STACK],
+    count: [std::mem::MaybeUninit<u32>; ENTRY_STACK],
+    t: [std::mem::MaybeUninit<f32>; ENTRY_STACK],
+}
+
+impl EntryStack {
+    #[inline(always)]
+    fn new() -> Self {
+        let u = std::mem::MaybeUninit::uninit();
+        EntryStack {
+            first: [u; ENTRY_STACK],
+            count: [u; ENTRY_STACK],
+            t: [std::mem::MaybeUninit::uninit(); ENTRY_STACK],
+        }
+    }
+
+    #[inline(always)]
+    fn set(&mut self, i: usize, e: Entry) {
+        self.first[i] = std::mem::MaybeUninit::new(e.first);
+        self.count[i] = std::mem::MaybeUninit::new(e.count);
+        self.t[i] = std::mem::MaybeUninit::new(e.t);
+    }
+
+    #[inline(always)]
+    fn get(&self, i: usize) -> Entry {
+        // SAFETY: as in `TraversalStack::get`: slot `i` was written (by `set` or by the 8-lane
+        // stores of `push_sorted_avx2`, which write every field of slots `sp .. sp + WIDTH`)
+        // before the stack pointer moved above it; indexing is bounds-checked.
+        unsafe {
+            Entry {
+                first: self.first[i].assume_init(),
+                count: self.count[i].assume_init(),
+                t: self.t[i].assume_init(),
+            }
+        }
+    }
+}
+
+/// The order in which a node's hit children are visited, as one integer per child: the bits of
+/// its entry distance `t` (a non-negative float, whose bits order as it does) with the low three
+/// replaced by `7 − lane`. Children are visited by increasing key: nearest first, and among equal
+/// `t` the higher lane first (the order of session 14's insertion sort). Only children whose `t`
+/// differ in the last three bits alone (within 8 ulps) are ordered by lane instead of by `t`:
+/// the reported hit does not depend on the order (hits are ranked by `t` and primitive, see
+/// `intersect_impl`), only how many entries the shrinking bound culls. Unique keys let the AVX2
+/// walk sort them with a plain min/max network ([`sort_desc_avx2`]).
+#[inline(always)]
+fn child_key(t: f32, lane: usize) -> u32 {
+    (t.to_bits() & !7) | (7 - lane as u32)
+}
+
+/// The next child of a node to visit, if any hit: the one of smallest [`child_key`]; the other
+/// hit children are pushed on `stack` above `*sp`, largest key deepest, so they pop in
+/// increasing key order. Portable form: an insertion sort over the hit lanes.
+#[inline(always)]
+fn order_children(
+    n: &BvhNode,
+    t_enter: &[f32; WIDTH],
+    mut mask: u32,
+    stack: &mut EntryStack,
+    sp: &mut usize,
+) -> Option<Entry> {
+    if mask == 0 {
+        return None;
+    }
+    let entry = |lane: usize| Entry {
+        first: n.first[lane],
+        count: n.count[lane],
+        t: t_enter[lane],
+    };
+    let lane = mask.trailing_zeros() as usize;
+    if mask & (mask - 1) == 0 {
+        // One child hit (most nodes): nothing to sort or push.
+        return Some(entry(lane));
+    }
+    let mut keys = [0u32; WIDTH];
+    let mut k = 0;
+    while mask != 0 {
+        let lane = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        let key = child_key(t_enter[lane], lane);
+        let mut i = k;
+        while i > 0 && keys[i - 1] < key {
+            keys[i] = keys[i - 1];
+            i -= 1;
+        }
+        keys[i] = key;
+        k += 1;
+    }
+    for &key in &keys[..k - 1] {
+        stack.set(*sp, entry(7 - (key & 7) as usize));
+        *sp += 1;
+    }
+    Some(entry(7 - (keys[k - 1] & 7) as usize))
+}
+
+/// Sorts eight signed 32-bit integers, largest in lane 0, with a bitonic network (Batcher 1968:
+/// sorted pairs, merged to fours, merged to eight, each merge comparing lane `i` with its mirror
+/// and then half-cleaning at distances 2 and 1): six compare-exchange stages of a shuffle, a
+/// min, a max and a blend, and no branch.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn sort_desc_avx2(v: std::arch::x86_64::__m256i) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    // Each lane against the partner lane in `p`: the lanes set in `HI` keep the smaller value.
+    macro_rules! exchange {
+        ($v:expr, $p:expr, $hi:literal) => {{
+            let (v, p) = ($v, $p);
+            _mm256_blend_epi32::<$hi>(_mm256_max_epi32(v, p), _mm256_min_epi32(v, p))
+        }};
+    }
+    // Partners: `i ^ 1` (shuffle 2301), `3 − i` within each four (0123), `i ^ 2` (1032),
+    // `7 − i` (a full reversal).
+    let v = exchange!(v, _mm256_shuffle_epi32::<0b10_11_00_01>(v), 0b1010_1010);
+    let v = exchange!(v, _mm256_shuffle_epi32::<0b00_01_10_11>(v), 0b1100_1100);
+    let v = exchange!(v, _mm256_shuffle_epi32::<0b10_11_00_01>(v), 0b1010_1010);
+    let mirror = _mm256_setr_epi32(7, 6, 5, 4, 3, 2, 1, 0);
+    let v = exchange!(v, _mm256_permutevar8x32_epi32(v, mirror), 0b1111_0000);
+    let v = exchange!(v, _mm256_shuffle_epi32::<0b01_00_11_10>(v), 0b1100_1100);
+    exchange!(v, _mm256_shuffle_epi32::<0b10_11_00_01>(v), 0b1010_1010)
+}
+
+/// [`order_children`] for the AVX2 walk, from the node test's registers. With two or more
+/// children hit, the order is found without a data-dependent branch: the lanes' keys
+/// ([`child_key`]; a missed lane gets a negative key, so it sorts last) are sorted in a register
+/// ([`sort_desc_avx2`]), the lane numbers in their low bits permute the node's `first` and
+/// `count` and the entry distances into stack order, and three 8-lane stores push them, the
+/// stack pointer then advancing by the number of hits. The insertion sort it replaces
+/// mispredicted ~3.7 times per ToyCar closest-hit call (cachegrind, BENCHMARKS.md "Session 18").
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn order_children_avx2(
+    n: &BvhNode,
+    t0: std::arch::x86_64::__m256,
+    hit: std::arch::x86_64::__m256,
+    stack: &mut EntryStack,
+    sp: &mut usize,
+) -> Option<Entry> {
+    use std::arch::x86_64::*;
+    let mask = _mm256_movemask_ps(hit) as u32;
+    if mask == 0 {
+        return None;
+    }
+    let lane = mask.trailing_zeros() as usize & (WIDTH - 1);
+    if mask & (mask - 1) == 0 {
+        let t = _mm256_cvtss_f32(_mm256_permutevar8x32_ps(t0, _mm256_set1_epi32(lane as i32)));
+        return Some(Entry {
+            first: n.first[lane],
+            count: n.count[lane],
+            t,
+        });
+    }
+    let code = _mm256_setr_epi32(7, 6, 5, 4, 3, 2, 1, 0);
+    let bits = _mm256_and_si256(_mm256_castps_si256(t0), _mm256_set1_epi32(!7));
+    let key = _mm256_blendv_epi8(
+        _mm256_or_si256(code, _mm256_set1_epi32(i32::MIN)),
+        _mm256_or_si256(bits, code),
+        _mm256_castps_si256(hit),
+    );
+    // `key & 7` is `7 − lane`; the permutes read only an index's low three bits.
+    let lanes = _mm256_xor_si256(sort_desc_avx2(key), _mm256_set1_epi32(7));
+    // SAFETY: `BvhNode::first` / `count` are `[u32; 8]`: 32 readable bytes each.
+    let (first, count) = unsafe {
+        (
+            _mm256_loadu_si256(n.first.as_ptr().cast()),
+            _mm256_loadu_si256(n.count.as_ptr().cast()),
+        )
+    };
+    let first = _mm256_permutevar8x32_epi32(first, lanes);
+    let count = _mm256_permutevar8x32_epi32(count, lanes);
+    let t = _mm256_permutevar8x32_ps(t0, lanes);
+    assert!(*sp + WIDTH <= ENTRY_STACK, "traversal stack overflow");
+    // SAFETY: slots `sp .. sp + WIDTH` lie in each array (checked above): 32 writable bytes.
+    unsafe {
+        _mm256_storeu_si256(stack.first.as_mut_ptr().add(*sp).cast(), first);
+        _mm256_storeu_si256(stack.count.as_mut_ptr().add(*sp).cast(), count);
+        _mm256_storeu_ps(stack.t.as_mut_ptr().add(*sp).cast(), t);
+    }
+    *sp += mask.count_ones() as usize - 1;
+    Some(stack.get(*sp))
+}
+
+/// A node's test and [`order_children`] in the traversal copy's form.
+#[inline(always)]
+fn visit_node<const AVX2: bool>(
+    slab: &SlabRay,
+    n: &BvhNode,
+    t_max: f32,
+    stack: &mut EntryStack,
+    sp: &mut usize,
+) -> Option<Entry> {
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 {
+        // SAFETY: as in `node_test`.
+        return unsafe {
+            let (t0, hit) = slab.test_avx2_vectors(n, t_max);
+            order_children_avx2(n, t0, hit, stack, sp)
+        };
+    }
+    let (t_enter, mask) = slab.test(n, t_max);
+    order_children(n, &t_enter, mask, stack, sp)
 }
 
 impl Bvh {
@@ -997,50 +1225,17 @@ impl Bvh {
         // compute an entry a few ulps above the tie's `t`.
         let mut best_key = u64::MAX;
         let mut t_cull = ray.t_max;
-        let mut stack = TraversalStack::<Entry>::new();
+        let mut stack = EntryStack::new();
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
-            let n = &self.nodes[node];
-            let (t_enter, mut mask) = node_test::<AVX2>(&slab, n, t_cull);
-            let entry = |lane: usize| Entry {
-                first: n.first[lane],
-                count: n.count[lane],
-                t: t_enter[lane],
-            };
             // The next child to visit, if this node has one: the nearest hit child. The others
             // are pushed farthest first, so the nearest of them is popped next. This is the
             // order of pushing all of them and popping one, without the push and pop: the
             // nearest never waits on the stack, and with one child hit (most nodes) nothing is
             // sorted. Its `t ≤ t_max` holds (the mask requires entry ≤ exit ≤ t_max).
-            let mut next = None;
-            if mask != 0 {
-                let lane = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if mask == 0 {
-                    next = Some(entry(lane));
-                } else {
-                    // Insertion sort of the (at most `WIDTH`) entries of this node; among equal
-                    // distances the later lane ends up nearer the top, as before.
-                    let base = sp;
-                    stack.set(sp, entry(lane));
-                    sp += 1;
-                    while mask != 0 {
-                        let lane = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        let e = entry(lane);
-                        let mut i = sp;
-                        while i > base && stack.get(i - 1).t < e.t {
-                            stack.set(i, stack.get(i - 1));
-                            i -= 1;
-                        }
-                        stack.set(i, e);
-                        sp += 1;
-                    }
-                    sp -= 1;
-                    next = Some(stack.get(sp));
-                }
-            }
+            let mut next =
+                visit_node::<AVX2>(&slab, &self.nodes[node], t_cull, &mut stack, &mut sp);
             // Visit `next`, then pop, testing leaves on the way, until an interior node to
             // visit is found.
             loop {
@@ -2076,6 +2271,133 @@ mod tests {
         assert!(
             hits > 3000 && blocked > 2000,
             "{hits} hits, {blocked} blocked"
+        );
+    }
+
+    /// The AVX2 sorting network puts any eight signed integers in descending order: random
+    /// keys, keys drawn from a few values (many equal), and negative ones (missed lanes).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn sort_network_sorts_any_eight_keys() {
+        use std::arch::x86_64::*;
+        if !crate::math::detect_avx2() {
+            eprintln!("no AVX2 on this CPU: the sorting network is not checked");
+            return;
+        }
+        let mut rng = crate::sampling::rng::Pcg32::new(5, 9);
+        for round in 0..20_000 {
+            let mut keys = [0i32; WIDTH];
+            for k in keys.iter_mut() {
+                let r = rng.next_u32();
+                *k = match round % 3 {
+                    0 => r as i32,
+                    1 => (r % 4) as i32 - 1,
+                    _ => (r % 1000) as i32,
+                };
+            }
+            let mut sorted = [0i32; WIDTH];
+            // SAFETY: AVX2 was detected above; `keys` and `sorted` are 32 bytes each.
+            unsafe {
+                let v = sort_desc_avx2(_mm256_loadu_si256(keys.as_ptr().cast()));
+                _mm256_storeu_si256(sorted.as_mut_ptr().cast(), v);
+            }
+            let mut want = keys;
+            want.sort_unstable_by(|a, b| b.cmp(a));
+            assert_eq!(sorted, want, "keys {keys:?}");
+        }
+    }
+
+    /// Both forms of the closest-hit walk's child ordering give the same next child and push the
+    /// same entries in the same order, and that order is the hit lanes by increasing
+    /// `child_key` (nearest first; equal `t`: higher lane first): random nodes with empty lanes,
+    /// rays from inside (entry distances 0, the common tie) and outside, and short rays that hit
+    /// few children. Fails if the network, the key or the lane permutation is wrong (the
+    /// traversal tests would not notice a wrong order: the hit does not depend on it).
+    #[test]
+    fn child_order_is_by_key_in_both_walks() {
+        let mut rng = crate::sampling::rng::Pcg32::new(3, 4);
+        let has_avx2 = cfg!(target_arch = "x86_64") && crate::math::detect_avx2();
+        let (mut multi, mut ties) = (0, 0);
+        for round in 0..20_000 {
+            let mut n = BvhNode::EMPTY;
+            for lane in 0..WIDTH {
+                if rng.next_u32().is_multiple_of(5) {
+                    continue;
+                }
+                // Overlapping boxes around the origin, as near the root of a real tree.
+                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+                let h = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0;
+                let b = Bounds3 {
+                    min: c - h,
+                    max: c + h,
+                };
+                n.set_lane(lane, &b, rng.next_u32() >> 1, rng.next_u32() % 3);
+            }
+            let spread = if round % 2 == 0 { 1.0 } else { 8.0 };
+            let o = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * spread;
+            let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+            let mut ray = Ray::new(o, d);
+            if round % 3 == 0 {
+                ray.t_max = 3.0 * rng.next_f32();
+            }
+            let slab = SlabRay::new(&ray, &RayInv::new(ray.d));
+            let (t_enter, mask) = slab.test(&n, ray.t_max);
+            // Expected: the hit lanes by increasing key, as stack entries (next last).
+            let mut lanes: Vec<usize> = (0..WIDTH).filter(|&l| mask & (1 << l) != 0).collect();
+            lanes.sort_by_key(|&l| std::cmp::Reverse(child_key(t_enter[l], l)));
+            let want: Vec<Entry> = lanes
+                .iter()
+                .map(|&l| Entry {
+                    first: n.first[l],
+                    count: n.count[l],
+                    t: t_enter[l],
+                })
+                .collect();
+            multi += (want.len() > 1) as usize;
+            ties += (lanes.iter().filter(|&&l| t_enter[l] == 0.0).count() > 1) as usize;
+            let base = 5;
+            let check = |got: Option<Entry>, stack: &EntryStack, sp: usize, walk: &str| {
+                let mut all: Vec<Entry> = (base..sp).map(|i| stack.get(i)).collect();
+                all.extend(got);
+                assert_eq!(all, want, "{walk} walk, round {round}");
+            };
+            let (mut stack, mut sp) = (EntryStack::new(), base);
+            for i in 0..base {
+                stack.set(
+                    i,
+                    Entry {
+                        first: 0,
+                        count: 0,
+                        t: 0.0,
+                    },
+                );
+            }
+            let got = order_children(&n, &t_enter, mask, &mut stack, &mut sp);
+            check(got, &stack, sp, "portable");
+            #[cfg(target_arch = "x86_64")]
+            if has_avx2 {
+                let (mut stack, mut sp) = (EntryStack::new(), base);
+                for i in 0..base {
+                    stack.set(
+                        i,
+                        Entry {
+                            first: 0,
+                            count: 0,
+                            t: 0.0,
+                        },
+                    );
+                }
+                // SAFETY: AVX2 was detected above.
+                let got = unsafe {
+                    let (t0, hit) = slab.test_avx2_vectors(&n, ray.t_max);
+                    order_children_avx2(&n, t0, hit, &mut stack, &mut sp)
+                };
+                check(got, &stack, sp, "AVX2");
+            }
+        }
+        assert!(
+            multi > 5000 && ties > 1000,
+            "{multi} multi-hit nodes, {ties} with ties"
         );
     }
 
