@@ -651,7 +651,7 @@ mod tests {
 
     /// ToyCar's body in small: a clearcoated metallic-roughness material whose normal map, base
     /// colour, metallic-roughness and clearcoat textures share a size (and a sampler), plus a
-    /// roughness-for-the-coat texture of another size. Normal map then BSDF through one kept
+    /// coat-roughness texture of another height. Normal map then BSDF through one kept
     /// footprint ([`World::shade_surface`]'s order) give the shading normal and the BSDF (every
     /// field, by its `Debug` form) of the separate calls at every uv, and the footprint is used.
     ///
@@ -674,7 +674,8 @@ mod tests {
             image(16, 8, 2.0),
             image(16, 8, 3.0),
             image(16, 8, 4.0),
-            image(5, 7, 5.0),
+            // Same width (so the same tile-row stride), another height.
+            image(16, 12, 5.0),
         ];
         let material = Material {
             model: MaterialModel::MetallicRoughness,
