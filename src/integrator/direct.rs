@@ -91,8 +91,8 @@ impl Vertex {
         let material = world.surface_material(&self.hit);
         // The coat ignores the base's normal map: its normal is taken before the map is applied.
         let coat_normal = world.material_clearcoat_normal(material, &self.hit);
-        world.perturb_shading(material, &mut self.hit);
-        self.bsdf = world.material_bsdf(material, &self.hit);
+        // The normal map, then the BSDF's textures, sharing their texel addressing.
+        self.bsdf = world.shade_surface(material, &mut self.hit);
         let hit = &self.hit;
         let transmissive = self.bsdf.is_transmissive();
         let (ng, ns) = oriented_normals(hit, wo, transmissive);

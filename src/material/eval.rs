@@ -15,27 +15,42 @@ use super::microfacet::{
     AnisoGgx, Ggx, MIN_ALPHA, conductor_from_reflectance, pbrt_roughness_to_alpha,
 };
 use super::sheen::Sheen;
+use super::texture::SharedFootprint;
 use super::{Bsdf, Material, MaterialModel, RoughnessTextures, Texture, TextureRef};
 use crate::geometry::SurfaceHit;
 use crate::math::{Vec2, Vec3, Vec4};
+use std::cell::Cell;
 
 impl Bsdf {
     /// Builds the BSDF of `material` at `hit`, reading its textures.
+    #[inline]
     pub fn from_material(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Bsdf {
+        Bsdf::from_material_shared(material, textures, hit, &Cell::new(SharedFootprint::NONE))
+    }
+
+    /// [`Bsdf::from_material`], its image lookups sharing their bilinear addressing with each
+    /// other and with the hit's earlier lookups through `shared` (the normal map's,
+    /// [`super::normal_map::apply_normal_map_shared`]), where it is provably the same
+    /// ([`HitTextures`]).
+    pub fn from_material_shared(
+        material: &Material,
+        textures: &[Texture],
+        hit: &SurfaceHit,
+        shared: &Cell<SharedFootprint>,
+    ) -> Bsdf {
+        let tx = &HitTextures::new(textures, hit, shared);
         // Each model reads only the inputs it uses (a Lambertian surface needs its base colour
         // alone; computing every model's inputs first was ~40 % of a Cornell box vertex's
         // `from_material` instructions, callgrind). All are pure functions of the hit.
-        let base = || base_color(material, textures, hit);
+        let base = || base_color_in(material, tx);
         let eta = if material.ior > 0.0 {
             material.ior
         } else {
             1.5
         };
         let p = &material.pbrt;
-        let conductor_alpha =
-            || pbrt_alpha(&p.conductor_roughness, p.conductor_alpha, textures, hit);
-        let interface_alpha =
-            || pbrt_alpha(&p.interface_roughness, p.interface_alpha, textures, hit);
+        let conductor_alpha = || pbrt_alpha(&p.conductor_roughness, p.conductor_alpha, tx);
+        let interface_alpha = || pbrt_alpha(&p.interface_roughness, p.interface_alpha, tx);
         // `outside_ior`: the IOR of the medium the conductor's surface faces. Under a coat it is
         // the coat's, and the Fresnel equations take the conductor's η and k relative to it
         // (pbrt-v4's CoatedConductorMaterial divides both by the interface IOR, also for the
@@ -89,7 +104,7 @@ impl Bsdf {
                 Bsdf::dielectric(eta, a.sqrt().clamp(0.0, 1.0), Vec3::ONE)
             }
             MaterialModel::Dielectric => {
-                let (roughness, _) = roughness_metallic(material, textures, hit);
+                let (roughness, _) = roughness_metallic_in(material, tx);
                 Bsdf::dielectric(eta, roughness, Vec3::ONE)
             }
             MaterialModel::Interface => Bsdf::dielectric(1.0, 0.0, Vec3::ONE),
@@ -97,13 +112,13 @@ impl Bsdf {
             MaterialModel::Unlit => Bsdf::Diffuse(Diffuse { albedo: Vec3::ZERO }),
             MaterialModel::MetallicRoughness => {
                 let base = base();
-                let (roughness, mut metallic) = roughness_metallic(material, textures, hit);
+                let (roughness, mut metallic) = roughness_metallic_in(material, tx);
                 let mut transmission = material.transmission;
                 if transmission > 0.0
                     && let Some(t) = &material.transmission_texture
                 {
                     // KHR_materials_transmission: the factor is multiplied by the R channel.
-                    transmission *= sample_texture(textures, t, hit).x;
+                    transmission *= tx.sample(t).x;
                 }
                 // KHR_materials_transmission replaces the diffuse lobe of the dielectric part:
                 //   mix(mix(dielectric(diffuse), transmissive, t), metal, metallic).
@@ -116,9 +131,7 @@ impl Bsdf {
                 let p_transmit = transmission.clamp(0.0, 1.0) * (1.0 - metallic);
                 if p_transmit > 0.0 {
                     if p_transmit >= 1.0 || hit_coin(hit) < p_transmit {
-                        if let Some(b) =
-                            layered_transmission(material, textures, hit, eta, roughness, base)
-                        {
+                        if let Some(b) = layered_transmission(material, tx, eta, roughness, base) {
                             return Bsdf::GltfTransmission(b);
                         }
                         if material.thin_walled {
@@ -139,16 +152,16 @@ impl Bsdf {
                 // KHR_materials_specular: colour × texture RGB (sRGB), strength × texture A.
                 let mut specular_color = material.specular_color;
                 if let Some(t) = &material.specular_color_texture {
-                    specular_color *= sample_texture(textures, t, hit).truncate();
+                    specular_color *= tx.sample(t).truncate();
                 }
                 let f0_dielectric = (specular_color * r0).min(Vec3::ONE);
                 let mut specular = material.specular;
                 if let Some(t) = &material.specular_texture {
-                    specular *= sample_texture(textures, t, hit).w;
+                    specular *= tx.sample(t).w;
                 }
                 let specular = specular.clamp(0.0, 1.0);
-                let coat = clearcoat(material, textures, hit);
-                let ext = extensions(material, textures, hit, roughness);
+                let coat = clearcoat(material, tx);
+                let ext = extensions(material, tx, roughness);
                 if metallic == 0.0
                     && (specular == 0.0 || f0_dielectric == Vec3::ZERO)
                     && coat.is_none()
@@ -178,13 +191,13 @@ impl Bsdf {
 /// texture, else pbrt's roughness factor × texture R remapped as `remaproughness` asks (pbrt-v4
 /// evaluates the roughness textures at the hit, then `RoughnessToAlpha`).
 #[inline]
-fn pbrt_alpha(r: &RoughnessTextures, alpha: Vec2, textures: &[Texture], hit: &SurfaceHit) -> Vec2 {
+fn pbrt_alpha(r: &RoughnessTextures, alpha: Vec2, tx: &HitTextures) -> Vec2 {
     if !r.is_textured() {
         return alpha;
     }
     let axis = |t: &Option<TextureRef>, factor: f32, constant: f32| match t {
         Some(t) => {
-            let x = factor * sample_texture(textures, t, hit).x;
+            let x = factor * tx.sample(t).x;
             pbrt_roughness_to_alpha(if x.is_finite() { x } else { 0.0 }, r.remap)
         }
         None => constant,
@@ -296,14 +309,13 @@ pub fn bump(
 /// them (then it is a plain [`Dielectric`] or thin sheet, as before).
 fn layered_transmission(
     material: &Material,
-    textures: &[Texture],
-    hit: &SurfaceHit,
+    tx: &HitTextures,
     eta: f32,
     roughness: f32,
     tint: Vec3,
 ) -> Option<GltfTransmission> {
-    let coat = clearcoat(material, textures, hit);
-    let ext = extensions(material, textures, hit, roughness);
+    let coat = clearcoat(material, tx);
+    let ext = extensions(material, tx, roughness);
     if coat.is_none()
         && ext.sheen.is_none()
         && ext.anisotropy.is_none()
@@ -329,17 +341,17 @@ fn layered_transmission(
 /// The material's clearcoat at `hit` (KHR_materials_clearcoat: factor × texture R, roughness ×
 /// texture G), `None` when its weight is zero. Its normal is +z (the shading normal) until the
 /// integrator calls [`Bsdf::set_coat_normal`] with [`clearcoat_normal`].
-fn clearcoat(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Option<Clearcoat> {
+fn clearcoat(material: &Material, tx: &HitTextures) -> Option<Clearcoat> {
     if !(material.clearcoat > 0.0) {
         return None;
     }
     let mut weight = material.clearcoat;
     if let Some(t) = &material.clearcoat_texture {
-        weight *= sample_texture(textures, t, hit).x;
+        weight *= tx.sample(t).x;
     }
     let mut roughness = material.clearcoat_roughness;
     if let Some(t) = &material.clearcoat_roughness_texture {
-        roughness *= sample_texture(textures, t, hit).y;
+        roughness *= tx.sample(t).y;
     }
     (weight > 0.0).then(|| Clearcoat::new(weight, roughness, Vec3::Z))
 }
@@ -347,22 +359,18 @@ fn clearcoat(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Opt
 /// The KHR extensions of the metallic-roughness lobes at `hit` (sheen, anisotropy, iridescence,
 /// diffuse transmission), each off when its weight is zero. `roughness` is the base's (factor ×
 /// texture), which anisotropy stretches.
-fn extensions(
-    material: &Material,
-    textures: &[Texture],
-    hit: &SurfaceHit,
-    roughness: f32,
-) -> Extensions {
+fn extensions(material: &Material, tx: &HitTextures, roughness: f32) -> Extensions {
+    let hit = tx.hit;
     let mut ext = Extensions::default();
     // KHR_materials_sheen: colour × texture RGB (sRGB), roughness × texture A.
     if material.sheen_color.max_element() > 0.0 {
         let mut color = material.sheen_color;
         if let Some(t) = &material.sheen_color_texture {
-            color *= sample_texture(textures, t, hit).truncate();
+            color *= tx.sample(t).truncate();
         }
         let mut rough = material.sheen_roughness;
         if let Some(t) = &material.sheen_roughness_texture {
-            rough *= sample_texture(textures, t, hit).w;
+            rough *= tx.sample(t).w;
         }
         ext.sheen = Sheen::new(color, rough);
     }
@@ -375,7 +383,7 @@ fn extensions(
         let mut strength = material.anisotropy;
         let mut d = Vec2::X;
         if let Some(t) = &material.anisotropy_texture {
-            let v = sample_texture(textures, t, hit);
+            let v = tx.sample(t);
             d = Vec2::new(v.x * 2.0 - 1.0, v.y * 2.0 - 1.0);
             strength *= v.z;
         }
@@ -395,14 +403,14 @@ fn extensions(
     if material.iridescence > 0.0 {
         let mut factor = material.iridescence;
         if let Some(t) = &material.iridescence_texture {
-            factor *= sample_texture(textures, t, hit).x;
+            factor *= tx.sample(t).x;
         }
         let (lo, hi) = (
             material.iridescence_thickness_min,
             material.iridescence_thickness_max,
         );
         let thickness = match &material.iridescence_thickness_texture {
-            Some(t) => lo + (hi - lo) * sample_texture(textures, t, hit).y,
+            Some(t) => lo + (hi - lo) * tx.sample(t).y,
             None => hi,
         };
         if factor > 0.0 {
@@ -417,11 +425,11 @@ fn extensions(
     if material.diffuse_transmission > 0.0 {
         let mut factor = material.diffuse_transmission;
         if let Some(t) = &material.diffuse_transmission_texture {
-            factor *= sample_texture(textures, t, hit).w;
+            factor *= tx.sample(t).w;
         }
         let mut color = material.diffuse_transmission_color;
         if let Some(t) = &material.diffuse_transmission_color_texture {
-            color *= sample_texture(textures, t, hit).truncate();
+            color *= tx.sample(t).truncate();
         }
         if factor > 0.0 {
             ext.diffuse_transmission = factor.clamp(0.0, 1.0);
@@ -465,9 +473,16 @@ pub fn roughness_metallic(
     textures: &[Texture],
     hit: &SurfaceHit,
 ) -> (f32, f32) {
+    let shared = Cell::new(SharedFootprint::NONE);
+    roughness_metallic_in(material, &HitTextures::new(textures, hit, &shared))
+}
+
+/// [`roughness_metallic`] through a hit's shared lookups.
+#[inline(always)]
+fn roughness_metallic_in(material: &Material, tx: &HitTextures) -> (f32, f32) {
     let (mut roughness, mut metallic) = (material.roughness, material.metallic);
     if let Some(t) = &material.metallic_roughness_texture {
-        let v = sample_texture(textures, t, hit);
+        let v = tx.sample(t);
         roughness *= v.y;
         metallic *= v.z;
     }
@@ -478,9 +493,16 @@ pub fn roughness_metallic(
 /// [`roughness_metallic`]).
 #[inline(always)]
 pub fn base_color(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Vec3 {
-    let mut c = material.base_color * hit.color.truncate();
+    let shared = Cell::new(SharedFootprint::NONE);
+    base_color_in(material, &HitTextures::new(textures, hit, &shared))
+}
+
+/// [`base_color`] through a hit's shared lookups.
+#[inline(always)]
+fn base_color_in(material: &Material, tx: &HitTextures) -> Vec3 {
+    let mut c = material.base_color * tx.hit.color.truncate();
     if let Some(t) = &material.base_color_texture {
-        c *= sample_texture(textures, t, hit).truncate();
+        c *= tx.sample(t).truncate();
     }
     c
 }
@@ -516,6 +538,14 @@ pub fn sample_texture(textures: &[Texture], t: &TextureRef, hit: &SurfaceHit) ->
     if let Some(p) = &tex.procedural {
         return procedural_lookup(p, textures, hit, set);
     }
+    let (uv, duv) = texture_uv(t, hit, set);
+    tex.lookup_filtered(uv, duv)
+}
+
+/// The uv and its pixel derivatives at which `t` reads its image at `hit`: uv set `set`
+/// through the reference's transform.
+#[inline(always)]
+fn texture_uv(t: &TextureRef, hit: &SurfaceHit, set: usize) -> (Vec2, Vec4) {
     let mut uv = hit.uv[set];
     let mut duv = hit.duv[set];
     if let Some(tr) = &t.transform {
@@ -528,7 +558,46 @@ pub fn sample_texture(textures: &[Texture], t: &TextureRef, hit: &SurfaceHit) ->
             duv = Vec4::new(dx.x, dx.y, dy.x, dy.y);
         }
     }
-    tex.lookup_filtered(uv, duv)
+    (uv, duv)
+}
+
+/// The texture lookups of one hit, sharing their bilinear addressing: a lookup at the same uv
+/// of a texture with the same size, wrap modes and layout as the previous one reuses its texel
+/// addresses and weights ([`Texture::lookup_shared`]; the results are [`sample_texture`]'s bit
+/// for bit). ToyCar's body reads its normal map, base colour, metallic-roughness and clearcoat
+/// textures (1024², repeating, uv set 0, no transform) at every hit.
+pub struct HitTextures<'a> {
+    pub textures: &'a [Texture],
+    pub hit: &'a SurfaceHit,
+    /// The previous lookup's addressing ([`SharedFootprint::NONE`] before the hit's first).
+    pub shared: &'a Cell<SharedFootprint>,
+}
+
+impl<'a> HitTextures<'a> {
+    #[inline(always)]
+    pub fn new(
+        textures: &'a [Texture],
+        hit: &'a SurfaceHit,
+        shared: &'a Cell<SharedFootprint>,
+    ) -> HitTextures<'a> {
+        HitTextures {
+            textures,
+            hit,
+            shared,
+        }
+    }
+
+    /// [`sample_texture`] of `t` at this hit.
+    #[inline]
+    pub fn sample(&self, t: &TextureRef) -> Vec4 {
+        let set = (t.texcoord as usize).min(1);
+        let tex = &self.textures[t.texture];
+        if let Some(p) = &tex.procedural {
+            return procedural_lookup(p, self.textures, self.hit, set);
+        }
+        let (uv, duv) = texture_uv(t, self.hit, set);
+        tex.lookup_shared(uv, duv, self.shared)
+    }
 }
 
 /// A procedural texture at `hit`, in pbrt's (u, v) convention: stored uvs have v growing down
@@ -572,4 +641,75 @@ pub fn emitted(material: &Material, textures: &[Texture], hit: &SurfaceHit, wo: 
         e *= sample_texture(textures, t, hit).truncate();
     }
     e
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{PrimRef, PrimitiveKind};
+    use crate::material::normal_map::{apply_normal_map, apply_normal_map_shared};
+
+    /// ToyCar's body in small: a clearcoated metallic-roughness material whose normal map, base
+    /// colour, metallic-roughness and clearcoat textures share a size (and a sampler), plus a
+    /// coat-roughness texture of another height. Normal map then BSDF through one kept
+    /// footprint ([`World::shade_surface`]'s order) give the shading normal and the BSDF (every
+    /// field, by its `Debug` form) of the separate calls at every uv, and the footprint is used.
+    ///
+    /// [`World::shade_surface`]: crate::world::World::shade_surface
+    #[test]
+    fn shared_footprint_gives_the_same_shading() {
+        let image = |w: u32, h: u32, k: f32| {
+            let texels = (0..w * h)
+                .map(|i| {
+                    let f = |c: f32| ((i as f32 * c * k).sin() * 0.5 + 0.5).clamp(0.0, 1.0);
+                    Vec4::new(f(0.37), f(1.3), f(0.71), 1.0)
+                })
+                .collect();
+            let mut t = Texture::image("t", w, h, texels);
+            t.tile();
+            t
+        };
+        let textures = vec![
+            image(16, 8, 1.0),
+            image(16, 8, 2.0),
+            image(16, 8, 3.0),
+            image(16, 8, 4.0),
+            // Same width (so the same tile-row stride), another height.
+            image(16, 12, 5.0),
+        ];
+        let material = Material {
+            model: MaterialModel::MetallicRoughness,
+            normal_texture: Some(TextureRef::new(0)),
+            base_color_texture: Some(TextureRef::new(1)),
+            metallic_roughness_texture: Some(TextureRef::new(2)),
+            metallic: 0.5,
+            clearcoat: 1.0,
+            clearcoat_texture: Some(TextureRef::new(3)),
+            clearcoat_roughness: 0.6,
+            clearcoat_roughness_texture: Some(TextureRef::new(4)),
+            ..Default::default()
+        };
+        for i in 0..400 {
+            let uv = Vec2::new(i as f32 * 0.0731 - 3.0, i as f32 * 0.0419 - 2.0);
+            let hit = SurfaceHit {
+                t: 1.0,
+                prim: PrimRef::new(PrimitiveKind::Sphere, 0),
+                uv: [uv; 2],
+                ..SurfaceHit::EMPTY
+            };
+            let mut plain = hit;
+            apply_normal_map(&material, &textures, &mut plain);
+            let want = Bsdf::from_material(&material, &textures, &plain);
+            let mut kept = hit;
+            let shared = Cell::new(SharedFootprint::NONE);
+            apply_normal_map_shared(&material, &textures, &mut kept, &shared);
+            assert_ne!(shared.get(), SharedFootprint::NONE, "uv {uv:?}");
+            let got = Bsdf::from_material_shared(&material, &textures, &kept, &shared);
+            assert_eq!(
+                kept.ns.to_array().map(f32::to_bits),
+                plain.ns.to_array().map(f32::to_bits)
+            );
+            assert_eq!(format!("{got:?}"), format!("{want:?}"), "uv {uv:?}");
+        }
+    }
 }

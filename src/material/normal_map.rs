@@ -3,9 +3,12 @@
 //! s the normal scale, T the mesh tangent (or ∂p/∂u when the mesh has none) and
 //! B = (N × T)·w the bitangent with the tangent's handedness w.
 
+use std::cell::Cell;
+
 use super::Material;
 use super::Texture;
-use super::eval::sample_texture;
+use super::eval::HitTextures;
+use super::texture::SharedFootprint;
 use crate::geometry::SurfaceHit;
 use crate::math::Vec3;
 
@@ -14,10 +17,23 @@ use crate::math::Vec3;
 /// from the geometric normal (which would let light leak through the surface).
 #[inline]
 pub fn apply_normal_map(material: &Material, textures: &[Texture], hit: &mut SurfaceHit) {
+    apply_normal_map_shared(material, textures, hit, &Cell::new(SharedFootprint::NONE));
+}
+
+/// [`apply_normal_map`], its lookup leaving its bilinear addressing in `shared` for the hit's
+/// later lookups ([`HitTextures`]; the map does not move the uv, so the material's textures of
+/// the same size read the same texel positions).
+#[inline]
+pub fn apply_normal_map_shared(
+    material: &Material,
+    textures: &[Texture],
+    hit: &mut SurfaceHit,
+    shared: &Cell<SharedFootprint>,
+) {
     let Some(t) = &material.normal_texture else {
         return;
     };
-    let c = sample_texture(textures, t, hit).truncate() * 2.0 - Vec3::ONE;
+    let c = HitTextures::new(textures, hit, shared).sample(t).truncate() * 2.0 - Vec3::ONE;
     let c = Vec3::new(
         c.x * material.normal_scale,
         c.y * material.normal_scale,

@@ -3,11 +3,14 @@
 //! escaped radiance, a light sample seen from a hit and the pdf with which NEE would have chosen
 //! a point on an emitter. Integrators do not reach into the light set, materials or textures.
 
+use std::cell::Cell;
+
 use super::World;
 use crate::geometry::primitive::{Intersection, NO_LIGHT};
 use crate::geometry::{Ray, SurfaceHit};
 use crate::light::{EnvPdf, Light, LightSample};
 use crate::material::local_shading::LocalSurface;
+use crate::material::texture::SharedFootprint;
 use crate::material::{Bsdf, Material, eval, normal_map};
 use crate::math::{Vec2, Vec3};
 
@@ -48,8 +51,19 @@ impl World {
     /// `material` is [`World::surface_material`] of `hit`.
     #[inline]
     pub fn perturb_shading(&self, material: &Material, hit: &mut SurfaceHit) {
+        self.perturb_shading_shared(material, hit, &Cell::new(SharedFootprint::NONE));
+    }
+
+    /// [`World::perturb_shading`], the normal map's lookup keeping its addressing in `shared`.
+    #[inline]
+    fn perturb_shading_shared(
+        &self,
+        material: &Material,
+        hit: &mut SurfaceHit,
+        shared: &Cell<SharedFootprint>,
+    ) {
         if material.normal_texture.is_some() {
-            normal_map::apply_normal_map(material, &self.textures, hit);
+            normal_map::apply_normal_map_shared(material, &self.textures, hit, shared);
         } else if material.pbrt.displacement.is_some()
             && let Some((dpdu, dpdv)) = self.geometry.pbrt_shading_dpduv(hit)
         {
@@ -61,9 +75,18 @@ impl World {
     /// frame, then evaluates the material's textures there.
     #[inline]
     pub fn bsdf(&self, hit: &mut SurfaceHit) -> Bsdf {
-        let material = self.surface_material(hit);
-        self.perturb_shading(material, hit);
-        self.material_bsdf(material, hit)
+        self.shade_surface(self.surface_material(hit), hit)
+    }
+
+    /// [`World::perturb_shading`] then [`World::material_bsdf`]: the BSDF of `material`
+    /// ([`World::surface_material`] of `hit`) after its normal or bump map, the two sharing
+    /// the bilinear addressing of their texture lookups ([`eval::HitTextures`]; ToyCar's body
+    /// reads four 1024² textures at the same uv).
+    #[inline]
+    pub fn shade_surface(&self, material: &Material, hit: &mut SurfaceHit) -> Bsdf {
+        let shared = Cell::new(SharedFootprint::NONE);
+        self.perturb_shading_shared(material, hit, &shared);
+        Bsdf::from_material_shared(material, &self.textures, hit, &shared)
     }
 
     /// The BSDF of `material` ([`World::surface_material`] of `hit`) at `hit`, whose shading
