@@ -600,6 +600,18 @@ fn render_in_pool(
         }
         // Only adaptive renders take the lock; nothing writes it while a pass renders.
         let mask = adaptive.then(|| active.read().unwrap_or_else(|e| e.into_inner()));
+        // The surface path tracer's samples go through the batched first hits (`Batch`); the
+        // other integrators trace sample by sample.
+        let batched = settings.integrator == IntegratorKind::Path && !world.media.active;
+        // In-loop AOVs are only recorded by the surface path tracer (`aovs_in_loop`).
+        debug_assert!(batched || !record_aovs);
+        let mut batch = Batch::new(batched);
+        let mut out = BatchOut {
+            block: &mut block,
+            stats: &mut st,
+            aovs: record_aovs.then_some(&mut aov_block[..]),
+            track,
+        };
         for fy in y0..y0 + th {
             for fx in x0..x0 + tw {
                 if let Some(m) = &mask
@@ -611,41 +623,31 @@ fn render_in_pool(
                 let pixel_key = sampler.pixel_key((x, y));
                 let slot = ((fy - y0) * tw + (fx - x0)) as usize;
                 for s in s0..s1 {
-                    let mut stream = sampler.stream(pixel_key, s);
-                    let l = if record_aovs {
-                        let mut rec = AovPath::new();
-                        let l = sample_pixel_aov(
-                            world,
-                            &camera,
-                            &filter,
-                            settings,
-                            &mut stream,
-                            (x, y),
-                            &mut st,
-                            &mut rec,
-                        );
-                        aov_block[slot].add(&rec.sample);
-                        l
-                    } else {
-                        sample_pixel(
-                            world,
-                            &camera,
-                            &filter,
-                            settings,
-                            &mut stream,
-                            x,
-                            y,
-                            &mut st,
-                        )
-                    };
-                    if track {
-                        block.add_tracked(fx, fy, l);
-                    } else {
-                        block.add(fx, fy, l);
+                    if batched {
+                        // The sample's stream draws its camera numbers where the batch keeps it.
+                        let p = batch.push(fx, fy, slot, sampler.stream(pixel_key, s));
+                        (p.ray, p.weight) = camera_ray(&camera, &filter, &mut p.stream, x, y);
+                        if batch.is_full() {
+                            batch.trace(world, &settings.path, &mut out);
+                        }
+                        continue;
                     }
+                    let mut stream = sampler.stream(pixel_key, s);
+                    let l = sample_pixel(
+                        world,
+                        &camera,
+                        &filter,
+                        settings,
+                        &mut stream,
+                        x,
+                        y,
+                        out.stats,
+                    );
+                    out.add(fx, fy, l);
                 }
             }
         }
+        batch.trace(world, &settings.path, &mut out);
         (block, st, aov_block)
     };
 
@@ -892,24 +894,110 @@ pub fn render_aovs_samples(
     Ok(aov::layers(kinds, win.width(), win.height(), &rows))
 }
 
-/// [`sample_pixel`] of the surface path tracer that also records the sample's AOVs into `aov`
-/// ([`path::radiance_aov`]; [`aovs_in_loop`] says when it is used).
-#[inline]
-#[allow(clippy::too_many_arguments)]
-fn sample_pixel_aov(
-    world: &World,
-    camera: &crate::camera::Camera,
-    filter: &FilterSampler,
-    settings: &RenderSettings,
-    stream: &mut SampleStream,
-    (x, y): (u32, u32),
-    stats: &mut RayStats,
-    aov: &mut AovPath,
-) -> crate::math::Vec3 {
-    let (ray, weight) = camera_ray(camera, filter, stream, x, y);
-    let l = path::radiance_aov(world, &ray, stream, &settings.path, stats, aov);
-    // As in `sample_pixel`.
-    l * weight
+/// Camera samples whose first hits are found together, before any of their paths is shaded.
+///
+/// Why (issue #23, the "wavefront" lever, measured in BENCHMARKS.md, session 18): traced sample
+/// by sample, every camera ray's traversal runs right after the previous path's shading, whose
+/// code (tens of KB: the material evaluation, BSDF sampling, light sampling) has evicted the
+/// traversal's from the instruction cache and retrained the branch predictor. A batch walks the
+/// tree for `BATCH` coherent camera rays in a row, then runs each path from its precomputed
+/// first hit. Everything a sample computes is unchanged: its stream is the one its camera ray
+/// drew from, its path starts from the same `World::candidate` the path tracer would have found
+/// ([`path::radiance_from`]), and the radiances reach the film (and the AOV block) in the
+/// sample-by-sample order, so the image is bit-identical and the rays counted are the same.
+const BATCH: usize = 64;
+
+/// One camera sample of a [`Batch`]: its film pixel and AOV slot, its stream after the camera
+/// numbers, its ray and filter weight, and (once traced) the ray's closest-hit candidate.
+struct Primary {
+    fx: u32,
+    fy: u32,
+    slot: usize,
+    stream: SampleStream,
+    ray: crate::geometry::Ray,
+    weight: f32,
+    first: Option<crate::geometry::primitive::Intersection>,
+}
+
+/// The samples of one tile waiting for their first hits; allocated once per tile job (never per
+/// sample), empty when the integrator traces sample by sample.
+struct Batch(Vec<Primary>);
+
+/// Where a batch's radiances go: the tile's film block, its ray counts, its AOV block (when the
+/// render records AOVs in the path loop).
+struct BatchOut<'a> {
+    block: &'a mut FilmBlock,
+    stats: &'a mut RayStats,
+    aovs: Option<&'a mut [PixelAovs]>,
+    track: bool,
+}
+
+impl BatchOut<'_> {
+    #[inline]
+    fn add(&mut self, fx: u32, fy: u32, l: crate::math::Vec3) {
+        if self.track {
+            self.block.add_tracked(fx, fy, l);
+        } else {
+            self.block.add(fx, fy, l);
+        }
+    }
+}
+
+impl Batch {
+    fn new(batched: bool) -> Batch {
+        Batch(Vec::with_capacity(if batched { BATCH } else { 0 }))
+    }
+
+    /// Appends a sample whose camera ray is still to be drawn from `stream`, and returns it.
+    #[inline]
+    fn push(&mut self, fx: u32, fy: u32, slot: usize, stream: SampleStream) -> &mut Primary {
+        self.0.push(Primary {
+            fx,
+            fy,
+            slot,
+            stream,
+            ray: crate::geometry::Ray::new(crate::math::Vec3::ZERO, crate::math::Vec3::Z),
+            weight: 0.0,
+            first: None,
+        });
+        let last = self.0.len() - 1;
+        &mut self.0[last]
+    }
+
+    #[inline]
+    fn is_full(&self) -> bool {
+        self.0.len() >= BATCH
+    }
+
+    /// Finds every waiting sample's first hit, then runs their paths in order and adds them to
+    /// `out`; leaves the batch empty.
+    fn trace(&mut self, world: &World, set: &PathSettings, out: &mut BatchOut) {
+        for p in &mut self.0 {
+            p.first = world.candidate(&p.ray);
+        }
+        for p in &mut self.0 {
+            let l = match out.aovs.as_deref_mut() {
+                Some(aovs) => {
+                    let mut rec = AovPath::new();
+                    let l = path::radiance_aov_from(
+                        world,
+                        &p.ray,
+                        p.first,
+                        &mut p.stream,
+                        set,
+                        out.stats,
+                        &mut rec,
+                    );
+                    aovs[p.slot].add(&rec.sample);
+                    l
+                }
+                None => path::radiance_from(world, &p.ray, p.first, &mut p.stream, set, out.stats),
+            };
+            // As in `sample_pixel`: ×1 is exact for box and tent samples.
+            out.add(p.fx, p.fy, l * p.weight);
+        }
+        self.0.clear();
+    }
 }
 
 /// One camera sample of pixel (x, y) (see [`camera_ray`]); the radiance is weighted by the
@@ -948,6 +1036,88 @@ fn sample_pixel(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The batched first hits (`Batch`) render exactly what tracing each sample on its own does:
+    /// every pixel's film value, the rays counted and the in-loop AOVs (float sums, so their
+    /// order counts) equal a reference that traces sample by sample with `path::radiance_aov`.
+    /// The image (21 × 18) is not a multiple of the tile, nor a tile-pass of the batch, so
+    /// partial tiles and partial batches are both exercised; two threads run the passes.
+    #[test]
+    fn batched_first_hits_render_what_sample_by_sample_tracing_does() {
+        let scene = crate::scene::builtin::load("cornell").unwrap();
+        let world = World::build(scene, &Default::default()).unwrap();
+        let (w, h, spp) = (21u32, 18u32, 6u32);
+        let settings = RenderSettings {
+            width: w,
+            height: h,
+            spp,
+            threads: Some(2),
+            ..Default::default()
+        };
+        // Reference: sample by sample, each pixel's samples in order.
+        let camera = crate::camera::Camera::new(&world.camera, w, h);
+        let sampler = SamplerSetup::new(settings.sampler, settings.seed, spp).for_image(w, h);
+        let filter = FilterSampler::new(&settings.filter);
+        let mut block = FilmBlock::new(0, 0, w, h);
+        let mut stats = RayStats::default();
+        let mut aovs = vec![PixelAovs::default(); (w * h) as usize];
+        for y in 0..h {
+            for x in 0..w {
+                for s in 0..spp {
+                    let mut stream = sampler.stream(sampler.pixel_key((x, y)), s);
+                    let (ray, weight) = camera_ray(&camera, &filter, &mut stream, x, y);
+                    let mut rec = AovPath::new();
+                    let l = path::radiance_aov(
+                        &world,
+                        &ray,
+                        &mut stream,
+                        &settings.path,
+                        &mut stats,
+                        &mut rec,
+                    );
+                    aovs[(y * w + x) as usize].add(&rec.sample);
+                    block.add(x, y, l * weight);
+                }
+            }
+        }
+        let mut film = Film::new(w, h);
+        film.add_block(&block);
+        assert!(stats.rays > (w * h * spp) as u64 && stats.shadow_rays > 0);
+
+        for record_aovs in [false, true] {
+            let r = render_range_aovs(
+                &world,
+                &settings,
+                RangeStart {
+                    samples: 0..spp,
+                    resume: None,
+                },
+                record_aovs,
+                &NoObserver,
+                &AtomicBool::new(false),
+            )
+            .unwrap();
+            assert_eq!(r.done, spp);
+            assert_eq!(
+                (r.stats.rays, r.stats.shadow_rays),
+                (stats.rays, stats.shadow_rays)
+            );
+            for y in 0..h {
+                for x in 0..w {
+                    let (a, b) = (r.film.pixel(x, y), film.pixel(x, y));
+                    assert_eq!(
+                        a.to_array().map(f32::to_bits),
+                        b.to_array().map(f32::to_bits),
+                        "pixel ({x}, {y}), aovs {record_aovs}: {a} against {b}"
+                    );
+                }
+            }
+            if record_aovs {
+                let got = r.aovs.expect("the path tracer records AOVs in the loop");
+                assert_eq!(format!("{got:?}"), format!("{aovs:?}"));
+            }
+        }
+    }
 
     #[test]
     fn pass_schedule_covers_every_sample_once() {

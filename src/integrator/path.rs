@@ -15,7 +15,7 @@ use super::RayStats;
 use super::aov::AovPath;
 use super::direct::{Vertex, sample_ld};
 use crate::geometry::Ray;
-use crate::geometry::primitive::{NO_LIGHT, SurfaceHit};
+use crate::geometry::primitive::{Intersection, NO_LIGHT, SurfaceHit};
 use crate::light::EnvPdf;
 use crate::math::Vec3;
 use crate::sampling::SampleStream;
@@ -82,7 +82,22 @@ pub fn radiance(
     set: &PathSettings,
     stats: &mut RayStats,
 ) -> Vec3 {
-    radiance_impl(world, ray, s, set, stats, None)
+    radiance_impl(world, ray, world.candidate(ray), s, set, stats, None)
+}
+
+/// [`radiance`] with the camera ray's closest-hit candidate `first` (its [`World::candidate`])
+/// already found, as the renderer's batched first hits do (`render.rs`, "batched first hits"):
+/// the result, the rays counted and the numbers drawn from `s` are exactly those of
+/// [`radiance`].
+pub fn radiance_from(
+    world: &World,
+    ray: &Ray,
+    first: Option<Intersection>,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+) -> Vec3 {
+    radiance_impl(world, ray, first, s, set, stats, None)
 }
 
 /// [`radiance`], also recording the sample's AOVs (the first hit; the albedo and normal at the
@@ -97,13 +112,27 @@ pub fn radiance_aov(
     stats: &mut RayStats,
     aov: &mut AovPath,
 ) -> Vec3 {
-    radiance_impl(world, ray, s, set, stats, Some(aov))
+    radiance_impl(world, ray, world.candidate(ray), s, set, stats, Some(aov))
+}
+
+/// [`radiance_aov`] from the camera ray's precomputed candidate `first`, as [`radiance_from`].
+pub fn radiance_aov_from(
+    world: &World,
+    ray: &Ray,
+    first: Option<Intersection>,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+    aov: &mut AovPath,
+) -> Vec3 {
+    radiance_impl(world, ray, first, s, set, stats, Some(aov))
 }
 
 #[inline(always)]
 fn radiance_impl(
     world: &World,
     ray: &Ray,
+    first: Option<Intersection>,
     s: &mut SampleStream,
     set: &PathSettings,
     stats: &mut RayStats,
@@ -112,7 +141,7 @@ fn radiance_impl(
     stats.rays += 1;
     // The path's one vertex storage: each bounce's hit is intersected into it and shaded in
     // place (`Vertex::shade`), never moved. Set up only once the camera ray hits something.
-    let Some(isect) = world.candidate(ray) else {
+    let Some(isect) = first else {
         return world.escaped(ray.d.normalize());
     };
     let mut v = Vertex::unshaded(SurfaceHit::EMPTY);
