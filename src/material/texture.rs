@@ -1437,8 +1437,14 @@ mod tests {
             state ^= state << 5;
             state as f32 / u32::MAX as f32
         };
-        let mut textures = Vec::new();
-        for (w, h) in [(1, 1), (5, 3), (37, 23), (64, 64)] {
+        // One group per size, each the same variants in the same order, interleaved below so
+        // that consecutive textures differ in size only (same storage, wraps, filter, layout):
+        // then only the footprint key's size fields tell them apart. 37×23, 37×29 and 38×23
+        // share their tile-row stride (ten 4-texel tiles), so a key without the width or the
+        // height would reuse another size's texel positions.
+        let mut groups: Vec<Vec<Texture>> = Vec::new();
+        for (w, h) in [(1, 1), (5, 3), (37, 23), (37, 29), (38, 23), (64, 64)] {
+            let mut textures = Vec::new();
             let texels = ramp(w, h);
             for kind in storage_kinds(&texels, |v| v) {
                 for (ws, wt) in [
@@ -1462,7 +1468,12 @@ mod tests {
                     }
                 }
             }
+            groups.push(textures);
         }
+        let grouped: Vec<Texture> = groups.concat();
+        let interleaved: Vec<Texture> = (0..groups[0].len())
+            .flat_map(|i| groups.iter().map(move |g| g[i].clone()))
+            .collect();
         let mut uvs: Vec<Vec2> = (0..150)
             .map(|_| Vec2::new(next() * 5.0 - 2.0, next() * 5.0 - 2.0))
             .collect();
@@ -1476,9 +1487,11 @@ mod tests {
         let (mut reused, mut lookups) = (0, 0);
         for &uv in &uvs {
             for duv in [Vec4::ZERO, Vec4::splat(next() * 0.5)] {
-                // Forward then backward, so each texture follows textures of other sizes and
-                // layouts as well as its own.
-                for t in textures.iter().chain(textures.iter().rev()) {
+                // Grouped by size forward then backward, so each texture follows textures of
+                // other layouts as well as its own variants (the sharing counted below); then
+                // interleaved, each texture after the same variant of another size.
+                let passes = grouped.iter().chain(grouped.iter().rev());
+                for (k, t) in passes.chain(interleaved.iter()).enumerate() {
                     let before = shared.get();
                     let got = t.lookup_shared(uv, duv, &shared);
                     let want = t.lookup_filtered(uv, duv);
@@ -1497,7 +1510,11 @@ mod tests {
                     );
                     // A level-0 bilinear lookup that left the footprint as it found it reused it.
                     let level0 = t.mips.is_empty() || duv == Vec4::ZERO;
-                    if t.filter == FilterMode::Bilinear && uv.is_finite() && level0 {
+                    if t.filter == FilterMode::Bilinear
+                        && uv.is_finite()
+                        && level0
+                        && k < 2 * grouped.len()
+                    {
                         lookups += 1;
                         if before.width != 0 && shared.get() == before {
                             reused += 1;
