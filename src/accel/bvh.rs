@@ -2361,22 +2361,9 @@ mod tests {
                 all.extend(got);
                 assert_eq!(all, want, "{walk} walk, round {round}");
             };
-            let (mut stack, mut sp) = (EntryStack::new(), base);
-            for i in 0..base {
-                stack.set(
-                    i,
-                    Entry {
-                        first: 0,
-                        count: 0,
-                        t: 0.0,
-                    },
-                );
-            }
-            let got = order_children(&n, &t_enter, mask, &mut stack, &mut sp);
-            check(got, &stack, sp, "portable");
-            #[cfg(target_arch = "x86_64")]
-            if has_avx2 {
-                let (mut stack, mut sp) = (EntryStack::new(), base);
+            // A stack already holding `base` entries, so the pushes must land above them.
+            let below = || {
+                let mut stack = EntryStack::new();
                 for i in 0..base {
                     stack.set(
                         i,
@@ -2387,6 +2374,14 @@ mod tests {
                         },
                     );
                 }
+                (stack, base)
+            };
+            let (mut stack, mut sp) = below();
+            let got = order_children(&n, &t_enter, mask, &mut stack, &mut sp);
+            check(got, &stack, sp, "portable");
+            #[cfg(target_arch = "x86_64")]
+            if has_avx2 {
+                let (mut stack, mut sp) = below();
                 // SAFETY: AVX2 was detected above.
                 let got = unsafe {
                     let (t0, hit) = slab.test_avx2_vectors(&n, ray.t_max);
