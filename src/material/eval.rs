@@ -25,18 +25,18 @@ impl Bsdf {
     /// Builds the BSDF of `material` at `hit`, reading its textures.
     #[inline]
     pub fn from_material(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Bsdf {
-        Bsdf::from_material_shared(material, textures, hit, &Cell::new(SharedFootprint::NONE))
+        Bsdf::from_material_shared(material, textures, hit, None)
     }
 
-    /// [`Bsdf::from_material`], its image lookups sharing their bilinear addressing with each
-    /// other and with the hit's earlier lookups through `shared` (the normal map's,
+    /// [`Bsdf::from_material`], with `Some(shared)` its image lookups sharing their bilinear
+    /// addressing with each other and with the hit's earlier lookups (the normal map's,
     /// [`super::normal_map::apply_normal_map_shared`]), where it is provably the same
-    /// ([`HitTextures`]).
+    /// ([`HitTextures`]); with `None` every lookup is the plain one.
     pub fn from_material_shared(
         material: &Material,
         textures: &[Texture],
         hit: &SurfaceHit,
-        shared: &Cell<SharedFootprint>,
+        shared: Option<&Cell<SharedFootprint>>,
     ) -> Bsdf {
         let tx = &HitTextures::new(textures, hit, shared);
         // Each model reads only the inputs it uses (a Lambertian surface needs its base colour
@@ -473,8 +473,7 @@ pub fn roughness_metallic(
     textures: &[Texture],
     hit: &SurfaceHit,
 ) -> (f32, f32) {
-    let shared = Cell::new(SharedFootprint::NONE);
-    roughness_metallic_in(material, &HitTextures::new(textures, hit, &shared))
+    roughness_metallic_in(material, &HitTextures::new(textures, hit, None))
 }
 
 /// [`roughness_metallic`] through a hit's shared lookups.
@@ -493,8 +492,7 @@ fn roughness_metallic_in(material: &Material, tx: &HitTextures) -> (f32, f32) {
 /// [`roughness_metallic`]).
 #[inline(always)]
 pub fn base_color(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Vec3 {
-    let shared = Cell::new(SharedFootprint::NONE);
-    base_color_in(material, &HitTextures::new(textures, hit, &shared))
+    base_color_in(material, &HitTextures::new(textures, hit, None))
 }
 
 /// [`base_color`] through a hit's shared lookups.
@@ -533,13 +531,7 @@ pub fn opacity(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> f
 /// reference's transform).
 #[inline]
 pub fn sample_texture(textures: &[Texture], t: &TextureRef, hit: &SurfaceHit) -> Vec4 {
-    let set = (t.texcoord as usize).min(1);
-    let tex = &textures[t.texture];
-    if let Some(p) = &tex.procedural {
-        return procedural_lookup(p, textures, hit, set);
-    }
-    let (uv, duv) = texture_uv(t, hit, set);
-    tex.lookup_filtered(uv, duv)
+    HitTextures::new(textures, hit, None).sample(t)
 }
 
 /// The uv and its pixel derivatives at which `t` reads its image at `hit`: uv set `set`
@@ -569,8 +561,9 @@ fn texture_uv(t: &TextureRef, hit: &SurfaceHit, set: usize) -> (Vec2, Vec4) {
 pub struct HitTextures<'a> {
     pub textures: &'a [Texture],
     pub hit: &'a SurfaceHit,
-    /// The previous lookup's addressing ([`SharedFootprint::NONE`] before the hit's first).
-    pub shared: &'a Cell<SharedFootprint>,
+    /// The previous lookup's addressing ([`SharedFootprint::NONE`] before the hit's first);
+    /// `None`: every lookup is the plain [`Texture::lookup_filtered`].
+    pub shared: Option<&'a Cell<SharedFootprint>>,
 }
 
 impl<'a> HitTextures<'a> {
@@ -578,7 +571,7 @@ impl<'a> HitTextures<'a> {
     pub fn new(
         textures: &'a [Texture],
         hit: &'a SurfaceHit,
-        shared: &'a Cell<SharedFootprint>,
+        shared: Option<&'a Cell<SharedFootprint>>,
     ) -> HitTextures<'a> {
         HitTextures {
             textures,
@@ -596,7 +589,10 @@ impl<'a> HitTextures<'a> {
             return procedural_lookup(p, self.textures, self.hit, set);
         }
         let (uv, duv) = texture_uv(t, self.hit, set);
-        tex.lookup_shared(uv, duv, self.shared)
+        match self.shared {
+            Some(shared) => tex.lookup_shared(uv, duv, shared),
+            None => tex.lookup_filtered(uv, duv),
+        }
     }
 }
 
@@ -702,9 +698,9 @@ mod tests {
             let want = Bsdf::from_material(&material, &textures, &plain);
             let mut kept = hit;
             let shared = Cell::new(SharedFootprint::NONE);
-            apply_normal_map_shared(&material, &textures, &mut kept, &shared);
+            apply_normal_map_shared(&material, &textures, &mut kept, Some(&shared));
             assert_ne!(shared.get(), SharedFootprint::NONE, "uv {uv:?}");
-            let got = Bsdf::from_material_shared(&material, &textures, &kept, &shared);
+            let got = Bsdf::from_material_shared(&material, &textures, &kept, Some(&shared));
             assert_eq!(
                 kept.ns.to_array().map(f32::to_bits),
                 plain.ns.to_array().map(f32::to_bits)

@@ -17,7 +17,7 @@ use crate::math::Vec3;
 /// from the geometric normal (which would let light leak through the surface).
 #[inline]
 pub fn apply_normal_map(material: &Material, textures: &[Texture], hit: &mut SurfaceHit) {
-    apply_normal_map_shared(material, textures, hit, &Cell::new(SharedFootprint::NONE));
+    apply_normal_map_shared(material, textures, hit, None);
 }
 
 /// [`apply_normal_map`], its lookup leaving its bilinear addressing in `shared` for the hit's
@@ -28,7 +28,7 @@ pub fn apply_normal_map_shared(
     material: &Material,
     textures: &[Texture],
     hit: &mut SurfaceHit,
-    shared: &Cell<SharedFootprint>,
+    shared: Option<&Cell<SharedFootprint>>,
 ) {
     let Some(t) = &material.normal_texture else {
         return;

@@ -51,7 +51,7 @@ impl World {
     /// `material` is [`World::surface_material`] of `hit`.
     #[inline]
     pub fn perturb_shading(&self, material: &Material, hit: &mut SurfaceHit) {
-        self.perturb_shading_shared(material, hit, &Cell::new(SharedFootprint::NONE));
+        self.perturb_shading_shared(material, hit, None);
     }
 
     /// [`World::perturb_shading`], the normal map's lookup keeping its addressing in `shared`.
@@ -60,7 +60,7 @@ impl World {
         &self,
         material: &Material,
         hit: &mut SurfaceHit,
-        shared: &Cell<SharedFootprint>,
+        shared: Option<&Cell<SharedFootprint>>,
     ) {
         if material.normal_texture.is_some() {
             normal_map::apply_normal_map_shared(material, &self.textures, hit, shared);
@@ -85,8 +85,8 @@ impl World {
     #[inline]
     pub fn shade_surface(&self, material: &Material, hit: &mut SurfaceHit) -> Bsdf {
         let shared = Cell::new(SharedFootprint::NONE);
-        self.perturb_shading_shared(material, hit, &shared);
-        Bsdf::from_material_shared(material, &self.textures, hit, &shared)
+        self.perturb_shading_shared(material, hit, Some(&shared));
+        Bsdf::from_material_shared(material, &self.textures, hit, Some(&shared))
     }
 
     /// The BSDF of `material` ([`World::surface_material`] of `hit`) at `hit`, whose shading
