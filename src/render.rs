@@ -972,20 +972,8 @@ impl Batch {
     /// Finds every waiting sample's first hit, then runs their paths in order and adds them to
     /// `out`; leaves the batch empty.
     fn trace(&mut self, world: &World, set: &PathSettings, out: &mut BatchOut) {
-        // Packets of neighbouring camera rays (`World::candidates`): the BVH is walked once per
-        // packet. Gathered into fixed arrays, so nothing is allocated.
-        const K: usize = crate::accel::bvh::PACKET_RAYS;
-        for chunk in self.0.chunks_mut(K) {
-            let mut rays = [chunk[0].ray; K];
-            let mut hits = [None; K];
-            for (r, p) in rays.iter_mut().zip(chunk.iter()) {
-                *r = p.ray;
-            }
-            let k = chunk.len();
-            world.candidates(&rays[..k], &mut hits[..k]);
-            for (p, h) in chunk.iter_mut().zip(hits) {
-                p.first = h;
-            }
+        for p in &mut self.0 {
+            p.first = world.candidate(&p.ray);
         }
         for p in &mut self.0 {
             let l = match out.aovs.as_deref_mut() {

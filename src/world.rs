@@ -172,15 +172,6 @@ impl World {
         self.accel.intersect(&self.geometry, ray)
     }
 
-    /// [`World::candidate`] of every ray of `rays` into `out` (same length), bit for bit, the
-    /// BVH walking coherent rays as packets ([`crate::accel::Accel::intersect_many`]). Like
-    /// `candidate`, the accelerator's raw hits: cut-out holes are skipped later, by
-    /// [`World::complete_into`].
-    #[inline]
-    pub fn candidates(&self, rays: &[Ray], out: &mut [Option<Intersection>]) {
-        self.accel.intersect_many(&self.geometry, rays, out);
-    }
-
     /// Finishes the [`World::candidate`] `isect` of `ray` into `hit` (every field): skips cut-out
     /// holes, then expands the hit; `false` (and `hit` unspecified) when only holes were found.
     /// Written in place so the path tracer keeps one hit's storage along a path instead of

@@ -730,12 +730,12 @@ fn node_test<const AVX2: bool>(slab: &SlabRay, n: &BvhNode, t_max: f32) -> ([f32
 /// The traversal stack, left uninitialised: zeroing it per ray was a `memset` that cost ~2% of all
 /// instructions on the Cornell box (callgrind). Entries are only read below the stack pointer,
 /// after having been written.
-struct TraversalStack<T: Copy, const N: usize = STACK_SIZE>([std::mem::MaybeUninit<T>; N]);
+struct TraversalStack<T: Copy>([std::mem::MaybeUninit<T>; STACK_SIZE]);
 
-impl<T: Copy, const N: usize> TraversalStack<T, N> {
+impl<T: Copy> TraversalStack<T> {
     #[inline(always)]
     fn new() -> Self {
-        TraversalStack([std::mem::MaybeUninit::uninit(); N])
+        TraversalStack([std::mem::MaybeUninit::uninit(); STACK_SIZE])
     }
 
     #[inline(always)]
@@ -1225,45 +1225,17 @@ impl Bvh {
         // compute an entry a few ulps above the tie's `t`.
         let mut best_key = u64::MAX;
         let mut t_cull = ray.t_max;
-        self.walk_from::<AVX2>(
-            geometry,
-            ray,
-            &slab,
-            0,
-            &mut best,
-            &mut best_key,
-            &mut t_cull,
-        );
-        best
-    }
-
-    /// The single-ray closest-hit walk of the subtree under node `node` (the root for
-    /// [`Self::intersect_impl`]; a subtree the packet walk hands over to one ray), ranking hits
-    /// into the ray's `best`, `best_key` and `t_cull`.
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn walk_from<const AVX2: bool>(
-        &self,
-        geometry: &GeometryStore,
-        ray: &Ray,
-        slab: &SlabRay,
-        mut node: usize,
-        best_io: &mut Option<Intersection>,
-        best_key_io: &mut u64,
-        t_cull_io: &mut f32,
-    ) {
-        // Kept in locals during the walk (written back at its end): through the references,
-        // the single-ray walk took +3 % instructions per call (ToyCar, callgrind).
-        let (mut best, mut best_key, mut t_cull) = (*best_io, *best_key_io, *t_cull_io);
         let mut stack = EntryStack::new();
         let mut sp = 0usize;
+        let mut node = 0usize;
         loop {
             // The next child to visit, if this node has one: the nearest hit child. The others
             // are pushed farthest first, so the nearest of them is popped next. This is the
             // order of pushing all of them and popping one, without the push and pop: the
             // nearest never waits on the stack, and with one child hit (most nodes) nothing is
             // sorted. Its `t ≤ t_max` holds (the mask requires entry ≤ exit ≤ t_max).
-            let mut next = visit_node::<AVX2>(slab, &self.nodes[node], t_cull, &mut stack, &mut sp);
+            let mut next =
+                visit_node::<AVX2>(&slab, &self.nodes[node], t_cull, &mut stack, &mut sp);
             // Visit `next`, then pop, testing leaves on the way, until an interior node to
             // visit is found.
             loop {
@@ -1271,8 +1243,7 @@ impl Bvh {
                     Some(e) => e,
                     None => {
                         if sp == 0 {
-                            (*best_io, *best_key_io, *t_cull_io) = (best, best_key, t_cull);
-                            return;
+                            return best;
                         }
                         sp -= 1;
                         let e = stack.get(sp);
@@ -1286,325 +1257,59 @@ impl Bvh {
                     node = e.first as usize;
                     break;
                 }
-                self.leaf_hits::<AVX2>(
-                    geometry,
-                    ray,
-                    (e.first, e.count),
-                    &mut best,
-                    &mut best_key,
-                    &mut t_cull,
-                );
-            }
-        }
-    }
-
-    /// Tests `ray` against the leaf lane `(first, count)`: every hit is ranked (`rank`) into
-    /// the ray's `best`, `best_key` and `t_cull`, a packet of triangles at a time (both packets
-    /// of a two-packet leaf at once in the AVX2 copy) or one other primitive at a time. Shared
-    /// by the single-ray walk and the packet walk ([`Self::packet_walk`]), so a ray's leaf
-    /// tests are the same operations in both.
-    #[inline(always)]
-    fn leaf_hits<const AVX2: bool>(
-        &self,
-        geometry: &GeometryStore,
-        ray: &Ray,
-        (first, count): (u32, u32),
-        best: &mut Option<Intersection>,
-        best_key: &mut u64,
-        t_cull: &mut f32,
-    ) {
-        if count & PACKET_LEAF != 0 {
-            let packets = self.packet_leaf(first, count);
-            #[cfg(target_arch = "x86_64")]
-            if AVX2 && let Ok(pair) = <&[TriPacket; 2]>::try_from(packets) {
-                // SAFETY: `AVX2 = true` only runs after AVX2 (so AVX) was detected
-                // (see `node_test`).
-                let hits = unsafe { TriPacket::intersect_pair_avx(pair, ray, *t_cull) };
-                let mut mask = hits.mask;
-                while mask != 0 {
-                    let i = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    rank(
-                        best,
-                        best_key,
-                        t_cull,
-                        Intersection {
-                            t: hits.t[i],
-                            prim: PrimRef(pair[i / PACKET].prim[i % PACKET]),
-                            u: hits.b1[i],
-                            v: hits.b2[i],
-                        },
-                    );
-                }
-                return;
-            }
-            for p in packets {
-                let hits = p.intersect(ray, *t_cull);
-                let mut mask = hits.mask;
-                while mask != 0 {
-                    let i = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    rank(
-                        best,
-                        best_key,
-                        t_cull,
-                        Intersection {
-                            t: hits.t[i],
-                            prim: PrimRef(p.prim[i]),
-                            u: hits.b1[i],
-                            v: hits.b2[i],
-                        },
-                    );
-                }
-            }
-        } else {
-            let first = first as usize;
-            for &prim in &self.prims[first..first + count as usize] {
-                if let Some(h) = geometry.intersect(prim, ray, *t_cull) {
-                    rank(best, best_key, t_cull, h);
-                }
-            }
-        }
-    }
-
-    /// Closest hits of up to [`PACKET_RAYS`] rays at once: `out[i]` is exactly
-    /// [`Self::intersect`]`(rays[i])`, bit for bit. Where AVX2 is there and the rays share their
-    /// direction signs (one octant: so they share each axis's near and far plane, as a pinhole
-    /// camera's neighbouring rays do) the tree is walked once for the whole packet
-    /// ([`Self::packet_walk`]); otherwise each ray is walked on its own.
-    ///
-    /// # Panics
-    /// If `rays` and `out` differ in length or hold more than [`PACKET_RAYS`].
-    pub fn intersect_packet(
-        &self,
-        geometry: &GeometryStore,
-        rays: &[Ray],
-        out: &mut [Option<Intersection>],
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: `avx2` is only set when AVX2 was detected (as in `intersect`).
-            return unsafe {
-                self.intersect_packet_avx2::<false>(
-                    geometry,
-                    rays,
-                    out,
-                    &mut PacketStats::default(),
-                )
-            };
-        }
-        assert_eq!(rays.len(), out.len());
-        for (ray, o) in rays.iter().zip(out) {
-            *o = self.intersect_portable(geometry, ray);
-        }
-    }
-
-    /// [`Self::intersect_packet`]'s AVX2 copy, counting into `stats` when `STATS`.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn intersect_packet_avx2<const STATS: bool>(
-        &self,
-        geometry: &GeometryStore,
-        rays: &[Ray],
-        out: &mut [Option<Intersection>],
-        stats: &mut PacketStats,
-    ) {
-        assert!(rays.len() == out.len() && rays.len() <= PACKET_RAYS);
-        let coherent = rays.len() >= MIN_PACKET_RAYS && {
-            let neg = RayInv::new(rays[0].d).neg;
-            rays.iter().all(|r| RayInv::new(r.d).neg == neg)
-        };
-        if STATS {
-            stats.packets += 1;
-            stats.incoherent += !coherent as u64;
-        }
-        if !coherent || self.nodes.is_empty() {
-            for (ray, o) in rays.iter().zip(out) {
-                *o = self.intersect_impl::<true>(geometry, ray);
-            }
-            return;
-        }
-        self.packet_walk::<STATS>(geometry, rays, out, stats);
-    }
-
-    /// The packet walk (Wald et al. 2001, "Interactive Rendering with Coherent Ray Tracing",
-    /// on the 8-wide nodes): one stack for the packet, each entry carrying the rays that still
-    /// have to visit it and their entry distances. A node is read once for its active rays and
-    /// each of its children is tested against all of them at once, one AVX2 lane per ray (the
-    /// transposed form of the single-ray test, whose lanes are children). Per ray and child
-    /// the slab arithmetic is [`SlabRay::test_avx2_vectors`]'s, the same IEEE operations on the
-    /// same operands in the same order against the ray's own bound, so a ray's child mask and
-    /// entry distances are those the single-ray walk computes; a ray drops out of an entry
-    /// whose distance is beyond its bound, as it does when the single walk pops it. Leaves are
-    /// tested ray by ray with the single walk's code ([`Self::leaf_hits`]). Only the order of
-    /// visits differs (children by the entry distance of their lowest hit ray), and the hit is
-    /// ranked by (`t` bits, primitive) with the `TIE_ULPS` cull, so it does not depend on the
-    /// order (see `intersect_impl`): every ray gets the single walk's hit, bit for bit
-    /// (`tests::packet_walk_matches_the_single_ray_walk`).
-    ///
-    /// All `rays` must have the same [`RayInv::neg`] (the caller checks).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn packet_walk<const STATS: bool>(
-        &self,
-        geometry: &GeometryStore,
-        rays: &[Ray],
-        out: &mut [Option<Intersection>],
-        stats: &mut PacketStats,
-    ) {
-        use std::arch::x86_64::*;
-        let n = rays.len();
-        debug_assert!((1..=PACKET_RAYS).contains(&n) && out.len() == n);
-        // The rays in structure of arrays: lane `i` is ray `i` (lanes past `n` are zeros and
-        // never active).
-        let mut o = [[0.0f32; PACKET_RAYS]; 3];
-        let mut inv = [[0.0f32; PACKET_RAYS]; 3];
-        let mut t_cull = [0.0f32; PACKET_RAYS];
-        let mut best_key = [u64::MAX; PACKET_RAYS];
-        for (i, ray) in rays.iter().enumerate() {
-            let ri = RayInv::new(ray.d);
-            for axis in 0..3 {
-                o[axis][i] = ray.o[axis];
-                inv[axis][i] = ri.inv_d[axis];
-            }
-            t_cull[i] = ray.t_max;
-            out[i] = None;
-        }
-        let slab = SlabRay::new(&rays[0], &RayInv::new(rays[0].d));
-        let (near, far) = (slab.near, slab.far);
-        let ov = o.map(|a| load8(&a));
-        let invv = inv.map(|a| load8(&a));
-        let g = _mm256_set1_ps(1.0 + 2.0 * gamma(3));
-        let empty = _mm256_set1_epi32(EMPTY_LANE as i32);
-        let mut stack = TraversalStack::<PacketEntry, ENTRY_STACK>::new();
-        let mut sp = 0usize;
-        let mut node = 0usize;
-        let mut active = (1u32 << n) - 1;
-        loop {
-            let nd = &self.nodes[node];
-            if STATS {
-                stats.node_visits += 1;
-                stats.node_rays += u64::from(active.count_ones());
-            }
-            // SAFETY: `first` is `[u32; 8]`: 32 readable bytes.
-            let lanes = unsafe { _mm256_loadu_si256(nd.first.as_ptr().cast()) };
-            let mut lanes =
-                !(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(lanes, empty))) as u32)
-                    & 0xff;
-            let bound = load8(&t_cull);
-            let rows = [
-                (&nd.planes[near[0]], &nd.planes[far[0]]),
-                (&nd.planes[near[1]], &nd.planes[far[1]]),
-                (&nd.planes[near[2]], &nd.planes[far[2]]),
-            ];
-            // The hit children's entries (in lane order, `hit[slot[lane]]`) and keys
-            // (`child_key` of the entry distance of their lowest hit ray), kept sorted by
-            // decreasing key.
-            let mut hit = [PacketEntry::EMPTY; WIDTH];
-            let mut slot = [0u8; WIDTH];
-            let mut keys = [0u32; WIDTH];
-            let mut k = 0;
-            while lanes != 0 {
-                let c = lanes.trailing_zeros() as usize & (WIDTH - 1);
-                lanes &= lanes - 1;
-                let mut t0 = _mm256_setzero_ps();
-                let mut t1 = bound;
-                for axis in 0..3 {
-                    let (nr, fr) = rows[axis];
-                    let tn =
-                        _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(nr[c]), ov[axis]), invv[axis]);
-                    let tf = _mm256_mul_ps(
-                        _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(fr[c]), ov[axis]), invv[axis]),
-                        g,
-                    );
-                    t0 = _mm256_max_ps(tn, t0);
-                    t1 = _mm256_min_ps(tf, t1);
-                }
-                let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u32 & active;
-                if mask == 0 {
-                    continue;
-                }
-                let e = &mut hit[k];
-                e.first = nd.first[c];
-                e.count = nd.count[c];
-                e.rays = mask;
-                // SAFETY: `e.t` is `[f32; 8]`: 32 writable bytes.
-                unsafe { _mm256_storeu_ps(e.t.as_mut_ptr(), t0) };
-                let key = child_key(e.t[mask.trailing_zeros() as usize & 7], c);
-                slot[c] = k as u8;
-                let mut i = k;
-                while i > 0 && keys[i - 1] < key {
-                    keys[i] = keys[i - 1];
-                    i -= 1;
-                }
-                keys[i] = key;
-                k += 1;
-            }
-            // Farthest first, so the nearest is popped next.
-            for &key in &keys[..k] {
-                stack.set(sp, hit[slot[7 - (key & 7) as usize] as usize & 7]);
-                sp += 1;
-            }
-            // Pop, testing leaves on the way, until an interior node with active rays is found.
-            loop {
-                if sp == 0 {
-                    return;
-                }
-                sp -= 1;
-                let e = stack.get(sp);
-                // A ray whose bound moved below the entry since the push drops out (the single
-                // walk's `e.t > t_cull` on popping).
-                let beyond = _mm256_cmp_ps::<_CMP_GT_OQ>(load8(&e.t), load8(&t_cull));
-                let mut m = e.rays & !(_mm256_movemask_ps(beyond) as u32);
-                if m == 0 {
-                    continue;
-                }
-                if e.count == 0 {
-                    if m.count_ones() as usize > SINGLE_RAYS {
-                        node = e.first as usize;
-                        active = m;
-                        break;
+                // A leaf: every hit is ranked (`rank`), a packet of triangles at a time or one
+                // other primitive at a time.
+                if e.count & PACKET_LEAF != 0 {
+                    let packets = self.packet_leaf(e.first, e.count);
+                    #[cfg(target_arch = "x86_64")]
+                    if AVX2 && let Ok(pair) = <&[TriPacket; 2]>::try_from(packets) {
+                        // SAFETY: `AVX2 = true` only runs after AVX2 (so AVX) was detected
+                        // (see `node_test`).
+                        let hits = unsafe { TriPacket::intersect_pair_avx(pair, ray, t_cull) };
+                        let mut mask = hits.mask;
+                        while mask != 0 {
+                            let i = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            rank(
+                                &mut best,
+                                &mut best_key,
+                                &mut t_cull,
+                                Intersection {
+                                    t: hits.t[i],
+                                    prim: PrimRef(pair[i / PACKET].prim[i % PACKET]),
+                                    u: hits.b1[i],
+                                    v: hits.b2[i],
+                                },
+                            );
+                        }
+                        continue;
                     }
-                    // Too few rays left to share a node: each walks the subtree alone.
-                    if STATS {
-                        stats.handovers += 1;
-                        stats.handover_rays += u64::from(m.count_ones());
+                    for p in packets {
+                        let hits = p.intersect(ray, t_cull);
+                        let mut mask = hits.mask;
+                        while mask != 0 {
+                            let i = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            rank(
+                                &mut best,
+                                &mut best_key,
+                                &mut t_cull,
+                                Intersection {
+                                    t: hits.t[i],
+                                    prim: PrimRef(p.prim[i]),
+                                    u: hits.b1[i],
+                                    v: hits.b2[i],
+                                },
+                            );
+                        }
                     }
-                    while m != 0 {
-                        let i = m.trailing_zeros() as usize & (PACKET_RAYS - 1);
-                        m &= m - 1;
-                        let ray = &rays[i];
-                        self.walk_from::<true>(
-                            geometry,
-                            ray,
-                            &SlabRay::new(ray, &RayInv::new(ray.d)),
-                            e.first as usize,
-                            &mut out[i],
-                            &mut best_key[i],
-                            &mut t_cull[i],
-                        );
+                } else {
+                    let first = e.first as usize;
+                    for &prim in &self.prims[first..first + e.count as usize] {
+                        if let Some(h) = geometry.intersect(prim, ray, t_cull) {
+                            rank(&mut best, &mut best_key, &mut t_cull, h);
+                        }
                     }
-                    continue;
-                }
-                if STATS {
-                    stats.leaf_visits += 1;
-                    stats.leaf_rays += u64::from(m.count_ones());
-                }
-                while m != 0 {
-                    let i = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    self.leaf_hits::<true>(
-                        geometry,
-                        &rays[i],
-                        (e.first, e.count),
-                        &mut out[i],
-                        &mut best_key[i],
-                        &mut t_cull[i],
-                    );
                 }
             }
         }
@@ -1662,62 +1367,6 @@ impl Bvh {
             node = stack.get(sp) as usize;
         }
     }
-}
-
-/// Eight lanes from memory (an unaligned load).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-#[inline]
-fn load8(a: &[f32; 8]) -> std::arch::x86_64::__m256 {
-    // SAFETY: `a` is 32 readable bytes; AVX: the `target_feature`.
-    unsafe { std::arch::x86_64::_mm256_loadu_ps(a.as_ptr()) }
-}
-
-/// Rays of one packet of [`Bvh::intersect_packet`]: one AVX2 lane each.
-pub const PACKET_RAYS: usize = 8;
-/// Fewer rays than this are walked one by one: a packet's node test costs about what one
-/// ray's does per child, not per node, so it only pays when shared.
-const MIN_PACKET_RAYS: usize = SINGLE_RAYS + 1;
-/// A subtree that at most this many of a packet's rays visit is walked by each of them alone
-/// ([`Bvh::walk_from`]): a packet node test costs a child test per occupied child, about what
-/// one ray's 8-lane node test costs per ray, so it only pays for more rays.
-const SINGLE_RAYS: usize = 2;
-
-/// An entry of the packet walk's stack: a child lane's `first` and `count`, the rays that
-/// visit it (bit `i` for ray `i`) and their entry distances.
-#[derive(Clone, Copy)]
-struct PacketEntry {
-    t: [f32; PACKET_RAYS],
-    first: u32,
-    count: u32,
-    rays: u32,
-}
-
-impl PacketEntry {
-    const EMPTY: PacketEntry = PacketEntry {
-        t: [0.0; PACKET_RAYS],
-        first: EMPTY_LANE,
-        count: 0,
-        rays: 0,
-    };
-}
-
-/// What the packet walk did, for measurements and tests (counted only in the `STATS` copy).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct PacketStats {
-    /// Calls, and of those the ones walked ray by ray (mixed direction signs, too few rays).
-    pub packets: u64,
-    pub incoherent: u64,
-    /// Nodes visited by packet walks, and the active rays summed over those visits.
-    pub node_visits: u64,
-    pub node_rays: u64,
-    /// Leaves visited by packet walks, and the rays tested summed over those visits.
-    pub leaf_visits: u64,
-    pub leaf_rays: u64,
-    /// Subtrees handed over to single-ray walks (at most `SINGLE_RAYS` rays left), and
-    /// the rays summed over those.
-    pub handovers: u64,
-    pub handover_rays: u64,
 }
 
 /// Ranks a closest-hit candidate (see `Bvh::intersect_impl`): it becomes `best` if nearer, or as
@@ -2628,118 +2277,6 @@ mod tests {
     /// The AVX2 sorting network puts any eight signed integers in descending order: random
     /// keys, keys drawn from a few values (many equal), and negative ones (missed lanes).
     #[cfg(target_arch = "x86_64")]
-    /// The packet walk finds, per ray, exactly the single-ray walk's hit (t, primitive and
-    /// barycentrics, bit for bit), on a hostile mesh (a random soup, every triangle of
-    /// `hostile_triangles`, three coincident copies of part of the soup, a mesh with leaves of
-    /// mixed quads) for packets of camera-like coherent rays (one origin, jittered directions,
-    /// some along a triangle's edge, some with a zero direction component) and incoherent ones
-    /// (random origins and directions, NaN and infinite directions), of every size 1..=8, some
-    /// with short `t_max`. Both the AVX2 entry (packets walked together where coherent, with
-    /// `PacketStats` showing nodes shared by several rays and subtrees handed over) and the
-    /// portable one (ray by ray). Fails if a ray is dropped from a child it should visit, or if
-    /// a packet child test rounds differently from the single-ray test.
-    #[test]
-    fn packet_walk_matches_the_single_ray_walk() {
-        let mut rng = crate::sampling::rng::Pcg32::new(41, 3);
-        let mut g = soup(2500, 41);
-        let mut extra: Vec<TriangleVerts> = hostile_triangles(&mut rng);
-        for k in 0..3 {
-            for i in (0..2500).step_by(7) {
-                let _ = k;
-                extra.push(g.triangles[i]);
-            }
-        }
-        for t in extra {
-            g.tri_mesh.push((0, g.triangles.len() as u32));
-            g.triangles.push(t);
-            g.tri_light.push(crate::geometry::primitive::NO_LIGHT);
-            g.meshes[0].indices.push([0, 0, 0]);
-        }
-        let mut bvh = Bvh::build(&g);
-        let key = |h: Option<Intersection>| {
-            h.map(|h| (h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()))
-        };
-        let has_avx2 = cfg!(target_arch = "x86_64") && crate::math::detect_avx2();
-        if !has_avx2 {
-            eprintln!("no AVX2 on this CPU: only the portable packet entry is checked");
-        }
-        let mut stats = PacketStats::default();
-        let (mut hits, mut rays_total) = (0usize, 0usize);
-        for i in 0..1500 {
-            let n = 1 + i % PACKET_RAYS;
-            let mut rays = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET_RAYS];
-            let coherent = i % 3 != 0;
-            let eye = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 24.0;
-            let target = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 6.0;
-            let spread = [0.002, 0.05, 0.3][(i / 3) % 3];
-            for (j, r) in rays[..n].iter_mut().enumerate() {
-                *r = if coherent {
-                    let jitter = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5;
-                    Ray::new(
-                        eye,
-                        target - eye + jitter * spread * (target - eye).length(),
-                    )
-                } else {
-                    let o =
-                        (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 16.0;
-                    let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
-                    Ray::new(o, d)
-                };
-                // Special rays in every incoherent packet and one coherent packet in four (they
-                // mostly break a packet's coherence, sending it ray by ray).
-                let special = if coherent && i % 4 != 1 {
-                    10
-                } else {
-                    (i + j) % 11
-                };
-                match special {
-                    // Along a triangle's edge, from its first vertex.
-                    0 => {
-                        let t = g.triangles[(i * 31 + j) % g.triangles.len()];
-                        *r = Ray::new(t.p0, t.p1 - t.p0);
-                    }
-                    // A zero direction component (an infinite inverse).
-                    1 => r.d.x = 0.0,
-                    2 if !coherent => r.d = Vec3::new(f32::NAN, 1.0, 0.5),
-                    3 if !coherent => r.d = Vec3::new(f32::INFINITY, -1.0, 0.5),
-                    4 | 5 => r.t_max = 6.0 * rng.next_f32(),
-                    _ => {}
-                }
-            }
-            let rays = &rays[..n];
-            let want: Vec<_> = rays.iter().map(|r| key(bvh.intersect(&g, r))).collect();
-            hits += want.iter().filter(|w| w.is_some()).count();
-            rays_total += n;
-            let mut out = [None; PACKET_RAYS];
-            bvh.intersect_packet(&g, rays, &mut out[..n]);
-            let got: Vec<_> = out[..n].iter().map(|&h| key(h)).collect();
-            assert_eq!(got, want, "packet {i}");
-            #[cfg(target_arch = "x86_64")]
-            if has_avx2 {
-                let mut out = [None; PACKET_RAYS];
-                // SAFETY: AVX2 was detected above.
-                unsafe { bvh.intersect_packet_avx2::<true>(&g, rays, &mut out[..n], &mut stats) };
-                let got: Vec<_> = out[..n].iter().map(|&h| key(h)).collect();
-                assert_eq!(got, want, "packet {i}, counting copy");
-            }
-            // The portable entry: ray by ray.
-            bvh.avx2 = false;
-            let mut out = [None; PACKET_RAYS];
-            bvh.intersect_packet(&g, rays, &mut out[..n]);
-            bvh.avx2 = has_avx2;
-            let got: Vec<_> = out[..n].iter().map(|&h| key(h)).collect();
-            assert_eq!(got, want, "packet {i}, portable");
-        }
-        assert!(hits > rays_total / 4, "{hits} of {rays_total} rays hit");
-        if has_avx2 {
-            eprintln!("{stats:?}");
-            let walked = stats.packets - stats.incoherent;
-            assert!(walked > 400 && stats.incoherent > 200, "{stats:?}");
-            assert!(stats.node_rays > 3 * stats.node_visits, "{stats:?}");
-            assert!(stats.handovers > 0 && stats.leaf_visits > 0, "{stats:?}");
-        }
-    }
-
     #[test]
     fn sort_network_sorts_any_eight_keys() {
         use std::arch::x86_64::*;

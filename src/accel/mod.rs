@@ -93,34 +93,6 @@ impl Accel {
         }
     }
 
-    /// [`Self::intersect`] of every ray of `rays` into `out` (same length): `out[i]` is
-    /// `intersect(rays[i])`, bit for bit. The BVH walks them [`bvh::PACKET_RAYS`] at a time
-    /// ([`Bvh::intersect_packet`], for coherent rays such as a tile's camera rays); the other
-    /// structures ray by ray.
-    pub fn intersect_many(
-        &self,
-        geometry: &GeometryStore,
-        rays: &[Ray],
-        out: &mut [Option<Intersection>],
-    ) {
-        assert_eq!(rays.len(), out.len());
-        match self {
-            Accel::Bvh(b) => {
-                for (r, o) in rays
-                    .chunks(bvh::PACKET_RAYS)
-                    .zip(out.chunks_mut(bvh::PACKET_RAYS))
-                {
-                    b.intersect_packet(geometry, r, o);
-                }
-            }
-            _ => {
-                for (r, o) in rays.iter().zip(out) {
-                    *o = self.intersect(geometry, r);
-                }
-            }
-        }
-    }
-
     /// Any hit within `(0, ray.t_max)`: for shadow rays.
     #[inline]
     pub fn occluded(&self, geometry: &GeometryStore, ray: &Ray) -> bool {
