@@ -1067,10 +1067,7 @@ impl Bvh {
     /// keeps one.
     /// With `spatial = Some((geometry, budget))`, spatial splits (`sbvh.rs`) may add up to
     /// `budget × references` more.
-    fn build_references(
-        refs: Vec<Reference>,
-        spatial: Option<(&GeometryStore, f32)>,
-    ) -> Bvh {
+    fn build_references(refs: Vec<Reference>, spatial: Option<(&GeometryStore, f32)>) -> Bvh {
         let mut build: Vec<BuildPrim> = refs
             .into_iter()
             .map(|r| BuildPrim {

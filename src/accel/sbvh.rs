@@ -32,10 +32,12 @@ use crate::geometry::{Bounds3, GeometryStore, PrimRef, PrimitiveKind};
 const ALPHA: f32 = 1e-5;
 
 /// Extra references the spatial splits may add, as a share of the references the build starts
-/// from (0: no spatial splits). On ToyCar (after the pre-split pass) 0.3 / 1.0 / 3.0 gave
-/// closest-hit 969 / 954 / 951 instructions per call; 1.0 adds 36 k references to 142 k and is
-/// rarely the limit (BENCHMARKS.md "Session 19: spatial splits").
-pub const DEFAULT_BUDGET: f32 = 1.0;
+/// from (0: no spatial splits, the build is `build_recursive` alone). Off by default: on ToyCar
+/// (after the pre-split pass) budget 1.0 cut the closest-hit and shadow walks' instructions per
+/// call by 9 % and 8 %, but made the build ~5× slower (160 → 820 ms), more than the time it
+/// saves at 512², 4 spp, and the Stanford dragon's build 10× slower (871 k triangles: 1.3 →
+/// 11.6 s) for no change of its SAH cost (BENCHMARKS.md "Session 19: spatial splits").
+pub const DEFAULT_BUDGET: f32 = 0.0;
 
 /// The spatial-split budget: `TRAYECTO_BVH_SPATIAL_BUDGET` (for benchmarking) or
 /// [`DEFAULT_BUDGET`].
@@ -56,9 +58,15 @@ pub(super) struct Spatial<'a> {
 
 impl<'a> Spatial<'a> {
     pub fn new(geometry: &'a GeometryStore, root: &Bounds3) -> Self {
+        // `TRAYECTO_BVH_SPATIAL_ALPHA` overrides α (for benchmarking).
+        let alpha = std::env::var("TRAYECTO_BVH_SPATIAL_ALPHA")
+            .ok()
+            .and_then(|s| s.parse::<f32>().ok())
+            .filter(|a| a.is_finite() && *a >= 0.0)
+            .unwrap_or(ALPHA);
         Spatial {
             geometry,
-            min_overlap: ALPHA * root.surface_area(),
+            min_overlap: alpha * root.surface_area(),
         }
     }
 
@@ -221,8 +229,8 @@ fn best_spatial_split(
             if n_left == 0 || n_right == 0 || n_left + n_right > n + budget {
                 continue;
             }
-            let cost =
-                n_left as f32 * acc.surface_area() + n_right as f32 * right_bounds[i + 1].surface_area();
+            let cost = n_left as f32 * acc.surface_area()
+                + n_right as f32 * right_bounds[i + 1].surface_area();
             if best.as_ref().is_none_or(|b| cost < b.cost) {
                 best = Some(SpatialSplit {
                     axis,
