@@ -4,6 +4,7 @@
 
 pub mod bvh;
 pub mod grid;
+pub mod sbvh;
 pub mod split;
 
 pub use bvh::Bvh;
