@@ -31,16 +31,16 @@ use crate::geometry::triangle::TriangleEdges;
 use crate::geometry::{Bounds3, GeometryStore, PrimRef, Ray, RayInv};
 use crate::math::{Vec3, gamma};
 
-pub(super) const BINS: usize = 16;
+const BINS: usize = 16;
 const MAX_LEAF: usize = 8;
 /// Cost of one traversal step relative to one primitive test (PBRT uses 1/8).
 const TRAVERSAL_COST: f32 = 0.125;
 /// Below this many primitives a subtree is built on the current thread.
-pub(super) const PARALLEL_THRESHOLD: usize = 4096;
+const PARALLEL_THRESHOLD: usize = 4096;
 /// Depth past which splits are by median; with at most 2^32 primitives the binary tree stays under
 /// `MAX_BINARY_DEPTH` levels, and the wide tree is no deeper (each of its levels spans at least
 /// one binary level).
-pub(super) const MEDIAN_SPLIT_DEPTH: usize = 60;
+const MEDIAN_SPLIT_DEPTH: usize = 60;
 const MAX_BINARY_DEPTH: usize = 96;
 /// Children per node.
 pub const WIDTH: usize = 8;
@@ -565,13 +565,13 @@ mod lanes_x86 {
 }
 
 #[derive(Clone, Copy)]
-pub(super) struct BuildPrim {
-    pub prim: PrimRef,
-    pub bounds: Bounds3,
-    pub centroid: Vec3,
+struct BuildPrim {
+    prim: PrimRef,
+    bounds: Bounds3,
+    centroid: Vec3,
 }
 
-pub(super) enum BuildNode {
+enum BuildNode {
     Leaf {
         bounds: Bounds3,
         first: usize,
@@ -977,26 +977,14 @@ impl Bvh {
     /// Builds over every primitive of `geometry`, long triangles pre-split into several
     /// references (`split.rs`, budget [`super::split::budget_from_env`]).
     pub fn build(geometry: &GeometryStore) -> Bvh {
-        Self::build_with(
-            geometry,
-            super::split::budget_from_env(),
-            super::sbvh::budget_from_env(),
-        )
+        Self::build_split(geometry, super::split::budget_from_env())
     }
 
     /// [`Self::build`] with an explicit pre-split budget (extra references as a share of the
-    /// triangle count; 0 builds over one reference per primitive) and no spatial splits.
+    /// triangle count; 0 builds over one reference per primitive).
     pub fn build_split(geometry: &GeometryStore, budget: f32) -> Bvh {
-        Self::build_with(geometry, budget, 0.0)
-    }
-
-    /// [`Self::build`] with explicit budgets: `presplit` for `split.rs` (a share of the triangle
-    /// count), `spatial` for the spatial splits of `sbvh.rs` (a share of the references the
-    /// pre-split pass gives; 0: object splits only).
-    pub fn build_with(geometry: &GeometryStore, presplit: f32, spatial: f32) -> Bvh {
-        let refs = super::split::references(geometry, presplit);
-        let spatial = (spatial > 0.0).then_some((geometry, spatial));
-        let mut bvh = Self::build_references(refs, spatial);
+        let refs = super::split::references(geometry, budget);
+        let mut bvh = Self::build_references(refs);
         // Every all-triangle leaf becomes packets (nodes in order, so the packets keep the
         // leaves' depth-first order); the others keep their range of `prims`.
         let Bvh { nodes, prims, .. } = &mut bvh;
@@ -1059,15 +1047,14 @@ impl Bvh {
                 ok.then_some(Reference { prim, bounds })
             })
             .collect();
-        Self::build_references(refs, None)
+        Self::build_references(refs)
     }
 
     /// Builds over references (a primitive and a box holding the part of it the reference
     /// stands for; a split triangle has several). A leaf holding two references of one primitive
     /// keeps one.
-    /// With `spatial = Some((geometry, budget))`, spatial splits (`sbvh.rs`) may add up to
-    /// `budget × references` more.
-    fn build_references(refs: Vec<Reference>, spatial: Option<(&GeometryStore, f32)>) -> Bvh {
+    fn build_references(refs: Vec<Reference>) -> Bvh {
+        let references = refs.len();
         let mut build: Vec<BuildPrim> = refs
             .into_iter()
             .map(|r| BuildPrim {
@@ -1086,17 +1073,7 @@ impl Bvh {
                 avx2: false,
             };
         }
-        let root = match spatial {
-            None => build_recursive(&mut build, 0, 0),
-            Some((geometry, budget)) => {
-                let bounds = build.iter().fold(Bounds3::EMPTY, |b, p| b.union(&p.bounds));
-                let ctx = super::sbvh::Spatial::new(geometry, &bounds);
-                let extra = (budget as f64 * build.len() as f64) as usize;
-                let tree = super::sbvh::build(&ctx, std::mem::take(&mut build), 0, extra);
-                tree.flatten(&mut build)
-            }
-        };
-        let references = build.len();
+        let root = build_recursive(&mut build, 0, 0);
         let bounds = root.bounds();
         let mut nodes = Vec::with_capacity(build.len() / 2 + 1);
         let mut prims = Vec::with_capacity(build.len());
@@ -1476,7 +1453,7 @@ fn collapse(
 
 /// The bin of centroid coordinate `c` among `BINS` equal bins over `[lo, lo + ext]`.
 #[inline(always)]
-pub(super) fn bin_of(c: f32, lo: f32, ext: f32) -> usize {
+fn bin_of(c: f32, lo: f32, ext: f32) -> usize {
     let b = ((c - lo) * (BINS as f32 / ext)) as usize;
     b.min(BINS - 1)
 }
@@ -1484,7 +1461,7 @@ pub(super) fn bin_of(c: f32, lo: f32, ext: f32) -> usize {
 /// The cheapest binned split of `prims` along `axis` (centroids spanning `[lo, lo + ext]`, `ext >
 /// 0`): its unnormalised SAH cost `n_L·A_L + n_R·A_R` and the last bin of the left side. Infinite
 /// cost if every centroid falls in one bin.
-pub(super) fn best_bin_split(prims: &[BuildPrim], axis: usize, lo: f32, ext: f32) -> (f32, usize) {
+fn best_bin_split(prims: &[BuildPrim], axis: usize, lo: f32, ext: f32) -> (f32, usize) {
     let mut bin_bounds = [Bounds3::EMPTY; BINS];
     let mut bin_count = [0usize; BINS];
     for p in prims {
@@ -1521,27 +1498,7 @@ pub(super) fn best_bin_split(prims: &[BuildPrim], axis: usize, lo: f32, ext: f32
     (best_cost, best_split)
 }
 
-/// Whether `prims` (box `bounds`) stay a leaf when their best split costs `best_cost`
-/// (unnormalised, `n_L·A_L + n_R·A_R`): the SAH (PBRT §4.3.2) with a triangle leaf's cost counted
-/// in packet tests.
-pub(super) fn keep_leaf(prims: &[BuildPrim], bounds: &Bounds3, best_cost: f32) -> bool {
-    let n = prims.len();
-    let total_area = bounds.surface_area().max(f32::MIN_POSITIVE);
-    let split_cost = TRAVERSAL_COST + best_cost / total_area;
-    if n <= MAX_LEAF && split_cost >= n as f32 {
-        return true;
-    }
-    // Triangles are tested a packet at a time: up to `PACKET` of them in a leaf cost one
-    // packet test, up to `2 · PACKET` one 8-lane pair test, so a leaf of a few triangles is
-    // kept where splitting it costs more.
-    n <= MAX_TRI_LEAF
-        && split_cost >= PACKET_COST * if n <= PACKET { 1.0 } else { PAIR_COST }
-        && prims
-            .iter()
-            .all(|p| p.prim.kind() == PrimitiveKind::Triangle)
-}
-
-pub(super) fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usize) -> BuildNode {
+fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usize) -> BuildNode {
     let bounds = prims.iter().fold(Bounds3::EMPTY, |b, p| b.union(&p.bounds));
     let n = prims.len();
     let leaf = || BuildNode::Leaf {
@@ -1601,7 +1558,20 @@ pub(super) fn build_recursive(prims: &mut [BuildPrim], first: usize, depth: usiz
             }
         }
         let (best_cost, axis, best_split) = best;
-        if keep_leaf(prims, &bounds, best_cost) {
+        let total_area = bounds.surface_area().max(f32::MIN_POSITIVE);
+        let split_cost = TRAVERSAL_COST + best_cost / total_area;
+        if n <= MAX_LEAF && split_cost >= n as f32 {
+            return leaf();
+        }
+        // Triangles are tested a packet at a time: up to `PACKET` of them in a leaf cost one
+        // packet test, up to `2 · PACKET` one 8-lane pair test, so a leaf of a few triangles is
+        // kept where splitting it costs more.
+        if n <= MAX_TRI_LEAF
+            && split_cost >= PACKET_COST * if n <= PACKET { 1.0 } else { PAIR_COST }
+            && prims
+                .iter()
+                .all(|p| p.prim.kind() == PrimitiveKind::Triangle)
+        {
             return leaf();
         }
         // Partition in place around the chosen bin boundary.
@@ -1863,131 +1833,6 @@ mod tests {
             seen[p.index()] = true;
         }
         assert!(seen.iter().all(|&s| s));
-    }
-
-    /// A soup with `slivers` long thin triangles across it (primitives `n ..`).
-    fn soup_with_slivers(n: usize, slivers: usize, seed: u64) -> GeometryStore {
-        let mut g = soup(n, seed);
-        let mut rng = crate::sampling::rng::Pcg32::new(seed, 4);
-        let mut point =
-            |s: f32| (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * s;
-        for i in 0..slivers {
-            let (a, b) = (point(10.0), point(10.0));
-            let w = point(0.05);
-            g.triangles.push(TriangleVerts {
-                p0: a,
-                p1: b,
-                p2: b + w,
-            });
-            g.tri_mesh.push((0, (n + i) as u32));
-            g.tri_light.push(crate::geometry::primitive::NO_LIGHT);
-            g.meshes[0].indices.push([0, 0, 0]);
-        }
-        g
-    }
-
-    /// Spatial splits (`sbvh.rs`, no pre-splitting): slivers end up as references in several
-    /// leaves, no leaf holds a primitive twice, the tree is cheaper than the object-split one,
-    /// and every hit (t, primitive, barycentrics, bit for bit) and occlusion agrees with brute
-    /// force in both walks, with rays aimed at the slivers, so a hit lost to a piece's box
-    /// missing part of its triangle fails. Then the same on top of the pre-split pass.
-    #[test]
-    fn spatial_splits_agree_with_brute_force() {
-        let g = soup_with_slivers(2000, 300, 21);
-        let brute = crate::accel::Accel::build(crate::accel::AccelKind::None, &g);
-        let plain = Bvh::build_with(&g, 0.0, 0.0);
-        for (presplit, spatial) in [(0.0, 1.0), (0.3, 1.0)] {
-            let bvh = Bvh::build_with(&g, presplit, spatial);
-            let (ps, ss) = (plain.stats(), bvh.stats());
-            assert!(ss.references > 2300 + 300, "{ss:?}");
-            assert!(
-                ss.sah_cost < 0.8 * ps.sah_cost,
-                "spatial {ss:?} vs plain {ps:?}"
-            );
-            // Each primitive in some leaf, never twice in one; some slivers in several.
-            let mut leaves_of = vec![0usize; 2300];
-            for n in &bvh.nodes {
-                for lane in 0..WIDTH {
-                    if n.count[lane] == 0 {
-                        continue;
-                    }
-                    let leaf = bvh.leaf_entries(n.first[lane], n.count[lane]);
-                    for (i, p) in leaf.iter().enumerate() {
-                        assert!(!leaf[..i].contains(p), "{p:?} twice in one leaf");
-                        leaves_of[p.index()] += 1;
-                    }
-                }
-            }
-            assert!(leaves_of.iter().all(|&k| k > 0));
-            let shared = leaves_of[2000..].iter().filter(|&&k| k > 1).count();
-            assert!(shared > 100, "{shared} slivers in several leaves");
-            let key = |h: Option<Intersection>| {
-                h.map(|h| (h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()))
-            };
-            let mut rng = crate::sampling::rng::Pcg32::new(8, 2);
-            let (mut hits, mut sliver_hits) = (0, 0);
-            for i in 0..6000 {
-                let o = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * 14.0;
-                let mut d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
-                if i % 2 == 0 {
-                    let t = g.triangles[2000 + (rng.next_f32() * 300.0) as usize % 300];
-                    let (mut u, mut v) = (rng.next_f32(), rng.next_f32());
-                    if u + v > 1.0 {
-                        (u, v) = (1.0 - u, 1.0 - v);
-                    }
-                    d = t.p0 + (t.p1 - t.p0) * u + (t.p2 - t.p0) * v - o;
-                }
-                let mut ray = Ray::new(o, d);
-                if i % 3 == 0 {
-                    ray.t_max = 3.0 * rng.next_f32();
-                }
-                let want = key(brute.intersect(&g, &ray));
-                assert_eq!(key(bvh.intersect(&g, &ray)), want, "ray {i}");
-                assert_eq!(key(bvh.intersect_portable(&g, &ray)), want, "ray {i}");
-                assert_eq!(bvh.occluded(&g, &ray), brute.occluded(&g, &ray), "ray {i}");
-                assert_eq!(
-                    bvh.occluded_portable(&g, &ray),
-                    brute.occluded(&g, &ray),
-                    "ray {i}"
-                );
-                hits += want.is_some() as usize;
-                sliver_hits += want.is_some_and(|w| w.1.index() >= 2000) as usize;
-            }
-            assert!(
-                hits > 2000 && sliver_hits > 1000,
-                "{hits} hits, {sliver_hits} on slivers"
-            );
-        }
-    }
-
-    /// The spatial-split build gives the same tree (nodes, leaf order, packets) with one thread
-    /// and with two: the budget is shared by subtree size, not by whichever subtree runs first.
-    /// Large enough that the top levels run in parallel (`PARALLEL_THRESHOLD`).
-    #[test]
-    fn spatial_split_tree_does_not_depend_on_threads() {
-        let g = soup_with_slivers(12_000, 1500, 5);
-        let build = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            let bvh = pool.install(|| Bvh::build_with(&g, 0.0, 0.5));
-            let nodes: Vec<_> = bvh
-                .nodes
-                .iter()
-                .map(|n| (n.planes.map(|p| p.map(f32::to_bits)), n.first, n.count))
-                .collect();
-            let packets: Vec<_> = bvh
-                .packets
-                .iter()
-                .map(|p| (p.v.map(|r| r.map(f32::to_bits)), p.prim))
-                .collect();
-            (nodes, bvh.prims.clone(), packets, bvh.references)
-        };
-        let one = build(1);
-        assert!(one.3 > 13_500 + 1000, "{} references", one.3);
-        assert!(one == build(2), "the tree depends on the thread count");
-        assert!(one == build(3), "the tree depends on the thread count");
     }
 
     /// Coincident triangles (three identical copies of two sheets of quads, one axis-aligned and

@@ -4,7 +4,6 @@
 
 pub mod bvh;
 pub mod grid;
-pub mod sbvh;
 pub mod split;
 
 pub use bvh::Bvh;

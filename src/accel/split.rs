@@ -170,13 +170,13 @@ fn pieces_scale(priority: &[f32], extra: usize) -> f64 {
 
 /// A convex polygon, at most `MAX_POLY` vertices, inline.
 #[derive(Clone, Copy)]
-pub(super) struct Polygon {
+struct Polygon {
     v: [Vec3; MAX_POLY],
-    pub n: usize,
+    n: usize,
 }
 
 impl Polygon {
-    pub fn triangle(a: Vec3, b: Vec3, c: Vec3) -> Polygon {
+    fn triangle(a: Vec3, b: Vec3, c: Vec3) -> Polygon {
         let mut v = [Vec3::ZERO; MAX_POLY];
         v[0] = a;
         v[1] = b;
@@ -194,7 +194,7 @@ impl Polygon {
         }
     }
 
-    pub fn bounds(&self) -> Bounds3 {
+    fn bounds(&self) -> Bounds3 {
         self.v[..self.n]
             .iter()
             .fold(Bounds3::EMPTY, |b, &p| b.union_point(p))
@@ -202,7 +202,7 @@ impl Polygon {
 
     /// The parts at `coordinate ≤ pos` and `≥ pos` along `axis` (Sutherland–Hodgman against one
     /// plane, both sides at once). Crossing points are put exactly on the plane along `axis`.
-    pub fn clip(&self, axis: usize, pos: f32) -> (Polygon, Polygon) {
+    fn clip(&self, axis: usize, pos: f32) -> (Polygon, Polygon) {
         let mut left = Polygon {
             v: [Vec3::ZERO; MAX_POLY],
             n: 0,
@@ -232,7 +232,7 @@ impl Polygon {
 
 /// Pads `b` outward by a few ulps per coordinate (the clipped vertices are interpolated, so they
 /// may be rounded inward), then clamps it to `parent`, which already covers the piece.
-pub(super) fn padded_within(b: Bounds3, parent: &Bounds3) -> Bounds3 {
+fn padded_within(b: Bounds3, parent: &Bounds3) -> Bounds3 {
     let pad = |x: f32| x.abs() * (4.0 * f32::EPSILON) + f32::MIN_POSITIVE;
     let mut out = b;
     for axis in 0..3 {
