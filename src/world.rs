@@ -97,8 +97,6 @@ impl World {
             .map_err(|e| SceneError::invalid(&label, format!("medium grid: {e}")))?;
         let mut g = compile_geometry(&scene, &label, &mut warnings)?;
         let (mut lights, footprint_means) = area_lights(&mut g, &scene.materials, &scene.textures);
-        // Every triangle and its light are known: interleave what a hit reads per triangle.
-        g.compile_shading();
         lights.extend(scene_lights(&scene, &label)?);
         add_option_lights(&mut lights, &scene, &g, options, &mut warnings)?;
         let bounds = g.scene_bounds();

@@ -126,37 +126,12 @@ impl SurfaceHit {
     };
 }
 
-/// What the closest hit on a triangle reads before it can fetch the triangle's vertex
-/// attributes, interleaved in one 32-byte, 32-byte-aligned record per triangle
-/// ([`GeometryStore::compile_shading`]) so that it is one cache line, not three.
-///
-/// Without it a hit reads `tri_mesh[i]` (a miss), then, dependent on it, `meshes[m].indices
-/// [local]` (another miss) before the normals and uvs (more misses) can even be addressed, and
-/// `tri_light[i]` (a third array). Callgrind's cache simulation of ToyCar (256², 1 spp, 1 MiB LL)
-/// counted 4.5 D1 and 1.3 LL read misses per `surface_hit_into` call, most of them on these
-/// per-triangle arrays (BENCHMARKS.md, "Session 19: per-triangle shading record").
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(C, align(32))]
-pub struct TriShading {
-    /// The triangle's vertex indices into its mesh's attribute arrays (`meshes[mesh].indices`
-    /// of the triangle, winding included).
-    pub indices: [u32; 3],
-    pub mesh: u32,
-    pub material: u32,
-    /// Area light index or [`NO_LIGHT`] (kept in step with `tri_light` by `set_light`).
-    pub light: u32,
-}
-
 #[derive(Clone, Debug, Default)]
 pub struct GeometryStore {
     pub triangles: Vec<TriangleVerts>,
     /// For each triangle: (mesh index, triangle index within the mesh).
     pub tri_mesh: Vec<(u32, u32)>,
     pub tri_light: Vec<u32>,
-    /// One [`TriShading`] per triangle once [`GeometryStore::compile_shading`] ran (the world
-    /// does so when it is built); empty before, and then the hit queries read the separate
-    /// arrays above, which hold the same values.
-    pub tri_shading: Vec<TriShading>,
     pub meshes: Vec<MeshAttributes>,
     pub spheres: Vec<AnalyticPrim<Sphere>>,
     pub cuboids: Vec<AnalyticPrim<Cuboid>>,
@@ -182,45 +157,6 @@ impl GeometryStore {
 
     pub fn is_empty(&self) -> bool {
         self.len() == 0
-    }
-
-    /// Builds [`GeometryStore::tri_shading`] from `tri_mesh`, the meshes' indices and materials
-    /// and `tri_light`: run once after every triangle is added (later `set_light` calls keep it
-    /// current). Costs 32 bytes per triangle.
-    pub fn compile_shading(&mut self) {
-        self.tri_shading = self
-            .tri_mesh
-            .iter()
-            .zip(&self.tri_light)
-            .map(|(&(mesh_i, local), &light)| {
-                let mesh = &self.meshes[mesh_i as usize];
-                TriShading {
-                    indices: mesh.indices[local as usize],
-                    mesh: mesh_i,
-                    material: mesh.material,
-                    light,
-                }
-            })
-            .collect();
-    }
-
-    /// The shading record of triangle `i`: the compiled one, or the same values gathered from
-    /// the separate arrays when [`GeometryStore::compile_shading`] has not run.
-    #[inline]
-    pub(crate) fn tri_shading(&self, i: usize) -> TriShading {
-        match self.tri_shading.get(i) {
-            Some(r) => *r,
-            None => {
-                let (mesh_i, local) = self.tri_mesh[i];
-                let mesh = &self.meshes[mesh_i as usize];
-                TriShading {
-                    indices: mesh.indices[local as usize],
-                    mesh: mesh_i,
-                    material: mesh.material,
-                    light: self.tri_light[i],
-                }
-            }
-        }
     }
 
     pub fn bounds(&self, prim: PrimRef) -> Bounds3 {
@@ -305,10 +241,7 @@ impl GeometryStore {
     pub fn material(&self, prim: PrimRef) -> u32 {
         let i = prim.index();
         match prim.kind() {
-            PrimitiveKind::Triangle => match self.tri_shading.get(i) {
-                Some(r) => r.material,
-                None => self.meshes[self.tri_mesh[i].0 as usize].material,
-            },
+            PrimitiveKind::Triangle => self.meshes[self.tri_mesh[i].0 as usize].material,
             PrimitiveKind::Sphere => self.spheres[i].material,
             PrimitiveKind::Cuboid => self.cuboids[i].material,
             PrimitiveKind::Quad => self.quads[i].material,
@@ -320,10 +253,7 @@ impl GeometryStore {
     pub fn light(&self, prim: PrimRef) -> u32 {
         let i = prim.index();
         match prim.kind() {
-            PrimitiveKind::Triangle => match self.tri_shading.get(i) {
-                Some(r) => r.light,
-                None => self.tri_light[i],
-            },
+            PrimitiveKind::Triangle => self.tri_light[i],
             PrimitiveKind::Sphere => self.spheres[i].light,
             PrimitiveKind::Cuboid => self.cuboids[i].light,
             PrimitiveKind::Quad => self.quads[i].light,
@@ -333,12 +263,7 @@ impl GeometryStore {
     pub fn set_light(&mut self, prim: PrimRef, light: u32) {
         let i = prim.index();
         match prim.kind() {
-            PrimitiveKind::Triangle => {
-                self.tri_light[i] = light;
-                if let Some(r) = self.tri_shading.get_mut(i) {
-                    r.light = light;
-                }
-            }
+            PrimitiveKind::Triangle => self.tri_light[i] = light,
             PrimitiveKind::Sphere => self.spheres[i].light = light,
             PrimitiveKind::Cuboid => self.cuboids[i].light = light,
             PrimitiveKind::Quad => self.quads[i].light = light,
@@ -385,10 +310,6 @@ impl GeometryStore {
         let i = isect.prim.index();
         // Built in a local and stored once: written field by field into `out`, the blank
         // values below were all stored and then overwritten (~40 instructions per Cornell hit).
-        // (A triangle's material and light come from its shading record, which `triangle_hit`
-        // reads again, by then from L1. Taking all three from one read of the record, with
-        // `blank_hit` moved into the other arms, cost the Cornell box's boxes and quads ~14
-        // instructions per hit in LLVM's code for the split construction.)
         let mut hit = self.blank_hit(isect.prim, isect.t);
         match isect.prim.kind() {
             PrimitiveKind::Triangle => self.triangle_hit(i, isect.u, isect.v, &mut hit),
@@ -550,15 +471,15 @@ impl GeometryStore {
     /// Always inlined: the hit it fills must stay a local of [`GeometryStore::surface_hit_into`].
     #[inline(always)]
     fn triangle_hit(&self, i: usize, b1: f32, b2: f32, hit: &mut SurfaceHit) {
-        let r = self.tri_shading(i);
         let tri = &self.triangles[i];
         let (p, err) = tri.point(b1, b2);
         hit.p = p;
         hit.p_error = err;
         let ng = tri.unit_normal();
         hit.ng = ng;
-        let mesh = &self.meshes[r.mesh as usize];
-        let [i0, i1, i2] = r.indices.map(|x| x as usize);
+        let (mesh_i, local) = self.tri_mesh[i];
+        let mesh = &self.meshes[mesh_i as usize];
+        let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
         let b0 = 1.0 - b1 - b2;
         let lerp3 = |a: Vec3, b: Vec3, c: Vec3| a * b0 + b * b1 + c * b2;
         let lerp2 = |a: Vec2, b: Vec2, c: Vec2| a * b0 + b * b1 + c * b2;
@@ -675,94 +596,6 @@ mod tests {
             light: 5,
         });
         g
-    }
-
-    /// Two meshes of different materials, three triangles with shared and permuted vertex
-    /// indices and one light, for the shading-record tests.
-    fn two_meshes() -> GeometryStore {
-        let mut g = GeometryStore::default();
-        let pos = [
-            Vec3::new(-1.0, -1.0, 0.0),
-            Vec3::new(1.0, -1.0, 0.1),
-            Vec3::new(-1.0, 1.0, -0.1),
-            Vec3::new(1.0, 1.0, 0.2),
-        ];
-        let mesh = |material, uv_scale: f32| MeshAttributes {
-            indices: Vec::new(),
-            normals: Some(
-                (0..4)
-                    .map(|k| Vec3::new(0.1 * k as f32 - 0.1, 0.05 * k as f32, 1.0))
-                    .collect(),
-            ),
-            uv0: Some(
-                (0..4)
-                    .map(|k| Vec2::new((k % 2) as f32, (k / 2) as f32 + 0.1 * k as f32) * uv_scale)
-                    .collect(),
-            ),
-            material,
-            ..Default::default()
-        };
-        g.meshes.push(mesh(3, 1.0));
-        g.meshes.push(mesh(6, 2.5));
-        for (m, idx, light) in [
-            (0u32, [0u32, 1, 2], NO_LIGHT),
-            (0, [2, 1, 3], 4),
-            (1, [1, 3, 0], NO_LIGHT),
-        ] {
-            let local = g.meshes[m as usize].indices.len() as u32;
-            g.meshes[m as usize].indices.push(idx);
-            g.tri_mesh.push((m, local));
-            g.tri_light.push(light);
-            g.triangles.push(TriangleVerts {
-                p0: pos[idx[0] as usize],
-                p1: pos[idx[1] as usize],
-                p2: pos[idx[2] as usize],
-            });
-        }
-        g
-    }
-
-    /// The compiled per-triangle record (`compile_shading`) changes no hit: for every triangle
-    /// of two meshes (permuted, shared vertex indices, two materials, one light) and 16 rays
-    /// each, the hit, material and light read through the record equal, bit for bit, those
-    /// gathered from the separate arrays (`tri_mesh`, the mesh's indices, `tri_light`), and a
-    /// light set after compiling is seen by both. Fails if the record holds another
-    /// triangle's indices, mesh, material or light.
-    #[test]
-    fn the_shading_record_gives_the_hits_of_the_separate_arrays() {
-        assert_eq!(std::mem::size_of::<TriShading>(), 32);
-        assert_eq!(std::mem::align_of::<TriShading>(), 32);
-        let plain = two_meshes();
-        let mut compiled = two_meshes();
-        compiled.compile_shading();
-        assert_eq!(compiled.tri_shading.len(), 3);
-        let mut hits = 0;
-        let compare = |plain: &GeometryStore, compiled: &GeometryStore, hits: &mut u32| {
-            for prim in plain.all_prims() {
-                assert_eq!(compiled.material(prim), plain.material(prim));
-                assert_eq!(compiled.light(prim), plain.light(prim));
-                for k in 0..16 {
-                    let (b1, b2) = (0.05 + 0.05 * (k % 4) as f32, 0.1 + 0.04 * (k / 4) as f32);
-                    let t = &plain.triangles[prim.index()];
-                    let p = t.p0 * (1.0 - b1 - b2) + t.p1 * b1 + t.p2 * b2;
-                    let o = Vec3::new(0.3, -0.2, 4.0);
-                    let ray = Ray::new(o, p - o);
-                    let isect = plain.intersect(prim, &ray, f32::INFINITY).unwrap();
-                    let a = plain.surface_hit(&ray, &isect);
-                    let b = compiled.surface_hit(&ray, &isect);
-                    assert_eq!(format!("{b:?}"), format!("{a:?}"), "{prim:?} ray {k}");
-                    *hits += 1;
-                }
-            }
-        };
-        compare(&plain, &compiled, &mut hits);
-        let prim = PrimRef::new(PrimitiveKind::Triangle, 2);
-        let mut plain = plain;
-        plain.set_light(prim, 9);
-        compiled.set_light(prim, 9);
-        assert_eq!(compiled.light(prim), 9);
-        compare(&plain, &compiled, &mut hits);
-        assert_eq!(hits, 2 * 3 * 16);
     }
 
     /// `surface_hit_into` leaves nothing of the hit its storage held before: on storage holding

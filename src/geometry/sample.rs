@@ -94,10 +94,10 @@ impl GeometryStore {
                 hit.p_error = err;
                 hit.ng = tri.unit_normal();
                 hit.ns = hit.ng;
-                let r = self.tri_shading(i);
-                let mesh = &self.meshes[r.mesh as usize];
+                let (mesh_i, local) = self.tri_mesh[i];
+                let mesh = &self.meshes[mesh_i as usize];
                 if mesh.uv0.is_some() || mesh.uv1.is_some() {
-                    let [i0, i1, i2] = r.indices.map(|x| x as usize);
+                    let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
                     let b0 = 1.0 - b1 - b2;
                     let lerp2 = |uv: &[Vec2]| uv[i0] * b0 + uv[i1] * b1 + uv[i2] * b2;
                     if let Some(uv) = &mesh.uv0 {
