@@ -1057,14 +1057,16 @@ def pbrt_copy(scene, res, sampler):
     return path, w, h
 
 
-def run_pbrt(scene_file, out, spp, seed, threads):
-    """One pbrt-v4 render to `out`; returns the render seconds: the time between pbrt-v4's verbose
-    log lines "Memory used after scene creation" (parsing, textures, lights, BVH and light BVH done)
-    and "Writing image with spp" (all samples taken), to the millisecond of its log timestamps.
-    Process start-up, parsing, BVH build and writing the EXR are excluded, as for the others."""
+def run_pbrt(scene_file, out, spp, seed, threads, extra=()):
+    """One pbrt-v4 render to `out` (`extra`: more pbrt-v4 options, e.g. `--stats`); returns the
+    render seconds and pbrt-v4's standard output. The seconds are the time between pbrt-v4's
+    verbose log lines "Memory used after scene creation" (parsing, textures, lights, BVH and light
+    BVH done) and "Writing image with spp" (all samples taken), to the millisecond of its log
+    timestamps. Process start-up, parsing, BVH build and writing the EXR are excluded, as for the
+    others."""
     import re
     cmd = [PBRT_EXE, "--nthreads", str(threads), "--spp", str(spp), "--seed", str(seed), "--outfile", out,
-           "--quiet", "--log-level", "verbose", scene_file]
+           "--quiet", "--log-level", "verbose", *extra, scene_file]
     # ../shared's pbrt-v4 crashes (SIGSEGV) in 2 runs of 3 of the fog scene with --nthreads 2, always
     # while it creates the scene (its camera medium), never once rendering has started: such a run
     # is started again (it renders the same image; the time counted starts after scene creation).
@@ -1086,7 +1088,7 @@ def run_pbrt(scene_file, out, spp, seed, threads):
             stamp[m.group(2)] = float(m.group(1))
     if len(stamp) != 2:
         raise RuntimeError("pbrt-v4's verbose log has no render start/end lines")
-    return stamp["Writing image with spp"] - stamp["Memory used after scene creation"]
+    return stamp["Writing image with spp"] - stamp["Memory used after scene creation"], r.stdout
 
 
 run_pbrt.crashes = 0
@@ -1108,7 +1110,7 @@ def worker_pbrt(args):
         exr = job["out"][:-4] + ".exr"
         t = None
         for rep in range(1 if job.get("reference") or job.get("untimed") else args.repeat):
-            el = run_pbrt(scene_file, exr if rep == 0 else exr + ".rep.exr", spp, job["seed"], args.threads)
+            el, _ = run_pbrt(scene_file, exr if rep == 0 else exr + ".rep.exr", spp, job["seed"], args.threads)
             t = el if t is None else min(t, el)
         np.save(job["out"], read_exr_rgb(exr))
         out.append({"spp": spp, "time": t, "out": job["out"]})

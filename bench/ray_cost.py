@@ -120,18 +120,17 @@ PEER_SCENES = ["pbrt-cornell-box", "pbrt-veach-mis", "pbrt-coffee", "pbrt-dining
 PBRT_RAYS = re.compile(r"(Regular|Shadow) ray intersection tests\s+(\d+)")
 
 
-def pbrt_render(scene, spp, out):
-    """One pbrt-v4 render of `scene` (an edited copy): (rays, seconds)."""
-    import compare
-    cmd = [compare.PBRT_EXE, "--nthreads", "2", "--spp", str(spp), "--outfile", out, "--stats",
-           "--log-level", "verbose", scene]
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    stamp = dict((m.group(2), float(m.group(1))) for m in re.finditer(
-        r"@\s*([0-9.]+)s [^\]]*\] (Memory used after scene creation|Writing image with spp)", r.stderr))
-    rays = sum(int(m.group(2)) for m in PBRT_RAYS.finditer(r.stdout + r.stderr))
-    if r.returncode != 0 or len(stamp) != 2 or rays == 0:
-        sys.exit(f"pbrt-v4 {scene} failed (exit {r.returncode}): {(r.stderr or r.stdout).strip()[-500:]}")
-    return rays, stamp["Writing image with spp"] - stamp["Memory used after scene creation"]
+def pbrt_render(compare, scene, spp, out):
+    """One pbrt-v4 render of `scene` (an edited copy), timed as compare.py times it: (rays,
+    seconds)."""
+    try:
+        sec, stats = compare.run_pbrt(scene, out, spp, 0, 2, extra=["--stats"])
+    except RuntimeError as e:
+        sys.exit(f"{scene}: {e}")
+    rays = sum(int(m.group(2)) for m in PBRT_RAYS.finditer(stats))
+    if rays == 0:
+        sys.exit(f"{scene}: pbrt-v4's --stats printed no ray intersection counts")
+    return rays, sec
 
 
 def trayecto_render(exe, scene, extra, out):
@@ -144,13 +143,12 @@ def trayecto_render(exe, scene, extra, out):
 
 
 def peers(args, tmp):
-    sys.path.insert(0, HERE)
-    import compare
+    import compare  # bench/, the script's own folder, is on the import path
     if not os.path.exists(compare.PBRT_EXE):
         sys.exit(f"no pbrt-v4 binary at {compare.PBRT_EXE} (see ../shared/tools/pbrt-v4/README.md)")
     files = {}
     for s in PEER_SCENES:
-        path, w, h = compare.pbrt_copy(s, args.res, None)
+        path, _, _ = compare.pbrt_copy(s, args.res, None)
         tex = os.path.join(os.path.dirname(path), "textures")
         if s == "pbrt-dining-room" and not os.path.exists(os.path.join(tex, "picture3.tga")):
             shutil.copyfile(os.path.join(tex, "Teacup.tga"), os.path.join(tex, "picture3.tga"))
@@ -163,7 +161,7 @@ def peers(args, tmp):
         for s, path in files.items():
             for who in ("trayecto", "pbrt-v4"):
                 rays, sec = (trayecto_render(exe, path, ["--spp", str(args.spp)], out) if who == "trayecto"
-                             else pbrt_render(path, args.spp, out))
+                             else pbrt_render(compare, path, args.spp, out))
                 rows.setdefault((who, s), []).append(rays / sec / 1e6)
         for s in ("cornell", "DamagedHelmet", "ToyCar"):
             rays, sec = trayecto_render(exe, SCENES[s], ["--spp", str(args.spp), *size], out)
