@@ -9,7 +9,7 @@ use crate::film::aov::{AovKind, Layer};
 use crate::film::filter::{Filter, FilterSampler};
 use crate::film::{Film, FilmBlock, Image};
 use crate::integrator::aov::{self, AovPath, PixelAovs};
-use crate::integrator::{IntegratorKind, PathSettings, RayStats, path, raycast, whitted};
+use crate::integrator::{Integrator, IntegratorKind, PathSettings, RayStats, path};
 use crate::sampling::{SampleStream, SamplerKind, SamplerSetup};
 use crate::world::World;
 use rayon::prelude::*;
@@ -336,10 +336,15 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
 /// first-hit splitting (`secondary`; the first vertex may be in a medium), so a scene with media
 /// and `secondary > 1` is an error that says what to use instead.
 pub fn check_media_settings(world: &World, settings: &RenderSettings) -> Result<(), RenderError> {
-    if world.media.active
-        && matches!(settings.integrator, IntegratorKind::Path)
-        && settings.path.secondary > 1
-    {
+    check_integrator_settings(Integrator::for_world(settings.integrator, world), settings)
+}
+
+/// [`check_media_settings`] for the resolved integrator.
+fn check_integrator_settings(
+    integrator: Integrator,
+    settings: &RenderSettings,
+) -> Result<(), RenderError> {
+    if !integrator.capabilities().splitting && settings.path.secondary > 1 {
         return Err(RenderError::InvalidSetting(format!(
             "secondary rays ({}) are not supported in scenes with participating media or medium \
              interfaces (the volumetric path tracer renders them): use 1 and raise the samples \
@@ -390,7 +395,10 @@ pub fn render_range(
 /// pass of [`render_aovs_samples`]), from the first sample (a resumed film's earlier samples
 /// have no AOVs).
 pub fn aovs_in_loop(world: &World, settings: &RenderSettings, start: &RangeStart) -> bool {
-    settings.integrator == IntegratorKind::Path && !world.media.active && start.resume.is_none()
+    Integrator::for_world(settings.integrator, world)
+        .capabilities()
+        .in_loop_aovs
+        && start.resume.is_none()
 }
 
 /// [`render_range`]; with `aovs`, and when [`aovs_in_loop`] says the integrator can, the path
@@ -407,7 +415,9 @@ pub fn render_range_aovs(
     cancel: &AtomicBool,
 ) -> Result<FilmRender, RenderError> {
     settings.validate()?;
-    check_media_settings(world, settings)?;
+    // The one place the integrator is decided; everything below asks it what it can do.
+    let integrator = Integrator::for_world(settings.integrator, world);
+    check_integrator_settings(integrator, settings)?;
     let range = start.samples.clone();
     if !(range.start < range.end && range.end <= settings.spp) {
         return Err(RenderError::InvalidSetting(format!(
@@ -433,8 +443,8 @@ pub fn render_range_aovs(
             )));
         }
     }
-    let aovs = aovs && aovs_in_loop(world, settings, &start);
-    let run = || render_in_pool(world, settings, start, aovs, observer, cancel);
+    let aovs = aovs && integrator.capabilities().in_loop_aovs && start.resume.is_none();
+    let run = || render_in_pool(world, integrator, settings, start, aovs, observer, cancel);
     match settings.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -450,6 +460,7 @@ pub fn render_range_aovs(
 
 fn render_in_pool(
     world: &World,
+    integrator: Integrator,
     settings: &RenderSettings,
     range_start: RangeStart,
     record_aovs: bool,
@@ -602,8 +613,8 @@ fn render_in_pool(
         let mask = adaptive.then(|| active.read().unwrap_or_else(|e| e.into_inner()));
         // The surface path tracer's samples go through the batched first hits (`Batch`); the
         // other integrators trace sample by sample.
-        let batched = settings.integrator == IntegratorKind::Path && !world.media.active;
-        // In-loop AOVs are only recorded by the surface path tracer (`aovs_in_loop`).
+        let batched = integrator.capabilities().batched_first_hits;
+        // In-loop AOVs are only recorded by batching integrators (`aovs_in_loop`).
         debug_assert!(batched || !record_aovs);
         let mut batch = Batch::new(batched);
         let mut out = BatchOut {
@@ -635,6 +646,7 @@ fn render_in_pool(
                     let mut stream = sampler.stream(pixel_key, s);
                     let l = sample_pixel(
                         world,
+                        integrator,
                         &camera,
                         &filter,
                         settings,
@@ -1006,6 +1018,7 @@ impl Batch {
 #[allow(clippy::too_many_arguments)]
 fn sample_pixel(
     world: &World,
+    integrator: Integrator,
     camera: &crate::camera::Camera,
     filter: &FilterSampler,
     settings: &RenderSettings,
@@ -1015,20 +1028,7 @@ fn sample_pixel(
     stats: &mut RayStats,
 ) -> crate::math::Vec3 {
     let (ray, weight) = camera_ray(camera, filter, stream, x, y);
-    let l = match settings.integrator {
-        // Scenes with participating media or interface surfaces need the volumetric path tracer;
-        // all others keep the surface path tracer exactly as it was.
-        IntegratorKind::Path if world.media.active => {
-            crate::integrator::volpath::radiance(world, &ray, stream, &settings.path, stats)
-        }
-        IntegratorKind::Path => path::radiance(world, &ray, stream, &settings.path, stats),
-        IntegratorKind::Raycast { aov, shading } => {
-            raycast::radiance(world, &ray, stream, aov, shading, stats)
-        }
-        IntegratorKind::Whitted { shading } => {
-            whitted::radiance(world, &ray, stream, settings.path.max_depth, shading, stats)
-        }
-    };
+    let l = integrator.radiance(world, &ray, stream, &settings.path, stats);
     // ×1 is exact: box and tent samples are unchanged.
     l * weight
 }

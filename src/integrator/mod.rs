@@ -5,11 +5,13 @@ pub mod aov;
 pub mod direct;
 pub mod path;
 pub mod raycast;
+pub mod select;
 pub mod volpath;
 pub mod whitted;
 
 pub use path::PathSettings;
 pub use raycast::Aov;
+pub use select::{Capabilities, Integrator};
 pub use whitted::ShadingModel;
 
 /// Counters kept per tile (never shared per ray) and summed at the end.

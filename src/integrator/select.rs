@@ -1,0 +1,139 @@
+//! The integrator a frame is rendered with, decided once from the requested
+//! [`IntegratorKind`] and the world, and what it can do. The driver (`render.rs`) asks the
+//! resolved [`Integrator`] for its [`Capabilities`] instead of re-deriving them from the kind
+//! (docs/DESIGN.md §1, integrators): a new integrator (light tracing, bidirectional path tracing,
+//! photon mapping) is one more variant here and one more row of capabilities.
+
+use super::{Aov, IntegratorKind, PathSettings, RayStats, ShadingModel};
+use super::{path, raycast, volpath, whitted};
+use crate::geometry::Ray;
+use crate::math::Vec3;
+use crate::sampling::SampleStream;
+use crate::world::World;
+
+/// An integrator resolved for one world.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Integrator {
+    /// The surface path tracer (`path.rs`): media-free scenes.
+    Path,
+    /// The volumetric path tracer (`volpath.rs`): `--integrator path` in a scene with
+    /// participating media or medium interfaces.
+    VolPath,
+    /// The thesis's ray caster: first hit only, shown as the view `aov`.
+    Raycast { aov: Aov, shading: ShadingModel },
+    /// The thesis's Whitted ray tracer.
+    Whitted { shading: ShadingModel },
+}
+
+/// What an integrator can do, as the driver and the pipeline need to know it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Capabilities {
+    /// Records AOVs in the render's own paths (`path::radiance_aov`); the others get them from
+    /// a separate pass (`render::render_aovs_samples`).
+    pub in_loop_aovs: bool,
+    /// Its camera samples go through the driver's batched first hits (`render::Batch`).
+    pub batched_first_hits: bool,
+    /// Honours first-hit splitting (`PathSettings::secondary > 1`).
+    pub splitting: bool,
+    /// Renders participating media and medium interfaces.
+    pub media: bool,
+}
+
+impl Integrator {
+    /// The integrator that renders `kind` in a world with (`has_media`) or without media:
+    /// `path` is the volumetric path tracer where there are media, and the surface path tracer
+    /// (unchanged) everywhere else.
+    pub fn resolve(kind: IntegratorKind, has_media: bool) -> Integrator {
+        match kind {
+            IntegratorKind::Path if has_media => Integrator::VolPath,
+            IntegratorKind::Path => Integrator::Path,
+            IntegratorKind::Raycast { aov, shading } => Integrator::Raycast { aov, shading },
+            IntegratorKind::Whitted { shading } => Integrator::Whitted { shading },
+        }
+    }
+
+    /// [`Integrator::resolve`] for `world`.
+    pub fn for_world(kind: IntegratorKind, world: &World) -> Integrator {
+        Integrator::resolve(kind, world.has_media())
+    }
+
+    pub fn capabilities(self) -> Capabilities {
+        match self {
+            Integrator::Path => Capabilities {
+                in_loop_aovs: true,
+                batched_first_hits: true,
+                splitting: true,
+                media: false,
+            },
+            // No first-hit splitting: the first vertex may be in a medium.
+            Integrator::VolPath => Capabilities {
+                in_loop_aovs: false,
+                batched_first_hits: false,
+                splitting: false,
+                media: true,
+            },
+            // They ignore `secondary`, as they always have.
+            Integrator::Raycast { .. } | Integrator::Whitted { .. } => Capabilities {
+                in_loop_aovs: false,
+                batched_first_hits: false,
+                splitting: true,
+                media: false,
+            },
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Integrator::Path => "path",
+            Integrator::VolPath => "volumetric path",
+            Integrator::Raycast { .. } => "raycast",
+            Integrator::Whitted { .. } => "whitted",
+        }
+    }
+
+    /// The radiance arriving along the camera ray `ray`, traced sample by sample (the batched
+    /// path tracer goes through `render::Batch` instead, with the same result).
+    #[inline]
+    pub fn radiance(
+        self,
+        world: &World,
+        ray: &Ray,
+        stream: &mut SampleStream,
+        settings: &PathSettings,
+        stats: &mut RayStats,
+    ) -> Vec3 {
+        match self {
+            Integrator::Path => path::radiance(world, ray, stream, settings, stats),
+            Integrator::VolPath => volpath::radiance(world, ray, stream, settings, stats),
+            Integrator::Raycast { aov, shading } => {
+                raycast::radiance(world, ray, stream, aov, shading, stats)
+            }
+            Integrator::Whitted { shading } => {
+                whitted::radiance(world, ray, stream, settings.max_depth, shading, stats)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn path_is_volumetric_only_with_media() {
+        let k = IntegratorKind::Path;
+        assert_eq!(Integrator::resolve(k, false), Integrator::Path);
+        assert_eq!(Integrator::resolve(k, true), Integrator::VolPath);
+        assert!(!Integrator::VolPath.capabilities().splitting);
+        assert!(Integrator::Path.capabilities().in_loop_aovs);
+        let w = IntegratorKind::Whitted {
+            shading: ShadingModel::default(),
+        };
+        assert_eq!(
+            Integrator::resolve(w, true),
+            Integrator::Whitted {
+                shading: ShadingModel::default()
+            }
+        );
+    }
+}
