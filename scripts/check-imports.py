@@ -27,7 +27,7 @@ import sys
 
 # Stages from the bottom up (docs/DESIGN.md §1). A module may import from its own stage and every
 # stage below it, never from one above. The key is the module path under the crate root (the
-# first segments that match win: `film::partial` before `film`); "bin" is the binary.
+# longest name that matches wins: `material::texture` before `material`); "bin" is the binary.
 LAYERS = [
     # 0: foundations (and the crate root, which holds only declarations and RENDER_IDENTITY)
     ("", 0),

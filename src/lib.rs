@@ -15,6 +15,7 @@ pub mod camera;
 pub mod denoise;
 pub mod film;
 pub mod geometry;
+pub mod image_io;
 pub mod integrator;
 pub mod light;
 pub mod material;

@@ -3,10 +3,12 @@
 //! [`crate::film`]), so a frame assembled from parts, or a render stopped and resumed any number of
 //! times, is bit-identical to one uninterrupted run.
 
+pub mod partial;
+
 use crate::film::Film;
-use crate::film::partial::{Part, PartError, PartHeader};
 use crate::render::{FilmRender, RangeStart, RenderError, RenderObserver, RenderSettings};
 use crate::world::{World, WorldOptions};
+use partial::{Part, PartError, PartHeader};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-use trayecto::film::partial::Part;
+use trayecto::split::partial::Part;
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_trayecto"))

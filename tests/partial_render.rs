@@ -5,9 +5,9 @@
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use trayecto::film::Film;
-use trayecto::film::partial::{Part, PartError, PartHeader, merge};
 use trayecto::render::{RangeStart, RenderObserver, RenderSettings, render, render_range};
 use trayecto::sampling::SamplerKind;
+use trayecto::split::partial::{Part, PartError, PartHeader, merge};
 use trayecto::world::{World, WorldOptions};
 
 const SPP: u32 = 13;

@@ -10,7 +10,6 @@
 pub mod aov;
 pub mod filter;
 pub mod output;
-pub mod partial;
 pub mod tonemap;
 
 use crate::math::Vec3;

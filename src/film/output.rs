@@ -5,7 +5,6 @@
 
 use super::Image;
 use super::tonemap::Tonemap;
-use crate::math::Vec3;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -186,63 +185,36 @@ pub fn write_exr_layers(
         .map_err(|e| werr(e.to_string()))
 }
 
-/// An EXR's size and its channels (name, values in row order), as [`read_exr_channels`] reads them.
-pub type ExrChannels = (u32, u32, Vec<(String, Vec<f32>)>);
+pub use crate::image_io::ExrChannels;
 
-/// Every channel of a single-part EXR by name (for tests and tools reading AOVs back).
+/// Every channel of a single-part EXR by name ([`crate::image_io::read_exr_channels`]).
 pub fn read_exr_channels(path: &Path) -> Result<ExrChannels, OutputError> {
-    use exr::prelude::*;
-    let rerr = |m: String| OutputError::Read {
-        path: path.to_path_buf(),
-        message: m,
-    };
-    let img = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(path)
-        .map_err(|e| rerr(e.to_string()))?;
-    let layer = img.layer_data;
-    let size = layer.size;
-    let channels = layer
-        .channel_data
-        .list
-        .iter()
-        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
-        .collect();
-    Ok((size.width() as u32, size.height() as u32, channels))
+    crate::image_io::read_exr_channels(path).map_err(OutputError::from)
 }
 
-/// Reads a linear RGB EXR (e.g. a reference image).
+/// Reads a linear RGB EXR (e.g. a reference image) ([`crate::image_io::read_exr`]).
 pub fn read_exr(path: &Path) -> Result<Image, OutputError> {
-    use exr::prelude::read_first_rgba_layer_from_file;
-    let img = read_first_rgba_layer_from_file(
-        path,
-        |res, _| {
-            let (w, h) = (res.width(), res.height());
-            (w, h, vec![Vec3::ZERO; w * h])
-        },
-        |(w, _, data): &mut (usize, usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            data[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
-        },
-    )
-    .map_err(|e| OutputError::Read {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    let (w, h, data) = img.layer_data.channel_data.pixels;
+    let (width, height, data) = crate::image_io::read_exr(path)?;
     Ok(Image {
-        width: w as u32,
-        height: h as u32,
+        width,
+        height,
         data,
     })
+}
+
+impl From<crate::image_io::ReadError> for OutputError {
+    fn from(e: crate::image_io::ReadError) -> OutputError {
+        OutputError::Read {
+            path: e.path,
+            message: e.message,
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::Vec3;
 
     fn gradient() -> Image {
         let (w, h) = (8u32, 4u32);

@@ -15,7 +15,7 @@
 //! Fresnel-weighted mix of what is reflected and what is seen through. Media are not scattered
 //! in (the guides describe surfaces); index-matched interface surfaces are passed through.
 
-use super::direct::Vertex;
+use super::vertex::Vertex;
 use crate::film::aov::{AovKind, Layer};
 use crate::geometry::primitive::SurfaceHit;
 use crate::geometry::{PrimitiveKind, Ray};

@@ -6,12 +6,14 @@ pub mod direct;
 pub mod path;
 pub mod raycast;
 pub mod select;
+pub mod settings;
+pub mod vertex;
 pub mod volpath;
 pub mod whitted;
 
-pub use path::PathSettings;
 pub use raycast::Aov;
 pub use select::{Capabilities, Integrator};
+pub use settings::PathSettings;
 pub use whitted::ShadingModel;
 
 /// Counters kept per tile (never shared per ray) and summed at the end.

@@ -39,8 +39,8 @@
 //! the pipeline refuses `--secondary` above 1 for scenes with media.
 
 use super::RayStats;
-use super::direct::Vertex;
-use super::path::PathSettings;
+use super::settings::PathSettings;
+use super::vertex::Vertex;
 use crate::geometry::Ray;
 use crate::geometry::primitive::SurfaceHit;
 use crate::material::Bsdf;

@@ -468,28 +468,9 @@ impl EnvMap {
 }
 
 /// Reads any image an environment may be (EXR, Radiance HDR, PFM; PNG, TGA, JPEG as sRGB) into
-/// linear RGB texels, top row first.
+/// linear RGB texels, top row first ([`crate::image_io::read_rgb`]).
 pub fn read_image(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
-    let name = path.display().to_string();
-    let lower = name.to_ascii_lowercase();
-    if lower.ends_with(".exr") {
-        let img = crate::film::output::read_exr(path).map_err(|e| e.to_string())?;
-        if img.width == 0 || img.height == 0 {
-            return Err("environment map is empty".into());
-        }
-        return Ok((img.width, img.height, img.data));
-    }
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read environment map: {e}"))?;
-    let t = if lower.ends_with(".pfm") {
-        crate::scene::image_io::decode_pfm(&name, &bytes)?
-    } else {
-        crate::scene::image_io::decode_texture(&name, &bytes, true)?
-    };
-    Ok((
-        t.width,
-        t.height,
-        t.texels.iter().map(|c| c.truncate()).collect(),
-    ))
+    crate::image_io::read_rgb(path)
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! Piecewise-constant 1D distribution sampled by inverting its CDF (PBRT §A.5.1 / §13.3.1); used to
 //! choose lights in proportion to power.
 
-use super::sampler::ONE_MINUS_EPSILON;
+use super::ONE_MINUS_EPSILON;
 
 #[derive(Clone, Debug, Default)]
 pub struct Distribution1D {

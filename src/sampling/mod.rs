@@ -10,5 +10,9 @@ pub mod sobol;
 pub mod warp;
 pub mod zsobol;
 
+/// The largest f32 below 1: where a sample in [0, 1) is clamped after arithmetic that may round
+/// it up to 1 (pbrt-v4's `OneMinusEpsilon`). Here, below the samplers and warps that all use it.
+pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
 pub use distribution::Distribution1D;
 pub use sampler::{SampleStream, SamplerKind, SamplerSetup};

@@ -114,7 +114,7 @@ pub fn shifted(j: usize, shift: Vec2) -> Vec2 {
     let p = pattern()[j % PATTERN_SIZE] + shift;
     let wrap = |v: f32| {
         let w = v - v.floor();
-        w.min(super::sampler::ONE_MINUS_EPSILON)
+        w.min(super::ONE_MINUS_EPSILON)
     };
     Vec2::new(wrap(p.x), wrap(p.y))
 }

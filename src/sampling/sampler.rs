@@ -12,6 +12,7 @@
 //! * `zsobol`: one Owen-scrambled Sobol sequence over the image in Morton order (Ahmed & Wonka
 //!   2020; pbrt-v4's `ZSobolSampler`), see [`super::zsobol`]: blue-noise error between pixels.
 
+use super::ONE_MINUS_EPSILON;
 use super::rng::{hash_words, mix64, u32_to_unit_f32};
 use crate::math::Vec2;
 
@@ -449,8 +450,6 @@ impl SampleStream {
         Vec2::new(x.min(ONE_MINUS_EPSILON), y.min(ONE_MINUS_EPSILON))
     }
 }
-
-pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// A pseudo-random permutation of `[0, l)` selected by `p`, evaluated at `i` without storing the
 /// permutation (Kensler 2013, listing 3: cycle-walking over a hash restricted to the next power of two).

@@ -498,7 +498,7 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
 }
 
 pub fn run_merge(args: &MergeArgs) -> Result<()> {
-    use trayecto::film::partial::{Part, merge};
+    use trayecto::split::partial::{Part, merge};
     let partial_output = is_partial_film(&args.output);
     if !partial_output {
         Format::from_path(&args.output)?;

@@ -925,10 +925,9 @@ impl Loader {
                     // its linear part and accounts for a non-rigid one's solid-angle Jacobian.
                     let to_world = Mat3::from_mat4(ctm);
                     if e > 0.0 {
-                        let (w, h, texels) =
-                            crate::light::envmap::read_image(&path).map_err(|err| {
-                                SceneError::invalid(at, format!("infinite light \"{f}\": {err}"))
-                            })?;
+                        let (w, h, texels) = crate::image_io::read_rgb(&path).map_err(|err| {
+                            SceneError::invalid(at, format!("infinite light \"{f}\": {err}"))
+                        })?;
                         let k = equal_area_illuminance(w, h, &texels);
                         if k > 0.0 && k.is_finite() {
                             s *= e / k;

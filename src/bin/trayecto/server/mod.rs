@@ -10,6 +10,7 @@
 // once per HTTP request.
 #![allow(clippy::result_large_err)]
 
+pub mod folder;
 pub mod jobs;
 pub mod request;
 pub mod upload;
@@ -541,8 +542,8 @@ async fn scenes(
     let dir = st.policy.scenes_dir.clone();
     let (files, hidden, environments) = match dir {
         Some(d) => tokio::task::spawn_blocking(move || {
-            let (f, h) = request::scene_list(&d, all);
-            (f, h, request::list_environments(&d))
+            let (f, h) = folder::scene_list(&d, all);
+            (f, h, folder::list_environments(&d))
         })
         .await
         .unwrap_or_default(),
@@ -565,7 +566,7 @@ fn scene_param(q: &std::collections::HashMap<String, String>) -> Result<String, 
     let Some(name) = q.get("scene").cloned() else {
         return Err(error(StatusCode::BAD_REQUEST, "give ?scene=NAME"));
     };
-    if name.len() > request::MAX_SCENE_NAME {
+    if name.len() > folder::MAX_SCENE_NAME {
         return Err(error(StatusCode::BAD_REQUEST, "the scene name is too long"));
     }
     Ok(name)

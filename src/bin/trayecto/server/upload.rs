@@ -342,7 +342,7 @@ fn store_zip(
     let tmp = temp_name(root, stem);
     std::fs::create_dir(&tmp).map_err(|e| UploadError::Io(e.to_string()))?;
     let result = unpack(&mut archive, &entries, &tmp, limits).and_then(|_| {
-        let scenes = super::request::list_scenes(&tmp);
+        let scenes = super::folder::list_scenes(&tmp);
         if scenes.is_empty() {
             return Err(invalid(format!(
                 "the archive holds no scene file (expected {})",

@@ -1,4 +1,6 @@
-//! Texture decoding shared by every loader (glTF, OBJ/MTL, TOML, FBX).
+//! Reading images, for everything that reads one: textures for every loader (glTF, OBJ/MTL,
+//! TOML, FBX, pbrt), environment maps ([`read_rgb`]), reference and checkpoint images
+//! ([`read_exr`], [`read_exr_channels`]). The image writers are `film::output`.
 //!
 //! * Colour textures (base colour, emissive, diffuse maps) are stored sRGB-encoded and are decoded
 //!   to linear here; data textures (metallic-roughness, normal, occlusion) are read as they are.
@@ -16,7 +18,7 @@ use crate::material::Texture;
 use crate::material::texture::{
     Texels, UNORM8_TO_F32, UNORM8_TO_F32_RECIP, decode8, decode16, srgb_to_linear,
 };
-use crate::math::Vec4;
+use crate::math::{Vec3, Vec4};
 
 /// The colour of a missing texture: loud on purpose.
 pub const MISSING_TEXTURE_COLOR: Vec4 = Vec4::new(1.0, 0.0, 1.0, 1.0);
@@ -477,6 +479,89 @@ pub fn decode_pfm(name: &str, bytes: &[u8]) -> Result<Texture, String> {
         }
     }
     Ok(Texture::image(name, w, h, texels))
+}
+
+/// An error reading an image file.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct ReadError {
+    pub path: PathBuf,
+    pub message: String,
+}
+
+/// An EXR's size and its channels (name, values in row order), as [`read_exr_channels`] reads them.
+pub type ExrChannels = (u32, u32, Vec<(String, Vec<f32>)>);
+
+/// Every channel of a single-part EXR by name (for tests and tools reading AOVs back).
+pub fn read_exr_channels(path: &Path) -> Result<ExrChannels, ReadError> {
+    use exr::prelude::*;
+    let rerr = |m: String| ReadError {
+        path: path.to_path_buf(),
+        message: m,
+    };
+    let img = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| rerr(e.to_string()))?;
+    let layer = img.layer_data;
+    let size = layer.size;
+    let channels = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect();
+    Ok((size.width() as u32, size.height() as u32, channels))
+}
+
+/// A linear RGB EXR (e.g. a reference image): width, height and the pixels, top row first.
+pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), ReadError> {
+    use exr::prelude::read_first_rgba_layer_from_file;
+    let img = read_first_rgba_layer_from_file(
+        path,
+        |res, _| {
+            let (w, h) = (res.width(), res.height());
+            (w, h, vec![Vec3::ZERO; w * h])
+        },
+        |(w, _, data): &mut (usize, usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            data[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
+        },
+    )
+    .map_err(|e| ReadError {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let (w, h, data) = img.layer_data.channel_data.pixels;
+    Ok((w as u32, h as u32, data))
+}
+
+/// Reads any image an environment may be (EXR, Radiance HDR, PFM; PNG, TGA, JPEG as sRGB) into
+/// linear RGB texels, top row first.
+pub fn read_rgb(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
+    let name = path.display().to_string();
+    let lower = name.to_ascii_lowercase();
+    if lower.ends_with(".exr") {
+        let (w, h, data) = read_exr(path).map_err(|e| e.to_string())?;
+        if w == 0 || h == 0 {
+            return Err("environment map is empty".into());
+        }
+        return Ok((w, h, data));
+    }
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read environment map: {e}"))?;
+    let t = if lower.ends_with(".pfm") {
+        decode_pfm(&name, &bytes)?
+    } else {
+        decode_texture(&name, &bytes, true)?
+    };
+    Ok((
+        t.width,
+        t.height,
+        t.texels.iter().map(|c| c.truncate()).collect(),
+    ))
 }
 
 #[cfg(test)]

@@ -19,7 +19,7 @@
 //! sources of the build). Reading checks everything a hostile or truncated file could get
 //! wrong before allocating, and that every sum is within what its count of samples can reach.
 
-use super::{FRAC_BITS, Film, SAMPLE_LIMIT};
+use crate::film::{FRAC_BITS, Film, SAMPLE_LIMIT};
 use crate::light::default_light::DefaultLight;
 use crate::render::{MAX_DIMENSION, MAX_PIXELS, MAX_SPP, RenderSettings};
 use crate::world::WorldOptions;
