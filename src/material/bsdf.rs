@@ -7,6 +7,7 @@
 //! normal flipped to the side the ray arrived from, so `wo.z > 0` always and no `abs()` is taken.
 //! Transmissive BSDFs keep the geometric orientation: `wo.z < 0` means the ray arrives from inside.
 
+pub use super::bxdf::BsdfSample;
 use super::bxdf::{
     Conductor, Dielectric, Diffuse, DiffuseTransmission, GltfTransmission, Layered,
     MetallicRoughness, Mirror, ThinDielectric,
@@ -29,38 +30,6 @@ pub enum Bsdf {
     /// The transmissive component of a glTF material under clearcoat, sheen, anisotropy or
     /// iridescence (thick or thin-walled).
     GltfTransmission(GltfTransmission),
-}
-
-#[derive(Clone, Copy, Debug)]
-pub struct BsdfSample {
-    /// Incident direction in the local frame.
-    pub wi: Vec3,
-    /// BSDF value f(wo, wi) (no cosine).
-    pub f: Vec3,
-    /// Solid-angle pdf; for a specular (Dirac) lobe the discrete probability of the lobe.
-    pub pdf: f32,
-    /// True if `wi` was chosen from a Dirac delta lobe: light sampling cannot produce it.
-    pub specular: bool,
-    /// Relative IOR crossed (1 for reflection); radiance was scaled by 1/eta².
-    pub eta: f32,
-}
-
-impl BsdfSample {
-    /// A sample from a non-Dirac lobe, or `None` when its pdf is not positive (then the
-    /// direction cannot be weighted). `f` is evaluated only for a usable sample.
-    #[inline]
-    pub fn glossy(wi: Vec3, pdf: f32, eta: f32, f: impl FnOnce() -> Vec3) -> Option<BsdfSample> {
-        if !(pdf > 0.0) {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            f: f(),
-            pdf,
-            specular: false,
-            eta,
-        })
-    }
 }
 
 impl Bsdf {

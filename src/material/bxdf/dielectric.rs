@@ -16,8 +16,8 @@
 //! 3 (its discrete probability is a third of the transmission's); the shared reflection carries
 //! all three with their own Fresnel terms.
 
+use super::BsdfSample;
 use super::{fresnel_reflection_sample, same_hemisphere};
-use crate::material::bsdf::BsdfSample;
 use crate::material::microfacet::{Ggx, MIN_ALPHA, fresnel_dielectric, reflect, refract};
 use crate::math::{Vec2, Vec3};
 

@@ -28,8 +28,42 @@ pub use metallic_roughness::MetallicRoughness;
 pub use mirror::Mirror;
 pub use thin_dielectric::ThinDielectric;
 
-use super::bsdf::BsdfSample;
 use crate::math::Vec3;
+
+/// A sampled incident direction with its BSDF value and pdf. It lives here, below both the
+/// variants that produce it and [`super::bsdf`], which re-exports it, so that the two modules
+/// import one way only.
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample {
+    /// Incident direction in the local frame.
+    pub wi: Vec3,
+    /// BSDF value f(wo, wi) (no cosine).
+    pub f: Vec3,
+    /// Solid-angle pdf; for a specular (Dirac) lobe the discrete probability of the lobe.
+    pub pdf: f32,
+    /// True if `wi` was chosen from a Dirac delta lobe: light sampling cannot produce it.
+    pub specular: bool,
+    /// Relative IOR crossed (1 for reflection); radiance was scaled by 1/eta².
+    pub eta: f32,
+}
+
+impl BsdfSample {
+    /// A sample from a non-Dirac lobe, or `None` when its pdf is not positive (then the
+    /// direction cannot be weighted). `f` is evaluated only for a usable sample.
+    #[inline]
+    pub fn glossy(wi: Vec3, pdf: f32, eta: f32, f: impl FnOnce() -> Vec3) -> Option<BsdfSample> {
+        if !(pdf > 0.0) {
+            return None;
+        }
+        Some(BsdfSample {
+            wi,
+            f: f(),
+            pdf,
+            specular: false,
+            eta,
+        })
+    }
+}
 
 #[inline]
 pub(crate) fn same_hemisphere(a: Vec3, b: Vec3) -> bool {
