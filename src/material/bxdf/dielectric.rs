@@ -77,6 +77,12 @@ impl Dielectric {
         self
     }
 
+    /// Per channel, the relative IOR crossed from `wo` to `wi` ([`super::eta_crossed`]).
+    #[inline]
+    pub fn eta_crossed(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        super::eta_crossed(self.dispersion.unwrap_or(Vec3::splat(self.eta)), wo, wi)
+    }
+
     #[inline]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         match (self.ggx, self.dispersion) {

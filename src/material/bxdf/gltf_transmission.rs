@@ -573,6 +573,17 @@ impl GltfTransmission {
         })
     }
 
+    /// Per channel, the relative IOR crossed from `wo` to `wi`: as [`Self::relative_eta`], with
+    /// each channel's own IOR under dispersion.
+    #[inline]
+    pub fn eta_crossed(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if self.relative_eta(wo, wi) == 1.0 {
+            Vec3::ONE
+        } else {
+            super::eta_crossed(self.dispersion.unwrap_or(Vec3::splat(self.eta)), wo, wi)
+        }
+    }
+
     /// The relative IOR crossed from `wo` to `wi` (1 for reflection and for a thin sheet; the
     /// d-line IOR with dispersion, which Russian roulette uses only as a scale).
     #[inline]
