@@ -325,6 +325,17 @@ impl Camera {
         }
     }
 
+    /// The camera's importance function, or why it has none: only the perspective projection,
+    /// pinhole or thin lens, has one ([`CameraImportance`]).
+    pub fn importance(&self) -> Result<CameraImportance, NoImportance> {
+        match self.projection {
+            Projection::Perspective => {}
+            Projection::Orthographic { .. } => return Err(NoImportance::Orthographic),
+            Projection::Spherical(_) => return Err(NoImportance::Spherical),
+        }
+        Ok(CameraImportance::new(self))
+    }
+
     /// Projects a world point to film coordinates, if it is in front of a perspective or
     /// orthographic camera (for tests; a spherical camera gives `None`).
     pub fn project(&self, p: Vec3) -> Option<Vec2> {
@@ -340,6 +351,226 @@ impl Camera {
             (x + 1.0) * 0.5 * self.width as f32,
             (1.0 - y) * 0.5 * self.height as f32,
         ))
+    }
+}
+
+/// Why a camera has no importance function (light tracing and bidirectional methods need one to
+/// connect a light path to the film): only the perspective camera, pinhole or thin lens, has one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum NoImportance {
+    #[error(
+        "an orthographic camera has no importance function here: its rays are parallel, so no light path can be joined to its film"
+    )]
+    Orthographic,
+    #[error(
+        "a spherical camera has no importance function here: only perspective cameras (pinhole or thin lens) can receive light paths"
+    )]
+    Spherical,
+}
+
+/// The importance a camera ray carries and the film point it comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Importance {
+    /// W_e(p, ω) (pbrt-v4 `PerspectiveCamera::We`).
+    pub we: f32,
+    /// Film coordinates in pixels, as [`Camera::generate_ray`] takes them.
+    pub raster: Vec2,
+}
+
+/// A point on the lens seen from a scene point (pbrt-v4 `CameraWiSample`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImportanceSample {
+    /// The point on the lens (world space); the camera's position for a pinhole.
+    pub p_lens: Vec3,
+    /// Unit direction from the scene point towards `p_lens`.
+    pub wi: Vec3,
+    /// Distance from the scene point to `p_lens`.
+    pub dist: f32,
+    /// W_e of the ray from `p_lens` towards the scene point.
+    pub we: f32,
+    /// Solid-angle density of `wi` at the scene point: |p − p_lens|² / (|cos θ_lens| · lens area),
+    /// with lens area 1 for a pinhole, whose position is a Dirac delta ([`CameraImportance::is_pinhole`]).
+    pub pdf: f32,
+    /// Film coordinates in pixels of the camera ray through `p_lens` and the scene point.
+    pub raster: Vec2,
+}
+
+/// The importance function of a perspective camera, pinhole or thin lens (Veach 1997 §4.A (W_e);
+/// pbrt-v4 `PerspectiveCamera::We`, `PDF_We`, `SampleWi`, book §5.4): the camera as a sensor that
+/// light paths can reach. It inverts [`Camera::generate_ray`] (the same window, fitted as the
+/// film's aspect asks, and the same lens), so a light path landing at a film point lands where a
+/// camera ray through that point would start. Plain data: ask [`Camera::importance`] once.
+///
+/// Normalised as pbrt-v4's: W_e(p, ω) cos θ = p_A(p) p_ω(ω), the densities with which
+/// `generate_ray` with uniform film and lens samples produces the ray, so that over the lens and
+/// the directions through the film ∫∫ W_e cos θ dω dA = 1. In camera space that is
+/// W_e = 1 / (A · A_lens · cos⁴θ), A the film's area on the plane at depth 1 and A_lens = π r²
+/// (1 for a pinhole). The densities are converted to world measure through the camera-to-world
+/// matrix, which need not be rigid: a pbrt screen window is a shear of camera space, a
+/// handedness flip a reflection. The film is the whole image, [0, width) × [0, height) pixels;
+/// a crop window is the caller's to apply.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraImportance {
+    camera_to_world: Mat4,
+    world_to_camera: Mat4,
+    width: f32,
+    height: f32,
+    /// Half the window's extents on the plane at depth 1 (camera space).
+    half_w: f32,
+    half_h: f32,
+    lens_radius: f32,
+    focus_distance: f32,
+    /// A, the window's area at depth 1 (camera space).
+    film_area: f32,
+    /// The lens's area in world space (1 for a pinhole).
+    lens_area: f32,
+    /// |det| of the camera-to-world matrix's linear part: solid angles scale by it.
+    det: f32,
+    /// The lens plane's world normal, towards the scene.
+    n_lens: Vec3,
+}
+
+impl CameraImportance {
+    fn new(cam: &Camera) -> CameraImportance {
+        let m = cam.camera_to_world;
+        let lens_radius = cam.aperture_radius.max(0.0);
+        let half_w = cam.half_h * cam.aspect;
+        let world_to_camera = m.inverse();
+        let lens_area = if lens_radius > 0.0 {
+            let stretch = m
+                .transform_vector3(Vec3::X)
+                .cross(m.transform_vector3(Vec3::Y))
+                .length();
+            crate::math::PI * lens_radius * lens_radius * stretch
+        } else {
+            1.0
+        };
+        CameraImportance {
+            camera_to_world: m,
+            world_to_camera,
+            width: cam.width as f32,
+            height: cam.height as f32,
+            half_w,
+            half_h: cam.half_h,
+            lens_radius,
+            focus_distance: cam.focus_distance,
+            film_area: 4.0 * half_w * cam.half_h,
+            lens_area,
+            det: crate::math::Mat3::from_mat4(m).determinant().abs(),
+            // Normals transform by the inverse transpose.
+            n_lens: world_to_camera
+                .transpose()
+                .transform_vector3(-Vec3::Z)
+                .normalize(),
+        }
+    }
+
+    /// True for a pinhole: the ray's origin is a Dirac delta in position, and the pdfs use a lens
+    /// area of 1 as pbrt-v4 does (light tracing then splats W_e / pdf = the delta's weight).
+    #[inline]
+    pub fn is_pinhole(&self) -> bool {
+        self.lens_radius <= 0.0
+    }
+
+    /// The lens area A_lens in world space (1 for a pinhole).
+    #[inline]
+    pub fn lens_area(&self) -> f32 {
+        self.lens_area
+    }
+
+    /// For a world ray leaving the lens: the world solid-angle density of its direction, the
+    /// cosine of its direction with the lens normal and the film point it comes from, if it
+    /// comes from the film.
+    #[inline]
+    fn locate(&self, o: Vec3, d: Vec3) -> Option<(f32, f32, Vec2)> {
+        let dw = d.normalize_or_zero();
+        let cos_w = self.n_lens.dot(dw);
+        if !(cos_w > 0.0) {
+            return None;
+        }
+        let oc = self.world_to_camera.transform_point3(o);
+        let dc = self.world_to_camera.transform_vector3(dw);
+        // |L⁻¹ ω_w| = 1 / |L ω_c| for the linear part L of camera-to-world.
+        let len = dc.length();
+        let dc = dc / len;
+        let cos = -dc.z;
+        if !(cos > 0.0) {
+            return None;
+        }
+        // The point the ray reaches on the plane of focus (at depth 1 for a pinhole), as
+        // `generate_ray` aims its rays, scaled back to the window at depth 1.
+        let depth = if self.is_pinhole() {
+            1.0
+        } else {
+            self.focus_distance
+        };
+        let p = oc + dc * (depth / cos);
+        let (x, y) = (p.x / depth, p.y / depth);
+        let raster = Vec2::new(
+            (x / self.half_w + 1.0) * 0.5 * self.width,
+            (1.0 - y / self.half_h) * 0.5 * self.height,
+        );
+        let inside =
+            raster.x >= 0.0 && raster.x < self.width && raster.y >= 0.0 && raster.y < self.height;
+        if !inside {
+            return None;
+        }
+        // Camera space: film points are uniform on the window at depth 1 (and, through a thin
+        // lens, on the plane of focus), 1 / (A cos³θ) per solid angle. World solid angle:
+        // dω_w / dω_c = |det L| / |L ω_c|³.
+        let pdf_dir = 1.0 / (self.film_area * cos * cos * cos * len * len * len * self.det);
+        Some((pdf_dir, cos_w, raster))
+    }
+
+    /// W_e of the ray leaving the lens at `ray.o` in direction `ray.d` and the film point it comes
+    /// from; `None` when it does not come from the film (pbrt-v4 `PerspectiveCamera::We`).
+    #[inline]
+    pub fn we(&self, ray: &Ray) -> Option<Importance> {
+        let (pdf_dir, cos, raster) = self.locate(ray.o, ray.d)?;
+        Some(Importance {
+            we: pdf_dir / (self.lens_area * cos),
+            raster,
+        })
+    }
+
+    /// The densities with which [`Camera::generate_ray`] with uniform film and lens samples
+    /// produces `ray`: (per lens area, per solid angle); (0, 0) off the film (pbrt-v4 `PDF_We`).
+    #[inline]
+    pub fn pdf_we(&self, ray: &Ray) -> (f32, f32) {
+        match self.locate(ray.o, ray.d) {
+            Some((pdf_dir, _, _)) => (1.0 / self.lens_area, pdf_dir),
+            None => (0.0, 0.0),
+        }
+    }
+
+    /// A point on the lens chosen by `u` ∈ [0,1)² (the same map as [`Camera::generate_ray`]'s
+    /// `lens` sample), seen from the scene point `p`, with the importance arriving at `p` from it;
+    /// `None` when the ray from the lens through `p` misses the film (pbrt-v4 `SampleWi`).
+    #[inline]
+    pub fn sample_wi(&self, p: Vec3, u: Vec2) -> Option<ImportanceSample> {
+        let lens = concentric_disk(u) * self.lens_radius;
+        let p_lens = self
+            .camera_to_world
+            .transform_point3(Vec3::new(lens.x, lens.y, 0.0));
+        let to_lens = p_lens - p;
+        let dist = to_lens.length();
+        if !(dist > 0.0) {
+            return None;
+        }
+        let wi = to_lens / dist;
+        let cos_lens = self.n_lens.dot(-wi);
+        if !(cos_lens > 0.0) {
+            return None;
+        }
+        let imp = self.we(&Ray::new(p_lens, -wi))?;
+        Some(ImportanceSample {
+            p_lens,
+            wi,
+            dist,
+            we: imp.we,
+            pdf: dist * dist / (cos_lens * self.lens_area),
+            raster: imp.raster,
+        })
     }
 }
 
@@ -493,5 +724,174 @@ mod tests {
         ] {
             assert!(CameraSpec::from_toml(bad).is_err(), "{bad:?} accepted");
         }
+    }
+
+    /// A camera looking from an arbitrary pose (rotated, translated) with the given lens; with
+    /// `window`, through an off-centre, stretched pbrt screen window (a shear of camera space,
+    /// as the pbrt loader builds it) and a handedness flip (pbrt's `Scale -1 1 1`).
+    fn posed_camera(fov: f32, w: u32, h: u32, aperture: f32, focus: f32, window: bool) -> Camera {
+        let mut desc = CameraDesc::look_at(
+            "c",
+            Vec3::new(1.0, 2.0, 3.0),
+            Vec3::new(-0.5, 0.3, -1.0),
+            Vec3::new(0.1, 1.0, 0.0),
+            fov,
+        );
+        desc.aperture_radius = aperture;
+        desc.focus_distance = focus;
+        if window {
+            use crate::math::Vec4;
+            let shear = Mat4::from_cols(
+                Vec4::new(1.3, 0.0, 0.0, 0.0),
+                Vec4::Y,
+                Vec4::new(-0.2, 0.15, 1.0, 0.0),
+                Vec4::W,
+            );
+            let flip = Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0));
+            desc.camera_to_world = desc.camera_to_world * flip * shear;
+        }
+        Camera::new(&desc, w, h)
+    }
+
+    /// ∫ over the lens and the directions through the film of W_e cos θ = 1 (the normalisation of
+    /// pbrt-v4's `PerspectiveCamera::We`), and the direction pdf of `pdf_we` integrates to 1: by
+    /// midpoint quadrature in world (θ, φ) around the lens normal, dω = sin θ dθ dφ, for lens
+    /// points on a stratified grid. Independent of how `we` maps directions to the film.
+    #[test]
+    fn importance_integrates_to_one_over_the_film() {
+        for (fov, w, h, aperture, focus, window) in [
+            (39.6, 64, 64, 0.0, 1.0, false),
+            (90.0, 200, 100, 0.0, 1.0, false),
+            (20.0, 48, 96, 0.0, 1.0, false),
+            (50.0, 80, 60, 0.0, 1.0, true),
+            (60.0, 96, 48, 0.3, 4.0, false),
+            (30.0, 64, 80, 0.05, 0.7, false),
+            (45.0, 64, 64, 0.2, 2.0, true),
+        ] {
+            let cam = posed_camera(fov, w, h, aperture, focus, window);
+            let imp = cam.importance().unwrap();
+            let c2w = cam.camera_to_world;
+            let axis = imp.n_lens;
+            let t1 = axis.any_orthonormal_vector();
+            let t2 = axis.cross(t1);
+            // θ up to beyond the film's corners as seen from the lens's edges.
+            let mut theta_max = 0.0f32;
+            for corner in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+                for u in [(0.0, 0.5), (1.0, 0.5), (0.5, 0.0), (0.5, 1.0), (0.5, 0.5)] {
+                    let film = Vec2::new(corner.0 * w as f32, corner.1 * h as f32);
+                    let d = cam.generate_ray(film, Vec2::new(u.0, u.1)).d;
+                    theta_max = theta_max.max(d.dot(axis).clamp(-1.0, 1.0).acos());
+                }
+            }
+            let theta_max = (theta_max * 1.05).min(std::f32::consts::FRAC_PI_2);
+            let lens_n = if aperture > 0.0 { 4 } else { 1 };
+            let (nt, np) = (500, 500);
+            let (mut total, mut pdf_total) = (0.0f64, 0.0f64);
+            for li in 0..lens_n * lens_n {
+                let u = Vec2::new(
+                    ((li % lens_n) as f32 + 0.5) / lens_n as f32,
+                    ((li / lens_n) as f32 + 0.5) / lens_n as f32,
+                );
+                let o = c2w.transform_point3((concentric_disk(u) * aperture).extend(0.0));
+                let (mut s, mut sp) = (0.0f64, 0.0f64);
+                for i in 0..nt {
+                    let th = (i as f32 + 0.5) / nt as f32 * theta_max;
+                    for j in 0..np {
+                        let ph = (j as f32 + 0.5) / np as f32 * 2.0 * std::f32::consts::PI;
+                        let d = axis * th.cos() + (t1 * ph.cos() + t2 * ph.sin()) * th.sin();
+                        let ray = Ray::new(o, d);
+                        let dw = th.sin() as f64;
+                        if let Some(e) = imp.we(&ray) {
+                            s += e.we as f64 * th.cos() as f64 * dw;
+                        }
+                        sp += imp.pdf_we(&ray).1 as f64 * dw;
+                    }
+                }
+                let cell = (theta_max / nt as f32 * 2.0 * std::f32::consts::PI / np as f32) as f64;
+                total += s * cell / (lens_n * lens_n) as f64 * imp.lens_area() as f64;
+                pdf_total += sp * cell / (lens_n * lens_n) as f64;
+            }
+            let case = format!("fov {fov} {w}x{h} r {aperture} window {window}");
+            assert!((total - 1.0).abs() < 5e-3, "{case}: {total}");
+            assert!((pdf_total - 1.0).abs() < 5e-3, "{case}: {pdf_total}");
+        }
+    }
+
+    /// A point on a generated ray, seen from the same lens point by `sample_wi`, lands on the film
+    /// point the ray was generated for, with the ray's importance and pdf.
+    #[test]
+    fn sample_wi_inverts_generate_ray() {
+        for (aperture, focus, window) in [
+            (0.0, 1.0, false),
+            (0.25, 3.0, false),
+            (0.0, 1.0, true),
+            (0.25, 3.0, true),
+        ] {
+            let cam = posed_camera(50.0, 120, 80, aperture, focus, window);
+            let imp = cam.importance().unwrap();
+            for k in 0..50 {
+                let f = |i: u32, m: f32| ((k * 7919 + i * 104_729) % 1000) as f32 / 1000.0 * m;
+                let film = Vec2::new(0.5 + f(1, 119.0), 0.5 + f(2, 79.0));
+                let lens = Vec2::new(f(3, 1.0), f(4, 1.0));
+                let ray = cam.generate_ray(film, lens);
+                let p = ray.at(0.5 + f(5, 10.0));
+                let s = imp.sample_wi(p, lens).unwrap();
+                assert!(
+                    (s.raster - film).length() < 2e-3 * 120.0,
+                    "{film} -> {}",
+                    s.raster
+                );
+                assert!((s.p_lens - ray.o).length() < 1e-4);
+                assert!((s.wi + ray.d).length() < 1e-4);
+                let e = imp.we(&ray).unwrap();
+                assert!((s.we - e.we).abs() <= 1e-3 * e.we);
+                assert!((e.raster - film).length() < 2e-3 * 120.0);
+                // The solid-angle pdf at p is the lens pdf converted by |p − p_lens|² / cos θ.
+                let (pdf_pos, _) = imp.pdf_we(&ray);
+                let cos = imp.n_lens.dot(ray.d);
+                let expect = pdf_pos * s.dist * s.dist / cos;
+                assert!(
+                    (s.pdf - expect).abs() <= 1e-3 * expect,
+                    "{} vs {expect}",
+                    s.pdf
+                );
+            }
+            // Behind the camera or off the film: nothing.
+            let back = cam
+                .camera_to_world
+                .transform_point3(Vec3::new(0.0, 0.0, 5.0));
+            assert!(imp.sample_wi(back, Vec2::splat(0.5)).is_none());
+            let off = cam
+                .camera_to_world
+                .transform_point3(Vec3::new(50.0, 0.0, -1.0));
+            assert!(imp.sample_wi(off, Vec2::splat(0.5)).is_none());
+        }
+        // A point on the plane of focus lands on one film point whatever the lens sample.
+        let cam = posed_camera(50.0, 120, 80, 0.25, 3.0, false);
+        let imp = cam.importance().unwrap();
+        let ray = cam.generate_ray(Vec2::new(30.0, 20.0), Vec2::splat(0.5));
+        let p = ray.at(3.0 / imp.n_lens.dot(ray.d));
+        for u in [Vec2::new(0.1, 0.2), Vec2::new(0.9, 0.6)] {
+            let s = imp.sample_wi(p, u).unwrap();
+            assert!(
+                (s.raster - Vec2::new(30.0, 20.0)).length() < 0.05,
+                "{}",
+                s.raster
+            );
+        }
+    }
+
+    #[test]
+    fn only_perspective_cameras_have_importance() {
+        let mut desc = CameraDesc::look_at("c", Vec3::Z, Vec3::ZERO, Vec3::Y, 40.0);
+        desc.projection = Projection::Orthographic { half_height: 1.0 };
+        let e = Camera::new(&desc, 8, 8).importance().unwrap_err();
+        assert_eq!(e, NoImportance::Orthographic);
+        assert!(e.to_string().contains("orthographic"));
+        desc.projection = Projection::Spherical(SphericalMapping::Equirectangular);
+        assert_eq!(
+            Camera::new(&desc, 8, 8).importance().unwrap_err(),
+            NoImportance::Spherical
+        );
     }
 }

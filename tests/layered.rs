@@ -14,7 +14,7 @@
 use trayecto::material::Bsdf;
 use trayecto::material::bxdf::Conductor;
 use trayecto::material::bxdf::layered::{Base, Coat, Layered};
-use trayecto::material::microfacet::{AnisoGgx, fresnel_dielectric};
+use trayecto::material::microfacet::{Ggx, fresnel_dielectric};
 use trayecto::math::{PI, Vec2, Vec3};
 use trayecto::sampling::rng::Pcg32;
 
@@ -22,7 +22,7 @@ fn coated_diffuse(r: f32, eta: f32, alpha: f32, thickness: f32, albedo: f32) -> 
     Layered {
         coat: Coat {
             eta,
-            dist: AnisoGgx::new(alpha, alpha),
+            dist: Ggx::anisotropic(alpha, alpha),
         },
         base: Base::Diffuse {
             reflectance: Vec3::splat(r),

@@ -7,6 +7,7 @@
 //! normal flipped to the side the ray arrived from, so `wo.z > 0` always and no `abs()` is taken.
 //! Transmissive BSDFs keep the geometric orientation: `wo.z < 0` means the ray arrives from inside.
 
+pub use super::bxdf::{BsdfSample, TransportMode};
 use super::bxdf::{
     Conductor, Dielectric, Diffuse, DiffuseTransmission, GltfTransmission, Layered,
     MetallicRoughness, Mirror, ThinDielectric,
@@ -29,38 +30,6 @@ pub enum Bsdf {
     /// The transmissive component of a glTF material under clearcoat, sheen, anisotropy or
     /// iridescence (thick or thin-walled).
     GltfTransmission(GltfTransmission),
-}
-
-#[derive(Clone, Copy, Debug)]
-pub struct BsdfSample {
-    /// Incident direction in the local frame.
-    pub wi: Vec3,
-    /// BSDF value f(wo, wi) (no cosine).
-    pub f: Vec3,
-    /// Solid-angle pdf; for a specular (Dirac) lobe the discrete probability of the lobe.
-    pub pdf: f32,
-    /// True if `wi` was chosen from a Dirac delta lobe: light sampling cannot produce it.
-    pub specular: bool,
-    /// Relative IOR crossed (1 for reflection); radiance was scaled by 1/eta².
-    pub eta: f32,
-}
-
-impl BsdfSample {
-    /// A sample from a non-Dirac lobe, or `None` when its pdf is not positive (then the
-    /// direction cannot be weighted). `f` is evaluated only for a usable sample.
-    #[inline]
-    pub fn glossy(wi: Vec3, pdf: f32, eta: f32, f: impl FnOnce() -> Vec3) -> Option<BsdfSample> {
-        if !(pdf > 0.0) {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            f: f(),
-            pdf,
-            specular: false,
-            eta,
-        })
-    }
 }
 
 impl Bsdf {
@@ -229,6 +198,58 @@ impl Bsdf {
         }
     }
 
+    /// Per channel, the relative IOR η' crossed from `wo` to `wi`: 1 for reflection and for
+    /// every BSDF that does not refract (thin sheets, diffuse transmission, and the coated
+    /// layers, whose light enters and leaves through the same interface so the η'² cancel).
+    #[inline]
+    pub fn eta_crossed(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        match self {
+            Bsdf::Dielectric(b) => b.eta_crossed(wo, wi),
+            Bsdf::GltfTransmission(b) => b.eta_crossed(wo, wi),
+            Bsdf::Diffuse(_)
+            | Bsdf::MetallicRoughness(_)
+            | Bsdf::Mirror(_)
+            | Bsdf::ThinDielectric(_)
+            | Bsdf::Conductor(_)
+            | Bsdf::DiffuseTransmission(_)
+            | Bsdf::Layered(_) => Vec3::ONE,
+        }
+    }
+
+    /// f(wo, wi) for the quantity `mode` carries: [`Bsdf::eval`] for radiance, the adjoint
+    /// f*(wo, wi) = f(wi, wo) for importance — the radiance value without the 1/η'² of
+    /// refraction (Veach 1997 §5.2; pbrt-v4's BxDFs divide by η'² only in
+    /// `TransportMode::Radiance`). The pdf does not depend on the mode.
+    #[inline]
+    pub fn eval_mode(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Vec3 {
+        let f = self.eval(wo, wi);
+        match mode {
+            TransportMode::Radiance => f,
+            TransportMode::Importance => {
+                let e = self.eta_crossed(wo, wi);
+                f * e * e
+            }
+        }
+    }
+
+    /// [`Bsdf::sample`] for the quantity `mode` carries: the same direction and pdf, with the
+    /// value of [`Bsdf::eval_mode`] (for a Dirac lobe, its coefficient without the 1/η'²).
+    #[inline]
+    pub fn sample_mode(
+        &self,
+        wo: Vec3,
+        u_lobe: f32,
+        u: Vec2,
+        mode: TransportMode,
+    ) -> Option<BsdfSample> {
+        let mut s = self.sample(wo, u_lobe, u)?;
+        if mode == TransportMode::Importance {
+            let e = self.eta_crossed(wo, s.wi);
+            s.f *= e * e;
+        }
+        Some(s)
+    }
+
     /// Hemispherical albedo estimate used by the raycast `albedo` view and RR heuristics.
     pub fn albedo(&self) -> Vec3 {
         match self {
@@ -273,5 +294,158 @@ mod tests {
         ] {
             assert!(!b.is_black(), "{b:?}");
         }
+    }
+
+    /// A deterministic stream of directions: on the whole sphere, or above the surface.
+    struct Dirs(u64);
+
+    impl Dirs {
+        fn next_f32(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((self.0 >> 40) as f32) / (1u64 << 24) as f32
+        }
+
+        fn dir(&mut self, upper: bool) -> Vec3 {
+            let z = 2.0 * self.next_f32() - 1.0;
+            let z = if upper { z.abs().max(0.02) } else { z };
+            let phi = 2.0 * std::f32::consts::PI * self.next_f32();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        }
+    }
+
+    /// The adjoint that light paths use, f*(wo, wi) = f(wi, wo) (Veach 1997 §3.7.6), holds for
+    /// every reciprocal BSDF: the transmitting ones differ from their transpose in radiance by the
+    /// η'² of refraction, and `eval_mode(Importance)` restores it.
+    #[test]
+    fn importance_is_the_adjoint_of_radiance() {
+        let dispersive = Dielectric::new(1.5, 0.4, Vec3::new(0.9, 0.8, 0.7))
+            .with_dispersion(Vec3::new(1.45, 1.5, 1.6));
+        let rough_gltf = GltfTransmission::new(1.4, 0.5, Vec3::new(0.8, 0.9, 1.0), false)
+            .with_roughness(0.5, 0.4, Vec2::new(0.6, 0.8));
+        let mut gltf_dispersive = GltfTransmission::new(1.5, 0.4, Vec3::ONE, false);
+        gltf_dispersive.dispersion = Some(Vec3::new(1.45, 1.5, 1.58));
+        let cases: [(Bsdf, bool); 9] = [
+            (
+                Bsdf::Diffuse(Diffuse {
+                    albedo: Vec3::new(0.7, 0.5, 0.2),
+                }),
+                true,
+            ),
+            (
+                Bsdf::Conductor(Conductor::new(
+                    Vec3::new(0.2, 0.9, 1.1),
+                    Vec3::new(3.9, 2.4, 2.2),
+                    0.1,
+                    0.4,
+                )),
+                true,
+            ),
+            (Bsdf::dielectric(1.5, 0.5, Vec3::new(0.9, 0.8, 0.7)), false),
+            (Bsdf::dielectric(1.0 / 1.33, 0.3, Vec3::ONE), false),
+            (Bsdf::Dielectric(dispersive), false),
+            (
+                Bsdf::thin_dielectric(1.5, 0.4, Vec3::new(0.9, 0.8, 0.7)),
+                false,
+            ),
+            (
+                Bsdf::DiffuseTransmission(DiffuseTransmission {
+                    reflectance: Vec3::new(0.3, 0.4, 0.5),
+                    transmittance: Vec3::new(0.6, 0.2, 0.1),
+                }),
+                false,
+            ),
+            (Bsdf::GltfTransmission(rough_gltf), false),
+            (Bsdf::GltfTransmission(gltf_dispersive), false),
+        ];
+        let mut d = Dirs(7);
+        for (b, opaque) in cases {
+            let mut checked = 0;
+            let mut asymmetric = 0;
+            for _ in 0..4000 {
+                let (wo, wi) = (d.dir(opaque), d.dir(opaque));
+                let adjoint = b.eval_mode(wo, wi, TransportMode::Importance);
+                let transpose = b.eval_mode(wi, wo, TransportMode::Radiance);
+                let scale = adjoint.max_element().max(transpose.max_element());
+                if !(scale > 1e-4) || !scale.is_finite() {
+                    continue;
+                }
+                checked += 1;
+                assert!(
+                    (adjoint - transpose).abs().max_element() <= 2e-3 * scale,
+                    "{b:?}\nwo {wo} wi {wi}: f* {adjoint} vs f(wi, wo) {transpose}"
+                );
+                let f = b.eval(wo, wi);
+                if (f - transpose).abs().max_element() > 0.05 * scale {
+                    asymmetric += 1;
+                }
+            }
+            assert!(checked > 500, "{b:?}: only {checked} nonzero pairs");
+            // Refraction makes radiance's f asymmetric: the adjoint is not f itself there.
+            if matches!(b, Bsdf::Dielectric(_) | Bsdf::GltfTransmission(_)) {
+                assert!(asymmetric > 50, "{b:?}: {asymmetric}");
+            }
+            // Sampling carries the same value as evaluation in each mode.
+            for _ in 0..200 {
+                let wo = d.dir(opaque);
+                let (ul, u) = (d.next_f32(), Vec2::new(d.next_f32(), d.next_f32()));
+                let (Some(r), Some(i)) = (
+                    b.sample_mode(wo, ul, u, TransportMode::Radiance),
+                    b.sample_mode(wo, ul, u, TransportMode::Importance),
+                ) else {
+                    continue;
+                };
+                assert_eq!((r.wi, r.pdf), (i.wi, i.pdf));
+                let e = b.eta_crossed(wo, r.wi);
+                assert!((i.f - r.f * e * e).abs().max_element() <= 1e-5 * i.f.max_element());
+            }
+        }
+        // The smooth interface's Dirac refraction: radiance carries T/η'², importance T.
+        let glass = Bsdf::dielectric(1.5, 0.0, Vec3::ONE);
+        let wo = Vec3::new(0.3, 0.1, 0.8).normalize();
+        let r = glass.sample_mode(wo, 0.99, Vec2::ZERO, TransportMode::Radiance);
+        let i = glass.sample_mode(wo, 0.99, Vec2::ZERO, TransportMode::Importance);
+        let (r, i) = (r.unwrap(), i.unwrap());
+        assert!(r.specular && r.wi.z < 0.0 && r.eta == 1.5);
+        let t = 1.0 - crate::material::microfacet::fresnel_dielectric(wo.z, 1.5);
+        assert!((i.f.x * i.wi.z.abs() - t).abs() < 1e-5);
+        assert!((r.f.x * r.wi.z.abs() - t / 2.25).abs() < 1e-5);
+    }
+
+    /// Veach's shading-normal correction turns f·|wi·ns| into the adjoint's throughput: with
+    /// shading normals the BSDF against the geometric measure is f_s(wo, wi) = f(wo, wi)
+    /// |wi·ns| / |wi·ng|, and importance must carry f_s(wi, wo)·|wi·ng| (Veach 1997 §5.3).
+    #[test]
+    fn shading_normal_correction_gives_the_adjoint() {
+        let b = Bsdf::Diffuse(Diffuse {
+            albedo: Vec3::new(0.8, 0.6, 0.4),
+        });
+        let mut d = Dirs(3);
+        let ns = Vec3::Z;
+        let mut n = 0;
+        for _ in 0..500 {
+            let ng = (Vec3::Z + d.dir(false) * 0.4).normalize();
+            let (wo, wi) = (d.dir(true), d.dir(true));
+            if wo.dot(ng) <= 0.01 || wi.dot(ng) <= 0.01 {
+                continue;
+            }
+            n += 1;
+            let f_s = |a: Vec3, b_: Vec3| b.eval(a, b_) * (b_.dot(ns).abs() / b_.dot(ng).abs());
+            let corr = TransportMode::Importance.shading_normal_correction(wo, wi, ns, ng);
+            let carried = b.eval_mode(wo, wi, TransportMode::Importance) * wi.z.abs() * corr;
+            let adjoint = f_s(wi, wo) * wi.dot(ng).abs();
+            assert!(
+                (carried - adjoint).abs().max_element() < 1e-4,
+                "{carried} vs {adjoint}"
+            );
+            assert_eq!(
+                TransportMode::Radiance.shading_normal_correction(wo, wi, ns, ng),
+                1.0
+            );
+        }
+        assert!(n > 100);
     }
 }

@@ -11,9 +11,7 @@ use super::bxdf::{
 };
 use super::clearcoat::Clearcoat;
 use super::iridescence::Iridescence;
-use super::microfacet::{
-    AnisoGgx, Ggx, MIN_ALPHA, conductor_from_reflectance, pbrt_roughness_to_alpha,
-};
+use super::microfacet::{Ggx, MIN_ALPHA, conductor_from_reflectance, pbrt_roughness_to_alpha};
 use super::sheen::Sheen;
 use super::texture::SharedFootprint;
 use super::{Bsdf, Material, MaterialModel, RoughnessTextures, Texture, TextureRef};
@@ -74,7 +72,7 @@ impl Bsdf {
             Bsdf::Layered(Layered {
                 coat: Coat {
                     eta: p.interface_eta,
-                    dist: AnisoGgx::new(interface_alpha.x, interface_alpha.y),
+                    dist: Ggx::anisotropic(interface_alpha.x, interface_alpha.y),
                 },
                 base,
                 thickness: p.thickness,

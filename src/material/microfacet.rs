@@ -14,10 +14,35 @@ use crate::math::{PI, Vec2, Vec3};
 /// but name. Mitsuba's `principled` clamps to the same value.
 pub const MIN_ALPHA: f32 = 1e-3;
 
-/// Isotropic GGX distribution of normals with roughness α (glTF: α = roughness²).
+/// The GGX (Trowbridge–Reitz) distribution of normals with roughnesses `alpha_x` along the
+/// shading frame's tangent (x) and `alpha_y` along the bitangent (y); isotropic when the two are
+/// equal ([`Ggx::new`]). pbrt-v4's `TrowbridgeReitzDistribution` (`uroughness`/`vroughness`), glTF's
+/// roughness (α = roughness²) and `KHR_materials_anisotropy` are this distribution.
+///
+/// D(m) = 1 / (π αx αy (mx²/αx² + my²/αy² + mz²)²) (Heitz 2014 eq. 85, written without angles);
+/// Λ(w) = (√(1 + (αx² wx² + αy² wy²)/wz²) − 1)/2 (Heitz 2014 eq. 86); visible normals are sampled
+/// by stretching with (αx, αy) (Heitz 2018, listing 1). With equal α, D and Λ take their
+/// rotation-invariant forms (Walter et al. 2007 eq. 33, Heitz 2014 eq. 72): the same functions
+/// with fewer divisions, and the rounding the isotropic materials were validated with.
+///
+/// The α are kept as given (no clamping): callers test [`Ggx::effectively_smooth`] first, as
+/// pbrt-v4 does, and use a Dirac lobe in that case; evaluation raises them to [`MIN_ALPHA`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ggx {
-    pub alpha: f32,
+    pub alpha_x: f32,
+    pub alpha_y: f32,
+}
+
+/// Below this α (both axes) pbrt-v4 treats a microfacet surface as a perfect specular one
+/// (`TrowbridgeReitzDistribution::EffectivelySmooth`).
+pub const SMOOTH_ALPHA: f32 = 1e-3;
+
+/// pbrt-v4's `remaproughness` rule (`TrowbridgeReitzDistribution::RoughnessToAlpha`): the user's
+/// roughness r ∈ [0, 1] becomes α = √r; with `remaproughness false` α = r. (glTF's rule is α = r².)
+#[inline]
+pub fn pbrt_roughness_to_alpha(roughness: f32, remap: bool) -> f32 {
+    let r = roughness.max(0.0);
+    if remap { r.sqrt() } else { r }
 }
 
 #[inline]
@@ -27,33 +52,70 @@ fn tan2_theta(w: Vec3) -> f32 {
 }
 
 impl Ggx {
+    /// The isotropic distribution with roughness α.
     #[inline]
     pub fn new(alpha: f32) -> Ggx {
+        Ggx::anisotropic(alpha, alpha)
+    }
+
+    /// The distribution with α `alpha_x` along the tangent and `alpha_y` along the bitangent.
+    #[inline]
+    pub fn anisotropic(alpha_x: f32, alpha_y: f32) -> Ggx {
         Ggx {
-            alpha: alpha.max(MIN_ALPHA),
+            alpha_x: alpha_x.max(0.0),
+            alpha_y: alpha_y.max(0.0),
         }
     }
 
-    /// D(m): microfacet normal density, normalised so that ∫ D(m) cos θm dm = 1 (Walter eq. 33).
+    #[inline]
+    pub fn effectively_smooth(&self) -> bool {
+        self.alpha_x.max(self.alpha_y) < SMOOTH_ALPHA
+    }
+
+    /// Both α raised to at least [`MIN_ALPHA`], safe to evaluate.
+    #[inline]
+    fn clamped(&self) -> (f32, f32) {
+        (self.alpha_x.max(MIN_ALPHA), self.alpha_y.max(MIN_ALPHA))
+    }
+
+    /// D(m): microfacet normal density, normalised so that ∫ D(m) cos θm dm = 1.
     #[inline]
     pub fn d(&self, m: Vec3) -> f32 {
         if m.z <= 0.0 {
             return 0.0;
         }
-        let a2 = self.alpha * self.alpha;
-        let c2 = m.z * m.z;
-        let t = c2 * (a2 - 1.0) + 1.0;
-        a2 / (PI * t * t)
+        let (ax, ay) = self.clamped();
+        if ax == ay {
+            // Walter et al. 2007 eq. 33.
+            let a2 = ax * ax;
+            let c2 = m.z * m.z;
+            let t = c2 * (a2 - 1.0) + 1.0;
+            return a2 / (PI * t * t);
+        }
+        let t = (m.x / ax).powi(2) + (m.y / ay).powi(2) + m.z * m.z;
+        1.0 / (PI * ax * ay * t * t)
     }
 
-    /// Smith Λ(w) for GGX (Heitz 2014 eq. 72); symmetric in the sign of w.z.
+    /// Smith Λ(w); symmetric in the sign of w.z.
     #[inline]
     pub fn lambda(&self, w: Vec3) -> f32 {
-        let t2 = tan2_theta(w);
-        if !t2.is_finite() {
+        let (ax, ay) = self.clamped();
+        if ax == ay {
+            // Heitz 2014 eq. 72.
+            let t2 = tan2_theta(w);
+            if !t2.is_finite() {
+                return 0.0;
+            }
+            return 0.5 * ((1.0 + ax * ax * t2).sqrt() - 1.0);
+        }
+        if w.z == 0.0 {
             return 0.0;
         }
-        0.5 * ((1.0 + self.alpha * self.alpha * t2).sqrt() - 1.0)
+        let a2t2 = ((ax * w.x).powi(2) + (ay * w.y).powi(2)) / (w.z * w.z);
+        if !a2t2.is_finite() {
+            return 0.0;
+        }
+        0.5 * ((1.0 + a2t2).sqrt() - 1.0)
     }
 
     /// Smith masking G1(w).
@@ -84,9 +146,9 @@ impl Ggx {
     #[inline]
     pub fn sample_visible(&self, w: Vec3, u: Vec2) -> Vec3 {
         let w = if w.z < 0.0 { -w } else { w };
-        let a = self.alpha;
+        let (ax, ay) = self.clamped();
         // Stretch the view vector to the configuration of the unit-roughness hemisphere.
-        let vh = Vec3::new(a * w.x, a * w.y, w.z).normalize();
+        let vh = Vec3::new(ax * w.x, ay * w.y, w.z).normalize();
         let lensq = vh.x * vh.x + vh.y * vh.y;
         let t1 = if lensq > 1e-14 {
             Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt()
@@ -103,129 +165,7 @@ impl Ggx {
         p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * p2;
         let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
         // Unstretch.
-        Vec3::new(a * nh.x, a * nh.y, nh.z.max(1e-6)).normalize()
-    }
-}
-
-/// Anisotropic GGX (Trowbridge–Reitz) distribution with roughnesses `alpha_x` along the shading
-/// frame's tangent (x) and `alpha_y` along the bitangent (y). pbrt-v4's `TrowbridgeReitzDistribution`
-/// (`uroughness`/`vroughness`) and glTF's `KHR_materials_anisotropy` are this distribution; with
-/// `alpha_x == alpha_y` it equals [`Ggx`].
-///
-/// D(m) = 1 / (π αx αy (mx²/αx² + my²/αy² + mz²)²) (Heitz 2014 eq. 85, written without angles);
-/// Λ(w) = (√(1 + (αx² wx² + αy² wy²)/wz²) − 1)/2 (Heitz 2014 eq. 86); visible normals are sampled
-/// by stretching with (αx, αy) (Heitz 2018, listing 1).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AnisoGgx {
-    pub alpha_x: f32,
-    pub alpha_y: f32,
-}
-
-/// Below this α (both axes) pbrt-v4 treats a microfacet surface as a perfect specular one
-/// (`TrowbridgeReitzDistribution::EffectivelySmooth`).
-pub const SMOOTH_ALPHA: f32 = 1e-3;
-
-/// pbrt-v4's `remaproughness` rule (`TrowbridgeReitzDistribution::RoughnessToAlpha`): the user's
-/// roughness r ∈ [0, 1] becomes α = √r; with `remaproughness false` α = r. (glTF's rule is α = r².)
-#[inline]
-pub fn pbrt_roughness_to_alpha(roughness: f32, remap: bool) -> f32 {
-    let r = roughness.max(0.0);
-    if remap { r.sqrt() } else { r }
-}
-
-impl AnisoGgx {
-    /// Keeps the given α (no clamping): callers test [`AnisoGgx::effectively_smooth`] first, as
-    /// pbrt-v4 does, and use the Dirac lobe in that case.
-    #[inline]
-    pub fn new(alpha_x: f32, alpha_y: f32) -> AnisoGgx {
-        AnisoGgx {
-            alpha_x: alpha_x.max(0.0),
-            alpha_y: alpha_y.max(0.0),
-        }
-    }
-
-    #[inline]
-    pub fn effectively_smooth(&self) -> bool {
-        self.alpha_x.max(self.alpha_y) < SMOOTH_ALPHA
-    }
-
-    /// The distribution with both α raised to at least [`MIN_ALPHA`], safe to evaluate.
-    #[inline]
-    fn clamped(&self) -> (f32, f32) {
-        (self.alpha_x.max(MIN_ALPHA), self.alpha_y.max(MIN_ALPHA))
-    }
-
-    #[inline]
-    pub fn d(&self, m: Vec3) -> f32 {
-        if m.z <= 0.0 {
-            return 0.0;
-        }
-        let (ax, ay) = self.clamped();
-        let t = (m.x / ax).powi(2) + (m.y / ay).powi(2) + m.z * m.z;
-        1.0 / (PI * ax * ay * t * t)
-    }
-
-    #[inline]
-    pub fn lambda(&self, w: Vec3) -> f32 {
-        if w.z == 0.0 {
-            return 0.0;
-        }
-        let (ax, ay) = self.clamped();
-        let a2t2 = ((ax * w.x).powi(2) + (ay * w.y).powi(2)) / (w.z * w.z);
-        if !a2t2.is_finite() {
-            return 0.0;
-        }
-        0.5 * ((1.0 + a2t2).sqrt() - 1.0)
-    }
-
-    #[inline]
-    pub fn g1(&self, w: Vec3) -> f32 {
-        1.0 / (1.0 + self.lambda(w))
-    }
-
-    /// Height-correlated masking–shadowing (Heitz 2014 eq. 99).
-    #[inline]
-    pub fn g2(&self, wo: Vec3, wi: Vec3) -> f32 {
-        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
-    }
-
-    /// D_w(m) = G1(w) max(0, w·m) D(m) / |cos θw| (Heitz 2018 eq. 3); `w` below is mirrored.
-    #[inline]
-    pub fn d_visible(&self, w: Vec3, m: Vec3) -> f32 {
-        let w = if w.z < 0.0 { -w } else { w };
-        if w.z == 0.0 {
-            return 0.0;
-        }
-        self.g1(w) / w.z * self.d(m) * w.dot(m).max(0.0)
-    }
-
-    /// Samples a visible normal seen from `w` (Heitz 2018, listing 1, anisotropic stretch).
-    #[inline]
-    pub fn sample_visible(&self, w: Vec3, u: Vec2) -> Vec3 {
-        let w = if w.z < 0.0 { -w } else { w };
-        let (ax, ay) = self.clamped();
-        let vh = Vec3::new(ax * w.x, ay * w.y, w.z).normalize();
-        let lensq = vh.x * vh.x + vh.y * vh.y;
-        let t1 = if lensq > 1e-14 {
-            Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt()
-        } else {
-            Vec3::X
-        };
-        let t2 = vh.cross(t1);
-        let r = u.x.sqrt();
-        let phi = 2.0 * PI * u.y;
-        let p1 = r * phi.cos();
-        let mut p2 = r * phi.sin();
-        let s = 0.5 * (1.0 + vh.z);
-        p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * p2;
-        let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
         Vec3::new(ax * nh.x, ay * nh.y, nh.z.max(1e-6)).normalize()
-    }
-}
-
-impl From<Ggx> for AnisoGgx {
-    fn from(g: Ggx) -> AnisoGgx {
-        AnisoGgx::new(g.alpha, g.alpha)
     }
 }
 
@@ -435,14 +375,20 @@ mod tests {
 
     #[test]
     fn aniso_ggx_matches_isotropic_and_normalises() {
+        // The isotropic forms of D and Λ are the anisotropic ones at equal α: compare them with
+        // α pairs a rounding apart, which take the anisotropic branch.
         let iso = Ggx::new(0.3);
-        let an = AnisoGgx::new(0.3, 0.3);
-        for m in [Vec3::new(0.3, 0.2, 0.9).normalize(), Vec3::Z] {
+        let an = Ggx::anisotropic(0.3, 0.3f32.next_up());
+        for m in [
+            Vec3::new(0.3, 0.2, 0.9).normalize(),
+            Vec3::new(-0.7, 0.1, 0.2).normalize(),
+            Vec3::Z,
+        ] {
             assert!((iso.d(m) - an.d(m)).abs() <= 1e-4 * iso.d(m));
             assert!((iso.lambda(m) - an.lambda(m)).abs() < 1e-5);
         }
         // ∫ D(m) cos θm dω = 1 for an anisotropic pair, midpoint quadrature in (cos θ, φ).
-        let g = AnisoGgx::new(0.1, 0.5);
+        let g = Ggx::anisotropic(0.1, 0.5);
         let (nc, np) = (2000, 400);
         let mut s = 0.0f64;
         for i in 0..nc {

@@ -2,6 +2,11 @@
 //! is rebuilt from the texel, n' = normalize(T·x·s + B·y·s + N·z) with (x, y, z) = 2·texel − 1,
 //! s the normal scale, T the mesh tangent (or ∂p/∂u when the mesh has none) and
 //! B = (N × T)·w the bitangent with the tangent's handedness w.
+//!
+//! A shading normal that is not the geometric one makes the BSDF asymmetric: paths carrying
+//! importance (from the lights) correct for it with
+//! [`TransportMode::shading_normal_correction`](super::bxdf::TransportMode::shading_normal_correction)
+//! (Veach 1997 §5.3).
 
 use std::cell::Cell;
 

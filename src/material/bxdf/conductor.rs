@@ -7,8 +7,8 @@
 //! anisotropy. The material is opaque and one-sided in the frame (the integrator flips the frame to
 //! the side the ray arrives from), so `wo.z > 0` is required.
 
-use crate::material::bsdf::BsdfSample;
-use crate::material::microfacet::{AnisoGgx, fresnel_conductor, reflect};
+use super::BsdfSample;
+use crate::material::microfacet::{Ggx, fresnel_conductor, reflect};
 use crate::math::{Vec2, Vec3};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -17,8 +17,8 @@ pub struct Conductor {
     pub eta: Vec3,
     /// Imaginary part (absorption coefficient) per channel.
     pub k: Vec3,
-    /// Microfacet distribution; a Dirac mirror when [`AnisoGgx::effectively_smooth`].
-    pub dist: AnisoGgx,
+    /// Microfacet distribution; a Dirac mirror when [`Ggx::effectively_smooth`].
+    pub dist: Ggx,
 }
 
 impl Conductor {
@@ -26,7 +26,7 @@ impl Conductor {
         Conductor {
             eta,
             k,
-            dist: AnisoGgx::new(alpha_x, alpha_y),
+            dist: Ggx::anisotropic(alpha_x, alpha_y),
         }
     }
 

@@ -16,8 +16,8 @@
 //! 3 (its discrete probability is a third of the transmission's); the shared reflection carries
 //! all three with their own Fresnel terms.
 
+use super::BsdfSample;
 use super::{fresnel_reflection_sample, same_hemisphere};
-use crate::material::bsdf::BsdfSample;
 use crate::material::microfacet::{Ggx, MIN_ALPHA, fresnel_dielectric, reflect, refract};
 use crate::math::{Vec2, Vec3};
 
@@ -75,6 +75,12 @@ impl Dielectric {
     pub fn with_dispersion(mut self, iors: Vec3) -> Dielectric {
         self.dispersion = Some(iors);
         self
+    }
+
+    /// Per channel, the relative IOR crossed from `wo` to `wi` ([`super::eta_crossed`]).
+    #[inline]
+    pub fn eta_crossed(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        super::eta_crossed(self.dispersion.unwrap_or(Vec3::splat(self.eta)), wo, wi)
     }
 
     #[inline]

@@ -1,7 +1,7 @@
 //! Lambertian reflection.
 
+use super::BsdfSample;
 use super::same_hemisphere;
-use crate::material::bsdf::BsdfSample;
 use crate::math::{INV_PI, Vec2, Vec3};
 use crate::sampling::warp;
 

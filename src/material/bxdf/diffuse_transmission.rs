@@ -6,7 +6,7 @@
 //! Sampling picks reflection with probability max(R)/(max(R) + max(T)) (as pbrt-v4 does) and
 //! draws a cosine-weighted direction on the chosen side.
 
-use crate::material::bsdf::BsdfSample;
+use super::BsdfSample;
 use crate::math::{INV_PI, Vec2, Vec3};
 use crate::sampling::warp;
 

@@ -5,7 +5,7 @@
 //! or [`super::ThinDielectric`] (thin-walled), unchanged; this variant is their generalisation:
 //!
 //! * **anisotropy** (extension text: "the specular BTDF uses the same anisotropic
-//!   distribution"): the microfacet lobes, reflected and refracted, use [`AnisoGgx`] with
+//!   distribution"): the microfacet lobes, reflected and refracted, use [`Ggx`] with
 //!   α_t = mix(α, 1, s²) along the anisotropy direction, sampled by visible normals in the
 //!   rotated frame (Walter et al. 2007 for the refraction, Heitz 2018 for the sampling);
 //! * **iridescence**: the interface's Fresnel term becomes mix(F, F_thin-film, factor), RGB
@@ -40,11 +40,11 @@
 //! Sampling is one-sample MIS over coat, sheen and interface, and every continuous sample
 //! reports the whole mixture's pdf and value.
 
+use super::BsdfSample;
 use super::dielectric::half_vector;
 use super::metallic_roughness::{
     Anisotropy, coat_in_base_cosine, coat_probability, sheen_probability,
 };
-use crate::material::bsdf::BsdfSample;
 use crate::material::clearcoat::Clearcoat;
 use crate::material::iridescence::Iridescence;
 use crate::material::microfacet::{MIN_ALPHA, fresnel_dielectric, reflect, refract};
@@ -571,6 +571,17 @@ impl GltfTransmission {
         BsdfSample::glossy(wi, pdf, self.relative_eta(wo, wi), || {
             self.eval_canonical(wo, wi)
         })
+    }
+
+    /// Per channel, the relative IOR crossed from `wo` to `wi`: as [`Self::relative_eta`], with
+    /// each channel's own IOR under dispersion.
+    #[inline]
+    pub fn eta_crossed(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        if self.relative_eta(wo, wi) == 1.0 {
+            Vec3::ONE
+        } else {
+            super::eta_crossed(self.dispersion.unwrap_or(Vec3::splat(self.eta)), wo, wi)
+        }
     }
 
     /// The relative IOR crossed from `wo` to `wi` (1 for reflection and for a thin sheet; the

@@ -19,9 +19,9 @@
 //! opaque materials pbrt-v4 builds from it (`TwoSided` coat on top, base at the bottom): light that
 //! would be transmitted through the base does not exist, so only reflection is modelled.
 
+use super::BsdfSample;
 use super::conductor::Conductor;
-use crate::material::bsdf::BsdfSample;
-use crate::material::microfacet::{AnisoGgx, fresnel_dielectric, reflect, refract};
+use crate::material::microfacet::{Ggx, fresnel_dielectric, reflect, refract};
 use crate::math::{Frame, INV_PI, PI, Vec2, Vec3};
 use crate::sampling::rng::{Pcg32, hash_words};
 use crate::sampling::warp;
@@ -30,7 +30,7 @@ use crate::sampling::warp;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Coat {
     pub eta: f32,
-    pub dist: AnisoGgx,
+    pub dist: Ggx,
 }
 
 /// The layer under the coat.
@@ -705,7 +705,7 @@ mod tests {
         Layered {
             coat: Coat {
                 eta: 1.5,
-                dist: AnisoGgx::new(alpha, alpha),
+                dist: Ggx::anisotropic(alpha, alpha),
             },
             base: Base::Diffuse {
                 reflectance: Vec3::splat(0.8),

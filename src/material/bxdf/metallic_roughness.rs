@@ -3,7 +3,7 @@
 //!
 //! * `KHR_materials_clearcoat` ([`Clearcoat`], the top layer) and `KHR_materials_sheen`
 //!   ([`Sheen`], under the coat), both layered by albedo scaling;
-//! * `KHR_materials_anisotropy`: the specular lobes use [`AnisoGgx`] with α_t = mix(α, 1, s²)
+//! * `KHR_materials_anisotropy`: the specular lobes use [`Ggx`] with α_t = mix(α, 1, s²)
 //!   along the anisotropy direction and α_b = α across it (extension text), sampled by visible
 //!   normals in the rotated frame;
 //! * `KHR_materials_iridescence`: the specular Fresnel terms become
@@ -19,10 +19,10 @@
 //! transmission) and every sample reports the whole mixture's pdf and value, so each lobe can
 //! produce any direction consistently.
 
-use crate::material::bsdf::BsdfSample;
+use super::BsdfSample;
 use crate::material::clearcoat::Clearcoat;
 use crate::material::iridescence::Iridescence;
-use crate::material::microfacet::{AnisoGgx, Ggx, reflect, schlick};
+use crate::material::microfacet::{Ggx, reflect, schlick};
 use crate::material::sheen::Sheen;
 use crate::math::{INV_PI, Vec2, Vec3, luminance};
 use crate::sampling::warp;
@@ -32,7 +32,7 @@ use crate::sampling::warp;
 /// shading frame's xy plane.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Anisotropy {
-    pub dist: AnisoGgx,
+    pub dist: Ggx,
     pub dir: Vec2,
 }
 
@@ -45,7 +45,7 @@ impl Anisotropy {
         let at = a + (1.0 - a) * s * s;
         let d = dir.normalize_or_zero();
         Anisotropy {
-            dist: AnisoGgx::new(at, a),
+            dist: Ggx::anisotropic(at, a),
             dir: if d == Vec2::ZERO { Vec2::X } else { d },
         }
     }

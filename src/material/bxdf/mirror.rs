@@ -1,6 +1,6 @@
 //! A perfect mirror.
 
-use crate::material::bsdf::BsdfSample;
+use super::BsdfSample;
 use crate::math::Vec3;
 
 /// Perfect mirror with a tint: a single Dirac lobe, so `eval` and `pdf` are zero for every pair

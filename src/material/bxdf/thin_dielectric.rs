@@ -1,7 +1,7 @@
 //! An infinitely thin dielectric sheet (glTF transmission without a volume).
 
+use super::BsdfSample;
 use super::fresnel_reflection_sample;
-use crate::material::bsdf::BsdfSample;
 use crate::material::microfacet::{Ggx, MIN_ALPHA, fresnel_dielectric, reflect};
 use crate::math::{Vec2, Vec3};
 
