@@ -453,7 +453,7 @@ def bpy_manylight(bpy):
 
     Emitters that overlap (seen along the surface normal) never share a plane: each stands off its
     wall by its own level, 0.005 + 0.005 k, the least level no overlapping emitter placed before it
-    took (greedy colouring of the bounding circles). Until session 14 all of them stood 0.005 off,
+    took (greedy colouring of the bounding circles). Earlier versions stood all of them 0.005 off,
     coplanar and often overlapping, so the scene had no single right image: a camera or BSDF ray
     sees the union of stacked emitters, but next-event estimation summed them in Trayecto and
     Mitsuba (a shadow ray ends a relative 1e-4 or 9e-4 short of its target, so a coplanar emitter
@@ -495,7 +495,7 @@ def bpy_manylight(bpy):
             off = 0.005 + 0.005 * level
             for du, dv in corners:
                 if on_ceiling:   # below the ceiling, facing down (-y): the corners run clockwise
-                    # seen from below. (Until session 12 they ran the other way, so the ceiling's
+                    # seen from below. (Earlier versions ran the other way, so the ceiling's
                     # half of the emitters faced the ceiling and lit the room only through it,
                     # for every renderer alike.)
                     verts.append((cu + du, 1.0 - off, cv + dv))
@@ -653,7 +653,7 @@ def worker_prepare(args):
             # Flat-shaded objects (the boxes) must be shaded with their face normals, and a
             # material without backface culling is two-sided (glTF doubleSided, Cycles): Mitsuba
             # needs both said explicitly (its PLY shapes interpolate the exported vertex normals,
-            # its BSDFs are one-sided). Before session 12 it rendered the boxes with smeared
+            # its BSDFs are one-sided). Without that it rendered the boxes with smeared
             # normals and black inward-wound faces (textured: local differences up to 60 %).
             "smooth": any(poly.use_smooth for poly in ob.data.polygons),
             "double_sided": not ob.active_material.use_backface_culling,
@@ -683,8 +683,8 @@ def mitsuba_scene_dict(mi, scene, res, sampler):
         d = mi.cornell_box()
     else:
         # Its files are named relative to the scene's directory, so that a copy of bench/out
-        # (another checkout's) renders its own export. Until session 14 they were absolute: a
-        # copied scene.json made Mitsuba render the original directory's meshes.
+        # (another checkout's) renders its own export. With absolute names a copied scene.json
+        # made Mitsuba render the original directory's meshes.
         sdir = os.path.join(OUT, scene)
         desc = json.load(open(os.path.join(sdir, "scene.json")))
         m = desc["camera"]["matrix"]
@@ -766,8 +766,8 @@ def worker_mitsuba(args):
             n = min(chunk, spp - done)
             if variant == "llvm_ad_rgb" and not (job.get("reference") or job.get("untimed")) and n not in warmed:
                 # Warm-up: compile the kernels once per sample count (the seed is not baked into
-                # them, so later chunks and repetitions of the same count reuse them; until session
-                # 11 every chunk was rendered twice, which tripled a 256²/256-spp point's cost).
+                # them, so later chunks and repetitions of the same count reuse them; rendering
+                # every chunk twice instead tripled a 256²/256-spp point's cost).
                 img = mi.render(scene, spp=n, seed=seed + 7919)
                 dr.eval(img)
                 dr.sync_thread()
@@ -1177,8 +1177,8 @@ def ref_fingerprint(scene, kind, args):
     """What a cached reference was rendered from: the renderer (Trayecto's and pbrt-v4's binary
     bytes, Mitsuba's and bpy's versions) and the scene's input files. A reference is reused only
     when this matches: a reference from an older Trayecto binary or an older export of the scene
-    would put the difference between the two into every error (before session 11 any cached
-    reference of the same size and spp was reused)."""
+    would put the difference between the two into every error (reusing any cached reference of
+    the same size and spp did that)."""
     import hashlib
     parts = [kind]
     if kind == "trayecto":
@@ -1229,7 +1229,7 @@ def combine_reference_halves(a, b, n_a, n_b):
 
 def reference_regions(a_halves, n_a, b_halves, n_b, block=8, min_rel=0.05, min_z=6.0):
     """Compares two renderers' references block by block, beyond their noise: the image means can
-    agree while regions differ (session 12: Mitsuba's translation of the bpy scenes smeared vertex
+    agree while regions differ (this found Mitsuba's translation of the bpy scenes smearing vertex
     normals over flat boxes and left inward faces black; textured's 16×16 blocks differed by up to
     60 % with the means within 2 %). Each reference comes as its two independent halves (n_a, n_b
     spp per half), so a block mean's variance is estimated per pixel from the halves' difference,
@@ -1333,7 +1333,7 @@ def rel_mse(x, ref):
 
 
 # Bounds of the error-vs-spp slope used to extrapolate outside a ladder (see time_to_error): Monte
-# Carlo gives -1; the quick ladders of session 11 (cornell, textured, veach, highpoly; Trayecto and
+# Carlo gives -1; the quick ladders (cornell, textured, veach, highpoly; Trayecto and
 # Mitsuba llvm at its best sampler) measured -0.97 to -1.16 per segment. A firefly-ridden ladder
 # point (Mitsuba's 4-spp envlit: -2.5; its 4-spp fog images have relMSE 1e8) must not set it.
 SLOPE_BOUNDS = (-1.5, -0.75)
@@ -1346,8 +1346,7 @@ def time_to_error(points, target):
     the renderer's own: error ∝ spp^s, s the log-log slope of its two ladder points nearest the
     target (clamped to SLOPE_BOUNDS; -1 with a single point), and time affine in spp with the
     marginal cost of that segment (a render's fixed cost, e.g. thread start-up or a JIT's kernel
-    launch, is not multiplied). Until session 11 the extrapolation assumed time ∝ 1/error from the
-    end point, which charged the fixed cost again for every doubling and ignored a sampler whose
+    launch, is not multiplied). Assuming time ∝ 1/error from the end point instead charged the fixed cost again for every doubling and ignored a sampler whose
     error falls faster than 1/spp: both overstated a noisier peer's time, in Trayecto's favour."""
     pts = sorted((n, e, t) for n, e, t in points if n > 0 and e > 0 and t > 0)
     if not pts:
@@ -1741,12 +1740,12 @@ def tte_ratios(res, base, target):
 
 def summary(results, scenes, renderers, rounds):
     """Per scene: the best peer configuration (least time to Trayecto's top-of-ladder error) and
-    whether Trayecto's time to that error is at most half of it (issue #23's goal). A peer that
+    whether Trayecto's time to that error is at most half of it (the speed goal). A peer that
     applies to the scene but failed or was killed is listed, and then the goal can read "no" but
     never "yes": the missing peer might have been the best one."""
     L = ["## Summary: Trayecto's time to equal error against the best peer configuration", "",
          "Ratio = the best peer's time to reach Trayecto's error at the top of the ladder / Trayecto's time "
-         "(≥ 2 is issue #23's goal; below 1 the peer is faster). Brackets: lowest and highest round, "
+         "(≥ 2, twice the best peer's speed, is the goal; below 1 the peer is faster). Brackets: lowest and highest round, "
          "each round's times against Trayecto's of the same round. '~': the peer's time is extrapolated "
          "outside its ladder (see the note at the end). 'Trayecto must get faster by' = 2 / ratio. "
          "A peer that failed or was killed makes the goal 'undecided', never 'yes'.", "",
@@ -1954,8 +1953,8 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
     opts += (f" --error-seeds {args.error_seeds}"
              if args.error_seeds != max(args.rounds, 8 if args.quick else 6) else "")
     opts += f" --time-limit {args.time_limit:g}" if args.time_limit != (300.0 if args.quick else 1800.0) else ""
-    # Every other option that changes what is measured (until session 11 these were left out, so
-    # the printed command did not reproduce e.g. a run with fewer Mitsuba samplers).
+    # Every other option that changes what is measured, so that the printed command reproduces
+    # e.g. a run with fewer Mitsuba samplers.
     opts += f" --mitsuba-samplers {','.join(args.mitsuba_samplers)}" if args.mitsuba_samplers != MITSUBA_SAMPLERS else ""
     opts += f" --pbrt-samplers {','.join(args.pbrt_samplers)}" if args.pbrt_samplers != PBRT_SAMPLERS else ""
     opts += f" --threads {args.threads}" if args.threads != (os.cpu_count() or 1) else ""
@@ -2064,7 +2063,7 @@ def report(results, scenes, renderers, ladder, ref_spp, args, loads, elapsed):
     w("Ratios are the renderer's time over Trayecto's (above 1: Trayecto is faster). '~': extrapolated "
       "outside the renderer's ladder with its own error-vs-spp slope between its two ladder points nearest "
       f"the target (clamped to {SLOPE_BOUNDS[0]:g}…{SLOPE_BOUNDS[1]:g}) and its time affine in spp with that "
-      "segment's marginal cost per sample (before session 11: error ∝ 1/time, which favoured Trayecto).")
+      "segment's marginal cost per sample (error ∝ 1/time from the end point would favour Trayecto).")
     return "\n".join(L) + "\n"
 
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Time x error of two Trayecto binaries on the models lit by the default uniform environment.
 
-Why: session 13 samples the uniform environment (`Light::Uniform`, the model-viewer default
+Why: Trayecto samples the uniform environment (`Light::Uniform`, the model-viewer default
 light of glTF models without lamps) cosine-weighted over the hemisphere of an opaque vertex's
 geometric normal instead of uniformly over the sphere (src/light/mod.rs `sample_uniform_env`).
 That changes the noise, not the expected image, so it must be judged by error at equal time.
@@ -33,7 +33,7 @@ SCENES = {
     "toycar": os.path.join(SHARED, "gltf-ext", "ToyCar", "glTF", "ToyCar.gltf"),
     "helmet": os.path.join(SHARED, "gltf", "DamagedHelmet", "glTF", "DamagedHelmet.gltf"),
     # compare.py's many-light scenes (exported there into bench/out/), for the light BVH's width
-    # (session 14, BENCHMARKS "Session 14: light choice").
+    # (BENCHMARKS.md, "Tried, did not pay": the eight-way light tree).
     "veach": os.path.join(HERE, "out", "veach", "veach.glb"),
     "manylight": os.path.join(HERE, "out", "manylight", "manylight.glb"),
 }

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Benchmark of the Dask farm driver on one machine (issue #20).
+"""Benchmark of the Dask farm driver on one machine (docs/src/farm.md).
 
 1. Overhead: the same frame (same spp) rendered by one `trayecto render` process using every core,
    and by `trayecto-farm` on a LocalCluster of W single-threaded workers (W = cores) in K chunks.

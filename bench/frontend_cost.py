@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Where a ray's time goes beyond its instruction count: the instruction cache, branch prediction
 and data misses (callgrind's simulations), and the process CPU time that decides (interleaved).
-Issue #23's throughput bar compares ToyCar and DamagedHelmet with the built-in Cornell box.
+The throughput bar (BENCHMARKS.md, "Rays per second on real models") compares ToyCar and
+DamagedHelmet with the built-in Cornell box.
 
     python3 bench/frontend_cost.py sim [--bins A B ...] [--scenes cornell ToyCar ...]
     python3 bench/frontend_cost.py cpu [--bins A B ...] [--rounds 6] [--spp 8]

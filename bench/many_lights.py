@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Light samplers compared by time x relMSE (issue #23): each scene is rendered with
+"""Light samplers compared by time x relMSE: each scene is rendered with
 `--light-sampler power` and `--light-sampler bvh` at the same spp, against a reference rendered
 with the light BVH at `--ref-factor` times the spp (another seed). Time is the CLI's `rendered`
 phase. Needs `pip install mitsuba numpy` (Mitsuba only reads the EXR files).

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Re-scores a bench/compare.py run made before the reference-noise correction (session 11).
+"""Re-scores a bench/compare.py run made before the reference-noise correction
+(BENCHMARKS.md, "Method": each reference's own noise is subtracted).
 
 Such a run scored every error against a single reference A (seed 100000), so each error carries
 A's own noise Var(A), and Var(A) differs between renderers (Mitsuba's reference uses the

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Issue #23's time per sample on compare.py's small scenes, as compare.py runs Trayecto: the
+"""Time per sample on compare.py's small scenes, as compare.py runs Trayecto: the
 built-in Cornell box and the exported textured, veach and envlit scenes
 (bench/out/<scene>/<scene>.glb, written by `python3 bench/compare.py --quick --scenes
 textured,veach,envlit`; envlit is lit by `--env bench/out/envlit/env_for_trayecto.exr`), default
@@ -94,7 +94,7 @@ def callgrind(args, tmp):
                     per_fn[m.group(3).strip()] += int(m.group(1).replace(",", ""))
             if total == 0:
                 # The toggle matched no call: LLVM inlined the render closure in this build (it
-                # did on one branch of session 12). Say so instead of dividing nothing.
+                # has happened in some builds). Say so instead of dividing nothing.
                 sys.exit(f"callgrind collected nothing for {b}: `trayecto::render::render_range_aovs::*` "
                          "is inlined in this build; measure with --toggle-collect="
                          "'trayecto::integrator::path::radiance' as bench/ray_cost.py does")

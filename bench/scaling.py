@@ -9,7 +9,7 @@ BVH: the four resolutions of the Stanford dragon in the npm package stanford-dra
 each loaded by the CLI at 1 spp on a 4×4 image; the CLI's phase report gives the load and the
 "acceleration structure built" times. The build is O(n log n) when time / (n log2 n) stays flat.
 
-Threads (issue #23): each case (scene:size:spp; default the built-in Cornell box 128² 64 spp and
+Threads: each case (scene:size:spp; default the built-in Cornell box 128² 64 spp and
 512² 4 spp, ray_cost's setting, and ToyCar 256² 16 spp) is rendered by every binary at --threads 1
 and 2, all interleaved, the order rotating each round. On this VM the wall ratio alone cannot
 tell our idle time from the machine's (its speed drifts ±15 % within a minute, and other jobs
@@ -22,7 +22,7 @@ the CLI's "rendered" phase time:
                From an extra 2-thread render per round and binary whose workers are polled
                every 2 ms; the timed renders above are not polled (the poller would share
                the cores with the two workers and bias the ratio).
-               Needs workers named `render-N` (this session's binaries); n/a otherwise.
+               Needs workers named `render-N` (binaries with pipelined passes); n/a otherwise.
                Trust it when util 1 is near 1: on a saturated machine rayon's idle workers
                spin and yield before sleeping, stay runnable, and their idle counts as busy;
   util 2       render CPU (user+sys) at 2 threads / (2 × render wall): below 1 is idle time,

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Texture filtering (issue #23): error per sample and time x error of `--texture-filter
+"""Texture filtering: error per sample and time x error of `--texture-filter
 trilinear` against `none` on a textured model (DamagedHelmet: 2048^2 albedo, normal, emissive and
 metal-roughness maps, so a small image minifies them strongly).
 

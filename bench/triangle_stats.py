@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Triangle shape statistics of a glTF file (issue #23: why does ToyCar traverse slowly?).
+"""Triangle shape statistics of a glTF file (why does ToyCar traverse slowly?).
 
     python3 bench/triangle_stats.py FILE.gltf   (needs numpy; glTF with an external .bin)
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Renders the same scenes with two trayecto binaries, to EXR, and compares the outputs byte for
 # byte: exits non-zero naming every case that differs or fails. Used to show that a refactor
-# (issue #15) leaves the images bit-identical.
+# leaves the images bit-identical.
 #
 #   scripts/check-identical.sh BEFORE_BIN AFTER_BIN
 #

@@ -2,7 +2,7 @@
 # Browser end-to-end test of the web UI (`trayecto serve`): installs Debian's chromium (if missing)
 # and playwright-core (from e2e/package-lock.json), builds the release binary, starts the server on
 # a free port with a temporary output folder, and runs e2e/webui.test.mjs with node's test runner.
-# WEBUI_SCREENSHOT=docs/viewport.png also takes the README's screenshot (the viewport mid-orbit).
+# WEBUI_SCREENSHOT=docs/viewport.png also takes the screenshot the README shows (the viewport mid-orbit).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -54,7 +54,7 @@ mkdir -p "$tmp/scenes"
 cp ../shared/scenes/hdr/studio_small_03_1k.hdr "$tmp/scenes/"
 # A glTF quad with material variants (KHR_materials_variants) for the variant picker.
 cp scenes/gltf-files/quad_variants.gltf "$tmp/scenes/"
-# A pbrt-v4 scene with an orthographic camera (issue #16: the viewport keeps its projection).
+# A pbrt-v4 scene with an orthographic camera (the viewport keeps its projection).
 cp scenes/pbrt/orthographic.pbrt "$tmp/scenes/"
 "$bin" serve --port 0 --max-jobs 1 --scenes "$tmp/scenes" --output "$tmp/out" >"$tmp/server.log" 2>&1 &
 pid=$!

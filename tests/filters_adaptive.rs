@@ -581,7 +581,7 @@ fn adaptive_render_writes_sample_and_variance_layers() {
 
 /// **Benchmark, not a test** (ignored; it asserts nothing and takes minutes): adaptive vs uniform
 /// sampling, samples needed for a set relative error on a scene with easy and hard regions.
-/// Prints the table recorded in BENCHMARKS.md:
+/// Prints the table summarised in BENCHMARKS.md ("Tried, did not pay"):
 ///
 ///   ADAPTIVE_BENCH="scenes/mitsuba/glass.toml 48 1024" \
 ///     cargo test --test filters_adaptive -- --ignored --nocapture adaptive_benchmark

@@ -188,7 +188,7 @@ fn receivers(rng: &mut Pcg32) -> Vec<(Vec3, Vec3)> {
 #[test]
 fn auto_uses_the_bvh_for_many_lights_and_power_for_few() {
     let scene = many_lights(true);
-    // `auto`'s tree is the eight-way one (BENCHMARKS.md, "Session 15: defaults"); `bvh` is
+    // `auto`'s tree is the eight-way one (BENCHMARKS.md, "Tried, did not pay"); `bvh` is
     // still the four-way tree.
     assert_eq!(
         build(&scene, LightSamplerKind::Auto).lights.sampler_kind(),

@@ -100,7 +100,8 @@ fn heterogeneous_cloud_matches_mitsuba() {
 /// importer and volumetric path tracer against pbrt-v4's `volpath`. pbrt-v4 is spectral: its RGB
 /// σa/σs become smooth spectra and transmittance is exp(−σ(λ)·t) per wavelength, which for a
 /// strongly chromatic absorber is not the exp of the RGB σ; `tol` is that measured model
-/// difference (see README "pbrt-v4 import"), the 4 × 4 block check catches a misplaced medium.
+/// difference (docs/src/scene-formats.md, "pbrt-v4"), the 4 × 4 block check catches a misplaced
+/// medium.
 /// The pbrt-v4 reference must also agree with the Mitsuba one to `tol` (so the translated file is
 /// the same scene: a medium made before WorldBegin, in camera space, once hid the cloud from both
 /// renderers alike).

@@ -5,7 +5,8 @@
 //! image means agree within 2%, and the RMSE against the reference falls from 4 to 64 spp as
 //! Monte Carlo noise does (≈ 4×; a renderer with a bias comparable to its 64-spp noise fails the
 //! ≥ 2.5× bound). Where the models differ on purpose (the spot light's soft edge), the difference
-//! is asserted to stay at its measured, documented size (README, "Materials and lights").
+//! is asserted to stay at its measured, documented size (docs/src/correctness.md, "Agreement with
+//! Mitsuba 3").
 
 mod common;
 use common::*;
@@ -77,10 +78,11 @@ fn rmse_masked(img: &Image, reference: &Image, mask: &[bool]) -> f64 {
 /// Pixels entirely covered by geometry (all 4 × 4 sub-pixel rays of the raycast depth view hit).
 ///
 /// Where the environment map is seen directly, the two renderers differ by design: Mitsuba's
-/// `envmap` puts texel rows at v = j/(h − 1), Trayecto at texel centres (j + ½)/h (README). Along
-/// the studio lamps' edges, ~500 times brighter than the rest, that half-texel shift is a per-pixel
-/// difference that no number of samples removes, so the convergence check leaves those pixels
-/// (and the silhouettes, partly background) out; the mean check keeps every pixel.
+/// `envmap` puts texel rows at v = j/(h − 1), Trayecto at texel centres (j + ½)/h
+/// (docs/src/correctness.md). Along the studio lamps' edges, ~500 times brighter than the rest,
+/// that half-texel shift is a per-pixel difference that no number of samples removes, so the
+/// convergence check leaves those pixels (and the silhouettes, partly background) out; the mean
+/// check keeps every pixel.
 fn covered_pixels(scene: &Scene, width: u32, height: u32) -> Vec<bool> {
     let world = World::build(scene.clone(), &WorldOptions::default()).expect("scene builds");
     coverage(&world, width, height, &settings(width, height, 1))
@@ -185,10 +187,11 @@ fn environment_map_matches_mitsuba() {
     agrees_and_converges("envmap", 64, 64);
 }
 
-/// Measured difference in the soft-edged spot (inner 10°, outer 30°): glTF's falloff, the square
-/// of a linear ramp in cos θ, gives less light between the cones than Mitsuba's ramp linear in θ.
-/// Trayecto / Mitsuba image means (4096 spp): R 0.804, G 0.821, B 0.850 (README). The test
-/// holds the difference at that size (±0.02), and checks that the rendering still converges.
+/// Measured difference in the soft-edged spot (inner 10°, outer 30°): glTF's falloff, the square of
+/// a linear ramp in cos θ, gives less light between the cones than Mitsuba's ramp linear in θ.
+/// Trayecto / Mitsuba image means (4096 spp): R 0.804, G 0.821, B 0.850 (docs/src/correctness.md).
+/// The test holds the difference at that size (±0.02), and checks that the rendering still
+/// converges.
 #[test]
 fn soft_spot_light_differs_from_mitsuba_by_the_documented_falloff() {
     let (high, reference, e_low, e_high) = render_pair("spot_soft", 64, 64);

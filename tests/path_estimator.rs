@@ -169,7 +169,7 @@ fn furnace_box_returns_le_over_one_minus_albedo() {
     // 96 spp (was 48): with roulette from bounce 0 at albedo 0.8 deep bounces carry the image,
     // and at 48 spp the precision guard (4 standard errors ≤ 1.5 %) read 1.22 % with the
     // stratified sampler and 1.56 % with the padded one, 0.82 % and 1.09 % at 96 spp
-    // (BENCHMARKS.md, "Session 15: defaults"): the mean is now checked to within ±0.8–1.1 %.
+    // (BENCHMARKS.md, "Tried, did not pay"): the mean is now checked to within ±0.8–1.1 %.
     for (name, p) in configs().into_iter().filter(|(n, _)| *n != "nee, no mis") {
         let img = render_scene(&scene, &with_path(base(24, 96), |s| *s = p));
         assert_uniform(&img, 2.5, 0.015, name);

@@ -596,14 +596,14 @@ fn region_trimmed_ratio(
 /// - the checker-rough silver floor and the rough glass panel, where Trayecto and pbrt-v4 agree,
 ///   within `TIGHT` of pbrt-v4;
 /// - the two coated walls against pbrt-v4 *times its known overcount*: pbrt-v4's layered BSDF
-///   weighs a walk leaving through a rough coat with an MIS weight that sums to more than one
-///   with the competing connection's (README, "What the roughness scene's worst blocks are";
-///   `layered.rs`, `pbrt_v4_exit_weights_overcount_light_leaving_a_rough_coat`), so Trayecto,
+///   weighs a walk leaving through a rough coat with an MIS weight that sums to more than one with
+///   the competing connection's (docs/src/correctness.md, "What the roughness scene's worst blocks
+///   are"; `layered.rs`, `pbrt_v4_exit_weights_overcount_light_leaving_a_rough_coat`), so Trayecto,
 ///   which weighs them correctly, is darker there. `COATED` holds the ratios measured converged
 ///   (Trayecto at 2048 spp, seeds 1 and 2, against the 1024-spp reference: 0.917–0.918 and
 ///   0.925–0.926), within `COATED_TOL`: a coated BSDF 5 % off moves its wall's ratio by ~0.046.
 ///
-/// Measured (BENCHMARKS.md, "Session 16: an honest roughness test"): at this test's 128 spp,
+/// Measured (docs/src/correctness.md, "pbrt-v4 and the Bitterli scenes"): at this test's 128 spp,
 /// seeds 1–8, the ratios are within 0.025 of 1 on the floor and 0.027 on the glass (converged
 /// 0.986 and 0.985: both reflect or show the coated walls), and within 0.010 of `COATED`.
 /// Without the textures (each surface at its mean roughness, the old behaviour; 16 spp suffice)

@@ -138,7 +138,7 @@ fn rmse(a: &[Vec3], b: &[Vec3]) -> f32 {
 /// At 1 spp the unfiltered board aliases (each pixel reads one random texel of the many it
 /// covers); the trilinear one reads their average. Against the box-filtered pixel integral of
 /// the unfiltered texture (256 spp), the filtered error must be well under half the unfiltered
-/// one, averaged over seeds. Measured: see BENCHMARKS.md ("Texture filtering"). Fails with the
+/// one, averaged over seeds. Measured: see BENCHMARKS.md ("Other measurements"). Fails with the
 /// footprint disabled (ratio ≈ 1) and with a 16× too small footprint.
 #[test]
 fn receding_checkerboard_at_one_spp_has_much_lower_error_filtered() {

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Trayecto vs Blender Cycles on the glTF material-extension sample models (issue #17).
+"""Trayecto vs Blender Cycles on the glTF material-extension sample models
+(docs/src/correctness.md, "glTF extensions against Cycles").
 
 Each model of ../shared/scenes/gltf-ext is given one camera (a glTF camera node looking at the
 model's bounding box from a fixed direction, written into a copy of the .gltf next to copies of
@@ -14,8 +15,8 @@ Cycles runs from the `bpy` wheel (Blender as a Python module; Python 3.11). Inst
     target/bpy-venv/bin/python scripts/references/cycles_gltf_ext.py [--spp 64] [--size 96]
 
 Trayecto is run as `target/release/trayecto` (built if missing). Blender's glTF importer maps
-the KHR extensions onto its Principled BSDF, whose lobes are not the glTF ones (see README,
-"glTF extensions vs Cycles"): the numbers measure how far the two material models are apart,
+the KHR extensions onto its Principled BSDF, whose lobes are not the glTF ones (see
+docs/src/correctness.md, "glTF extensions against Cycles"): the numbers measure how far the two material models are apart,
 not only errors.
 """
 

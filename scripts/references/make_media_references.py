@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Mitsuba 3 references for the participating-media scenes (issue #18, tests/media_render.rs).
+"""Mitsuba 3 references for the participating-media scenes (tests/media_render.rs).
 
 Usage (from the repository root):
 
@@ -45,7 +45,7 @@ from make_material_references import bsdf, look_at, mat4, rgb  # noqa: E402
 SCENE_DIR = os.path.join(ROOT, "scenes", "media")
 DEFAULT_OUT = os.path.join(ROOT, "tests", "references")
 SCENES = {"fog_cornell": (64, 64), "absorbing_glass": (64, 64), "cloud": (64, 64)}
-# Committed sample counts (see README "Participating media" for the timings).
+# Committed sample counts (docs/src/correctness.md, "Participating media against Mitsuba 3", has the timings).
 DEFAULT_SPP = {"fog_cornell": 2048, "absorbing_glass": 4096, "cloud": 2048}
 
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes scenes/pbrt/media/emissive_grid.pbrt: pbrt-v4 `uniformgrid` media that emit (issue #18).
+"""Writes scenes/pbrt/media/emissive_grid.pbrt: pbrt-v4 `uniformgrid` media that emit.
 Left box: a `temperature` grid (800-2600 K ramp, blackbody normalised to peak 1) weighted by an
 `Lescale` grid, `temperaturescale`/`temperatureoffset` exercised. Right box: `rgb Le` weighted by
 an `Lescale` grid. Grey sigma (so pbrt-v4's spectral rendering and Trayecto's RGB agree), black

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes the participating-media test scenes (scenes/media/NAME.toml, issue #18) as pbrt-v4 files,
+"""Writes the participating-media test scenes (scenes/media/NAME.toml) as pbrt-v4 files,
 scenes/pbrt/media/NAME.pbrt, translated from the TOML files so the two cannot drift apart; then
 `scripts/pbrt_references.sh SPP media/NAME` renders pbrt-v4's references (tests/media_render.rs
 compares Trayecto's render of the pbrt file with them).

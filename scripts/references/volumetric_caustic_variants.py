@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Variants of Bitterli's volumetric-caustic for #18's comparison with pbrt-v4 (README, "pbrt-v4
+"""Variants of Bitterli's volumetric-caustic for the comparison with pbrt-v4 (docs/src/correctness.md, "pbrt-v4
 import": volumetric-caustic against pbrt-v4), and optionally their renders by both renderers.
 
 Writes into OUT: base (the file at SIZE²), nosphere (the glass sphere removed), iface (the sphere

@@ -699,8 +699,9 @@ pub fn main() -> ExitCode {
     }
 }
 
-/// The README's options tables, generated from clap's own definitions (`scripts/readme-options.sh`
-/// rewrites them; the test below fails when they drift).
+/// The guide's options tables (docs/src/rendering.md, docs/src/web-ui.md), generated from clap's own
+/// definitions (`scripts/readme-options.sh` rewrites them; the test below fails when they drift).
+/// The README leads with the same commands as `--help`.
 #[cfg(test)]
 mod readme {
     use super::Cli;
@@ -760,47 +761,54 @@ mod readme {
         Some((b, e))
     }
 
-    const SUBCOMMANDS: [&str; 2] = ["render", "serve"];
+    /// Each subcommand's table and the guide chapter that holds it.
+    const TABLES: [(&str, &str); 2] = [
+        ("render", "docs/src/rendering.md"),
+        ("serve", "docs/src/web-ui.md"),
+    ];
+
+    fn chapter(file: &str) -> (std::path::PathBuf, String) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
+        let text =
+            std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        (path, text)
+    }
 
     #[test]
     fn readme_options_tables_match_clap() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/README.md");
-        let mut readme = std::fs::read_to_string(path).unwrap();
         let regenerate = std::env::var_os("TRAYECTO_REGENERATE_README").is_some();
-        for sub in SUBCOMMANDS {
-            let (b, e) = section(&readme, sub)
-                .unwrap_or_else(|| panic!("README.md has no options:{sub} markers"));
+        for (sub, file) in TABLES {
+            let (path, mut doc) = chapter(file);
+            let (b, e) =
+                section(&doc, sub).unwrap_or_else(|| panic!("{file} has no options:{sub} markers"));
             let want = table(sub);
             if regenerate {
-                readme.replace_range(b..e, &want);
+                doc.replace_range(b..e, &want);
+                std::fs::write(path, doc).unwrap();
                 continue;
             }
-            let have = &readme[b..e];
+            let have = &doc[b..e];
             // Every clap option, with its default, is a row of the table: the same text.
             for (h, w) in have.lines().zip(want.lines()) {
                 assert_eq!(
                     h, w,
-                    "README.md's {sub} options table differs from clap; run scripts/readme-options.sh"
+                    "{file}'s {sub} options table differs from clap; run scripts/readme-options.sh"
                 );
             }
             assert_eq!(
                 have, want,
-                "README.md's {sub} options table differs from clap; run scripts/readme-options.sh"
+                "{file}'s {sub} options table differs from clap; run scripts/readme-options.sh"
             );
-        }
-        if regenerate {
-            std::fs::write(path, readme).unwrap();
         }
     }
 
     #[test]
     fn every_option_is_listed_with_its_default() {
         // Independent of the generator: each long option and each clap default appears.
-        let readme =
-            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
-        for sub in SUBCOMMANDS {
-            let (b, e) = section(&readme, sub).unwrap();
-            let rows = &readme[b..e];
+        for (sub, file) in TABLES {
+            let (_, doc) = chapter(file);
+            let (b, e) = section(&doc, sub).unwrap();
+            let rows = &doc[b..e];
             let cmd = Cli::command();
             for a in cmd.find_subcommand(sub).unwrap().get_arguments() {
                 let Some(long) = a.get_long() else { continue };
@@ -812,12 +820,12 @@ mod readme {
                     .find(|l| {
                         l.contains(&format!("`--{long}`")) || l.contains(&format!("`--{long} "))
                     })
-                    .unwrap_or_else(|| panic!("--{long} ({sub}) is not in README.md's table"));
+                    .unwrap_or_else(|| panic!("--{long} ({sub}) is not in {file}'s table"));
                 for d in a.get_default_values() {
                     let d = format!("`{}`", d.to_string_lossy());
                     assert!(
                         row.contains(&d),
-                        "--{long}: default {d} missing in README row {row}"
+                        "--{long}: default {d} missing in {file}'s row {row}"
                     );
                 }
             }
