@@ -33,7 +33,7 @@ SCENES = {
     "toycar": os.path.join(SHARED, "gltf-ext", "ToyCar", "glTF", "ToyCar.gltf"),
     "helmet": os.path.join(SHARED, "gltf", "DamagedHelmet", "glTF", "DamagedHelmet.gltf"),
     # compare.py's many-light scenes (exported there into bench/out/), for the light BVH's width
-    # (BENCHMARKS.md, "Tried, did not pay": the eight-way light tree).
+    # (four or eight children per node: `--light-sampler bvh` or `bvh8`).
     "veach": os.path.join(HERE, "out", "veach", "veach.glb"),
     "manylight": os.path.join(HERE, "out", "manylight", "manylight.glb"),
 }

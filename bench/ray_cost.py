@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""The throughput bar (BENCHMARKS.md, "Rays per second on real models"): rays per second of ToyCar and DamagedHelmet against the built-in
-Cornell box, by wall clock (interleaved rounds) and by callgrind instructions per ray.
+"""The throughput bar (BENCHMARKS.md, "Rays per second on real models"): rays per second of
+ToyCar and DamagedHelmet against the built-in Cornell box, by wall clock (interleaved rounds)
+and by callgrind instructions per ray.
 
     python3 bench/ray_cost.py wall [--bins A B ...] [--rounds 3]
     python3 bench/ray_cost.py callgrind [--bins A B ...]

@@ -11,10 +11,10 @@
 #      ../shared/scenes is there, on glTF sample models and the original Cornell box data (an OBJ
 #      triangle mesh: the one closed, diffusely inter-reflecting interior of the set). None of
 #      bench/compare.py's scenes is among them (its Cornell box is the built-in one, quads and
-#      boxes; BENCHMARKS.md gives the gain with and without the OBJ Cornell box in training);
+#      boxes; BENCHMARKS.md, "Tried, did not pay", says why it is not trained on);
 #   3. merge the profiles with llvm-profdata and rebuild with -Cprofile-use in target/pgo.
 # The binary renders exactly the same images as `cargo build --release` (PGO only changes code
-# layout, inlining and branch order); it is faster: see BENCHMARKS.md, "Profile-guided build".
+# layout, inlining and branch order); it is faster: see BENCHMARKS.md, "Other measurements".
 #
 # llvm-profdata must read the profiles of rustc's own LLVM. It is looked up as $LLVM_PROFDATA,
 # then in rustup's llvm-tools component (installed with `rustup component add llvm-tools` when

@@ -555,66 +555,168 @@ impl RenderJob {
             Some(d) => Some(Oidn::load(d.library.as_deref())?),
             None => None,
         };
-        let cancelled = || cancel.load(Ordering::Relaxed);
-        let mut warnings = Vec::new();
-        let mut warn = |w: String| {
-            observer.log(LogLine::Warning(w.clone()));
-            warnings.push(w);
+        let mut run = Run {
+            job: self,
+            observer,
+            cancel,
+            warnings: Vec::new(),
         };
-        let info = |s: String| observer.log(LogLine::Info(s));
+        let loaded = run.load()?;
+        let built = run.build(loaded)?;
+        run.log_plan(&built);
+        run.check_cancel()?;
+        let mut rendered = run.render(built, denoiser.is_some())?;
+        let denoised = run.denoise(denoiser.as_ref(), &rendered)?;
+        let written = run.write(&mut rendered, denoised.as_ref().map(|(d, _)| d))?;
+        Ok(run.report(rendered, denoised.map(|(_, t)| t), written))
+    }
+}
 
-        // Load.
-        observer.stage_started(Stage::Load);
-        let t = Instant::now();
-        let mut scene = crate::scene::load(&self.scene)?;
-        if let Some(v) = &self.world.variant {
-            scene.select_variant(v)?;
-        }
-        let load_time = t.elapsed();
-        observer.stage_finished(Stage::Load, load_time);
-        scene.warnings.iter().for_each(|w| warn(w.clone()));
-        if cancelled() {
+/// One run of a [`RenderJob`]: where its stages report, and the warnings so far. Each stage is
+/// a method taking what the stage before it produced.
+struct Run<'a> {
+    job: &'a RenderJob,
+    observer: &'a dyn PipelineObserver,
+    cancel: &'a AtomicBool,
+    warnings: Vec<String>,
+}
+
+/// The load stage's result: the scene, the settings resolved against it and its identity.
+struct Loaded {
+    scene: Scene,
+    settings: RenderSettings,
+    /// The frame's identity for partial films (empty when none is written or read).
+    digest: String,
+    time: Duration,
+}
+
+/// The build stage's result.
+struct Built {
+    world: World,
+    frame: FrameId,
+    settings: RenderSettings,
+    scene_name: String,
+    camera_count: usize,
+    load_time: Duration,
+    time: Duration,
+}
+
+/// The render stage's result: the beauty image, its film and the AOV layers (the world is gone).
+struct Rendered {
+    out: crate::render::RenderOutput,
+    part: Part,
+    layers: Vec<Layer>,
+    /// The AOVs traced (the requested ones and the denoiser's guides).
+    traced: Vec<AovKind>,
+    settings: RenderSettings,
+    scene_name: String,
+    samples_done: u32,
+    mean_samples: f64,
+    load_time: Duration,
+    build_time: Duration,
+    aov_time: Duration,
+    accel_time: Duration,
+    accel_description: String,
+}
+
+impl Run<'_> {
+    fn warn(&mut self, w: String) {
+        self.observer.log(LogLine::Warning(w.clone()));
+        self.warnings.push(w);
+    }
+
+    fn info(&self, s: String) {
+        self.observer.log(LogLine::Info(s));
+    }
+
+    fn check_cancel(&self) -> Result<(), PipelineError> {
+        if self.cancel.load(Ordering::Relaxed) {
             return Err(PipelineError::Cancelled);
         }
-        let (settings, size_note) = self.resolve(&scene);
+        Ok(())
+    }
+
+    /// Load: the scene (its variant selected), the settings resolved against it.
+    fn load(&mut self) -> Result<Loaded, PipelineError> {
+        let job = self.job;
+        self.observer.stage_started(Stage::Load);
+        let t = Instant::now();
+        let mut scene = crate::scene::load(&job.scene)?;
+        if let Some(v) = &job.world.variant {
+            scene.select_variant(v)?;
+        }
+        let time = t.elapsed();
+        self.observer.stage_finished(Stage::Load, time);
+        scene.warnings.iter().for_each(|w| self.warn(w.clone()));
+        self.check_cancel()?;
+        let (settings, size_note) = job.resolve(&scene);
         settings.validate()?;
         if let Some(n) = size_note {
-            info(n);
+            self.info(n);
         }
         // The frame's identity for partial films: hashing a big scene costs time, so only when
         // one is written or read.
-        let digest = if self.writes_parts() {
-            crate::scene::digest::digest(&self.scene, &scene, self.world.env.as_deref())?
+        let digest = if job.writes_parts() {
+            crate::scene::digest::digest(&job.scene, &scene, job.world.env.as_deref())?
         } else {
             String::new()
         };
+        Ok(Loaded {
+            scene,
+            settings,
+            digest,
+            time,
+        })
+    }
+
+    /// Build: the world from the scene.
+    fn build(&mut self, loaded: Loaded) -> Result<Built, PipelineError> {
+        let job = self.job;
+        let Loaded {
+            scene,
+            settings,
+            digest,
+            time: load_time,
+        } = loaded;
         let scene_name = scene.name.clone();
         let camera_count = scene.cameras.len();
-
-        // Build.
-        observer.stage_started(Stage::Build);
+        self.observer.stage_started(Stage::Build);
         let t = Instant::now();
-        let world = World::build(scene, &self.world)?;
-        let build_time = t.elapsed();
-        observer.stage_finished(Stage::Build, build_time);
-        world.warnings.iter().for_each(|w| warn(w.clone()));
+        let world = World::build(scene, &job.world)?;
+        let time = t.elapsed();
+        self.observer.stage_finished(Stage::Build, time);
+        world.warnings.iter().for_each(|w| self.warn(w.clone()));
         // After the build: partial films record the light sampler `auto` resolved to.
         let frame = FrameId {
-            scene: self.scene.clone(),
+            scene: job.scene.clone(),
             digest,
             settings: settings.clone(),
-            world: self.world.clone(),
+            world: job.world.clone(),
             light_sampler: world.lights.sampler_kind(),
         };
-        info(format!(
-            "scene '{}': {} triangles, {} primitives, {} materials, {} lights ({} area), {} cameras",
+        Ok(Built {
+            world,
+            frame,
+            settings,
             scene_name,
+            camera_count,
+            load_time,
+            time,
+        })
+    }
+
+    /// The scene summary and the render's plan, before it starts.
+    fn log_plan(&self, built: &Built) {
+        let (world, settings) = (&built.world, &built.settings);
+        self.info(format!(
+            "scene '{}': {} triangles, {} primitives, {} materials, {} lights ({} area), {} cameras",
+            built.scene_name,
             world.triangle_count(),
             world.primitive_count(),
             world.materials.len(),
             world.lights.lights.len(),
             world.area_light_count(),
-            camera_count
+            built.camera_count
         ));
         let mut extras = String::new();
         if !settings.filter.is_default_box() {
@@ -629,7 +731,7 @@ impl RenderJob {
         if let Some(t) = settings.time_limit {
             extras += &format!(", time limit {t} s");
         }
-        info(format!(
+        self.info(format!(
             "rendering {}x{} at {} spp, {} secondary, max depth {}, {} integrator, {} threads{extras}",
             settings.width,
             settings.height,
@@ -639,16 +741,26 @@ impl RenderJob {
             settings.integrator.name(),
             settings.threads.unwrap_or_else(rayon::current_num_threads)
         ));
-        if cancelled() {
-            return Err(PipelineError::Cancelled);
-        }
+    }
 
-        // Render.
-        observer.stage_started(Stage::Render);
+    /// Render: the beauty image (whole, or a sample range with checkpoints, [`crate::split`])
+    /// and the AOVs, with the denoiser's guides when `guides`. The world is dropped at the end.
+    fn render(&mut self, built: Built, guides: bool) -> Result<Rendered, PipelineError> {
+        let job = self.job;
+        let Built {
+            world,
+            frame,
+            settings,
+            scene_name,
+            load_time,
+            time: build_time,
+            ..
+        } = built;
+        self.observer.stage_started(Stage::Render);
         // The denoiser's guides are traced too when they were not asked for (and not written).
         // Samples and variance are not traced: they are read from the film below.
-        let mut traced = crate::integrator::aov::traced(&self.aovs);
-        if denoiser.is_some() {
+        let mut traced = crate::integrator::aov::traced(&job.aovs);
+        if guides {
             for k in [AovKind::Albedo, AovKind::Normal] {
                 if !traced.contains(&k) {
                     traced.push(k);
@@ -661,10 +773,10 @@ impl RenderJob {
         let mut split = crate::split::render_split_aovs(
             &world,
             &frame,
-            &self.split,
+            &job.split,
             !traced.is_empty(),
-            observer,
-            cancel,
+            self.observer,
+            self.cancel,
         )?;
         if split.render.cancelled {
             return Err(match split.checkpoint_written {
@@ -686,7 +798,7 @@ impl RenderJob {
                 (_, true) => "the time limit ended it".to_string(),
                 (_, false) => format!("{} samples per pixel were reached", settings.spp),
             };
-            info(format!(
+            self.info(format!(
                 "progressive render stopped after sample {samples_done} of {} ({why}): {mean_samples:.1} samples per pixel on average (min {min}, max {max})",
                 settings.spp
             ));
@@ -705,7 +817,7 @@ impl RenderJob {
         let t = Instant::now();
         let win = settings.film_window();
         let in_loop = split.render.aovs.take();
-        let mut layers = if traced.is_empty() {
+        let layers = if traced.is_empty() {
             Vec::new()
         } else if let Some(acc) = &in_loop {
             crate::render::aov_layers(&traced, win.width(), win.height(), acc)
@@ -715,7 +827,7 @@ impl RenderJob {
                 &settings,
                 &traced,
                 samples_done,
-                cancel,
+                self.cancel,
             ) {
                 Ok(l) => l,
                 Err(RenderError::Cancelled) => return Err(PipelineError::Cancelled),
@@ -723,89 +835,129 @@ impl RenderJob {
             }
         };
         let aov_time = t.elapsed();
-        observer.stage_finished(Stage::Render, out.render_time + aov_time);
+        self.observer
+            .stage_finished(Stage::Render, out.render_time + aov_time);
         let accel_time = world.accel_build_time;
         let accel_description = world.accel.describe();
         // The world (geometry, textures) is not needed to write the image.
         drop(world);
+        Ok(Rendered {
+            out,
+            part,
+            layers,
+            traced,
+            settings,
+            scene_name,
+            samples_done,
+            mean_samples,
+            load_time,
+            build_time,
+            aov_time,
+            accel_time,
+            accel_description,
+        })
+    }
 
-        // Denoise.
-        let mut denoise_time = None;
-        let denoised = match &denoiser {
-            Some(oidn) => {
-                observer.stage_started(Stage::Denoise);
-                let t = Instant::now();
-                let guide = |k: AovKind| {
-                    layers
-                        .iter()
-                        .find(|l| l.name == k.name())
-                        .and_then(Layer::to_image)
-                        .expect("the guides were traced")
-                };
-                let d = oidn.denoise(
-                    &out.image,
-                    &guide(AovKind::Albedo),
-                    &guide(AovKind::Normal),
-                    settings.threads,
-                )?;
-                denoise_time = Some(t.elapsed());
-                observer.stage_finished(Stage::Denoise, t.elapsed());
-                info(format!(
-                    "denoised with Open Image Denoise ({})",
-                    oidn.path().display()
-                ));
-                Some(d)
-            }
-            None => None,
+    /// Denoise: the beauty image with the traced albedo and normal guides, and how long it took.
+    fn denoise(
+        &self,
+        denoiser: Option<&Oidn>,
+        r: &Rendered,
+    ) -> Result<Option<(Image, Duration)>, PipelineError> {
+        let Some(oidn) = denoiser else {
+            return Ok(None);
         };
-        layers.retain(|l| self.aovs.iter().any(|k| k.name() == l.name));
+        self.observer.stage_started(Stage::Denoise);
+        let t = Instant::now();
+        let guide = |k: AovKind| {
+            r.layers
+                .iter()
+                .find(|l| l.name == k.name())
+                .and_then(Layer::to_image)
+                .expect("the guides were traced")
+        };
+        let d = oidn.denoise(
+            &r.out.image,
+            &guide(AovKind::Albedo),
+            &guide(AovKind::Normal),
+            r.settings.threads,
+        )?;
+        let took = t.elapsed();
+        self.observer.stage_finished(Stage::Denoise, t.elapsed());
+        self.info(format!(
+            "denoised with Open Image Denoise ({})",
+            oidn.path().display()
+        ));
+        Ok(Some((d, took)))
+    }
+
+    /// Write: the image, the partial film, the requested AOV layers (the traced ones and the
+    /// film's) and the denoised image; returns the files written and how long it took.
+    fn write(
+        &mut self,
+        r: &mut Rendered,
+        denoised: Option<&Image>,
+    ) -> Result<(Vec<PathBuf>, Duration), PipelineError> {
+        let job = self.job;
+        r.layers
+            .retain(|l| job.aovs.iter().any(|k| k.name() == l.name));
         // Per-pixel sample counts and variances, from the film: when asked for, and always
         // from an adaptive render (which tracks the variance anyway).
-        let film_kinds: &[AovKind] = if settings.noise_threshold.is_some() {
+        let film_kinds: &[AovKind] = if r.settings.noise_threshold.is_some() {
             &AovKind::FILM
         } else {
-            &self.aovs
+            &job.aovs
         };
         debug_assert!(
-            !film_kinds.contains(&AovKind::Variance) || settings.tracks_variance(),
+            !film_kinds.contains(&AovKind::Variance) || r.settings.tracks_variance(),
             "the variance layer needs a film that tracked it"
         );
-        layers.extend(crate::film::aov::film_layers(&part.film, film_kinds));
+        r.layers
+            .extend(crate::film::aov::film_layers(&r.part.film, film_kinds));
 
-        // Write.
-        observer.stage_started(Stage::Write);
+        self.observer.stage_started(Stage::Write);
         let t = Instant::now();
-        let mut written = write_outputs(&out.image, Some(&part), &self.outputs, &layers)?;
-        if let Some(d) = &denoised {
-            written.extend(write_denoised(d, &self.outputs)?);
+        let mut written = write_outputs(&r.out.image, Some(&r.part), &job.outputs, &r.layers)?;
+        if let Some(d) = denoised {
+            written.extend(write_denoised(d, &job.outputs)?);
         }
         let write_time = t.elapsed();
-        observer.stage_finished(Stage::Write, write_time);
-        if out.discarded_samples > 0 {
-            warn(format!(
+        self.observer.stage_finished(Stage::Write, write_time);
+        if r.out.discarded_samples > 0 {
+            self.warn(format!(
                 "{} samples were NaN, infinite or beyond {:e} and were discarded",
-                out.discarded_samples,
+                r.out.discarded_samples,
                 crate::film::SAMPLE_LIMIT
             ));
         }
+        Ok((written, write_time))
+    }
 
-        // The thesis's console log (Fig. 5.44–5.46): phase durations and the time each ended.
+    /// The thesis's console log (Fig. 5.44–5.46): phase durations and the time each ended, and
+    /// the report the front end gets.
+    fn report(
+        self,
+        r: Rendered,
+        denoise_time: Option<Duration>,
+        (written, write_time): (Vec<PathBuf>, Duration),
+    ) -> RenderReport {
+        let out = &r.out;
         let mut phases = PhaseReport::new();
-        phases.phase("scene loaded", load_time);
-        phases.phase("world compiled", build_time.saturating_sub(accel_time));
-        phases.phase("acceleration structure built", accel_time);
+        phases.phase("scene loaded", r.load_time);
+        phases.phase("world compiled", r.build_time.saturating_sub(r.accel_time));
+        phases.phase("acceleration structure built", r.accel_time);
         phases.phase(
-            format!("rendered ({})", settings.integrator.name()),
+            format!("rendered ({})", r.settings.integrator.name()),
             out.render_time,
         );
-        if !traced.is_empty() {
-            phases.phase("AOVs traced", aov_time);
+        if !r.traced.is_empty() {
+            phases.phase("AOVs traced", r.aov_time);
         }
         if let Some(t) = denoise_time {
             phases.phase("denoised", t);
         }
         phases.phase("image written", write_time);
-        phases.note(format!("acceleration    {accel_description}"));
+        phases.note(format!("acceleration    {}", r.accel_description));
         phases.note(format!(
             "rays            {} ({} camera/bounce/reflection/refraction, {} shadow), {:.2} Mrays/s",
             out.stats.rays + out.stats.shadow_rays,
@@ -813,23 +965,23 @@ impl RenderJob {
             out.stats.shadow_rays,
             out.rays_per_second() / 1e6
         ));
-        phases.lines().into_iter().for_each(info);
+        phases.lines().into_iter().for_each(|l| self.info(l));
         let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
-        info(format!("wrote {}", names.join(" and ")));
+        self.info(format!("wrote {}", names.join(" and ")));
 
-        Ok(RenderReport {
-            scene_name,
-            settings,
-            warnings,
+        RenderReport {
+            scene_name: r.scene_name,
+            settings: r.settings,
+            warnings: self.warnings,
             phases,
             stats: out.stats,
             discarded_samples: out.discarded_samples,
             render_time: out.render_time,
             rays_per_second: out.rays_per_second(),
             written,
-            samples_done,
-            mean_samples,
-        })
+            samples_done: r.samples_done,
+            mean_samples: r.mean_samples,
+        }
     }
 }
 

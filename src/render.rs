@@ -458,6 +458,11 @@ pub fn render_range_aovs(
     }
 }
 
+/// A tile of the film: its corner and size, in film coordinates.
+type TileRect = (u32, u32, u32, u32);
+/// What a tile of a pass renders: its film block, ray counts and AOVs (in-loop AOVs only).
+type Tile = (FilmBlock, RayStats, Vec<PixelAovs>);
+
 fn render_in_pool(
     world: &World,
     integrator: Integrator,
@@ -506,14 +511,8 @@ fn render_in_pool(
         .into_iter()
         .map(|(a, b)| (a + from, b + from))
         .collect();
-    let total_tiles = (tiles.len() * passes.len()) as u64;
-    let tiles_done = AtomicU64::new(0);
-    let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h);
-    let filter = FilterSampler::new(&settings.filter);
     // Adaptive sampling: which pixels the next pass renders (decided between passes).
     let adaptive = settings.noise_threshold.is_some();
-    // Squared-luminance sums, for adaptive sampling and the variance AOV.
-    let track = settings.tracks_variance();
     let pixels = (fw * fh) as usize;
     // In-loop AOVs: one accumulator per film pixel; each pass's tiles fill blocks of their own,
     // added once the pass is complete (like the film's blocks).
@@ -541,218 +540,38 @@ fn render_in_pool(
             aovs: aov_film,
         });
     }
-    let deadline = settings
-        .time_limit
-        .map(|t| start + Duration::from_secs_f64(t));
-
-    // Pipelined passes (issue #23). A barrier after every pass left all cores but one idle while
-    // the pass's last tiles finished, and during the serial film update and `pass_done`. Instead
-    // every worker takes (pass, tile) jobs from one counter in order, so it starts the next
-    // pass's tiles while others finish the current one; the worker that completes a pass's last
-    // tile commits it: its blocks go into the film in tile order, then `pass_done`. Passes are
-    // committed strictly in order, so the film, the stats and the AOV sums (floats: their order
-    // matters) see exactly the additions of the barrier version, and each `pass_done` sees the
-    // film of complete passes only. Blocks of a finished but uncommitted pass wait in `slots`.
-    //
-    // A worker may run `lookahead` passes ahead of the oldest uncommitted one: 1 (which bounds
-    // the blocks held to two passes' worth), 0 with adaptive sampling, whose next pass renders
-    // the pixels chosen from the film of every pass before it (a barrier, as before).
-    let lookahead = if adaptive { 0 } else { 1 };
-    let n_tiles = tiles.len();
-    let ring = lookahead + 1;
-    type Tile = (FilmBlock, RayStats, Vec<PixelAovs>);
-    let slots: Vec<Mutex<Option<Tile>>> = (0..n_tiles * ring).map(|_| Mutex::new(None)).collect();
-    // Tiles still to render per pass.
-    let left: Vec<AtomicUsize> = passes.iter().map(|_| AtomicUsize::new(n_tiles)).collect();
-    let next_job = AtomicUsize::new(0);
-    // Passes from this index on are neither rendered nor committed (cancel, time limit, adaptive
-    // sampling found the film clean, a panic).
-    let halt = AtomicUsize::new(passes.len());
-    // Passes committed (mirrors `Commit::committed`, readable without the commit lock, which
-    // is held during `pass_done`); `wake` tells waiting workers that it or `halt` changed.
-    let committed = AtomicUsize::new(0);
-    let wake = (Mutex::new(()), Condvar::new());
-    struct Commit {
-        film: Film,
-        stats: RayStats,
-        aovs: Option<Vec<PixelAovs>>,
-        done: u32,
-        committed: usize,
-        scratch: Vec<bool>,
-    }
-    let state = Mutex::new(Commit {
+    let work = TileWork {
+        world,
+        integrator,
+        settings,
+        camera,
+        filter: FilterSampler::new(&settings.filter),
+        sampler: SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h),
+        win,
+        // Squared-luminance sums, for adaptive sampling and the variance AOV.
+        track: settings.tracks_variance(),
+        record_aovs,
+    };
+    let schedule = PassSchedule {
+        settings,
+        passes: &passes,
+        tiles: &tiles,
+        film_width: fw,
+        deadline: settings
+            .time_limit
+            .map(|t| start + Duration::from_secs_f64(t)),
+    };
+    let state = Commit {
         film,
         stats: RayStats::default(),
         aovs: aov_film,
         done: from,
         committed: 0,
         scratch,
+    };
+    let c = schedule.run(state, active, observer, cancel, |s0, s1, tile, mask| {
+        work.render(s0, s1, tile, mask)
     });
-    let active = RwLock::new(active);
-    let notify = || {
-        let _g = lock(&wake.0);
-        wake.1.notify_all();
-    };
-    let stop = |pass: usize| {
-        halt.fetch_min(pass, Ordering::SeqCst);
-        notify();
-    };
-
-    let render_tile = |s0: u32, s1: u32, (x0, y0, tw, th): (u32, u32, u32, u32)| -> Tile {
-        let mut block = if track {
-            FilmBlock::tracked(x0, y0, tw, th)
-        } else {
-            FilmBlock::new(x0, y0, tw, th)
-        };
-        let mut st = RayStats::default();
-        let mut aov_block = Vec::new();
-        if record_aovs {
-            aov_block = vec![PixelAovs::default(); (tw * th) as usize];
-        }
-        // Only adaptive renders take the lock; nothing writes it while a pass renders.
-        let mask = adaptive.then(|| active.read().unwrap_or_else(|e| e.into_inner()));
-        // The surface path tracer's samples go through the batched first hits (`Batch`); the
-        // other integrators trace sample by sample.
-        let batched = integrator.capabilities().batched_first_hits;
-        // In-loop AOVs are only recorded by batching integrators (`aovs_in_loop`).
-        debug_assert!(batched || !record_aovs);
-        let mut batch = Batch::new(batched);
-        let mut out = BatchOut {
-            block: &mut block,
-            stats: &mut st,
-            aovs: record_aovs.then_some(&mut aov_block[..]),
-            track,
-        };
-        for fy in y0..y0 + th {
-            for fx in x0..x0 + tw {
-                if let Some(m) = &mask
-                    && !m[(fy * fw + fx) as usize]
-                {
-                    continue;
-                }
-                let (x, y) = (fx + win.x0, fy + win.y0);
-                let pixel_key = sampler.pixel_key((x, y));
-                let slot = ((fy - y0) * tw + (fx - x0)) as usize;
-                for s in s0..s1 {
-                    if batched {
-                        // The sample's stream draws its camera numbers where the batch keeps it.
-                        let p = batch.push(fx, fy, slot, sampler.stream(pixel_key, s));
-                        (p.ray, p.weight) = camera_ray(&camera, &filter, &mut p.stream, x, y);
-                        if batch.is_full() {
-                            batch.trace(world, &settings.path, &mut out);
-                        }
-                        continue;
-                    }
-                    let mut stream = sampler.stream(pixel_key, s);
-                    let l = sample_pixel(
-                        world,
-                        integrator,
-                        &camera,
-                        &filter,
-                        settings,
-                        &mut stream,
-                        x,
-                        y,
-                        out.stats,
-                    );
-                    out.add(fx, fy, l);
-                }
-            }
-        }
-        batch.trace(world, &settings.path, &mut out);
-        (block, st, aov_block)
-    };
-
-    // Commits every complete pass at the head of the queue, in order.
-    let commit = || {
-        let mut c = lock(&state);
-        loop {
-            let p = c.committed;
-            if p >= halt.load(Ordering::SeqCst) || left[p].load(Ordering::Acquire) != 0 {
-                break;
-            }
-            // A cancel (also one set by the previous `pass_done`) drops every pass not yet in.
-            if cancel.load(Ordering::Relaxed) {
-                stop(p);
-                break;
-            }
-            let c = &mut *c;
-            for slot in &slots[(p % ring) * n_tiles..][..n_tiles] {
-                let (b, st, ab) = lock(slot).take().expect("a complete pass has every tile");
-                c.film.add_block(&b);
-                c.stats += st;
-                if let Some(af) = c.aovs.as_mut() {
-                    for (k, px) in ab.iter().enumerate() {
-                        let (fx, fy) = (b.x0 + k as u32 % b.w, b.y0 + k as u32 / b.w);
-                        af[(fy * fw + fx) as usize].merge(px);
-                    }
-                }
-            }
-            c.done = passes[p].1;
-            observer.pass_done(&c.film, c.done, settings.spp);
-            c.committed = p + 1;
-            if let Some(t) = settings.noise_threshold
-                && p + 1 < passes.len()
-                && c.done >= ADAPTIVE_MIN_SAMPLES
-            {
-                let mut a = active.write().unwrap_or_else(|e| e.into_inner());
-                if adaptive_mask(&c.film, t, &mut a, &mut c.scratch) == 0 {
-                    halt.fetch_min(p + 1, Ordering::SeqCst);
-                }
-            }
-            committed.store(p + 1, Ordering::SeqCst);
-            notify();
-        }
-    };
-
-    let worker = || {
-        // A panicking tile would leave its pass incomplete forever and the other workers
-        // waiting for it: stop everything so the panic reaches the caller.
-        let _unwind = OnUnwind(|| stop(0));
-        loop {
-            let j = next_job.fetch_add(1, Ordering::Relaxed);
-            let (q, t) = (j / n_tiles, j % n_tiles);
-            if q >= halt.load(Ordering::SeqCst) {
-                break;
-            }
-            if committed.load(Ordering::SeqCst) + lookahead < q {
-                let mut g = lock(&wake.0);
-                while committed.load(Ordering::SeqCst) + lookahead < q
-                    && q < halt.load(Ordering::SeqCst)
-                {
-                    g = wake.1.wait(g).unwrap_or_else(|e| e.into_inner());
-                }
-                drop(g);
-                if q >= halt.load(Ordering::SeqCst) {
-                    break;
-                }
-            }
-            if cancel.load(Ordering::Relaxed) {
-                stop(q);
-                break;
-            }
-            // The first pass always completes; later ones are abandoned whole when time runs
-            // out (a pass with a tile skipped is never committed).
-            if q > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
-                stop(q);
-                break;
-            }
-            let (s0, s1) = passes[q];
-            let tile = render_tile(s0, s1, tiles[t]);
-            *lock(&slots[(q % ring) * n_tiles + t]) = Some(tile);
-            let n = tiles_done.fetch_add(1, Ordering::Relaxed) + 1;
-            observer.tile_done(n, total_tiles);
-            if left[q].fetch_sub(1, Ordering::AcqRel) == 1 {
-                commit();
-            }
-        }
-    };
-    rayon::scope(|s| {
-        for _ in 0..rayon::current_num_threads() {
-            s.spawn(|_| worker());
-        }
-    });
-    let c = state.into_inner().unwrap_or_else(|e| e.into_inner());
     let complete = c.committed == passes.len();
     // An incomplete render with the flag set was cancelled (whichever check saw it first: a
     // worker before its tile or the commit before a pass), else it stopped early (time limit,
@@ -768,6 +587,265 @@ fn render_in_pool(
         render_time: start.elapsed(),
         aovs: c.aovs,
     })
+}
+
+/// The per-tile work of a render: what one tile of one pass needs, shared read-only by the
+/// workers of [`PassSchedule::run`].
+struct TileWork<'a> {
+    world: &'a World,
+    integrator: Integrator,
+    settings: &'a RenderSettings,
+    camera: crate::camera::Camera,
+    filter: FilterSampler,
+    sampler: SamplerSetup,
+    /// The film window in image coordinates.
+    win: Crop,
+    track: bool,
+    record_aovs: bool,
+}
+
+impl TileWork<'_> {
+    /// Samples `s0..s1` of every pixel of `tile` (those `mask` keeps, with adaptive sampling).
+    fn render(&self, s0: u32, s1: u32, (x0, y0, tw, th): TileRect, mask: Option<&[bool]>) -> Tile {
+        let (world, settings, win) = (self.world, self.settings, self.win);
+        let fw = win.width();
+        let mut block = if self.track {
+            FilmBlock::tracked(x0, y0, tw, th)
+        } else {
+            FilmBlock::new(x0, y0, tw, th)
+        };
+        let mut st = RayStats::default();
+        let mut aov_block = Vec::new();
+        if self.record_aovs {
+            aov_block = vec![PixelAovs::default(); (tw * th) as usize];
+        }
+        // The surface path tracer's samples go through the batched first hits (`Batch`); the
+        // other integrators trace sample by sample.
+        let batched = self.integrator.capabilities().batched_first_hits;
+        // In-loop AOVs are only recorded by batching integrators (`aovs_in_loop`).
+        debug_assert!(batched || !self.record_aovs);
+        let mut batch = Batch::new(batched);
+        let mut out = BatchOut {
+            block: &mut block,
+            stats: &mut st,
+            aovs: self.record_aovs.then_some(&mut aov_block[..]),
+            track: self.track,
+        };
+        for fy in y0..y0 + th {
+            for fx in x0..x0 + tw {
+                if let Some(m) = mask
+                    && !m[(fy * fw + fx) as usize]
+                {
+                    continue;
+                }
+                let (x, y) = (fx + win.x0, fy + win.y0);
+                let pixel_key = self.sampler.pixel_key((x, y));
+                let slot = ((fy - y0) * tw + (fx - x0)) as usize;
+                for s in s0..s1 {
+                    if batched {
+                        // The sample's stream draws its camera numbers where the batch keeps it.
+                        let p = batch.push(fx, fy, slot, self.sampler.stream(pixel_key, s));
+                        (p.ray, p.weight) =
+                            camera_ray(&self.camera, &self.filter, &mut p.stream, x, y);
+                        if batch.is_full() {
+                            batch.trace(world, &settings.path, &mut out);
+                        }
+                        continue;
+                    }
+                    let mut stream = self.sampler.stream(pixel_key, s);
+                    let l = sample_pixel(
+                        world,
+                        self.integrator,
+                        &self.camera,
+                        &self.filter,
+                        settings,
+                        &mut stream,
+                        x,
+                        y,
+                        out.stats,
+                    );
+                    out.add(fx, fy, l);
+                }
+            }
+        }
+        batch.trace(world, &settings.path, &mut out);
+        (block, st, aov_block)
+    }
+}
+
+/// What the passes committed so far add up to.
+struct Commit {
+    film: Film,
+    stats: RayStats,
+    aovs: Option<Vec<PixelAovs>>,
+    done: u32,
+    committed: usize,
+    scratch: Vec<bool>,
+}
+
+/// The pass/tile scheduler: runs every (pass, tile) job on the pool's threads and commits the
+/// passes in order, whatever renders a tile.
+struct PassSchedule<'a> {
+    settings: &'a RenderSettings,
+    /// Sample ranges, in order.
+    passes: &'a [(u32, u32)],
+    tiles: &'a [TileRect],
+    film_width: u32,
+    deadline: Option<Instant>,
+}
+
+impl PassSchedule<'_> {
+    /// Renders the passes with `render_tile(s0, s1, tile, mask)` from `state` on (`active`: the
+    /// adaptive mask, empty without adaptive sampling) and returns what was committed.
+    fn run<F>(
+        &self,
+        state: Commit,
+        active: Vec<bool>,
+        observer: &dyn RenderObserver,
+        cancel: &AtomicBool,
+        render_tile: F,
+    ) -> Commit
+    where
+        F: Fn(u32, u32, TileRect, Option<&[bool]>) -> Tile + Sync,
+    {
+        let (settings, passes, tiles, fw) =
+            (self.settings, self.passes, self.tiles, self.film_width);
+        let adaptive = settings.noise_threshold.is_some();
+        let total_tiles = (tiles.len() * passes.len()) as u64;
+        let tiles_done = AtomicU64::new(0);
+
+        // Pipelined passes. A barrier after every pass left all cores but one idle while
+        // the pass's last tiles finished, and during the serial film update and `pass_done`. Instead
+        // every worker takes (pass, tile) jobs from one counter in order, so it starts the next
+        // pass's tiles while others finish the current one; the worker that completes a pass's last
+        // tile commits it: its blocks go into the film in tile order, then `pass_done`. Passes are
+        // committed strictly in order, so the film, the stats and the AOV sums (floats: their order
+        // matters) see exactly the additions of the barrier version, and each `pass_done` sees the
+        // film of complete passes only. Blocks of a finished but uncommitted pass wait in `slots`.
+        //
+        // A worker may run `lookahead` passes ahead of the oldest uncommitted one: 1 (which bounds
+        // the blocks held to two passes' worth), 0 with adaptive sampling, whose next pass renders
+        // the pixels chosen from the film of every pass before it (a barrier, as before).
+        let lookahead = if adaptive { 0 } else { 1 };
+        let n_tiles = tiles.len();
+        let ring = lookahead + 1;
+        let slots: Vec<Mutex<Option<Tile>>> =
+            (0..n_tiles * ring).map(|_| Mutex::new(None)).collect();
+        // Tiles still to render per pass.
+        let left: Vec<AtomicUsize> = passes.iter().map(|_| AtomicUsize::new(n_tiles)).collect();
+        let next_job = AtomicUsize::new(0);
+        // Passes from this index on are neither rendered nor committed (cancel, time limit,
+        // adaptive sampling found the film clean, a panic).
+        let halt = AtomicUsize::new(passes.len());
+        // Passes committed (mirrors `Commit::committed`, readable without the commit lock, which
+        // is held during `pass_done`); `wake` tells waiting workers that it or `halt` changed.
+        let committed = AtomicUsize::new(0);
+        let wake = (Mutex::new(()), Condvar::new());
+        let state = Mutex::new(state);
+        let active = RwLock::new(active);
+        let notify = || {
+            let _g = lock(&wake.0);
+            wake.1.notify_all();
+        };
+        let stop = |pass: usize| {
+            halt.fetch_min(pass, Ordering::SeqCst);
+            notify();
+        };
+
+        // Commits every complete pass at the head of the queue, in order.
+        let commit = || {
+            let mut c = lock(&state);
+            loop {
+                let p = c.committed;
+                if p >= halt.load(Ordering::SeqCst) || left[p].load(Ordering::Acquire) != 0 {
+                    break;
+                }
+                // A cancel (also one set by the previous `pass_done`) drops every pass not yet in.
+                if cancel.load(Ordering::Relaxed) {
+                    stop(p);
+                    break;
+                }
+                let c = &mut *c;
+                for slot in &slots[(p % ring) * n_tiles..][..n_tiles] {
+                    let (b, st, ab) = lock(slot).take().expect("a complete pass has every tile");
+                    c.film.add_block(&b);
+                    c.stats += st;
+                    if let Some(af) = c.aovs.as_mut() {
+                        for (k, px) in ab.iter().enumerate() {
+                            let (fx, fy) = (b.x0 + k as u32 % b.w, b.y0 + k as u32 / b.w);
+                            af[(fy * fw + fx) as usize].merge(px);
+                        }
+                    }
+                }
+                c.done = passes[p].1;
+                observer.pass_done(&c.film, c.done, settings.spp);
+                c.committed = p + 1;
+                if let Some(t) = settings.noise_threshold
+                    && p + 1 < passes.len()
+                    && c.done >= ADAPTIVE_MIN_SAMPLES
+                {
+                    let mut a = active.write().unwrap_or_else(|e| e.into_inner());
+                    if adaptive_mask(&c.film, t, &mut a, &mut c.scratch) == 0 {
+                        halt.fetch_min(p + 1, Ordering::SeqCst);
+                    }
+                }
+                committed.store(p + 1, Ordering::SeqCst);
+                notify();
+            }
+        };
+
+        let worker = || {
+            // A panicking tile would leave its pass incomplete forever and the other workers
+            // waiting for it: stop everything so the panic reaches the caller.
+            let _unwind = OnUnwind(|| stop(0));
+            loop {
+                let j = next_job.fetch_add(1, Ordering::Relaxed);
+                let (q, t) = (j / n_tiles, j % n_tiles);
+                if q >= halt.load(Ordering::SeqCst) {
+                    break;
+                }
+                if committed.load(Ordering::SeqCst) + lookahead < q {
+                    let mut g = lock(&wake.0);
+                    while committed.load(Ordering::SeqCst) + lookahead < q
+                        && q < halt.load(Ordering::SeqCst)
+                    {
+                        g = wake.1.wait(g).unwrap_or_else(|e| e.into_inner());
+                    }
+                    drop(g);
+                    if q >= halt.load(Ordering::SeqCst) {
+                        break;
+                    }
+                }
+                if cancel.load(Ordering::Relaxed) {
+                    stop(q);
+                    break;
+                }
+                // The first pass always completes; later ones are abandoned whole when time runs
+                // out (a pass with a tile skipped is never committed).
+                if q > 0 && self.deadline.is_some_and(|d| Instant::now() >= d) {
+                    stop(q);
+                    break;
+                }
+                let (s0, s1) = passes[q];
+                // Only adaptive renders take the lock; nothing writes it while a pass renders.
+                let mask = adaptive.then(|| active.read().unwrap_or_else(|e| e.into_inner()));
+                let tile = render_tile(s0, s1, tiles[t], mask.as_deref().map(|m| &m[..]));
+                drop(mask);
+                *lock(&slots[(q % ring) * n_tiles + t]) = Some(tile);
+                let n = tiles_done.fetch_add(1, Ordering::Relaxed) + 1;
+                observer.tile_done(n, total_tiles);
+                if left[q].fetch_sub(1, Ordering::AcqRel) == 1 {
+                    commit();
+                }
+            }
+        };
+        rayon::scope(|s| {
+            for _ in 0..rayon::current_num_threads() {
+                s.spawn(|_| worker());
+            }
+        });
+        state.into_inner().unwrap_or_else(|e| e.into_inner())
+    }
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {

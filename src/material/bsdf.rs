@@ -374,8 +374,10 @@ mod tests {
                     continue;
                 }
                 checked += 1;
+                // f32 rounding of the half vector at grazing angles reaches a few 1e-3; a
+                // missing or doubled η'² is a factor 1.8 to 2.3.
                 assert!(
-                    (adjoint - transpose).abs().max_element() <= 2e-3 * scale,
+                    (adjoint - transpose).abs().max_element() <= 1e-2 * scale,
                     "{b:?}\nwo {wo} wi {wi}: f* {adjoint} vs f(wi, wo) {transpose}"
                 );
                 let f = b.eval(wo, wi);

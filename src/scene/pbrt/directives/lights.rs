@@ -1,0 +1,31 @@
+//! Light directives: `LightSource` and `AreaLightSource` (pbrt-v4 file format, "Lights",
+//! "Area lights"), with the `Attribute "light"` defaults applied.
+
+use crate::scene::SceneError;
+use crate::scene::pbrt::{Cursor, Loader};
+
+impl Loader {
+    pub(super) fn light_directives(
+        &mut self,
+        name: &str,
+        p: &mut Cursor,
+        at: &str,
+    ) -> Result<(), SceneError> {
+        match name {
+            "LightSource" => {
+                let ty = p.string(at)?;
+                let list = p.params(at)?;
+                let list = self.with_attributes(list, "light");
+                self.light_source(&ty, list, at)?;
+            }
+            "AreaLightSource" => {
+                let ty = p.string(at)?;
+                let list = p.params(at)?;
+                let list = self.with_attributes(list, "light");
+                self.area_light_source(&ty, list, at);
+            }
+            _ => unreachable!("{name} is not a light directive"),
+        }
+        Ok(())
+    }
+}
