@@ -4,8 +4,8 @@
 //! Camera space looks down −z with +y up and +x to the image's right.
 
 use crate::geometry::Ray;
-use crate::light::equal_area;
 use crate::math::{Mat4, Vec2, Vec3};
+use crate::sampling::equal_area;
 use crate::sampling::warp::concentric_disk;
 use crate::scene::{CameraDesc, Projection, SphericalMapping};
 

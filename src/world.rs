@@ -11,7 +11,10 @@ use crate::geometry::sphere::Sphere;
 use crate::geometry::triangle::TriangleVerts;
 use crate::geometry::{Bounds3, GeometryStore, PrimRef, PrimitiveKind, Ray};
 use crate::light::default_light::{self, DefaultLight};
-use crate::light::{EnvMap, Light, LightSet};
+use crate::light::{
+    AreaLight, DirectionalLight, EnvMap, EnvironmentLight, Light, LightSet, PointLight, SpotLight,
+    UniformLight,
+};
 use crate::material::{AlphaMode, Material, Texture};
 use crate::math::{Mat3, Vec2, Vec3, Vec4, transform_normal};
 use crate::scene::{CameraDesc, LightDesc, Scene, SceneError, Shape};
@@ -327,7 +330,7 @@ impl World {
         self.lights
             .lights
             .iter()
-            .filter(|l| matches!(l, Light::Area { .. }))
+            .filter(|l| l.as_area().is_some())
             .count()
     }
 
@@ -336,9 +339,7 @@ impl World {
         self.lights
             .lights
             .iter()
-            .filter(
-                |l| matches!(l, Light::Area { prim, .. } if prim.kind() == PrimitiveKind::Triangle),
-            )
+            .filter(|l| matches!(l.as_area(), Some(a) if a.prim.kind() == PrimitiveKind::Triangle))
             .count()
     }
 
@@ -515,7 +516,7 @@ fn area_lights(
             continue;
         }
         g.set_light(prim, lights.len() as u32);
-        lights.push(Light::Area { prim, material });
+        lights.push(Light::Area(AreaLight::new(prim, material)));
         means.push(mean);
     }
     (lights, means)
@@ -531,10 +532,10 @@ fn scene_lights(scene: &Scene, label: &str) -> Result<Vec<Light>, SceneError> {
                 position,
                 intensity,
                 ..
-            } => lights.push(Light::Point {
+            } => lights.push(Light::Point(PointLight {
                 position: *position,
                 intensity: *intensity,
-            }),
+            })),
             LightDesc::Spot {
                 position,
                 direction,
@@ -543,25 +544,25 @@ fn scene_lights(scene: &Scene, label: &str) -> Result<Vec<Light>, SceneError> {
                 outer_angle,
                 falloff,
                 ..
-            } => lights.push(Light::Spot {
+            } => lights.push(Light::Spot(SpotLight {
                 position: *position,
                 direction: direction.normalize(),
                 intensity: *intensity,
                 cos_inner: inner_angle.cos(),
                 cos_outer: outer_angle.cos(),
                 falloff: *falloff,
-            }),
+            })),
             LightDesc::Directional {
                 direction,
                 irradiance,
                 ..
-            } => lights.push(Light::Directional {
+            } => lights.push(Light::Directional(DirectionalLight {
                 direction: direction.normalize(),
                 irradiance: *irradiance,
-            }),
-            LightDesc::Ambient { radiance, .. } => lights.push(Light::Uniform {
+            })),
+            LightDesc::Ambient { radiance, .. } => lights.push(Light::Uniform(UniformLight {
                 radiance: *radiance,
-            }),
+            })),
             LightDesc::Environment {
                 name,
                 path,
@@ -578,7 +579,7 @@ fn scene_lights(scene: &Scene, label: &str) -> Result<Vec<Light>, SceneError> {
                             format!("environment light '{name}' ({}): {e}", path.display()),
                         )
                     })?;
-                lights.push(Light::Environment { map: Arc::new(map) });
+                lights.push(Light::Environment(EnvironmentLight { map: Arc::new(map) }));
             }
         }
     }
@@ -607,14 +608,14 @@ fn add_option_lights(
         let rotation = Mat3::from_rotation_y(options.env_rotation.to_radians());
         let map = EnvMap::load(path, Vec3::ONE, rotation)
             .map_err(|e| SceneError::invalid(path.display(), e))?;
-        lights.push(Light::Environment { map: Arc::new(map) });
+        lights.push(Light::Environment(EnvironmentLight { map: Arc::new(map) }));
     }
     let mode = options
         .default_light
         .or(scene.default_light)
         .unwrap_or_default();
     let area_of = |i: usize| match &lights[i] {
-        Light::Area { prim, .. } => g.area(*prim),
+        Light::Area(a) => g.area(a.prim),
         _ => 0.0,
     };
     let emitters = default_light::emitter_stats(
@@ -648,9 +649,9 @@ fn add_option_lights(
         warnings.push(decision.reason);
     }
     if decision.add {
-        lights.push(Light::Uniform {
+        lights.push(Light::Uniform(UniformLight {
             radiance: Vec3::ONE,
-        });
+        }));
     }
     Ok(())
 }
@@ -817,4 +818,5 @@ fn cutout_hash(ray: &Ray, t: f32) -> f32 {
 }
 
 /// The queries integrators ask of the world (lights, BSDFs, emission), in their own file.
+mod media;
 mod queries;

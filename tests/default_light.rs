@@ -30,7 +30,7 @@ fn has_default_light(world: &World) -> bool {
         .lights
         .lights
         .iter()
-        .any(|l| matches!(l, Light::Uniform { radiance } if *radiance == Vec3::ONE))
+        .any(|l| matches!(l, Light::Uniform(u) if u.radiance == Vec3::ONE))
 }
 
 fn load(rel: &str) -> Scene {

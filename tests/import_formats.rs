@@ -581,7 +581,7 @@ radius = 1
     std::fs::remove_dir_all(&rel).unwrap();
     let world = world.unwrap();
     assert!(
-        matches!(world.lights(), [trayecto::light::Light::Environment { .. }]),
+        matches!(world.lights(), [trayecto::light::Light::Environment(_)]),
         "the environment map is the one light"
     );
 }

@@ -245,7 +245,7 @@ fn sampled_pmf_equals_emitter_pdf_with(kind: LightSamplerKind) {
             // point (on a sphere or box it may be a nearer face of the same emitter).
             let flat = matches!(
                 lights.lights[index],
-                Light::Area { prim, .. } if matches!(prim.kind(), PrimitiveKind::Triangle | PrimitiveKind::Quad)
+                Light::Area(a) if matches!(a.prim.kind(), PrimitiveKind::Triangle | PrimitiveKind::Quad)
             );
             if !flat {
                 continue;

@@ -70,7 +70,7 @@ fn intersect_solid(world: &World, mut ray: Ray) -> Option<(SurfaceHit, f32)> {
     let len = ray.d.length();
     for _ in 0..MAX_PASSTHROUGH {
         let hit = world.intersect(&ray)?;
-        if !world.media.is_passthrough(hit.material) {
+        if !world.is_interface(hit.material) {
             return Some((hit, travelled + hit.t * len));
         }
         travelled += hit.t * len;

@@ -6,7 +6,9 @@ use super::RayStats;
 use super::settings::PathSettings;
 use super::vertex::Vertex;
 use crate::geometry::primitive::SurfaceHit;
-use crate::light::{EnvPdf, Light};
+use crate::light::{EnvPdf, LocalLight};
+use crate::material::Bsdf;
+use crate::material::bxdf::Diffuse;
 use crate::material::local_shading::{ShadingModel, brdf};
 use crate::math::Vec3;
 use crate::sampling::SampleStream;
@@ -96,25 +98,14 @@ pub fn shade_local(
     let lights = world.lights();
     // World::build puts area lights first, so the analytic lights are the tail of the list.
     for light in lights.iter().rev() {
-        let (wi, e_perp, shadow) = match light {
-            Light::Area { .. } => break,
-            Light::Uniform { radiance } => {
-                l += surf.diffuse() * *radiance * surf.occlusion;
+        let (wi, e_perp, shadow) = match light.local_shading(hit, ng, ns) {
+            LocalLight::Sampled => break,
+            LocalLight::Ambient(radiance) => {
+                l += surf.diffuse() * radiance * surf.occlusion;
                 continue;
             }
-            // An environment map acts as an ambient term here, with the radiance the map has
-            // along the shading normal (a cheap stand-in for its irradiance: Whitted mode has no
-            // hemisphere integration).
-            Light::Environment { map } => {
-                l += surf.diffuse() * map.eval(ns) * surf.occlusion;
-                continue;
-            }
-            Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. } => {
-                match light.sample_delta(hit.p, hit.p_error, ng) {
-                    Some(ls) => (ls.wi, ls.li, ls.shadow),
-                    None => continue,
-                }
-            }
+            LocalLight::Direct(ls) => (ls.wi, ls.li, ls.shadow),
+            LocalLight::None => continue,
         };
         // The geometric normal must agree, or light would leak through the surface.
         if wi.dot(ng) <= 0.0 {
@@ -129,7 +120,7 @@ pub fn shade_local(
             l += f * e_perp * ns.dot(wi);
         }
     }
-    if matches!(lights.first(), Some(Light::Area { .. })) {
+    if lights.first().is_some_and(|l| l.as_area().is_some()) {
         let mut sum = Vec3::ZERO;
         for _ in 0..AREA_SAMPLES {
             let u_light = s.next_1d();

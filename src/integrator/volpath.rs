@@ -45,7 +45,7 @@ use crate::geometry::Ray;
 use crate::geometry::primitive::SurfaceHit;
 use crate::material::Bsdf;
 use crate::math::{Frame, Vec3};
-use crate::medium::{HenyeyGreenstein, Medium, TrackStep};
+use crate::medium::{HenyeyGreenstein, TrackStep};
 use crate::sampling::SampleStream;
 use crate::sampling::rng::{Pcg32, hash_words};
 use crate::world::World;
@@ -91,7 +91,6 @@ pub fn radiance(
     set: &PathSettings,
     stats: &mut RayStats,
 ) -> Vec3 {
-    let media = &world.media;
     let u_channel = s.next_1d();
     let channel = ((u_channel * 3.0) as usize).min(2);
     // The tracking decisions use their own generator, seeded from the sample (so the image stays
@@ -113,7 +112,7 @@ pub fn radiance(
         channel,
     };
     let mut ray = Ray::new(ray.o, d);
-    let mut medium = media.camera_medium;
+    let mut medium = world.camera_medium();
     let mut l = Vec3::ZERO;
     let mut depth = 0u32;
     let mut specular_bounce = false;
@@ -131,8 +130,8 @@ pub fn radiance(
 
         // --- The medium between the ray's origin and the surface (or infinity).
         if let Some(mi) = medium {
-            let m = &media.media[mi];
-            if m.grid.is_none() && m.is_absorbing_only() {
+            let m = world.medium(mi);
+            if m.is_analytic() {
                 let tr = m.analytic_transmittance(t_max);
                 if m.le != Vec3::ZERO && depth < set.max_depth {
                     // ∫₀ᵈ e^(−σa·t)·σa·Le dt = Le·(1 − e^(−σa·d)), exact and noise-free; the
@@ -265,9 +264,9 @@ pub fn radiance(
             let pdf_light = world.emitter_pdf(prev_p, prev_n, &hit);
             l += emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set);
         }
-        if media.is_passthrough(hit.material) {
+        if world.is_interface(hit.material) {
             // A boundary between media only: carry on in the same direction.
-            medium = media.after_crossing(hit.material, ray.d, hit.ng, medium);
+            medium = world.medium_after(hit.material, ray.d, hit.ng, medium);
             ray = Ray::spawn(hit.p, hit.p_error, hit.ng, ray.d);
             crossings += 1;
             if crossings > MAX_CROSSINGS {
@@ -331,7 +330,7 @@ pub fn radiance(
         eta_scale *= bs.eta * bs.eta;
         prev_p = hit.p;
         prev_n = ng;
-        medium = media.after_crossing(hit.material, wi, hit.ng, medium);
+        medium = world.medium_after(hit.material, wi, hit.ng, medium);
         ray = Ray::spawn(hit.p, hit.p_error, ng, wi);
         if roulette(&mut st, depth, eta_scale, set, s).is_some() {
             return l;
@@ -436,9 +435,7 @@ fn sample_ld(
             }
             let f = bsdf.eval(*wo_local, wi_local) * wi_local.z.abs();
             // At a medium transition the shadow ray starts in the medium of the side `wi` is on.
-            let start = world
-                .media
-                .after_crossing(*material, ls.wi, *ng_front, medium_in);
+            let start = world.medium_after(*material, ls.wi, *ng_front, medium_in);
             (f, bsdf.pdf(*wo_local, wi_local), start)
         }
         Scatterer::Medium { phase, wo } => {
@@ -451,9 +448,13 @@ fn sample_ld(
     if f == Vec3::ZERO {
         return Vec3::ZERO;
     }
-    let Some((t_ray, r_l_tr, r_u_tr)) =
-        shadow_transmittance(world, &ls.shadow, medium_start, st.channel, rng, stats)
-    else {
+    let Some((t_ray, r_l_tr, r_u_tr)) = world.transmittance(
+        &ls.shadow,
+        medium_start,
+        st.channel,
+        rng,
+        &mut stats.shadow_rays,
+    ) else {
         return Vec3::ZERO;
     };
     let light_pdf = ls.pmf * ls.pdf;
@@ -468,105 +469,4 @@ fn sample_ld(
         return Vec3::ZERO;
     }
     st.beta * f * t_ray * ls.li / denom
-}
-
-/// Transmittance along a shadow ray through interface surfaces and media, as (T, r_l, r_u
-/// factors) of ratio tracking; `None` if an opaque surface blocks it. `shadow` goes from the
-/// scattering point towards the light and stops just short of it (`t_max` in units of `d`).
-fn shadow_transmittance(
-    world: &World,
-    shadow: &Ray,
-    mut medium: Option<usize>,
-    channel: usize,
-    rng: &mut Pcg32,
-    stats: &mut RayStats,
-) -> Option<(Vec3, Vec3, Vec3)> {
-    let media = &world.media;
-    let len = shadow.d.length();
-    if !(len > 0.0) {
-        return None;
-    }
-    let d = shadow.d / len;
-    let end = if shadow.t_max.is_finite() {
-        Some(shadow.o + shadow.d * shadow.t_max)
-    } else {
-        None
-    };
-    let mut ray = Ray {
-        o: shadow.o,
-        d,
-        t_max: shadow.t_max * len,
-    };
-    let (mut t_ray, mut r_l, mut r_u) = (Vec3::ONE, Vec3::ONE, Vec3::ONE);
-    for _ in 0..MAX_CROSSINGS {
-        stats.shadow_rays += 1;
-        let hit = world.intersect(&ray);
-        if let Some(h) = &hit
-            && !media.is_passthrough(h.material)
-        {
-            return None;
-        }
-        let seg = hit.as_ref().map_or(ray.t_max, |h| h.t);
-        if let Some(mi) = medium {
-            let m: &Medium = &media.media[mi];
-            if m.grid.is_none() && m.is_absorbing_only() {
-                t_ray *= m.analytic_transmittance(seg);
-            } else {
-                let mut tracker = m.tracker(&ray, seg, channel);
-                loop {
-                    match tracker.step(m, rng) {
-                        TrackStep::End { t_maj } => {
-                            let th = t_maj[channel];
-                            if !(th > 0.0) {
-                                return None;
-                            }
-                            t_ray *= t_maj / th;
-                            r_l *= t_maj / th;
-                            r_u *= t_maj / th;
-                            break;
-                        }
-                        TrackStep::Collision {
-                            props,
-                            sigma_maj,
-                            t_maj,
-                            ..
-                        } => {
-                            let sigma_n =
-                                (sigma_maj - props.sigma_a - props.sigma_s).max(Vec3::ZERO);
-                            let pdf = t_maj[channel] * sigma_maj[channel];
-                            t_ray *= t_maj * sigma_n / pdf;
-                            r_l *= t_maj * sigma_maj / pdf;
-                            r_u *= t_maj * sigma_n / pdf;
-                            if !(t_ray.max_element() > 0.0) {
-                                return None;
-                            }
-                            // Russian roulette on a faint estimate (unbiased: divided by the
-                            // survival probability), as ratio tracking's long tails are costly.
-                            let tr = t_ray / mean(r_l + r_u);
-                            if tr.max_element() < 0.05 {
-                                if rng.next_f32() < 0.75 {
-                                    return None;
-                                }
-                                t_ray /= 0.25;
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        let Some(h) = hit else {
-            return Some((t_ray, r_l, r_u));
-        };
-        medium = media.after_crossing(h.material, d, h.ng, medium);
-        let next = Ray::spawn(h.p, h.p_error, h.ng, d);
-        let t_max = match end {
-            Some(e) => (e - next.o).dot(d),
-            None => f32::INFINITY,
-        };
-        if !(t_max > 0.0) {
-            return Some((t_ray, r_l, r_u));
-        }
-        ray = Ray { t_max, ..next };
-    }
-    None
 }

@@ -84,6 +84,19 @@ fn safe_acos(x: f32) -> f32 {
 }
 
 impl LightBounds {
+    /// Bounds of a light of power `phi` in `bounds` that emits in every direction (a point; an
+    /// emitter with no single normal, whose Lambertian emission reaches 90° from each normal).
+    pub fn all_around(bounds: Bounds3, phi: f32) -> LightBounds {
+        LightBounds {
+            bounds,
+            phi,
+            w: Vec3::Z,
+            cos_theta_o: -1.0,
+            cos_theta_e: 0.0,
+            two_sided: false,
+        }
+    }
+
     /// Unnormalised importance of these lights for a receiver at `p` with normal `n` (zero
     /// vector: a point in a medium, no cosine), pbrt-v4 `LightBounds::Importance`: the largest
     /// cosine the box can present within the emission cone, over d² (clamped below by half the

@@ -35,49 +35,11 @@
 //! `--default-light on` adds the default environment unless the scene already has a light at
 //! infinity (ambient or environment map: it would only be doubled); `off` never adds it.
 
-use crate::light::Light;
+use crate::light::{AreaLight, Light};
 use crate::material::{Material, Texture};
 use crate::math::{PI, Vec3, luminance};
 
-/// How the default environment is chosen (`--default-light`, the TOML `default_light` key, the
-/// web UI's "default light" choice).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum DefaultLight {
-    /// Add it when the scene has no lights or only self-lit emitters (see the module docs).
-    #[default]
-    Auto,
-    /// Add it unless the scene already has an ambient or environment light.
-    On,
-    /// Never add it.
-    Off,
-}
-
-impl DefaultLight {
-    pub fn name(self) -> &'static str {
-        match self {
-            DefaultLight::Auto => "auto",
-            DefaultLight::On => "on",
-            DefaultLight::Off => "off",
-        }
-    }
-
-    pub fn parse(s: &str) -> Option<DefaultLight> {
-        match s {
-            "auto" => Some(DefaultLight::Auto),
-            "on" => Some(DefaultLight::On),
-            "off" => Some(DefaultLight::Off),
-            _ => None,
-        }
-    }
-}
-
-impl std::str::FromStr for DefaultLight {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        DefaultLight::parse(s).ok_or_else(|| format!("'{s}' is not one of: auto, on, off"))
-    }
-}
+pub use crate::scene::DefaultLight;
 
 /// Emitted radiance at or below this (per channel) is "self-lit"; the small margin absorbs
 /// factors such as 1.0000001 written by exporters.
@@ -138,7 +100,7 @@ pub fn emitter_stats(
     let mut stats = EmitterStats::default();
     let mut weighted_area = 0.0f64;
     for (i, l) in lights.iter().enumerate() {
-        let Light::Area { material, .. } = l else {
+        let Light::Area(AreaLight { material, .. }) = l else {
             continue;
         };
         let Some(m) = materials.get(*material as usize) else {
@@ -182,7 +144,7 @@ pub struct Decision {
 pub fn decide(mode: DefaultLight, lights: &[Light], emitters: &EmitterStats) -> Decision {
     let has_infinite_fill = lights
         .iter()
-        .any(|l| matches!(l, Light::Uniform { .. } | Light::Environment { .. }));
+        .any(|l| matches!(l, Light::Uniform(_) | Light::Environment(_)));
     let keep = || Decision {
         add: false,
         reason: String::new(),
@@ -208,7 +170,7 @@ pub fn decide(mode: DefaultLight, lights: &[Light], emitters: &EmitterStats) -> 
                 .into(),
         },
         // Any light that is not an emissive surface is the author's lighting.
-        DefaultLight::Auto if lights.iter().any(|l| !matches!(l, Light::Area { .. })) => keep(),
+        DefaultLight::Auto if lights.iter().any(|l| !matches!(l, Light::Area(_))) => keep(),
         DefaultLight::Auto
             if emitters.peak_radiance <= SELF_LIT_MAX_RADIANCE
                 && emitters.power_ratio < SELF_LIT_MAX_POWER_RATIO =>
@@ -239,10 +201,10 @@ mod tests {
     use crate::math::Vec4;
 
     fn area(material: u32) -> Light {
-        Light::Area {
-            prim: PrimRef::new(PrimitiveKind::Triangle, 0),
+        Light::Area(AreaLight::new(
+            PrimRef::new(PrimitiveKind::Triangle, 0),
             material,
-        }
+        ))
     }
 
     fn emitter(e: Vec3) -> Material {
@@ -319,15 +281,15 @@ mod tests {
         let empty = EmitterStats::default();
         assert!(decide(DefaultLight::Auto, &none, &empty).add);
         assert!(!decide(DefaultLight::Off, &none, &empty).add);
-        let point = Light::Point {
+        let point = Light::Point(crate::light::PointLight {
             position: Vec3::ZERO,
             intensity: Vec3::splat(0.1),
-        };
+        });
         assert!(!decide(DefaultLight::Auto, std::slice::from_ref(&point), &empty).add);
         assert!(decide(DefaultLight::On, &[point], &empty).add);
-        let sky = Light::Uniform {
+        let sky = Light::Uniform(crate::light::UniformLight {
             radiance: Vec3::splat(0.3),
-        };
+        });
         assert!(!decide(DefaultLight::On, &[sky], &empty).add);
         let lamp = [emitter(Vec3::splat(10.0))];
         let s = stats(&[area(0)], &lamp, &[]);

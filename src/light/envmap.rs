@@ -7,14 +7,14 @@
 //!   3's `envmap`, so references agree): in the map's own frame +y is up, u = atan2(x, −z) / 2π
 //!   (wrapped to [0, 1)), v = acos(y) / π with v = 0 the top row.
 //! * **Equal-area square** (pbrt-v4's `infinite` light with a `filename`): Clarberg's octahedral
-//!   mapping ([`super::equal_area`]), every texel the same solid angle 4π / (w·h), so texels are
+//!   mapping ([`crate::sampling::equal_area`]), every texel the same solid angle 4π / (w·h), so texels are
 //!   weighted by luminance alone and the pdf is p(u, v) / 4π. Radiance is the nearest texel, as
 //!   pbrt-v4's `ImageInfiniteLight::ImageLe` looks it up, so the sampling density is exactly
 //!   proportional to the luminance of the function being integrated.
 
-use super::equal_area;
 use crate::math::{Mat3, PI, Vec2, Vec3, floor_i64, luminance};
 use crate::sampling::Distribution1D;
+use crate::sampling::equal_area;
 use std::path::Path;
 
 /// Which density [`EnvMap::sample`] draws directions from and [`EnvMap::pdf`] reports.
@@ -71,15 +71,7 @@ impl TexelDistribution {
     }
 }
 
-/// How an environment image covers the sphere.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum EnvMapping {
-    /// Latitude–longitude (Mitsuba's convention, +y up).
-    #[default]
-    Equirectangular,
-    /// pbrt-v4's equal-area octahedral square (+z is the square's centre).
-    EqualArea,
-}
+pub use crate::scene::EnvMapping;
 
 #[derive(Clone, Debug)]
 pub struct EnvMap {

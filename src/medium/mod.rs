@@ -17,7 +17,7 @@ pub mod grid;
 pub mod phase;
 pub mod world;
 
-pub use grid::{DensityGrid, GridError, read_vol};
+pub use grid::{DensityGrid, GridError};
 pub use phase::HenyeyGreenstein;
 
 use crate::geometry::Ray;
@@ -238,6 +238,12 @@ impl Medium {
 
     pub fn sigma_t(&self) -> Vec3 {
         self.sigma_a + self.sigma_s
+    }
+
+    /// True for a homogeneous medium that only absorbs: its transmittance is exact in closed
+    /// form ([`Medium::analytic_transmittance`]) and the integrators never track through it.
+    pub fn is_analytic(&self) -> bool {
+        self.grid.is_none() && self.is_absorbing_only()
     }
 
     /// True if the medium only absorbs: then transmittance is applied analytically on every path

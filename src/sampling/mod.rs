@@ -3,6 +3,7 @@
 //! Every warp has a matching pdf, checked by chi-square tests in `tests/`.
 
 pub mod distribution;
+pub mod equal_area;
 pub mod poisson;
 pub mod rng;
 pub mod sampler;

@@ -8,15 +8,18 @@ pub mod conventions;
 pub mod digest;
 pub mod fbx;
 pub mod gltf;
+pub mod lighting;
 pub mod obj;
 pub mod pbrt;
 pub mod ply;
 pub mod testscenes;
 pub mod toml_scene;
+pub mod vol;
 pub mod volume;
 
 // Texture decoding moved down to the crate's one image-reading module; loaders still name it here.
 pub use crate::image_io;
+pub use lighting::{DefaultLight, EnvMapping};
 
 use std::path::Path;
 
@@ -58,7 +61,7 @@ pub enum MediumKind {
     /// index (z·ny + y)·nx + x) spanning the box `[min, max]` of medium space, which `transform`
     /// (world-from-medium) places in the world. Mitsuba's `.vol` files and pbrt-v4's
     /// `uniformgrid` (`density`, `p0`, `p1` under the CTM of `MakeNamedMedium`) both map onto it;
-    /// lookups are trilinear between voxel centres (see [`crate::medium::grid`]).
+    /// lookups are trilinear between voxel centres (see `medium::grid`).
     Grid {
         nx: usize,
         ny: usize,
@@ -325,7 +328,7 @@ pub enum LightDesc {
         name: String,
         path: PathBuf,
         scale: Vec3,
-        mapping: crate::light::EnvMapping,
+        mapping: EnvMapping,
         /// World-from-environment rotation.
         transform: Mat4,
     },
@@ -361,7 +364,7 @@ pub struct Scene {
     /// Everything in the file that was not understood or not supported, by name.
     pub warnings: Vec<String>,
     /// The file's own choice of default lighting (TOML `default_light`); the command line wins.
-    pub default_light: Option<crate::light::default_light::DefaultLight>,
+    pub default_light: Option<DefaultLight>,
     /// Render settings the file asks for (pbrt's Film, Sampler, Integrator); the command line
     /// overrides each.
     pub hints: RenderHints,

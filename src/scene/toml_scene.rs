@@ -25,7 +25,7 @@ use crate::math::{Mat4, Vec2, Vec3};
 struct File {
     name: Option<String>,
     /// "auto", "on" or "off" (see `light::default_light`); `--default-light` overrides it.
-    default_light: Option<crate::light::default_light::DefaultLight>,
+    default_light: Option<super::DefaultLight>,
     #[serde(default)]
     camera: Vec<Camera>,
     background: Option<Background>,
@@ -544,12 +544,12 @@ fn medium(m: &MediumSpec, dir: &Path) -> Result<super::MediumDesc, String> {
         m.g,
     );
     desc.le = Vec3::from(m.emission);
-    let read = |f: &str| -> Result<crate::medium::grid::VolFile, String> {
+    let read = |f: &str| -> Result<super::vol::VolFile, String> {
         let path = resolve_in_dir(dir, f)?;
         let bytes = std::fs::read(&path).map_err(|e| format!("'{}': {e}", path.display()))?;
-        crate::medium::read_vol(&bytes).map_err(|e| format!("'{}': {e}", path.display()))
+        super::vol::read_vol(&bytes).map_err(|e| format!("'{}': {e}", path.display()))
     };
-    let voxels = |v: crate::medium::grid::VolFile| super::VoxelGrid {
+    let voxels = |v: super::vol::VolFile| super::VoxelGrid {
         nx: v.nx,
         ny: v.ny,
         nz: v.nz,

@@ -8,7 +8,7 @@ use std::cell::Cell;
 use super::World;
 use crate::geometry::primitive::{Intersection, NO_LIGHT};
 use crate::geometry::{Ray, SurfaceHit};
-use crate::light::{EnvPdf, Light, LightSample};
+use crate::light::{EnvPdf, Light, LightSample, LightScene};
 use crate::material::local_shading::LocalSurface;
 use crate::material::texture::SharedFootprint;
 use crate::material::{Bsdf, Material, eval, normal_map};
@@ -242,6 +242,14 @@ impl World {
     #[inline]
     pub fn light_count(&self) -> usize {
         self.lights.lights.len()
+    }
+
+    /// What the lights need from the world to sample and evaluate themselves
+    /// ([`Light::sample_le`], [`Light::phi`], ...).
+    #[inline]
+    pub fn light_scene(&self) -> LightScene<'_> {
+        self.lights
+            .scene(&self.geometry, &self.materials, &self.textures)
     }
 
     /// All lights; area lights come first (see `World::build`).

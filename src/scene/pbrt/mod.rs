@@ -508,7 +508,7 @@ impl Loader {
                         name,
                         path,
                         scale: Vec3::splat(s),
-                        mapping: crate::light::EnvMapping::EqualArea,
+                        mapping: crate::scene::EnvMapping::EqualArea,
                         transform: Mat4::from_mat3(to_world),
                     });
                 } else {
@@ -1585,7 +1585,7 @@ fn equal_area_illuminance(w: u32, h: u32, texels: &[Vec3]) -> f32 {
         for x in 0..w {
             let uv =
                 crate::math::Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
-            let d = crate::light::equal_area::square_to_sphere(uv);
+            let d = crate::sampling::equal_area::square_to_sphere(uv);
             if d.z <= 0.0 {
                 continue;
             }

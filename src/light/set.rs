@@ -1,0 +1,454 @@
+//! The lights of a scene and how a light is chosen for next-event estimation: in proportion to
+//! power, or by the light BVH's importance from the receiver (pbrt-v4 `PowerLightSampler`,
+//! `BVHLightSampler`). Once chosen, the light samples and evaluates itself ([`Light`]).
+
+use super::bvh::{LightBounds, LightBvh, TreeWidth};
+use super::envmap::EnvPdf;
+use super::{Light, LightSample, LightScene};
+use crate::geometry::primitive::SurfaceHit;
+use crate::geometry::{Bounds3, GeometryStore};
+use crate::material::{Material, Texture};
+use crate::math::{Vec2, Vec3};
+use crate::sampling::Distribution1D;
+
+/// How next-event estimation chooses a light (`--light-sampler`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LightSamplerKind {
+    /// [`LightSamplerKind::Bvh8`] when the scene has more than [`BVH_AUTO_THRESHOLD`] bounded
+    /// lights, else [`LightSamplerKind::Power`].
+    #[default]
+    Auto,
+    /// In proportion to each light's power, wherever the shading point is.
+    Power,
+    /// The light BVH ([`bvh`]) for emitters, points and spots by their importance from the
+    /// shading point; lights at infinity beside it in proportion to power. Four children per
+    /// tree node ([`TreeWidth::Four`]).
+    Bvh,
+    /// [`LightSamplerKind::Bvh`] with eight children per tree node ([`TreeWidth::Eight`]):
+    /// fewer, wider descent steps and tighter boxes per choice; `auto`'s tree (BENCHMARKS.md,
+    /// "Session 14: light choice" and "Session 15: defaults").
+    Bvh8,
+}
+
+/// Above this many bounded lights (emissive primitives, points, spots) `auto` uses the light BVH.
+/// See BENCHMARKS.md ("Many lights") for the measurement behind it.
+pub const BVH_AUTO_THRESHOLD: usize = 16;
+
+impl LightSamplerKind {
+    pub const NAMES: [&'static str; 4] = ["auto", "power", "bvh", "bvh8"];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            LightSamplerKind::Auto => "auto",
+            LightSamplerKind::Power => "power",
+            LightSamplerKind::Bvh => "bvh",
+            LightSamplerKind::Bvh8 => "bvh8",
+        }
+    }
+}
+
+impl std::str::FromStr for LightSamplerKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(LightSamplerKind::Auto),
+            "power" => Ok(LightSamplerKind::Power),
+            "bvh" => Ok(LightSamplerKind::Bvh),
+            "bvh8" => Ok(LightSamplerKind::Bvh8),
+            _ => Err(format!(
+                "unknown light sampler '{s}' (expected one of: {})",
+                Self::NAMES.join(", ")
+            )),
+        }
+    }
+}
+
+/// All lights of a scene and how next-event estimation chooses one of them.
+#[derive(Clone, Debug, Default)]
+pub struct LightSet {
+    pub lights: Vec<Light>,
+    /// In proportion to power over all lights (the `power` sampler).
+    pub distribution: Distribution1D,
+    /// The light BVH and the lights at infinity beside it (the `bvh` sampler); `None` with the
+    /// `power` sampler.
+    tree: Option<TreeSelection>,
+    /// Indices of lights at infinity.
+    pub infinite: Vec<u32>,
+    /// Scene bounding sphere (for infinite light powers and far-away shadow rays).
+    pub scene_center: Vec3,
+    pub scene_radius: f32,
+}
+
+/// Light selection with the light BVH (pbrt-v4's `BVHLightSampler`): a light at infinity with
+/// probability `p_infinite` (their share of the power; pbrt splits evenly by count instead),
+/// chosen among them by power; otherwise a bounded light by the tree.
+#[derive(Clone, Debug)]
+struct TreeSelection {
+    bvh: LightBvh,
+    /// Over `LightSet::infinite`, by power.
+    infinite: Distribution1D,
+    p_infinite: f32,
+    /// Per light: its index in `LightSet::infinite`, or `u32::MAX`.
+    infinite_slot: Vec<u32>,
+}
+
+/// The least choice probability for which [`LightSet::sample_reuse`] reuses the remapped choice
+/// number: 2^-12, so the remapped number keeps at least 12 of u's 24 bits.
+pub const MIN_REUSE_PMF: f32 = 1.0 / 4096.0;
+
+impl LightSet {
+    pub fn new(
+        lights: Vec<Light>,
+        geometry: &GeometryStore,
+        materials: &[Material],
+        textures: &[Texture],
+        bounds: Bounds3,
+        footprint_means: &[Option<Vec3>],
+        kind: LightSamplerKind,
+    ) -> LightSet {
+        let (scene_center, scene_radius) = bounds.bounding_sphere();
+        let scene_radius = scene_radius.max(1e-3);
+        let mut lights = lights;
+        for light in &mut lights {
+            light.prepare(geometry, materials);
+        }
+        // Average of each emissive texture, once per texture rather than once per triangle.
+        let mut texture_averages = vec![Vec3::ONE; textures.len()];
+        for m in materials {
+            if let Some(t) = &m.emissive_texture
+                && let (Some(a), Some(tex)) =
+                    (texture_averages.get_mut(t.texture), textures.get(t.texture))
+            {
+                *a = tex.average().truncate();
+            }
+        }
+        let powers: Vec<f32> = lights
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                l.selection_power(
+                    materials,
+                    &texture_averages,
+                    footprint_means.get(i).copied().flatten(),
+                    scene_radius,
+                )
+            })
+            .collect();
+        let infinite: Vec<u32> = lights
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| l.is_infinite())
+            .map(|(i, _)| i as u32)
+            .collect();
+        let bounded = lights.iter().filter(|l| !l.is_infinite()).count();
+        let use_tree = match kind {
+            LightSamplerKind::Power => false,
+            LightSamplerKind::Bvh | LightSamplerKind::Bvh8 => true,
+            LightSamplerKind::Auto => bounded > BVH_AUTO_THRESHOLD,
+        };
+        let width = match kind {
+            LightSamplerKind::Bvh8 | LightSamplerKind::Auto => TreeWidth::Eight,
+            LightSamplerKind::Bvh | LightSamplerKind::Power => TreeWidth::Four,
+        };
+        let tree = use_tree.then(|| {
+            let lb: Vec<(u32, LightBounds)> = lights
+                .iter()
+                .enumerate()
+                .zip(&powers)
+                .filter_map(|((i, l), &phi)| {
+                    l.bounds(geometry, materials, phi).map(|b| (i as u32, b))
+                })
+                .collect();
+            TreeSelection::new(
+                LightBvh::with_width(&lb, lights.len(), width),
+                &infinite,
+                &powers,
+            )
+        });
+        LightSet {
+            distribution: Distribution1D::new(&powers),
+            tree,
+            lights,
+            infinite,
+            scene_center,
+            scene_radius,
+        }
+    }
+
+    /// What the lights need from the scene to sample and evaluate themselves.
+    #[inline]
+    pub fn scene<'a>(
+        &self,
+        geometry: &'a GeometryStore,
+        materials: &'a [Material],
+        textures: &'a [Texture],
+    ) -> LightScene<'a> {
+        LightScene {
+            geometry,
+            materials,
+            textures,
+            center: self.scene_center,
+            radius: self.scene_radius,
+        }
+    }
+
+    /// Which sampler chooses the lights: `Power`, `Bvh` or `Bvh8` (never `Auto`).
+    pub fn sampler_kind(&self) -> LightSamplerKind {
+        match &self.tree {
+            Some(t) if t.bvh.width() == TreeWidth::Eight => LightSamplerKind::Bvh8,
+            Some(_) => LightSamplerKind::Bvh,
+            None => LightSamplerKind::Power,
+        }
+    }
+
+    /// Chooses a light for a receiver at `p` with normal `n` (zero in a medium) with `u`: its
+    /// index and the probability of having chosen it (positive).
+    #[inline]
+    pub fn choose(&self, p: Vec3, n: Vec3, u: f32) -> Option<(usize, f32)> {
+        self.choose_remap(p, n, u)
+            .map(|(index, pmf, _)| (index, pmf))
+    }
+
+    /// [`Self::choose`] that also returns `u` remapped within the chosen light's share of
+    /// [0, 1): uniform again given the choice, so it can place the point on the light.
+    #[inline]
+    pub fn choose_remap(&self, p: Vec3, n: Vec3, u: f32) -> Option<(usize, f32, f32)> {
+        match &self.tree {
+            None => {
+                let (index, pmf, rest) = self.distribution.sample_discrete_remap(u);
+                (pmf > 0.0).then_some((index, pmf, rest))
+            }
+            Some(t) => t.choose(&self.infinite, p, n, u),
+        }
+    }
+
+    /// Probability that [`LightSet::choose`] from (`p`, `n`) picks light `index`.
+    #[inline]
+    pub fn pmf(&self, index: u32, p: Vec3, n: Vec3) -> f32 {
+        match &self.tree {
+            None => self.distribution.discrete_pdf(index as usize),
+            Some(t) => t.pmf(index, p, n),
+        }
+    }
+
+    /// Probability of choosing light `index`, a light at infinity (which does not depend on the
+    /// receiver).
+    #[inline]
+    fn pmf_infinite(&self, index: u32) -> f32 {
+        match &self.tree {
+            None => self.distribution.discrete_pdf(index as usize),
+            Some(t) => t.pmf_infinite(index),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.lights.is_empty()
+    }
+
+    /// Picks a light (by power, or by the light BVH from `hit.p` and `n_offset`) and samples a
+    /// point/direction on it as seen from `hit`. `n_offset` is also the receiver's normal for
+    /// the light BVH's importance (zero for a point in a medium). A uniform environment is
+    /// sampled over the whole sphere ([`Self::sample_reuse`] can take a hemisphere).
+    #[allow(clippy::too_many_arguments)]
+    pub fn sample(
+        &self,
+        geometry: &GeometryStore,
+        materials: &[Material],
+        textures: &[Texture],
+        hit: &SurfaceHit,
+        n_offset: Vec3,
+        u_light: f32,
+        u: Vec2,
+        env: EnvPdf,
+    ) -> Option<LightSample> {
+        if self.lights.is_empty() {
+            return None;
+        }
+        let (index, pmf) = self.choose(hit.p, n_offset, u_light)?;
+        self.sample_chosen(
+            geometry,
+            materials,
+            textures,
+            hit,
+            n_offset,
+            index,
+            pmf,
+            u,
+            env,
+            Vec3::ZERO,
+        )
+    }
+
+    /// [`Self::sample`] with the light chosen by `u.x` and the point placed on it by `u.x`
+    /// remapped within the light's share of [0, 1), and `u.y` (sample reuse: Mitsuba 3's
+    /// `Scene::sample_emitter_direction`; PBRT-v4 §A.1 `SampleDiscrete`'s `uRemapped`). A 2D
+    /// stratified or low-discrepancy point is thereby split among the lights by the x-ranges
+    /// they are chosen with, and each light gets a stratified set of points of its own; with the
+    /// choice from a number of its own, a light gets a random subset of the 2D points, whose
+    /// stratification is largely lost. Given the choice, the remapped x is uniform and
+    /// independent of `u.y`, so the estimator is the same. A light chosen with probability under
+    /// [`MIN_REUSE_PMF`] would get a remapped x of fewer than 12 bits (`u.x` has 24): it gets
+    /// `u_spare` (an independent uniform number) instead, which is just as uniform. A uniform
+    /// environment is sampled about `uniform_n` ([`super::sample_uniform_env`]; zero for the sphere).
+    #[allow(clippy::too_many_arguments)]
+    pub fn sample_reuse(
+        &self,
+        geometry: &GeometryStore,
+        materials: &[Material],
+        textures: &[Texture],
+        hit: &SurfaceHit,
+        n_offset: Vec3,
+        u: Vec2,
+        u_spare: f32,
+        env: EnvPdf,
+        uniform_n: Vec3,
+    ) -> Option<LightSample> {
+        if self.lights.is_empty() {
+            return None;
+        }
+        let (index, pmf, rest) = self.choose_remap(hit.p, n_offset, u.x)?;
+        let x = if pmf >= MIN_REUSE_PMF { rest } else { u_spare };
+        let u = Vec2::new(x, u.y);
+        self.sample_chosen(
+            geometry, materials, textures, hit, n_offset, index, pmf, u, env, uniform_n,
+        )
+    }
+
+    /// Samples light `index`, chosen with probability `pmf`, with `u`; an environment map
+    /// from the density `env`, a uniform environment about `uniform_n` ([`super::sample_uniform_env`]).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn sample_chosen(
+        &self,
+        geometry: &GeometryStore,
+        materials: &[Material],
+        textures: &[Texture],
+        hit: &SurfaceHit,
+        n_offset: Vec3,
+        index: usize,
+        pmf: f32,
+        u: Vec2,
+        env: EnvPdf,
+        uniform_n: Vec3,
+    ) -> Option<LightSample> {
+        let scene = self.scene(geometry, materials, textures);
+        let ls = self.lights[index].sample_li(&scene, hit, n_offset, u, env, uniform_n)?;
+        Some(LightSample { pmf, ..ls })
+    }
+
+    /// Solid-angle pdf with which NEE would have sampled the point `light_hit` on area light
+    /// `index` from `p` with normal `n` (the `n_offset` given to [`LightSet::sample`]), selection
+    /// probability included, for MIS of BSDF-sampled hits.
+    #[inline]
+    pub fn pdf_area(&self, index: u32, p: Vec3, n: Vec3, light_hit: &SurfaceHit) -> f32 {
+        self.lights[index as usize].pdf_li(p, light_hit, || self.pmf(index, p, n))
+    }
+
+    /// Radiance from the lights at infinity along an escaping ray direction `d` (unit), unweighted
+    /// (what a camera ray or a path without NEE sees).
+    #[inline]
+    pub fn escaped(&self, d: Vec3) -> Vec3 {
+        let mut l = Vec3::ZERO;
+        for &i in &self.infinite {
+            if let Some(le) = self.lights[i as usize].le(d) {
+                l += le;
+            }
+        }
+        l
+    }
+
+    /// The lights at infinity along an escaping BSDF- or phase-sampled direction `d` (unit), for
+    /// MIS: `contribution(le, pdf)` is called once per light with that light's radiance and the
+    /// solid-angle pdf with which NEE samples `d` from *that* light (selection included;
+    /// environment maps from the density `env`), and the results are summed. Each light is
+    /// weighed against its own NEE density because NEE estimates one light at a time (Veach
+    /// 1997, §9.2: the weights of a direction must sum to one per integrand, here per light); the
+    /// sum of the radiances weighed against the sum of the pdfs is biased when two lights at
+    /// infinity overlap, e.g. a scene's uniform background and an `--env` map (−1.5 % on a
+    /// diffuse quad). pbrt-v4's path integrator loops over its infinite lights the same way.
+    /// A uniform environment's density is [`super::uniform_env_pdf`] about `uniform_n`: the normal NEE
+    /// sampled it about at the vertex the direction left (zero: the sphere).
+    #[inline]
+    pub fn escaped_mis(
+        &self,
+        d: Vec3,
+        env: EnvPdf,
+        uniform_n: Vec3,
+        mut contribution: impl FnMut(Vec3, f32) -> Vec3,
+    ) -> Vec3 {
+        let mut l = Vec3::ZERO;
+        for &i in &self.infinite {
+            let Some((le, pdf)) = self.lights[i as usize].le_pdf(d, env, uniform_n) else {
+                continue;
+            };
+            let pdf = self.pmf_infinite(i) * pdf;
+            if le != Vec3::ZERO {
+                l += contribution(le, pdf);
+            }
+        }
+        l
+    }
+}
+
+impl TreeSelection {
+    fn new(bvh: LightBvh, infinite: &[u32], powers: &[f32]) -> TreeSelection {
+        let inf_powers: Vec<f32> = infinite.iter().map(|&i| powers[i as usize]).collect();
+        let p_inf_power: f64 = inf_powers
+            .iter()
+            .filter(|p| p.is_finite() && **p > 0.0)
+            .map(|&p| p as f64)
+            .sum();
+        let tree_power = bvh.total_power as f64;
+        let p_infinite = if infinite.is_empty() {
+            0.0
+        } else if bvh.is_empty() {
+            1.0
+        } else if p_inf_power + tree_power > 0.0 {
+            (p_inf_power / (p_inf_power + tree_power)) as f32
+        } else {
+            0.5
+        };
+        let mut infinite_slot = vec![u32::MAX; powers.len()];
+        for (k, &i) in infinite.iter().enumerate() {
+            infinite_slot[i as usize] = k as u32;
+        }
+        TreeSelection {
+            bvh,
+            infinite: Distribution1D::new(&inf_powers),
+            p_infinite,
+            infinite_slot,
+        }
+    }
+
+    #[inline]
+    fn choose(&self, infinite: &[u32], p: Vec3, n: Vec3, u: f32) -> Option<(usize, f32, f32)> {
+        if u < self.p_infinite {
+            let u = (u / self.p_infinite).min(1.0 - f32::EPSILON / 2.0);
+            let (k, pmf, rest) = self.infinite.sample_discrete_remap(u);
+            let pmf = pmf * self.p_infinite;
+            return (pmf > 0.0).then_some((infinite[k] as usize, pmf, rest));
+        }
+        let p_tree = 1.0 - self.p_infinite;
+        let u = ((u - self.p_infinite) / p_tree).min(1.0 - f32::EPSILON / 2.0);
+        let (light, pmf, rest) = self.bvh.sample_remap(p, n, u)?;
+        let pmf = pmf * p_tree;
+        (pmf > 0.0).then_some((light as usize, pmf, rest))
+    }
+
+    #[inline]
+    fn pmf_infinite(&self, index: u32) -> f32 {
+        match self.infinite_slot.get(index as usize) {
+            Some(&k) if k != u32::MAX => self.p_infinite * self.infinite.discrete_pdf(k as usize),
+            _ => 0.0,
+        }
+    }
+
+    #[inline]
+    fn pmf(&self, index: u32, p: Vec3, n: Vec3) -> f32 {
+        match self.infinite_slot.get(index as usize) {
+            Some(&k) if k != u32::MAX => self.p_infinite * self.infinite.discrete_pdf(k as usize),
+            Some(_) => (1.0 - self.p_infinite) * self.bvh.pmf(index, p, n),
+            None => 0.0,
+        }
+    }
+}
