@@ -328,13 +328,24 @@ mod tests {
             .with_roughness(0.5, 0.4, Vec2::new(0.6, 0.8));
         let mut gltf_dispersive = GltfTransmission::new(1.5, 0.4, Vec3::ONE, false);
         gltf_dispersive.dispersion = Some(Vec3::new(1.45, 1.5, 1.58));
-        let cases: [(Bsdf, bool); 9] = [
+        let glossy = MetallicRoughness {
+            base: Vec3::new(0.6, 0.3, 0.2),
+            metallic: 0.3,
+            ggx: crate::material::microfacet::Ggx::new(0.2),
+            f0_dielectric: Vec3::splat(0.04),
+            specular: 1.0,
+            coat: None,
+            ext: Default::default(),
+            wo_terms: None,
+        };
+        let cases: [(Bsdf, bool); 10] = [
             (
                 Bsdf::Diffuse(Diffuse {
                     albedo: Vec3::new(0.7, 0.5, 0.2),
                 }),
                 true,
             ),
+            (Bsdf::MetallicRoughness(glossy), true),
             (
                 Bsdf::Conductor(Conductor::new(
                     Vec3::new(0.2, 0.9, 1.1),
