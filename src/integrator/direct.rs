@@ -7,8 +7,6 @@ use super::settings::PathSettings;
 use super::vertex::Vertex;
 use crate::geometry::primitive::SurfaceHit;
 use crate::light::{EnvPdf, LocalLight};
-use crate::material::Bsdf;
-use crate::material::bxdf::Diffuse;
 use crate::material::local_shading::{ShadingModel, brdf};
 use crate::math::Vec3;
 use crate::sampling::SampleStream;
