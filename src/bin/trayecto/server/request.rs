@@ -4,7 +4,7 @@
 //! (`RenderSettings::validate`) and the server's own, tighter caps.
 
 use super::folder::{MAX_SCENE_NAME, resolve_env, resolve_scene};
-use serde_json::{Map, Value};
+use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::str::FromStr;
@@ -185,12 +185,12 @@ pub const MAX_TIME_LIMIT: f64 = 24.0 * 3600.0;
 
 /// A positive number field at most `max` (`None` when absent or null).
 fn positive_field(
-    obj: &Map<String, Value>,
+    v: Option<&Value>,
     key: &str,
     max: f64,
     errors: &mut BTreeMap<String, String>,
 ) -> Option<f64> {
-    match obj.get(key) {
+    match v {
         None | Some(Value::Null) => None,
         Some(Value::Number(n)) => match n.as_f64() {
             Some(x) if x.is_finite() && x > 0.0 && x <= max => Some(x),
@@ -259,7 +259,7 @@ pub fn sanitize_output(name: &str) -> Result<String, String> {
 
 /// Reads an optional whole number in `lo..=hi`.
 fn uint_field(
-    obj: &Map<String, Value>,
+    v: Option<&Value>,
     key: &str,
     default: u64,
     lo: u64,
@@ -267,7 +267,7 @@ fn uint_field(
     errors: &mut BTreeMap<String, String>,
 ) -> u64 {
     let range = || format!("must be a whole number from {lo} to {hi}");
-    match obj.get(key) {
+    match v {
         None | Some(Value::Null) => default,
         Some(Value::Number(n)) => match n.as_u64() {
             Some(v) if (lo..=hi).contains(&v) => v,
@@ -284,12 +284,12 @@ fn uint_field(
 }
 
 fn string_field<'a>(
-    obj: &'a Map<String, Value>,
+    v: Option<&'a Value>,
     key: &str,
     max_len: usize,
     errors: &mut BTreeMap<String, String>,
 ) -> Option<&'a str> {
-    match obj.get(key) {
+    match v {
         None | Some(Value::Null) => None,
         Some(Value::String(s)) if s.len() <= max_len => Some(s.as_str()),
         Some(Value::String(_)) => {
@@ -453,61 +453,236 @@ pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
     }))
 }
 
-/// Parses and checks a JSON render request. Every wrong field is reported, not only the first.
+/// The fields a request may have, in the order the unknown-field message lists them.
+const KNOWN_FIELDS: [&str; 22] = [
+    "scene",
+    "output",
+    "width",
+    "height",
+    "spp",
+    "secondary",
+    "max_depth",
+    "exposure",
+    "integrator",
+    "tonemap",
+    "seed",
+    "default_light",
+    "filter",
+    "noise_threshold",
+    "time_limit",
+    "crop",
+    "denoise",
+    "variant",
+    "environment",
+    "env_rotation",
+    "camera",
+    "aovs",
+];
+
+/// A request body as sent. Every field is optional (absent and `null` alike) and kept as JSON,
+/// not typed: a typed field would fail the whole body on serde's first error, and the page
+/// shows a message per bad field. The checks below turn it into a [`RenderRequest`].
+#[derive(Debug, Default, serde::Deserialize)]
+#[serde(default)]
+pub struct RequestBody {
+    pub scene: Option<Value>,
+    pub output: Option<Value>,
+    pub width: Option<Value>,
+    pub height: Option<Value>,
+    pub spp: Option<Value>,
+    pub secondary: Option<Value>,
+    pub max_depth: Option<Value>,
+    pub exposure: Option<Value>,
+    pub integrator: Option<Value>,
+    pub tonemap: Option<Value>,
+    pub seed: Option<Value>,
+    pub default_light: Option<Value>,
+    pub filter: Option<Value>,
+    pub noise_threshold: Option<Value>,
+    pub time_limit: Option<Value>,
+    pub crop: Option<Value>,
+    pub denoise: Option<Value>,
+    pub variant: Option<Value>,
+    pub environment: Option<Value>,
+    pub env_rotation: Option<Value>,
+    pub camera: Option<Value>,
+    pub aovs: Option<Value>,
+    /// Anything else, refused by name.
+    #[serde(flatten)]
+    pub unknown: BTreeMap<String, Value>,
+}
+
+impl RequestBody {
+    /// Parses a body that must be a JSON object.
+    pub fn from_json(body: &[u8]) -> Result<RequestBody, RequestError> {
+        let value: Value = serde_json::from_slice(body)
+            .map_err(|e| RequestError::Malformed(format!("the body is not valid JSON: {e}")))?;
+        if !value.is_object() {
+            return Err(RequestError::Malformed(
+                "the body must be a JSON object".into(),
+            ));
+        }
+        // Every field is untyped JSON, so an object always fits.
+        serde_json::from_value(value)
+            .map_err(|e| RequestError::Malformed(format!("the body is not valid JSON: {e}")))
+    }
+}
+
+/// Per-field messages, as the page shows them.
+type Errors = BTreeMap<String, String>;
+
+/// The numbers of a request: image size, samples, depth, seed.
+struct Numbers {
+    width: u32,
+    height: u32,
+    width_given: bool,
+    height_given: bool,
+    spp: u32,
+    secondary: u32,
+    max_depth: u32,
+    seed: u64,
+}
+
+/// The image and integrator options of a request.
+struct Options {
+    exposure: f32,
+    integrator: IntegratorKind,
+    tonemap: Tonemap,
+    default_light: Option<DefaultLight>,
+    variant: Option<String>,
+    filter: Option<Filter>,
+    noise_threshold: Option<f32>,
+    time_limit: Option<f64>,
+    crop: Option<trayecto::pipeline::CropSpec>,
+    denoise: bool,
+}
+
+/// Parses and checks a JSON render request ([`RequestBody`]). Every wrong field is reported, not
+/// only the first ([`RequestError::Fields`]).
 pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, RequestError> {
-    let value: Value = serde_json::from_slice(body)
-        .map_err(|e| RequestError::Malformed(format!("the body is not valid JSON: {e}")))?;
-    let Value::Object(obj) = value else {
-        return Err(RequestError::Malformed(
-            "the body must be a JSON object".into(),
-        ));
-    };
+    let b = RequestBody::from_json(body)?;
     let lim = &policy.limits;
-    let mut errors = BTreeMap::new();
-    let known = [
-        "scene",
-        "output",
-        "width",
-        "height",
-        "spp",
-        "secondary",
-        "max_depth",
-        "exposure",
-        "integrator",
-        "tonemap",
-        "seed",
-        "default_light",
-        "filter",
-        "noise_threshold",
-        "time_limit",
-        "crop",
-        "denoise",
-        "variant",
-        "environment",
-        "env_rotation",
-        "camera",
-        "aovs",
-    ];
-    for k in obj.keys() {
-        if !known.contains(&k.as_str()) {
-            let shown: String = k.chars().take(40).collect();
-            errors.insert(
-                "request".into(),
-                format!("unknown field '{shown}' (known: {})", known.join(", ")),
-            );
+    let mut errors = Errors::new();
+    for k in b.unknown.keys() {
+        let shown: String = k.chars().take(40).collect();
+        errors.insert(
+            "request".into(),
+            format!(
+                "unknown field '{shown}' (known: {})",
+                KNOWN_FIELDS.join(", ")
+            ),
+        );
+    }
+    let scene_name = string_field(b.scene.as_ref(), "scene", MAX_SCENE_NAME, &mut errors);
+    let source = check_scene(scene_name, policy, &mut errors);
+    let output_given = !matches!(b.output, None | Some(Value::Null));
+    let output = check_output(&b, &mut errors);
+    let mut n = check_numbers(&b, lim, &mut errors);
+    let o = check_options(&b, &mut errors);
+    let (environment, env_rotation) = check_environment(&b, policy, &mut errors);
+    let camera = match &b.camera {
+        None | Some(Value::Null) => None,
+        Some(v) => match camera_field(v) {
+            Ok(c) => Some(c),
+            Err(m) => {
+                errors.insert("camera".into(), m);
+                None
+            }
+        },
+    };
+    let aovs = check_aovs(b.aovs.as_ref(), &mut errors);
+
+    // A size left out follows the command line's rule for the scene (its file's resolution or
+    // its camera's shape), as /api/scene-defaults reports it; this loads the scene.
+    if (!n.width_given || !n.height_given)
+        && errors.is_empty()
+        && let (Some(name), Some(src)) = (scene_name, &source)
+    {
+        match default_size(
+            name,
+            src,
+            n.width_given.then_some(n.width),
+            n.height_given.then_some(n.height),
+            camera,
+            lim.max_size,
+        ) {
+            Ok((w, h)) => (n.width, n.height) = (w, h),
+            Err((field, m)) => {
+                errors.insert(field.into(), m);
+            }
         }
     }
 
-    let scene_name = string_field(&obj, "scene", MAX_SCENE_NAME, &mut errors);
-    let mut source = None;
-    match scene_name {
+    let samples = n.width as u64 * n.height as u64 * n.spp as u64 * n.secondary as u64;
+    if !errors.contains_key("spp") && samples > lim.max_samples {
+        errors.insert(
+            "spp".into(),
+            format!(
+                "width × height × samples × secondary rays = {samples} is over this server's budget of {}",
+                lim.max_samples
+            ),
+        );
+    }
+
+    let settings = RenderSettings {
+        width: n.width,
+        height: n.height,
+        spp: n.spp,
+        seed: n.seed,
+        threads: policy.threads,
+        sampler: SamplerKind::default(),
+        integrator: o.integrator,
+        path: PathSettings {
+            max_depth: n.max_depth,
+            secondary: n.secondary,
+            ..PathSettings::default()
+        },
+        filter: o.filter.unwrap_or_default(),
+        noise_threshold: o.noise_threshold,
+        time_limit: o.time_limit,
+        crop: None,
+        // Set by the pipeline when the variance AOV is asked for.
+        track_variance: false,
+    };
+    if errors.is_empty()
+        && let Err(e) = settings.validate()
+    {
+        errors.insert("request".into(), e.to_string());
+    }
+    match (errors.is_empty(), source, output) {
+        (true, Some(source), Some(output)) => Ok(RenderRequest {
+            scene: scene_name.unwrap_or_default().to_string(),
+            source,
+            output,
+            output_given,
+            settings,
+            exposure: o.exposure,
+            tonemap: o.tonemap,
+            default_light: o.default_light,
+            filter_given: o.filter.is_some(),
+            crop: o.crop,
+            denoise: o.denoise,
+            variant: o.variant,
+            environment,
+            env_rotation,
+            camera,
+            aovs,
+        }),
+        _ => Err(RequestError::Fields(errors)),
+    }
+}
+
+/// `scene`: a built-in name, or a file inside the scenes folder.
+fn check_scene(name: Option<&str>, policy: &Policy, errors: &mut Errors) -> Option<SceneSource> {
+    match name {
         None => {
             errors
                 .entry("scene".into())
                 .or_insert_with(|| "choose a scene".into());
+            None
         }
         Some(name) if builtin::NAMES.contains(&name) => {
-            source = Some(SceneSource::Builtin(name.to_string()))
+            Some(SceneSource::Builtin(name.to_string()))
         }
         Some(name) => match &policy.scenes_dir {
             None => {
@@ -518,18 +693,22 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
                         builtin::NAMES.join(", ")
                     ),
                 );
+                None
             }
             Some(root) => match resolve_scene(root, name) {
-                Ok(p) => source = Some(SceneSource::File(p)),
+                Ok(p) => Some(SceneSource::File(p)),
                 Err(m) => {
                     errors.insert("scene".into(), m);
+                    None
                 }
             },
         },
     }
+}
 
-    let output_given = !matches!(obj.get("output"), None | Some(Value::Null));
-    let output = match string_field(&obj, "output", 4 * MAX_OUTPUT_NAME, &mut errors) {
+/// `output`: a plain file name (or the placeholder when absent).
+fn check_output(b: &RequestBody, errors: &mut Errors) -> Option<String> {
+    match string_field(b.output.as_ref(), "output", 4 * MAX_OUTPUT_NAME, errors) {
         None => Some(Defaults::OUTPUT.to_string()),
         Some(s) => match sanitize_output(s) {
             Ok(n) => Some(n),
@@ -538,40 +717,46 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
                 None
             }
         },
-    };
+    }
+}
 
+/// `width`, `height`, `spp`, `secondary`, `max_depth`, `seed` within the server's limits.
+fn check_numbers(b: &RequestBody, lim: &Limits, errors: &mut Errors) -> Numbers {
     let size = lim.max_size as u64;
-    let given = |k: &str| !matches!(obj.get(k), None | Some(Value::Null));
-    let (width_given, height_given) = (given("width"), given("height"));
-    let mut width = uint_field(&obj, "width", Defaults::WIDTH, 1, size, &mut errors) as u32;
-    let mut height = uint_field(&obj, "height", Defaults::HEIGHT, 1, size, &mut errors) as u32;
-    let spp = uint_field(
-        &obj,
-        "spp",
-        Defaults::SPP,
-        1,
-        lim.max_spp as u64,
-        &mut errors,
-    ) as u32;
-    let secondary = uint_field(
-        &obj,
-        "secondary",
-        Defaults::SECONDARY,
-        1,
-        lim.max_secondary as u64,
-        &mut errors,
-    ) as u32;
-    let max_depth = uint_field(
-        &obj,
-        "max_depth",
-        Defaults::MAX_DEPTH,
-        0,
-        lim.max_depth as u64,
-        &mut errors,
-    ) as u32;
-    let seed = uint_field(&obj, "seed", 0, 0, u64::MAX, &mut errors);
+    let given = |v: &Option<Value>| !matches!(v, None | Some(Value::Null));
+    let uint = |v: &Option<Value>, key, default, lo, hi, errors: &mut Errors| {
+        uint_field(v.as_ref(), key, default, lo, hi, errors)
+    };
+    Numbers {
+        width_given: given(&b.width),
+        height_given: given(&b.height),
+        width: uint(&b.width, "width", Defaults::WIDTH, 1, size, errors) as u32,
+        height: uint(&b.height, "height", Defaults::HEIGHT, 1, size, errors) as u32,
+        spp: uint(&b.spp, "spp", Defaults::SPP, 1, lim.max_spp as u64, errors) as u32,
+        secondary: uint(
+            &b.secondary,
+            "secondary",
+            Defaults::SECONDARY,
+            1,
+            lim.max_secondary as u64,
+            errors,
+        ) as u32,
+        max_depth: uint(
+            &b.max_depth,
+            "max_depth",
+            Defaults::MAX_DEPTH,
+            0,
+            lim.max_depth as u64,
+            errors,
+        ) as u32,
+        seed: uint(&b.seed, "seed", 0, 0, u64::MAX, errors),
+    }
+}
 
-    let exposure = match obj.get("exposure") {
+/// Exposure, integrator, tone mapping, default light, variant, filter, adaptive sampling, time
+/// limit, crop and denoising.
+fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
+    let exposure = match &b.exposure {
         None | Some(Value::Null) => Defaults::EXPOSURE,
         Some(Value::Number(n)) => match n.as_f64() {
             Some(x) if x.is_finite() && x > 0.0 && x <= 1e6 => x,
@@ -589,7 +774,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         }
     } as f32;
 
-    let integrator = match string_field(&obj, "integrator", 32, &mut errors) {
+    let integrator = match string_field(b.integrator.as_ref(), "integrator", 32, errors) {
         None => IntegratorKind::default(),
         Some(s) => IntegratorKind::from_str(s).unwrap_or_else(|_| {
             errors.insert(
@@ -599,7 +784,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             IntegratorKind::default()
         }),
     };
-    let tonemap = match string_field(&obj, "tonemap", 32, &mut errors) {
+    let tonemap = match string_field(b.tonemap.as_ref(), "tonemap", 32, errors) {
         None => Tonemap::default(),
         Some(s) => Tonemap::from_str(s).unwrap_or_else(|_| {
             errors.insert(
@@ -609,21 +794,22 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             Tonemap::default()
         }),
     };
-    let default_light = string_field(&obj, "default_light", 32, &mut errors).and_then(|s| {
-        let parsed = DefaultLight::parse(s);
-        if parsed.is_none() {
-            errors.insert(
-                "default_light".into(),
-                format!("must be one of: {}", DEFAULT_LIGHT_NAMES.join(", ")),
-            );
-        }
-        parsed
-    });
+    let default_light = string_field(b.default_light.as_ref(), "default_light", 32, errors)
+        .and_then(|s| {
+            let parsed = DefaultLight::parse(s);
+            if parsed.is_none() {
+                errors.insert(
+                    "default_light".into(),
+                    format!("must be one of: {}", DEFAULT_LIGHT_NAMES.join(", ")),
+                );
+            }
+            parsed
+        });
     // Checked against the scene's variants when the job loads it (an unknown name fails the job
     // with the list of valid ones).
-    let variant = string_field(&obj, "variant", 256, &mut errors).map(str::to_string);
+    let variant = string_field(b.variant.as_ref(), "variant", 256, errors).map(str::to_string);
 
-    let filter = match string_field(&obj, "filter", 32, &mut errors) {
+    let filter = match string_field(b.filter.as_ref(), "filter", 32, errors) {
         None => None,
         Some(s) => match FilterKind::from_str(s) {
             Ok(k) => Some(Filter::new(k)),
@@ -637,9 +823,35 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         },
     };
     let noise_threshold =
-        positive_field(&obj, "noise_threshold", 100.0, &mut errors).map(|x| x as f32);
-    let time_limit = positive_field(&obj, "time_limit", MAX_TIME_LIMIT, &mut errors);
-    let crop = match obj.get("crop") {
+        positive_field(b.noise_threshold.as_ref(), "noise_threshold", 100.0, errors)
+            .map(|x| x as f32);
+    let time_limit = positive_field(b.time_limit.as_ref(), "time_limit", MAX_TIME_LIMIT, errors);
+    let crop = check_crop(b.crop.as_ref(), errors);
+    let denoise = match &b.denoise {
+        None | Some(Value::Null) => false,
+        Some(Value::Bool(b)) => *b,
+        Some(_) => {
+            errors.insert("denoise".into(), "must be true or false".into());
+            false
+        }
+    };
+    Options {
+        exposure,
+        integrator,
+        tonemap,
+        default_light,
+        variant,
+        filter,
+        noise_threshold,
+        time_limit,
+        crop,
+        denoise,
+    }
+}
+
+/// `crop`: four fractions of the image [x0, x1, y0, y1] (pbrt's cropwindow).
+fn check_crop(v: Option<&Value>, errors: &mut Errors) -> Option<trayecto::pipeline::CropSpec> {
+    match v {
         None | Some(Value::Null) => None,
         Some(Value::Array(a)) if a.len() == 4 => {
             let v: Vec<f32> = a
@@ -674,17 +886,21 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             );
             None
         }
-    };
-    let denoise = match obj.get("denoise") {
-        None | Some(Value::Null) => false,
-        Some(Value::Bool(b)) => *b,
-        Some(_) => {
-            errors.insert("denoise".into(), "must be true or false".into());
-            false
-        }
-    };
+    }
+}
 
-    let environment = match string_field(&obj, "environment", MAX_SCENE_NAME, &mut errors) {
+/// `environment` (a map inside the scenes folder) and `env_rotation` (degrees).
+fn check_environment(
+    b: &RequestBody,
+    policy: &Policy,
+    errors: &mut Errors,
+) -> (Option<(String, PathBuf)>, f32) {
+    let environment = match string_field(
+        b.environment.as_ref(),
+        "environment",
+        MAX_SCENE_NAME,
+        errors,
+    ) {
         None | Some("") => None,
         Some(name) => match &policy.scenes_dir {
             None => {
@@ -704,7 +920,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         },
     };
 
-    let env_rotation = match obj.get("env_rotation") {
+    let env_rotation = match &b.env_rotation {
         None | Some(Value::Null) => 0.0,
         Some(v) => match v.as_f64() {
             Some(x) if x.is_finite() && x.abs() <= 36000.0 => x as f32,
@@ -723,18 +939,13 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             "turns the environment map: choose one (environment)".into(),
         );
     }
-    let camera = match obj.get("camera") {
-        None | Some(Value::Null) => None,
-        Some(v) => match camera_field(v) {
-            Ok(c) => Some(c),
-            Err(m) => {
-                errors.insert("camera".into(), m);
-                None
-            }
-        },
-    };
+    (environment, env_rotation)
+}
+
+/// `aovs`: a list of layer names, each at most once.
+fn check_aovs(v: Option<&Value>, errors: &mut Errors) -> Vec<trayecto::film::aov::AovKind> {
     let mut aovs = Vec::new();
-    match obj.get("aovs") {
+    match v {
         None | Some(Value::Null) => {}
         Some(Value::Array(a)) if a.len() <= AOV_NAMES.len() => {
             for v in a {
@@ -762,85 +973,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             );
         }
     }
-
-    // A size left out follows the command line's rule for the scene (its file's resolution or
-    // its camera's shape), as /api/scene-defaults reports it; this loads the scene.
-    if (!width_given || !height_given)
-        && errors.is_empty()
-        && let (Some(name), Some(src)) = (scene_name, &source)
-    {
-        match default_size(
-            name,
-            src,
-            width_given.then_some(width),
-            height_given.then_some(height),
-            camera,
-            lim.max_size,
-        ) {
-            Ok((w, h)) => (width, height) = (w, h),
-            Err((field, m)) => {
-                errors.insert(field.into(), m);
-            }
-        }
-    }
-
-    let samples = width as u64 * height as u64 * spp as u64 * secondary as u64;
-    if !errors.contains_key("spp") && samples > lim.max_samples {
-        errors.insert(
-            "spp".into(),
-            format!(
-                "width × height × samples × secondary rays = {samples} is over this server's budget of {}",
-                lim.max_samples
-            ),
-        );
-    }
-
-    let settings = RenderSettings {
-        width,
-        height,
-        spp,
-        seed,
-        threads: policy.threads,
-        sampler: SamplerKind::default(),
-        integrator,
-        path: PathSettings {
-            max_depth,
-            secondary,
-            ..PathSettings::default()
-        },
-        filter: filter.unwrap_or_default(),
-        noise_threshold,
-        time_limit,
-        crop: None,
-        // Set by the pipeline when the variance AOV is asked for.
-        track_variance: false,
-    };
-    if errors.is_empty()
-        && let Err(e) = settings.validate()
-    {
-        errors.insert("request".into(), e.to_string());
-    }
-    match (errors.is_empty(), source, output) {
-        (true, Some(source), Some(output)) => Ok(RenderRequest {
-            scene: scene_name.unwrap_or_default().to_string(),
-            source,
-            output,
-            output_given,
-            settings,
-            exposure,
-            tonemap,
-            default_light,
-            filter_given: filter.is_some(),
-            crop,
-            denoise,
-            variant,
-            environment,
-            env_rotation,
-            camera,
-            aovs,
-        }),
-        _ => Err(RequestError::Fields(errors)),
-    }
+    aovs
 }
 
 #[cfg(test)]
