@@ -17,7 +17,8 @@ pub enum EnvMapping {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum DefaultLight {
-    /// Add it when the scene has no lights or only self-lit emitters (see the module docs).
+    /// Add it when the scene has no lights or only self-lit emitters (the rule is in
+    /// `light::default_light`).
     #[default]
     Auto,
     /// Add it unless the scene already has an ambient or environment light.

@@ -20,6 +20,13 @@ fn mean(v: Vec3) -> f32 {
 }
 
 impl World {
+    /// True if the scene has media or medium interfaces: then only the volumetric path tracer
+    /// renders it correctly.
+    #[inline]
+    pub fn has_media(&self) -> bool {
+        self.media.active
+    }
+
     /// The medium the camera sits in (`None`: vacuum).
     #[inline]
     pub fn camera_medium(&self) -> Option<usize> {
