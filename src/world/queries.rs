@@ -15,13 +15,6 @@ use crate::material::{Bsdf, Material, eval, normal_map};
 use crate::math::{Vec2, Vec3};
 
 impl World {
-    /// Whether the scene has participating media or medium interfaces (surfaces that only
-    /// separate media): then light is transported by the volumetric path tracer.
-    #[inline]
-    pub fn has_media(&self) -> bool {
-        self.media.active
-    }
-
     /// Expands an intersection found on `ray` (by [`World::intersect_raw`]) into full shading
     /// attributes.
     #[inline]
