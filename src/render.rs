@@ -986,7 +986,7 @@ pub fn render_aovs_samples(
 
 /// Camera samples whose first hits are found together, before any of their paths is shaded.
 ///
-/// Why (issue #23, the "wavefront" lever, measured in BENCHMARKS.md, session 18): traced sample
+/// Why (the "wavefront" lever, measured: BENCHMARKS.md, "Tried, did not pay"): traced sample
 /// by sample, every camera ray's traversal runs right after the previous path's shading, whose
 /// code (tens of KB: the material evaluation, BSDF sampling, light sampling) has evicted the
 /// traversal's from the instruction cache and retrained the branch predictor. A batch walks the

@@ -1,4 +1,4 @@
-//! Split and resumable renders (issue #20): render a sample range of a frame into a partial film,
+//! Split and resumable renders: render a sample range of a frame into a partial film,
 //! save checkpoints while rendering, resume from one. The film's sums are exact (see
 //! [`crate::film`]), so a frame assembled from parts, or a render stopped and resumed any number of
 //! times, is bit-identical to one uninterrupted run.

@@ -61,7 +61,7 @@ pub struct World {
     pub warnings: Vec<String>,
     /// Time spent building the acceleration structure (for the phase report).
     pub accel_build_time: std::time::Duration,
-    /// Participating media and the medium interfaces of surfaces (issue #18).
+    /// Participating media and the medium interfaces of surfaces.
     pub media: crate::medium::world::WorldMedia,
     /// Per material: true if its alpha mode is MASK or BLEND, so a hit on it may be a hole.
     cutout: Vec<bool>,

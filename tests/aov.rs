@@ -1,4 +1,4 @@
-//! AOVs (issue #19): the layers hold the scene's known reflectances and normals, follow mirror
+//! AOVs: the layers hold the scene's known reflectances and normals, follow mirror
 //! and glass chains to the surface behind them, are independent of the thread count, do not
 //! change the beauty image, and are written as one multi-layer EXR or as side files.
 

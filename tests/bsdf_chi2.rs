@@ -540,7 +540,7 @@ fn environment_map_sampling_matches_pdf() {
     }
 }
 
-/// pbrt-v4's equal-area square maps (issue #16): sampling matches `pdf` (which includes the 1/4π
+/// pbrt-v4's equal-area square maps: sampling matches `pdf` (which includes the 1/4π
 /// of the equal-area Jacobian and, for a non-rigid light transform, the solid-angle Jacobian of
 /// the linear map), the pdf integrates to 1, and a sample's radiance and pdf are `eval` and `pdf`
 /// of its direction. One map under a rotation with a reflection (det −1, as pbrt files'
@@ -1069,7 +1069,7 @@ fn uniform_environment_samples_match_the_mis_density() {
     }
 }
 
-/// The Henyey–Greenstein phase function sampler (issue #18) against its own value, for forward,
+/// The Henyey–Greenstein phase function sampler against its own value, for forward,
 /// backward, isotropic and strongly peaked lobes around a tilted incoming direction; the sample's
 /// pdf must equal the phase function and the function must integrate to 1 over the sphere.
 #[test]

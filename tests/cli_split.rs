@@ -1,4 +1,4 @@
-//! The command line of split renders (issue #20): `render --samples A..B -o part.trp`, `merge`,
+//! The command line of split renders: `render --samples A..B -o part.trp`, `merge`,
 //! `--checkpoint` / `--resume`, and Ctrl-C (a real SIGINT to a child process).
 
 use std::path::{Path, PathBuf};

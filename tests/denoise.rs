@@ -1,4 +1,4 @@
-//! `--denoise` (issue #19): Open Image Denoise, loaded at run time, runs when installed
+//! `--denoise`: Open Image Denoise, loaded at run time, runs when installed
 //! (`./scripts/install-oidn.sh`, which scripts/test.sh runs) and brings a 16-spp Cornell box
 //! closer to a reference; without it the render fails before any work, naming the install command.
 

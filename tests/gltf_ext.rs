@@ -1,4 +1,4 @@
-//! glTF material extensions beyond the core (issue #17): each is read (no "not supported"
+//! glTF material extensions beyond the core: each is read (no "not supported"
 //! warning), files that require it load, malformed values are errors naming the file, and a
 //! rendered check fails when the extension is ignored.
 

@@ -1,4 +1,4 @@
-//! glTF files as exporters and optimisers write them (issue #17, "files from the wild"):
+//! glTF files as exporters and optimisers write them ("files from the wild"):
 //! `KHR_mesh_quantization`, `EXT_meshopt_compression` / `KHR_meshopt_compression` (with and
 //! without filters), `EXT_texture_webp`, `KHR_texture_basisu`, `KHR_draco_mesh_compression` and
 //! `KHR_materials_variants`. The compressed files in `scenes/gltf-files/` were made from the

@@ -1,4 +1,4 @@
-//! What the loaders read, value by value (issue #24): small OBJ/MTL, PLY, glTF and EXR files are
+//! What the loaders read, value by value: small OBJ/MTL, PLY, glTF and EXR files are
 //! written here with known contents, and every attribute must come back exactly as written (up
 //! to each format's documented conventions: v flipped to glTF's v-down, 8-bit texels / 255).
 

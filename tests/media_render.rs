@@ -1,4 +1,4 @@
-//! Participating media (issue #18) and glTF volume absorption (issue #17), rendered:
+//! Participating media and glTF volume absorption, rendered:
 //!
 //! * three scenes against Mitsuba 3 `volpath` references (scenes/media/*.toml, translated by
 //!   scripts/references/make_media_references.py): chromatic fog in a Cornell box, a chromatic

@@ -1,4 +1,4 @@
-//! Materials, textures and every light type against Mitsuba 3 (issue #3). Each scene is a Trayecto
+//! Materials, textures and every light type against Mitsuba 3. Each scene is a Trayecto
 //! TOML file under scenes/mitsuba/; scripts/references/make_material_references.py translates the
 //! same file into a Mitsuba scene dictionary and rendered the committed references
 //! tests/references/mitsuba_NAME.exr (32768 spp, llvm_ad_rgb). For every scene: the per-channel

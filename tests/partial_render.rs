@@ -1,4 +1,4 @@
-//! Split renders (issue #20): sample ranges rendered apart and merged, and renders stopped and
+//! Split renders: sample ranges rendered apart and merged, and renders stopped and
 //! resumed, give the film of a single run bit for bit; merge refuses parts that do not belong
 //! together, overlap or leave gaps; hostile partial films are refused with a message.
 

@@ -160,7 +160,7 @@ fn feature_scene_matches_pbrt_v4() {
     assert_matches_pbrt_v4(&img, "features", 0.05, 0.15);
 }
 
-/// pbrt-v4's equal-area environment map (issue #16): seen directly, in a near-mirror and as the
+/// pbrt-v4's equal-area environment map: seen directly, in a near-mirror and as the
 /// light of diffuse objects, under a rotated and mirrored light transform. A wrong mapping,
 /// orientation or handedness moves the sun, the red (+x) and green (+y) patches across blocks.
 #[test]
@@ -661,7 +661,7 @@ fn textured_roughness_matches_pbrt_v4() {
     );
 }
 
-/// Procedural textures evaluated per hit (issue #16), against pbrt-v4: a red/blue checkerboard
+/// Procedural textures evaluated per hit, against pbrt-v4: a red/blue checkerboard
 /// of 1026 × 1026 cells on the floor (a 512² bake aliases it into solid red and blue squares;
 /// evaluated per hit it averages to purple in every pixel, as in pbrt-v4) and, on the wall, a
 /// `mix` of a 5 × 3 checkerboard and white whose amount is a `bilerp` at pbrt-v4's default
@@ -1474,7 +1474,7 @@ fn coated_conductor_fresnel_is_relative_to_the_coat_like_pbrt_v4() {
         },
         // With it: mean 0.13 %, worst 4×4 block 1.45 %, worst 8×8 4.5 % (the copper sphere's dim
         // lower rim: RGB copper against pbrt-v4's spectral one). Without it: worst 4×4 block
-        // 5.8 %, 8×8 13.2 %. Until session 13 NEE drew the sky uniformly over the sphere and
+        // 5.8 %, 8×8 13.2 %. Before MIS-compensated sampling, NEE drew the sky uniformly over the sphere and
         // these were 5.6 % and 14.2 %, part noise; with the hemisphere sampling the noise fell,
         // so the 8×8 tolerance is 6 % (was 7 %) and the feature must show beyond 12 %.
         (0.02, 0.04, 0.06),

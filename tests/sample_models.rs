@@ -1,4 +1,4 @@
-//! Every Khronos sample model under `shared/scenes/gltf/` against its `screenshot/` (issue #8).
+//! Every Khronos sample model under `shared/scenes/gltf/` against its `screenshot/`.
 //!
 //! The screenshot is a rasterizer's view with its own lighting, so only what lighting does not
 //! change is compared: the silhouette and the surface colours' chromaticity.

@@ -185,7 +185,7 @@ fn compare(world: &World, kind: SamplerKind, seed: u64, spp: u32) -> (f64, f64) 
 /// The sampler seeds the variance ratios are averaged over, fixed before the eight-way tree's
 /// results with them were seen (BENCHMARKS.md, "Tried, did not pay"). One seed's ratio is
 /// noisy: with ZSobol on this 43-light scene it moved between 0.49 and 0.86 over seeds 1, 2, 3
-/// and 5 (session 14); the mean of eight is the estimator's, not one seed's, so the 0.8 bound is
+/// and 5; the mean of eight is the estimator's, not one seed's, so the 0.8 bound is
 /// a stricter test than it was on one seed.
 const SEEDS: [u64; 8] = [6, 7, 8, 9, 10, 11, 12, 13];
 

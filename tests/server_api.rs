@@ -909,7 +909,7 @@ fn reusing_a_finished_output_name_is_refused() {
     assert_eq!(post_json(&s, "/api/renders", &again).status, 201);
 }
 
-/// `"denoise": true` (issue #19): with Open Image Denoise installed the job also writes and serves
+/// `"denoise": true`: with Open Image Denoise installed the job also writes and serves
 /// the denoised image; without it the job fails before rendering, naming the install command; a
 /// non-boolean value is refused, named.
 #[test]
@@ -1894,7 +1894,7 @@ fn requests_without_output_or_size_get_unique_names_and_the_cli_size() {
     std::fs::remove_dir_all(root).ok();
 }
 
-/// `"aovs": ["samples", "variance"]` (#19): the server's EXR carries `samples.Y` (the spp
+/// `"aovs": ["samples", "variance"]`: the server's EXR carries `samples.Y` (the spp
 /// everywhere on a uniform render) and `variance.Y`, bit-identical to the command line's
 /// `--aov samples,variance`, and `/linear?layer=` serves them as grey RGB.
 #[test]

@@ -132,12 +132,12 @@ const NO_PRIM: u32 = u32::MAX;
 /// Largest all-triangle leaf: two packets.
 const MAX_TRI_LEAF: usize = 2 * PACKET;
 /// Cost of one packet test in units of one scalar triangle test, for the SAH's leaf decision
-/// (callgrind: see BENCHMARKS.md "Session 15: leaf triangle packets").
+/// (callgrind: see BENCHMARKS.md (leaf triangle packets)).
 const PACKET_COST: f32 = 1.5;
 /// Cost of a two-packet leaf in units of one packet test: the AVX2 traversal tests both packets
 /// in one 8-lane pass ([`TriPacket::intersect_pair_avx`]), so it costs less than two packet
 /// tests. 2 (the packets one by one) → 1.5 → 1.2: ToyCar 8 926 → 7 993 → 7 902 nodes, render
-/// instructions per ray 3077 → 3071 → 3072 (BENCHMARKS.md "Session 16: ToyCar's traversal cost").
+/// instructions per ray 3077 → 3071 → 3072 (BENCHMARKS.md (ToyCar's traversal cost)).
 const PAIR_COST: f32 = 1.5;
 
 /// Up to [`PACKET`] triangles of one leaf in structure-of-arrays form: `v[0..3]` are the lanes'
@@ -208,7 +208,7 @@ impl TriPacket {
     /// hits may have lowered; the ranking (`rank`) is the same either way, since a hit beyond the
     /// lowered bound has a larger key than the hit that lowered it. Why: one 8-lane test costs
     /// about what one 4-lane test does, and ToyCar's leaves are mostly of two packets
-    /// (BENCHMARKS.md "Session 16: ToyCar's traversal cost").
+    /// (BENCHMARKS.md (ToyCar's traversal cost)).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     #[inline]
@@ -809,7 +809,7 @@ impl EntryStack {
 /// The order in which a node's hit children are visited, as one integer per child: the bits of
 /// its entry distance `t` (a non-negative float, whose bits order as it does) with the low three
 /// replaced by `7 − lane`. Children are visited by increasing key: nearest first, and among equal
-/// `t` the higher lane first (the order of session 14's insertion sort). Only children whose `t`
+/// `t` the higher lane first (the order of the earlier insertion sort). Only children whose `t`
 /// differ in the last three bits alone (within 8 ulps) are ordered by lane instead of by `t`:
 /// the reported hit does not depend on the order (hits are ranked by `t` and primitive, see
 /// `intersect_impl`), only how many entries the shrinking bound culls. Unique keys let the AVX2
@@ -897,7 +897,7 @@ fn sort_desc_avx2(v: std::arch::x86_64::__m256i) -> std::arch::x86_64::__m256i {
 /// ([`sort_desc_avx2`]), the lane numbers in their low bits permute the node's `first` and
 /// `count` and the entry distances into stack order, and three 8-lane stores push them, the
 /// stack pointer then advancing by the number of hits. The insertion sort it replaces
-/// mispredicted ~3.7 times per ToyCar closest-hit call (cachegrind, BENCHMARKS.md "Session 18").
+/// mispredicted ~3.7 times per ToyCar closest-hit call (cachegrind).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]

@@ -1,4 +1,4 @@
-//! The volumetric path tracer (issue #18): the path tracer of [`super::path`] extended to the
+//! The volumetric path tracer: the path tracer of [`super::path`] extended to the
 //! radiative transfer equation (thesis §2.10). It runs instead of `path` whenever the scene has a
 //! participating medium or an interface surface; scenes without media keep the surface path
 //! tracer untouched (bit-identical images).

@@ -18,8 +18,8 @@
 //! between the two children at every binary level, the choice uses the tighter boxes two or
 //! three levels down directly and skips the coarser levels: fewer evaluations (four-way vs
 //! pbrt: on compare.py's manylight scene 11 % fewer instructions per sample with 2.4 % lower
-//! relMSE at 64 spp, BENCHMARKS.md "Light BVH descent"; eight-way vs four-way: "Session 14:
-//! light choice"). The probability of a light is the product of the choices along its path,
+//! relMSE at 64 spp, BENCHMARKS.md "Light BVH descent"; eight-way vs four-way: the
+//! light choice measurements there). The probability of a light is the product of the choices along its path,
 //! and [`LightBvh::pmf`] recomputes it exactly — the same function of the same numbers — by
 //! walking the light's recorded path (its trail, two or three bits
 //! per level), so MIS weights use the probability with which the light was really sampled.
@@ -889,8 +889,8 @@ impl LightBvh {
     /// (three operands, so the register copies of the two-operand SSE form go away) and
     /// AVX's 256-bit form of the eight-way tree's step ([`Avx8`]). No FMA (not enabled, and Rust never contracts
     /// `a * b + c` by itself), so every float is the portable path's bit for bit (a unit test
-    /// checks it). Measured reason for the second copy: BENCHMARKS.md, "Session 12: light
-    /// choice".
+    /// checks it). Measured reason for the second copy: BENCHMARKS.md (light
+    /// choice).
     ///
     /// # Safety
     /// The CPU must support AVX2.

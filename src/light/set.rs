@@ -26,7 +26,7 @@ pub enum LightSamplerKind {
     Bvh,
     /// [`LightSamplerKind::Bvh`] with eight children per tree node ([`TreeWidth::Eight`]):
     /// fewer, wider descent steps and tighter boxes per choice; `auto`'s tree (BENCHMARKS.md,
-    /// "Session 14: light choice" and "Session 15: defaults").
+    /// light choice and defaults).
     Bvh8,
 }
 

@@ -1,4 +1,4 @@
-//! Participating media (issue #18; thesis §2.10, the radiative transfer equation): what a ray meets
+//! Participating media (thesis §2.10, the radiative transfer equation): what a ray meets
 //! between surfaces. A medium is described in the scene by [`crate::scene::MediumDesc`] and compiled
 //! here into [`Medium`]: absorption and scattering coefficients σa, σs (RGB, per unit world length),
 //! a Henyey–Greenstein phase function ([`phase`]) and, for heterogeneous media, a density grid

@@ -33,7 +33,7 @@ pub enum SamplerKind {
     /// numbers (one 64-bit mix per 1D or 2D request): deep bounces' numbers are decorrelated by
     /// the path's scattering anyway, so their stratification buys little and costs ~100–200
     /// instructions per number (pbrt-v4's `PaddedSobolSampler` pads in the same spirit).
-    /// Opt-in: see BENCHMARKS.md "Session 14: path vertex cost" for why it is not the default.
+    /// Opt-in: see BENCHMARKS.md (path vertex cost) for why it is not the default.
     Padded,
 }
 
@@ -41,8 +41,8 @@ pub enum SamplerKind {
 /// numbers: the camera's four (film jitter, lens) and the first two bounces' six each (light
 /// spare and 2D number, BSDF lobe and direction), i.e. a path's first two vertices; later
 /// vertices' numbers are hashed. Chosen by error per sample (16–24 seeds at 16, 64 and 256 spp)
-/// and callgrind instructions on compare.py's scenes (BENCHMARKS.md, "Session 14: path vertex
-/// cost"): padding from 10 (after the first vertex) saved 3–9 % of the instructions but added
+/// and callgrind instructions on compare.py's scenes (BENCHMARKS.md (path vertex
+/// cost)): padding from 10 (after the first vertex) saved 3–9 % of the instructions but added
 /// up to 6 % to the Cornell box's error at 64–256 spp; from 4 (the camera's only) the error
 /// rose by 25–100 %.
 pub const PADDED_DIMS: u32 = 16;
@@ -538,7 +538,7 @@ fn permute_pow2(i: u32, p: u32, w: u32) -> u32 {
 /// The multiplications are `pmuludq` written as inline assembly: given `_mm_mul_epu32`, LLVM
 /// sees through its masking of lanes 1 and 3 and lowers four of the six products as full 64-bit
 /// lane multiplications (three `pmuludq`, two shifts and an add each), 16 more instructions per
-/// 2D number (objdump of `next_2d`, session 12); only the low 32 bits of lanes 0 and 2 are
+/// 2D number (objdump of `next_2d`); only the low 32 bits of lanes 0 and 2 are
 /// read, which one `pmuludq` gives.
 #[inline(always)]
 fn permute_pow2_pair(i: [u32; 2], p: [u32; 2], w: [u32; 2]) -> (u32, u32) {

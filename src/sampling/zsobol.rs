@@ -83,8 +83,7 @@ pub fn ceil_log2(n: u32) -> u32 {
 /// The digits are read from the top of a register rotated by two bits per place and the
 /// permuted ones shifted into the result from below, with the permutation a byte table indexed
 /// by (permutation, digit): no shift by a variable amount (x86 takes those from `cl` only), 20
-/// instructions per place where the loop indexing places by their shift took 25 (objdump,
-/// session 12). Same digits, same hash chain, so the same index.
+/// instructions per place where the loop indexing places by their shift took 25 (objdump). Same digits, same hash chain, so the same index.
 #[inline]
 pub fn scramble_index(index: u64, digits: u32, odd: bool, key: u64) -> u64 {
     debug_assert!(

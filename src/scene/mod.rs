@@ -32,7 +32,7 @@ pub type MaterialId = usize;
 /// Index into [`Scene::media`].
 pub type MediumId = usize;
 
-/// A participating medium (issue #18) in the file's own terms. Coefficients are RGB per unit
+/// A participating medium in the file's own terms. Coefficients are RGB per unit
 /// world length and are multiplied by `scale` (pbrt-v4's `scale`, Mitsuba's `scale`): σa·scale,
 /// σs·scale. `g` is the Henyey–Greenstein asymmetry (−1 back, 0 isotropic, +1 forward; clamped to
 /// ±0.99). `le` is emitted radiance (pbrt-v4's `Le` times `Lescale`; not scaled by `scale`): the

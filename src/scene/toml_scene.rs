@@ -52,7 +52,7 @@ struct RenderSpec {
     max_depth: Option<u32>,
 }
 
-/// A participating medium (issue #18). `sigma_a`, `sigma_s` per unit length, times `scale`.
+/// A participating medium. `sigma_a`, `sigma_s` per unit length, times `scale`.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MediumSpec {

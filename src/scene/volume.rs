@@ -1,4 +1,4 @@
-//! glTF `KHR_materials_volume` absorption as a participating medium (issues #17 and #18).
+//! glTF `KHR_materials_volume` absorption as a participating medium.
 //!
 //! The extension makes a transmissive material's mesh the boundary of a homogeneous volume
 //! (`thicknessFactor > 0`; 0 means thin-walled). Light travelling a distance x inside it keeps the

@@ -570,7 +570,7 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
             if m.is_emissive() { " (emissive)" } else { "" }
         );
     }
-    // Texel memory by storage kind (issue #23: 8-bit textures stay 8-bit).
+    // Texel memory by storage kind (8-bit textures stay 8-bit).
     let mut kinds: std::collections::BTreeMap<&str, (usize, usize)> = Default::default();
     for t in &world.textures {
         // pbrt-v4 procedural textures are evaluated per hit; their one texel is their mean.

@@ -781,7 +781,7 @@ mod tests {
         }
     }
 
-    /// Why Trayecto's rough `coateddiffuse` is darker than pbrt-v4's (README, pbrt table): pbrt-v4
+    /// Why Trayecto's rough `coateddiffuse` is darker than pbrt-v4's (docs/src/correctness.md, the pbrt-v4 table): pbrt-v4
     /// weighs the walk's exit against the density of `wi` given `-w` instead of the density of
     /// the competing connection in `w`'s measure, so its weights sum to more than one and it
     /// overcounts light leaving through a rough coat. A smooth coat has no MIS and agrees.

@@ -8,7 +8,7 @@
 //!   functions and converted XYZ → linear sRGB. The matching functions are the multi-lobe Gaussian
 //!   fit of Wyman, Sloan and Shirley, "Simple Analytic Approximations to the CIE XYZ Color Matching
 //!   Functions", JCGT 2(2), 2013 (eq. 2); its error against the tabulated functions is below 1 %
-//!   of the peak, well inside the RGB-versus-spectral difference documented in the README.
+//!   of the peak, well inside the RGB-versus-spectral difference documented in docs/src/correctness.md.
 //! * Named metal spectra (`metal-Cu-eta`, …) become the RGB (η, k) triples used by Tungsten and
 //!   Mitsuba's RGB mode (the same values the Bitterli scenes write as `rgb eta`/`rgb k`); named
 //!   glasses become their refractive index at the helium d line (587.6 nm).

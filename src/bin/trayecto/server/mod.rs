@@ -1,6 +1,6 @@
 //! `trayecto serve`: the thesis's GUI (§5.5, Annex B) as a web page with a progressive preview
 //! (docs/DESIGN.md §2, web UI). An axum server on 127.0.0.1 by default serves the embedded page and a small
-//! JSON API (documented in the README); renders run on their own threads ([`jobs`]) and every
+//! JSON API (documented in docs/src/web-ui.md); renders run on their own threads ([`jobs`]) and every
 //! request is checked before any work starts ([`request`]).
 //!
 //! The server never reads a path taken from a URL: static files are embedded, downloads are looked
@@ -105,7 +105,7 @@ struct AppState {
     viewports: viewport::Viewports,
 }
 
-/// Access by token (issue #21), as Jupyter does: the start-up line prints `/?token=T`; opening
+/// Access by token, as Jupyter does: the start-up line prints `/?token=T`; opening
 /// it stores the token in a cookie (HttpOnly, SameSite=Strict, so other sites' pages cannot use
 /// it) and redirects to the bare page; API clients send `Authorization: Bearer T` instead.
 #[derive(Clone, Debug)]

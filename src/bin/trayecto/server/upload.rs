@@ -1,4 +1,4 @@
-//! Uploads (issue #21): a `.glb`, or a `.zip` of a glTF, pbrt or TOML scene folder, stored under
+//! Uploads: a `.glb`, or a `.zip` of a glTF, pbrt or TOML scene folder, stored under
 //! `uploads/` in the scenes folder so that it is listed and rendered like any other scene file.
 //!
 //! An archive is checked whole before anything is written, and then unpacked into a hidden

@@ -1,4 +1,4 @@
-//! The interactive viewport (issue #21): a progressive preview that follows the page's camera.
+//! The interactive viewport: a progressive preview that follows the page's camera.
 //!
 //! Each page opens one *session* (an id it makes up). A session owns a worker thread that keeps
 //! the compiled [`World`] of its scene, so a camera move only swaps the camera: no reload, no
@@ -407,7 +407,7 @@ fn render_view(
     } = cache.as_mut().expect("built above");
     // Without a camera the scene's own camera is rendered as the command line renders it: its
     // projection, lens and screen window, not the perspective eye/target/fov `view` reports
-    // for the orbit (issue #16). A camera from the page is a perspective view.
+    // for the orbit. A camera from the page is a perspective view.
     world.camera = match r.camera {
         Some(c) => c.to_desc("viewport"),
         None => own_camera.clone(),
