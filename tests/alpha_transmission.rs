@@ -252,7 +252,7 @@ fn shadow_rays_see_through_blend_holes() {
 fn transmissive_sheet(transmission: f32, metallic: f32) -> Material {
     Material {
         name: "glass".into(),
-        model: MaterialModel::MetallicRoughness,
+        model: MaterialModel::metallic_roughness(),
         base_color: Vec3::ONE,
         metallic,
         // Smooth: the camera sees the background straight through (a rough thin sheet blurs it

@@ -194,7 +194,7 @@ fn mirror_world() -> (World, Vec3) {
 fn glass_world() -> (World, Vec3) {
     let glass = Material {
         name: "glass".into(),
-        model: MaterialModel::Dielectric,
+        model: MaterialModel::dielectric(),
         roughness: 0.0,
         ior: 1.5,
         ..Default::default()

@@ -273,7 +273,7 @@ fn plain_hit() -> trayecto::geometry::SurfaceHit {
 
 fn metal_rough(base: Vec3, metallic: f32, roughness: f32) -> Bsdf {
     let m = trayecto::material::Material {
-        model: trayecto::material::MaterialModel::MetallicRoughness,
+        model: trayecto::material::MaterialModel::metallic_roughness(),
         base_color: base,
         metallic,
         roughness,
@@ -1100,12 +1100,16 @@ fn henyey_greenstein_sampling_matches_phase_function() {
 
 fn coated(base: f32, metallic: f32, roughness: f32, clearcoat: f32, coat_roughness: f32) -> Bsdf {
     let m = trayecto::material::Material {
-        model: trayecto::material::MaterialModel::MetallicRoughness,
+        model: trayecto::material::MaterialModel::MetallicRoughness(
+            trayecto::material::MetallicRoughness {
+                clearcoat,
+                clearcoat_roughness: coat_roughness,
+                ..Default::default()
+            },
+        ),
         base_color: Vec3::splat(base),
         metallic,
         roughness,
-        clearcoat,
-        clearcoat_roughness: coat_roughness,
         ..Default::default()
     };
     Bsdf::from_material(&m, &[], &plain_hit())
@@ -1148,13 +1152,17 @@ fn clearcoat_sampling_matches_pdf() {
 fn a_tilted_coat_reflects_about_its_own_normal() {
     let coat_only = |tilt_deg: f32| {
         let m = trayecto::material::Material {
-            model: trayecto::material::MaterialModel::MetallicRoughness,
+            model: trayecto::material::MaterialModel::MetallicRoughness(
+                trayecto::material::MetallicRoughness {
+                    clearcoat: 1.0,
+                    clearcoat_roughness: 0.3,
+                    ..Default::default()
+                },
+            ),
             base_color: Vec3::ZERO,
             metallic: 0.0,
             roughness: 1.0,
             specular: 0.0,
-            clearcoat: 1.0,
-            clearcoat_roughness: 0.3,
             ..Default::default()
         };
         let mut b = Bsdf::from_material(&m, &[], &plain_hit());
@@ -1243,7 +1251,7 @@ fn clearcoat_albedo_is_bounded_and_the_coat_is_seen() {
 /// it (tangent along x, bitangent sign +1).
 fn gltf_ext(edit: impl FnOnce(&mut trayecto::material::Material)) -> Bsdf {
     let mut m = trayecto::material::Material {
-        model: trayecto::material::MaterialModel::MetallicRoughness,
+        model: trayecto::material::MaterialModel::metallic_roughness(),
         base_color: Vec3::new(0.8, 0.5, 0.3),
         roughness: 0.5,
         ..Default::default()
@@ -1298,10 +1306,10 @@ fn sheen_sampling_matches_pdf_and_conserves_energy() {
     ] {
         let b = gltf_ext(|m| {
             m.metallic = metallic;
-            m.sheen_color = Vec3::new(1.0, 0.8, 0.6);
-            m.sheen_roughness = sheen_rough;
-            m.clearcoat = cc;
-            m.clearcoat_roughness = 0.4;
+            m.metallic_roughness_mut().unwrap().sheen_color = Vec3::new(1.0, 0.8, 0.6);
+            m.metallic_roughness_mut().unwrap().sheen_roughness = sheen_rough;
+            m.metallic_roughness_mut().unwrap().clearcoat = cc;
+            m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.4;
         });
         let name = format!("sheen m{metallic} r{sheen_rough} cc{cc} {deg}°");
         let i = check_bsdf(&name, b, wo_at(deg));
@@ -1313,8 +1321,8 @@ fn sheen_sampling_matches_pdf_and_conserves_energy() {
     for deg in [0.0, 60.0, 85.0] {
         let white = gltf_ext(|m| {
             m.base_color = Vec3::ONE;
-            m.sheen_color = Vec3::ONE;
-            m.sheen_roughness = 0.6;
+            m.metallic_roughness_mut().unwrap().sheen_color = Vec3::ONE;
+            m.metallic_roughness_mut().unwrap().sheen_roughness = 0.6;
         });
         // The glTF base alone is not exactly energy-conserving (its diffuse term is weighted by
         // 1 − F(V·H), not by the directional albedo of the specular lobe): the layer must add
@@ -1330,8 +1338,8 @@ fn sheen_sampling_matches_pdf_and_conserves_energy() {
             gltf_ext(|m| {
                 m.base_color = Vec3::ZERO;
                 m.specular = 0.0;
-                m.sheen_color = Vec3::ONE;
-                m.sheen_roughness = r;
+                m.metallic_roughness_mut().unwrap().sheen_color = Vec3::ONE;
+                m.metallic_roughness_mut().unwrap().sheen_roughness = r;
             })
         };
         let (rough, smooth) = (
@@ -1366,8 +1374,8 @@ fn anisotropy_sampling_matches_pdf() {
         let b = gltf_ext(|m| {
             m.metallic = metallic;
             m.roughness = rough;
-            m.anisotropy = strength;
-            m.anisotropy_rotation = rot;
+            m.metallic_roughness_mut().unwrap().anisotropy = strength;
+            m.metallic_roughness_mut().unwrap().anisotropy_rotation = rot;
         });
         let name = format!("anisotropy m{metallic} r{rough} s{strength} rot{rot} {deg}°");
         let i = check_bsdf(&name, b, wo_at(deg));
@@ -1378,8 +1386,8 @@ fn anisotropy_sampling_matches_pdf() {
         gltf_ext(|m| {
             m.metallic = 1.0;
             m.roughness = 0.2;
-            m.anisotropy = strength;
-            m.anisotropy_rotation = rot;
+            m.metallic_roughness_mut().unwrap().anisotropy = strength;
+            m.metallic_roughness_mut().unwrap().anisotropy_rotation = rot;
         })
     };
     let wo = Vec3::Z;
@@ -1406,9 +1414,11 @@ fn iridescence_sampling_matches_pdf_and_changes_the_fresnel_colour() {
     for (metallic, thickness, deg) in [(0.0, 400.0, 20.0), (1.0, 250.0, 60.0)] {
         let b = gltf_ext(|m| {
             m.metallic = metallic;
-            m.iridescence = 1.0;
-            m.iridescence_ior = 1.8;
-            m.iridescence_thickness_max = thickness;
+            m.metallic_roughness_mut().unwrap().iridescence = 1.0;
+            m.metallic_roughness_mut().unwrap().iridescence_ior = 1.8;
+            m.metallic_roughness_mut()
+                .unwrap()
+                .iridescence_thickness_max = thickness;
         });
         let name = format!("iridescence m{metallic} d{thickness} {deg}°");
         check_bsdf(&name, b, wo_at(deg));
@@ -1419,8 +1429,10 @@ fn iridescence_sampling_matches_pdf_and_changes_the_fresnel_colour() {
             m.base_color = Vec3::ONE;
             m.metallic = 1.0;
             m.roughness = 0.3;
-            m.iridescence = 1.0;
-            m.iridescence_thickness_max = 300.0;
+            m.metallic_roughness_mut().unwrap().iridescence = 1.0;
+            m.metallic_roughness_mut()
+                .unwrap()
+                .iridescence_thickness_max = 300.0;
         });
         let a = sampled_albedo(&white, wo_at(deg), 100_000);
         assert!(
@@ -1432,9 +1444,11 @@ fn iridescence_sampling_matches_pdf_and_changes_the_fresnel_colour() {
         gltf_ext(|m| {
             m.base_color = Vec3::ZERO;
             m.roughness = 0.3;
-            m.iridescence = f;
-            m.iridescence_ior = 1.8;
-            m.iridescence_thickness_max = 500.0;
+            m.metallic_roughness_mut().unwrap().iridescence = f;
+            m.metallic_roughness_mut().unwrap().iridescence_ior = 1.8;
+            m.metallic_roughness_mut()
+                .unwrap()
+                .iridescence_thickness_max = 500.0;
         })
     };
     let (film, bare) = (
@@ -1461,12 +1475,14 @@ fn gltf_diffuse_transmission_sampling_matches_pdf() {
         (0.4, 1.0, 1.0, 20.0, true),
     ] {
         let b = gltf_ext(|m| {
-            m.diffuse_transmission = dt;
-            m.diffuse_transmission_color = Vec3::new(0.9, 0.7, 0.4);
-            m.clearcoat = cc;
-            m.clearcoat_roughness = 0.4;
-            m.sheen_color = Vec3::splat(sheen);
-            m.sheen_roughness = 0.5;
+            m.metallic_roughness_mut().unwrap().diffuse_transmission = dt;
+            m.metallic_roughness_mut()
+                .unwrap()
+                .diffuse_transmission_color = Vec3::new(0.9, 0.7, 0.4);
+            m.metallic_roughness_mut().unwrap().clearcoat = cc;
+            m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.4;
+            m.metallic_roughness_mut().unwrap().sheen_color = Vec3::splat(sheen);
+            m.metallic_roughness_mut().unwrap().sheen_roughness = 0.5;
         });
         assert!(b.is_transmissive());
         let mut wo = wo_at(deg);
@@ -1484,8 +1500,10 @@ fn gltf_diffuse_transmission_sampling_matches_pdf() {
     let sheet = |dt: f32| {
         gltf_ext(|m| {
             m.base_color = Vec3::ONE;
-            m.diffuse_transmission = dt;
-            m.diffuse_transmission_color = Vec3::ONE;
+            m.metallic_roughness_mut().unwrap().diffuse_transmission = dt;
+            m.metallic_roughness_mut()
+                .unwrap()
+                .diffuse_transmission_color = Vec3::ONE;
         })
     };
     for deg in [0.0, 60.0] {
@@ -1590,15 +1608,17 @@ fn gltf_glass(thin: bool, edit: impl FnOnce(&mut trayecto::material::Material)) 
 /// Every BRDF extension the glTF spec layers over the transmissive component at once.
 fn all_layers(m: &mut trayecto::material::Material, roughness: f32) {
     m.roughness = roughness;
-    m.clearcoat = 0.8;
-    m.clearcoat_roughness = 0.25;
-    m.sheen_color = Vec3::new(0.7, 0.5, 0.6);
-    m.sheen_roughness = 0.5;
-    m.anisotropy = 0.6;
-    m.anisotropy_rotation = 0.4;
-    m.iridescence = 1.0;
-    m.iridescence_ior = 1.33;
-    m.iridescence_thickness_max = 400.0;
+    m.metallic_roughness_mut().unwrap().clearcoat = 0.8;
+    m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.25;
+    m.metallic_roughness_mut().unwrap().sheen_color = Vec3::new(0.7, 0.5, 0.6);
+    m.metallic_roughness_mut().unwrap().sheen_roughness = 0.5;
+    m.metallic_roughness_mut().unwrap().anisotropy = 0.6;
+    m.metallic_roughness_mut().unwrap().anisotropy_rotation = 0.4;
+    m.metallic_roughness_mut().unwrap().iridescence = 1.0;
+    m.metallic_roughness_mut().unwrap().iridescence_ior = 1.33;
+    m.metallic_roughness_mut()
+        .unwrap()
+        .iridescence_thickness_max = 400.0;
 }
 
 /// [`check_bsdf`] for BSDFs that mix Dirac and continuous lobes: Dirac samples are left out
@@ -1671,7 +1691,7 @@ fn layered_transmission_sampling_matches_pdf_and_is_reciprocal() {
     // Dispersion under the layers (thick, rough): one IOR per channel.
     let b = gltf_glass(false, |m| {
         all_layers(m, 0.3);
-        m.dispersion = 1.0;
+        m.metallic_roughness_mut().unwrap().dispersion = 1.0;
     });
     check_bsdf("layered dispersive transmission", b, wo_at(25.0));
     // A smooth interface under a rough coat and a sheen: Dirac refraction and reflection mixed
@@ -1679,7 +1699,7 @@ fn layered_transmission_sampling_matches_pdf_and_is_reciprocal() {
     for (thin, deg) in [(false, 35.0), (true, 60.0)] {
         let b = gltf_glass(thin, |m| {
             all_layers(m, 0.0);
-            m.anisotropy = 0.0;
+            m.metallic_roughness_mut().unwrap().anisotropy = 0.0;
         });
         assert!(!b.is_specular());
         let name = format!("smooth layered transmission thin={thin} {deg}°");
@@ -1691,7 +1711,7 @@ fn layered_transmission_sampling_matches_pdf_and_is_reciprocal() {
     for coat in [0.0, 0.8] {
         let b = gltf_glass(false, |m| {
             all_layers(m, 0.5);
-            m.clearcoat = coat;
+            m.metallic_roughness_mut().unwrap().clearcoat = coat;
         });
         let mut rng = Pcg32::new(9, 10);
         let mut checked = 0;
@@ -1759,8 +1779,8 @@ fn layers_change_the_transmissive_component() {
     let (r0, t0) = split_albedo(&plain, wo, 20_000);
     // Coat: exact for the smooth interface, whose samples are deterministic given the lobe.
     let coated = gltf_glass(false, |m| {
-        m.clearcoat = 1.0;
-        m.clearcoat_roughness = 0.1;
+        m.metallic_roughness_mut().unwrap().clearcoat = 1.0;
+        m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.1;
     });
     let (r1, t1) = split_albedo(&coated, wo, 200_000);
     let fc = 0.04 + 0.96 * (1.0 - wo.z).powi(5);
@@ -1778,8 +1798,8 @@ fn layers_change_the_transmissive_component() {
     let black = |cc: f32| {
         gltf_glass(true, |m| {
             m.base_color = Vec3::ZERO;
-            m.clearcoat = cc;
-            m.clearcoat_roughness = 0.1;
+            m.metallic_roughness_mut().unwrap().clearcoat = cc;
+            m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.1;
         })
     };
     let (rb, _) = split_albedo(&black(0.0), Vec3::Z, 20_000);
@@ -1791,8 +1811,8 @@ fn layers_change_the_transmissive_component() {
     );
     // Sheen: at grazing view a white rough sheen reflects noticeably and takes from the rest.
     let sheened = gltf_glass(false, |m| {
-        m.sheen_color = Vec3::ONE;
-        m.sheen_roughness = 0.8;
+        m.metallic_roughness_mut().unwrap().sheen_color = Vec3::ONE;
+        m.metallic_roughness_mut().unwrap().sheen_roughness = 0.8;
     });
     let g = wo_at(80.0);
     let ((rp, tp), (rs, ts)) = (
@@ -1809,9 +1829,11 @@ fn layers_change_the_transmissive_component() {
     for (thin, below) in [(false, false), (false, true), (true, false)] {
         let film = gltf_glass(thin, |m| {
             m.roughness = 0.2;
-            m.iridescence = 1.0;
-            m.iridescence_ior = 1.8;
-            m.iridescence_thickness_max = 500.0;
+            m.metallic_roughness_mut().unwrap().iridescence = 1.0;
+            m.metallic_roughness_mut().unwrap().iridescence_ior = 1.8;
+            m.metallic_roughness_mut()
+                .unwrap()
+                .iridescence_thickness_max = 500.0;
         });
         let mut w = wo_at(20.0);
         if below {
@@ -1828,7 +1850,7 @@ fn layers_change_the_transmissive_component() {
     // Anisotropy along x: refracted directions spread more in x than in y.
     let aniso = gltf_glass(false, |m| {
         m.roughness = 0.3;
-        m.anisotropy = 0.9;
+        m.metallic_roughness_mut().unwrap().anisotropy = 0.9;
     });
     let mut rng = Pcg32::new(1, 2);
     let (mut sx, mut sy, mut n) = (0.0f64, 0.0f64, 0);
@@ -1878,8 +1900,8 @@ fn the_coat_on_transmissive_materials_reflects_below_the_base_plane() {
             gltf_glass(false, |m| {
                 m.base_color = Vec3::ZERO;
                 m.roughness = 0.5;
-                m.clearcoat = 1.0;
-                m.clearcoat_roughness = 0.3;
+                m.metallic_roughness_mut().unwrap().clearcoat = 1.0;
+                m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.3;
             }),
         ),
         (
@@ -1887,8 +1909,8 @@ fn the_coat_on_transmissive_materials_reflects_below_the_base_plane() {
             gltf_glass(true, |m| {
                 m.base_color = Vec3::ZERO;
                 m.roughness = 0.5;
-                m.clearcoat = 1.0;
-                m.clearcoat_roughness = 0.3;
+                m.metallic_roughness_mut().unwrap().clearcoat = 1.0;
+                m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.3;
             }),
         ),
         (
@@ -1896,10 +1918,12 @@ fn the_coat_on_transmissive_materials_reflects_below_the_base_plane() {
             gltf_ext(|m| {
                 m.base_color = Vec3::ZERO;
                 m.specular = 0.0;
-                m.diffuse_transmission = 1.0;
-                m.diffuse_transmission_color = Vec3::ZERO;
-                m.clearcoat = 1.0;
-                m.clearcoat_roughness = 0.3;
+                m.metallic_roughness_mut().unwrap().diffuse_transmission = 1.0;
+                m.metallic_roughness_mut()
+                    .unwrap()
+                    .diffuse_transmission_color = Vec3::ZERO;
+                m.metallic_roughness_mut().unwrap().clearcoat = 1.0;
+                m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.3;
             }),
         ),
     ];
@@ -1931,26 +1955,28 @@ fn the_coat_on_transmissive_materials_reflects_below_the_base_plane() {
             "tilted coat over thick glass",
             gltf_glass(false, |m| {
                 m.roughness = 0.4;
-                m.clearcoat = 0.8;
-                m.clearcoat_roughness = 0.3;
+                m.metallic_roughness_mut().unwrap().clearcoat = 0.8;
+                m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.3;
             }),
         ),
         (
             "tilted coat over thin glass",
             gltf_glass(true, |m| {
                 m.roughness = 0.4;
-                m.clearcoat = 0.8;
-                m.clearcoat_roughness = 0.3;
+                m.metallic_roughness_mut().unwrap().clearcoat = 0.8;
+                m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.3;
             }),
         ),
         (
             "tilted coat over diffuse transmission",
             gltf_ext(|m| {
                 m.base_color = Vec3::ONE;
-                m.diffuse_transmission = 0.6;
-                m.diffuse_transmission_color = Vec3::ONE;
-                m.clearcoat = 1.0;
-                m.clearcoat_roughness = 0.4;
+                m.metallic_roughness_mut().unwrap().diffuse_transmission = 0.6;
+                m.metallic_roughness_mut()
+                    .unwrap()
+                    .diffuse_transmission_color = Vec3::ONE;
+                m.metallic_roughness_mut().unwrap().clearcoat = 1.0;
+                m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.4;
             }),
         ),
         (
@@ -1980,8 +2006,8 @@ fn the_coat_on_transmissive_materials_reflects_below_the_base_plane() {
 fn a_coat_on_a_thin_sheet_weighs_light_entering_and_leaving() {
     let glass = |cc: f32| {
         gltf_glass(true, |m| {
-            m.clearcoat = cc;
-            m.clearcoat_roughness = 0.1;
+            m.metallic_roughness_mut().unwrap().clearcoat = cc;
+            m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.1;
         })
     };
     let (_, t0) = split_albedo(&glass(0.0), Vec3::Z, 200_000);
@@ -2000,10 +2026,12 @@ fn a_coat_on_a_thin_sheet_weighs_light_entering_and_leaving() {
         gltf_ext(|m| {
             m.base_color = Vec3::ONE;
             m.specular = 0.0;
-            m.diffuse_transmission = 1.0;
-            m.diffuse_transmission_color = Vec3::ONE;
-            m.clearcoat = cc;
-            m.clearcoat_roughness = 0.3;
+            m.metallic_roughness_mut().unwrap().diffuse_transmission = 1.0;
+            m.metallic_roughness_mut()
+                .unwrap()
+                .diffuse_transmission_color = Vec3::ONE;
+            m.metallic_roughness_mut().unwrap().clearcoat = cc;
+            m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.3;
         })
     };
     let wo = wo_at(30.0);
@@ -2025,8 +2053,8 @@ fn a_coat_on_a_thin_sheet_weighs_light_entering_and_leaving() {
             "coated rough thin glass",
             gltf_glass(true, |m| {
                 m.roughness = 0.3;
-                m.clearcoat = 1.0;
-                m.clearcoat_roughness = 0.3;
+                m.metallic_roughness_mut().unwrap().clearcoat = 1.0;
+                m.metallic_roughness_mut().unwrap().clearcoat_roughness = 0.3;
             }),
         ),
         ("coated diffuse transmission", leaf(1.0)),

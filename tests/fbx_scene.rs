@@ -8,7 +8,6 @@ use common::shared_scene;
 use glam::{Mat4, Quat, Vec3};
 use serde_json::Value;
 use std::collections::HashMap;
-use trayecto::material::MaterialModel;
 use trayecto::scene::{self, LightDesc, Scene, Shape};
 
 fn load_fbx(name: &str) -> Scene {
@@ -131,7 +130,7 @@ fn check_against_gltf(name: &str) -> (Scene, Value) {
             mat.name,
             mat.base_color
         );
-        if mat.model != MaterialModel::Dielectric {
+        if !mat.model.is_dielectric() {
             let pbr = &gm["pbrMetallicRoughness"];
             let metallic = pbr.get("metallicFactor").map(f).unwrap_or(1.0);
             let roughness = pbr.get("roughnessFactor").map(f).unwrap_or(1.0);
@@ -185,7 +184,7 @@ fn conventions_scene_matches_its_gltf_twin() {
         .iter()
         .find(|m| m.name == "refractive_glass")
         .unwrap();
-    assert_eq!(glass.model, MaterialModel::Dielectric);
+    assert!(glass.model.is_dielectric());
     assert_eq!(glass.ior, 1.4);
     let others = s.materials.iter().filter(|m| m.is_emissive()).count();
     assert_eq!(others, 1, "only the light emits");

@@ -15,7 +15,8 @@
 use std::sync::atomic::AtomicBool;
 use trayecto::integrator::{PathSettings, RayStats};
 use trayecto::material::bxdf::MetallicRoughness;
-use trayecto::material::{Bsdf, Material, MaterialModel, PbrtParams};
+use trayecto::material::models::{Coat, CoatedDiffuse, Conductor, DiffuseTransmission, Slab};
+use trayecto::material::{Bsdf, Material, MaterialModel};
 use trayecto::math::{Mat4, PI, Vec3};
 use trayecto::render::{NoObserver, RenderSettings, render};
 use trayecto::scene::{CameraDesc, LightDesc, Object, Scene, Shape};
@@ -161,7 +162,7 @@ fn expected_mean(e_avg: f64) -> f32 {
 
 fn metal(roughness: f32) -> Material {
     Material {
-        model: MaterialModel::MetallicRoughness,
+        model: MaterialModel::metallic_roughness(),
         base_color: Vec3::ONE,
         metallic: 1.0,
         roughness,
@@ -285,7 +286,7 @@ fn smooth_dielectric_sphere_returns_the_environment() {
     // Every path ends by leaving the sphere: the 1/η² scalings in and out cancel, and Russian
     // roulette (on the η-corrected throughput) never kills a path of weight 1.
     let m = Material {
-        model: MaterialModel::Dielectric,
+        model: MaterialModel::dielectric(),
         ior: 1.5,
         roughness: 0.0,
         ..Default::default()
@@ -366,7 +367,7 @@ fn rough_dielectric_sphere_matches_mitsuba() {
     const MODEL: f32 = 0.002;
     for (roughness, mitsuba) in [(0.3f32, 0.98142f32), (0.5, 0.92201)] {
         let m = Material {
-            model: MaterialModel::Dielectric,
+            model: MaterialModel::dielectric(),
             ior: 1.5,
             roughness,
             ..Default::default()
@@ -382,14 +383,12 @@ fn rough_dielectric_sphere_matches_mitsuba() {
     }
 }
 
-fn pbrt_material(model: MaterialModel, base: Vec3, f: impl Fn(&mut PbrtParams)) -> Material {
-    let mut m = Material {
+fn pbrt_material(model: MaterialModel, base: Vec3) -> Material {
+    Material {
         model,
         base_color: base,
         ..Default::default()
-    };
-    f(&mut m.pbrt);
-    m
+    }
 }
 
 #[test]
@@ -397,14 +396,21 @@ fn lossless_pbrt_materials_return_the_environment() {
     // A conductor of reflectance ~1 (pbrt's `reflectance` parameterisation, F0 = 0.9999) is a
     // perfect mirror at every angle; a diffuse-transmission sphere with R + T = 1 keeps every
     // path alive until it leaves.
-    let mirror = pbrt_material(MaterialModel::Conductor, Vec3::ONE, |p| {
-        p.conductor_reflectance = true;
-    });
+    let mirror = pbrt_material(
+        MaterialModel::Conductor(Conductor {
+            reflectance: true,
+            ..Default::default()
+        }),
+        Vec3::ONE,
+    );
     let v = furnace_mean(mirror, 16);
     assert!((v - 1.0).abs() < 0.005, "smooth conductor furnace mean {v}");
-    let sheet = pbrt_material(MaterialModel::DiffuseTransmission, Vec3::splat(0.4), |p| {
-        p.transmittance = Vec3::splat(0.6);
-    });
+    let sheet = pbrt_material(
+        MaterialModel::DiffuseTransmission(DiffuseTransmission {
+            transmittance: Vec3::splat(0.6),
+        }),
+        Vec3::splat(0.4),
+    );
     let v = furnace_mean(sheet, 32);
     assert!(
         (v - 1.0).abs() < 0.01,
@@ -414,13 +420,17 @@ fn lossless_pbrt_materials_return_the_environment() {
 
 #[test]
 fn rough_conductor_loses_its_single_scattering_deficit() {
-    use trayecto::material::bxdf::Conductor;
-    let m = pbrt_material(MaterialModel::Conductor, Vec3::ONE, |p| {
-        p.conductor_reflectance = true;
-        p.conductor_alpha = trayecto::math::Vec2::new(0.2, 0.6);
-    });
+    let m = pbrt_material(
+        MaterialModel::Conductor(Conductor {
+            reflectance: true,
+            alpha: trayecto::math::Vec2::new(0.2, 0.6),
+            ..Default::default()
+        }),
+        Vec3::ONE,
+    );
+    use trayecto::material::bxdf::Conductor as Lobe;
     let (eta, k) = trayecto::material::microfacet::conductor_from_reflectance(Vec3::ONE);
-    let e_avg = mean_albedo_aniso(&Bsdf::Conductor(Conductor::new(eta, k, 0.2, 0.6)));
+    let e_avg = mean_albedo_aniso(&Bsdf::Conductor(Lobe::new(eta, k, 0.2, 0.6)));
     let expected = expected_mean(e_avg);
     let got = furnace_mean(m, 32);
     println!("anisotropic conductor: Ē = {e_avg:.4}, image mean {got:.4} (expected {expected:.4})");
@@ -429,7 +439,7 @@ fn rough_conductor_loses_its_single_scattering_deficit() {
         "image mean {got}, expected {expected}"
     );
     // Anisotropy lies between its two isotropic bounds.
-    let e_of = |a: f32| mean_albedo_aniso(&Bsdf::Conductor(Conductor::new(eta, k, a, a)));
+    let e_of = |a: f32| mean_albedo_aniso(&Bsdf::Conductor(Lobe::new(eta, k, a, a)));
     let (e_lo, e_hi) = (e_of(0.6), e_of(0.2));
     println!("isotropic 0.6: {e_lo:.4}, isotropic 0.2: {e_hi:.4}");
     assert!(
@@ -441,19 +451,33 @@ fn rough_conductor_loses_its_single_scattering_deficit() {
 #[test]
 fn coated_diffuse_furnace_is_bounded() {
     // White base under a smooth coat and a clear thin layer: lossless up to the walk's depth.
-    let m = pbrt_material(MaterialModel::CoatedDiffuse, Vec3::ONE, |p| {
-        p.thickness = 1e-5;
-        p.max_depth = 200;
-    });
+    let m = pbrt_material(
+        MaterialModel::CoatedDiffuse(CoatedDiffuse {
+            slab: Slab {
+                thickness: 1e-5,
+                max_depth: 200,
+                ..Default::default()
+            },
+            ..Default::default()
+        }),
+        Vec3::ONE,
+    );
     let v = furnace_mean(m, 32);
     assert!(
         v <= 1.01 && v > 0.98,
         "lossless coated diffuse furnace mean {v}"
     );
     // pbrt's defaults (thickness 0.01, maxdepth 10) lose a little, never gain.
-    let m = pbrt_material(MaterialModel::CoatedDiffuse, Vec3::ONE, |p| {
-        p.interface_alpha = trayecto::math::Vec2::splat(0.3);
-    });
+    let m = pbrt_material(
+        MaterialModel::CoatedDiffuse(CoatedDiffuse {
+            coat: Coat {
+                alpha: trayecto::math::Vec2::splat(0.3),
+                ..Default::default()
+            },
+            ..Default::default()
+        }),
+        Vec3::ONE,
+    );
     let v = furnace_mean(m, 32);
     println!("coated diffuse (pbrt defaults, rough coat) furnace mean {v}");
     assert!(v <= 1.005 && v > 0.85, "coated diffuse furnace mean {v}");

@@ -52,8 +52,17 @@ fn clearcoat_is_read_and_files_requiring_it_load() {
     let scene = load(&json).expect("a file requiring KHR_materials_clearcoat loads");
     assert!(unsupported(&scene).is_empty(), "{:?}", scene.warnings);
     let m: &Material = &scene.materials[0];
-    assert_eq!((m.clearcoat, m.clearcoat_roughness), (0.7, 0.2));
-    assert!(m.clearcoat_texture.is_none() && m.clearcoat_normal_texture.is_none());
+    assert_eq!(
+        (
+            m.metallic_roughness().clearcoat,
+            m.metallic_roughness().clearcoat_roughness
+        ),
+        (0.7, 0.2)
+    );
+    assert!(
+        m.metallic_roughness().clearcoat_texture.is_none()
+            && m.metallic_roughness().clearcoat_normal_texture.is_none()
+    );
 
     // A required extension that nothing reads blocks the file, by name.
     let json = triangle(
@@ -142,11 +151,16 @@ fn clearcoat_wicker_is_coated() {
     let scene = trayecto::scene::load(p.to_str().unwrap()).unwrap();
     assert!(unsupported(&scene).is_empty(), "{:?}", scene.warnings);
     let m = &scene.materials[0];
-    assert_eq!(m.clearcoat, 1.0);
-    assert!((m.clearcoat_roughness - 0.1).abs() < 1e-6);
-    assert!(m.clearcoat_normal_texture.is_some() && m.normal_texture.is_some());
+    assert_eq!(m.metallic_roughness().clearcoat, 1.0);
+    assert!((m.metallic_roughness().clearcoat_roughness - 0.1).abs() < 1e-6);
+    assert!(
+        m.metallic_roughness().clearcoat_normal_texture.is_some() && m.normal_texture.is_some()
+    );
     let mut bare = scene.clone();
-    bare.materials[0].clearcoat = 0.0;
+    bare.materials[0]
+        .metallic_roughness_mut()
+        .unwrap()
+        .clearcoat = 0.0;
     let (with, without) = (
         model_luminance(&scene, 32, 16),
         model_luminance(&bare, 32, 16),
@@ -295,21 +309,30 @@ fn bsdf_extensions_are_read_and_bad_values_name_the_file() {
     let scene = load(&json).expect("files requiring the BSDF extensions load");
     assert!(unsupported(&scene).is_empty(), "{:?}", scene.warnings);
     let m = &scene.materials[0];
-    assert_eq!(m.sheen_color, trayecto::math::Vec3::new(0.9, 0.5, 0.2));
-    assert_eq!(m.sheen_roughness, 0.4);
-    assert_eq!((m.anisotropy, m.anisotropy_rotation), (0.6, 1.1));
+    assert_eq!(
+        m.metallic_roughness().sheen_color,
+        trayecto::math::Vec3::new(0.9, 0.5, 0.2)
+    );
+    assert_eq!(m.metallic_roughness().sheen_roughness, 0.4);
     assert_eq!(
         (
-            m.iridescence,
-            m.iridescence_ior,
-            m.iridescence_thickness_min,
-            m.iridescence_thickness_max
+            m.metallic_roughness().anisotropy,
+            m.metallic_roughness().anisotropy_rotation
+        ),
+        (0.6, 1.1)
+    );
+    assert_eq!(
+        (
+            m.metallic_roughness().iridescence,
+            m.metallic_roughness().iridescence_ior,
+            m.metallic_roughness().iridescence_thickness_min,
+            m.metallic_roughness().iridescence_thickness_max
         ),
         (0.7, 1.6, 150.0, 450.0)
     );
-    assert_eq!(m.diffuse_transmission, 0.3);
+    assert_eq!(m.metallic_roughness().diffuse_transmission, 0.3);
     assert_eq!(
-        m.diffuse_transmission_color,
+        m.metallic_roughness().diffuse_transmission_color,
         trayecto::math::Vec3::new(0.2, 0.9, 0.4)
     );
 
@@ -321,7 +344,7 @@ fn bsdf_extensions_are_read_and_bad_values_name_the_file() {
         r#","extensionsUsed":["KHR_materials_transmission","KHR_materials_volume","KHR_materials_dispersion"]"#,
     );
     let scene = load(&json).unwrap();
-    assert_eq!(scene.materials[0].dispersion, 0.5);
+    assert_eq!(scene.materials[0].metallic_roughness().dispersion, 0.5);
     assert!(
         scene.warnings.iter().all(|w| !w.contains("dispersion")),
         "{:?}",
@@ -428,7 +451,7 @@ fn unlit_shows_its_base_colour() {
         exact(&px)
     );
     let mut lit = scene.clone();
-    lit.materials[0].model = trayecto::material::MaterialModel::MetallicRoughness;
+    lit.materials[0].model = trayecto::material::MaterialModel::metallic_roughness();
     let px = model_pixels(&lit, &WorldOptions::default(), 24, 4, 0);
     assert!(
         exact(&px) < 0.05,
@@ -448,12 +471,18 @@ fn sheen_cloth_is_sheened() {
     let i = scene
         .materials
         .iter()
-        .position(|m| m.sheen_color.max_element() > 0.0)
+        .position(|m| m.metallic_roughness().sheen_color.max_element() > 0.0)
         .expect("a sheen material");
     let m = &scene.materials[i];
-    assert!(m.sheen_color_texture.is_some() && m.sheen_roughness_texture.is_some());
+    assert!(
+        m.metallic_roughness().sheen_color_texture.is_some()
+            && m.metallic_roughness().sheen_roughness_texture.is_some()
+    );
     let mut bare = scene.clone();
-    bare.materials[i].sheen_color = trayecto::math::Vec3::ZERO;
+    bare.materials[i]
+        .metallic_roughness_mut()
+        .unwrap()
+        .sheen_color = trayecto::math::Vec3::ZERO;
     assert_extension_changes_the_image(
         "SheenCloth",
         &scene,
@@ -471,8 +500,11 @@ fn toy_car_loads_without_unsupported_material_warnings() {
     let scene = shared_model("gltf-ext/ToyCar/glTF/ToyCar.gltf");
     assert!(unsupported(&scene).is_empty(), "{:?}", scene.warnings);
     let fabric = scene.materials.iter().find(|m| m.name == "Fabric").unwrap();
-    assert_eq!(fabric.sheen_color, trayecto::math::Vec3::new(1.0, 0.0, 0.0));
-    assert_eq!(fabric.sheen_roughness, 0.5);
+    assert_eq!(
+        fabric.metallic_roughness().sheen_color,
+        trayecto::math::Vec3::new(1.0, 0.0, 0.0)
+    );
+    assert_eq!(fabric.metallic_roughness().sheen_roughness, 0.5);
     let glass =
         shared_model("gltf-ext/GlassHurricaneCandleHolder/glTF/GlassHurricaneCandleHolder.gltf");
     assert!(unsupported(&glass).is_empty(), "{:?}", glass.warnings);
@@ -485,10 +517,17 @@ fn toy_car_loads_without_unsupported_material_warnings() {
 fn anisotropy_strength_test_stretches_reflections() {
     let scene = shared_model("gltf-ext/AnisotropyStrengthTest/glTF/AnisotropyStrengthTest.gltf");
     assert!(unsupported(&scene).is_empty(), "{:?}", scene.warnings);
-    assert!(scene.materials.iter().any(|m| m.anisotropy == 1.0));
+    assert!(
+        scene
+            .materials
+            .iter()
+            .any(|m| m.metallic_roughness().anisotropy == 1.0)
+    );
     let mut bare = scene.clone();
     for m in &mut bare.materials {
-        m.anisotropy = 0.0;
+        if let Some(x) = m.metallic_roughness_mut() {
+            x.anisotropy = 0.0;
+        }
     }
     assert_extension_changes_the_pattern(
         "AnisotropyStrengthTest",
@@ -511,7 +550,9 @@ fn iridescence_suzanne_is_iridescent() {
     let scene = shared_model("gltf-ext/IridescenceSuzanne/glTF/IridescenceSuzanne.gltf");
     let mut bare = scene.clone();
     for m in &mut bare.materials {
-        m.iridescence = 0.0;
+        if let Some(x) = m.metallic_roughness_mut() {
+            x.iridescence = 0.0;
+        }
     }
     let chroma = |px: &[trayecto::math::Vec3]| {
         let one = trayecto::math::Vec3::ONE;
@@ -575,7 +616,10 @@ fn diffuse_transmission_lets_light_through_a_sheet() {
         "transmitted radiance {with:?}, expected ≈ {want:?}"
     );
     let mut bare = scene.clone();
-    bare.materials[0].diffuse_transmission = 0.0;
+    bare.materials[0]
+        .metallic_roughness_mut()
+        .unwrap()
+        .diffuse_transmission = 0.0;
     let without = mean(&bare);
     assert!(
         without.max_element() < 1e-6,
@@ -607,9 +651,12 @@ fn a_coat_on_a_back_lit_sheet_attenuates_entering_and_leaving_light() {
     let json = json.replace(r#""nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}],"#, "");
     let scene = load(&json).unwrap();
     assert!(unsupported(&scene).is_empty(), "{:?}", scene.warnings);
-    assert_eq!(scene.materials[0].clearcoat, 1.0);
+    assert_eq!(scene.materials[0].metallic_roughness().clearcoat, 1.0);
     let mut bare = scene.clone();
-    bare.materials[0].clearcoat = 0.0;
+    bare.materials[0]
+        .metallic_roughness_mut()
+        .unwrap()
+        .clearcoat = 0.0;
     let opts = WorldOptions::default();
     let (with, without) = (
         model_pixels(&scene, &opts, 24, 4, 0),
@@ -656,7 +703,7 @@ fn iridescence_suzanne_glass_is_iridescent() {
     for m in &mut scene.materials {
         if m.transmission > 0.0 {
             glass += 1;
-            assert!(m.iridescence > 0.0 && !m.thin_walled);
+            assert!(m.metallic_roughness().iridescence > 0.0 && !m.thin_walled);
         } else {
             m.model = trayecto::material::MaterialModel::Unlit;
             m.base_color = trayecto::math::Vec3::ZERO;
@@ -666,7 +713,9 @@ fn iridescence_suzanne_glass_is_iridescent() {
     assert_eq!(glass, 1);
     let mut bare = scene.clone();
     for m in &mut bare.materials {
-        m.iridescence = 0.0;
+        if let Some(x) = m.metallic_roughness_mut() {
+            x.iridescence = 0.0;
+        }
     }
     let chroma = |px: &[trayecto::math::Vec3]| {
         px.iter()
@@ -714,9 +763,15 @@ fn coat_and_sheen_on_transmissive_glass_change_the_render() {
     let strip = |scene: &Scene| {
         let mut bare = scene.clone();
         let b = &mut bare.materials[0];
-        b.clearcoat = 0.0;
-        b.sheen_color = trayecto::math::Vec3::ZERO;
-        b.anisotropy = 0.0;
+        if let Some(x) = b.metallic_roughness_mut() {
+            x.clearcoat = 0.0;
+        }
+        if let Some(x) = b.metallic_roughness_mut() {
+            x.sheen_color = trayecto::math::Vec3::ZERO;
+        }
+        if let Some(x) = b.metallic_roughness_mut() {
+            x.anisotropy = 0.0;
+        }
         bare
     };
     let black = "[0,0,0,1]";
@@ -763,7 +818,10 @@ fn anisotropy_on_transmissive_glass_changes_the_render() {
     let scene = load(&transmissive_triangle("[0,0,0,1]", 0.2, ext)).unwrap();
     assert!(unsupported(&scene).is_empty(), "{:?}", scene.warnings);
     let mut bare = scene.clone();
-    bare.materials[0].anisotropy = 0.0;
+    bare.materials[0]
+        .metallic_roughness_mut()
+        .unwrap()
+        .anisotropy = 0.0;
     assert_extension_changes_the_image(
         "anisotropy on black glass",
         &scene,
@@ -838,13 +896,15 @@ fn dispersion_separates_colours_as_the_abbe_law_predicts() {
 
     let mut scene = Scene::default();
     let glass = scene.add_material(Material {
-        model: MaterialModel::MetallicRoughness,
+        model: MaterialModel::MetallicRoughness(trayecto::material::MetallicRoughness {
+            dispersion: (20.0 / abbe) as f32,
+            ..Default::default()
+        }),
         base_color: Vec3::ONE,
         metallic: 0.0,
         roughness: 0.0,
         transmission: 1.0,
         ior: n_d as f32,
-        dispersion: (20.0 / abbe) as f32,
         ..Default::default()
     });
     let strip = scene.add_material(Material {
@@ -933,7 +993,10 @@ fn dispersion_separates_colours_as_the_abbe_law_predicts() {
     );
     // Without dispersion every channel sees the strip where green does.
     let mut plain = scene.clone();
-    plain.materials[glass].dispersion = 0.0;
+    plain.materials[glass]
+        .metallic_roughness_mut()
+        .unwrap()
+        .dispersion = 0.0;
     let got = render(&plain);
     assert!(
         (got[2] - got[0]).abs() < 0.5,
@@ -959,13 +1022,15 @@ fn a_tilted_base_normal_map_leaves_the_coat_unchanged() {
     let plane = |tilt_deg: f32| {
         let mut s = Scene::default();
         let mut m = Material {
-            model: MaterialModel::MetallicRoughness,
+            model: MaterialModel::MetallicRoughness(trayecto::material::MetallicRoughness {
+                clearcoat: 1.0,
+                clearcoat_roughness: 0.3,
+                ..Default::default()
+            }),
             base_color: Vec3::ZERO,
             metallic: 0.0,
             roughness: 1.0,
             specular: 0.0,
-            clearcoat: 1.0,
-            clearcoat_roughness: 0.3,
             ..Default::default()
         };
         if tilt_deg != 0.0 {

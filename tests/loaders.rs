@@ -211,7 +211,7 @@ fn obj_normals_uvs_negative_indices_fans_and_mtl_maps() {
     assert_texels(tex(&mat("normy").normal_texture, "norm"), 0, nrm, "norm");
     // map_Pr / map_Pm: metallic-roughness model, factors 1, packed glTF-style (G rough, B metal).
     let pbr = mat("pbr");
-    assert_eq!(pbr.model, MaterialModel::MetallicRoughness);
+    assert!(pbr.model.is_metallic_roughness());
     assert_eq!((pbr.roughness, pbr.metallic), (1.0, 1.0));
     let packed = tex(&pbr.metallic_roughness_texture, "map_Pr/map_Pm");
     assert_texels(packed, 1, rough, "map_Pr (G)");

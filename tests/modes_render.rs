@@ -428,7 +428,7 @@ fn refraction_through_a_slab_shifts_by_the_snell_offset() {
     let ior = 1.5f32;
     let mut s = Scene::default();
     let mut glass = Material::diffuse("glass", Vec3::ONE);
-    glass.model = MaterialModel::Dielectric;
+    glass.model = MaterialModel::dielectric();
     glass.ior = ior;
     let glass = s.add_material(glass);
     let mr = s.add_material(emitter("red", Vec3::new(1.0, 0.0, 0.0)));

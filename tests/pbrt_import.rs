@@ -8,6 +8,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use trayecto::film::Image;
+use trayecto::material::MaterialModel;
 use trayecto::render::RenderSettings;
 use trayecto::scene::{self, Scene};
 
@@ -359,14 +360,16 @@ fn mix_material_is_chosen_per_hit_like_pbrt_v4() {
         "{:?}",
         scene.warnings
     );
-    let mixes = scene.materials.iter().filter(|m| m.mix.is_some()).count();
+    let mixes = scene.materials.iter().filter(|m| m.mix().is_some()).count();
     assert!(mixes >= 3, "{mixes} mix materials");
     feature_against_pbrt_v4(
         "mix",
         &scene,
         |s| {
             for m in &mut s.materials {
-                m.mix_amount_texture = None;
+                if let MaterialModel::Mix(mix) = &mut m.model {
+                    mix.amount_texture = None;
+                }
             }
         },
         (0.03, 0.1, 0.15),
@@ -379,7 +382,7 @@ fn mix_material_is_chosen_per_hit_like_pbrt_v4() {
 #[test]
 fn mix_choice_has_the_amount_as_probability() {
     use trayecto::geometry::{PrimRef, PrimitiveKind, SurfaceHit};
-    use trayecto::material::{Material, Mix, eval::resolve_mix};
+    use trayecto::material::{Material, MaterialModel, Mix, eval::resolve_mix};
     use trayecto::math::Vec3;
     let hit = |i: u32| SurfaceHit {
         t: 1.0 + i as f32 * 1e-3,
@@ -389,9 +392,10 @@ fn mix_choice_has_the_amount_as_probability() {
         ..SurfaceHit::EMPTY
     };
     let mix = |a: u32, b: u32, amount: f32| Material {
-        mix: Some(Mix {
+        model: MaterialModel::Mix(Mix {
             materials: [a, b],
             amount,
+            amount_texture: None,
         }),
         ..Default::default()
     };
@@ -408,7 +412,7 @@ fn mix_choice_has_the_amount_as_probability() {
         (0..n)
             .filter(|&i| {
                 let m = resolve_mix(&mats, &[], index, &hit(i));
-                assert!(m.mix.is_none());
+                assert!(m.mix().is_none());
                 m.name == "b"
             })
             .count() as f64
@@ -491,7 +495,7 @@ fn hostile_mix_bump_and_camera_input() {
         "{head}MakeNamedMaterial \"m\" \"string type\" \"mix\" \"string materials\" [ \"red\" \"blue\" ]\nNamedMaterial \"m\"\n{quad}MakeNamedMaterial \"red\" \"string type\" \"diffuse\" \"rgb reflectance\" [ 1 0 0 ]\nMakeNamedMaterial \"blue\" \"string type\" \"diffuse\" \"rgb reflectance\" [ 0 0 1 ]\n"
     );
     let s = scene::pbrt::load_from_str(&late, "late.pbrt").unwrap();
-    let m = s.materials[s.objects[0].material].mix.expect("a mix");
+    let m = s.materials[s.objects[0].material].mix().expect("a mix");
     let colours: Vec<_> = m
         .materials
         .iter()
@@ -650,8 +654,16 @@ fn textured_roughness_matches_pbrt_v4() {
     let on = worst(&render(&scene, 128), "");
     let mut off = scene.clone();
     for m in &mut off.materials {
-        m.pbrt.conductor_roughness = Default::default();
-        m.pbrt.interface_roughness = Default::default();
+        match &mut m.model {
+            MaterialModel::Conductor(c) => c.roughness = Default::default(),
+            MaterialModel::Dielectric(d) => d.roughness = Default::default(),
+            MaterialModel::CoatedDiffuse(c) => c.coat.roughness = Default::default(),
+            MaterialModel::CoatedConductor(c) => {
+                c.conductor.roughness = Default::default();
+                c.coat.roughness = Default::default();
+            }
+            _ => {}
+        }
     }
     let off = worst(&render(&off, 16), " without the textures");
     assert!(on <= 1.0, "a surface is off by {on:.2} tolerances");
@@ -845,7 +857,7 @@ fn displacement_bump_matches_pbrt_v4() {
         &scene,
         |s| {
             for m in &mut s.materials {
-                m.pbrt.displacement = None;
+                m.displacement = None;
             }
         },
         (0.03, 0.1, 0.15),
@@ -1466,9 +1478,11 @@ fn coated_conductor_fresnel_is_relative_to_the_coat_like_pbrt_v4() {
             // The conductor as if it faced air: undo the division by the coat's IOR (only the
             // named-spectrum copper can be given that way).
             for m in &mut s.materials {
-                if !m.pbrt.conductor_reflectance {
-                    m.pbrt.conductor_eta *= m.pbrt.interface_eta;
-                    m.pbrt.conductor_k *= m.pbrt.interface_eta;
+                if let MaterialModel::CoatedConductor(c) = &mut m.model
+                    && !c.conductor.reflectance
+                {
+                    c.conductor.eta *= c.coat.eta;
+                    c.conductor.k *= c.coat.eta;
                 }
             }
         },

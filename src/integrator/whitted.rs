@@ -42,9 +42,9 @@ pub fn surface_kind(m: &Material, s: &LocalSurface) -> SurfaceKind {
     match m.model {
         MaterialModel::Mirror => SurfaceKind::Mirror,
         // An interface (ior 1) refracts straight through: the medium boundary is invisible.
-        MaterialModel::Dielectric | MaterialModel::Interface => SurfaceKind::Dielectric,
+        MaterialModel::Dielectric(_) | MaterialModel::Interface => SurfaceKind::Dielectric,
         _ if m.transmission > 0.5 => SurfaceKind::Dielectric,
-        MaterialModel::MetallicRoughness | MaterialModel::Conductor
+        MaterialModel::MetallicRoughness(_) | MaterialModel::Conductor(_)
             if s.metallic > 0.9 && s.roughness < 0.05 =>
         {
             SurfaceKind::Mirror

@@ -1,20 +1,9 @@
 //! A material evaluated at a hit: texture lookups (with their UV set and transform), base
 //! colour, opacity for the alpha modes, emitted radiance, and the [`Bsdf`] the path tracer
-//! scatters with (`Bsdf::from_material`).
+//! scatters with (`Bsdf::from_material`, which each model of [`super::models`] builds).
 
-use super::bxdf::dielectric::dispersive_iors;
-use super::bxdf::layered::{Base, Coat};
-use super::bxdf::metallic_roughness::{Anisotropy, Extensions};
-use super::bxdf::{
-    Conductor, Dielectric, Diffuse, DiffuseTransmission, GltfTransmission, Layered,
-    MetallicRoughness, Mirror,
-};
-use super::clearcoat::Clearcoat;
-use super::iridescence::Iridescence;
-use super::microfacet::{Ggx, MIN_ALPHA, conductor_from_reflectance, pbrt_roughness_to_alpha};
-use super::sheen::Sheen;
 use super::texture::SharedFootprint;
-use super::{Bsdf, Material, MaterialModel, RoughnessTextures, Texture, TextureRef};
+use super::{Bsdf, Material, MaterialModel, Texture, TextureRef};
 use crate::geometry::SurfaceHit;
 use crate::math::{Vec2, Vec3, Vec4};
 use std::cell::Cell;
@@ -37,173 +26,8 @@ impl Bsdf {
         shared: Option<&Cell<SharedFootprint>>,
     ) -> Bsdf {
         let tx = &HitTextures::new(textures, hit, shared);
-        // Each model reads only the inputs it uses (a Lambertian surface needs its base colour
-        // alone; computing every model's inputs first was ~40 % of a Cornell box vertex's
-        // `from_material` instructions, callgrind). All are pure functions of the hit.
-        let base = || base_color_in(material, tx);
-        let eta = if material.ior > 0.0 {
-            material.ior
-        } else {
-            1.5
-        };
-        let p = &material.pbrt;
-        let conductor_alpha = || pbrt_alpha(&p.conductor_roughness, p.conductor_alpha, tx);
-        let interface_alpha = || pbrt_alpha(&p.interface_roughness, p.interface_alpha, tx);
-        // `outside_ior`: the IOR of the medium the conductor's surface faces. Under a coat it is
-        // the coat's, and the Fresnel equations take the conductor's η and k relative to it
-        // (pbrt-v4's CoatedConductorMaterial divides both by the interface IOR, also for the
-        // `reflectance` form).
-        let conductor = |outside_ior: f32| {
-            let conductor_alpha = conductor_alpha();
-            let (eta, k) = if p.conductor_reflectance {
-                conductor_from_reflectance(base())
-            } else {
-                (p.conductor_eta, p.conductor_k)
-            };
-            Conductor::new(
-                eta / outside_ior,
-                k / outside_ior,
-                conductor_alpha.x,
-                conductor_alpha.y,
-            )
-        };
-        let layered = |base: Base| {
-            let interface_alpha = interface_alpha();
-            Bsdf::Layered(Layered {
-                coat: Coat {
-                    eta: p.interface_eta,
-                    dist: Ggx::anisotropic(interface_alpha.x, interface_alpha.y),
-                },
-                base,
-                thickness: p.thickness,
-                albedo: p.albedo,
-                g: p.g,
-                max_depth: p.max_depth,
-                n_samples: p.n_samples,
-            })
-        };
-        match material.model {
-            MaterialModel::Conductor => Bsdf::Conductor(conductor(1.0)),
-            MaterialModel::CoatedDiffuse => layered(Base::Diffuse {
-                reflectance: base(),
-            }),
-            MaterialModel::CoatedConductor => layered(Base::Conductor(conductor(p.interface_eta))),
-            MaterialModel::DiffuseTransmission => Bsdf::DiffuseTransmission(DiffuseTransmission {
-                reflectance: base(),
-                transmittance: p.transmittance,
-            }),
-            MaterialModel::Diffuse => Bsdf::Diffuse(Diffuse { albedo: base() }),
-            MaterialModel::Mirror => Bsdf::Mirror(Mirror { color: base() }),
-            MaterialModel::Dielectric if p.interface_roughness.is_textured() => {
-                // pbrt-v4 `dielectric` with roughness textures: α per hit; Trayecto's rough
-                // dielectric is isotropic (glTF roughness √α of α = √(αu·αv)).
-                let interface_alpha = interface_alpha();
-                let a = (interface_alpha.x * interface_alpha.y).sqrt();
-                Bsdf::dielectric(eta, a.sqrt().clamp(0.0, 1.0), Vec3::ONE)
-            }
-            MaterialModel::Dielectric => {
-                let (roughness, _) = roughness_metallic_in(material, tx);
-                Bsdf::dielectric(eta, roughness, Vec3::ONE)
-            }
-            MaterialModel::Interface => Bsdf::dielectric(1.0, 0.0, Vec3::ONE),
-            // KHR_materials_unlit: the base colour is emitted ([`emitted`]), nothing scatters.
-            MaterialModel::Unlit => Bsdf::Diffuse(Diffuse { albedo: Vec3::ZERO }),
-            MaterialModel::MetallicRoughness => {
-                let base = base();
-                let (roughness, mut metallic) = roughness_metallic_in(material, tx);
-                let mut transmission = material.transmission;
-                if transmission > 0.0
-                    && let Some(t) = &material.transmission_texture
-                {
-                    // KHR_materials_transmission: the factor is multiplied by the R channel.
-                    transmission *= tx.sample(t).x;
-                }
-                // KHR_materials_transmission replaces the diffuse lobe of the dielectric part:
-                //   mix(mix(dielectric(diffuse), transmissive, t), metal, metallic).
-                // The transmissive component (a dielectric interface tinted by the base colour,
-                // thin-walled without KHR_materials_volume) is chosen stochastically with
-                // probability (1 − metallic)·t, an unbiased one-sample estimate of the mixture
-                // (the coin is a hash of the hit, so NEE and BSDF sampling at this vertex see the
-                // same component). The rest is the metallic-roughness BRDF with the metallic
-                // weight renormalised: metallic' = metallic / (1 − (1 − metallic)·t).
-                let p_transmit = transmission.clamp(0.0, 1.0) * (1.0 - metallic);
-                if p_transmit > 0.0 {
-                    if p_transmit >= 1.0 || hit_coin(hit) < p_transmit {
-                        if let Some(b) = layered_transmission(material, tx, eta, roughness, base) {
-                            return Bsdf::GltfTransmission(b);
-                        }
-                        if material.thin_walled {
-                            // KHR_materials_dispersion: no effect on thin-walled materials.
-                            return Bsdf::thin_dielectric(eta, roughness, base);
-                        }
-                        if material.dispersion > 0.0 {
-                            let iors = dispersive_iors(eta, material.dispersion);
-                            return Bsdf::Dielectric(
-                                Dielectric::new(eta, roughness, base).with_dispersion(iors),
-                            );
-                        }
-                        return Bsdf::dielectric(eta, roughness, base);
-                    }
-                    metallic = (metallic / (1.0 - p_transmit)).min(1.0);
-                }
-                let r0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
-                // KHR_materials_specular: colour × texture RGB (sRGB), strength × texture A.
-                let mut specular_color = material.specular_color;
-                if let Some(t) = &material.specular_color_texture {
-                    specular_color *= tx.sample(t).truncate();
-                }
-                let f0_dielectric = (specular_color * r0).min(Vec3::ONE);
-                let mut specular = material.specular;
-                if let Some(t) = &material.specular_texture {
-                    specular *= tx.sample(t).w;
-                }
-                let specular = specular.clamp(0.0, 1.0);
-                let coat = clearcoat(material, tx);
-                let ext = extensions(material, tx, roughness);
-                if metallic == 0.0
-                    && (specular == 0.0 || f0_dielectric == Vec3::ZERO)
-                    && coat.is_none()
-                    && ext == Extensions::default()
-                {
-                    // No specular lobe at all (Blender's "Specular IOR Level" 0, exported as
-                    // KHR_materials_specular 0): the mixture is exactly Lambertian, with the same
-                    // value, pdf and samples, so skip the GGX terms.
-                    return Bsdf::Diffuse(Diffuse { albedo: base });
-                }
-                Bsdf::MetallicRoughness(MetallicRoughness {
-                    base,
-                    metallic,
-                    ggx: Ggx::new(roughness * roughness),
-                    f0_dielectric,
-                    specular,
-                    coat,
-                    ext,
-                    wo_terms: None,
-                })
-            }
-        }
+        Bsdf::from_model(material, tx)
     }
-}
-
-/// GGX α along (u, v) of a pbrt-v4 model at `hit`: `alpha` for an axis without a roughness
-/// texture, else pbrt's roughness factor × texture R remapped as `remaproughness` asks (pbrt-v4
-/// evaluates the roughness textures at the hit, then `RoughnessToAlpha`).
-#[inline]
-fn pbrt_alpha(r: &RoughnessTextures, alpha: Vec2, tx: &HitTextures) -> Vec2 {
-    if !r.is_textured() {
-        return alpha;
-    }
-    let axis = |t: &Option<TextureRef>, factor: f32, constant: f32| match t {
-        Some(t) => {
-            let x = factor * tx.sample(t).x;
-            pbrt_roughness_to_alpha(if x.is_finite() { x } else { 0.0 }, r.remap)
-        }
-        None => constant,
-    };
-    Vec2::new(
-        axis(&r.u, r.factor.x, alpha.x),
-        axis(&r.v, r.factor.y, alpha.y),
-    )
 }
 
 /// Deepest chain of `mix` materials followed at one hit (the pbrt loader refuses cycles; this
@@ -224,11 +48,11 @@ pub fn resolve_mix<'a>(
 ) -> &'a Material {
     let mut m = &materials[index as usize];
     for _ in 0..MAX_MIX_DEPTH {
-        let Some(mix) = m.mix else {
+        let MaterialModel::Mix(mix) = &m.model else {
             return m;
         };
         let mut amount = mix.amount;
-        if let Some(t) = &m.mix_amount_texture {
+        if let Some(t) = &mix.amount_texture {
             amount *= sample_texture(textures, t, hit).x;
         }
         let pick = if amount <= 0.0 {
@@ -271,11 +95,11 @@ pub fn bump(
     dpdu: Vec3,
     dpdv: Vec3,
 ) {
-    let Some(t) = &material.pbrt.displacement else {
+    let Some(t) = &material.displacement else {
         return;
     };
     const DELTA: f32 = 0.0005;
-    let scale = material.pbrt.displacement_scale;
+    let scale = material.displacement_scale;
     // Stored uvs have v growing down the image (glTF), so pbrt's v + Δ is stored v − Δ.
     let d = |shift: Vec2| {
         let mut h = *hit;
@@ -302,152 +126,18 @@ pub fn bump(
     }
 }
 
-/// The transmissive component under the BRDF extensions the glTF specification layers over the
-/// whole material (clearcoat, sheen, anisotropy, iridescence), or `None` when it has none of
-/// them (then it is a plain [`Dielectric`] or thin sheet, as before).
-fn layered_transmission(
-    material: &Material,
-    tx: &HitTextures,
-    eta: f32,
-    roughness: f32,
-    tint: Vec3,
-) -> Option<GltfTransmission> {
-    let coat = clearcoat(material, tx);
-    let ext = extensions(material, tx, roughness);
-    if coat.is_none()
-        && ext.sheen.is_none()
-        && ext.anisotropy.is_none()
-        && ext.iridescence.is_none()
-    {
-        return None;
-    }
-    let thin = material.thin_walled;
-    let mut b = GltfTransmission::new(eta, roughness, tint, thin);
-    if let Some(a) = ext.anisotropy {
-        b.rough = (a.dist.alpha_x.max(a.dist.alpha_y) >= MIN_ALPHA).then_some(a);
-    }
-    if !thin && material.dispersion > 0.0 {
-        // KHR_materials_dispersion: no effect on thin-walled materials.
-        b.dispersion = Some(dispersive_iors(eta, material.dispersion));
-    }
-    b.iridescence = ext.iridescence;
-    b.coat = coat;
-    b.sheen = ext.sheen;
-    Some(b)
-}
-
-/// The material's clearcoat at `hit` (KHR_materials_clearcoat: factor × texture R, roughness ×
-/// texture G), `None` when its weight is zero. Its normal is +z (the shading normal) until the
-/// integrator calls [`Bsdf::set_coat_normal`] with [`clearcoat_normal`].
-fn clearcoat(material: &Material, tx: &HitTextures) -> Option<Clearcoat> {
-    if !(material.clearcoat > 0.0) {
-        return None;
-    }
-    let mut weight = material.clearcoat;
-    if let Some(t) = &material.clearcoat_texture {
-        weight *= tx.sample(t).x;
-    }
-    let mut roughness = material.clearcoat_roughness;
-    if let Some(t) = &material.clearcoat_roughness_texture {
-        roughness *= tx.sample(t).y;
-    }
-    (weight > 0.0).then(|| Clearcoat::new(weight, roughness, Vec3::Z))
-}
-
-/// The KHR extensions of the metallic-roughness lobes at `hit` (sheen, anisotropy, iridescence,
-/// diffuse transmission), each off when its weight is zero. `roughness` is the base's (factor ×
-/// texture), which anisotropy stretches.
-fn extensions(material: &Material, tx: &HitTextures, roughness: f32) -> Extensions {
-    let hit = tx.hit;
-    let mut ext = Extensions::default();
-    // KHR_materials_sheen: colour × texture RGB (sRGB), roughness × texture A.
-    if material.sheen_color.max_element() > 0.0 {
-        let mut color = material.sheen_color;
-        if let Some(t) = &material.sheen_color_texture {
-            color *= tx.sample(t).truncate();
-        }
-        let mut rough = material.sheen_roughness;
-        if let Some(t) = &material.sheen_roughness_texture {
-            rough *= tx.sample(t).w;
-        }
-        ext.sheen = Sheen::new(color, rough);
-    }
-    // KHR_materials_anisotropy: the texture's RG is a direction in [−1, 1]² (tangent space),
-    // rotated by the rotation; B scales the strength. Without a texture the direction is the
-    // tangent, rotated. The direction is placed in the unflipped local frame (x = tangent,
-    // y = normal × tangent = bitangent × its sign); the integrator mirrors y when it flips the
-    // normal (`Bsdf::flip_bitangent`).
-    if material.anisotropy > 0.0 {
-        let mut strength = material.anisotropy;
-        let mut d = Vec2::X;
-        if let Some(t) = &material.anisotropy_texture {
-            let v = tx.sample(t);
-            d = Vec2::new(v.x * 2.0 - 1.0, v.y * 2.0 - 1.0);
-            strength *= v.z;
-        }
-        let (s, c) = material.anisotropy_rotation.sin_cos();
-        let d = Vec2::new(c * d.x - s * d.y, s * d.x + c * d.y);
-        let sign = if hit.bitangent_sign < 0.0 { -1.0 } else { 1.0 };
-        if strength > 0.0 {
-            ext.anisotropy = Some(Anisotropy::new(
-                roughness,
-                strength,
-                Vec2::new(d.x, d.y * sign),
-            ));
-        }
-    }
-    // KHR_materials_iridescence: factor × texture R; thickness = mix(min, max, texture G), the
-    // maximum without a texture.
-    if material.iridescence > 0.0 {
-        let mut factor = material.iridescence;
-        if let Some(t) = &material.iridescence_texture {
-            factor *= tx.sample(t).x;
-        }
-        let (lo, hi) = (
-            material.iridescence_thickness_min,
-            material.iridescence_thickness_max,
-        );
-        let thickness = match &material.iridescence_thickness_texture {
-            Some(t) => lo + (hi - lo) * tx.sample(t).y,
-            None => hi,
-        };
-        if factor > 0.0 {
-            ext.iridescence = Some(Iridescence {
-                factor: factor.clamp(0.0, 1.0),
-                ior: material.iridescence_ior,
-                thickness: thickness.max(0.0),
-            });
-        }
-    }
-    // KHR_materials_diffuse_transmission: factor × texture A, colour × texture RGB (sRGB).
-    if material.diffuse_transmission > 0.0 {
-        let mut factor = material.diffuse_transmission;
-        if let Some(t) = &material.diffuse_transmission_texture {
-            factor *= tx.sample(t).w;
-        }
-        let mut color = material.diffuse_transmission_color;
-        if let Some(t) = &material.diffuse_transmission_color_texture {
-            color *= tx.sample(t).truncate();
-        }
-        if factor > 0.0 {
-            ext.diffuse_transmission = factor.clamp(0.0, 1.0);
-            ext.diffuse_transmission_color = color.clamp(Vec3::ZERO, Vec3::ONE);
-        }
-    }
-    ext
-}
-
 /// The clearcoat's world-space normal at `hit`, which must be taken **before** the base's normal
 /// map is applied: the coat's own normal map (`clearcoatNormalTexture`, tangent space, with its
 /// scale) on the interpolated vertex normal, or that normal itself — the base's normal map does
 /// not apply to the coat (KHR_materials_clearcoat).
 pub fn clearcoat_normal(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Vec3 {
     let n = hit.ns;
-    let Some(t) = &material.clearcoat_normal_texture else {
+    let coat = material.metallic_roughness();
+    let Some(t) = &coat.clearcoat_normal_texture else {
         return n;
     };
     let c = sample_texture(textures, t, hit).truncate() * 2.0 - Vec3::ONE;
-    let s = material.clearcoat_normal_scale;
+    let s = coat.clearcoat_normal_scale;
     let tangent = (hit.tangent - n * n.dot(hit.tangent)).normalize_or_zero();
     if tangent == Vec3::ZERO {
         return n;
@@ -476,7 +166,7 @@ pub fn roughness_metallic(
 
 /// [`roughness_metallic`] through a hit's shared lookups.
 #[inline(always)]
-fn roughness_metallic_in(material: &Material, tx: &HitTextures) -> (f32, f32) {
+pub(super) fn roughness_metallic_in(material: &Material, tx: &HitTextures) -> (f32, f32) {
     let (mut roughness, mut metallic) = (material.roughness, material.metallic);
     if let Some(t) = &material.metallic_roughness_texture {
         let v = tx.sample(t);
@@ -495,19 +185,12 @@ pub fn base_color(material: &Material, textures: &[Texture], hit: &SurfaceHit) -
 
 /// [`base_color`] through a hit's shared lookups.
 #[inline(always)]
-fn base_color_in(material: &Material, tx: &HitTextures) -> Vec3 {
+pub(super) fn base_color_in(material: &Material, tx: &HitTextures) -> Vec3 {
     let mut c = material.base_color * tx.hit.color.truncate();
     if let Some(t) = &material.base_color_texture {
         c *= tx.sample(t).truncate();
     }
     c
-}
-
-/// A uniform number in [0, 1) that is a pure function of the hit (its position and ray
-/// distance): the coin that picks one component of a stochastic material mixture.
-#[inline]
-fn hit_coin(hit: &SurfaceHit) -> f32 {
-    crate::sampling::rng::hash_floats_to_unit(&[hit.p.x, hit.p.y, hit.p.z, hit.t])
 }
 
 /// Opacity at a hit (glTF: base colour factor alpha × texture alpha × vertex colour alpha; OBJ
@@ -672,15 +355,17 @@ mod tests {
             image(16, 12, 5.0),
         ];
         let material = Material {
-            model: MaterialModel::MetallicRoughness,
+            model: MaterialModel::MetallicRoughness(crate::material::MetallicRoughness {
+                clearcoat: 1.0,
+                clearcoat_texture: Some(TextureRef::new(3)),
+                clearcoat_roughness: 0.6,
+                clearcoat_roughness_texture: Some(TextureRef::new(4)),
+                ..Default::default()
+            }),
             normal_texture: Some(TextureRef::new(0)),
             base_color_texture: Some(TextureRef::new(1)),
             metallic_roughness_texture: Some(TextureRef::new(2)),
             metallic: 0.5,
-            clearcoat: 1.0,
-            clearcoat_texture: Some(TextureRef::new(3)),
-            clearcoat_roughness: 0.6,
-            clearcoat_roughness_texture: Some(TextureRef::new(4)),
             ..Default::default()
         };
         for i in 0..400 {

@@ -78,32 +78,27 @@ impl LocalSurface {
         // The pbrt-v4 models in the local-shading vocabulary: a conductor is a metal of its
         // normal-incidence Fresnel colour, a coat a glossy dielectric over its base, and
         // diffuse transmission its reflection only. GGX α becomes glTF roughness √α.
-        let p = &m.pbrt;
         let rough_of = |a: crate::math::Vec2| (0.5 * (a.x + a.y)).max(0.0).sqrt().min(1.0);
-        let conductor_f0 = |base: Vec3| {
-            let (eta, k) = if p.conductor_reflectance {
-                crate::material::microfacet::conductor_from_reflectance(base)
-            } else {
-                (p.conductor_eta, p.conductor_k)
-            };
+        let conductor_f0 = |c: &crate::material::models::Conductor, base: Vec3| {
+            let (eta, k) = c.eta_k(|| base);
             crate::material::microfacet::fresnel_conductor(1.0, eta, k)
         };
-        match m.model {
-            MaterialModel::Conductor => {
-                base = conductor_f0(base);
+        match &m.model {
+            MaterialModel::Conductor(c) => {
+                base = conductor_f0(c, base);
                 metallic = 1.0;
-                roughness = rough_of(p.conductor_alpha);
+                roughness = rough_of(c.alpha);
             }
-            MaterialModel::CoatedConductor => {
-                base = conductor_f0(base);
+            MaterialModel::CoatedConductor(c) => {
+                base = conductor_f0(&c.conductor, base);
                 metallic = 1.0;
-                roughness = rough_of(p.interface_alpha).max(rough_of(p.conductor_alpha));
+                roughness = rough_of(c.coat.alpha).max(rough_of(c.conductor.alpha));
             }
-            MaterialModel::CoatedDiffuse => {
+            MaterialModel::CoatedDiffuse(c) => {
                 metallic = 0.0;
-                roughness = rough_of(p.interface_alpha);
+                roughness = rough_of(c.coat.alpha);
             }
-            MaterialModel::DiffuseTransmission => {
+            MaterialModel::DiffuseTransmission(_) => {
                 metallic = 0.0;
                 roughness = 1.0;
             }
@@ -118,7 +113,7 @@ impl LocalSurface {
         };
         let glossy = !matches!(
             m.model,
-            MaterialModel::Diffuse | MaterialModel::DiffuseTransmission
+            MaterialModel::Diffuse | MaterialModel::DiffuseTransmission(_)
         ) || m.phong.is_some();
         let (spec, shininess) = match (&m.phong, glossy) {
             (Some(p), _) => (p.specular, p.shininess.max(0.0)),

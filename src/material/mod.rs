@@ -1,6 +1,7 @@
-//! Materials and textures: the surface description loaders produce (glTF metallic-roughness
-//! parameters plus the thesis's extra models). [`eval`] evaluates a material at a hit (textures,
-//! opacity, emission, the [`Bsdf`]); [`bsdf`] dispatches to the scattering functions of [`bxdf`],
+//! Materials and textures: the surface description loaders produce, a [`Material`] holding one
+//! of the models of [`models`] (glTF metallic-roughness, pbrt-v4's, the thesis's) with its own
+//! parameters. [`eval`] evaluates a material at a hit (textures, opacity, emission, the [`Bsdf`]
+//! each model builds); [`bsdf`] dispatches to the scattering functions of [`bxdf`],
 //! one file per variant; [`local_shading`] holds the thesis's direct-lighting BRDFs of the raycast
 //! and Whitted modes.
 
@@ -11,6 +12,7 @@ pub mod eval;
 pub mod iridescence;
 pub mod local_shading;
 pub mod microfacet;
+pub mod models;
 pub mod normal_map;
 pub mod procedural;
 pub mod sheen;
@@ -18,210 +20,10 @@ mod sheen_table;
 pub mod texture;
 
 pub use bsdf::Bsdf;
+pub use models::{MaterialModel, MetallicRoughness, Mix, RoughnessTextures};
 pub use texture::{Texture, TextureRef, WrapMode};
 
-use crate::math::{Vec2, Vec3};
-
-/// How the path tracer scatters light at the surface.
-#[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub enum MaterialModel {
-    /// Lambertian reflection of the base colour.
-    #[default]
-    Diffuse,
-    /// glTF 2.0 metallic-roughness (with transmission when `transmission > 0`).
-    MetallicRoughness,
-    /// Smooth or rough dielectric (glass); the thesis's `refractive` material.
-    Dielectric,
-    /// Perfect mirror.
-    Mirror,
-    /// pbrt-v4 `conductor`: exact Fresnel of η + i k per channel ([`PbrtParams::conductor_eta`],
-    /// `conductor_k`, or the base colour as `reflectance` when `conductor_reflectance`), smooth or
-    /// anisotropic GGX with α = [`PbrtParams::conductor_alpha`].
-    Conductor,
-    /// pbrt-v4 `coateddiffuse`: a dielectric coat over a Lambertian base of the base colour.
-    CoatedDiffuse,
-    /// pbrt-v4 `coatedconductor`: a dielectric coat over the conductor of `Conductor`.
-    CoatedConductor,
-    /// pbrt-v4 `diffusetransmission`: Lambertian reflection of the base colour and Lambertian
-    /// transmission of [`PbrtParams::transmittance`].
-    DiffuseTransmission,
-    /// No surface at all: an index-matched boundary that only separates participating media
-    /// (pbrt-v4's `interface` material, Mitsuba's `null` BSDF). The volumetric path tracer passes
-    /// rays straight through it without counting a bounce; the other integrators see it as an
-    /// index-matched (η = 1) smooth dielectric, which transmits every ray unchanged.
-    Interface,
-    /// glTF `KHR_materials_unlit`: the surface shows its base colour (factor × texture × vertex
-    /// colour) as emitted radiance toward every ray and scatters nothing. It is not a light that
-    /// next-event estimation samples (a viewer's unlit object lights nothing), so only paths that
-    /// hit it by BSDF sampling or from the camera see it, each with MIS weight 1 — unbiased for
-    /// that definition (docs/DESIGN.md §4).
-    Unlit,
-}
-
-/// Parameters of the pbrt-v4 models ([`MaterialModel::Conductor`], `CoatedDiffuse`,
-/// `CoatedConductor`, `DiffuseTransmission`). Roughnesses are GGX α already (apply
-/// [`microfacet::pbrt_roughness_to_alpha`] for pbrt's `remaproughness`); x is along the tangent
-/// (pbrt's `uroughness`), y along the bitangent (`vroughness`). Defaults are pbrt-v4's.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PbrtParams {
-    /// Conductor η and k per linear-sRGB channel (default: pbrt's `metal-Cu-eta`/`metal-Cu-k`
-    /// converted by [`crate::spectrum`]).
-    pub conductor_eta: Vec3,
-    pub conductor_k: Vec3,
-    /// Use the base colour (× texture) as pbrt's `reflectance` instead of η/k.
-    pub conductor_reflectance: bool,
-    pub conductor_alpha: Vec2,
-    /// The coat: relative IOR and GGX α (pbrt `interface.eta`/`interface.roughness` for
-    /// `coatedconductor`, `eta`/`roughness` for `coateddiffuse`).
-    pub interface_eta: f32,
-    pub interface_alpha: Vec2,
-    /// Slab between coat and base: thickness (σt = 1), medium albedo and HG asymmetry g.
-    pub thickness: f32,
-    pub albedo: Vec3,
-    pub g: f32,
-    /// Random-walk length and walks per evaluation of the layered BSDF.
-    pub max_depth: u32,
-    pub n_samples: u32,
-    /// Lambertian transmittance of `diffusetransmission`.
-    pub transmittance: Vec3,
-    /// Roughness given as float textures, evaluated per hit (pbrt-v4 evaluates `uroughness`,
-    /// `vroughness` at the hit, then applies `remaproughness`): the conductor's (base of
-    /// `coatedconductor`) and the interface's (coat of the coated models, the `dielectric`
-    /// itself). An axis without a texture keeps its constant α above.
-    pub conductor_roughness: RoughnessTextures,
-    pub interface_roughness: RoughnessTextures,
-    /// pbrt-v4 `displacement`: a float texture (R channel × `displacement_scale`) that bump-maps
-    /// the shading normal (pbrt-v4 `BumpMap`, see [`eval::bump`]).
-    pub displacement: Option<TextureRef>,
-    pub displacement_scale: f32,
-}
-
-/// pbrt roughness along u and v as `factor` × texture R, per hit, remapped to GGX α with
-/// [`microfacet::pbrt_roughness_to_alpha`] when `remap` (pbrt's `remaproughness`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RoughnessTextures {
-    pub u: Option<TextureRef>,
-    pub v: Option<TextureRef>,
-    pub factor: Vec2,
-    pub remap: bool,
-}
-
-impl Default for RoughnessTextures {
-    fn default() -> Self {
-        RoughnessTextures {
-            u: None,
-            v: None,
-            factor: Vec2::ONE,
-            remap: true,
-        }
-    }
-}
-
-impl RoughnessTextures {
-    pub fn is_textured(&self) -> bool {
-        self.u.is_some() || self.v.is_some()
-    }
-}
-
-/// pbrt-v4 `mix` (`MixMaterial::ChooseMaterial`): at each hit `materials[1]` is chosen with
-/// probability amount = `amount` × texture R (≤ 0: always `materials[0]`, ≥ 1: always
-/// `materials[1]`), by a hash of the hit, so the choice is deterministic and the same for every
-/// query of that hit (see [`eval::resolve_mix`]). Indices are into the scene's materials.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Mix {
-    pub materials: [u32; 2],
-    pub amount: f32,
-}
-
-impl Default for PbrtParams {
-    fn default() -> Self {
-        let (eta, k) =
-            crate::spectrum::named_conductor_rgb("metal-Cu").unwrap_or((Vec3::ONE, Vec3::ZERO));
-        PbrtParams {
-            conductor_eta: eta,
-            conductor_k: k,
-            conductor_reflectance: false,
-            conductor_alpha: Vec2::ZERO,
-            interface_eta: 1.5,
-            interface_alpha: Vec2::ZERO,
-            thickness: 0.01,
-            albedo: Vec3::ZERO,
-            g: 0.0,
-            max_depth: 10,
-            n_samples: 1,
-            transmittance: Vec3::splat(0.25),
-            conductor_roughness: RoughnessTextures::default(),
-            interface_roughness: RoughnessTextures::default(),
-            displacement: None,
-            displacement_scale: 1.0,
-        }
-    }
-}
-
-impl PbrtParams {
-    fn validate(&self) -> Result<(), String> {
-        let vecs = [
-            self.conductor_eta,
-            self.conductor_k,
-            self.albedo,
-            self.transmittance,
-        ];
-        let scalars = [
-            self.conductor_alpha.x,
-            self.conductor_alpha.y,
-            self.interface_alpha.x,
-            self.interface_alpha.y,
-            self.interface_eta,
-            self.thickness,
-            self.g,
-            self.conductor_roughness.factor.x,
-            self.conductor_roughness.factor.y,
-            self.interface_roughness.factor.x,
-            self.interface_roughness.factor.y,
-            self.displacement_scale,
-        ];
-        if vecs.iter().any(|v| !v.is_finite()) || scalars.iter().any(|s| !s.is_finite()) {
-            return Err("has a non-finite pbrt parameter".into());
-        }
-        if vecs.iter().any(|v| v.min_element() < 0.0)
-            || self.conductor_alpha.min_element() < 0.0
-            || self.interface_alpha.min_element() < 0.0
-            || self.conductor_roughness.factor.min_element() < 0.0
-            || self.interface_roughness.factor.min_element() < 0.0
-        {
-            return Err("has a negative eta, k, albedo, transmittance or roughness".into());
-        }
-        if self.interface_eta <= 0.0 {
-            return Err(format!(
-                "coat eta must be positive (got {})",
-                self.interface_eta
-            ));
-        }
-        if self.thickness <= 0.0 {
-            return Err(format!(
-                "layer thickness must be positive (got {})",
-                self.thickness
-            ));
-        }
-        if !(-1.0 < self.g && self.g < 1.0) {
-            return Err(format!("layer g must be in (-1, 1) (got {})", self.g));
-        }
-        if self.albedo.max_element() > 1.0 {
-            return Err("layer albedo must be at most 1".into());
-        }
-        if self.max_depth == 0
-            || self.max_depth > 1000
-            || self.n_samples == 0
-            || self.n_samples > 1000
-        {
-            return Err(format!(
-                "layer maxdepth and nsamples must be in 1..=1000 (got {}, {})",
-                self.max_depth, self.n_samples
-            ));
-        }
-        Ok(())
-    }
-}
+use crate::math::Vec3;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum AlphaMode {
@@ -238,11 +40,18 @@ pub struct PhongParams {
     pub shininess: f32,
 }
 
-/// A material, in the glTF metallic-roughness vocabulary (docs/DESIGN.md §3–4). Colour factors are linear RGB.
+/// A material (docs/DESIGN.md §3–4): its scattering model with that model's own parameters
+/// ([`MaterialModel`], one file per model in [`models`]), and what is shared by every model or read
+/// for every model — name, emission, opacity, normal and bump maps, double-sidedness, ambient
+/// occlusion, and the glTF core (base colour, metallic, roughness, IOR, transmission, volume,
+/// specular) that the raycast/Whitted local shading, the albedo AOV and the medium set-up read
+/// whatever the model. Colour factors are linear RGB.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     pub name: String,
     pub model: MaterialModel,
+    /// Base colour factor: the albedo of the diffuse models, the reflectance of a conductor given
+    /// as `reflectance`, the tint of glTF transmission, an unlit surface's radiance.
     pub base_color: Vec3,
     pub base_color_texture: Option<TextureRef>,
     /// Opacity (glTF base colour alpha, OBJ `d`).
@@ -271,7 +80,6 @@ pub struct Material {
     pub double_sided: bool,
     /// Phong parameters for the raycast/Whitted modes, when the file gives them.
     pub phong: Option<PhongParams>,
-    // Inputs the importers fill that the first BSDFs do not use yet (issue 8).
     /// KHR_materials_specular: strength in A, colour (sRGB) in RGB.
     pub specular_texture: Option<TextureRef>,
     pub specular_color_texture: Option<TextureRef>,
@@ -282,46 +90,10 @@ pub struct Material {
     pub attenuation_distance: f32,
     /// Opacity map (OBJ `map_d`), first channel.
     pub alpha_texture: Option<TextureRef>,
-    /// Parameters of the pbrt-v4 models (unused by the others).
-    pub pbrt: PbrtParams,
-    /// KHR_materials_clearcoat: layer weight (× texture R), roughness (× texture G) and the
-    /// coat's own normal map (without one, the coat follows the unmapped vertex normal).
-    pub clearcoat: f32,
-    pub clearcoat_texture: Option<TextureRef>,
-    pub clearcoat_roughness: f32,
-    pub clearcoat_roughness_texture: Option<TextureRef>,
-    pub clearcoat_normal_texture: Option<TextureRef>,
-    pub clearcoat_normal_scale: f32,
-    /// KHR_materials_sheen: colour (linear; × sRGB texture RGB) and roughness (× texture A).
-    /// Zero colour = no sheen.
-    pub sheen_color: Vec3,
-    pub sheen_color_texture: Option<TextureRef>,
-    pub sheen_roughness: f32,
-    pub sheen_roughness_texture: Option<TextureRef>,
-    /// KHR_materials_anisotropy: strength in [0, 1] (× texture B), rotation (radians, from the
-    /// tangent toward the bitangent) and the direction texture (RG in [−1, 1], rotated).
-    pub anisotropy: f32,
-    pub anisotropy_rotation: f32,
-    pub anisotropy_texture: Option<TextureRef>,
-    /// KHR_materials_iridescence: factor (× texture R), thin-film IOR and thickness range in nm
-    /// (the thickness texture's G picks between min and max; without it the maximum is used).
-    pub iridescence: f32,
-    pub iridescence_texture: Option<TextureRef>,
-    pub iridescence_ior: f32,
-    pub iridescence_thickness_min: f32,
-    pub iridescence_thickness_max: f32,
-    pub iridescence_thickness_texture: Option<TextureRef>,
-    /// KHR_materials_dispersion: 20 / Abbe number (0 = none).
-    pub dispersion: f32,
-    /// KHR_materials_diffuse_transmission: factor (× texture A) and colour (× sRGB texture RGB).
-    pub diffuse_transmission: f32,
-    pub diffuse_transmission_texture: Option<TextureRef>,
-    pub diffuse_transmission_color: Vec3,
-    pub diffuse_transmission_color_texture: Option<TextureRef>,
-    /// pbrt-v4 `mix`: this material only chooses one of two others per hit (its own emission,
-    /// alpha and double-sidedness still apply; its scattering fields are unused).
-    pub mix: Option<Mix>,
-    pub mix_amount_texture: Option<TextureRef>,
+    /// pbrt-v4 `displacement`: a float texture (R channel × `displacement_scale`) that bump-maps
+    /// the shading normal of any model (pbrt-v4 `BumpMap`, see [`eval::bump`]).
+    pub displacement: Option<TextureRef>,
+    pub displacement_scale: f32,
 }
 
 impl Default for Material {
@@ -357,39 +129,15 @@ impl Default for Material {
             attenuation_color: Vec3::ONE,
             attenuation_distance: f32::INFINITY,
             alpha_texture: None,
-            pbrt: PbrtParams::default(),
-            clearcoat: 0.0,
-            clearcoat_texture: None,
-            clearcoat_roughness: 0.0,
-            clearcoat_roughness_texture: None,
-            clearcoat_normal_texture: None,
-            clearcoat_normal_scale: 1.0,
-            sheen_color: Vec3::ZERO,
-            sheen_color_texture: None,
-            sheen_roughness: 0.0,
-            sheen_roughness_texture: None,
-            anisotropy: 0.0,
-            anisotropy_rotation: 0.0,
-            anisotropy_texture: None,
-            iridescence: 0.0,
-            iridescence_texture: None,
-            iridescence_ior: 1.3,
-            iridescence_thickness_min: 100.0,
-            iridescence_thickness_max: 400.0,
-            iridescence_thickness_texture: None,
-            dispersion: 0.0,
-            diffuse_transmission: 0.0,
-            diffuse_transmission_texture: None,
-            diffuse_transmission_color: Vec3::ONE,
-            diffuse_transmission_color_texture: None,
-            mix: None,
-            mix_amount_texture: None,
+            displacement: None,
+            displacement_scale: 1.0,
         }
     }
 }
 
-/// Every texture slot of a [`Material`], listed once: validation, a TOML include's index shift
-/// and `trayecto info` walk this list, so a new slot cannot be forgotten by one of them.
+/// Every texture slot of a [`Material`] outside its model's parameters, listed once (the model's
+/// own are [`MaterialModel::texture_slots`]): validation, a TOML include's index shift and
+/// `trayecto info` walk this list, so a new slot cannot be forgotten by one of them.
 macro_rules! texture_slots {
     ($m:expr, $($borrow:tt)+) => {
         [
@@ -402,22 +150,7 @@ macro_rules! texture_slots {
             $($borrow)+ $m.specular_texture,
             $($borrow)+ $m.specular_color_texture,
             $($borrow)+ $m.alpha_texture,
-            $($borrow)+ $m.clearcoat_texture,
-            $($borrow)+ $m.clearcoat_roughness_texture,
-            $($borrow)+ $m.clearcoat_normal_texture,
-            $($borrow)+ $m.sheen_color_texture,
-            $($borrow)+ $m.sheen_roughness_texture,
-            $($borrow)+ $m.anisotropy_texture,
-            $($borrow)+ $m.iridescence_texture,
-            $($borrow)+ $m.iridescence_thickness_texture,
-            $($borrow)+ $m.diffuse_transmission_texture,
-            $($borrow)+ $m.diffuse_transmission_color_texture,
-            $($borrow)+ $m.mix_amount_texture,
-            $($borrow)+ $m.pbrt.conductor_roughness.u,
-            $($borrow)+ $m.pbrt.conductor_roughness.v,
-            $($borrow)+ $m.pbrt.interface_roughness.u,
-            $($borrow)+ $m.pbrt.interface_roughness.v,
-            $($borrow)+ $m.pbrt.displacement,
+            $($borrow)+ $m.displacement,
         ]
     };
 }
@@ -425,12 +158,18 @@ macro_rules! texture_slots {
 impl Material {
     /// The textures this material references (every slot that is set).
     pub fn texture_refs(&self) -> impl Iterator<Item = &TextureRef> {
-        texture_slots!(self, &).into_iter().flatten()
+        texture_slots!(self, &)
+            .into_iter()
+            .chain(self.model.texture_slots())
+            .flatten()
     }
 
     /// [`Material::texture_refs`], mutable (e.g. to shift indices when scenes are merged).
     pub fn texture_refs_mut(&mut self) -> impl Iterator<Item = &mut TextureRef> {
-        texture_slots!(self, &mut).into_iter().flatten()
+        texture_slots!(self, &mut)
+            .into_iter()
+            .chain(self.model.texture_slots_mut())
+            .flatten()
     }
 
     pub fn diffuse(name: &str, color: Vec3) -> Material {
@@ -441,19 +180,41 @@ impl Material {
         }
     }
 
+    /// The glTF extensions of a metallic-roughness material ([`MaterialModel::MetallicRoughness`]);
+    /// none ([`MetallicRoughness::NONE`]) for every other model.
+    #[inline]
+    pub fn metallic_roughness(&self) -> &MetallicRoughness {
+        match &self.model {
+            MaterialModel::MetallicRoughness(x) => x,
+            _ => &MetallicRoughness::NONE,
+        }
+    }
+
+    /// [`Material::metallic_roughness`], mutable; `None` for another model.
+    #[inline]
+    pub fn metallic_roughness_mut(&mut self) -> Option<&mut MetallicRoughness> {
+        match &mut self.model {
+            MaterialModel::MetallicRoughness(x) => Some(x),
+            _ => None,
+        }
+    }
+
+    /// The choice of a pbrt-v4 `mix` ([`MaterialModel::Mix`]), `None` for every other model.
+    #[inline]
+    pub fn mix(&self) -> Option<Mix> {
+        match self.model {
+            MaterialModel::Mix(mix) => Some(mix),
+            _ => None,
+        }
+    }
+
     pub fn is_emissive(&self) -> bool {
         self.emissive.max_element() > 0.0
     }
 
     /// Rejects parameters that would produce NaNs or reference missing textures.
     pub fn validate(&self, texture_count: usize) -> Result<(), String> {
-        let vecs = [
-            self.base_color,
-            self.emissive,
-            self.specular_color,
-            self.sheen_color,
-            self.diffuse_transmission_color,
-        ];
+        let vecs = [self.base_color, self.emissive, self.specular_color];
         let scalars = [
             self.alpha,
             self.alpha_cutoff,
@@ -464,19 +225,7 @@ impl Material {
             self.transmission,
             self.ior,
             self.specular,
-            self.clearcoat,
-            self.clearcoat_roughness,
-            self.clearcoat_normal_scale,
-            self.sheen_roughness,
-            self.anisotropy,
-            self.anisotropy_rotation,
-            self.iridescence,
-            self.iridescence_ior,
-            self.iridescence_thickness_min,
-            self.iridescence_thickness_max,
-            self.dispersion,
-            self.diffuse_transmission,
-            self.mix.map_or(0.0, |m| m.amount),
+            self.displacement_scale,
         ];
         if vecs.iter().any(|v| !v.is_finite()) || scalars.iter().any(|s| !s.is_finite()) {
             return Err("has a non-finite parameter".into());
@@ -484,22 +233,7 @@ impl Material {
         if self.base_color.min_element() < 0.0 || self.emissive.min_element() < 0.0 {
             return Err("has a negative colour".into());
         }
-        if self.sheen_color.min_element() < 0.0
-            || self.diffuse_transmission_color.min_element() < 0.0
-        {
-            return Err("has a negative sheen or diffuse-transmission colour".into());
-        }
-        if self.iridescence_ior <= 0.0
-            || self.iridescence_thickness_min < 0.0
-            || self.iridescence_thickness_max < 0.0
-            || self.dispersion < 0.0
-        {
-            return Err(
-                "has a non-positive iridescence IOR or a negative thin-film thickness or dispersion"
-                    .into(),
-            );
-        }
-        self.pbrt.validate()?;
+        self.model.validate()?;
         if self.ior <= 0.0 {
             return Err(format!(
                 "index of refraction must be positive (got {})",

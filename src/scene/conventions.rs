@@ -47,7 +47,7 @@ pub fn apply_to_material(m: &mut Material) -> Option<String> {
         ));
     }
     if name_has(&m.name, "refractive") {
-        m.model = MaterialModel::Dielectric;
+        m.model = MaterialModel::dielectric();
         m.ior = REFRACTIVE_IOR;
         m.transmission = 1.0;
         m.roughness = 0.0;
@@ -89,7 +89,7 @@ mod tests {
 
         let mut g = Material::diffuse("Refractive ball", Vec3::ONE);
         apply_to_material(&mut g);
-        assert_eq!(g.model, MaterialModel::Dielectric);
+        assert!(g.model.is_dielectric());
         assert_eq!(g.ior, 1.4);
 
         let mut plain = Material::diffuse("wall", Vec3::ONE);

@@ -690,7 +690,7 @@ impl Scene {
                 SceneError::invalid(&label, format!("material {i} '{}': {e}", m.name))
             })?;
             // A pbrt-v4 `mix` names two other materials of this scene.
-            if let Some(mix) = m.mix
+            if let Some(mix) = m.mix()
                 && mix
                     .materials
                     .iter()

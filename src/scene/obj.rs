@@ -209,7 +209,7 @@ fn convert_material(
         || unknown.contains_key("map_Pr")
         || unknown.contains_key("map_Pm")
     {
-        mat.model = MaterialModel::MetallicRoughness;
+        mat.model = MaterialModel::metallic_roughness();
         mat.roughness = pr.unwrap_or(1.0);
         mat.metallic = pm.unwrap_or(0.0);
     } else {
@@ -223,7 +223,7 @@ fn convert_material(
                 };
             }
             4 | 6 | 7 if mat.alpha < 1.0 || m.optical_density.is_some_and(|n| n > 1.0) => {
-                mat.model = MaterialModel::Dielectric;
+                mat.model = MaterialModel::dielectric();
                 mat.transmission = 1.0;
                 mat.roughness = 0.0;
             }
@@ -256,7 +256,7 @@ fn convert_material(
         mat.alpha_texture = tref(tex(f, false, scene)?);
     }
     // Dissolve on a non-glass material is opacity: rendered as stochastic transparency.
-    if mat.model != MaterialModel::Dielectric && (mat.alpha < 1.0 || mat.alpha_texture.is_some()) {
+    if !mat.model.is_dielectric() && (mat.alpha < 1.0 || mat.alpha_texture.is_some()) {
         mat.alpha_mode = AlphaMode::Blend;
     }
     if let Some(f) = m.normal_texture.as_ref().or(unknown.get("norm")) {

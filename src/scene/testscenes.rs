@@ -127,12 +127,12 @@ pub fn textured_spheres(k: u32, detail: u32) -> Scene {
     ground.occlusion_texture = Some(TextureRef::new(2));
     let ground = s.add_material(ground);
     let mut glossy = Material::diffuse("glossy", Vec3::ONE);
-    glossy.model = MaterialModel::MetallicRoughness;
+    glossy.model = MaterialModel::metallic_roughness();
     glossy.roughness = 0.3;
     glossy.base_color_texture = Some(TextureRef::new(1));
     let glossy = s.add_material(glossy);
     let mut metal = Material::diffuse("metal", Vec3::new(0.9, 0.7, 0.4));
-    metal.model = MaterialModel::MetallicRoughness;
+    metal.model = MaterialModel::metallic_roughness();
     metal.metallic = 1.0;
     metal.roughness = 0.2;
     let metal = s.add_material(metal);
@@ -140,7 +140,7 @@ pub fn textured_spheres(k: u32, detail: u32) -> Scene {
     mirror.model = MaterialModel::Mirror;
     let mirror = s.add_material(mirror);
     let mut glass = Material::diffuse("refractive glass", Vec3::ONE);
-    glass.model = MaterialModel::Dielectric;
+    glass.model = MaterialModel::dielectric();
     glass.ior = 1.4;
     let glass = s.add_material(glass);
     let diffuse = s.add_material(Material::diffuse("red", Vec3::new(0.7, 0.1, 0.1)));

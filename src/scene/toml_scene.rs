@@ -16,6 +16,9 @@ use serde::Deserialize;
 use super::conventions::{ambient_light, apply_material_conventions, is_ambient_light_name};
 use super::image_io::{RefusedPath, is_missing_texture, load_texture_checked, resolve_in_dir};
 use super::{CameraDesc, LightDesc, MaterialId, Scene, SceneError, Shape, SpotFalloff};
+use crate::material::models::{
+    Coat, CoatedConductor, CoatedDiffuse, Conductor, DiffuseTransmission, Slab,
+};
 use crate::material::texture::UvTransform;
 use crate::material::{AlphaMode, Material, MaterialModel, TextureRef};
 use crate::math::{Mat4, Vec2, Vec3};
@@ -626,13 +629,13 @@ type MatResult = Result<Result<Material, String>, RefusedPath>;
 fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
     let model = match m.model.as_deref() {
         None | Some("diffuse") => MaterialModel::Diffuse,
-        Some("metallic-roughness") => MaterialModel::MetallicRoughness,
-        Some("dielectric") => MaterialModel::Dielectric,
+        Some("metallic-roughness") => MaterialModel::metallic_roughness(),
+        Some("dielectric") => MaterialModel::dielectric(),
         Some("mirror") => MaterialModel::Mirror,
-        Some("conductor") => MaterialModel::Conductor,
-        Some("coated-diffuse") => MaterialModel::CoatedDiffuse,
-        Some("coated-conductor") => MaterialModel::CoatedConductor,
-        Some("diffuse-transmission") => MaterialModel::DiffuseTransmission,
+        Some("conductor") => MaterialModel::Conductor(Default::default()),
+        Some("coated-diffuse") => MaterialModel::CoatedDiffuse(Default::default()),
+        Some("coated-conductor") => MaterialModel::CoatedConductor(Default::default()),
+        Some("diffuse-transmission") => MaterialModel::DiffuseTransmission(Default::default()),
         Some("interface") => MaterialModel::Interface,
         Some(other) => {
             return Ok(Err(format!(
@@ -641,7 +644,8 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
             )));
         }
     };
-    let mut pbrt = crate::material::PbrtParams::default();
+    // The parameters of the pbrt-v4 models, each given to the models that read it.
+    let mut conductor = Conductor::default();
     if let Some(metal) = &m.metal {
         let Some((eta, k)) = crate::spectrum::named_conductor_rgb(metal) else {
             return Ok(Err(format!(
@@ -649,43 +653,59 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
                 crate::spectrum::METALS.join(", ")
             )));
         };
-        (pbrt.conductor_eta, pbrt.conductor_k) = (eta, k);
+        (conductor.eta, conductor.k) = (eta, k);
     }
     match (m.eta, m.k) {
         (Some(e), Some(k)) if m.metal.is_none() => {
-            (pbrt.conductor_eta, pbrt.conductor_k) = (Vec3::from(e), Vec3::from(k))
+            (conductor.eta, conductor.k) = (Vec3::from(e), Vec3::from(k))
         }
         (None, None) => {}
         _ => return Ok(Err("'eta' and 'k' go together, and not with 'metal'".into())),
     }
-    pbrt.conductor_reflectance = m.reflectance;
+    conductor.reflectance = m.reflectance;
     if let Some(a) = m.conductor_alpha {
-        pbrt.conductor_alpha = Vec2::new(a, m.conductor_alpha_v.unwrap_or(a));
+        conductor.alpha = Vec2::new(a, m.conductor_alpha_v.unwrap_or(a));
     }
+    let mut coat = Coat::default();
     if let Some(a) = m.coat_alpha {
-        pbrt.interface_alpha = Vec2::new(a, m.coat_alpha_v.unwrap_or(a));
+        coat.alpha = Vec2::new(a, m.coat_alpha_v.unwrap_or(a));
     }
     if let Some(ior) = m.ior {
-        pbrt.interface_eta = ior;
+        coat.eta = ior;
     }
+    let mut slab = Slab::default();
     if let Some(t) = m.thickness {
-        pbrt.thickness = t;
+        slab.thickness = t;
     }
     if let Some(a) = m.albedo {
-        pbrt.albedo = Vec3::from(a);
+        slab.albedo = Vec3::from(a);
     }
     if let Some(g) = m.g {
-        pbrt.g = g;
+        slab.g = g;
     }
     if let Some(d) = m.max_depth {
-        pbrt.max_depth = d;
+        slab.max_depth = d;
     }
     if let Some(n) = m.n_samples {
-        pbrt.n_samples = n;
+        slab.n_samples = n;
     }
+    let mut sheet = DiffuseTransmission::default();
     if let Some(t) = m.transmittance {
-        pbrt.transmittance = Vec3::from(t);
+        sheet.transmittance = Vec3::from(t);
     }
+    let model = match model {
+        MaterialModel::Conductor(_) => MaterialModel::Conductor(conductor),
+        MaterialModel::CoatedDiffuse(_) => {
+            MaterialModel::CoatedDiffuse(CoatedDiffuse { coat, slab })
+        }
+        MaterialModel::CoatedConductor(_) => MaterialModel::CoatedConductor(CoatedConductor {
+            coat,
+            conductor,
+            slab,
+        }),
+        MaterialModel::DiffuseTransmission(_) => MaterialModel::DiffuseTransmission(sheet),
+        other => other,
+    };
     let mut mat = Material {
         name: m.name.clone(),
         model,
@@ -698,7 +718,6 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
         }),
         emissive: m.emissive.map(Vec3::from).unwrap_or(Vec3::ZERO) * m.emissive_strength,
         double_sided: m.double_sided,
-        pbrt,
         ..Default::default()
     };
     if let Some(ior) = m.ior {
@@ -716,7 +735,7 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
         mat.transmission = 1.0;
         mat.roughness = 0.0;
     }
-    if model == MaterialModel::Dielectric {
+    if model.is_dielectric() {
         mat.transmission = 1.0;
         mat.roughness = m.roughness.unwrap_or(0.0);
     }
@@ -817,7 +836,7 @@ fn add_mesh_file(
                 t.texture += t0;
             }
             // A pbrt-v4 `mix` names two of the file's own materials.
-            if let Some(mix) = &mut m.mix {
+            if let MaterialModel::Mix(mix) = &mut m.model {
                 mix.materials = mix.materials.map(|j| j + mat0 as u32);
             }
             scene.materials.push(m);
@@ -989,17 +1008,24 @@ transmittance = [0.6, 0.5, 0.4]
         let [cu, coat, sheet] = &scene.materials[..] else {
             panic!("three materials")
         };
-        assert_eq!(cu.model, MaterialModel::Conductor);
+        let MaterialModel::Conductor(cu) = cu.model else {
+            panic!("{:?}", cu.model)
+        };
         let (eta, k) = crate::spectrum::named_conductor_rgb("metal-Cu").unwrap();
-        assert_eq!((cu.pbrt.conductor_eta, cu.pbrt.conductor_k), (eta, k));
-        assert_eq!(cu.pbrt.conductor_alpha, Vec2::new(0.1, 0.3));
-        assert_eq!(coat.model, MaterialModel::CoatedConductor);
-        assert_eq!(coat.pbrt.conductor_k, Vec3::new(3.9, 2.4, 2.2));
-        assert_eq!(coat.pbrt.interface_eta, 1.3);
-        assert_eq!(coat.pbrt.interface_alpha, Vec2::splat(0.2));
-        assert_eq!((coat.pbrt.max_depth, coat.pbrt.n_samples), (20, 4));
-        assert_eq!((coat.pbrt.thickness, coat.pbrt.g), (0.05, 0.2));
-        assert_eq!(sheet.pbrt.transmittance, Vec3::new(0.6, 0.5, 0.4));
+        assert_eq!((cu.eta, cu.k), (eta, k));
+        assert_eq!(cu.alpha, Vec2::new(0.1, 0.3));
+        let MaterialModel::CoatedConductor(coat) = coat.model else {
+            panic!("{:?}", coat.model)
+        };
+        assert_eq!(coat.conductor.k, Vec3::new(3.9, 2.4, 2.2));
+        assert_eq!(coat.coat.eta, 1.3);
+        assert_eq!(coat.coat.alpha, Vec2::splat(0.2));
+        assert_eq!((coat.slab.max_depth, coat.slab.n_samples), (20, 4));
+        assert_eq!((coat.slab.thickness, coat.slab.g), (0.05, 0.2));
+        let MaterialModel::DiffuseTransmission(sheet) = sheet.model else {
+            panic!("{:?}", sheet.model)
+        };
+        assert_eq!(sheet.transmittance, Vec3::new(0.6, 0.5, 0.4));
 
         for (bad, why) in [
             (

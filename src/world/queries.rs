@@ -34,7 +34,7 @@ impl World {
     #[inline]
     pub fn surface_material(&self, hit: &SurfaceHit) -> &Material {
         let m = self.material(hit);
-        if m.mix.is_none() {
+        if m.mix().is_none() {
             return m;
         }
         eval::resolve_mix(&self.materials, &self.textures, hit.material, hit)
@@ -64,7 +64,7 @@ impl World {
     ) {
         if material.normal_texture.is_some() {
             normal_map::apply_normal_map_shared(material, &self.textures, hit, shared);
-        } else if material.pbrt.displacement.is_some()
+        } else if material.displacement.is_some()
             && let Some((dpdu, dpdv)) = self.geometry.pbrt_shading_dpduv(hit)
         {
             eval::bump(material, &self.textures, hit, dpdu, dpdv);
@@ -107,7 +107,8 @@ impl World {
     /// [`World::clearcoat_normal`] with `material` = [`World::surface_material`] of `hit`.
     #[inline]
     pub fn material_clearcoat_normal(&self, material: &Material, hit: &SurfaceHit) -> Option<Vec3> {
-        (material.clearcoat > 0.0).then(|| eval::clearcoat_normal(material, &self.textures, hit))
+        (material.metallic_roughness().clearcoat > 0.0)
+            .then(|| eval::clearcoat_normal(material, &self.textures, hit))
     }
 
     /// The parameters of the raycast/Whitted local shading models at `hit`.

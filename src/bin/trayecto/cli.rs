@@ -558,9 +558,9 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
     for (i, m) in world.materials.iter().enumerate() {
         let textures = m.texture_refs().count();
         println!(
-            "  {i}: '{}' {:?} base colour {}{}{}",
+            "  {i}: '{}' {} base colour {}{}{}",
             m.name,
-            m.model,
+            m.model.name(),
             m.base_color,
             if textures > 0 {
                 format!(", {textures} texture(s)")

@@ -505,7 +505,7 @@ impl<'a> Converter<'a> {
             model: if lambert {
                 MaterialModel::Diffuse
             } else {
-                MaterialModel::MetallicRoughness
+                MaterialModel::metallic_roughness()
             },
             base_color: v3((diffuse * diffuse_factor).max(DVec3::ZERO)),
             emissive: v3((emissive * emissive_factor).max(DVec3::ZERO)),

@@ -151,7 +151,7 @@ impl Loader<'_> {
         let bc = pbr.base_color_factor();
         let mut mat = Material {
             name: name.clone(),
-            model: MaterialModel::MetallicRoughness,
+            model: MaterialModel::metallic_roughness(),
             base_color: Vec3::new(bc[0], bc[1], bc[2]),
             alpha: bc[3],
             metallic: pbr.metallic_factor(),
@@ -269,19 +269,23 @@ impl Loader<'_> {
                     }),
             }
         };
-        mat.clearcoat = num("clearcoatFactor", 0.0)?;
-        mat.clearcoat_roughness = num("clearcoatRoughnessFactor", 0.0)?;
-        mat.clearcoat_texture = self.raw_tex_ref(v.get("clearcoatTexture"), "clearcoat")?;
-        mat.clearcoat_roughness_texture =
+        let mut x = *mat.metallic_roughness();
+        x.clearcoat = num("clearcoatFactor", 0.0)?;
+        x.clearcoat_roughness = num("clearcoatRoughnessFactor", 0.0)?;
+        x.clearcoat_texture = self.raw_tex_ref(v.get("clearcoatTexture"), "clearcoat")?;
+        x.clearcoat_roughness_texture =
             self.raw_tex_ref(v.get("clearcoatRoughnessTexture"), "clearcoatRoughness")?;
         if let Some(n) = v.get("clearcoatNormalTexture") {
-            mat.clearcoat_normal_scale = n
+            x.clearcoat_normal_scale = n
                 .get("scale")
                 .and_then(|x| x.as_f64())
                 .map(|x| x as f32)
                 .filter(|x| x.is_finite())
                 .unwrap_or(1.0);
-            mat.clearcoat_normal_texture = self.raw_tex_ref(Some(n), "clearcoatNormal")?;
+            x.clearcoat_normal_texture = self.raw_tex_ref(Some(n), "clearcoatNormal")?;
+        }
+        if let Some(m) = mat.metallic_roughness_mut() {
+            *m = x;
         }
         Ok(())
     }
@@ -359,37 +363,37 @@ impl Loader<'_> {
         mat: &mut Material,
     ) -> Result<(), SceneError> {
         const UNIT: std::ops::RangeInclusive<f32> = 0.0..=1.0;
+        let mut x = *mat.metallic_roughness();
         if let Some(v) = m.extension_value("KHR_materials_sheen") {
             let e = "KHR_materials_sheen";
-            mat.sheen_color = self.ext_color(mat, v, e, "sheenColorFactor", Vec3::ZERO)?;
-            mat.sheen_roughness = self.ext_num(mat, v, e, "sheenRoughnessFactor", 0.0, UNIT)?;
-            mat.sheen_color_texture =
+            x.sheen_color = self.ext_color(mat, v, e, "sheenColorFactor", Vec3::ZERO)?;
+            x.sheen_roughness = self.ext_num(mat, v, e, "sheenRoughnessFactor", 0.0, UNIT)?;
+            x.sheen_color_texture =
                 self.raw_tex_ref_as(v.get("sheenColorTexture"), "sheenColor", true)?;
-            mat.sheen_roughness_texture =
+            x.sheen_roughness_texture =
                 self.raw_tex_ref(v.get("sheenRoughnessTexture"), "sheenRoughness")?;
         }
         if let Some(v) = m.extension_value("KHR_materials_anisotropy") {
             let e = "KHR_materials_anisotropy";
-            mat.anisotropy = self.ext_num(mat, v, e, "anisotropyStrength", 0.0, UNIT)?;
-            mat.anisotropy_rotation =
+            x.anisotropy = self.ext_num(mat, v, e, "anisotropyStrength", 0.0, UNIT)?;
+            x.anisotropy_rotation =
                 self.ext_num(mat, v, e, "anisotropyRotation", 0.0, -1.0e6..=1.0e6)?;
-            mat.anisotropy_texture = self.raw_tex_ref(v.get("anisotropyTexture"), "anisotropy")?;
+            x.anisotropy_texture = self.raw_tex_ref(v.get("anisotropyTexture"), "anisotropy")?;
         }
         if let Some(v) = m.extension_value("KHR_materials_iridescence") {
             let e = "KHR_materials_iridescence";
-            mat.iridescence = self.ext_num(mat, v, e, "iridescenceFactor", 0.0, UNIT)?;
-            mat.iridescence_ior = self.ext_num(mat, v, e, "iridescenceIor", 1.3, 1.0..=10.0)?;
-            mat.iridescence_thickness_min =
+            x.iridescence = self.ext_num(mat, v, e, "iridescenceFactor", 0.0, UNIT)?;
+            x.iridescence_ior = self.ext_num(mat, v, e, "iridescenceIor", 1.3, 1.0..=10.0)?;
+            x.iridescence_thickness_min =
                 self.ext_num(mat, v, e, "iridescenceThicknessMinimum", 100.0, 0.0..=1.0e5)?;
-            mat.iridescence_thickness_max =
+            x.iridescence_thickness_max =
                 self.ext_num(mat, v, e, "iridescenceThicknessMaximum", 400.0, 0.0..=1.0e5)?;
-            mat.iridescence_texture =
-                self.raw_tex_ref(v.get("iridescenceTexture"), "iridescence")?;
-            mat.iridescence_thickness_texture =
+            x.iridescence_texture = self.raw_tex_ref(v.get("iridescenceTexture"), "iridescence")?;
+            x.iridescence_thickness_texture =
                 self.raw_tex_ref(v.get("iridescenceThicknessTexture"), "iridescenceThickness")?;
         }
         if let Some(v) = m.extension_value("KHR_materials_dispersion") {
-            mat.dispersion = self.ext_num(
+            x.dispersion = self.ext_num(
                 mat,
                 v,
                 "KHR_materials_dispersion",
@@ -397,7 +401,7 @@ impl Loader<'_> {
                 0.0,
                 0.0..=1.0e3,
             )?;
-            if mat.dispersion > 0.0 && (mat.transmission <= 0.0 || mat.thin_walled) {
+            if x.dispersion > 0.0 && (mat.transmission <= 0.0 || mat.thin_walled) {
                 self.scene.warnings.push(format!(
                     "material '{}': KHR_materials_dispersion has no effect without volumetric transmission (KHR_materials_transmission with KHR_materials_volume thickness > 0)",
                     mat.name
@@ -406,17 +410,20 @@ impl Loader<'_> {
         }
         if let Some(v) = m.extension_value("KHR_materials_diffuse_transmission") {
             let e = "KHR_materials_diffuse_transmission";
-            mat.diffuse_transmission =
+            x.diffuse_transmission =
                 self.ext_num(mat, v, e, "diffuseTransmissionFactor", 0.0, UNIT)?;
-            mat.diffuse_transmission_color =
+            x.diffuse_transmission_color =
                 self.ext_color(mat, v, e, "diffuseTransmissionColorFactor", Vec3::ONE)?;
-            mat.diffuse_transmission_texture =
+            x.diffuse_transmission_texture =
                 self.raw_tex_ref(v.get("diffuseTransmissionTexture"), "diffuseTransmission")?;
-            mat.diffuse_transmission_color_texture = self.raw_tex_ref_as(
+            x.diffuse_transmission_color_texture = self.raw_tex_ref_as(
                 v.get("diffuseTransmissionColorTexture"),
                 "diffuseTransmissionColor",
                 true,
             )?;
+        }
+        if let Some(m) = mat.metallic_roughness_mut() {
+            *m = x;
         }
         // The transmissive component models clearcoat, sheen, anisotropy and iridescence too
         // (`material::bxdf::GltfTransmission`), so nothing here needs a warning.
@@ -469,7 +476,7 @@ impl Loader<'_> {
         // The glTF default material: white, metallic 1, roughness 1.
         let m = Material {
             name: "glTF default".into(),
-            model: MaterialModel::MetallicRoughness,
+            model: MaterialModel::metallic_roughness(),
             base_color: Vec3::ONE,
             metallic: 1.0,
             roughness: 1.0,

@@ -30,6 +30,9 @@ use rayon::prelude::*;
 use super::Loader;
 use super::params::{ParamList, SpectrumValue, TexOr};
 use crate::material::microfacet::pbrt_roughness_to_alpha;
+use crate::material::models::{
+    Coat, CoatedConductor, CoatedDiffuse, Conductor, Dielectric, DiffuseTransmission, Mix, Slab,
+};
 use crate::material::procedural::{self, Mapping2D, Procedural, TexCtx, TexExpr};
 use crate::material::texture::{FilterMode, TextureRef, UvTransform};
 use crate::material::{Material, MaterialModel, RoughnessTextures, Texture, WrapMode};
@@ -709,8 +712,9 @@ impl Loader {
 
     /// glTF perceptual roughness (α = roughness²) for the models that are isotropic
     /// (dielectric): anisotropy is warned and rendered with α = √(αu·αv). Roughness textures
-    /// go to `m.pbrt.interface_roughness` (evaluated per hit, [`crate::material::eval`]).
-    fn roughness(&mut self, p: &ParamList, m: &mut Material, at: &str, what: &str) -> f32 {
+    /// go to the returned [`Dielectric`] (evaluated per hit, [`crate::material::eval`]).
+    fn roughness(&mut self, p: &ParamList, at: &str, what: &str) -> (f32, Dielectric) {
+        let mut dielectric = Dielectric::default();
         let (a, tex) = self.alpha_pair(p, "", at);
         if tex.is_textured() {
             if tex.u != tex.v || tex.factor.x != tex.factor.y {
@@ -718,8 +722,8 @@ impl Loader {
                     "{at}: {what}: anisotropic roughness textures are rendered isotropic with α = √(αu·αv) per hit"
                 ));
             }
-            m.pbrt.interface_alpha = a;
-            m.pbrt.interface_roughness = tex;
+            dielectric.alpha = a;
+            dielectric.roughness = tex;
         }
         let (au, av) = (a.x, a.y);
         if !tex.is_textured() && (au - av).abs() > 1e-6 * au.max(av) {
@@ -728,7 +732,7 @@ impl Loader {
             ));
         }
         let alpha = (au * av).sqrt();
-        alpha.sqrt().clamp(0.0, 1.0)
+        (alpha.sqrt().clamp(0.0, 1.0), dielectric)
     }
 
     /// A node's mean over [0, 1]² of pbrt's (u, v) (images read as far as they are decoded).
@@ -781,14 +785,13 @@ impl Loader {
     /// The coat's slab (pbrt-v4 `LayeredBxDF`): thickness, albedo, g, maxdepth, nsamples, put in
     /// the ranges the BSDF accepts (out-of-range values are warned, not errors: pbrt-v4 takes
     /// them without checking).
-    fn layer_params(&mut self, p: &ParamList, m: &mut Material, at: &str, what: &str) {
+    fn layer_params(&mut self, p: &ParamList, at: &str, what: &str) -> Slab {
         let thickness = p.float("thickness", 0.01);
         let albedo = self.constant_spectrum(p, "albedo", Vec3::ZERO, at, what);
         let g = p.float("g", 0.0);
         let max_depth = p.int("maxdepth", 10);
         let n_samples = p.int("nsamples", 1);
-        let pb = &mut m.pbrt;
-        pb.thickness = if thickness.is_finite() && thickness > 0.0 {
+        let thickness = if thickness.is_finite() && thickness > 0.0 {
             thickness
         } else {
             self.warn(format!(
@@ -806,8 +809,7 @@ impl Loader {
                 "{at}: {what}: albedo {albedo:?} is clamped to [0, 1]"
             ));
         }
-        pb.albedo = a;
-        pb.g = if g.is_finite() && g.abs() < 1.0 {
+        let g = if g.is_finite() && g.abs() < 1.0 {
             g
         } else {
             self.warn(format!("{at}: {what}: g {g} is outside (-1, 1); 0 is used"));
@@ -823,8 +825,13 @@ impl Loader {
                 d
             }
         };
-        m.pbrt.max_depth = clamp_count(self, max_depth, "maxdepth", 10);
-        m.pbrt.n_samples = clamp_count(self, n_samples, "nsamples", 1);
+        Slab {
+            thickness,
+            albedo: a,
+            g,
+            max_depth: clamp_count(self, max_depth, "maxdepth", 10),
+            n_samples: clamp_count(self, n_samples, "nsamples", 1),
+        }
     }
 
     /// Conductor η and k (pbrt `eta`/`k`, or `reflectance`) with prefix `pre` for the η/k keys.
@@ -835,8 +842,9 @@ impl Loader {
         m: &mut Material,
         at: &str,
         what: &str,
-    ) {
-        (m.pbrt.conductor_alpha, m.pbrt.conductor_roughness) = self.alpha_pair(p, pre, at);
+    ) -> Conductor {
+        let mut c = Conductor::default();
+        (c.alpha, c.roughness) = self.alpha_pair(p, pre, at);
         let has_eta_k = p.has(&format!("{pre}eta")) || p.has(&format!("{pre}k"));
         if let Some(r) = p.spectrum_tex("reflectance") {
             if has_eta_k {
@@ -850,24 +858,24 @@ impl Loader {
                 TexOr::Value(s) => TexNode::Const(self.reflectance_rgb(&s, at, "reflectance")),
                 TexOr::Texture(t) => self.lookup_texture(&t, false, at),
             };
-            let (c, t) = self.node_to_factor(&node);
-            m.base_color = c;
+            let (color, t) = self.node_to_factor(&node);
+            m.base_color = color;
             m.base_color_texture = t;
-            m.pbrt.conductor_reflectance = true;
+            c.reflectance = true;
         } else {
-            m.pbrt.conductor_eta =
-                self.conductor_spectrum(p, &format!("{pre}eta"), "metal-Cu-eta", at);
-            m.pbrt.conductor_k = self.conductor_spectrum(p, &format!("{pre}k"), "metal-Cu-k", at);
-            m.pbrt.conductor_reflectance = false;
-            let e = m.pbrt.conductor_eta;
-            let k = m.pbrt.conductor_k;
+            c.eta = self.conductor_spectrum(p, &format!("{pre}eta"), "metal-Cu-eta", at);
+            c.k = self.conductor_spectrum(p, &format!("{pre}k"), "metal-Cu-k", at);
+            c.reflectance = false;
+            let e = c.eta;
+            let k = c.k;
             if !(e.is_finite() && k.is_finite()) || e.min_element() < 0.0 || k.min_element() < 0.0 {
                 self.warn(format!("{at}: {what}: eta {e:?} / k {k:?} are not finite and non-negative; metal-Cu is used"));
-                let d = crate::material::PbrtParams::default();
-                m.pbrt.conductor_eta = d.conductor_eta;
-                m.pbrt.conductor_k = d.conductor_k;
+                let d = Conductor::default();
+                c.eta = d.eta;
+                c.k = d.k;
             }
         }
+        c
     }
 
     /// η or k of a conductor: named spectra through [`crate::spectrum`] (the conversion measured
@@ -915,8 +923,8 @@ impl Loader {
                 let n = self.lookup_texture(&t, true, at);
                 let (c, r) = self.node_to_factor(&n);
                 if r.is_some() && c.x != 0.0 && c.x.is_finite() {
-                    m.pbrt.displacement = r;
-                    m.pbrt.displacement_scale = c.x;
+                    m.displacement = r;
+                    m.displacement_scale = c.x;
                 }
             }
             if p.has("normalmap") {
@@ -939,41 +947,46 @@ impl Loader {
                 // pbrt-v4 CoatedDiffuseMaterial: a dielectric interface over a Lambertian base
                 // with a homogeneous slab between them (LayeredBxDF, stochastic evaluation).
                 let (c, t) = self.spectrum_factor(p, "reflectance", Vec3::splat(0.5), at);
-                m.model = MaterialModel::CoatedDiffuse;
                 m.base_color = c;
                 m.base_color_texture = t;
-                (m.pbrt.interface_alpha, m.pbrt.interface_roughness) = self.alpha_pair(p, "", at);
-                m.pbrt.interface_eta = self.eta(p, at, &what);
-                self.layer_params(p, &mut m, at, &what);
+                let mut coat = Coat::default();
+                (coat.alpha, coat.roughness) = self.alpha_pair(p, "", at);
+                coat.eta = self.eta(p, at, &what);
+                let slab = self.layer_params(p, at, &what);
+                m.model = MaterialModel::CoatedDiffuse(CoatedDiffuse { coat, slab });
             }
             "conductor" => {
-                m.model = MaterialModel::Conductor;
-                self.conductor_params(p, "", &mut m, at, &what);
+                let c = self.conductor_params(p, "", &mut m, at, &what);
+                m.model = MaterialModel::Conductor(c);
             }
             "coatedconductor" => {
                 // pbrt-v4 CoatedConductorMaterial: `interface.*` for the coat, `conductor.*` for
                 // the base, an unprefixed `reflectance` instead of conductor.eta/k.
-                m.model = MaterialModel::CoatedConductor;
-                self.conductor_params(p, "conductor.", &mut m, at, &what);
-                (m.pbrt.interface_alpha, m.pbrt.interface_roughness) =
-                    self.alpha_pair(p, "interface.", at);
-                m.pbrt.interface_eta = self.prefixed_eta(p, "interface.", at, &what);
-                self.layer_params(p, &mut m, at, &what);
+                let conductor = self.conductor_params(p, "conductor.", &mut m, at, &what);
+                let mut coat = Coat::default();
+                (coat.alpha, coat.roughness) = self.alpha_pair(p, "interface.", at);
+                coat.eta = self.prefixed_eta(p, "interface.", at, &what);
+                let slab = self.layer_params(p, at, &what);
+                m.model = MaterialModel::CoatedConductor(CoatedConductor {
+                    coat,
+                    conductor,
+                    slab,
+                });
             }
             "dielectric" | "thindielectric" => {
                 let eta = self.eta(p, at, &what);
-                let rough = if spec.ty == "dielectric" {
-                    self.roughness(p, &mut m, at, &what)
+                let (rough, dielectric) = if spec.ty == "dielectric" {
+                    self.roughness(p, at, &what)
                 } else {
-                    0.0
+                    (0.0, Dielectric::default())
                 };
                 m.ior = eta;
                 m.base_color = Vec3::ONE;
                 m.roughness = rough;
                 if spec.ty == "dielectric" {
-                    m.model = MaterialModel::Dielectric;
+                    m.model = MaterialModel::Dielectric(dielectric);
                 } else {
-                    m.model = MaterialModel::MetallicRoughness;
+                    m.model = MaterialModel::metallic_roughness();
                     m.metallic = 0.0;
                     m.transmission = 1.0;
                     m.thin_walled = true;
@@ -993,14 +1006,15 @@ impl Loader {
                 };
                 let (c, t) = self.spectrum_factor(p, "reflectance", Vec3::splat(0.25), at);
                 let tr = self.constant_spectrum(p, "transmittance", Vec3::splat(0.25), at, &what);
-                m.model = MaterialModel::DiffuseTransmission;
                 m.base_color = c * scale;
                 m.base_color_texture = t;
-                m.pbrt.transmittance = if tr.is_finite() {
-                    tr.max(Vec3::ZERO) * scale
-                } else {
-                    Vec3::splat(0.25)
-                };
+                m.model = MaterialModel::DiffuseTransmission(DiffuseTransmission {
+                    transmittance: if tr.is_finite() {
+                        tr.max(Vec3::ZERO) * scale
+                    } else {
+                        Vec3::splat(0.25)
+                    },
+                });
             }
             "mix" => {
                 // pbrt-v4 MixMaterial: one of the two materials is chosen per hit with
@@ -1034,11 +1048,11 @@ impl Loader {
                 }
                 let a = self.mix_component(&names[0], at, depth);
                 let b = self.mix_component(&names[1], at, depth);
-                m.mix = Some(crate::material::Mix {
+                m.model = MaterialModel::Mix(Mix {
                     materials: [a as u32, b as u32],
                     amount,
+                    amount_texture: texture,
                 });
-                m.mix_amount_texture = texture;
             }
             "interface" => {
                 // A boundary that only separates media (pbrt-v4 `interface`): no surface.

@@ -672,7 +672,7 @@ pub(crate) fn material_uses_uv(materials: &[crate::material::Material], id: usiz
         if m.texture_refs().next().is_some() {
             return true;
         }
-        if let Some(mix) = m.mix
+        if let Some(mix) = m.mix()
             && depth < 16
         {
             stack.extend(mix.materials.iter().map(|&j| (j as usize, depth + 1)));

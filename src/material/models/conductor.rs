@@ -1,0 +1,83 @@
+//! pbrt-v4 `conductor` (pbrt-v4 `ConductorMaterial`): exact Fresnel of η + i k per channel, or
+//! of the base colour as pbrt's `reflectance`, over a smooth or anisotropic GGX surface.
+
+use super::RoughnessTextures;
+use crate::material::bxdf;
+use crate::material::eval::HitTextures;
+use crate::material::microfacet::conductor_from_reflectance;
+use crate::math::{Vec2, Vec3};
+
+/// A conductor's parameters. Roughness is GGX α already (x along the tangent, pbrt's
+/// `uroughness`; y along the bitangent, `vroughness`); `roughness` textures, when set, replace
+/// the constant α per hit ([`RoughnessTextures::alpha`]). Defaults are pbrt-v4's (copper).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Conductor {
+    /// η and k per linear-sRGB channel (default: pbrt's `metal-Cu-eta`/`metal-Cu-k` converted by
+    /// [`crate::spectrum`]).
+    pub eta: Vec3,
+    pub k: Vec3,
+    /// Use the material's base colour (× texture) as pbrt's `reflectance` instead of η/k.
+    pub reflectance: bool,
+    pub alpha: Vec2,
+    pub roughness: RoughnessTextures,
+}
+
+impl Default for Conductor {
+    fn default() -> Self {
+        let (eta, k) =
+            crate::spectrum::named_conductor_rgb("metal-Cu").unwrap_or((Vec3::ONE, Vec3::ZERO));
+        Conductor {
+            eta,
+            k,
+            reflectance: false,
+            alpha: Vec2::ZERO,
+            roughness: RoughnessTextures::default(),
+        }
+    }
+}
+
+impl Conductor {
+    /// η and k, from the base colour `base` when the conductor is given by its reflectance.
+    #[inline]
+    pub fn eta_k(&self, base: impl FnOnce() -> Vec3) -> (Vec3, Vec3) {
+        if self.reflectance {
+            conductor_from_reflectance(base())
+        } else {
+            (self.eta, self.k)
+        }
+    }
+
+    /// The conductor lobe at a hit. `outside_ior` is the IOR of the medium its surface faces:
+    /// under a coat it is the coat's, and the Fresnel equations take η and k relative to it
+    /// (pbrt-v4's `CoatedConductorMaterial` divides both by the interface IOR, also for the
+    /// `reflectance` form).
+    #[inline]
+    pub fn lobe(
+        &self,
+        tx: &HitTextures,
+        outside_ior: f32,
+        base: impl FnOnce() -> Vec3,
+    ) -> bxdf::Conductor {
+        let alpha = self.roughness.alpha(self.alpha, tx);
+        let (eta, k) = self.eta_k(base);
+        bxdf::Conductor::new(eta / outside_ior, k / outside_ior, alpha.x, alpha.y)
+    }
+
+    pub(super) fn validate(&self) -> Result<(), String> {
+        let finite = self.eta.is_finite()
+            && self.k.is_finite()
+            && self.alpha.is_finite()
+            && self.roughness.factor.is_finite();
+        if !finite {
+            return Err("has a non-finite pbrt parameter".into());
+        }
+        if self.eta.min_element() < 0.0
+            || self.k.min_element() < 0.0
+            || self.alpha.min_element() < 0.0
+            || self.roughness.factor.min_element() < 0.0
+        {
+            return Err("has a negative eta, k, albedo, transmittance or roughness".into());
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,245 @@
+//! The material models, one file per model, each with its own parameters and its own
+//! construction of the [`Bsdf`] at a hit (mirroring [`crate::material::bxdf`], one file per BSDF
+//! variant); `Bsdf::from_model` below dispatches on the model. [`crate::material::eval`] holds
+//! what every model shares at a hit (texture lookups, base colour, opacity, emission). What is
+//! read for every model — the base colour, and the glTF metallic, roughness, IOR, transmission and
+//! specular that the raycast/Whitted local shading reads whatever the model — stays in
+//! [`Material`] (docs/DESIGN.md §1).
+
+pub mod coated;
+pub mod conductor;
+pub mod dielectric;
+pub mod diffuse_transmission;
+pub mod metallic_roughness;
+pub mod mix;
+
+pub use coated::{Coat, CoatedConductor, CoatedDiffuse, Slab};
+pub use conductor::Conductor;
+pub use dielectric::Dielectric;
+pub use diffuse_transmission::DiffuseTransmission;
+pub use metallic_roughness::MetallicRoughness;
+pub use mix::Mix;
+
+use super::eval::{HitTextures, base_color_in, roughness_metallic_in};
+use super::microfacet::pbrt_roughness_to_alpha;
+use super::{Bsdf, Material, TextureRef, bxdf};
+use crate::math::{Vec2, Vec3};
+
+/// How the path tracer scatters light at the surface, with the parameters only that model reads.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub enum MaterialModel {
+    /// Lambertian reflection of the base colour.
+    #[default]
+    Diffuse,
+    /// glTF 2.0 metallic-roughness with its KHR extensions
+    /// ([`metallic_roughness`]; transmission when the material's `transmission > 0`).
+    MetallicRoughness(MetallicRoughness),
+    /// Smooth or rough dielectric (glass); the thesis's `refractive` material.
+    Dielectric(Dielectric),
+    /// Perfect mirror of the base colour.
+    Mirror,
+    /// pbrt-v4 `conductor`.
+    Conductor(Conductor),
+    /// pbrt-v4 `coateddiffuse`: a dielectric coat over a Lambertian base of the base colour.
+    CoatedDiffuse(CoatedDiffuse),
+    /// pbrt-v4 `coatedconductor`: a dielectric coat over a conductor.
+    CoatedConductor(CoatedConductor),
+    /// pbrt-v4 `diffusetransmission`: Lambertian reflection of the base colour and Lambertian
+    /// transmission.
+    DiffuseTransmission(DiffuseTransmission),
+    /// No surface at all: an index-matched boundary that only separates participating media
+    /// (pbrt-v4's `interface` material, Mitsuba's `null` BSDF). The volumetric path tracer passes
+    /// rays straight through it without counting a bounce; the other integrators see it as an
+    /// index-matched (η = 1) smooth dielectric, which transmits every ray unchanged.
+    Interface,
+    /// glTF `KHR_materials_unlit`: the surface shows its base colour (factor × texture × vertex
+    /// colour) as emitted radiance toward every ray and scatters nothing. It is not a light that
+    /// next-event estimation samples (a viewer's unlit object lights nothing), so only paths that
+    /// hit it by BSDF sampling or from the camera see it, each with MIS weight 1 — unbiased for
+    /// that definition (docs/DESIGN.md §4).
+    Unlit,
+    /// pbrt-v4 `mix`: chooses one of two other materials per hit
+    /// ([`crate::material::eval::resolve_mix`]); it scatters nothing itself.
+    Mix(Mix),
+}
+
+impl MaterialModel {
+    /// The model's name, as `trayecto info` prints it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            MaterialModel::Diffuse => "Diffuse",
+            MaterialModel::MetallicRoughness(_) => "MetallicRoughness",
+            MaterialModel::Dielectric(_) => "Dielectric",
+            MaterialModel::Mirror => "Mirror",
+            MaterialModel::Conductor(_) => "Conductor",
+            MaterialModel::CoatedDiffuse(_) => "CoatedDiffuse",
+            MaterialModel::CoatedConductor(_) => "CoatedConductor",
+            MaterialModel::DiffuseTransmission(_) => "DiffuseTransmission",
+            MaterialModel::Interface => "Interface",
+            MaterialModel::Unlit => "Unlit",
+            MaterialModel::Mix(_) => "Mix",
+        }
+    }
+
+    /// A smooth dielectric without roughness textures (its roughness is the material's).
+    pub fn dielectric() -> MaterialModel {
+        MaterialModel::Dielectric(Dielectric::default())
+    }
+
+    /// glTF metallic-roughness without extensions.
+    pub fn metallic_roughness() -> MaterialModel {
+        MaterialModel::MetallicRoughness(MetallicRoughness::NONE)
+    }
+
+    pub fn is_metallic_roughness(&self) -> bool {
+        matches!(self, MaterialModel::MetallicRoughness(_))
+    }
+
+    pub fn is_dielectric(&self) -> bool {
+        matches!(self, MaterialModel::Dielectric(_))
+    }
+
+    /// The texture slots of the model's own parameters (each set or not).
+    pub fn texture_slots(&self) -> impl Iterator<Item = &Option<TextureRef>> {
+        let (x, r1, r2, mix) = match self {
+            MaterialModel::MetallicRoughness(x) => (Some(x), None, None, None),
+            MaterialModel::Conductor(c) => (None, Some(&c.roughness), None, None),
+            MaterialModel::Dielectric(d) => (None, Some(&d.roughness), None, None),
+            MaterialModel::CoatedDiffuse(c) => (None, Some(&c.coat.roughness), None, None),
+            MaterialModel::CoatedConductor(c) => (
+                None,
+                Some(&c.conductor.roughness),
+                Some(&c.coat.roughness),
+                None,
+            ),
+            MaterialModel::Mix(m) => (None, None, None, Some(&m.amount_texture)),
+            _ => (None, None, None, None),
+        };
+        x.into_iter()
+            .flat_map(MetallicRoughness::texture_slots)
+            .chain(r1.into_iter().chain(r2).flat_map(|r| [&r.u, &r.v]))
+            .chain(mix)
+    }
+
+    /// [`MaterialModel::texture_slots`], mutable.
+    pub fn texture_slots_mut(&mut self) -> impl Iterator<Item = &mut Option<TextureRef>> {
+        let (x, r1, r2, mix) = match self {
+            MaterialModel::MetallicRoughness(x) => (Some(x), None, None, None),
+            MaterialModel::Conductor(c) => (None, Some(&mut c.roughness), None, None),
+            MaterialModel::Dielectric(d) => (None, Some(&mut d.roughness), None, None),
+            MaterialModel::CoatedDiffuse(c) => (None, Some(&mut c.coat.roughness), None, None),
+            MaterialModel::CoatedConductor(c) => (
+                None,
+                Some(&mut c.conductor.roughness),
+                Some(&mut c.coat.roughness),
+                None,
+            ),
+            MaterialModel::Mix(m) => (None, None, None, Some(&mut m.amount_texture)),
+            _ => (None, None, None, None),
+        };
+        x.into_iter()
+            .flat_map(MetallicRoughness::texture_slots_mut)
+            .chain(r1.into_iter().chain(r2).flat_map(|r| [&mut r.u, &mut r.v]))
+            .chain(mix)
+    }
+
+    /// Rejects model parameters that would produce NaNs or that the BSDF does not accept.
+    pub fn validate(&self) -> Result<(), String> {
+        match self {
+            MaterialModel::Dielectric(d) => d.validate(),
+            MaterialModel::Conductor(c) => c.validate(),
+            MaterialModel::CoatedDiffuse(c) => c.validate(),
+            MaterialModel::CoatedConductor(c) => c.validate(),
+            MaterialModel::DiffuseTransmission(d) => d.validate(),
+            MaterialModel::Mix(m) => m.validate(),
+            MaterialModel::MetallicRoughness(x) => x.validate(),
+            MaterialModel::Diffuse
+            | MaterialModel::Mirror
+            | MaterialModel::Interface
+            | MaterialModel::Unlit => Ok(()),
+        }
+    }
+}
+
+impl Bsdf {
+    /// The BSDF of `material` at the hit of `tx`: each model builds its own. Each reads only the
+    /// inputs it uses (a Lambertian surface needs its base colour alone; computing every model's
+    /// inputs first was ~40 % of a Cornell box vertex's `from_material` instructions,
+    /// callgrind). All are pure functions of the hit.
+    #[inline]
+    pub(super) fn from_model(material: &Material, tx: &HitTextures) -> Bsdf {
+        let base = || base_color_in(material, tx);
+        let eta = if material.ior > 0.0 {
+            material.ior
+        } else {
+            1.5
+        };
+        match &material.model {
+            MaterialModel::Conductor(c) => Bsdf::Conductor(c.lobe(tx, 1.0, base)),
+            MaterialModel::CoatedDiffuse(c) => c.bsdf(tx, base),
+            MaterialModel::CoatedConductor(c) => c.bsdf(tx, base),
+            MaterialModel::DiffuseTransmission(d) => d.bsdf(base()),
+            // A mix is resolved to one of its materials before scattering
+            // (`World::surface_material`); left unresolved it is Lambertian of its base colour.
+            MaterialModel::Diffuse | MaterialModel::Mix(_) => {
+                Bsdf::Diffuse(bxdf::Diffuse { albedo: base() })
+            }
+            MaterialModel::Mirror => Bsdf::Mirror(bxdf::Mirror { color: base() }),
+            MaterialModel::Dielectric(d) => {
+                d.bsdf(tx, eta, || roughness_metallic_in(material, tx).0)
+            }
+            MaterialModel::Interface => Bsdf::dielectric(1.0, 0.0, Vec3::ONE),
+            // KHR_materials_unlit: the base colour is emitted (`eval::emitted`), nothing scatters.
+            MaterialModel::Unlit => Bsdf::Diffuse(bxdf::Diffuse { albedo: Vec3::ZERO }),
+            MaterialModel::MetallicRoughness(x) => metallic_roughness::bsdf(material, x, tx, eta),
+        }
+    }
+}
+
+/// pbrt roughness along u and v as `factor` × texture R, per hit, remapped to GGX α with
+/// [`pbrt_roughness_to_alpha`] when `remap` (pbrt's `remaproughness`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RoughnessTextures {
+    pub u: Option<TextureRef>,
+    pub v: Option<TextureRef>,
+    pub factor: Vec2,
+    pub remap: bool,
+}
+
+impl Default for RoughnessTextures {
+    fn default() -> Self {
+        RoughnessTextures {
+            u: None,
+            v: None,
+            factor: Vec2::ONE,
+            remap: true,
+        }
+    }
+}
+
+impl RoughnessTextures {
+    pub fn is_textured(&self) -> bool {
+        self.u.is_some() || self.v.is_some()
+    }
+
+    /// GGX α along (u, v) at the hit of `tx`: `alpha` for an axis without a roughness texture,
+    /// else pbrt's roughness factor × texture R remapped as `remaproughness` asks (pbrt-v4
+    /// evaluates the roughness textures at the hit, then `RoughnessToAlpha`).
+    #[inline]
+    pub fn alpha(&self, alpha: Vec2, tx: &HitTextures) -> Vec2 {
+        if !self.is_textured() {
+            return alpha;
+        }
+        let axis = |t: &Option<TextureRef>, factor: f32, constant: f32| match t {
+            Some(t) => {
+                let x = factor * tx.sample(t).x;
+                pbrt_roughness_to_alpha(if x.is_finite() { x } else { 0.0 }, self.remap)
+            }
+            None => constant,
+        };
+        Vec2::new(
+            axis(&self.u, self.factor.x, alpha.x),
+            axis(&self.v, self.factor.y, alpha.y),
+        )
+    }
+}
