@@ -1,34 +1,13 @@
 //! A material evaluated at a hit: texture lookups (with their UV set and transform), base
 //! colour, opacity for the alpha modes, emitted radiance, and the [`Bsdf`] the path tracer
-//! scatters with (`Bsdf::from_material`, which each model of [`super::models`] builds).
+//! scatters with (`Bsdf::from_material` in [`super::models`], where each model builds its own
+//! from these lookups).
 
 use super::texture::SharedFootprint;
-use super::{Bsdf, Material, MaterialModel, Texture, TextureRef};
+use super::{Material, Texture, TextureRef};
 use crate::geometry::SurfaceHit;
 use crate::math::{Vec2, Vec3, Vec4};
 use std::cell::Cell;
-
-impl Bsdf {
-    /// Builds the BSDF of `material` at `hit`, reading its textures.
-    #[inline]
-    pub fn from_material(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Bsdf {
-        Bsdf::from_material_shared(material, textures, hit, None)
-    }
-
-    /// [`Bsdf::from_material`], with `Some(shared)` its image lookups sharing their bilinear
-    /// addressing with each other and with the hit's earlier lookups (the normal map's,
-    /// [`super::normal_map::apply_normal_map_shared`]), where it is provably the same
-    /// ([`HitTextures`]); with `None` every lookup is the plain one.
-    pub fn from_material_shared(
-        material: &Material,
-        textures: &[Texture],
-        hit: &SurfaceHit,
-        shared: Option<&Cell<SharedFootprint>>,
-    ) -> Bsdf {
-        let tx = &HitTextures::new(textures, hit, shared);
-        Bsdf::from_model(material, tx)
-    }
-}
 
 /// Deepest chain of `mix` materials followed at one hit (the pbrt loader refuses cycles; this
 /// only bounds the work for scenes built in code).
@@ -48,7 +27,7 @@ pub fn resolve_mix<'a>(
 ) -> &'a Material {
     let mut m = &materials[index as usize];
     for _ in 0..MAX_MIX_DEPTH {
-        let MaterialModel::Mix(mix) = &m.model else {
+        let Some(mix) = m.mix() else {
             return m;
         };
         let mut amount = mix.amount;
@@ -301,7 +280,7 @@ fn procedural_lookup(
 /// Emitted radiance of `material` at `hit` (front face only unless double-sided), toward `wo`.
 #[inline]
 pub fn emitted(material: &Material, textures: &[Texture], hit: &SurfaceHit, wo: Vec3) -> Vec3 {
-    let unlit = material.model == MaterialModel::Unlit;
+    let unlit = material.is_unlit();
     if !material.is_emissive() && !unlit {
         return Vec3::ZERO;
     }
@@ -318,77 +297,4 @@ pub fn emitted(material: &Material, textures: &[Texture], hit: &SurfaceHit, wo: 
         e *= sample_texture(textures, t, hit).truncate();
     }
     e
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::geometry::{PrimRef, PrimitiveKind};
-    use crate::material::normal_map::{apply_normal_map, apply_normal_map_shared};
-
-    /// ToyCar's body in small: a clearcoated metallic-roughness material whose normal map, base
-    /// colour, metallic-roughness and clearcoat textures share a size (and a sampler), plus a
-    /// coat-roughness texture of another height. Normal map then BSDF through one kept
-    /// footprint ([`World::shade_surface`]'s order) give the shading normal and the BSDF (every
-    /// field, by its `Debug` form) of the separate calls at every uv, and the footprint is used.
-    ///
-    /// [`World::shade_surface`]: crate::world::World::shade_surface
-    #[test]
-    fn shared_footprint_gives_the_same_shading() {
-        let image = |w: u32, h: u32, k: f32| {
-            let texels = (0..w * h)
-                .map(|i| {
-                    let f = |c: f32| ((i as f32 * c * k).sin() * 0.5 + 0.5).clamp(0.0, 1.0);
-                    Vec4::new(f(0.37), f(1.3), f(0.71), 1.0)
-                })
-                .collect();
-            let mut t = Texture::image("t", w, h, texels);
-            t.tile();
-            t
-        };
-        let textures = vec![
-            image(16, 8, 1.0),
-            image(16, 8, 2.0),
-            image(16, 8, 3.0),
-            image(16, 8, 4.0),
-            // Same width (so the same tile-row stride), another height.
-            image(16, 12, 5.0),
-        ];
-        let material = Material {
-            model: MaterialModel::MetallicRoughness(crate::material::MetallicRoughness {
-                clearcoat: 1.0,
-                clearcoat_texture: Some(TextureRef::new(3)),
-                clearcoat_roughness: 0.6,
-                clearcoat_roughness_texture: Some(TextureRef::new(4)),
-                ..Default::default()
-            }),
-            normal_texture: Some(TextureRef::new(0)),
-            base_color_texture: Some(TextureRef::new(1)),
-            metallic_roughness_texture: Some(TextureRef::new(2)),
-            metallic: 0.5,
-            ..Default::default()
-        };
-        for i in 0..400 {
-            let uv = Vec2::new(i as f32 * 0.0731 - 3.0, i as f32 * 0.0419 - 2.0);
-            let hit = SurfaceHit {
-                t: 1.0,
-                prim: PrimRef::new(PrimitiveKind::Sphere, 0),
-                uv: [uv; 2],
-                ..SurfaceHit::EMPTY
-            };
-            let mut plain = hit;
-            apply_normal_map(&material, &textures, &mut plain);
-            let want = Bsdf::from_material(&material, &textures, &plain);
-            let mut kept = hit;
-            let shared = Cell::new(SharedFootprint::NONE);
-            apply_normal_map_shared(&material, &textures, &mut kept, Some(&shared));
-            assert_ne!(shared.get(), SharedFootprint::NONE, "uv {uv:?}");
-            let got = Bsdf::from_material_shared(&material, &textures, &kept, Some(&shared));
-            assert_eq!(
-                kept.ns.to_array().map(f32::to_bits),
-                plain.ns.to_array().map(f32::to_bits)
-            );
-            assert_eq!(format!("{got:?}"), format!("{want:?}"), "uv {uv:?}");
-        }
-    }
 }

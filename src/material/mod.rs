@@ -208,6 +208,12 @@ impl Material {
         }
     }
 
+    /// KHR_materials_unlit: the surface shows its base colour and scatters nothing.
+    #[inline]
+    pub fn is_unlit(&self) -> bool {
+        self.model == MaterialModel::Unlit
+    }
+
     pub fn is_emissive(&self) -> bool {
         self.emissive.max_element() > 0.0
     }

@@ -706,6 +706,52 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
         MaterialModel::DiffuseTransmission(_) => MaterialModel::DiffuseTransmission(sheet),
         other => other,
     };
+    // A parameter of another model is read by none of this one: say so rather than drop it.
+    let conductor_reads = matches!(
+        model,
+        MaterialModel::Conductor(_) | MaterialModel::CoatedConductor(_)
+    );
+    let coat_reads = matches!(
+        model,
+        MaterialModel::CoatedDiffuse(_) | MaterialModel::CoatedConductor(_)
+    );
+    let sheet_reads = matches!(model, MaterialModel::DiffuseTransmission(_));
+    let unread: Vec<&str> = [
+        ("metal", m.metal.is_some(), conductor_reads),
+        ("eta", m.eta.is_some(), conductor_reads),
+        ("k", m.k.is_some(), conductor_reads),
+        ("reflectance", m.reflectance, conductor_reads),
+        (
+            "conductor_alpha",
+            m.conductor_alpha.is_some(),
+            conductor_reads,
+        ),
+        (
+            "conductor_alpha_v",
+            m.conductor_alpha_v.is_some(),
+            conductor_reads,
+        ),
+        ("coat_alpha", m.coat_alpha.is_some(), coat_reads),
+        ("coat_alpha_v", m.coat_alpha_v.is_some(), coat_reads),
+        ("thickness", m.thickness.is_some(), coat_reads),
+        ("albedo", m.albedo.is_some(), coat_reads),
+        ("g", m.g.is_some(), coat_reads),
+        ("max_depth", m.max_depth.is_some(), coat_reads),
+        ("n_samples", m.n_samples.is_some(), coat_reads),
+        ("transmittance", m.transmittance.is_some(), sheet_reads),
+    ]
+    .into_iter()
+    .filter(|&(_, given, read)| given && !read)
+    .map(|(name, _, _)| name)
+    .collect();
+    if !unread.is_empty() {
+        scene.warnings.push(format!(
+            "material '{}': model '{}' does not read {}; ignored",
+            m.name,
+            m.model.as_deref().unwrap_or("diffuse"),
+            unread.join(", ")
+        ));
+    }
     let mut mat = Material {
         name: m.name.clone(),
         model,
@@ -1045,6 +1091,17 @@ transmittance = [0.6, 0.5, 0.4]
                 .to_string();
             assert!(e.contains(why), "{bad}: {e}");
         }
+
+        // Another model's parameters are named in a warning, not dropped in silence.
+        let text = b"[[material]]\nname = \"m\"\ng = 0.5\nmetal = \"metal-Cu\"\n";
+        let scene = load_from_bytes(text, Path::new("."), "t.toml").unwrap();
+        assert_eq!(
+            scene.warnings,
+            ["material 'm': model 'diffuse' does not read metal, g; ignored"]
+        );
+        let text = b"[[material]]\nname = \"m\"\nmodel = \"coated-diffuse\"\ng = 0.5\n";
+        let scene = load_from_bytes(text, Path::new("."), "t.toml").unwrap();
+        assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     }
 
     #[test]

@@ -22,8 +22,11 @@ pub use mix::Mix;
 
 use super::eval::{HitTextures, base_color_in, roughness_metallic_in};
 use super::microfacet::pbrt_roughness_to_alpha;
-use super::{Bsdf, Material, TextureRef, bxdf};
+use super::texture::SharedFootprint;
+use super::{Bsdf, Material, Texture, TextureRef, bxdf};
+use crate::geometry::SurfaceHit;
 use crate::math::{Vec2, Vec3};
+use std::cell::Cell;
 
 /// How the path tracer scatters light at the surface, with the parameters only that model reads.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -241,5 +244,101 @@ impl RoughnessTextures {
             axis(&self.u, self.factor.x, alpha.x),
             axis(&self.v, self.factor.y, alpha.y),
         )
+    }
+}
+
+impl Bsdf {
+    /// Builds the BSDF of `material` at `hit`, reading its textures.
+    #[inline]
+    pub fn from_material(material: &Material, textures: &[Texture], hit: &SurfaceHit) -> Bsdf {
+        Bsdf::from_material_shared(material, textures, hit, None)
+    }
+
+    /// [`Bsdf::from_material`], with `Some(shared)` its image lookups sharing their bilinear
+    /// addressing with each other and with the hit's earlier lookups (the normal map's,
+    /// [`crate::material::normal_map::apply_normal_map_shared`]), where it is provably the same
+    /// ([`HitTextures`]); with `None` every lookup is the plain one.
+    pub fn from_material_shared(
+        material: &Material,
+        textures: &[Texture],
+        hit: &SurfaceHit,
+        shared: Option<&Cell<SharedFootprint>>,
+    ) -> Bsdf {
+        let tx = &HitTextures::new(textures, hit, shared);
+        Bsdf::from_model(material, tx)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{PrimRef, PrimitiveKind};
+    use crate::material::normal_map::{apply_normal_map, apply_normal_map_shared};
+    use crate::math::Vec4;
+
+    /// ToyCar's body in small: a clearcoated metallic-roughness material whose normal map, base
+    /// colour, metallic-roughness and clearcoat textures share a size (and a sampler), plus a
+    /// coat-roughness texture of another height. Normal map then BSDF through one kept
+    /// footprint ([`World::shade_surface`]'s order) give the shading normal and the BSDF (every
+    /// field, by its `Debug` form) of the separate calls at every uv, and the footprint is used.
+    ///
+    /// [`World::shade_surface`]: crate::world::World::shade_surface
+    #[test]
+    fn shared_footprint_gives_the_same_shading() {
+        let image = |w: u32, h: u32, k: f32| {
+            let texels = (0..w * h)
+                .map(|i| {
+                    let f = |c: f32| ((i as f32 * c * k).sin() * 0.5 + 0.5).clamp(0.0, 1.0);
+                    Vec4::new(f(0.37), f(1.3), f(0.71), 1.0)
+                })
+                .collect();
+            let mut t = Texture::image("t", w, h, texels);
+            t.tile();
+            t
+        };
+        let textures = vec![
+            image(16, 8, 1.0),
+            image(16, 8, 2.0),
+            image(16, 8, 3.0),
+            image(16, 8, 4.0),
+            // Same width (so the same tile-row stride), another height.
+            image(16, 12, 5.0),
+        ];
+        let material = Material {
+            model: MaterialModel::MetallicRoughness(crate::material::MetallicRoughness {
+                clearcoat: 1.0,
+                clearcoat_texture: Some(TextureRef::new(3)),
+                clearcoat_roughness: 0.6,
+                clearcoat_roughness_texture: Some(TextureRef::new(4)),
+                ..Default::default()
+            }),
+            normal_texture: Some(TextureRef::new(0)),
+            base_color_texture: Some(TextureRef::new(1)),
+            metallic_roughness_texture: Some(TextureRef::new(2)),
+            metallic: 0.5,
+            ..Default::default()
+        };
+        for i in 0..400 {
+            let uv = Vec2::new(i as f32 * 0.0731 - 3.0, i as f32 * 0.0419 - 2.0);
+            let hit = SurfaceHit {
+                t: 1.0,
+                prim: PrimRef::new(PrimitiveKind::Sphere, 0),
+                uv: [uv; 2],
+                ..SurfaceHit::EMPTY
+            };
+            let mut plain = hit;
+            apply_normal_map(&material, &textures, &mut plain);
+            let want = Bsdf::from_material(&material, &textures, &plain);
+            let mut kept = hit;
+            let shared = Cell::new(SharedFootprint::NONE);
+            apply_normal_map_shared(&material, &textures, &mut kept, Some(&shared));
+            assert_ne!(shared.get(), SharedFootprint::NONE, "uv {uv:?}");
+            let got = Bsdf::from_material_shared(&material, &textures, &kept, Some(&shared));
+            assert_eq!(
+                kept.ns.to_array().map(f32::to_bits),
+                plain.ns.to_array().map(f32::to_bits)
+            );
+            assert_eq!(format!("{got:?}"), format!("{want:?}"), "uv {uv:?}");
+        }
     }
 }
