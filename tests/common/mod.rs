@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod stats;
+
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use trayecto::film::Image;
