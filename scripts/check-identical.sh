@@ -50,6 +50,18 @@ cases=(
   "toycar-power|$shared/gltf-ext/ToyCar/glTF/ToyCar.gltf|--default-light off --light-sampler power"
   "cornell-zsobol|cornell|--sampler zsobol"
   "cornell-independent-aov|cornell|--sampler independent --aov albedo,normal"
+  # Every light type on its own (delta lights, lights at infinity, an image environment) and
+  # participating media (homogeneous, grid, emissive): the volumetric path tracer's cases.
+  "point|scenes/mitsuba/point.toml|"
+  "spot|scenes/mitsuba/spot_soft.toml|"
+  "directional|scenes/mitsuba/directional.toml|"
+  "constant-env|scenes/mitsuba/constant_env.toml|"
+  "envmap|scenes/mitsuba/envmap.toml|"
+  "whitted-spot|scenes/mitsuba/spot.toml|--integrator whitted"
+  "fog|scenes/media/fog_cornell.toml|"
+  "cloud|scenes/media/cloud.toml|"
+  "emissive-grid|scenes/pbrt/media/emissive_grid.pbrt|"
+  "absorbing-glass|scenes/pbrt/media/absorbing_glass.pbrt|"
 )
 
 failed=0
