@@ -11,7 +11,7 @@ impl Loader {
         name: &str,
         p: &mut Cursor,
         at: &str,
-    ) -> Result<(), SceneError> {
+    ) -> Result<bool, SceneError> {
         match name {
             "ReverseOrientation" => self.gs.reverse = !self.gs.reverse,
             "AttributeBegin" | "TransformBegin" => {
@@ -77,8 +77,8 @@ impl Loader {
                     entry.push(prm);
                 }
             }
-            _ => unreachable!("{name} is not a graphics-state directive"),
+            _ => return Ok(false),
         }
-        Ok(())
+        Ok(true)
     }
 }

@@ -10,7 +10,7 @@ impl Loader {
         name: &str,
         p: &mut Cursor,
         at: &str,
-    ) -> Result<(), SceneError> {
+    ) -> Result<bool, SceneError> {
         match name {
             "ObjectBegin" => {
                 let n = p.string(at)?;
@@ -71,8 +71,8 @@ impl Loader {
                     }
                 }
             }
-            _ => unreachable!("{name} is not an instancing directive"),
+            _ => return Ok(false),
         }
-        Ok(())
+        Ok(true)
     }
 }

@@ -10,7 +10,7 @@ impl Loader {
         name: &str,
         p: &mut Cursor,
         at: &str,
-    ) -> Result<(), SceneError> {
+    ) -> Result<bool, SceneError> {
         match name {
             "LightSource" => {
                 let ty = p.string(at)?;
@@ -24,8 +24,8 @@ impl Loader {
                 let list = self.with_attributes(list, "light");
                 self.area_light_source(&ty, list, at);
             }
-            _ => unreachable!("{name} is not a light directive"),
+            _ => return Ok(false),
         }
-        Ok(())
+        Ok(true)
     }
 }

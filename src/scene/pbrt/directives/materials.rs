@@ -11,7 +11,7 @@ impl Loader {
         name: &str,
         p: &mut Cursor,
         at: &str,
-    ) -> Result<(), SceneError> {
+    ) -> Result<bool, SceneError> {
         match name {
             "MakeNamedMaterial" => {
                 let n = p.string(at)?;
@@ -63,8 +63,8 @@ impl Loader {
                 let list = self.with_attributes(list, "texture");
                 self.texture_directive(n, &ty, &class, list, at)?;
             }
-            _ => unreachable!("{name} is not a material directive"),
+            _ => return Ok(false),
         }
-        Ok(())
+        Ok(true)
     }
 }

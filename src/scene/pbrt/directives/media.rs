@@ -9,7 +9,7 @@ impl Loader {
         name: &str,
         p: &mut Cursor,
         at: &str,
-    ) -> Result<(), SceneError> {
+    ) -> Result<bool, SceneError> {
         match name {
             "MakeNamedMedium" => {
                 let n = p.string(at)?;
@@ -24,8 +24,8 @@ impl Loader {
                 self.gs.medium_inside = inside;
                 self.gs.medium_outside = outside;
             }
-            _ => unreachable!("{name} is not a medium directive"),
+            _ => return Ok(false),
         }
-        Ok(())
+        Ok(true)
     }
 }

@@ -26,23 +26,19 @@ impl Loader {
         at: &str,
         depth: usize,
     ) -> Result<(), SceneError> {
+        // Each family runs the directives it knows and answers whether `name` was one of them.
+        let handled = self.transform_directives(name, p, at)?
+            || self.graphics_state_directives(name, p, at)?
+            || self.option_directives(name, p, at)?
+            || self.material_directives(name, p, at)?
+            || self.light_directives(name, p, at)?
+            || self.shape_directives(name, p, at)?
+            || self.medium_directives(name, p, at)?
+            || self.instance_directives(name, p, at)?;
+        if handled {
+            return Ok(());
+        }
         match name {
-            "Identity" | "Translate" | "Scale" | "Rotate" | "LookAt" | "Transform"
-            | "ConcatTransform" | "CoordinateSystem" | "CoordSysTransform" | "ActiveTransform"
-            | "TransformTimes" => self.transform_directives(name, p, at),
-            "ReverseOrientation" | "AttributeBegin" | "TransformBegin" | "AttributeEnd"
-            | "TransformEnd" | "Attribute" => self.graphics_state_directives(name, p, at),
-            "Option" | "ColorSpace" | "Camera" | "Film" | "Sampler" | "Integrator"
-            | "PixelFilter" | "Accelerator" | "WorldBegin" | "WorldEnd" => {
-                self.option_directives(name, p, at)
-            }
-            "MakeNamedMaterial" | "Material" | "NamedMaterial" | "Texture" => {
-                self.material_directives(name, p, at)
-            }
-            "LightSource" | "AreaLightSource" => self.light_directives(name, p, at),
-            "Shape" => self.shape_directives(name, p, at),
-            "MakeNamedMedium" | "MediumInterface" => self.medium_directives(name, p, at),
-            "ObjectBegin" | "ObjectEnd" | "ObjectInstance" => self.instance_directives(name, p, at),
             "Include" | "Import" => {
                 let f = p.string(at)?;
                 self.include(&f, at, depth)

@@ -13,7 +13,7 @@ impl Loader {
         name: &str,
         p: &mut Cursor,
         at: &str,
-    ) -> Result<(), SceneError> {
+    ) -> Result<bool, SceneError> {
         match name {
             "Option" => {
                 let list = p.params(at)?;
@@ -119,8 +119,8 @@ impl Loader {
             "WorldEnd" => {
                 // pbrt-v3; pbrt-v4 ends the world at the end of the file.
             }
-            _ => unreachable!("{name} is not an option directive"),
+            _ => return Ok(false),
         }
-        Ok(())
+        Ok(true)
     }
 }

@@ -10,7 +10,7 @@ impl Loader {
         name: &str,
         p: &mut Cursor,
         at: &str,
-    ) -> Result<(), SceneError> {
+    ) -> Result<bool, SceneError> {
         match name {
             "Shape" => {
                 let ty = p.string(at)?;
@@ -18,8 +18,8 @@ impl Loader {
                 let list = self.with_attributes(list, "shape");
                 self.shape(&ty, list, at)?;
             }
-            _ => unreachable!("{name} is not a shape directive"),
+            _ => return Ok(false),
         }
-        Ok(())
+        Ok(true)
     }
 }

@@ -24,7 +24,7 @@ impl Loader {
         name: &str,
         p: &mut Cursor,
         at: &str,
-    ) -> Result<(), SceneError> {
+    ) -> Result<bool, SceneError> {
         match name {
             "Identity" => self.transform_directive(Mat4::IDENTITY, true),
             "Translate" => {
@@ -116,8 +116,8 @@ impl Loader {
                     );
                 }
             }
-            _ => unreachable!("{name} is not a transform directive"),
+            _ => return Ok(false),
         }
-        Ok(())
+        Ok(true)
     }
 }
