@@ -775,9 +775,7 @@ fn check_light_sampling(
         |r| {
             drawn += 1;
             let s = set.sample(
-                &world.geometry,
-                &world.materials,
-                &world.textures,
+                &set.scene(&world.geometry, &world.materials, &world.textures),
                 &hit,
                 Vec3::Z,
                 r.next_f32(),

@@ -252,9 +252,7 @@ impl LightSet {
     #[allow(clippy::too_many_arguments)]
     pub fn sample(
         &self,
-        geometry: &GeometryStore,
-        materials: &[Material],
-        textures: &[Texture],
+        scene: &LightScene,
         hit: &SurfaceHit,
         n_offset: Vec3,
         u_light: f32,
@@ -265,18 +263,7 @@ impl LightSet {
             return None;
         }
         let (index, pmf) = self.choose(hit.p, n_offset, u_light)?;
-        self.sample_chosen(
-            geometry,
-            materials,
-            textures,
-            hit,
-            n_offset,
-            index,
-            pmf,
-            u,
-            env,
-            Vec3::ZERO,
-        )
+        self.sample_chosen(scene, hit, n_offset, index, pmf, u, env, Vec3::ZERO)
     }
 
     /// [`Self::sample`] with the light chosen by `u.x` and the point placed on it by `u.x`
@@ -293,9 +280,7 @@ impl LightSet {
     #[allow(clippy::too_many_arguments)]
     pub fn sample_reuse(
         &self,
-        geometry: &GeometryStore,
-        materials: &[Material],
-        textures: &[Texture],
+        scene: &LightScene,
         hit: &SurfaceHit,
         n_offset: Vec3,
         u: Vec2,
@@ -309,9 +294,7 @@ impl LightSet {
         let (index, pmf, rest) = self.choose_remap(hit.p, n_offset, u.x)?;
         let x = if pmf >= MIN_REUSE_PMF { rest } else { u_spare };
         let u = Vec2::new(x, u.y);
-        self.sample_chosen(
-            geometry, materials, textures, hit, n_offset, index, pmf, u, env, uniform_n,
-        )
+        self.sample_chosen(scene, hit, n_offset, index, pmf, u, env, uniform_n)
     }
 
     /// Samples light `index`, chosen with probability `pmf`, with `u`; an environment map
@@ -320,9 +303,7 @@ impl LightSet {
     #[inline]
     fn sample_chosen(
         &self,
-        geometry: &GeometryStore,
-        materials: &[Material],
-        textures: &[Texture],
+        scene: &LightScene,
         hit: &SurfaceHit,
         n_offset: Vec3,
         index: usize,
@@ -331,8 +312,7 @@ impl LightSet {
         env: EnvPdf,
         uniform_n: Vec3,
     ) -> Option<LightSample> {
-        let scene = self.scene(geometry, materials, textures);
-        let ls = self.lights[index].sample_li(&scene, hit, n_offset, u, env, uniform_n)?;
+        let ls = self.lights[index].sample_li(scene, hit, n_offset, u, env, uniform_n)?;
         Some(LightSample { pmf, ..ls })
     }
 

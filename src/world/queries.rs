@@ -178,16 +178,8 @@ impl World {
         u: Vec2,
         env: EnvPdf,
     ) -> Option<LightSample> {
-        self.lights.sample(
-            &self.geometry,
-            &self.materials,
-            &self.textures,
-            hit,
-            n_offset,
-            u_light,
-            u,
-            env,
-        )
+        self.lights
+            .sample(&self.light_scene(), hit, n_offset, u_light, u, env)
     }
 
     /// [`World::sample_light`] with one 2D number for both the choice and the point (sample
@@ -207,9 +199,7 @@ impl World {
         uniform_n: Vec3,
     ) -> Option<LightSample> {
         self.lights.sample_reuse(
-            &self.geometry,
-            &self.materials,
-            &self.textures,
+            &self.light_scene(),
             hit,
             n_offset,
             u,
