@@ -391,6 +391,7 @@ fn compile_geometry(
                     material,
                 };
                 let mesh_index = g.meshes.len() as u32;
+                let mut dropped = 0usize;
                 for tri in &mesh.indices {
                     // A negative-determinant transform mirrors the mesh: swap two vertices so the
                     // counter-clockwise (front) winding is preserved.
@@ -400,10 +401,24 @@ fn compile_geometry(
                         p1: positions[tri[1] as usize],
                         p2: positions[tri[2] as usize],
                     };
+                    // Finite object-space vertices can overflow under the transform; such a
+                    // triangle cannot be bounded, so the BVH could never find it: drop it here,
+                    // where the object can be named.
+                    if !(verts.p0.is_finite() && verts.p1.is_finite() && verts.p2.is_finite()) {
+                        dropped += 1;
+                        continue;
+                    }
                     g.tri_mesh.push((mesh_index, attrs.indices.len() as u32));
                     g.tri_light.push(NO_LIGHT);
                     g.triangles.push(verts);
                     attrs.indices.push(tri);
+                }
+                if dropped > 0 {
+                    warnings.push(format!(
+                        "object '{}': {dropped} triangle(s) of mesh '{}' have vertices beyond the \
+                         range of 32-bit floats after the object's transform and were dropped",
+                        obj.name, mesh.name
+                    ));
                 }
                 g.meshes.push(attrs);
             }
@@ -505,7 +520,10 @@ fn area_lights(
     let mut means = Vec::new();
     for prim in g.all_prims() {
         let material = g.material(prim);
-        if !(materials[material as usize].is_emissive() && g.area(prim) > 0.0) {
+        // An area that overflowed (a triangle spanning more than ~1e19) cannot be sampled:
+        // its pdf would be 0 and its power infinite.
+        let area = g.area(prim);
+        if !(materials[material as usize].is_emissive() && area > 0.0 && area.is_finite()) {
             continue;
         }
         let mean = match prim.kind() {

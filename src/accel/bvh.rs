@@ -1148,6 +1148,9 @@ impl Bvh {
     /// `t_max`.
     #[inline]
     pub fn intersect(&self, geometry: &GeometryStore, ray: &Ray) -> Option<Intersection> {
+        if !ray.is_traceable() {
+            return None;
+        }
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is only set when `is_x86_feature_detected!("avx2")` said the CPU
@@ -1160,6 +1163,9 @@ impl Bvh {
     /// True as soon as any primitive blocks the ray.
     #[inline]
     pub fn occluded(&self, geometry: &GeometryStore, ray: &Ray) -> bool {
+        if !ray.is_traceable() {
+            return false;
+        }
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: as in `intersect`.

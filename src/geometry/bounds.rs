@@ -63,7 +63,12 @@ impl Bounds3 {
 
     #[inline]
     pub fn centroid(&self) -> Vec3 {
-        (self.min + self.max) * 0.5
+        let c = (self.min + self.max) * 0.5;
+        if c.is_finite() || !(self.min.is_finite() && self.max.is_finite()) {
+            return c;
+        }
+        // The sum overflowed (both sides beyond f32::MAX / 2): halve first.
+        self.min * 0.5 + self.max * 0.5
     }
 
     /// Surface area; zero for an empty box.
@@ -117,7 +122,15 @@ impl Bounds3 {
             return (Vec3::ZERO, 0.0);
         }
         let c = self.centroid();
-        (c, (self.max - c).length())
+        let d = self.max - c;
+        let r = d.length();
+        if r.is_finite() || !d.is_finite() {
+            return (c, r);
+        }
+        // The squared length overflowed (half-extents beyond ~1.8e19): scale by the largest
+        // component first, so finite bounds give a finite radius.
+        let m = d.abs().max_element();
+        (c, m * (d / m).length())
     }
 
     /// Slab test returning the parametric entry and exit distances clipped to `(0, ray.t_max)`, or

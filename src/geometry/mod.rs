@@ -34,6 +34,16 @@ impl Ray {
         }
     }
 
+    /// True if the origin and direction are finite. A ray that is not (a camera placed at an
+    /// overflowed distance, a direction normalised from an overflowed cross product, both possible
+    /// with finite coordinates near `f32::MAX`) hits nothing: its slab tests are NaN, which the
+    /// BVH's node test treats as a hit of every lane, empty lanes included, so it must not reach
+    /// the traversal.
+    #[inline(always)]
+    pub fn is_traceable(&self) -> bool {
+        self.o.is_finite() && self.d.is_finite()
+    }
+
     #[inline]
     pub fn at(&self, t: f32) -> Vec3 {
         self.o + self.d * t

@@ -271,7 +271,14 @@ impl CameraDesc {
     }
 
     pub fn look_at(name: &str, eye: Vec3, target: Vec3, up: Vec3, vfov_deg: f32) -> CameraDesc {
-        let view = Mat4::look_at_rh(eye, target, up);
+        let dir = target - eye;
+        let view = if dir.length_squared().is_finite() {
+            Mat4::look_at_rh(eye, target, up)
+        } else {
+            // The squared distance overflowed (scenes with coordinates near 1e19 and beyond):
+            // normalising would give a zero direction and a singular view; scale it down first.
+            Mat4::look_to_rh(eye, dir / dir.abs().max_element(), up)
+        };
         CameraDesc {
             name: name.to_string(),
             camera_to_world: view.inverse(),
@@ -593,6 +600,41 @@ impl Scene {
         match &self.source {
             Some(p) => p.display().to_string(),
             None => self.name.clone(),
+        }
+    }
+
+    /// Drops every triangle that uses a vertex with a NaN or infinite coordinate (a file's `nan`,
+    /// `inf`, or a literal such as `1e39` beyond the range of 32-bit floats), with a warning
+    /// naming the mesh: such a triangle has no bounds, so no accelerator could find it, and its
+    /// area and normal are NaN. The vertices themselves become the origin, unreferenced, so the
+    /// mesh keeps its vertex count and its attribute arrays their length.
+    pub fn drop_unbounded_vertices(&mut self) {
+        for mesh in &mut self.meshes {
+            let Some(first) = mesh.positions.iter().position(|p| !p.is_finite()) else {
+                continue;
+            };
+            let bad: Vec<bool> = mesh.positions.iter().map(|p| !p.is_finite()).collect();
+            let vertices = bad.iter().filter(|&&b| b).count();
+            let shown = mesh.positions[first];
+            let before = mesh.indices.len();
+            mesh.indices.retain(|t| {
+                t.iter()
+                    .all(|&v| !bad.get(v as usize).copied().unwrap_or(false))
+            });
+            for (p, &b) in mesh.positions.iter_mut().zip(&bad) {
+                if b {
+                    *p = Vec3::ZERO;
+                }
+            }
+            self.warnings.push(format!(
+                "mesh '{}': {vertices} vertex position(s) are not finite numbers (vertex {first} \
+                 is ({}, {}, {})); the {} triangle(s) using them were dropped",
+                mesh.name,
+                shown.x,
+                shown.y,
+                shown.z,
+                before - mesh.indices.len()
+            ));
         }
     }
 
@@ -1063,6 +1105,7 @@ fn format_of(path: &Path, label: &str) -> Result<&'static SceneFormat, SceneErro
 /// Runs the loader and names the scene after the file unless the file names itself.
 fn parse(format: &SceneFormat, bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
     let mut scene = (format.load)(bytes, dir, label)?;
+    scene.drop_unbounded_vertices();
     if scene.name.is_empty() || scene.name == label {
         scene.name = Path::new(label)
             .file_stem()
