@@ -3,6 +3,7 @@
 
 use crate::accel::{Accel, AccelKind};
 use crate::geometry::cuboid::Cuboid;
+use crate::geometry::instance::{Instance, SharedMesh};
 use crate::geometry::primitive::{
     AnalyticPrim, Intersection, MeshAttributes, NO_LIGHT, SurfaceHit,
 };
@@ -47,7 +48,28 @@ pub struct WorldOptions {
     /// textures and reads them over each hit's pixel footprint; `none` (the default) keeps
     /// the textures' own unfiltered lookups.
     pub texture_filter: crate::material::texture::TextureFilter,
+    /// When objects sharing a mesh become instances of one copy (a two-level BVH) instead of
+    /// being flattened into world-space triangles each.
+    pub instancing: Instancing,
 }
+
+/// When objects that share a mesh are instanced (docs/DESIGN.md §5): the images are the same
+/// either way; instancing saves the memory of the copies at some traversal cost.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Instancing {
+    /// Instance a mesh when several objects use it and their copies would hold at least
+    /// [`AUTO_INSTANCE_TRIANGLES`] triangles; ordinary scenes stay flat.
+    #[default]
+    Auto,
+    /// Instance every mesh object that can be (for tests and measurements).
+    Always,
+    /// Flatten everything.
+    Never,
+}
+
+/// Copies of one mesh, in triangles, from which [`Instancing::Auto`] instances it: about
+/// 150 MB of flattened triangles, attributes and BVH (~150 bytes a triangle).
+pub const AUTO_INSTANCE_TRIANGLES: usize = 1 << 20;
 
 pub struct World {
     pub geometry: GeometryStore,
@@ -98,7 +120,7 @@ impl World {
         // without medium interfaces are left exactly as they are.
         let media = crate::medium::world::assign(&mut scene)
             .map_err(|e| SceneError::invalid(&label, format!("medium grid: {e}")))?;
-        let mut g = compile_geometry(&scene, &label, &mut warnings)?;
+        let mut g = compile_geometry(&scene, &label, options.instancing, &mut warnings)?;
         let (mut lights, footprint_means) = area_lights(&mut g, &scene.materials, &scene.textures);
         lights.extend(scene_lights(&scene, &label)?);
         add_option_lights(&mut lights, &scene, &g, options, &mut warnings)?;
@@ -353,13 +375,40 @@ impl World {
 fn compile_geometry(
     scene: &Scene,
     label: &str,
+    instancing: Instancing,
     warnings: &mut Vec<String>,
 ) -> Result<GeometryStore, SceneError> {
     let mut g = GeometryStore::default();
-    for obj in &scene.objects {
+    let instanced = instanced_objects(scene, instancing);
+    // Shared meshes of the instances, by scene mesh.
+    let mut shared: std::collections::HashMap<usize, u32> = Default::default();
+    for (obj, &instance) in scene.objects.iter().zip(&instanced) {
         let m = obj.transform;
         let material = obj.material as u32;
         match &obj.shape {
+            Shape::Mesh(mesh_id) if instance => {
+                let store = &mut g.instances;
+                let index = *shared.entry(*mesh_id).or_insert_with(|| {
+                    let mesh = &scene.meshes[*mesh_id];
+                    store.meshes.push(SharedMesh::new(
+                        mesh.positions.clone(),
+                        MeshAttributes {
+                            indices: mesh.indices.clone(),
+                            normals: mesh.normals.clone(),
+                            tangents: mesh.tangents.clone(),
+                            uv0: mesh.uv0.clone(),
+                            uv1: mesh.uv1.clone(),
+                            colors: mesh.colors.clone(),
+                            material: 0,
+                        },
+                    ));
+                    store.meshes.len() as u32 - 1
+                });
+                let shared_mesh = &store.meshes[index as usize];
+                store
+                    .instances
+                    .push(Instance::new(shared_mesh, index, m, material));
+            }
             Shape::Mesh(mesh_id) => {
                 let mesh = &scene.meshes[*mesh_id];
                 let inv = m.inverse();
@@ -476,7 +525,61 @@ fn compile_geometry(
             }
         }
     }
+    if !g.instances.is_empty() {
+        let flat = g.triangles.len() as u32;
+        g.instances.finish(flat);
+    }
     Ok(g)
+}
+
+/// Which objects become instances of a shared mesh ([`Instancing`]). Only meshes whose
+/// triangles could all be bounded under the object's transform qualify, under an invertible
+/// transform, with a material that does not emit: area lights are single triangles in world
+/// space (the light BVH and the samplers index them), so an emissive object stays flat.
+fn instanced_objects(scene: &Scene, instancing: Instancing) -> Vec<bool> {
+    let candidate = |o: &crate::scene::Object| match o.shape {
+        Shape::Mesh(id) => {
+            !scene.meshes[id].indices.is_empty()
+                && !scene.materials[o.material].is_emissive()
+                && Mat3::from_mat4(o.transform).determinant().is_normal()
+        }
+        _ => false,
+    };
+    let mut uses = vec![0usize; scene.meshes.len()];
+    for o in &scene.objects {
+        if let Shape::Mesh(id) = o.shape
+            && candidate(o)
+        {
+            uses[id] += 1;
+        }
+    }
+    scene
+        .objects
+        .iter()
+        .map(|o| {
+            let Shape::Mesh(id) = o.shape else {
+                return false;
+            };
+            let wanted = match instancing {
+                Instancing::Never => false,
+                Instancing::Always => true,
+                Instancing::Auto => {
+                    uses[id] >= 2
+                        && uses[id].saturating_mul(scene.meshes[id].indices.len())
+                            >= AUTO_INSTANCE_TRIANGLES
+                }
+            };
+            wanted && candidate(o) && {
+                // Every vertex must stay finite under the transform (else it is flattened, and
+                // the flattening drops what overflows with a warning).
+                let m = o.transform;
+                scene.meshes[id]
+                    .positions
+                    .iter()
+                    .all(|&p| m.transform_point3(p).is_finite())
+            }
+        })
+        .collect()
 }
 
 /// Step 2: an area light for every primitive with an emissive material, non-zero area and, for

@@ -103,6 +103,7 @@ impl BvhNode {
     }
 }
 
+#[derive(Clone, Debug)]
 pub struct Bvh {
     pub nodes: Vec<BvhNode>,
     pub prims: Vec<PrimRef>,
@@ -1318,6 +1319,104 @@ impl Bvh {
                     }
                 }
             }
+        }
+    }
+
+    /// Closest hit over a tree of [`Self::build_from`] whose leaves `test` answers: `test(prim,
+    /// bound)` returns the hit on `prim` before `bound`, if any. The nodes are tested with
+    /// `node_ray`, the leaves with whatever ray `test` holds, so a tree built in an object's own
+    /// space (a shared mesh of [`crate::geometry::instance`]) is walked with the ray taken into
+    /// that space while its leaves test world-space triangles. Hits are ranked as
+    /// [`Self::intersect`] ranks them (nearest, then lowest primitive), so the walk's order does
+    /// not change the answer. A plain walk without the packet leaves and the AVX2 copy: it runs
+    /// per instance and per mesh of a two-level hierarchy, and `test` does the expensive part.
+    #[inline]
+    pub fn closest_with(
+        &self,
+        node_ray: &Ray,
+        t_max: f32,
+        mut test: impl FnMut(PrimRef, f32) -> Option<Intersection>,
+    ) -> Option<Intersection> {
+        if self.nodes.is_empty() || !node_ray.is_traceable() {
+            return None;
+        }
+        let slab = SlabRay::new(node_ray, &RayInv::new(node_ray.d));
+        let mut best: Option<Intersection> = None;
+        let mut best_key = u64::MAX;
+        let mut t_cull = t_max;
+        let mut stack = TraversalStack::<(u32, f32)>::new();
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            let (t_enter, mut mask) = slab.test(n, t_cull);
+            while mask != 0 {
+                let lane = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if n.count[lane] == 0 {
+                    stack.set(sp, (n.first[lane], t_enter[lane]));
+                    sp += 1;
+                    continue;
+                }
+                let first = n.first[lane] as usize;
+                for &prim in &self.prims[first..first + n.count[lane] as usize] {
+                    if let Some(h) = test(prim, t_cull) {
+                        rank(&mut best, &mut best_key, &mut t_cull, h);
+                    }
+                }
+            }
+            loop {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                let (next, t) = stack.get(sp);
+                if t <= t_cull {
+                    node = next as usize;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// [`Self::closest_with`] for shadow rays: true as soon as `test(prim, t_max)` is.
+    #[inline]
+    pub fn any_with(
+        &self,
+        node_ray: &Ray,
+        t_max: f32,
+        mut test: impl FnMut(PrimRef, f32) -> bool,
+    ) -> bool {
+        if self.nodes.is_empty() || !node_ray.is_traceable() {
+            return false;
+        }
+        let slab = SlabRay::new(node_ray, &RayInv::new(node_ray.d));
+        let mut stack = TraversalStack::<u32>::new();
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            let (_, mut mask) = slab.test(n, t_max);
+            while mask != 0 {
+                let lane = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if n.count[lane] == 0 {
+                    stack.set(sp, n.first[lane]);
+                    sp += 1;
+                    continue;
+                }
+                let first = n.first[lane] as usize;
+                for &prim in &self.prims[first..first + n.count[lane] as usize] {
+                    if test(prim, t_max) {
+                        return true;
+                    }
+                }
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            node = stack.get(sp) as usize;
         }
     }
 

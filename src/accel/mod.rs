@@ -73,9 +73,22 @@ impl Accel {
         }
     }
 
-    /// Closest hit along the ray within `(0, ray.t_max)`.
+    /// Closest hit along the ray within `(0, ray.t_max)`: the structure's over the flat
+    /// primitives, then the instanced meshes' two-level hierarchy (if any) up to that hit.
     #[inline]
     pub fn intersect(&self, geometry: &GeometryStore, ray: &Ray) -> Option<Intersection> {
+        let flat = self.intersect_flat(geometry, ray);
+        if geometry.instances.is_empty() {
+            return flat;
+        }
+        // Strictly nearer only: at equal `t` the flat primitive, whose index is lower, wins, as
+        // the ranking of one structure would decide.
+        let t_max = flat.map_or(ray.t_max, |h| h.t);
+        geometry.instances.intersect(ray, t_max).or(flat)
+    }
+
+    #[inline]
+    fn intersect_flat(&self, geometry: &GeometryStore, ray: &Ray) -> Option<Intersection> {
         match self {
             Accel::Bvh(b) => b.intersect(geometry, ray),
             Accel::None(prims) => {
@@ -96,6 +109,12 @@ impl Accel {
     /// Any hit within `(0, ray.t_max)`: for shadow rays.
     #[inline]
     pub fn occluded(&self, geometry: &GeometryStore, ray: &Ray) -> bool {
+        self.occluded_flat(geometry, ray)
+            || (!geometry.instances.is_empty() && geometry.instances.occluded(ray, ray.t_max))
+    }
+
+    #[inline]
+    fn occluded_flat(&self, geometry: &GeometryStore, ray: &Ray) -> bool {
         match self {
             Accel::Bvh(b) => b.occluded(geometry, ray),
             Accel::None(prims) => prims

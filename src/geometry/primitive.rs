@@ -3,6 +3,7 @@
 //! colours) in per-mesh arrays that are only read for the closest hit.
 
 use super::cuboid::Cuboid;
+use super::instance::{Instance, InstanceStore};
 use super::quad::Quad;
 use super::sphere::Sphere;
 use super::triangle::TriangleVerts;
@@ -136,6 +137,9 @@ pub struct GeometryStore {
     pub spheres: Vec<AnalyticPrim<Sphere>>,
     pub cuboids: Vec<AnalyticPrim<Cuboid>>,
     pub quads: Vec<AnalyticPrim<Quad>>,
+    /// Shared meshes placed by several objects (a two-level hierarchy); their triangles have
+    /// primitive indices past `triangles` ([`super::instance`]). Empty for most scenes.
+    pub instances: InstanceStore,
 }
 
 impl GeometryStore {
@@ -163,7 +167,7 @@ impl GeometryStore {
         let i = prim.index();
         match prim.kind() {
             PrimitiveKind::Triangle => {
-                let t = &self.triangles[i];
+                let t = self.tri_parts(i).0;
                 Bounds3::from_point(t.p0)
                     .union_point(t.p1)
                     .union_point(t.p2)
@@ -187,9 +191,16 @@ impl GeometryStore {
     }
 
     pub fn scene_bounds(&self) -> Bounds3 {
-        self.all_prims()
+        let flat = self
+            .all_prims()
             .iter()
-            .fold(Bounds3::EMPTY, |b, &p| b.union(&self.bounds(p)))
+            .fold(Bounds3::EMPTY, |b, &p| b.union(&self.bounds(p)));
+        // An instance's box is the union of its transformed vertices, as its flattened
+        // triangles' boxes would be.
+        self.instances
+            .instances
+            .iter()
+            .fold(flat, |b, i| b.union(&i.bounds))
     }
 
     /// Tests one primitive; returns the hit if it is closer than `t_max`.
@@ -241,7 +252,10 @@ impl GeometryStore {
     pub fn material(&self, prim: PrimRef) -> u32 {
         let i = prim.index();
         match prim.kind() {
-            PrimitiveKind::Triangle => self.meshes[self.tri_mesh[i].0 as usize].material,
+            PrimitiveKind::Triangle => match self.tri_mesh.get(i) {
+                Some(&(mesh, _)) => self.meshes[mesh as usize].material,
+                None => self.instances.locate(i).0.material,
+            },
             PrimitiveKind::Sphere => self.spheres[i].material,
             PrimitiveKind::Cuboid => self.cuboids[i].material,
             PrimitiveKind::Quad => self.quads[i].material,
@@ -253,7 +267,8 @@ impl GeometryStore {
     pub fn light(&self, prim: PrimRef) -> u32 {
         let i = prim.index();
         match prim.kind() {
-            PrimitiveKind::Triangle => self.tri_light[i],
+            // Instanced triangles are never lights (emissive objects are not instanced).
+            PrimitiveKind::Triangle => self.tri_light.get(i).copied().unwrap_or(NO_LIGHT),
             PrimitiveKind::Sphere => self.spheres[i].light,
             PrimitiveKind::Cuboid => self.cuboids[i].light,
             PrimitiveKind::Quad => self.quads[i].light,
@@ -274,7 +289,7 @@ impl GeometryStore {
     pub fn area(&self, prim: PrimRef) -> f32 {
         let i = prim.index();
         match prim.kind() {
-            PrimitiveKind::Triangle => self.triangles[i].area(),
+            PrimitiveKind::Triangle => self.tri_parts(i).0.area(),
             PrimitiveKind::Sphere => self.spheres[i].shape.area(),
             PrimitiveKind::Cuboid => self.cuboids[i].shape.area(),
             PrimitiveKind::Quad => self.quads[i].shape.area(),
@@ -312,7 +327,21 @@ impl GeometryStore {
         // values below were all stored and then overwritten (~40 instructions per Cornell hit).
         let mut hit = self.blank_hit(isect.prim, isect.t);
         match isect.prim.kind() {
-            PrimitiveKind::Triangle => self.triangle_hit(i, isect.u, isect.v, &mut hit),
+            PrimitiveKind::Triangle => match self.triangles.get(i) {
+                Some(tri) => {
+                    let (mesh_i, local) = self.tri_mesh[i];
+                    let mesh = &self.meshes[mesh_i as usize];
+                    let idx = mesh.indices[local as usize].map(|x| x as usize);
+                    triangle_hit(tri, mesh, idx, None, isect.u, isect.v, &mut hit);
+                }
+                None => {
+                    let (inst, j) = self.instances.locate(i);
+                    let (tri, idx) = self.instances.world_triangle(inst, j);
+                    let mesh = &self.instances.meshes[inst.mesh as usize].attrs;
+                    let idx = idx.map(|x| x as usize);
+                    triangle_hit(&tri, mesh, idx, Some(inst), isect.u, isect.v, &mut hit);
+                }
+            },
             PrimitiveKind::Sphere => {
                 let s = &self.spheres[i].shape;
                 let (p, err, n) = s.surface_point(ray, isect.t);
@@ -384,12 +413,8 @@ impl GeometryStore {
         if hit.prim.kind() != PrimitiveKind::Triangle {
             return None;
         }
-        let i = hit.prim.index();
-        let tri = self.triangles.get(i)?;
-        let (mesh_i, local) = self.tri_mesh[i];
-        let mesh = &self.meshes[mesh_i as usize];
+        let (tri, mesh, [i0, i1, i2]) = self.tri_parts(hit.prim.index());
         let uv = mesh.uv0.as_ref()?;
-        let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
         let flip = |t: Vec2| Vec2::new(t.x, -t.y);
         let duv02 = flip(uv[i0] - uv[i2]);
         let duv12 = flip(uv[i1] - uv[i2]);
@@ -426,11 +451,7 @@ impl GeometryStore {
         if hit.prim.kind() != PrimitiveKind::Triangle {
             return out;
         }
-        let i = hit.prim.index();
-        let tri = &self.triangles[i];
-        let (mesh_i, local) = self.tri_mesh[i];
-        let mesh = &self.meshes[mesh_i as usize];
-        let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
+        let (tri, mesh, [i0, i1, i2]) = self.tri_parts(hit.prim.index());
         let set = |uv: &[Vec2]| -> Vec4 {
             let (duv02, duv12) = (uv[i0] - uv[i2], uv[i1] - uv[i2]);
             let (dp02, dp12) = (tri.p0 - tri.p2, tri.p1 - tri.p2);
@@ -468,24 +489,57 @@ impl GeometryStore {
         out
     }
 
-    /// Always inlined: the hit it fills must stay a local of [`GeometryStore::surface_hit_into`].
-    #[inline(always)]
-    fn triangle_hit(&self, i: usize, b1: f32, b2: f32, hit: &mut SurfaceHit) {
-        let tri = &self.triangles[i];
+    /// Triangle `i` (flat or instanced) in world space, the attributes of its mesh and its
+    /// vertex indices in them. An instanced triangle's normals and tangents in those attributes
+    /// are in object space ([`Instance::normal`] takes them to the world).
+    #[inline]
+    pub fn tri_parts(&self, i: usize) -> (TriangleVerts, &MeshAttributes, [usize; 3]) {
+        match self.triangles.get(i) {
+            Some(tri) => {
+                let (mesh_i, local) = self.tri_mesh[i];
+                let mesh = &self.meshes[mesh_i as usize];
+                (*tri, mesh, mesh.indices[local as usize].map(|x| x as usize))
+            }
+            None => {
+                let (inst, j) = self.instances.locate(i);
+                let (tri, idx) = self.instances.world_triangle(inst, j);
+                let mesh = &self.instances.meshes[inst.mesh as usize].attrs;
+                (tri, mesh, idx.map(|x| x as usize))
+            }
+        }
+    }
+}
+
+/// The shading attributes of a triangle hit at barycentrics (b1, b2): `tri` in world space,
+/// `mesh` its attributes and `[i0, i1, i2]` its vertices in them. `inst` is the instance of an
+/// instanced triangle, whose normals and tangents are taken to the world per vertex here as the
+/// flattening takes them (so the interpolation sees the same values); `None` for a flat one.
+/// Always inlined: the hit it fills must stay a local of [`GeometryStore::surface_hit_into`].
+#[inline(always)]
+fn triangle_hit(
+    tri: &TriangleVerts,
+    mesh: &MeshAttributes,
+    [i0, i1, i2]: [usize; 3],
+    inst: Option<&Instance>,
+    b1: f32,
+    b2: f32,
+    hit: &mut SurfaceHit,
+) {
+    {
         let (p, err) = tri.point(b1, b2);
         hit.p = p;
         hit.p_error = err;
         let ng = tri.unit_normal();
         hit.ng = ng;
-        let (mesh_i, local) = self.tri_mesh[i];
-        let mesh = &self.meshes[mesh_i as usize];
-        let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
         let b0 = 1.0 - b1 - b2;
         let lerp3 = |a: Vec3, b: Vec3, c: Vec3| a * b0 + b * b1 + c * b2;
         let lerp2 = |a: Vec2, b: Vec2, c: Vec2| a * b0 + b * b1 + c * b2;
         hit.ns = match &mesh.normals {
             Some(n) => {
-                let ns = lerp3(n[i0], n[i1], n[i2]);
+                let ns = match inst {
+                    None => lerp3(n[i0], n[i1], n[i2]),
+                    Some(x) => lerp3(x.normal(n[i0]), x.normal(n[i1]), x.normal(n[i2])),
+                };
                 if ns.length_squared() > 1e-20 && ns.is_finite() {
                     let ns = ns.normalize();
                     // Shading normals must describe the same side as the winding: a flipped
@@ -511,11 +565,15 @@ impl GeometryStore {
         // (PBRT eq. 3.33), else any vector perpendicular to the normal.
         let mut tangent = None;
         if let Some(t) = &mesh.tangents {
-            let t4 = t[i0] * b0 + t[i1] * b1 + t[i2] * b2;
+            let [t0, t1, t2] = match inst {
+                None => [t[i0], t[i1], t[i2]],
+                Some(x) => [x.tangent(t[i0]), x.tangent(t[i1]), x.tangent(t[i2])],
+            };
+            let t4 = t0 * b0 + t1 * b1 + t2 * b2;
             let t3 = t4.truncate();
             if t3.length_squared() > 1e-20 && t3.is_finite() {
                 tangent = Some(t3.normalize());
-                hit.bitangent_sign = if t[i0].w < 0.0 { -1.0 } else { 1.0 };
+                hit.bitangent_sign = if t0.w < 0.0 { -1.0 } else { 1.0 };
             }
         } else if let Some(uv) = &mesh.uv0 {
             let duv02 = uv[i0] - uv[i2];

@@ -57,7 +57,15 @@ pub fn object_of(world: &World, hit: &SurfaceHit) -> u32 {
     let i = hit.prim.index() as u32;
     let meshes = g.meshes.len() as u32;
     match hit.prim.kind() {
-        PrimitiveKind::Triangle => g.tri_mesh[i as usize].0,
+        // Instanced triangles: one id per instance, numbered after every other object.
+        PrimitiveKind::Triangle => match g.tri_mesh.get(i as usize) {
+            Some(&(mesh, _)) => mesh,
+            None => {
+                meshes
+                    + (g.spheres.len() + g.cuboids.len() + g.quads.len()) as u32
+                    + g.instances.instance_index(i as usize) as u32
+            }
+        },
         PrimitiveKind::Sphere => meshes + i,
         PrimitiveKind::Cuboid => meshes + g.spheres.len() as u32 + i,
         PrimitiveKind::Quad => meshes + (g.spheres.len() + g.cuboids.len()) as u32 + i,

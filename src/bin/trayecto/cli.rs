@@ -347,6 +347,7 @@ impl RenderArgs {
             variant: self.variant.clone(),
             light_sampler: self.light_sampler,
             texture_filter: self.texture_filter,
+            instancing: Default::default(),
         }
     }
 

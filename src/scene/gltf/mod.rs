@@ -72,6 +72,7 @@ const SUPPORTED_EXTENSIONS: &[&str] = &[
     "EXT_texture_webp",
     "KHR_texture_basisu",
     "KHR_materials_variants",
+    "EXT_mesh_gpu_instancing",
 ];
 
 /// Extensions that carry only metadata (authorship, licence): nothing in them changes the image,

@@ -50,12 +50,15 @@ impl Loader<'_> {
                 .map(str::to_string)
                 .unwrap_or_else(|| format!("node {}", node.index()));
             if let Some(mesh) = node.mesh() {
+                let placements = self.gpu_instances(&node, world)?;
                 for prim in mesh.primitives() {
                     if let Some((mesh_id, material)) = self.primitive(&mesh, &prim)? {
-                        self.scene
-                            .add_object(&node_name, Shape::Mesh(mesh_id), world, material);
-                        let object = self.scene.objects.len() - 1;
-                        self.primitive_variants(&prim, object, material)?;
+                        for &m in &placements {
+                            self.scene
+                                .add_object(&node_name, Shape::Mesh(mesh_id), m, material);
+                            let object = self.scene.objects.len() - 1;
+                            self.primitive_variants(&prim, object, material)?;
+                        }
                     }
                 }
             }
@@ -70,6 +73,84 @@ impl Loader<'_> {
             }
         }
         Ok(())
+    }
+
+    /// Where a node's mesh is placed: at the node's `world` transform, or with
+    /// `EXT_mesh_gpu_instancing` once per instance at `world` × the instance's translation,
+    /// rotation and scale (the extension's TRS, composed as a node's). The objects share the
+    /// mesh, so the world can instance them (docs/DESIGN.md §6).
+    fn gpu_instances(&mut self, node: &gltf::Node, world: Mat4) -> Result<Vec<Mat4>, SceneError> {
+        const EXT: &str = "EXT_mesh_gpu_instancing";
+        let Some(ext) = node.extension_value(EXT) else {
+            return Ok(vec![world]);
+        };
+        let attributes = ext.get("attributes").and_then(|a| a.as_object());
+        let read = |name: &str| -> Result<Option<Vec<[f64; 4]>>, SceneError> {
+            let Some(index) = attributes
+                .and_then(|a| a.get(name))
+                .and_then(|v| v.as_u64())
+            else {
+                return Ok(None);
+            };
+            let Some(acc) = self.doc.accessors().nth(index as usize) else {
+                return Err(self.err(format!("{EXT} {name}: there is no accessor {index}")));
+            };
+            Ok(Some(self.read_accessor(&acc, &format!("{EXT} {name}"))?.0))
+        };
+        let (t, r, s) = (read("TRANSLATION")?, read("ROTATION")?, read("SCALE")?);
+        let counts: Vec<usize> = [&t, &r, &s]
+            .iter()
+            .filter_map(|v| v.as_ref())
+            .map(Vec::len)
+            .collect();
+        let Some(&n) = counts.first() else {
+            self.scene.warnings.push(format!(
+                "node {}: {EXT} has no TRANSLATION, ROTATION or SCALE; the mesh is placed once",
+                node.index()
+            ));
+            return Ok(vec![world]);
+        };
+        if counts.iter().any(|&c| c != n) {
+            return Err(self.err(format!(
+                "node {}: {EXT} attributes have different counts ({counts:?})",
+                node.index()
+            )));
+        }
+        let v3 = |v: &Option<Vec<[f64; 4]>>, i: usize, default: Vec3| {
+            v.as_ref().map_or(default, |v| {
+                Vec3::new(v[i][0] as f32, v[i][1] as f32, v[i][2] as f32)
+            })
+        };
+        let mut bad_rotation = false;
+        let placements = (0..n)
+            .map(|i| {
+                let q = r.as_ref().map_or(glam::Quat::IDENTITY, |r| {
+                    let [x, y, z, w] = r[i].map(|c| c as f32);
+                    let q = glam::Quat::from_xyzw(x, y, z, w);
+                    let len = q.length();
+                    if len > 0.0 && len.is_finite() {
+                        q / len
+                    } else {
+                        bad_rotation = true;
+                        glam::Quat::IDENTITY
+                    }
+                });
+                world
+                    * Mat4::from_scale_rotation_translation(
+                        v3(&s, i, Vec3::ONE),
+                        q,
+                        v3(&t, i, Vec3::ZERO),
+                    )
+            })
+            .collect();
+        if bad_rotation {
+            self.scene.warnings.push(format!(
+                "node {}: {EXT} has rotations that are not quaternions (zero or not finite); \
+                 those instances are not rotated",
+                node.index()
+            ));
+        }
+        Ok(placements)
     }
 
     pub(super) fn camera(&mut self, cam: &gltf::Camera, node_name: &str, world: Mat4) {
