@@ -340,8 +340,9 @@ impl World {
         Some((isect, None))
     }
 
+    /// Triangles in the world, an instanced mesh's counted once per instance.
     pub fn triangle_count(&self) -> usize {
-        self.geometry.triangles.len()
+        self.geometry.triangles.len() + self.geometry.instances.triangle_count()
     }
 
     pub fn primitive_count(&self) -> usize {
