@@ -524,6 +524,7 @@ fn compile_geometry(
                     light: NO_LIGHT,
                 });
             }
+            Shape::Curves(c) => push_curves(&mut g, c, m, material),
         }
     }
     if !g.instances.is_empty() {
@@ -583,6 +584,57 @@ fn instanced_objects(scene: &Scene, instancing: Instancing) -> Vec<bool> {
         .collect()
 }
 
+/// Places `curves`' segments in the world with transform `m`, each split into 2^split_depth
+/// pieces (pbrt-v4 `Curve::Create`). Widths are object-space lengths: they are scaled by the
+/// transform's mean linear scale (exact for the similarity transforms hair files use).
+fn push_curves(
+    g: &mut GeometryStore,
+    curves: &crate::scene::CurveShape,
+    m: crate::math::Mat4,
+    material: u32,
+) {
+    use crate::geometry::curve::{Curve, bezier_part};
+    let scale = Mat3::from_mat4(m).determinant().abs().cbrt();
+    let scale = if scale.is_finite() && scale > 0.0 {
+        scale
+    } else {
+        1.0
+    };
+    let pieces = 1u32 << curves.split_depth.min(10);
+    for (k, seg) in curves.segments.iter().enumerate() {
+        let world = seg.map(|p| m.transform_point3(p));
+        let [w0, w1] = curves.widths[k].map(|w| w * scale);
+        let normals = curves.normals.as_ref().map_or([Vec3::Z; 2], |n| {
+            n[k].map(|v| m.transform_vector3(v).normalize_or_zero())
+        });
+        for i in 0..pieces {
+            let u0 = i as f32 / pieces as f32;
+            let u1 = (i + 1) as f32 / pieces as f32;
+            let lerp = |t: f32| w0 + (w1 - w0) * t;
+            let slerp_end = |t: f32| {
+                let [n0, n1] = normals;
+                let angle = n0.dot(n1).clamp(-1.0, 1.0).acos();
+                if angle.sin().abs() < 1e-5 {
+                    n0
+                } else {
+                    (n0 * ((1.0 - t) * angle).sin() + n1 * (t * angle).sin()) / angle.sin()
+                }
+            };
+            g.curves.push(AnalyticPrim {
+                shape: Curve {
+                    cp: bezier_part(&world, u0, u1),
+                    u_range: [u0, u1],
+                    width: [lerp(u0), lerp(u1)],
+                    kind: curves.kind,
+                    normals: [slerp_end(u0), slerp_end(u1)],
+                },
+                material,
+                light: NO_LIGHT,
+            });
+        }
+    }
+}
+
 /// Step 2: an area light for every primitive with an emissive material, non-zero area and, for
 /// triangles with an emissive texture, a texture footprint that is not black
 /// ([`crate::light::emission`]). Returns the lights and, per light, the mean of its texture
@@ -625,9 +677,12 @@ fn area_lights(
     for prim in g.all_prims() {
         let material = g.material(prim);
         // An area that overflowed (a triangle spanning more than ~1e19) cannot be sampled:
-        // its pdf would be 0 and its power infinite.
+        // its pdf would be 0 and its power infinite. Curves are not emitters: pbrt-v4 cannot
+        // sample points on them either.
         let area = g.area(prim);
-        if !(materials[material as usize].is_emissive() && area > 0.0 && area.is_finite()) {
+        if prim.kind() == PrimitiveKind::Curve
+            || !(materials[material as usize].is_emissive() && area > 0.0 && area.is_finite())
+        {
             continue;
         }
         let mean = match prim.kind() {

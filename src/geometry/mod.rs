@@ -5,6 +5,7 @@
 
 pub mod bounds;
 pub mod cuboid;
+pub mod curve;
 pub mod instance;
 pub mod primitive;
 pub mod quad;

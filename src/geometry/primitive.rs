@@ -3,6 +3,7 @@
 //! colours) in per-mesh arrays that are only read for the closest hit.
 
 use super::cuboid::Cuboid;
+use super::curve::{Curve, CurveHit};
 use super::instance::{Instance, InstanceStore};
 use super::quad::Quad;
 use super::sphere::Sphere;
@@ -20,14 +21,16 @@ pub enum PrimitiveKind {
     Sphere = 1,
     Cuboid = 2,
     Quad = 3,
+    /// A piece of a cubic Bézier curve ([`super::curve`]).
+    Curve = 4,
 }
 
-/// A primitive's kind and index packed in 32 bits (kind in the top two bits).
+/// A primitive's kind and index packed in 32 bits (kind in the top three bits).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PrimRef(pub u32);
 
 impl PrimRef {
-    const SHIFT: u32 = 30;
+    const SHIFT: u32 = 29;
     const MASK: u32 = (1 << Self::SHIFT) - 1;
     /// Largest index a primitive of one kind may have.
     pub const MAX_INDEX: u32 = Self::MASK;
@@ -44,7 +47,8 @@ impl PrimRef {
             0 => PrimitiveKind::Triangle,
             1 => PrimitiveKind::Sphere,
             2 => PrimitiveKind::Cuboid,
-            _ => PrimitiveKind::Quad,
+            3 => PrimitiveKind::Quad,
+            _ => PrimitiveKind::Curve,
         }
     }
 
@@ -59,7 +63,7 @@ impl PrimRef {
 pub struct Intersection {
     pub t: f32,
     pub prim: PrimRef,
-    /// Barycentrics (b1, b2) for triangles, (u, v) for quads; unused otherwise.
+    /// Barycentrics (b1, b2) for triangles, (u, v) for quads and curves; unused otherwise.
     pub u: f32,
     pub v: f32,
 }
@@ -140,10 +144,11 @@ pub struct GeometryStore {
     /// Shared meshes placed by several objects (a two-level hierarchy); their triangles have
     /// primitive indices past `triangles` ([`super::instance`]). Empty for most scenes.
     pub instances: InstanceStore,
+    pub curves: Vec<AnalyticPrim<Curve>>,
 }
 
 impl GeometryStore {
-    /// Every primitive reference, in a fixed order (triangles, spheres, boxes, quads).
+    /// Every primitive reference, in a fixed order (triangles, spheres, boxes, quads, curves).
     pub fn all_prims(&self) -> Vec<PrimRef> {
         let mut v = Vec::with_capacity(self.len());
         v.extend(
@@ -152,11 +157,16 @@ impl GeometryStore {
         v.extend((0..self.spheres.len() as u32).map(|i| PrimRef::new(PrimitiveKind::Sphere, i)));
         v.extend((0..self.cuboids.len() as u32).map(|i| PrimRef::new(PrimitiveKind::Cuboid, i)));
         v.extend((0..self.quads.len() as u32).map(|i| PrimRef::new(PrimitiveKind::Quad, i)));
+        v.extend((0..self.curves.len() as u32).map(|i| PrimRef::new(PrimitiveKind::Curve, i)));
         v
     }
 
     pub fn len(&self) -> usize {
-        self.triangles.len() + self.spheres.len() + self.cuboids.len() + self.quads.len()
+        self.triangles.len()
+            + self.spheres.len()
+            + self.cuboids.len()
+            + self.quads.len()
+            + self.curves.len()
     }
 
     pub fn is_empty(&self) -> bool {
@@ -187,6 +197,7 @@ impl GeometryStore {
                     .union_point(q.corner + q.e2)
                     .union_point(q.corner + q.e1 + q.e2)
             }
+            PrimitiveKind::Curve => self.curves[i].shape.bounds(),
         }
     }
 
@@ -244,6 +255,17 @@ impl GeometryStore {
                 .shape
                 .intersect(ray, t_max)
                 .map(|(t, u, v)| Intersection { t, prim, u, v }),
+            PrimitiveKind::Curve => {
+                self.curves[i]
+                    .shape
+                    .intersect(ray, t_max)
+                    .map(|h| Intersection {
+                        t: h.t,
+                        prim,
+                        u: h.u,
+                        v: h.v,
+                    })
+            }
         }
     }
 
@@ -259,6 +281,7 @@ impl GeometryStore {
             PrimitiveKind::Sphere => self.spheres[i].material,
             PrimitiveKind::Cuboid => self.cuboids[i].material,
             PrimitiveKind::Quad => self.quads[i].material,
+            PrimitiveKind::Curve => self.curves[i].material,
         }
     }
 
@@ -272,6 +295,7 @@ impl GeometryStore {
             PrimitiveKind::Sphere => self.spheres[i].light,
             PrimitiveKind::Cuboid => self.cuboids[i].light,
             PrimitiveKind::Quad => self.quads[i].light,
+            PrimitiveKind::Curve => self.curves[i].light,
         }
     }
 
@@ -282,6 +306,7 @@ impl GeometryStore {
             PrimitiveKind::Sphere => self.spheres[i].light = light,
             PrimitiveKind::Cuboid => self.cuboids[i].light = light,
             PrimitiveKind::Quad => self.quads[i].light = light,
+            PrimitiveKind::Curve => self.curves[i].light = light,
         }
     }
 
@@ -293,6 +318,7 @@ impl GeometryStore {
             PrimitiveKind::Sphere => self.spheres[i].shape.area(),
             PrimitiveKind::Cuboid => self.cuboids[i].shape.area(),
             PrimitiveKind::Quad => self.quads[i].shape.area(),
+            PrimitiveKind::Curve => self.curves[i].shape.area(),
         }
     }
 
@@ -383,6 +409,22 @@ impl GeometryStore {
                 hit.ng = n;
                 hit.ns = n;
                 hit.tangent = q.tangent();
+                hit.uv = [Vec2::new(isect.u, isect.v); 2];
+            }
+            PrimitiveKind::Curve => {
+                // uv = (u along the curve, v across its width): the hair BSDF's offset is
+                // h = 2v − 1 (pbrt-v4 `HairMaterial`).
+                let h = CurveHit {
+                    t: isect.t,
+                    u: isect.u,
+                    v: isect.v,
+                };
+                let (p, err, n, dpdu) = self.curves[i].shape.surface(ray, &h);
+                hit.p = p;
+                hit.p_error = err;
+                hit.ng = n;
+                hit.ns = n;
+                hit.tangent = dpdu;
                 hit.uv = [Vec2::new(isect.u, isect.v); 2];
             }
         }
@@ -741,6 +783,7 @@ mod tests {
             PrimitiveKind::Sphere,
             PrimitiveKind::Cuboid,
             PrimitiveKind::Quad,
+            PrimitiveKind::Curve,
         ] {
             for idx in [0u32, 1, 12345, PrimRef::MAX_INDEX] {
                 let r = PrimRef::new(kind, idx);

@@ -58,6 +58,16 @@ impl GeometryStore {
                 hit.ns = hit.ng;
                 hit.uv = [Vec2::new(ux, u.y); 2];
             }
+            // Curves are not emitters (`world::area_lights` skips them, as pbrt-v4 cannot
+            // sample them): the point on the centre line, facing nowhere in particular.
+            PrimitiveKind::Curve => {
+                let c = &self.curves[i].shape;
+                let (p, dp) = super::curve::bezier(&c.cp, u.x);
+                hit.p = p;
+                hit.ng = dp.normalize_or_zero().any_orthonormal_vector();
+                hit.ns = hit.ng;
+                hit.uv = [Vec2::new(u.x, 0.5); 2];
+            }
         }
         hit
     }
@@ -74,7 +84,7 @@ impl GeometryStore {
                 let (b1, b2) = warp::uniform_triangle(u);
                 Some(self.triangles[i].point(b1, b2))
             }
-            PrimitiveKind::Sphere | PrimitiveKind::Cuboid => None,
+            PrimitiveKind::Sphere | PrimitiveKind::Cuboid | PrimitiveKind::Curve => None,
         }
     }
 
@@ -116,7 +126,7 @@ impl GeometryStore {
                 hit.uv = [Vec2::new(b1, b2); 2];
             }
             // Spheres and boxes are sampled by `sample_point` directly.
-            PrimitiveKind::Sphere | PrimitiveKind::Cuboid => {}
+            PrimitiveKind::Sphere | PrimitiveKind::Cuboid | PrimitiveKind::Curve => {}
         }
     }
 }

@@ -69,6 +69,9 @@ pub fn object_of(world: &World, hit: &SurfaceHit) -> u32 {
         PrimitiveKind::Sphere => meshes + i,
         PrimitiveKind::Cuboid => meshes + g.spheres.len() as u32 + i,
         PrimitiveKind::Quad => meshes + (g.spheres.len() + g.cuboids.len()) as u32 + i,
+        PrimitiveKind::Curve => {
+            meshes + (g.spheres.len() + g.cuboids.len() + g.quads.len()) as u32 + i
+        }
     }
 }
 

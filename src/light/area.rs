@@ -84,7 +84,7 @@ impl AreaLight {
             PrimitiveKind::Quad => Some(geometry.quads[prim.index()].shape.normal()),
             // The same normal `GeometryStore::sample_point` gives the light point.
             PrimitiveKind::Triangle => Some(geometry.triangles[prim.index()].unit_normal()),
-            PrimitiveKind::Sphere | PrimitiveKind::Cuboid => None,
+            PrimitiveKind::Sphere | PrimitiveKind::Cuboid | PrimitiveKind::Curve => None,
         };
         self.flat = match normal {
             Some(normal) if emission.emits && emission.texture.is_none() => Some(FlatEmitter {
@@ -265,7 +265,7 @@ impl AreaLight {
         let normal = match prim.kind() {
             PrimitiveKind::Quad => Some(geometry.quads[prim.index()].shape.normal()),
             PrimitiveKind::Triangle => Some(geometry.triangles[prim.index()].unit_normal()),
-            PrimitiveKind::Sphere | PrimitiveKind::Cuboid => None,
+            PrimitiveKind::Sphere | PrimitiveKind::Cuboid | PrimitiveKind::Curve => None,
         };
         match normal {
             Some(w) if w.is_finite() && w != Vec3::ZERO => LightBounds {

@@ -9,7 +9,7 @@
 
 pub use super::bxdf::{BsdfSample, TransportMode};
 use super::bxdf::{
-    Conductor, Dielectric, Diffuse, DiffuseTransmission, GltfTransmission, Layered,
+    Conductor, Dielectric, Diffuse, DiffuseTransmission, GltfTransmission, Hair, Layered,
     MetallicRoughness, Mirror, ThinDielectric,
 };
 use crate::math::{Vec2, Vec3};
@@ -30,6 +30,8 @@ pub enum Bsdf {
     /// The transmissive component of a glTF material under clearcoat, sheen, anisotropy or
     /// iridescence (thick or thin-walled).
     GltfTransmission(GltfTransmission),
+    /// Chiang et al. 2016's hair fibre (pbrt-v4 `hair`), in the fibre's frame (+x along it).
+    Hair(Hair),
 }
 
 impl Bsdf {
@@ -125,6 +127,7 @@ impl Bsdf {
             Bsdf::DiffuseTransmission(_) => false,
             Bsdf::Layered(b) => b.is_specular(),
             Bsdf::GltfTransmission(b) => b.is_specular(),
+            Bsdf::Hair(_) => false,
         }
     }
 
@@ -144,7 +147,8 @@ impl Bsdf {
             Bsdf::Dielectric(_)
             | Bsdf::ThinDielectric(_)
             | Bsdf::DiffuseTransmission(_)
-            | Bsdf::GltfTransmission(_) => true,
+            | Bsdf::GltfTransmission(_)
+            | Bsdf::Hair(_) => true,
             Bsdf::MetallicRoughness(b) => b.transmits(),
             _ => false,
         }
@@ -163,6 +167,7 @@ impl Bsdf {
             Bsdf::DiffuseTransmission(b) => b.eval(wo, wi),
             Bsdf::Layered(b) => b.eval(wo, wi),
             Bsdf::GltfTransmission(b) => b.eval(wo, wi),
+            Bsdf::Hair(b) => b.eval(wo, wi),
         }
     }
 
@@ -179,6 +184,7 @@ impl Bsdf {
             Bsdf::DiffuseTransmission(b) => b.pdf(wo, wi),
             Bsdf::Layered(b) => b.pdf(wo, wi),
             Bsdf::GltfTransmission(b) => b.pdf(wo, wi),
+            Bsdf::Hair(b) => b.pdf(wo, wi),
         }
     }
 
@@ -195,6 +201,7 @@ impl Bsdf {
             Bsdf::DiffuseTransmission(b) => b.sample(wo, u_lobe, u),
             Bsdf::Layered(b) => b.sample(wo, u_lobe, u),
             Bsdf::GltfTransmission(b) => b.sample(wo, u_lobe, u),
+            Bsdf::Hair(b) => b.sample(wo, u_lobe, u),
         }
     }
 
@@ -212,7 +219,8 @@ impl Bsdf {
             | Bsdf::ThinDielectric(_)
             | Bsdf::Conductor(_)
             | Bsdf::DiffuseTransmission(_)
-            | Bsdf::Layered(_) => Vec3::ONE,
+            | Bsdf::Layered(_)
+            | Bsdf::Hair(_) => Vec3::ONE,
         }
     }
 
@@ -262,6 +270,7 @@ impl Bsdf {
             Bsdf::DiffuseTransmission(b) => b.reflectance + b.transmittance,
             Bsdf::Layered(b) => b.albedo(),
             Bsdf::GltfTransmission(b) => b.tint,
+            Bsdf::Hair(b) => b.albedo(),
         }
     }
 }

@@ -196,6 +196,23 @@ pub enum Shape {
         e1: Vec3,
         e2: Vec3,
     },
+    /// Cubic Bézier curve segments (pbrt-v4 `curve`), in object space.
+    Curves(Box<CurveShape>),
+}
+
+/// Cubic Bézier segments swept with a width (pbrt-v4's `curve` shape; [`crate::geometry::curve`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CurveShape {
+    /// Control points of each segment.
+    pub segments: Vec<[Vec3; 4]>,
+    /// Width at each segment's two ends (object space).
+    pub widths: Vec<[f32; 2]>,
+    pub kind: crate::geometry::curve::CurveType,
+    /// For ribbons, the normal at each segment's two ends.
+    pub normals: Option<Vec<[Vec3; 2]>>,
+    /// Each segment is split into 2^split_depth pieces, each a primitive (pbrt-v4's
+    /// `splitdepth`, so the accelerator bounds curved hair tightly).
+    pub split_depth: u32,
 }
 
 /// One shape placed in the world with a material. Several objects may share a mesh (instancing).
@@ -710,6 +727,19 @@ impl Scene {
                 Shape::Quad { corner, e1, e2 } => {
                     corner.is_finite() && e1.is_finite() && e2.is_finite()
                 }
+                Shape::Curves(c) => {
+                    c.segments.len() == c.widths.len()
+                        && c.normals
+                            .as_ref()
+                            .is_none_or(|n| n.len() == c.segments.len())
+                        && c.split_depth <= 10
+                        && c.segments.iter().flatten().all(|p| p.is_finite())
+                        && c.widths
+                            .iter()
+                            .flatten()
+                            .all(|w| w.is_finite() && *w >= 0.0)
+                        && c.normals.iter().flatten().flatten().all(|n| n.is_finite())
+                }
             };
             if !shape_ok {
                 return err(format!(
@@ -926,6 +956,8 @@ impl Scene {
                 Shape::Quad { corner, e1, e2 } => {
                     vec![*corner, *corner + *e1, *corner + *e2, *corner + *e1 + *e2]
                 }
+                // The control points bound each segment (their convex hull holds it).
+                Shape::Curves(c) => c.segments.iter().flatten().copied().collect(),
             };
             for p in pts {
                 b = b.union_point(o.transform.transform_point3(p));

@@ -10,6 +10,7 @@ pub mod coated;
 pub mod conductor;
 pub mod dielectric;
 pub mod diffuse_transmission;
+pub mod hair;
 pub mod metallic_roughness;
 pub mod mix;
 
@@ -17,6 +18,7 @@ pub use coated::{Coat, CoatedConductor, CoatedDiffuse, Slab};
 pub use conductor::Conductor;
 pub use dielectric::Dielectric;
 pub use diffuse_transmission::DiffuseTransmission;
+pub use hair::{Hair, HairAbsorption};
 pub use metallic_roughness::MetallicRoughness;
 pub use mix::Mix;
 
@@ -64,6 +66,8 @@ pub enum MaterialModel {
     /// pbrt-v4 `mix`: chooses one of two other materials per hit
     /// ([`crate::material::eval::resolve_mix`]); it scatters nothing itself.
     Mix(Mix),
+    /// pbrt-v4 `hair`: Chiang et al. 2016's fibre scattering ([`hair`]).
+    Hair(Hair),
 }
 
 impl MaterialModel {
@@ -81,6 +85,7 @@ impl MaterialModel {
             MaterialModel::Interface => "Interface",
             MaterialModel::Unlit => "Unlit",
             MaterialModel::Mix(_) => "Mix",
+            MaterialModel::Hair(_) => "Hair",
         }
     }
 
@@ -155,6 +160,7 @@ impl MaterialModel {
             MaterialModel::CoatedConductor(c) => c.validate(),
             MaterialModel::DiffuseTransmission(d) => d.validate(),
             MaterialModel::Mix(m) => m.validate(),
+            MaterialModel::Hair(h) => h.validate(),
             MaterialModel::MetallicRoughness(x) => x.validate(),
             MaterialModel::Diffuse
             | MaterialModel::Mirror
@@ -195,6 +201,7 @@ impl Bsdf {
             // KHR_materials_unlit: the base colour is emitted (`eval::emitted`), nothing scatters.
             MaterialModel::Unlit => Bsdf::Diffuse(bxdf::Diffuse { albedo: Vec3::ZERO }),
             MaterialModel::MetallicRoughness(x) => metallic_roughness::bsdf(material, x, tx, eta),
+            MaterialModel::Hair(h) => h.bsdf(material, tx),
         }
     }
 }

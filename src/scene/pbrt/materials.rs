@@ -31,7 +31,8 @@ use super::Loader;
 use super::params::{ParamList, SpectrumValue, TexOr};
 use crate::material::microfacet::pbrt_roughness_to_alpha;
 use crate::material::models::{
-    Coat, CoatedConductor, CoatedDiffuse, Conductor, Dielectric, DiffuseTransmission, Mix, Slab,
+    Coat, CoatedConductor, CoatedDiffuse, Conductor, Dielectric, DiffuseTransmission, Hair,
+    HairAbsorption, Mix, Slab,
 };
 use crate::material::procedural::{self, Mapping2D, Procedural, TexCtx, TexExpr};
 use crate::material::texture::{FilterMode, TextureRef, UvTransform};
@@ -782,6 +783,34 @@ impl Loader {
         }
     }
 
+    /// A float parameter the model takes as a constant (the hair's roughnesses, angle, η and
+    /// melanin): a texture is warned and `default` used.
+    fn constant_float(
+        &mut self,
+        p: &ParamList,
+        key: &str,
+        default: f32,
+        at: &str,
+        what: &str,
+    ) -> f32 {
+        match p.float_tex(key) {
+            Some(TexOr::Value(v)) if v.is_finite() => v,
+            Some(TexOr::Value(v)) => {
+                self.warn(format!(
+                    "{at}: {what}: \"{key}\" {v} is not a number; {default} is used"
+                ));
+                default
+            }
+            Some(TexOr::Texture(t)) => {
+                self.warn(format!(
+                    "{at}: {what}: a textured \"{key}\" (\"{t}\") is not supported; {default} is used"
+                ));
+                default
+            }
+            None => default,
+        }
+    }
+
     /// The coat's slab (pbrt-v4 `LayeredBxDF`): thickness, albedo, g, maxdepth, nsamples, put in
     /// the ranges the BSDF accepts (out-of-range values are warned, not errors: pbrt-v4 takes
     /// them without checking).
@@ -1053,6 +1082,73 @@ impl Loader {
                     amount,
                     amount_texture: texture,
                 });
+            }
+            "hair" => {
+                // pbrt-v4 HairMaterial: σ_a given, else `reflectance` (or `color`) inverted, else
+                // melanin concentrations; brown hair (eumelanin 1.3) when none is given.
+                let mut h = Hair {
+                    beta_m: self.constant_float(p, "beta_m", 0.3, at, &what),
+                    beta_n: self.constant_float(p, "beta_n", 0.3, at, &what),
+                    alpha: self.constant_float(p, "alpha", 2.0, at, &what),
+                    eta: self.constant_float(p, "eta", 1.55, at, &what),
+                    ..Hair::default()
+                };
+                let colour_key = if p.has("reflectance") {
+                    Some("reflectance")
+                } else if p.has("color") {
+                    Some("color")
+                } else {
+                    None
+                };
+                let melanin = p.has("eumelanin") || p.has("pheomelanin");
+                let ignored = |names: &[&str]| -> Vec<String> {
+                    names
+                        .iter()
+                        .filter(|n| p.has(n))
+                        .map(|n| format!("\"{n}\""))
+                        .collect()
+                };
+                let (absorption, unused) = if p.has("sigma_a") {
+                    let s = self.constant_spectrum(p, "sigma_a", Vec3::ZERO, at, &what);
+                    (
+                        HairAbsorption::SigmaA(s),
+                        ignored(&["reflectance", "color", "eumelanin", "pheomelanin"]),
+                    )
+                } else if let Some(key) = colour_key {
+                    let (c, t) = self.spectrum_factor(p, key, Vec3::splat(0.5), at);
+                    m.base_color = c;
+                    m.base_color_texture = t;
+                    (
+                        HairAbsorption::Reflectance,
+                        ignored(&["eumelanin", "pheomelanin"]),
+                    )
+                } else if melanin {
+                    let eumelanin = self.constant_float(p, "eumelanin", 0.0, at, &what);
+                    let pheomelanin = self.constant_float(p, "pheomelanin", 0.0, at, &what);
+                    (
+                        HairAbsorption::Melanin {
+                            eumelanin,
+                            pheomelanin,
+                        },
+                        Vec::new(),
+                    )
+                } else {
+                    (h.absorption, Vec::new())
+                };
+                if !unused.is_empty() {
+                    self.warn(format!(
+                        "{at}: {what}: {} ignored: the absorption is taken from the first of \"sigma_a\", \"reflectance\", the melanin concentrations (as pbrt-v4 does)",
+                        unused.join(", ")
+                    ));
+                    for n in ["reflectance", "color", "eumelanin", "pheomelanin"] {
+                        if p.has(n) {
+                            let _ = p.spectrum_tex(n);
+                            let _ = p.float_tex(n);
+                        }
+                    }
+                }
+                h.absorption = absorption;
+                m.model = MaterialModel::Hair(h);
             }
             "interface" => {
                 // A boundary that only separates media (pbrt-v4 `interface`): no surface.

@@ -1,6 +1,6 @@
 //! pbrt-v4 shapes as Trayecto geometry. Triangle and bilinear meshes, PLY files, spheres, disks
 //! and cylinders (tessellated where Trayecto has no matching analytic shape), Loop subdivision
-//! surfaces (subdivided), and curves (approximated by thin prisms: a documented approximation).
+//! surfaces (subdivided), and curves (cubic Bézier curve primitives, [`crate::geometry::curve`]).
 //!
 //! Front faces follow pbrt-v4 (`Triangle::InteractionFromIntersection`, the quadrics): a mesh
 //! with normals faces them, one without faces its counter-clockwise side; quadrics face outwards
@@ -13,9 +13,10 @@ use rayon::prelude::*;
 
 use super::params::{ParamList, TexOr};
 use super::{Loader, PlyJob};
+use crate::geometry::curve::CurveType;
 use crate::material::AlphaMode;
 use crate::math::{Vec2, Vec3};
-use crate::scene::{Mesh, SceneError, Shape};
+use crate::scene::{CurveShape, Mesh, SceneError, Shape};
 
 /// Largest decompressed `.ply.gz` accepted, in bytes.
 const MAX_GUNZIP: u64 = 4 << 30;
@@ -468,8 +469,8 @@ impl Loader {
         let w = list.float("width", 1.0);
         let w0 = list.float("width0", w);
         let w1 = list.float("width1", w);
-        let _ = list.int("splitdepth", 3);
-        let _ = list.point3s("N");
+        let split_depth = list.int("splitdepth", 3);
+        let n = list.point3s("N");
         if !(degree == 2 || degree == 3) {
             return Err(SceneError::invalid(
                 at,
@@ -526,55 +527,72 @@ impl Loader {
                 ));
             }
         }
-        self.warn_once(
-            "curves",
-            format!("{at}: {what}: curves (\"{ty}\") are approximated by triangular tubes following the curve (4 straight pieces per segment) with the curve's width, shaded by the curve's material; pbrt's flat ribbons always face the viewer"),
-        );
-        let nseg = segments.len().max(1);
-        let mut mesh = Mesh {
-            name: name.to_string(),
-            ..Default::default()
-        };
-        const PIECES: usize = 4;
-        const SIDES: usize = 3;
-        let total = nseg * PIECES;
-        let mut ring_index = 0usize;
-        let mut prev_dir = Vec3::Z;
-        for (si, seg) in segments.iter().enumerate() {
-            for k in 0..=PIECES {
-                if si > 0 && k == 0 {
-                    continue;
-                }
-                let t = k as f32 / PIECES as f32;
-                let pt = bezier(seg, t);
-                let dir = bezier_tangent(seg, t);
-                let dir = if dir.length_squared() > 0.0 {
-                    dir.normalize()
-                } else {
-                    prev_dir
-                };
-                prev_dir = dir;
-                let g = (si * PIECES + k) as f32 / total as f32;
-                let radius = 0.5 * (w0 + (w1 - w0) * g);
-                let (a, b) = dir.any_orthonormal_pair();
-                for s in 0..SIDES {
-                    let ang = s as f32 * std::f32::consts::TAU / SIDES as f32;
-                    let off = (a * ang.cos() + b * ang.sin()) * radius;
-                    mesh.positions.push(pt + off);
-                }
-                if ring_index > 0 {
-                    let base0 = ((ring_index - 1) * SIDES) as u32;
-                    let base1 = (ring_index * SIDES) as u32;
-                    for s in 0..SIDES as u32 {
-                        let s1 = (s + 1) % SIDES as u32;
-                        mesh.indices.push([base0 + s, base0 + s1, base1 + s1]);
-                        mesh.indices.push([base0 + s, base1 + s1, base1 + s]);
-                    }
-                }
-                ring_index += 1;
+        let kind = match ty.as_str() {
+            "flat" => CurveType::Flat,
+            "cylinder" => CurveType::Cylinder,
+            "ribbon" => CurveType::Ribbon,
+            other => {
+                self.warn(format!(
+                    "{at}: {what}: curve type \"{other}\" is not known; \"flat\" is used"
+                ));
+                CurveType::Flat
             }
+        };
+        let nseg = segments.len();
+        // pbrt-v4 needs one normal per segment end for ribbons (nSegments + 1).
+        let normals = match (kind, &n) {
+            (CurveType::Ribbon, Some(n)) if n.len() == nseg + 1 => {
+                Some((0..nseg).map(|k| [n[k], n[k + 1]]).collect::<Vec<_>>())
+            }
+            (CurveType::Ribbon, _) => {
+                self.warn(format!(
+                    "{at}: {what}: a \"ribbon\" curve needs {} normals \"N\" (one per segment end); it is rendered as \"flat\"",
+                    nseg + 1
+                ));
+                None
+            }
+            (_, Some(_)) => {
+                self.warn_once(
+                    "curveN",
+                    format!("{at}: {what}: curve normals \"N\" are only used by \"ribbon\" curves (as in pbrt-v4)"),
+                );
+                None
+            }
+            _ => None,
+        };
+        let kind = if kind == CurveType::Ribbon && normals.is_none() {
+            CurveType::Flat
+        } else {
+            kind
+        };
+        if !(0..=10).contains(&split_depth) {
+            self.warn(format!(
+                "{at}: {what}: \"splitdepth\" {split_depth} is outside 0..10; it is clamped"
+            ));
         }
-        Ok(Some(Shape::Mesh(self.scene.add_mesh(mesh))))
+        // Quadratic segments are raised to cubic (the same curve).
+        let cubic = |s: &[Vec3]| -> [Vec3; 4] {
+            if s.len() == 3 {
+                [
+                    s[0],
+                    s[0] + (s[1] - s[0]) * (2.0 / 3.0),
+                    s[2] + (s[1] - s[2]) * (2.0 / 3.0),
+                    s[2],
+                ]
+            } else {
+                [s[0], s[1], s[2], s[3]]
+            }
+        };
+        let width_at = |k: usize| w0 + (w1 - w0) * (k as f32 / nseg as f32);
+        let shape = CurveShape {
+            segments: segments.iter().map(|s| cubic(s)).collect(),
+            widths: (0..nseg).map(|k| [width_at(k), width_at(k + 1)]).collect(),
+            kind,
+            normals,
+            split_depth: split_depth.clamp(0, 10) as u32,
+        };
+        let _ = name;
+        Ok(Some(Shape::Curves(Box::new(shape))))
     }
 
     /// Reads every `plymesh`, in parallel, into its reserved mesh slot.
@@ -810,25 +828,6 @@ fn bilinear_to_triangles(src: &Mesh, idx: &[u32]) -> Mesh {
     m.normals = normals;
     m.uv0 = Some(uvs);
     m
-}
-
-fn bezier(c: &[Vec3], t: f32) -> Vec3 {
-    let mut p: Vec<Vec3> = c.to_vec();
-    let n = p.len();
-    for r in 1..n {
-        for i in 0..n - r {
-            p[i] = p[i] * (1.0 - t) + p[i + 1] * t;
-        }
-    }
-    p[0]
-}
-
-fn bezier_tangent(c: &[Vec3], t: f32) -> Vec3 {
-    let d: Vec<Vec3> = c.windows(2).map(|w| w[1] - w[0]).collect();
-    if d.len() == 1 {
-        return d[0];
-    }
-    bezier(&d, t)
 }
 
 /// One step of Loop subdivision (Loop 1987; the rules of PBRT 3rd ed. §3.8): every triangle
