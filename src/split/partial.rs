@@ -512,7 +512,8 @@ impl PartFile {
                     return Err(format_err(
                         path,
                         format!(
-                            "pixel ({}, {}) holds {c} samples, more than its range of {span}",
+                            "pixel ({}, {}) holds impossible values: {c} samples, more than \
+                             its range of {span}",
                             p % h.width as u64,
                             p / h.width as u64
                         ),
