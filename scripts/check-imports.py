@@ -60,7 +60,9 @@ LAYERS = [
     ("split", 8),
     # 9: load -> build -> render -> write
     ("pipeline", 9),
-    # 10: the front ends (the binary)
+    # 10: the front ends: the binary, and the web server's request and upload checks that the
+    # library keeps for the fuzz targets
+    ("server", 10),
     ("bin", 10),
 ]
 

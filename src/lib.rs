@@ -26,6 +26,8 @@ pub mod pipeline;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+#[cfg(feature = "server")]
+pub mod server;
 pub mod spectrum;
 pub mod split;
 pub mod world;

@@ -257,15 +257,88 @@ pub enum PipelineError {
     Write { path: PathBuf, error: OutputError },
     #[error("render cancelled")]
     Cancelled,
-    /// Cancelled after saving the passes done to a checkpoint, to be resumed from.
-    #[error("interrupted; the render so far is saved in {0} (continue it with --resume {0})")]
-    Interrupted(PathBuf),
+    /// Cancelled after some passes: what of them was kept (a checkpoint to resume from, the
+    /// images of the completed passes), said in the message.
+    #[error("{}", interrupted_message(*.done, *.spp, .checkpoint.as_deref(), *.checkpoint_fresh, .written))]
+    Interrupted {
+        /// Samples per pixel completed, of the frame's `spp`.
+        done: u32,
+        spp: u32,
+        /// The checkpoint file that holds the render so far, if any.
+        checkpoint: Option<PathBuf>,
+        /// Whether `checkpoint` was written at the interruption (else it is an earlier one, from
+        /// before the pass in flight, or the file resumed from).
+        checkpoint_fresh: bool,
+        /// The outputs written from the completed passes.
+        written: Vec<PathBuf>,
+    },
+    /// Writing an output failed; the film was saved as a partial film instead, which
+    /// `trayecto merge` turns into the image.
+    #[error("{error}; {}", rescue_message(.rescued, .samples, *.spp))]
+    Rescued {
+        error: Box<PipelineError>,
+        /// Where the film went.
+        rescued: PathBuf,
+        /// The sample range it holds, of a frame of `spp` samples per pixel.
+        samples: [u32; 2],
+        spp: u32,
+    },
     #[error(transparent)]
     Part(#[from] PartError),
     #[error(transparent)]
     Denoise(#[from] DenoiseError),
     #[error(transparent)]
     Split(SplitError),
+}
+
+fn interrupted_message(
+    done: u32,
+    spp: u32,
+    checkpoint: Option<&std::path::Path>,
+    fresh: bool,
+    written: &[PathBuf],
+) -> String {
+    let mut m = format!("interrupted after {done} of {spp} samples per pixel");
+    if !written.is_empty() {
+        let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
+        m += &format!(
+            "; the image of the completed passes is in {}",
+            names.join(" and ")
+        );
+    }
+    match (checkpoint, fresh) {
+        (Some(c), true) => {
+            m += &format!(
+                "; the render so far is saved in {0} (continue it with --resume {0})",
+                c.display()
+            )
+        }
+        (Some(c), false) => {
+            m += &format!(
+                "; the checkpoint {0} from before the pass in flight is kept (continue it with \
+                 --resume {0})",
+                c.display()
+            )
+        }
+        (None, _) => m += " (give --checkpoint FILE to be able to resume a render)",
+    }
+    m
+}
+
+fn rescue_message(rescued: &std::path::Path, samples: &[u32; 2], spp: u32) -> String {
+    let f = rescued.display();
+    if samples[0] == 0 && samples[1] == spp {
+        format!(
+            "nothing is lost: the rendered film is saved in {f}; make the image from it with \
+             `trayecto merge {f} -o image.exr` (any image name)"
+        )
+    } else {
+        format!(
+            "nothing is lost: the rendered film (samples {}..{} of {spp}) is saved in {f}, a \
+             partial film to merge like the part it replaces (`trayecto merge {f} … -o image.exr`)",
+            samples[0], samples[1]
+        )
+    }
 }
 
 impl From<SplitError> for PipelineError {
@@ -323,6 +396,12 @@ impl RenderJob {
             ));
         }
         for o in &self.outputs {
+            if o.path.is_dir() {
+                return Err(PipelineError::Output(OutputError::Write {
+                    path: o.path.clone(),
+                    message: "is a folder: name a file in it (e.g. -o folder/render.png)".into(),
+                }));
+            }
             if !(o.exposure.is_finite() && o.exposure > 0.0) {
                 return bad(format!(
                     "exposure must be a positive number (got {})",
@@ -389,6 +468,12 @@ impl RenderJob {
             .map(|o| &o.path)
             .chain(&split.checkpoint)
         {
+            if path.is_dir() {
+                return Err(PipelineError::Output(OutputError::Write {
+                    path: path.clone(),
+                    message: "is a folder: name a file in it (e.g. -o folder/render.png)".into(),
+                }));
+            }
             if let Some(parent) = path.parent()
                 && !parent.as_os_str().is_empty()
                 && !parent.is_dir()
@@ -779,10 +864,7 @@ impl Run<'_> {
             self.cancel,
         )?;
         if split.render.cancelled {
-            return Err(match split.checkpoint_written {
-                Some(p) => PipelineError::Interrupted(p),
-                None => PipelineError::Cancelled,
-            });
+            return Err(self.interrupted(split));
         }
         let samples_done = split.render.done;
         let counts = split.render.film.counts();
@@ -858,6 +940,39 @@ impl Run<'_> {
         })
     }
 
+    /// What an interrupted render keeps: the checkpoint (written at the interruption, or an
+    /// earlier one), else, when the front end asks for it, the outputs written from the
+    /// completed passes. Nothing kept is [`PipelineError::Cancelled`].
+    fn interrupted(&mut self, split: crate::split::SplitOutcome) -> PipelineError {
+        let job = self.job;
+        let (start, spp, done) = (split.header.samples[0], split.header.spp, split.render.done);
+        let fresh = split.checkpoint_written.is_some();
+        let checkpoint = split
+            .checkpoint_written
+            .or_else(|| job.split.checkpoint.clone().filter(|p| p.is_file()));
+        let mut written = Vec::new();
+        if done > start && checkpoint.is_none() && job.split.write_on_interrupt {
+            let part = Part {
+                header: split.header,
+                film: split.render.film,
+            };
+            match write_outputs(&part.film.to_image(), Some(&part), &job.outputs, &[]) {
+                Ok(w) => written = w,
+                Err(e) => return rescue(e, &part, &job.outputs),
+            }
+        }
+        if checkpoint.is_none() && written.is_empty() {
+            return PipelineError::Cancelled;
+        }
+        PipelineError::Interrupted {
+            done,
+            spp,
+            checkpoint,
+            checkpoint_fresh: fresh,
+            written,
+        }
+    }
+
     /// Denoise: the beauty image with the traced albedo and normal guides, and how long it took.
     fn denoise(
         &self,
@@ -917,7 +1032,11 @@ impl Run<'_> {
 
         self.observer.stage_started(Stage::Write);
         let t = Instant::now();
-        let mut written = write_outputs(&r.out.image, Some(&r.part), &job.outputs, &r.layers)?;
+        let mut written = match write_outputs(&r.out.image, Some(&r.part), &job.outputs, &r.layers)
+        {
+            Ok(w) => w,
+            Err(e) => return Err(rescue(e, &r.part, &job.outputs)),
+        };
         if let Some(d) = denoised {
             written.extend(write_denoised(d, &job.outputs)?);
         }
@@ -1031,6 +1150,62 @@ pub fn write_outputs(
         }
     }
     Ok(written)
+}
+
+/// After a failed write: saves the film as a partial film (`.trp`, exact) beside the output that
+/// failed, else in the system's temporary folder, under a name no file has yet, and returns the
+/// error saying where it went ([`PipelineError::Rescued`]); the original error when no place
+/// would take it either. A film holding the frame from sample 0 is saved as a frame of the samples
+/// it holds, so that `trayecto merge` makes its image alone (an interrupted or time-limited
+/// render's).
+fn rescue(error: PipelineError, part: &Part, outputs: &[OutputSpec]) -> PipelineError {
+    let failed = match &error {
+        PipelineError::Write { path, .. } => Some(path.clone()),
+        PipelineError::Part(crate::split::partial::PartError::Io { path, .. }) => {
+            Some(path.clone())
+        }
+        _ => None,
+    }
+    .or_else(|| outputs.first().map(|o| o.path.clone()))
+    .unwrap_or_else(|| PathBuf::from("render"));
+    let mut header = part.header.clone();
+    if header.samples[0] == 0 {
+        header.spp = header.samples[1];
+    }
+    let stem = failed
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .filter(|s| !s.is_empty())
+        .unwrap_or_else(|| "render".into());
+    let beside = match failed.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    for dir in [beside, std::env::temp_dir()] {
+        for i in 0..16 {
+            let name = if i == 0 {
+                format!("{stem}.trp")
+            } else {
+                format!("{stem}-{i}.trp")
+            };
+            let path = dir.join(name);
+            // Never over an existing file (the one that failed, or anything else).
+            if path == failed || std::fs::symlink_metadata(&path).is_ok() {
+                continue;
+            }
+            if crate::split::partial::write_film(&header, &part.film, &path).is_ok() {
+                return PipelineError::Rescued {
+                    error: Box::new(error),
+                    rescued: path,
+                    samples: header.samples,
+                    spp: header.spp,
+                };
+            }
+            // The folder does not take files: try the next one.
+            break;
+        }
+    }
+    error
 }
 
 /// Writes the denoised image beside each image output (`out.png` → `out.denoised.png`, with the

@@ -8,7 +8,7 @@ pub mod partial;
 use crate::film::Film;
 use crate::render::{FilmRender, RangeStart, RenderError, RenderObserver, RenderSettings};
 use crate::world::{World, WorldOptions};
-use partial::{Part, PartError, PartHeader};
+use partial::{Part, PartError, PartFile, PartHeader};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -52,6 +52,10 @@ pub struct SplitOptions {
     pub checkpoint_interval: Duration,
     /// Continue from this checkpoint.
     pub resume: Option<PathBuf>,
+    /// When the render is interrupted (Ctrl-C) without a checkpoint file, still write the
+    /// outputs from the passes completed so far (the command line's choice; a cancelled web
+    /// render writes nothing).
+    pub write_on_interrupt: bool,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -126,23 +130,24 @@ pub fn load_checkpoint(
     frame: &FrameId,
     range: &std::ops::Range<u32>,
 ) -> Result<(Film, u32), SplitError> {
-    let part = Part::read(path)?;
+    // The header first: a checkpoint of another frame is refused before its pixels are read.
+    let file = PartFile::open(path)?;
     let bad = |message: String| SplitError::Resume {
         path: path.to_path_buf(),
         message,
     };
     let want = frame.header([range.start, range.end], 0);
-    if let Some(why) = want.mismatch(&part.header) {
+    if let Some(why) = want.mismatch(&file.header) {
         return Err(bad(format!("it is from another frame: {why}")));
     }
-    let [a, b] = part.header.samples;
+    let [a, b] = file.header.samples;
     if a != range.start || b > range.end {
         return Err(bad(format!(
             "it holds samples {a}..{b}, not the start of this render's range {}..{}",
             range.start, range.end
         )));
     }
-    Ok((part.film, b))
+    Ok((file.read()?.film, b))
 }
 
 /// Renders `opts.samples` (or the whole frame) of `frame`, resuming and checkpointing as asked.

@@ -256,3 +256,339 @@ fn ctrl_c_saves_a_checkpoint_and_the_resumed_render_equals_an_uninterrupted_one(
         "{e}"
     );
 }
+
+/// Sends `signal` (a `kill` name: INT, TERM, HUP) to a child process.
+fn signal(pid: u32, signal: &str) {
+    let s = Command::new("kill")
+        .args([&format!("-{signal}"), &pid.to_string()])
+        .status()
+        .unwrap();
+    assert!(s.success());
+}
+
+/// Starts a render (not quiet) and waits until it prints its plan, the line just before the
+/// passes start: from then on the signal handler is installed and the render is under way.
+fn spawn_until_rendering(cmd: &mut Command) -> (std::process::Child, String) {
+    use std::io::Read;
+    let mut child = cmd.stderr(Stdio::piped()).spawn().unwrap();
+    let mut err = child.stderr.take().unwrap();
+    let mut seen = Vec::new();
+    let t0 = Instant::now();
+    let mut byte = [0u8; 1];
+    while !String::from_utf8_lossy(&seen).contains("\nrendering ")
+        && !String::from_utf8_lossy(&seen).starts_with("rendering ")
+    {
+        assert!(t0.elapsed() < Duration::from_secs(60), "no plan line");
+        if err.read(&mut byte).unwrap() == 0 {
+            panic!(
+                "the render ended before rendering: {}",
+                String::from_utf8_lossy(&seen)
+            );
+        }
+        seen.push(byte[0]);
+    }
+    // The rest of stderr is read by wait_with_output: give the pipe back to the child handle.
+    child.stderr = Some(err);
+    (child, String::from_utf8_lossy(&seen).into_owned())
+}
+
+/// `-o` naming a folder is refused before anything is loaded or rendered, by render and merge.
+#[test]
+fn an_output_naming_a_folder_is_refused_before_rendering() {
+    let d = dir("folder-output");
+    let t0 = Instant::now();
+    let o = render(&["--spp", "1000000"], &d);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("is a folder"), "{e}");
+    // Refused before the 384-megasample render could start.
+    assert!(t0.elapsed() < Duration::from_secs(20));
+    let o = bin()
+        .args(["render", "cornell", "-q", "--checkpoint"])
+        .arg(&d)
+        .arg("-o")
+        .arg(d.join("x.png"))
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&o.stderr).contains("is a folder"));
+    let o = bin()
+        .arg("merge")
+        .arg(d.join("none.trp"))
+        .arg("-o")
+        .arg(&d)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("is a folder"), "{e}");
+}
+
+/// When the final write fails (here its folder is replaced by a file mid-render, which no user,
+/// root included, can write under), the film is saved in the temporary folder as a partial film,
+/// the message says how to recover it, and `merge` recovers the very image.
+#[test]
+fn a_failed_final_write_saves_the_film_and_merge_recovers_the_image() {
+    let d = dir("rescue");
+    let out_dir = d.join("gone");
+    let tmp = d.join("tmp");
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(&tmp).unwrap();
+    let _ = std::fs::remove_file(&out_dir);
+    let _ = std::fs::remove_dir_all(&out_dir);
+    std::fs::create_dir_all(&out_dir).unwrap();
+    let settings = ["--spp", "3000", "--max-depth", "3", "--threads", "1"];
+    let (child, _) = spawn_until_rendering(
+        bin()
+            .args(["render", "cornell", "--seed", "5"])
+            .args(SIZE)
+            .args(settings)
+            .arg("-o")
+            .arg(out_dir.join("image.exr"))
+            .env("TMPDIR", &tmp),
+    );
+    std::fs::remove_dir_all(&out_dir).unwrap();
+    std::fs::write(&out_dir, b"a file where the folder was").unwrap();
+    let o = child.wait_with_output().unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    let rescued = tmp.join("image.trp");
+    assert!(rescued.is_file(), "nothing in {}: {e}", tmp.display());
+    assert!(
+        e.contains(&format!("trayecto merge {}", rescued.display())),
+        "{e}"
+    );
+    ok(bin()
+        .arg("merge")
+        .arg(&rescued)
+        .arg("-o")
+        .arg(d.join("recovered.exr"))
+        .output()
+        .unwrap());
+    ok(render(&settings, &d.join("straight.exr")));
+    assert_eq!(
+        std::fs::read(d.join("straight.exr")).unwrap(),
+        std::fs::read(d.join("recovered.exr")).unwrap(),
+        "the recovered image differs from the render's"
+    );
+}
+
+/// SIGTERM and SIGHUP stop a render as Ctrl-C does: the checkpoint is saved and the message says
+/// it survived and how to resume it.
+#[test]
+fn sigterm_and_sighup_save_the_checkpoint_as_ctrl_c_does() {
+    let d = dir("sigterm");
+    for sig in ["TERM", "HUP"] {
+        let cp = d.join(format!("{sig}.trp"));
+        let _ = std::fs::remove_file(&cp);
+        let mut child = bin()
+            .args(["render", "cornell", "-q", "--seed", "5"])
+            .args(SIZE)
+            .args(["--spp", "6000", "--max-depth", "4"])
+            .args(["--checkpoint-interval", "0", "--checkpoint"])
+            .arg(&cp)
+            .arg("-o")
+            .arg(d.join(format!("{sig}.exr")))
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let t0 = Instant::now();
+        while !cp.exists() {
+            assert!(t0.elapsed() < Duration::from_secs(60), "no checkpoint");
+            assert!(child.try_wait().unwrap().is_none(), "render ended early");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        signal(child.id(), sig);
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(130), "SIG{sig}: {err}");
+        assert!(
+            err.contains(&format!("saved in {}", cp.display())) && err.contains("--resume"),
+            "SIG{sig}: {err}"
+        );
+        let [a, b] = Part::read(&cp).unwrap().header.samples;
+        assert!(a == 0 && b > 0 && b < 6000, "SIG{sig}: {a}..{b}");
+    }
+}
+
+/// Ctrl-C without --checkpoint writes the image of the passes completed so far and says so.
+#[test]
+fn ctrl_c_without_a_checkpoint_writes_the_image_of_the_completed_passes() {
+    let d = dir("ctrl-c-image");
+    let out = d.join("partial.exr");
+    let _ = std::fs::remove_file(&out);
+    let (child, _) = spawn_until_rendering(
+        bin()
+            .args(["render", "cornell", "--seed", "5", "--threads", "1"])
+            .args(SIZE)
+            .args(["--spp", "200000", "--max-depth", "4"])
+            .arg("-o")
+            .arg(&out),
+    );
+    // Long enough for a few passes of this small image, far from the 77 M samples of the whole.
+    std::thread::sleep(Duration::from_millis(800));
+    sigint(child.id());
+    let o = child.wait_with_output().unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(130), "{e}");
+    assert!(
+        e.contains("image of the completed passes is in") && e.contains("partial.exr"),
+        "{e}"
+    );
+    assert!(out.is_file(), "{e}");
+}
+
+/// `-q` prints errors only: not a scene's warnings either; `merge` has `-q` too.
+#[test]
+fn quiet_suppresses_warnings_and_merge_has_quiet() {
+    let d = dir("quiet");
+    let scene = d.join("warns.pbrt");
+    std::fs::write(
+        &scene,
+        "Camera \"perspective\"\nWorldBegin\nShape \"sphere\" \"float radius\" 1 \"float bogus\" 2\n",
+    )
+    .unwrap();
+    let run = |quiet: bool| {
+        let mut c = bin();
+        c.arg("render").arg(&scene).args(["--spp", "1"]).args(SIZE);
+        if quiet {
+            c.arg("-q");
+        }
+        let o = c.arg("-o").arg(d.join("w.png")).output().unwrap();
+        assert!(o.status.success());
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    assert!(run(false).contains("bogus"));
+    assert_eq!(run(true), "");
+    ok(render(
+        &["--spp", "2", "--samples", "0..2"],
+        &d.join("q.trp"),
+    ));
+    let o = bin()
+        .args(["merge", "-q"])
+        .arg(d.join("q.trp"))
+        .arg("-o")
+        .arg(d.join("q.exr"))
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    assert_eq!(String::from_utf8_lossy(&o.stderr), "");
+    assert!(d.join("q.exr").is_file());
+}
+
+/// Parts or a checkpoint rendered with another --texture-filter are refused by merge and by
+/// --resume: every setting that reaches the renderer is compared.
+#[test]
+fn merge_and_resume_refuse_another_texture_filter() {
+    let d = dir("texture-filter");
+    ok(render(
+        &["--spp", "4", "--samples", "0..2"],
+        &d.join("a.trp"),
+    ));
+    ok(render(
+        &[
+            "--spp",
+            "4",
+            "--samples",
+            "2..4",
+            "--texture-filter",
+            "trilinear",
+        ],
+        &d.join("b.trp"),
+    ));
+    let o = bin()
+        .arg("merge")
+        .arg(d.join("a.trp"))
+        .arg(d.join("b.trp"))
+        .arg("-o")
+        .arg(d.join("mixed.exr"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("texture_filter") && e.contains("Trilinear"),
+        "{e}"
+    );
+    assert!(!d.join("mixed.exr").exists());
+    let o = render(
+        &[
+            "--spp",
+            "4",
+            "--texture-filter",
+            "trilinear",
+            "--resume",
+            d.join("a.trp").to_str().unwrap(),
+        ],
+        &d.join("resumed.exr"),
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("another frame") && e.contains("texture_filter"),
+        "{e}"
+    );
+}
+
+/// A forged partial film, zeros that claim a large frame, is a clear error in `merge` and in
+/// `--resume` (whose header it matches), found before its arrays are allocated.
+#[test]
+fn a_forged_partial_film_is_refused_by_merge_and_resume() {
+    use std::io::Write;
+    let d = dir("forged");
+    let real = d.join("real.trp");
+    ok(render(
+        &[
+            "--spp",
+            "4",
+            "--samples",
+            "0..2",
+            "--checkpoint-interval",
+            "0",
+        ],
+        &real,
+    ));
+    let mut h = Part::read(&real).unwrap().header;
+    let side = 1024u32;
+    h.width = side;
+    h.height = side;
+    h.settings.insert("width".into(), side.to_string());
+    h.settings.insert("height".into(), side.to_string());
+    let header = serde_json::to_vec(&h).unwrap();
+    let mut f = Vec::new();
+    f.extend_from_slice(b"TRAYPART");
+    f.extend_from_slice(&(header.len() as u32).to_le_bytes());
+    f.extend_from_slice(&header);
+    let mut z = flate2::write::ZlibEncoder::new(f, flate2::Compression::best());
+    let zeros = vec![0u8; 1 << 20];
+    let mut left = side as usize * side as usize * 52;
+    while left > 0 {
+        let k = left.min(zeros.len());
+        z.write_all(&zeros[..k]).unwrap();
+        left -= k;
+    }
+    let forged = d.join("forged.trp");
+    std::fs::write(&forged, z.finish().unwrap()).unwrap();
+    // Merged into a longer part (an image would need the whole frame): the pixels are read.
+    let o = bin()
+        .arg("merge")
+        .arg(&forged)
+        .arg("-o")
+        .arg(d.join("forged-merged.trp"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("forged.trp") && e.contains("discarded"),
+        "{e}"
+    );
+    let o = bin()
+        .args(["render", "cornell", "-q", "--seed", "5", "--spp", "4"])
+        .args(["--width", &side.to_string(), "--height", &side.to_string()])
+        .args(["--samples", "0..4", "--resume"])
+        .arg(&forged)
+        .arg("-o")
+        .arg(d.join("resumed.trp"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("forged.trp") && e.contains("discarded"),
+        "{e}"
+    );
+}

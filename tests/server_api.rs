@@ -2030,3 +2030,150 @@ fn an_orthographic_scene_camera_renders_as_the_cli_does() {
         "the viewport's image differs from the command line's"
     );
 }
+
+/// A zip of `entries`, then with every `from` in its names (local headers and central directory
+/// alike) replaced by `to` of the same length: the writer refuses repeated names, a hostile
+/// archive does not.
+fn patched_zip(entries: &[(&str, &[u8])], from: &[u8], to: &[u8]) -> Vec<u8> {
+    use std::io::Write as _;
+    let mut w = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    for (name, data) in entries {
+        w.start_file(*name, zip::write::SimpleFileOptions::default())
+            .unwrap();
+        w.write_all(data).unwrap();
+    }
+    let mut z = w.finish().unwrap().into_inner();
+    assert_eq!(from.len(), to.len());
+    for i in 0..z.len() - from.len() {
+        if &z[i..i + from.len()] == from {
+            z[i..i + from.len()].copy_from_slice(to);
+        }
+    }
+    z
+}
+
+/// Repeated entry names (which the zip crate would collapse to the last) and a file where a
+/// folder must go (`a` beside `a/b.toml`) are refused with 400, from the archive's raw names.
+#[test]
+fn repeated_and_clashing_upload_entries_are_refused_with_400() {
+    let s = start();
+    let scene = b"[camera]\nposition = [0, 0, 5]\n";
+    let dup = patched_zip(
+        &[("scene.toml", scene), ("other.toml", b"[camera]\n")],
+        b"other.toml",
+        b"scene.toml",
+    );
+    let clash = patched_zip(&[("a", b"x"), ("a/b.toml", scene)], b"-", b"-");
+    let case = patched_zip(&[("x/s.toml", scene), ("X/S.toml", scene)], b"-", b"-");
+    for (name, body, says) in [
+        ("dup.zip", dup, "appears twice"),
+        ("clash.zip", clash, "needs a folder"),
+        ("case.zip", case, "appears twice"),
+    ] {
+        let r = upload(&s, name, &body, "application/zip");
+        assert_eq!(r.status, 400, "{name}: {}", r.text());
+        assert!(
+            r.json()["error"].as_str().unwrap().contains(says),
+            "{name}: {}",
+            r.text()
+        );
+    }
+    let left: Vec<_> = std::fs::read_dir(s.root.join("scenes/uploads"))
+        .map(|d| d.flatten().map(|e| e.file_name()).collect())
+        .unwrap_or_default();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// Every answer, refusals included, forbids framing by other sites and sending the address as
+/// Referer.
+#[test]
+fn every_response_forbids_framing_and_referrers() {
+    let s = start();
+    let t = start_with(None, &["--host", "127.0.0.2"]);
+    // A foreign Host (refused with 403 before any handler).
+    let mut c = TcpStream::connect(s.addr).unwrap();
+    c.write_all(
+        b"GET /api/options HTTP/1.1\r\nHost: evil.example:8080\r\nConnection: close\r\n\r\n",
+    )
+    .unwrap();
+    let mut buf = Vec::new();
+    c.read_to_end(&mut buf).unwrap();
+    let foreign = parse_reply(&buf);
+    assert_eq!(foreign.status, 403);
+    for r in [
+        get(&s, "/"),
+        get(&s, "/api/options"),
+        get(&s, "/no/such/page"),
+        foreign,
+        get(&t, "/api/options"),
+    ] {
+        let csp = r.header("content-security-policy").unwrap_or("");
+        assert!(
+            csp.contains("frame-ancestors 'none'"),
+            "{}: {csp}",
+            r.status
+        );
+        assert_eq!(r.header("x-frame-options"), Some("DENY"), "{}", r.status);
+        assert_eq!(
+            r.header("referrer-policy"),
+            Some("no-referrer"),
+            "{}",
+            r.status
+        );
+    }
+}
+
+/// The Authorization scheme is case-insensitive: "bearer" works as "Bearer" does.
+#[test]
+fn a_lowercase_bearer_scheme_is_accepted() {
+    let s = start_with(None, &["--host", "127.0.0.2"]);
+    let token = s.token.clone().unwrap();
+    for scheme in ["bearer", "BEARER", "Bearer"] {
+        let r = get_with(
+            &s,
+            "/api/options",
+            &format!("Authorization: {scheme} {token}\r\n"),
+        );
+        assert_eq!(r.status, 200, "{scheme}: {}", r.text());
+    }
+    let r = get_with(
+        &s,
+        "/api/options",
+        &format!("Authorization: Basic {token}\r\n"),
+    );
+    assert_eq!(r.status, 401);
+}
+
+/// A job's log names the files of the scenes folder relative to it, never by the server's path.
+#[test]
+fn job_logs_name_scenes_relative_to_the_scenes_folder() {
+    let s = start();
+    let scenes = s.root.join("scenes").canonicalize().unwrap();
+    std::fs::create_dir_all(scenes.join("warn")).unwrap();
+    std::fs::write(
+        scenes.join("warn/main.pbrt"),
+        "Camera \"perspective\"\nWorldBegin\nInclude \"inc.pbrt\"\n",
+    )
+    .unwrap();
+    std::fs::write(
+        scenes.join("warn/inc.pbrt"),
+        "Shape \"sphere\" \"float radius\" 1 \"float bogus\" 2\n",
+    )
+    .unwrap();
+    let r = post_json(
+        &s,
+        "/api/renders",
+        &json!({"scene": "warn/main.pbrt", "output": "warn", "width": 8, "height": 8, "spp": 1}),
+    );
+    assert_eq!(r.status, 201, "{}", r.text());
+    let j = wait_finished(
+        &s,
+        r.json()["id"].as_u64().unwrap(),
+        Duration::from_secs(60),
+    );
+    assert_eq!(j["state"], "done", "{j}");
+    let log = j["log"].to_string();
+    assert!(log.contains("warn/inc.pbrt:1"), "{log}");
+    let root = s.root.canonicalize().unwrap();
+    assert!(!log.contains(&*root.to_string_lossy()), "{log}");
+}

@@ -117,7 +117,7 @@ impl Film {
                 }
             }
         }
-        self.discarded += block.discarded;
+        self.discarded = self.discarded.saturating_add(block.discarded);
     }
 
     /// Adds another film of the same size (another sample range of the same frame). Exact, so
@@ -145,7 +145,8 @@ impl Film {
         for (s, o) in self.sq.iter_mut().zip(&other.sq) {
             *s = s.saturating_add(*o);
         }
-        self.discarded += other.discarded;
+        // Saturating: parts of one frame never come near it, and a forged count must not wrap.
+        self.discarded = self.discarded.saturating_add(other.discarded);
         Ok(())
     }
 

@@ -20,7 +20,6 @@
 //! wrong before allocating, and that every sum is within what its count of samples can reach.
 
 use crate::film::{FRAC_BITS, Film, SAMPLE_LIMIT};
-use crate::light::default_light::DefaultLight;
 use crate::render::{MAX_DIMENSION, MAX_PIXELS, MAX_SPP, RenderSettings};
 use crate::world::WorldOptions;
 use serde::{Deserialize, Serialize};
@@ -92,12 +91,16 @@ fn format_err(path: &Path, message: impl Into<String>) -> PartError {
     }
 }
 
-/// The settings that change the image, as name → value strings (floats in Rust's shortest
-/// round-trip form, so equal strings mean equal values). Thread count, exposure and tone mapping
-/// are left out: they do not change the film. The environment map's path is left out too (machines
-/// may mount it elsewhere); its content is part of the scene digest. `light_sampler` is the
-/// sampler the built world uses ([`crate::light::LightSet::sampler_kind`]), never `auto`: `auto`
-/// resolves to different samplers by light count and version.
+/// The settings that change the image, as name → value strings: every field of the
+/// [`RenderSettings`] and [`WorldOptions`] the renderer is given, each as its `Debug` text (floats
+/// in Rust's shortest round-trip form, so equal strings mean equal values; nested settings such as
+/// the path tracer's or the filter's show every field they have). Both structs are destructured
+/// field by field below, so a new setting does not compile until it is listed here: it is compared
+/// unless it is left out on purpose, with the reason. Left out: the thread count (the image does
+/// not depend on it), whether squared sums are tracked (the beauty film is the same) and the
+/// environment map's path (machines may mount it elsewhere; its content is in the scene digest).
+/// `light_sampler` is the sampler the built world uses ([`crate::light::LightSet::sampler_kind`]),
+/// never `auto`: `auto` resolves to different samplers by light count and version.
 pub fn image_settings(
     s: &RenderSettings,
     w: &WorldOptions,
@@ -107,53 +110,85 @@ pub fn image_settings(
         light_sampler != crate::light::LightSamplerKind::Auto,
         "image_settings wants the resolved light sampler"
     );
-    let mut m = BTreeMap::new();
-    let mut put = |k: &str, v: String| {
-        m.insert(k.to_string(), v);
-    };
-    put("seed", s.seed.to_string());
-    put("sampler", format!("{:?}", s.sampler));
-    put("integrator", format!("{:?}", s.integrator));
-    put("max_depth", s.path.max_depth.to_string());
-    put("rr_depth", s.path.rr_depth.to_string());
-    put("rr_scale", format!("{:?}", s.path.rr_scale));
-    put("nee", s.path.nee.to_string());
-    put("mis", s.path.mis.to_string());
-    put("secondary", s.path.secondary.to_string());
-    // Keys added with filters and crops are written only when not the default, so partial films
-    // of default renders keep the headers they had (and still merge with older parts).
-    if !s.filter.is_default_box() {
-        put("filter", s.filter.describe());
-    }
-    if let Some(c) = s.crop {
-        put(
-            "crop",
-            format!(
-                "{}x{} pixels {}..{}, {}..{}",
-                s.width, s.height, c.x0, c.x1, c.y0, c.y1
-            ),
-        );
-    }
-    put("accel", format!("{:?}", w.accel));
-    put("camera", format!("{:?}", w.camera));
-    put(
-        "default_light",
-        w.default_light
-            .map_or("file", DefaultLight::name)
-            .to_string(),
-    );
-    put("env_map", w.env.is_some().to_string());
-    // Only when given, so that older partial films still merge.
-    if let Some(c) = &w.camera_override {
-        put("camera_view", format!("{c:?}"));
-    }
-    if w.env_rotation != 0.0 {
-        put("env_rotation", format!("{:?}", w.env_rotation));
-    }
-    // Always, and the resolved kind: `auto` picks power / bvh / bvh8 by the scene's light count,
-    // and has picked differently in different versions.
-    put("light_sampler", light_sampler.name().to_string());
+    let RenderSettings {
+        width,
+        height,
+        spp,
+        seed,
+        threads: _,
+        sampler,
+        integrator,
+        path,
+        filter,
+        noise_threshold,
+        time_limit,
+        crop,
+        track_variance: _,
+    } = s;
+    let WorldOptions {
+        accel,
+        camera,
+        default_light,
+        env,
+        env_rotation,
+        camera_override,
+        variant,
+        light_sampler: _,
+        texture_filter,
+    } = w;
+    let env_map = env.is_some();
+    let light_sampler = light_sampler.name();
+    let fields: [(&str, &dyn std::fmt::Debug); 19] = [
+        ("width", width),
+        ("height", height),
+        ("spp", spp),
+        ("seed", seed),
+        ("sampler", sampler),
+        ("integrator", integrator),
+        ("path", path),
+        ("filter", filter),
+        ("noise_threshold", noise_threshold),
+        ("time_limit", time_limit),
+        ("crop", crop),
+        ("accel", accel),
+        ("camera", camera),
+        ("default_light", default_light),
+        ("env_map", &env_map),
+        ("env_rotation", env_rotation),
+        ("camera_view", camera_override),
+        ("variant", variant),
+        ("texture_filter", texture_filter),
+    ];
+    let mut m: BTreeMap<String, String> = fields
+        .iter()
+        .map(|(k, v)| (k.to_string(), format!("{v:?}")))
+        .collect();
+    m.insert("light_sampler".into(), light_sampler.to_string());
     m
+}
+
+/// Whether a part's pixels each hold every sample of its range that was not discarded: true
+/// unless it comes from an adaptive render (whose converged pixels stopped early; such a film is
+/// only ever saved when writing its image failed, see [`crate::pipeline`]).
+fn uniform_counts(h: &PartHeader) -> bool {
+    h.settings
+        .get("noise_threshold")
+        .is_none_or(|v| v == "None")
+}
+
+/// Where two `Debug` texts first differ, as the comma-separated pieces around it (`max_depth:
+/// 5` rather than two whole structs).
+fn first_difference(a: &str, b: &str) -> (String, String) {
+    let split = |s: &str| -> Vec<String> {
+        s.split([',', '{', '}', '(', ')'])
+            .map(|p| p.trim().to_string())
+            .collect()
+    };
+    let (pa, pb) = (split(a), split(b));
+    match pa.iter().zip(&pb).find(|(x, y)| x != y) {
+        Some((x, y)) if !x.is_empty() && !y.is_empty() => (x.clone(), y.clone()),
+        _ => (a.to_string(), b.to_string()),
+    }
 }
 
 impl PartHeader {
@@ -236,7 +271,8 @@ impl PartHeader {
             let (a, b) = (self.settings.get(k), other.settings.get(k));
             if a != b {
                 let show = |v: Option<&String>| v.cloned().unwrap_or_else(|| "unset".into());
-                return diff(&format!("the setting '{k}'"), &show(a), &show(b));
+                let (a, b) = first_difference(&show(a), &show(b));
+                return diff(&format!("the setting '{k}'"), &a, &b);
             }
         }
         None
@@ -247,58 +283,93 @@ impl Part {
     /// Writes the part to `path` atomically: to a temporary file beside it, flushed to disk, then
     /// renamed over `path`, so a crash leaves either the old file or the new one, never half.
     pub fn write(&self, path: &Path) -> Result<(), PartError> {
-        let io = |source| PartError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        let mut name = path.file_name().unwrap_or_default().to_os_string();
-        name.push(format!(".tmp{}", std::process::id()));
-        let tmp = path.with_file_name(name);
-        let result = (|| {
-            let file = std::fs::File::create(&tmp)?;
-            let mut out = std::io::BufWriter::new(file);
-            let header = serde_json::to_vec(&self.header).map_err(std::io::Error::other)?;
-            out.write_all(MAGIC)?;
-            out.write_all(&(header.len() as u32).to_le_bytes())?;
-            out.write_all(&header)?;
-            let mut z = flate2::write::ZlibEncoder::new(out, flate2::Compression::fast());
-            let (sum, count) = self.film.raw();
-            let mut buf = Vec::with_capacity(48 * 1024);
-            for s in sum {
-                for c in s {
-                    buf.extend_from_slice(&c.to_le_bytes());
-                }
-                if buf.len() >= 48 * 1024 {
-                    z.write_all(&buf)?;
-                    buf.clear();
-                }
-            }
-            for n in count {
-                buf.extend_from_slice(&n.to_le_bytes());
-                if buf.len() >= 48 * 1024 {
-                    z.write_all(&buf)?;
-                    buf.clear();
-                }
-            }
-            z.write_all(&buf)?;
-            let out = z.finish()?;
-            let file = out.into_inner().map_err(|e| e.into_error())?;
-            file.sync_all()?;
-            std::fs::rename(&tmp, path)
-        })();
-        if result.is_err() {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        result.map_err(io)
+        write_film(&self.header, &self.film, path)
     }
 
-    /// Reads and checks a part.
+    /// Reads and checks a part: [`PartFile::open`], then [`PartFile::read`].
     pub fn read(path: &Path) -> Result<Part, PartError> {
+        PartFile::open(path)?.read()
+    }
+}
+
+/// [`Part::write`] of a film under a header, without making them a [`Part`] (no copy of the film).
+pub fn write_film(header: &PartHeader, film: &Film, path: &Path) -> Result<(), PartError> {
+    let io = |source| PartError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".tmp{}", std::process::id()));
+    let tmp = path.with_file_name(name);
+    let result = (|| {
+        let file = std::fs::File::create(&tmp)?;
+        let mut out = std::io::BufWriter::new(file);
+        let header = serde_json::to_vec(header).map_err(std::io::Error::other)?;
+        out.write_all(MAGIC)?;
+        out.write_all(&(header.len() as u32).to_le_bytes())?;
+        out.write_all(&header)?;
+        let mut z = flate2::write::ZlibEncoder::new(out, flate2::Compression::fast());
+        let (sum, count) = film.raw();
+        let mut buf = Vec::with_capacity(48 * 1024);
+        for s in sum {
+            for c in s {
+                buf.extend_from_slice(&c.to_le_bytes());
+            }
+            if buf.len() >= 48 * 1024 {
+                z.write_all(&buf)?;
+                buf.clear();
+            }
+        }
+        for n in count {
+            buf.extend_from_slice(&n.to_le_bytes());
+            if buf.len() >= 48 * 1024 {
+                z.write_all(&buf)?;
+                buf.clear();
+            }
+        }
+        z.write_all(&buf)?;
+        let out = z.finish()?;
+        let file = out.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(io)
+}
+
+/// Deflate's largest compression ratio (a 258-byte match in two bits, RFC 1951): a zlib stream
+/// of `n` bytes cannot unpack to more than about this many times `n`.
+const MAX_DEFLATE_RATIO: u64 = 1032;
+
+/// Bytes of pixel data per pixel once unpacked: three `i128` sums and a `u32` count.
+const PIXEL_BYTES: u64 = 48 + 4;
+
+/// A partial film whose header has been read and checked, its pixels not yet: what a merge or
+/// a resume looks at first, so that parts of another frame are refused before any pixel memory
+/// is allocated.
+pub struct PartFile {
+    pub path: PathBuf,
+    pub header: PartHeader,
+    /// Where the zlib stream of the pixels starts, and how many bytes the file has after it.
+    data_start: u64,
+    data_len: u64,
+}
+
+impl PartFile {
+    /// Reads and checks the header: format, size, sample range, and that the rest of the file
+    /// is large enough to hold the pixels the header claims.
+    pub fn open(path: &Path) -> Result<PartFile, PartError> {
         let io = |source| PartError::Io {
             path: path.to_path_buf(),
             source,
         };
         let file = std::fs::File::open(path).map_err(io)?;
+        let meta = file.metadata().map_err(io)?;
+        if !meta.is_file() {
+            return Err(format_err(path, "it is not a regular file"));
+        }
         let mut r = std::io::BufReader::new(file);
         let mut magic = [0u8; 8];
         r.read_exact(&mut magic)
@@ -368,39 +439,146 @@ impl Part {
                 format!("sample range {a}..{b} of a {}-spp frame is invalid", h.spp),
             ));
         }
-        // Decompress exactly the expected number of bytes (and refuse more: no zip bombs).
-        let n = pixels as usize;
-        let expected = n as u64 * (48 + 4);
-        let mut z = flate2::read::ZlibDecoder::new(r).take(expected + 1);
-        // Capacity grows with the data actually decompressed: a header that lies about the size
-        // cannot make us allocate gigabytes up front.
-        let mut sum = Vec::with_capacity(n.min(1 << 16));
-        let mut word = [0u8; 16];
+        let data_start = 12 + len as u64;
+        let data_len = meta.len().saturating_sub(data_start);
+        let expected = pixels * PIXEL_BYTES;
+        if expected > data_len.saturating_mul(MAX_DEFLATE_RATIO) {
+            return Err(format_err(
+                path,
+                format!(
+                    "its header claims {}x{} pixels ({expected} bytes of sums and counts), more \
+                     than the {data_len} bytes after it can hold (zlib packs at most \
+                     {MAX_DEFLATE_RATIO}:1): the file is truncated or forged",
+                    h.width, h.height
+                ),
+            ));
+        }
+        Ok(PartFile {
+            path: path.to_path_buf(),
+            header: h,
+            data_start,
+            data_len,
+        })
+    }
+
+    /// The pixel data, unpacked: exactly the expected number of bytes are let through (one more
+    /// is asked for, to see whether the stream goes on: no zip bombs).
+    fn pixel_stream(&self) -> Result<impl Read, PartError> {
+        use std::io::Seek;
+        let io = |source| PartError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let mut file = std::fs::File::open(&self.path).map_err(io)?;
+        file.seek(std::io::SeekFrom::Start(self.data_start))
+            .map_err(io)?;
+        let n = self.header.width as u64 * self.header.height as u64;
+        let z = flate2::read::ZlibDecoder::new(std::io::BufReader::new(file.take(self.data_len)));
+        Ok(z.take(n * PIXEL_BYTES + 1))
+    }
+
+    /// Reads the pixels, checked twice: a first pass over the stream, holding nothing, checks
+    /// its length and that the sample counts agree with the header (each at most the range's
+    /// length, and the samples missing from them exactly the ones the header says were
+    /// discarded: every sample of a fixed-count render is either counted in its pixel or
+    /// discarded); only then are the arrays allocated, at their exact size, and filled by a
+    /// second pass, which checks every sum against what its count of samples can reach. A
+    /// forged file therefore costs the time to unpack it, never the memory its header asks for.
+    pub fn read(self) -> Result<Part, PartError> {
+        let h = &self.header;
+        let path = self.path.as_path();
+        let n = h.width as usize * h.height as usize;
+        let span = h.samples[1] - h.samples[0];
         let short = |_| format_err(path, "the pixel data is truncated or corrupt");
-        for _ in 0..n {
-            let mut px = [0i128; 3];
-            for c in &mut px {
-                z.read_exact(&mut word).map_err(short)?;
-                *c = i128::from_le_bytes(word);
+
+        // First pass: lengths and counts, nothing kept.
+        let mut z = self.pixel_stream()?;
+        let mut buf = vec![0u8; 1 << 16];
+        let mut sums_left = n as u64 * 48;
+        while sums_left > 0 {
+            let k = sums_left.min(buf.len() as u64) as usize;
+            z.read_exact(&mut buf[..k]).map_err(short)?;
+            sums_left -= k as u64;
+        }
+        let mut missing = 0u64;
+        let mut counts_left = n;
+        while counts_left > 0 {
+            let k = counts_left.min(buf.len() / 4);
+            z.read_exact(&mut buf[..4 * k]).map_err(short)?;
+            for (i, w) in buf[..4 * k].chunks_exact(4).enumerate() {
+                let c = u32::from_le_bytes([w[0], w[1], w[2], w[3]]);
+                if c > span {
+                    let p = (n - counts_left + i) as u64;
+                    return Err(format_err(
+                        path,
+                        format!(
+                            "pixel ({}, {}) holds impossible values: {c} samples, more than \
+                             its range of {span}",
+                            p % h.width as u64,
+                            p / h.width as u64
+                        ),
+                    ));
+                }
+                missing += (span - c) as u64;
             }
-            sum.push(px);
+            counts_left -= k;
         }
-        let mut count = Vec::with_capacity(n.min(1 << 16));
-        let mut w4 = [0u8; 4];
-        for _ in 0..n {
-            z.read_exact(&mut w4).map_err(short)?;
-            count.push(u32::from_le_bytes(w4));
-        }
-        let mut rest = Vec::new();
-        z.read_to_end(&mut rest).map_err(short)?;
-        if !rest.is_empty() {
+        let mut rest = [0u8; 1];
+        if z.read(&mut rest).map_err(short)? != 0 {
             return Err(format_err(path, "there is data after the pixels"));
         }
-        // Every count is at most the range's length, and every sum within what that many samples
-        // below the sample limit can reach, so merging parts of one frame cannot overflow.
+        let consistent = if uniform_counts(h) {
+            missing == h.discarded
+        } else {
+            missing >= h.discarded
+        };
+        if !consistent {
+            return Err(format_err(
+                path,
+                format!(
+                    "its pixels lack {missing} of their {} samples but its header says {} were \
+                     discarded: the pixel data does not belong to this header",
+                    n as u64 * span as u64,
+                    h.discarded
+                ),
+            ));
+        }
+
+        // Second pass: the arrays, at their exact size.
+        let mut z = self.pixel_stream()?;
+        let mut sum: Vec<[i128; 3]> = Vec::with_capacity(n);
+        let mut left = n;
+        while left > 0 {
+            let k = left.min(buf.len() / 48);
+            z.read_exact(&mut buf[..48 * k]).map_err(short)?;
+            for px in buf[..48 * k].chunks_exact(48) {
+                let c = |j: usize| {
+                    let mut w = [0u8; 16];
+                    w.copy_from_slice(&px[16 * j..16 * j + 16]);
+                    i128::from_le_bytes(w)
+                };
+                sum.push([c(0), c(1), c(2)]);
+            }
+            left -= k;
+        }
+        let mut count: Vec<u32> = Vec::with_capacity(n);
+        let mut left = n;
+        while left > 0 {
+            let k = left.min(buf.len() / 4);
+            z.read_exact(&mut buf[..4 * k]).map_err(short)?;
+            count.extend(
+                buf[..4 * k]
+                    .chunks_exact(4)
+                    .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])),
+            );
+            left -= k;
+        }
+        // The file may have changed between the passes: the counts are checked again with the
+        // sums. Every sum is within what its count of samples below the sample limit can reach,
+        // so merging parts of one frame cannot overflow.
         let limit = (SAMPLE_LIMIT as f64 * (1u64 << FRAC_BITS) as f64) as i128;
         for (i, (s, &c)) in sum.iter().zip(&count).enumerate() {
-            if c > b - a
+            if c > span
                 || s.iter()
                     .any(|v| v.unsigned_abs() > (limit * c as i128) as u128)
             {
@@ -414,24 +592,27 @@ impl Part {
                 ));
             }
         }
+        drop(z);
         let film = Film::from_raw(h.width, h.height, sum, count, h.discarded)
             .ok_or_else(|| format_err(path, "inconsistent pixel data"))?;
-        Ok(Part { header: h, film })
+        Ok(Part {
+            header: self.header.clone(),
+            film,
+        })
     }
 }
 
-/// Merges parts of one frame in sample order. Refuses parts that do not belong to the same frame
-/// (scene, settings, size, version, render identity), that overlap, or that leave a gap; `complete` also requires
-/// the parts to cover every sample of the frame (the merged part is otherwise a longer range, to
-/// be merged further). The result is exact: the same film whichever way the frame was split.
-pub fn merge(parts: Vec<(PathBuf, Part)>, complete: bool) -> Result<Part, PartError> {
+/// Checks that parts (by their headers) can be merged: the same frame (scene, every setting,
+/// size, version, render identity), no overlap, no gap; `complete` also requires them to cover
+/// every sample of the frame. Returns the sample range the merged part holds. Needs no pixels, so
+/// `trayecto merge` refuses a wrong set of parts before reading any.
+pub fn check_merge(parts: &[(&Path, &PartHeader)], complete: bool) -> Result<[u32; 2], PartError> {
     let err = |m: String| Err(PartError::Merge(m));
-    if parts.is_empty() {
+    let Some((first_path, first)) = parts.first() else {
         return err("no parts to merge".into());
-    }
-    let (first_path, first) = &parts[0];
-    for (p, part) in &parts[1..] {
-        if let Some(why) = first.header.mismatch(&part.header) {
+    };
+    for (p, h) in &parts[1..] {
+        if let Some(why) = first.mismatch(h) {
             return err(format!(
                 "{} does not belong to the same frame as {}: {why}",
                 p.display(),
@@ -439,10 +620,10 @@ pub fn merge(parts: Vec<(PathBuf, Part)>, complete: bool) -> Result<Part, PartEr
             ));
         }
     }
-    let mut order: Vec<&(PathBuf, Part)> = parts.iter().collect();
-    order.sort_by_key(|(_, p)| (p.header.samples[0], p.header.samples[1]));
-    let spp = first.header.spp;
-    let start = order[0].1.header.samples[0];
+    let mut order: Vec<&(&Path, &PartHeader)> = parts.iter().collect();
+    order.sort_by_key(|(_, h)| (h.samples[0], h.samples[1]));
+    let spp = first.spp;
+    let start = order[0].1.samples[0];
     if complete && start != 0 {
         return err(format!(
             "samples 0..{start} are missing (the first part, {}, starts at sample {start})",
@@ -451,15 +632,15 @@ pub fn merge(parts: Vec<(PathBuf, Part)>, complete: bool) -> Result<Part, PartEr
     }
     for w in order.windows(2) {
         let ((pa, a), (pb, b)) = (w[0], w[1]);
-        let (ae, bs) = (a.header.samples[1], b.header.samples[0]);
+        let (ae, bs) = (a.samples[1], b.samples[0]);
         if bs < ae {
             return err(format!(
                 "{} (samples {}..{ae}) and {} (samples {bs}..{}) overlap on samples {bs}..{}",
                 pa.display(),
-                a.header.samples[0],
+                a.samples[0],
                 pb.display(),
-                b.header.samples[1],
-                ae.min(b.header.samples[1])
+                b.samples[1],
+                ae.min(b.samples[1])
             ));
         }
         if bs > ae {
@@ -471,15 +652,28 @@ pub fn merge(parts: Vec<(PathBuf, Part)>, complete: bool) -> Result<Part, PartEr
         }
     }
     let (last_path, last) = order[order.len() - 1];
-    let end = last.header.samples[1];
+    let end = last.samples[1];
     if complete && end != spp {
         return err(format!(
             "samples {end}..{spp} are missing (the last part, {}, ends at sample {end})",
             last_path.display()
         ));
     }
+    Ok([start, end])
+}
+
+/// Merges parts of one frame in sample order, after [`check_merge`]. The result is exact: the
+/// same film whichever way the frame was split. The discarded-sample count saturates (parts of
+/// one frame cannot reach it; forged ones must not wrap it round to zero).
+pub fn merge(parts: Vec<(PathBuf, Part)>, complete: bool) -> Result<Part, PartError> {
+    let headers: Vec<(&Path, &PartHeader)> = parts
+        .iter()
+        .map(|(p, part)| (p.as_path(), &part.header))
+        .collect();
+    let [start, end] = check_merge(&headers, complete)?;
+    let first = &parts[0].1;
     let mut film = Film::new(first.header.width, first.header.height);
-    for (p, part) in &order {
+    for (p, part) in &parts {
         film.add_film(&part.film)
             .map_err(|e| PartError::Merge(format!("{}: {e}", p.display())))?;
     }

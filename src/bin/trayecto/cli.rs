@@ -77,6 +77,9 @@ pub struct MergeArgs {
     /// Tone mapping for .png/.ppm: clamp, gamma2.2, aces or agx.
     #[arg(long, default_value = "clamp")]
     pub tonemap: Tonemap,
+    /// Print only errors.
+    #[arg(short, long)]
+    pub quiet: bool,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -209,7 +212,8 @@ pub struct RenderArgs {
     /// Render only sample indices A..B of the --spp frame (write a partial film: -o part.trp).
     #[arg(long, value_name = "A..B")]
     pub samples: Option<String>,
-    /// Save the film to FILE (a partial film) during the render and on Ctrl-C, to --resume later.
+    /// Save the film to FILE (a partial film) during the render and on Ctrl-C (or SIGTERM,
+    /// SIGHUP), to --resume later. Without it, Ctrl-C writes the image of the completed passes.
     #[arg(long, value_name = "FILE")]
     pub checkpoint: Option<PathBuf>,
     /// Seconds between checkpoints (at the end of a pass; 0: after every pass).
@@ -410,6 +414,8 @@ impl RenderArgs {
                 checkpoint: self.checkpoint.clone().or_else(|| self.resume.clone()),
                 checkpoint_interval: std::time::Duration::from_secs_f64(self.checkpoint_interval),
                 resume: self.resume.clone(),
+                // Ctrl-C without a checkpoint still writes the image of the completed passes.
+                write_on_interrupt: true,
             },
             crop,
             aovs: self.aov_layers()?,
@@ -420,8 +426,8 @@ impl RenderArgs {
     }
 }
 
-/// The terminal's view of a render: warnings always, the summary and the phase report unless
-/// `--quiet`, a progress bar while rendering when stderr is a terminal.
+/// The terminal's view of a render: warnings, the summary and the phase report unless `--quiet`
+/// (errors only), a progress bar while rendering when stderr is a terminal.
 struct Console {
     quiet: bool,
     bar: Option<indicatif::ProgressBar>,
@@ -444,16 +450,18 @@ impl PipelineObserver for Console {
     }
 
     fn log(&self, line: LogLine) {
-        if !self.quiet || matches!(line, LogLine::Warning(_)) {
+        if !self.quiet {
             eprintln!("{line}");
         }
     }
 }
 
-/// Set by Ctrl-C: the render stops after the pass in flight and saves its checkpoint.
+/// Set by Ctrl-C, SIGTERM and SIGHUP: the render stops after the pass in flight and saves what
+/// it has (the checkpoint, else the image of the completed passes).
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
-/// The exit code of a render stopped by Ctrl-C (128 + SIGINT, as shells report it).
+/// The exit code of a render stopped by Ctrl-C (128 + SIGINT, as shells report it; SIGTERM and
+/// SIGHUP, handled alike, end with it too).
 pub const EXIT_INTERRUPTED: u8 = 130;
 
 /// A render stopped by Ctrl-C: the message says what was saved.
@@ -480,8 +488,9 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         quiet: args.quiet,
         bar,
     };
-    // Ctrl-C stops after the pass in flight and saves the checkpoint; a second Ctrl-C exits at
-    // once. One handler per process: a second render in the same process keeps the first.
+    // Ctrl-C (and SIGTERM, SIGHUP: the `termination` feature of ctrlc) stops after the pass in
+    // flight and saves what it has; a second one exits at once. One handler per process: a
+    // second render in the same process keeps the first.
     let _ = ctrlc::set_handler(|| {
         if INTERRUPTED.swap(true, std::sync::atomic::Ordering::SeqCst) {
             std::process::exit(EXIT_INTERRUPTED as i32);
@@ -489,9 +498,11 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     });
     match job.run(&console, &INTERRUPTED) {
         Ok(_) => Ok(()),
-        Err(e @ PipelineError::Interrupted(_)) => Err(Interrupted(e.to_string()).into()),
+        Err(e @ PipelineError::Interrupted { .. }) => Err(Interrupted(e.to_string()).into()),
         Err(PipelineError::Cancelled) => Err(Interrupted(
-            "interrupted; nothing saved (use --checkpoint FILE to be able to resume)".into(),
+            "interrupted before a pass completed; nothing saved (use --checkpoint FILE to be \
+             able to resume)"
+                .into(),
         )
         .into()),
         Err(e) => Err(e.into()),
@@ -499,8 +510,14 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
 }
 
 pub fn run_merge(args: &MergeArgs) -> Result<()> {
-    use trayecto::split::partial::{Part, merge};
+    use trayecto::split::partial::{PartFile, check_merge, merge};
     let partial_output = is_partial_film(&args.output);
+    if args.output.is_dir() {
+        bail!(
+            "{}: is a folder: name a file in it (e.g. -o folder/merged.exr)",
+            args.output.display()
+        );
+    }
     if !partial_output {
         Format::from_path(&args.output)?;
     }
@@ -510,9 +527,20 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
             args.exposure
         );
     }
-    let mut parts = Vec::with_capacity(args.parts.len());
+    // Every header first: parts of another frame, gaps and overlaps are refused before any
+    // pixels are read.
+    let mut files = Vec::with_capacity(args.parts.len());
     for p in &args.parts {
-        parts.push((p.clone(), Part::read(p)?));
+        files.push(PartFile::open(p)?);
+    }
+    let headers: Vec<_> = files
+        .iter()
+        .map(|f| (f.path.as_path(), &f.header))
+        .collect();
+    check_merge(&headers, !partial_output).context("cannot merge")?;
+    let mut parts = Vec::with_capacity(files.len());
+    for f in files {
+        parts.push((f.path.clone(), f.read()?));
     }
     let merged = merge(parts, !partial_output).context("cannot merge")?;
     if partial_output {
@@ -524,6 +552,9 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
             args.exposure,
             args.tonemap,
         )?;
+    }
+    if args.quiet {
+        return Ok(());
     }
     eprintln!(
         "merged {} parts (samples {}..{} of {} spp) into {}",

@@ -3,7 +3,7 @@
 //! progress bar. Cancelling sets the driver's flag; when the thread ends the world, the film and
 //! the preview are dropped, so a cancelled job holds no image memory.
 
-use super::request::{Defaults, RenderRequest, SceneSource};
+use super::request::{Defaults, RenderRequest};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -244,7 +244,10 @@ impl PipelineObserver for Observer<'_> {
     }
 
     fn log(&self, line: LogLine) {
-        let line = line.to_string().replace(&self.out_dir, "");
+        let line = self
+            .job
+            .request
+            .relative_paths(&line.to_string().replace(&self.out_dir, ""));
         self.job.status().log.push(line);
     }
 }
@@ -576,11 +579,9 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
         }
         // Scene errors name the file by its canonical path; show the name the page used.
         Err(e) => {
-            let mut m = e.to_string();
-            if let SceneSource::File(p) = &r.source {
-                m = m.replace(&*p.to_string_lossy(), &r.scene);
-            }
-            return Err(JobEnd::Failed(m));
+            return Err(JobEnd::Failed(
+                r.relative_paths(&e.to_string().replace(&observer.out_dir, "")),
+            ));
         }
     }
     let mut st = job.status();
@@ -624,6 +625,7 @@ mod tests {
             env_rotation: 0.0,
             camera: None,
             aovs: Vec::new(),
+            scenes_dir: None,
         }
     }
 

@@ -10,11 +10,10 @@
 // once per HTTP request.
 #![allow(clippy::result_large_err)]
 
-pub mod folder;
 pub mod jobs;
-pub mod request;
-pub mod upload;
 pub mod viewport;
+// The request and upload checks live in the library, where the fuzz targets reach them.
+pub use trayecto::server::{folder, request, upload};
 
 use axum::Router;
 use axum::body::Body;
@@ -367,6 +366,31 @@ fn error(status: StatusCode, message: impl Into<String>) -> Response {
 /// Host check (against DNS rebinding), cross-origin write check (against CSRF from other pages),
 /// and security headers on every response.
 async fn guard(State(st): State<Shared>, req: Request, next: Next) -> Response {
+    let mut res = admit(&st, req, next).await;
+    let h = res.headers_mut();
+    h.insert(
+        header::X_CONTENT_TYPE_OPTIONS,
+        HeaderValue::from_static("nosniff"),
+    );
+    // No other site may frame the page (clickjacking): CSP `frame-ancestors`, and
+    // `X-Frame-Options` for browsers without it; no address (a job id, a token) leaks as Referer.
+    h.insert(
+        header::CONTENT_SECURITY_POLICY,
+        HeaderValue::from_static(
+            "default-src 'self'; img-src 'self' blob: data:; frame-ancestors 'none'",
+        ),
+    );
+    h.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
+    h.insert(
+        header::REFERRER_POLICY,
+        HeaderValue::from_static("no-referrer"),
+    );
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    res
+}
+
+/// The checks of [`guard`]: the handler's answer, or the refusal.
+async fn admit(st: &AppState, req: Request, next: Next) -> Response {
     let headers = req.headers();
     let host = headers
         .get(header::HOST)
@@ -390,18 +414,7 @@ async fn guard(State(st): State<Shared>, req: Request, next: Next) -> Response {
     {
         return refusal;
     }
-    let mut res = next.run(req).await;
-    let h = res.headers_mut();
-    h.insert(
-        header::X_CONTENT_TYPE_OPTIONS,
-        HeaderValue::from_static("nosniff"),
-    );
-    h.insert(
-        header::CONTENT_SECURITY_POLICY,
-        HeaderValue::from_static("default-src 'self'; img-src 'self' blob: data:"),
-    );
-    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
-    res
+    next.run(req).await
 }
 
 /// `None` when the request carries the token (a Bearer header, `X-Trayecto-Token` or the
@@ -409,11 +422,13 @@ async fn guard(State(st): State<Shared>, req: Request, next: Next) -> Response {
 fn check_token(access: &Access, req: &Request) -> Option<Response> {
     let ok = |t: &str| same_secret(t.trim().as_bytes(), access.token.as_bytes());
     let headers = req.headers();
+    // The scheme is case-insensitive (RFC 9110 §11.1): "bearer" is "Bearer".
     let header_ok = headers
         .get(header::AUTHORIZATION)
         .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.strip_prefix("Bearer "))
-        .is_some_and(ok)
+        .and_then(|v| v.trim_start().split_once(' '))
+        .filter(|(scheme, _)| scheme.eq_ignore_ascii_case("bearer"))
+        .is_some_and(|(_, t)| ok(t))
         || headers
             .get("x-trayecto-token")
             .and_then(|v| v.to_str().ok())

@@ -4,17 +4,17 @@
 //! (`RenderSettings::validate`) and the server's own, tighter caps.
 
 use super::folder::{MAX_SCENE_NAME, resolve_env, resolve_scene};
+use crate::film::filter::{Filter, FilterKind};
+use crate::film::tonemap::Tonemap;
+use crate::integrator::{IntegratorKind, PathSettings};
+use crate::light::default_light::DefaultLight;
+use crate::render::{MAX_DEPTH, MAX_SECONDARY, RenderSettings};
+use crate::sampling::SamplerKind;
+use crate::scene::builtin;
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::str::FromStr;
-use trayecto::film::filter::{Filter, FilterKind};
-use trayecto::film::tonemap::Tonemap;
-use trayecto::integrator::{IntegratorKind, PathSettings};
-use trayecto::light::default_light::DefaultLight;
-use trayecto::render::{MAX_DEPTH, MAX_SECONDARY, RenderSettings};
-use trayecto::sampling::SamplerKind;
-use trayecto::scene::builtin;
 
 /// Integrator and tone-mapping names offered to the page; only those the library parses are
 /// shown, so new modes appear by themselves when they land.
@@ -112,7 +112,7 @@ pub struct RenderRequest {
     /// Whether the request named a filter (else the scene file's, e.g. a pbrt PixelFilter).
     pub filter_given: bool,
     /// `crop`: fractions [x0, x1, y0, y1] of the image (pbrt's cropwindow).
-    pub crop: Option<trayecto::pipeline::CropSpec>,
+    pub crop: Option<crate::pipeline::CropSpec>,
     /// glTF material variant (`KHR_materials_variants`); `None`: the file's default materials.
     pub variant: Option<String>,
     /// An environment map from the scenes folder lighting the scene (canonical path), and its
@@ -121,19 +121,40 @@ pub struct RenderRequest {
     /// `env_rotation`: the environment map turned about +y, in degrees.
     pub env_rotation: f32,
     /// `camera`: render from this view (the viewport's) instead of the scene's camera.
-    pub camera: Option<trayecto::camera::CameraSpec>,
+    pub camera: Option<crate::camera::CameraSpec>,
     /// `aovs`: layers written into the EXR with the image (`albedo`, `normal`, which the page
     /// can show; `samples`, `variance`, the film's per-pixel statistics).
-    pub aovs: Vec<trayecto::film::aov::AovKind>,
+    pub aovs: Vec<crate::film::aov::AovKind>,
+    /// The canonical scenes folder the request was checked against, which the job's log and
+    /// errors never show ([`RenderRequest::relative_paths`]).
+    pub scenes_dir: Option<PathBuf>,
+}
+
+impl RenderRequest {
+    /// `text` (a log line, an error) with the scene file named as the client named it and every
+    /// other path inside the scenes folder relative to it: the page and the API never reveal
+    /// where the server keeps its scenes.
+    pub fn relative_paths(&self, text: &str) -> String {
+        let mut t = text.to_string();
+        if let SceneSource::File(p) = &self.source {
+            t = t.replace(&*p.to_string_lossy(), &self.scene);
+        }
+        if let Some(root) = &self.scenes_dir {
+            let root = root.to_string_lossy();
+            t = t.replace(&format!("{root}{}", std::path::MAIN_SEPARATOR), "");
+            t = t.replace(&*root, ".");
+        }
+        t
+    }
 }
 
 /// AOV layers a request may ask for (albedo and normal: the page's view toggle).
 pub const AOV_NAMES: [&str; 4] = ["albedo", "normal", "samples", "variance"];
 
 /// The `camera` field: `{"eye": [x, y, z], "target": [x, y, z], "up": [x, y, z], "fov": degrees}`
-/// (`up` defaults to +y, `fov` to 39.6), checked by [`trayecto::camera::CameraSpec::validate`].
-pub fn camera_field(v: &Value) -> Result<trayecto::camera::CameraSpec, String> {
-    use trayecto::camera::CameraSpec;
+/// (`up` defaults to +y, `fov` to 39.6), checked by [`crate::camera::CameraSpec::validate`].
+pub fn camera_field(v: &Value) -> Result<crate::camera::CameraSpec, String> {
+    use crate::camera::CameraSpec;
     let Value::Object(o) = v else {
         return Err("must be an object {eye, target, up, fov}".into());
     };
@@ -146,10 +167,10 @@ pub fn camera_field(v: &Value) -> Result<trayecto::camera::CameraSpec, String> {
             "unknown key '{shown}' (known: eye, target, up, fov)"
         ));
     }
-    let vec3 = |key: &str, default: Option<[f32; 3]>| -> Result<trayecto::math::Vec3, String> {
+    let vec3 = |key: &str, default: Option<[f32; 3]>| -> Result<crate::math::Vec3, String> {
         match o.get(key) {
             None | Some(Value::Null) => default
-                .map(trayecto::math::Vec3::from)
+                .map(crate::math::Vec3::from)
                 .ok_or_else(|| format!("{key} is missing (three numbers)")),
             Some(Value::Array(a)) if a.len() == 3 => {
                 let mut out = [0f32; 3];
@@ -333,22 +354,22 @@ pub fn scene_source(name: &str, policy: &Policy) -> Result<SceneSource, String> 
 }
 
 /// The settings a render of `scene` resolves to by the command line's rule
-/// ([`trayecto::pipeline::RenderJob::resolve`]: the sides given, else the file's resolution,
-/// else the camera's shape at [`trayecto::pipeline::DEFAULT_HEIGHT`] high, else
+/// ([`crate::pipeline::RenderJob::resolve`]: the sides given, else the file's resolution,
+/// else the camera's shape at [`crate::pipeline::DEFAULT_HEIGHT`] high, else
 /// [`Defaults::WIDTH`]²), with the server's default samples and depth where the file has none,
 /// and the note saying where the size came from.
 fn resolved_settings(
     name: &str,
-    scene: &trayecto::scene::Scene,
+    scene: &crate::scene::Scene,
     width: Option<u32>,
     height: Option<u32>,
-    camera: Option<trayecto::camera::CameraSpec>,
+    camera: Option<crate::camera::CameraSpec>,
 ) -> (RenderSettings, Option<String>) {
-    let job = trayecto::pipeline::RenderJob {
+    let job = crate::pipeline::RenderJob {
         scene: name.to_string(),
-        world: trayecto::world::WorldOptions {
+        world: crate::world::WorldOptions {
             camera_override: camera,
-            ..trayecto::world::WorldOptions::default()
+            ..crate::world::WorldOptions::default()
         },
         settings: RenderSettings {
             width: width.unwrap_or(Defaults::WIDTH as u32),
@@ -360,7 +381,7 @@ fn resolved_settings(
             },
             ..RenderSettings::default()
         },
-        given: trayecto::pipeline::GivenSettings {
+        given: crate::pipeline::GivenSettings {
             width: width.is_some(),
             height: height.is_some(),
             spp: false,
@@ -377,8 +398,8 @@ fn resolved_settings(
 }
 
 /// Loads the scene a request names, with the error message naming it as the client did.
-fn load_scene(name: &str, source: &SceneSource) -> Result<trayecto::scene::Scene, String> {
-    trayecto::scene::load(&source.load_spec()).map_err(|e| {
+fn load_scene(name: &str, source: &SceneSource) -> Result<crate::scene::Scene, String> {
+    crate::scene::load(&source.load_spec()).map_err(|e| {
         let m = e.to_string();
         match source {
             SceneSource::File(p) => m.replace(&*p.to_string_lossy(), name),
@@ -406,7 +427,7 @@ pub fn default_size(
     source: &SceneSource,
     width: Option<u32>,
     height: Option<u32>,
-    camera: Option<trayecto::camera::CameraSpec>,
+    camera: Option<crate::camera::CameraSpec>,
     max_size: u32,
 ) -> Result<(u32, u32), (&'static str, String)> {
     let scene = load_scene(name, source).map_err(|m| ("scene", m))?;
@@ -433,7 +454,7 @@ pub fn default_size(
 }
 
 /// What a render of `name` gets when its size, samples and depth are not given: the file's own
-/// resolution, else its camera's shape (the pipeline's rule, [`trayecto::pipeline::RenderJob::resolve`]),
+/// resolution, else its camera's shape (the pipeline's rule, [`crate::pipeline::RenderJob::resolve`]),
 /// scaled down to fit the server's `max_size`. Loads the scene.
 pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
     let source = scene_source(name, policy)?;
@@ -553,7 +574,7 @@ struct Options {
     filter: Option<Filter>,
     noise_threshold: Option<f32>,
     time_limit: Option<f64>,
-    crop: Option<trayecto::pipeline::CropSpec>,
+    crop: Option<crate::pipeline::CropSpec>,
     denoise: bool,
 }
 
@@ -667,6 +688,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             env_rotation,
             camera,
             aovs,
+            scenes_dir: policy.scenes_dir.clone(),
         }),
         _ => Err(RequestError::Fields(errors)),
     }
@@ -850,7 +872,7 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
 }
 
 /// `crop`: four fractions of the image [x0, x1, y0, y1] (pbrt's cropwindow).
-fn check_crop(v: Option<&Value>, errors: &mut Errors) -> Option<trayecto::pipeline::CropSpec> {
+fn check_crop(v: Option<&Value>, errors: &mut Errors) -> Option<crate::pipeline::CropSpec> {
     match v {
         None | Some(Value::Null) => None,
         Some(Value::Array(a)) if a.len() == 4 => {
@@ -864,7 +886,7 @@ fn check_crop(v: Option<&Value>, errors: &mut Errors) -> Option<trayecto::pipeli
                 .map(|x| x.to_string())
                 .collect::<Vec<_>>()
                 .join(",");
-            match (v.len(), trayecto::pipeline::CropSpec::parse(&text, false)) {
+            match (v.len(), crate::pipeline::CropSpec::parse(&text, false)) {
                 (4, Ok(c)) => Some(c),
                 (_, Err(m)) if v.len() == 4 => {
                     errors.insert("crop".into(), m);
@@ -943,7 +965,7 @@ fn check_environment(
 }
 
 /// `aovs`: a list of layer names, each at most once.
-fn check_aovs(v: Option<&Value>, errors: &mut Errors) -> Vec<trayecto::film::aov::AovKind> {
+fn check_aovs(v: Option<&Value>, errors: &mut Errors) -> Vec<crate::film::aov::AovKind> {
     let mut aovs = Vec::new();
     match v {
         None | Some(Value::Null) => {}
@@ -951,7 +973,7 @@ fn check_aovs(v: Option<&Value>, errors: &mut Errors) -> Vec<trayecto::film::aov
             for v in a {
                 match v.as_str().filter(|n| AOV_NAMES.contains(n)) {
                     Some(n) => {
-                        let k = trayecto::film::aov::AovKind::from_name(n)
+                        let k = crate::film::aov::AovKind::from_name(n)
                             .expect("the offered names parse");
                         if !aovs.contains(&k) {
                             aovs.push(k);
@@ -1010,9 +1032,7 @@ mod tests {
         assert_eq!(r.settings.time_limit, Some(5.0));
         assert_eq!(
             r.crop,
-            Some(trayecto::pipeline::CropSpec::Fractions([
-                0.25, 0.75, 0.0, 0.5
-            ]))
+            Some(crate::pipeline::CropSpec::Fractions([0.25, 0.75, 0.0, 0.5]))
         );
         let plain = parse_request(br#"{"scene":"cornell"}"#, &policy()).unwrap();
         assert!(!plain.filter_given && plain.crop.is_none());

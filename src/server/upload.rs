@@ -5,7 +5,9 @@
 //! temporary folder that is renamed into place only when everything succeeded:
 //! - every entry name is a relative path of plain components: no NUL, no backslash, no drive
 //!   letter or root, no `.`/`..` (zip slip), no empty component, and the `zip` crate's own
-//!   `enclosed_name` must accept it too; names may not repeat;
+//!   `enclosed_name` must accept it too; names may not repeat, and no file may stand where
+//!   another entry needs a folder (`a` beside `a/b.txt`), both judged on the names the archive's
+//!   central directory lists, raw (the `zip` crate keeps only the last of a repeated name);
 //! - symbolic links (and any entry that is neither a file nor a folder) are refused, so nothing
 //!   written can point outside the folder later;
 //! - the number of entries, the total unpacked size and each large entry's compression ratio
@@ -244,16 +246,153 @@ fn entry_parts(raw: &[u8]) -> Result<Option<Vec<String>>, UploadError> {
     Ok(Some(parts))
 }
 
-/// Reads the archive's directory and checks every entry; nothing is written.
+fn le16(b: &[u8], at: usize) -> Option<u64> {
+    Some(u16::from_le_bytes(b.get(at..at + 2)?.try_into().ok()?) as u64)
+}
+
+fn le32(b: &[u8], at: usize) -> Option<u64> {
+    Some(u32::from_le_bytes(b.get(at..at + 4)?.try_into().ok()?) as u64)
+}
+
+fn le64(b: &[u8], at: usize) -> Option<u64> {
+    Some(u64::from_le_bytes(b.get(at..at + 8)?.try_into().ok()?))
+}
+
+/// The entry names exactly as the archive's central directory lists them, duplicates included
+/// (APPNOTE.TXT §4.3.12 central directory headers, §4.3.16 end of central directory record,
+/// §4.3.14–15 its Zip64 form). The `zip` crate indexes entries by name, so a repeated name
+/// would otherwise be seen once, with the last entry's contents. `None` when the directory
+/// cannot be walked (the archive is refused then).
+fn raw_entry_names(body: &[u8], max_entries: usize) -> Option<Vec<Vec<u8>>> {
+    const EOCD: [u8; 4] = *b"PK\x05\x06";
+    const CENTRAL: [u8; 4] = *b"PK\x01\x02";
+    // The end record is 22 bytes plus a comment of at most 65535 bytes, at the very end.
+    let lo = body.len().saturating_sub(22 + 65535);
+    let eocd = (lo..=body.len().checked_sub(22)?)
+        .rev()
+        .find(|&i| body[i..i + 4] == EOCD)?;
+    let mut count = le16(body, eocd + 10)?;
+    let mut size = le32(body, eocd + 12)?;
+    let mut offset = le32(body, eocd + 16)?;
+    if count == 0xffff || size == 0xffff_ffff || offset == 0xffff_ffff {
+        // The Zip64 locator sits just before the end record and points at the Zip64 record.
+        let loc = eocd.checked_sub(20)?;
+        if body[loc..loc + 4] != *b"PK\x06\x07" {
+            return None;
+        }
+        let rec = usize::try_from(le64(body, loc + 8)?).ok()?;
+        if body.get(rec..rec + 4)? != b"PK\x06\x06" {
+            return None;
+        }
+        count = le64(body, rec + 32)?;
+        size = le64(body, rec + 40)?;
+        offset = le64(body, rec + 48)?;
+    }
+    if count > max_entries as u64 + 1 {
+        // Over the limit either way; the caller says so with the real count.
+        return Some(vec![Vec::new(); max_entries + 1]);
+    }
+    // Data prepended to the archive (a self-extractor) shifts every offset: the directory then
+    // ends where the end record starts.
+    let mut at = usize::try_from(offset).ok()?;
+    if body.get(at..at + 4) != Some(&CENTRAL[..]) && count > 0 {
+        at = eocd.checked_sub(usize::try_from(size).ok()?)?;
+    }
+    let mut names = Vec::with_capacity(count as usize);
+    for _ in 0..count {
+        if body.get(at..at + 4)? != CENTRAL {
+            return None;
+        }
+        let name_len = le16(body, at + 28)? as usize;
+        let extra_len = le16(body, at + 30)? as usize;
+        let comment_len = le16(body, at + 32)? as usize;
+        names.push(body.get(at + 46..at + 46 + name_len)?.to_vec());
+        at += 46 + name_len + extra_len + comment_len;
+    }
+    Some(names)
+}
+
+/// Refuses an archive whose directory repeats a name or holds a file where another entry needs
+/// a folder (`a` beside `a/b.txt`): unpacked, the one would replace or block the other. Names are
+/// compared as [`entry_parts`] splits them, ignoring case (a case-insensitive file system would
+/// merge them anyway); skipped entries (`__MACOSX/`, hidden) are never written and do not count.
+fn check_raw_names(names: &[Vec<u8>]) -> Result<(), UploadError> {
+    use std::collections::{HashMap, HashSet};
+    let mut files: HashMap<String, String> = HashMap::new();
+    let mut folders: HashMap<String, String> = HashMap::new();
+    let mut explicit_folders = HashSet::new();
+    for raw in names {
+        let Some(parts) = entry_parts(raw)? else {
+            continue;
+        };
+        let shown = String::from_utf8_lossy(raw).into_owned();
+        let key = parts.join("/").to_lowercase();
+        let is_dir = raw.ends_with(b"/");
+        for i in 1..parts.len() {
+            let folder = parts[..i].join("/").to_lowercase();
+            folders.entry(folder).or_insert_with(|| shown.clone());
+        }
+        if is_dir {
+            // A folder listed twice is harmless: both create the same folder.
+            explicit_folders.insert(key.clone());
+            folders.entry(key).or_insert(shown);
+        } else if let Some(first) = files.insert(key, shown.clone()) {
+            return Err(invalid(if first == shown {
+                format!("archive entry '{shown}' appears twice")
+            } else {
+                format!(
+                    "archive entry '{shown}' appears twice, as '{first}' too (names are compared \
+                     ignoring case)"
+                )
+            }));
+        }
+    }
+    for (key, file) in &files {
+        if let Some(other) = folders.get(key) {
+            return Err(invalid(format!(
+                "archive entry '{file}' is a file, but '{other}' needs a folder of that name"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Checks a `.zip` upload whole, writing nothing: what [`store`] does before it unpacks, the
+/// entry point of the upload fuzz target. Returns the entries that would be written (as
+/// '/'-separated paths) and those that would be skipped.
+pub fn check_zip(
+    body: &[u8],
+    limits: &UploadLimits,
+) -> Result<(Vec<String>, Vec<String>), UploadError> {
+    let mut archive = zip::ZipArchive::new(Cursor::new(body))
+        .map_err(|e| invalid(format!("not a readable zip archive: {e}")))?;
+    let (entries, skipped) = check_archive(&mut archive, body, limits)?;
+    Ok((entries.iter().map(|e| e.parts.join("/")).collect(), skipped))
+}
+
+/// Reads the archive's directory and checks every entry; nothing is written. `body` is the
+/// archive's bytes, whose directory is also read raw ([`raw_entry_names`]).
 fn check_archive<R: Read + std::io::Seek>(
     archive: &mut zip::ZipArchive<R>,
+    body: &[u8],
     limits: &UploadLimits,
 ) -> Result<(Vec<Entry>, Vec<String>), UploadError> {
-    if archive.len() > limits.max_entries {
+    let names = raw_entry_names(body, limits.max_entries).ok_or_else(|| {
+        invalid("not a readable zip archive: its central directory cannot be walked")
+    })?;
+    let count = names.len().max(archive.len());
+    if count > limits.max_entries {
         return Err(UploadError::TooLarge(format!(
             "the archive has {} entries, more than this server's limit of {}",
-            archive.len(),
-            limits.max_entries
+            count, limits.max_entries
+        )));
+    }
+    check_raw_names(&names)?;
+    if names.len() != archive.len() {
+        return Err(invalid(format!(
+            "the archive's directory lists {} entries but {} distinct names: a name appears twice",
+            names.len(),
+            archive.len()
         )));
     }
     let mut entries = Vec::new();
@@ -334,7 +473,7 @@ fn store_zip(
 ) -> Result<Stored, UploadError> {
     let mut archive = zip::ZipArchive::new(Cursor::new(body))
         .map_err(|e| invalid(format!("not a readable zip archive: {e}")))?;
-    let (entries, skipped) = check_archive(&mut archive, limits)?;
+    let (entries, skipped) = check_archive(&mut archive, body, limits)?;
     let dest = root.join(stem);
     if std::fs::symlink_metadata(&dest).is_ok() {
         return Err(UploadError::Exists(stem.to_string()));
@@ -346,7 +485,7 @@ fn store_zip(
         if scenes.is_empty() {
             return Err(invalid(format!(
                 "the archive holds no scene file (expected {})",
-                trayecto::scene::extension_list(false)
+                crate::scene::extension_list(false)
             )));
         }
         std::fs::rename(&tmp, &dest).map_err(|e| UploadError::Io(e.to_string()))?;

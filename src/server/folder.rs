@@ -11,7 +11,7 @@ const LIST_MAX_DEPTH: usize = 8;
 const LIST_MAX_ENTRIES: usize = 5000;
 
 fn has_scene_extension(p: &Path) -> bool {
-    trayecto::scene::format_for(p).is_some()
+    crate::scene::format_for(p).is_some()
 }
 
 /// Resolves a scene name relative to the (canonical) scenes folder. Refuses absolute paths, any
@@ -22,7 +22,7 @@ pub fn resolve_scene(root: &Path, name: &str) -> Result<PathBuf, String> {
     if !has_scene_extension(&canon) {
         return Err(format!(
             "'{name}' is not a scene file (expected {})",
-            trayecto::scene::extension_list(false)
+            crate::scene::extension_list(false)
         ));
     }
     Ok(canon)
@@ -83,7 +83,7 @@ pub fn scene_list(root: &Path, all: bool) -> (Vec<String>, usize) {
     let referenced = referenced_files(root, &files);
     let rank = |f: &str| {
         let is_ref = referenced.contains(f);
-        let mesh = trayecto::scene::format_for(Path::new(f)).is_some_and(|x| x.mesh_only);
+        let mesh = crate::scene::format_for(Path::new(f)).is_some_and(|x| x.mesh_only);
         (is_ref as u8, mesh as u8)
     };
     let mut out: Vec<String> = files;
