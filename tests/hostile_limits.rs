@@ -152,7 +152,7 @@ fn a_huge_png_is_checked_against_the_budget_before_decoding() {
          Shape \"sphere\"\n",
     )
     .unwrap();
-    let s = load_with(&pbrt, 256).unwrap();
+    let s = load_with(&pbrt, 128).unwrap();
     let refused: Vec<&String> = s
         .warnings
         .iter()

@@ -28,11 +28,14 @@ pub const MAX_TOKENS: usize = 100_000_000;
 /// Tokens between two charges to the load's memory budget (and checks of its cancel flag).
 const CHARGE_EVERY: usize = 1 << 16;
 
-/// What a token costs in memory: the token itself and its text's heap block (with the
-/// allocator's ~16 bytes of overhead). A file of one-character numbers costs ~35 times its size.
+/// What a token costs in memory: the token itself and its text's heap block (the allocator's
+/// chunks are 16-byte multiples of at least 32 bytes, with 8 bytes of header). A file of
+/// one-character numbers costs ~32 times its size.
 fn token_bytes(t: &Token) -> u64 {
     let text = match &t.kind {
-        TokenKind::Str(s) | TokenKind::Word(s) => s.capacity() as u64 + 16,
+        TokenKind::Str(s) | TokenKind::Word(s) => {
+            (s.capacity() as u64 + 8).next_multiple_of(16).max(32)
+        }
         TokenKind::Open | TokenKind::Close => 0,
     };
     std::mem::size_of::<Token>() as u64 + text
