@@ -28,17 +28,17 @@ pub const MAX_TOKENS: usize = 100_000_000;
 /// Tokens between two charges to the load's memory budget (and checks of its cancel flag).
 const CHARGE_EVERY: usize = 1 << 16;
 
-/// What a token costs in memory: the token itself and its text's heap block (the allocator's
-/// chunks are 16-byte multiples of at least 32 bytes, with 8 bytes of header). A file of
-/// one-character numbers costs ~32 times its size.
+/// What a token's text costs in memory: its heap block (the allocator's chunks are 16-byte
+/// multiples of at least 32 bytes, with 8 bytes of header). The token itself lives in the
+/// token array, charged by its capacity. A file of one-character numbers costs ~50 times its
+/// size.
 fn token_bytes(t: &Token) -> u64 {
-    let text = match &t.kind {
+    match &t.kind {
         TokenKind::Str(s) | TokenKind::Word(s) => {
             (s.capacity() as u64 + 8).next_multiple_of(16).max(32)
         }
         TokenKind::Open | TokenKind::Close => 0,
-    };
-    std::mem::size_of::<Token>() as u64 + text
+    }
 }
 
 /// Splits `text` into tokens. Errors name the line (the caller adds the file). The tokens'
@@ -52,9 +52,20 @@ pub fn tokenize(text: &str) -> Result<(Vec<Token>, crate::limits::Reservation), 
     let mut line: u32 = 1;
     let mut held = crate::limits::reserve(0, String::new).map_err(|e| (line, e.to_string()))?;
     let mut charged = 0;
+    // The token array's own buffers: each growth allocates the new one while the old is still
+    // held, so every capacity reached is charged (about twice the final buffer, its peak).
+    let mut charged_capacity = 0;
+    let array = |cap: usize| (cap * std::mem::size_of::<Token>()) as u64;
     while i < b.len() {
         if out.len() >= charged + CHARGE_EVERY {
-            let bytes: u64 = out[charged..].iter().map(token_bytes).sum();
+            let grown = out.capacity().max(charged_capacity);
+            let bytes: u64 = out[charged..].iter().map(token_bytes).sum::<u64>()
+                + if grown > charged_capacity {
+                    array(grown)
+                } else {
+                    0
+                };
+            charged_capacity = grown;
             held.grow(bytes, || {
                 format!("the {} tokens read up to line {line}", out.len())
             })
@@ -166,7 +177,8 @@ pub fn tokenize(text: &str) -> Result<(Vec<Token>, crate::limits::Reservation), 
             }
         }
     }
-    let bytes: u64 = out[charged..].iter().map(token_bytes).sum();
+    let grown = out.capacity().saturating_sub(charged_capacity);
+    let bytes: u64 = out[charged..].iter().map(token_bytes).sum::<u64>() + array(grown);
     held.grow(bytes, || format!("the {} tokens of the file", out.len()))
         .map_err(|e| (line, e.to_string()))?;
     Ok((out, held))
