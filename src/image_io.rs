@@ -132,16 +132,36 @@ pub fn decode_image(name: &str, bytes: &[u8]) -> Result<image::DynamicImage, Str
     if bytes.starts_with(&KTX2_IDENTIFIER) {
         return decode_ktx2(bytes);
     }
-    let reader = reader_for(name, bytes)?;
+    let mut reader = reader_for(name, bytes)?;
     if reader.format().is_none() {
         return Err("unknown image format".into());
     }
-    let (w, h) = reader.into_dimensions().map_err(|e| e.to_string())?;
+    // The decoder may allocate no more than the load's budget has left (docs/DESIGN.md §7,
+    // "Bounded loads"); its own size limits are the texture limits.
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_TEXTURE_SIDE);
+    limits.max_image_height = Some(MAX_TEXTURE_SIDE);
+    let ctx = crate::limits::current();
+    limits.max_alloc = Some(ctx.budget.limit().saturating_sub(ctx.budget.used()));
+    reader.limits(limits);
+    let decoder = reader.into_decoder().map_err(|e| e.to_string())?;
+    let (w, h) = image::ImageDecoder::dimensions(&decoder);
     if w == 0 || h == 0 || w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE {
         return Err(format!("image size {w}×{h} is not supported"));
     }
-    reader_for(name, bytes)?.decode().map_err(|e| e.to_string())
+    // The pixels as decoded, checked from the header before decoding (texture_from_image
+    // checks what it makes of them before it converts).
+    let decoded = image::ImageDecoder::total_bytes(&decoder);
+    let _decoding = ctx
+        .reserve(decoded, || format!("the {w}×{h} image '{}'", shorten(name)))
+        .map_err(|e| e.to_string())?;
+    image::DynamicImage::from_decoder(decoder).map_err(|e| e.to_string())
 }
+
+/// What [`texture_from_image`] may hold per texel at its peak besides the texels it keeps: the
+/// RGBA float copy, the float texels and the compact codes it compares them with (the 8-bit
+/// sRGB path holds only an RGBA8 copy).
+const TEXTURE_BYTES_PER_TEXEL: u64 = 16 + 16 + 8 + 8;
 
 /// A decoded image as a texture. `srgb` converts the colour channels from sRGB to linear; alpha
 /// is always linear.
@@ -158,14 +178,28 @@ pub fn texture_from_image(
         img.color(),
         image::ColorType::Rgb32F | image::ColorType::Rgba32F
     );
+    let srgb8 = !hdr && srgb && img.color().bytes_per_pixel() <= 4;
+    // The conversion's copies, reserved before converting and returned when it ends; the
+    // texels kept (4 to 16 bytes each) are charged on top before the copies are freed.
+    let texels_n = u64::from(w) * u64::from(h);
+    let working = if srgb8 { 4 } else { TEXTURE_BYTES_PER_TEXEL };
+    let _working = crate::limits::reserve(texels_n * working, || {
+        format!("the {w}×{h} texture '{}'", shorten(name))
+    })?;
+    let keep = |t: Texture| -> Result<Texture, String> {
+        crate::limits::charge(texels_n * t.texels.bytes_per_texel() as u64, || {
+            format!("the {w}×{h} texture '{}'", shorten(name))
+        })?;
+        Ok(t)
+    };
     // Texels keep the file's precision and are decoded at lookup (material::texture::Texels):
     // the lookups return exactly the values this function used to store as float.
     let bytes_per_channel = img.color().bytes_per_pixel() / img.color().channel_count();
-    if !hdr && srgb && img.color().bytes_per_pixel() <= 4 {
+    if srgb8 {
         // 8-bit sRGB (16-bit grey with or without alpha is reduced to 8 bits here, as before):
         // the table holds srgb_to_linear(i / 255), alpha i / 255.
         let texels = Texels::Srgb8(as_quads(img.to_rgba8().as_raw()));
-        return Ok(Texture::with_texels(name, w, h, texels));
+        return keep(Texture::with_texels(name, w, h, texels));
     }
     // Floating-point images are already linear; 16-bit sRGB is decoded to float here.
     let convert = srgb && !hdr;
@@ -212,7 +246,7 @@ pub fn texture_from_image(
     } else {
         Texels::F32(float)
     };
-    Ok(Texture::with_texels(name, w, h, texels))
+    keep(Texture::with_texels(name, w, h, texels))
 }
 
 fn same_bits(a: Vec4, b: Vec4) -> bool {
@@ -339,7 +373,7 @@ pub fn load_texture_checked(
     warnings: &mut Vec<String>,
 ) -> Result<Texture, RefusedPath> {
     let path = resolve_in_dir(scene_dir, relative_path).map_err(RefusedPath)?;
-    let bytes = match std::fs::read(&path) {
+    let bytes = match crate::limits::read_file(&path) {
         Ok(b) => b,
         Err(e) => {
             warnings.push(format!(
@@ -451,6 +485,9 @@ pub fn decode_pfm(name: &str, bytes: &[u8]) -> Result<Texture, String> {
             "PFM size {w}×{h} or scale {scale} is not supported"
         ));
     }
+    crate::limits::charge(u64::from(w) * u64::from(h) * 16, || {
+        format!("the {w}×{h} PFM image '{}'", shorten(name))
+    })?;
     let n = w as usize * h as usize * channels;
     let data = bytes
         .get(pos..pos + n * 4)
@@ -499,6 +536,8 @@ pub fn read_exr_channels(path: &Path) -> Result<ExrChannels, ReadError> {
         path: path.to_path_buf(),
         message: m,
     };
+    // Every channel as stored (at most 4 bytes a sample) and as f32.
+    check_exr_header(path, |channels| 8 * channels).map_err(rerr)?;
     let img = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -521,6 +560,10 @@ pub fn read_exr_channels(path: &Path) -> Result<ExrChannels, ReadError> {
 /// A linear RGB EXR (e.g. a reference image): width, height and the pixels, top row first.
 pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), ReadError> {
     use exr::prelude::read_first_rgba_layer_from_file;
+    check_exr_header(path, |_| 12).map_err(|message| ReadError {
+        path: path.to_path_buf(),
+        message,
+    })?;
     let img = read_first_rgba_layer_from_file(
         path,
         |res, _| {
@@ -539,19 +582,61 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), ReadError> {
     Ok((w as u32, h as u32, data))
 }
 
+/// Checks an EXR's header before its pixels are read (the `exr` crate allocates what the header
+/// claims): the file must be a regular file, big enough to hold the offset table of every chunk
+/// the header declares (8 bytes each, OpenEXR file layout), and the pixels as read
+/// (`bytes_per_pixel` of the channel count) must fit in the load's memory budget.
+fn check_exr_header(path: &Path, bytes_per_pixel: impl Fn(u64) -> u64) -> Result<(), String> {
+    let file_len = std::fs::metadata(path)
+        .map_err(|e| e.to_string())
+        .and_then(|m| {
+            if m.is_file() {
+                Ok(m.len())
+            } else {
+                Err("is not a regular file".to_string())
+            }
+        })?;
+    crate::limits::check_cancel()?;
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| e.to_string())?;
+    let mut chunks = 0u64;
+    let mut bytes = 0u64;
+    for h in &meta.headers {
+        chunks = chunks.saturating_add(h.chunk_count as u64);
+        let (w, ht) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
+        let channels = h.channels.list.len() as u64;
+        bytes = bytes.max(
+            w.saturating_mul(ht)
+                .saturating_mul(bytes_per_pixel(channels.max(1))),
+        );
+    }
+    if chunks.saturating_mul(8) > file_len {
+        return Err(format!(
+            "the header declares {chunks} chunks of pixels, more than a file of {file_len} bytes can hold"
+        ));
+    }
+    let size = meta
+        .headers
+        .first()
+        .map(|h| format!("{}×{}", h.layer_size.width(), h.layer_size.height()))
+        .unwrap_or_default();
+    crate::limits::charge(bytes, || format!("the {size} EXR image"))?;
+    Ok(())
+}
+
 /// Reads any image an environment may be (EXR, Radiance HDR, PFM; PNG, TGA, JPEG as sRGB) into
 /// linear RGB texels, top row first.
 pub fn read_rgb(path: &Path) -> Result<(u32, u32, Vec<Vec3>), String> {
     let name = path.display().to_string();
     let lower = name.to_ascii_lowercase();
     if lower.ends_with(".exr") {
-        let (w, h, data) = read_exr(path).map_err(|e| e.to_string())?;
+        let (w, h, data) = read_exr(path).map_err(|e| e.message)?;
         if w == 0 || h == 0 {
             return Err("environment map is empty".into());
         }
         return Ok((w, h, data));
     }
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read environment map: {e}"))?;
+    let bytes =
+        crate::limits::read_file(path).map_err(|e| format!("cannot read environment map: {e}"))?;
     let t = if lower.ends_with(".pfm") {
         decode_pfm(&name, &bytes)?
     } else {

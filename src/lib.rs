@@ -18,6 +18,7 @@ pub mod geometry;
 pub mod image_io;
 pub mod integrator;
 pub mod light;
+pub mod limits;
 pub mod material;
 pub mod math;
 pub mod medium;

@@ -646,8 +646,20 @@ impl RenderJob {
             cancel,
             warnings: Vec::new(),
         };
-        let loaded = run.load()?;
-        let built = run.build(loaded)?;
+        // Loading and building run under the caller's memory budget and cancel flag
+        // (crate::limits), else a fresh default budget; a load that fails because it was
+        // cancelled is a cancellation, not an error.
+        let built = crate::limits::scope_or_default(|| {
+            let loaded = run.load()?;
+            run.build(loaded)
+        })
+        .map_err(|e| {
+            if cancel.load(Ordering::Relaxed) {
+                PipelineError::Cancelled
+            } else {
+                e
+            }
+        })?;
         run.log_plan(&built);
         run.check_cancel()?;
         let mut rendered = run.render(built, denoiser.is_some())?;

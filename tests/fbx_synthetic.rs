@@ -499,3 +499,24 @@ fn hostile_counts_and_cycles_are_errors() {
         .to_string();
     assert!(e.contains("cycle"), "{e}");
 }
+
+/// A zlib array within the allowed inflation ratio can still ask for more memory than there
+/// is (2.4 MB of zeros claim 2.4 GB): it is charged to the load's budget before inflating.
+#[test]
+fn a_compressed_array_within_the_ratio_is_charged_to_the_budget() {
+    use trayecto::limits::{self, Budget, LoadContext};
+    let mut nodes = scene(true);
+    nodes.push(n("Junk", vec![P::Di(vec![0.0; 4 << 20], true)], vec![]));
+    let bytes = write_fbx(&nodes, 7400);
+    assert!(bytes.len() < 1 << 20, "{} bytes", bytes.len());
+    let small = LoadContext::new(Budget::new(32 << 20), None);
+    let e = limits::scope(small, || fbx::load_bytes(&bytes, "zeros.fbx", None))
+        .expect_err("refused")
+        .to_string();
+    assert!(
+        e.contains("zeros.fbx") && e.contains("compressed array") && e.contains("budget"),
+        "{e}"
+    );
+    let enough = LoadContext::new(Budget::new(256 << 20), None);
+    assert!(limits::scope(enough, || fbx::load_bytes(&bytes, "zeros.fbx", None)).is_ok());
+}

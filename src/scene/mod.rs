@@ -1102,9 +1102,14 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
 /// names the scene (the file's stem unless the file names itself) and its source, and validates
 /// it. Loaders only turn bytes into a [`Scene`]; this function owns everything around that.
 pub fn load_file(path: &Path) -> Result<Scene, SceneError> {
+    // Under the caller's memory budget and cancel flag, or a fresh default budget.
+    crate::limits::scope_or_default(|| load_file_in_scope(path))
+}
+
+fn load_file_in_scope(path: &Path) -> Result<Scene, SceneError> {
     let label = path.display().to_string();
     let format = format_of(path, &label)?;
-    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
+    let bytes = crate::limits::read_file(path).map_err(|e| SceneError::Io {
         path: label.clone(),
         error: e,
     })?;
@@ -1120,11 +1125,13 @@ pub fn load_file(path: &Path) -> Result<Scene, SceneError> {
 /// The bytes are parsed, named and validated exactly as [`load_file`] does — the entry point of
 /// the fuzz targets and the mutation tests, so they exercise what a user's file goes through.
 pub fn load_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, SceneError> {
-    let format = format_of(Path::new(label), label)?;
-    let mut scene = parse(format, bytes, dir, label)?;
-    scene.source = Some(PathBuf::from(label));
-    scene.validate()?;
-    Ok(scene)
+    crate::limits::scope_or_default(|| {
+        let format = format_of(Path::new(label), label)?;
+        let mut scene = parse(format, bytes, dir, label)?;
+        scene.source = Some(PathBuf::from(label));
+        scene.validate()?;
+        Ok(scene)
+    })
 }
 
 fn format_of(path: &Path, label: &str) -> Result<&'static SceneFormat, SceneError> {

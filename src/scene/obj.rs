@@ -45,8 +45,8 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
                 return Err(tobj::LoadError::OpenFileFailed);
             }
         };
-        match std::fs::File::open(&p) {
-            Ok(f) => tobj::load_mtl_buf(&mut std::io::BufReader::new(f)),
+        match crate::limits::read_file(&p) {
+            Ok(bytes) => tobj::load_mtl_buf(&mut std::io::Cursor::new(bytes)),
             Err(e) => {
                 mtl_warnings.borrow_mut().push(format!(
                     "material library '{name}' could not be read ({e}): default grey materials are used"

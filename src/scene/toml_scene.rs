@@ -549,7 +549,8 @@ fn medium(m: &MediumSpec, dir: &Path) -> Result<super::MediumDesc, String> {
     desc.le = Vec3::from(m.emission);
     let read = |f: &str| -> Result<super::vol::VolFile, String> {
         let path = resolve_in_dir(dir, f)?;
-        let bytes = std::fs::read(&path).map_err(|e| format!("'{}': {e}", path.display()))?;
+        let bytes =
+            crate::limits::read_file(&path).map_err(|e| format!("'{}': {e}", path.display()))?;
         super::vol::read_vol(&bytes).map_err(|e| format!("'{}': {e}", path.display()))
     };
     let voxels = |v: super::vol::VolFile| super::VoxelGrid {

@@ -36,6 +36,10 @@ pub struct Limits {
     pub max_queue: usize,
     pub max_body: usize,
     pub upload: super::upload::UploadLimits,
+    /// Memory all scene loads together may take (`--memory-total`), and one of them
+    /// (`--memory-limit`), in bytes (`trayecto::limits`).
+    pub memory_total: u64,
+    pub memory_per_job: u64,
 }
 
 impl Default for Limits {
@@ -50,6 +54,8 @@ impl Default for Limits {
             max_queue: 16,
             max_body: 16 * 1024,
             upload: Default::default(),
+            memory_total: trayecto::limits::default_limit(),
+            memory_per_job: trayecto::limits::default_limit(),
         }
     }
 }

@@ -255,6 +255,10 @@ pub struct RenderArgs {
     /// pixelbounds).
     #[arg(long, value_name = "X0,X1,Y0,Y1")]
     pub pixel_bounds: Option<String>,
+    /// Most memory loading the scene may take (e.g. 4G, 512M); a file that asks for more is
+    /// an error naming it. Default: half the physical memory (or of `ulimit -v`).
+    #[arg(long, value_name = "SIZE", value_parser = trayecto::limits::parse_size)]
+    pub memory_limit: Option<u64>,
     /// Print only errors.
     #[arg(short, long)]
     pub quiet: bool,
@@ -496,7 +500,17 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
             std::process::exit(EXIT_INTERRUPTED as i32);
         }
     });
-    match job.run(&console, &INTERRUPTED) {
+    if let Some(m) = args.memory_limit {
+        trayecto::limits::set_default_limit(m);
+    }
+    // Loads stop at Ctrl-C too (checked at each file read and in long loops).
+    let load = trayecto::limits::LoadContext::new(
+        trayecto::limits::Budget::new(trayecto::limits::default_limit()),
+        Some(std::sync::Arc::new(|| {
+            INTERRUPTED.load(std::sync::atomic::Ordering::Relaxed)
+        })),
+    );
+    match trayecto::limits::scope(load, || job.run(&console, &INTERRUPTED)) {
         Ok(_) => Ok(()),
         Err(e @ PipelineError::Interrupted { .. }) => Err(Interrupted(e.to_string()).into()),
         Err(PipelineError::Cancelled) => Err(Interrupted(

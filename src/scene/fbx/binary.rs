@@ -335,6 +335,14 @@ impl<'a> Reader<'a> {
                         "node '{node}': a compressed array claims {count} elements from only {stored_len} bytes"
                     ));
                 }
+                // Within the ratio is not enough (2.4 MB of zlib can claim 2.4 GB): the
+                // array and the values it becomes are charged to the load's budget first.
+                if let Err(e) = crate::limits::charge(raw_len.saturating_mul(2), || {
+                    format!("node '{node}': a compressed array of {count} elements")
+                }) {
+                    self.pos = at;
+                    return self.err(e.to_string());
+                }
                 let mut out = Vec::with_capacity(raw_len as usize);
                 let mut dec = flate2::read::ZlibDecoder::new(stored).take(raw_len + 1);
                 if let Err(e) = dec.read_to_end(&mut out) {

@@ -120,7 +120,8 @@ pub fn load(
     srgb: bool,
 ) -> TextureResult {
     let path = resolve(scene_dir, relative, absolute)?;
-    let bytes = std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let bytes = crate::limits::read_file(&path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     decode(name, &bytes, srgb)
 }
 

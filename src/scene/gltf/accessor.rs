@@ -100,6 +100,15 @@ impl Loader<'_> {
                 acc.index()
             )));
         }
+        // Checked against the load's budget before allocating, with or without a buffer view
+        // to back the count: a view-less accessor is zeros, `count` of them however small the
+        // file (glTF 2.0 §3.6.2.4). The decoded elements are transient; the mesh keeps about
+        // `ncomp` f32 per element.
+        let elements = count as u64;
+        let name = || format!("{what}: accessor {} ({count} elements)", acc.index());
+        crate::limits::ensure_fits(elements * std::mem::size_of::<[f64; 4]>() as u64, name)
+            .and_then(|_| crate::limits::charge(elements * ncomp as u64 * 4, name))
+            .map_err(|e| self.err(e.to_string()))?;
         let ty = acc.data_type();
         let mut out = Vec::new();
         match acc.view() {

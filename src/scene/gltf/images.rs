@@ -147,7 +147,7 @@ impl Loader<'_> {
                             i,
                             Decoded::Refused(self.err(format!("image {i}: {why}"))),
                         )),
-                        Ok(path) => match std::fs::read(&path) {
+                        Ok(path) => match crate::limits::read_file(&path) {
                             Ok(b) => pending.push(Pending {
                                 index: i,
                                 on_failure: format!(
@@ -170,10 +170,13 @@ impl Loader<'_> {
                 }
             }
         }
+        // The workers decode under this load's budget and cancel flag (crate::limits).
+        let ctx = crate::limits::current();
         let decoded: Vec<(usize, Decoded)> = pending
             .into_par_iter()
             .map(|p| {
-                let d = match decode_image(&p.name, &p.bytes) {
+                let d = match crate::limits::scope(ctx.clone(), || decode_image(&p.name, &p.bytes))
+                {
                     Ok(image) => Decoded::Image {
                         name: p.name,
                         image: Arc::new(image),

@@ -283,7 +283,7 @@ impl<'a> Loader<'a> {
         let rel = super::image_io::percent_decode(uri);
         let path = resolve_in_dir(self.dir, &rel)
             .map_err(|why| self.err(format!("{what} {index}: {why}")))?;
-        std::fs::read(&path).map_err(|e| {
+        crate::limits::read_file(&path).map_err(|e| {
             self.err(format!(
                 "{what} {index}: cannot read '{}' ({e})",
                 path.display()

@@ -158,6 +158,39 @@ pub struct ImageJob {
     pub at: String,
 }
 
+/// What makes two image textures the same texture: the file (canonical path, so every
+/// spelling of one file is one key) and how it is decoded and looked up.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct ImageKey {
+    path: PathBuf,
+    srgb: bool,
+    gamma: Option<u32>,
+    /// The lookup's filter and wrap modes (as their discriminants).
+    filter: u8,
+    wrap: u8,
+    /// Normal maps keep a flat normal, not magenta, when the file cannot be decoded.
+    normal: bool,
+}
+
+impl ImageKey {
+    fn of(
+        path: &std::path::Path,
+        srgb: bool,
+        gamma: Option<f32>,
+        f: FilterMode,
+        w: WrapMode,
+    ) -> Self {
+        ImageKey {
+            path: path.canonicalize().unwrap_or_else(|_| path.to_path_buf()),
+            normal: false,
+            srgb,
+            gamma: gamma.map(f32::to_bits),
+            filter: f as u8,
+            wrap: w as u8,
+        }
+    }
+}
+
 /// Resolution of the grid over [0, 1]² whose mean stands for a procedural texture where a
 /// single value is needed (light-power estimates, the raycast modes' roughness).
 const MEAN_GRID: u32 = 32;
@@ -454,20 +487,28 @@ impl Loader {
             }
             Err(e) => return Err(e),
         };
-        let index = self.scene.textures.len();
-        self.scene
-            .textures
-            .push(crate::scene::image_io::missing_texture(&file));
-        self.image_jobs.push(ImageJob {
-            texture: index,
-            path,
-            name: file,
-            srgb,
-            gamma,
-            filter,
-            wrap,
-            at: at.to_string(),
-        });
+        let key = ImageKey::of(&path, srgb, gamma, filter, wrap);
+        let index = match self.images_made.get(&key) {
+            Some(&i) => i,
+            None => {
+                let index = self.scene.textures.len();
+                self.scene
+                    .textures
+                    .push(crate::scene::image_io::missing_texture(&file));
+                self.images_made.insert(key, index);
+                self.image_jobs.push(ImageJob {
+                    texture: index,
+                    path,
+                    name: file,
+                    srgb,
+                    gamma,
+                    filter,
+                    wrap,
+                    at: at.to_string(),
+                });
+                index
+            }
+        };
         Ok(TexNode::Node(self.tex.push(TexExpr::Image {
             texture: index as u32,
             scale,
@@ -626,9 +667,14 @@ impl Loader {
     /// Decodes every image texture, in parallel.
     pub(super) fn run_image_jobs(&mut self) {
         let jobs = std::mem::take(&mut self.image_jobs);
+        // The workers charge the same budget and see the same cancel flag (crate::limits).
+        let ctx = crate::limits::current();
         let results: Vec<(usize, Result<Texture, String>)> = jobs
             .par_iter()
-            .map(|j| (j.texture, decode_image(j)))
+            .map(|j| {
+                let r = crate::limits::scope(ctx.clone(), || decode_image(j));
+                (j.texture, r)
+            })
             .collect();
         for ((index, r), j) in results.into_iter().zip(&jobs) {
             match r {
@@ -1287,7 +1333,17 @@ impl Loader {
                 return;
             }
         };
+        let key = ImageKey {
+            normal: true,
+            ..ImageKey::of(&path, false, None, FilterMode::Bilinear, WrapMode::Repeat)
+        };
+        if let Some(&index) = self.images_made.get(&key) {
+            m.normal_texture = Some(crate::material::texture::TextureRef::new(index));
+            m.normal_scale = 1.0;
+            return;
+        }
         let index = self.scene.textures.len();
+        self.images_made.insert(key, index);
         // A flat normal until the image is decoded (and if it cannot be).
         self.scene.textures.push(Texture::image(
             file,
@@ -1335,7 +1391,7 @@ pub(crate) fn decode_image(j: &ImageJob) -> Result<Texture, String> {
     let mut t = if lower.ends_with(".exr") {
         decode_exr(&j.name, &j.path)?
     } else {
-        let bytes = std::fs::read(&j.path).map_err(|e| e.to_string())?;
+        let bytes = crate::limits::read_file(&j.path).map_err(|e| e.to_string())?;
         if lower.ends_with(".pfm") {
             crate::scene::image_io::decode_pfm(&j.name, &bytes)?
         } else {
@@ -1364,6 +1420,9 @@ fn decode_exr(name: &str, path: &std::path::Path) -> Result<Texture, String> {
     if w == 0 || h == 0 || w > 16384 || h > 16384 {
         return Err(format!("image size {w}×{h} is not supported"));
     }
+    crate::limits::charge(u64::from(w) * u64::from(h) * 16, || {
+        format!("the {w}×{h} texture '{name}'")
+    })?;
     Ok(Texture::image(
         name,
         w,

@@ -44,6 +44,11 @@ use tokenizer::{Token, TokenKind};
 pub const MAX_INCLUDE_DEPTH: usize = 32;
 /// Largest scene text accepted (one file), in bytes.
 pub const MAX_FILE_BYTES: u64 = 1 << 31;
+/// Most `Include`/`Import` files one scene may read, counting a file each time it is read: a
+/// chain of files each including the next twice reads 2ⁿ files without a cycle or deep nesting.
+pub const MAX_INCLUDES: u32 = 20_000;
+/// Most bytes one scene may read through `Include`/`Import`, all files together.
+pub const MAX_INCLUDED_BYTES: u64 = 1 << 32;
 /// Deepest `AttributeBegin` nesting accepted.
 const MAX_ATTRIBUTE_DEPTH: usize = 10_000;
 
@@ -104,7 +109,7 @@ fn read_text(path: &Path, label: &str) -> Result<String, SceneError> {
     if meta.len() > MAX_FILE_BYTES {
         return Err(SceneError::invalid(label, "the file is larger than 2 GiB"));
     }
-    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
+    let bytes = crate::limits::read_file(path).map_err(|e| SceneError::Io {
         path: label.to_string(),
         error: e,
     })?;
@@ -244,6 +249,11 @@ pub(crate) struct Loader {
     instances: HashMap<String, Vec<InstancePart>>,
     current_object: Option<(String, Vec<InstancePart>)>,
     include_stack: Vec<PathBuf>,
+    /// Files read through `Include`/`Import` so far, and their bytes ([`MAX_INCLUDES`]).
+    included: (u32, u64),
+    /// Image textures already made, by canonical path and decoding: a file named through
+    /// different spellings (`a.png`, `./a.png`, `t/../a.png`) is decoded once.
+    pub(crate) images_made: HashMap<materials::ImageKey, usize>,
     settings: Settings,
     ply_jobs: Vec<PlyJob>,
     pub(crate) image_jobs: Vec<materials::ImageJob>,
@@ -278,6 +288,8 @@ impl Loader {
             instances: HashMap::new(),
             current_object: None,
             include_stack: Vec::new(),
+            included: (0, 0),
+            images_made: HashMap::new(),
             settings: Settings::default(),
             ply_jobs: Vec::new(),
             image_jobs: Vec::new(),
@@ -312,7 +324,7 @@ impl Loader {
     }
 
     fn run_file(&mut self, text: &str, file: &str, depth: usize) -> Result<(), SceneError> {
-        let tokens = tokenizer::tokenize(text)
+        let (tokens, _held) = tokenizer::tokenize(text)
             .map_err(|(line, m)| SceneError::invalid(loc(file, line), m))?;
         let mut p = Cursor {
             tokens: &tokens,
@@ -358,6 +370,18 @@ impl Loader {
             ));
         }
         let label = path.display().to_string();
+        let size = std::fs::metadata(&path).map_or(0, |m| m.len());
+        let (files, bytes) = (self.included.0 + 1, self.included.1.saturating_add(size));
+        if files > MAX_INCLUDES || bytes > MAX_INCLUDED_BYTES {
+            return Err(SceneError::invalid(
+                at,
+                format!(
+                    "Include \"{f}\": the scene reads more than {MAX_INCLUDES} included files or {} through Include/Import (files included many times over?)",
+                    crate::limits::bytes_text(MAX_INCLUDED_BYTES)
+                ),
+            ));
+        }
+        self.included = (files, bytes);
         let text = read_text(&path, &label)?;
         self.include_stack.push(canon);
         let r = self.run_file(&text, &label, depth + 1);
@@ -616,7 +640,7 @@ impl Loader {
                 if m.len() > 1 << 24 {
                     Err("larger than 16 MiB".to_string())
                 } else {
-                    std::fs::read_to_string(&path).map_err(|e| e.to_string())
+                    crate::limits::read_to_string(&path).map_err(|e| e.to_string())
                 }
             })
             .and_then(|t| spectra::parse_spectrum_file(&t));

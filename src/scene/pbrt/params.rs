@@ -130,9 +130,19 @@ impl Param {
                     v.len()
                 ));
             }
-            if ty == "integer" && v.iter().any(|x| x.fract() != 0.0 || x.abs() > 2.1e9) {
+            if ty == "integer" && v.iter().any(|x| x.fract() != 0.0) {
                 return Err(format!(
                     "integer parameter '{name}' has a non-integer value"
+                ));
+            }
+            // pbrt-v4 reads integers as 32-bit `int`s.
+            if ty == "integer"
+                && let Some(x) = v
+                    .iter()
+                    .find(|x| !(-2_147_483_648.0..=2_147_483_647.0).contains(*x))
+            {
+                return Err(format!(
+                    "integer parameter '{name}' has the value {x}, outside the 32-bit range (-2147483648 to 2147483647)"
                 ));
             }
             if let Some(bad) = v.iter().find(|x| !x.is_finite()) {

@@ -7,8 +7,6 @@
 //! (+z for disks); `ReverseOrientation` flips all of these. Trayecto's front face is the
 //! counter-clockwise side (kept through mirroring transforms), so triangles are re-wound here.
 
-use std::io::Read;
-
 use rayon::prelude::*;
 
 use super::params::{ParamList, TexOr};
@@ -20,8 +18,14 @@ use crate::scene::{CurveShape, Mesh, SceneError, Shape};
 
 /// Largest decompressed `.ply.gz` accepted, in bytes.
 const MAX_GUNZIP: u64 = 4 << 30;
+/// Largest expansion of a `.ply.gz` accepted: meshes compress a few times, a file of zeros
+/// a thousand times (deflate's limit is 1032:1).
+const MAX_GUNZIP_RATIO: u64 = 64;
 /// Most Loop subdivision levels applied (each multiplies the triangle count by 4).
 const MAX_LOOP_LEVELS: i64 = 6;
+/// Memory per triangle of a subdivided mesh: 12 bytes of indices, 24 of position and normal
+/// for its half vertex, and the previous level's copy while the next is made.
+const LOOP_BYTES_PER_TRIANGLE: u64 = 48;
 /// Grid resolution of tessellated quadrics (around × along).
 const QUADRIC_STEPS: (usize, usize) = (96, 48);
 
@@ -195,8 +199,10 @@ impl Loader {
             }
             "sphere" => {
                 let r = list.float("radius", 1.0);
-                let zmin = list.float("zmin", -r).clamp(-r, r);
-                let zmax = list.float("zmax", r).clamp(-r, r);
+                // Clamped by |r|: a negative radius must reach the "empty sphere" warning below,
+                // not make the clamp's bounds cross (a panic).
+                let zmin = list.float("zmin", -r).clamp(-r.abs(), r.abs());
+                let zmax = list.float("zmax", r).clamp(-r.abs(), r.abs());
                 let phimax = list.float("phimax", 360.0).clamp(0.0, 360.0);
                 if !(r > 0.0) || zmin >= zmax || phimax <= 0.0 {
                     self.warn(format!("{at}: {what}: empty sphere (radius {r}, z [{zmin}, {zmax}], phimax {phimax}) left out"));
@@ -305,6 +311,14 @@ impl Loader {
                 } else {
                     levels.max(0)
                 };
+                // Each level makes 4 triangles of one: what the result will hold (indices,
+                // positions and normals, about half a vertex a triangle) is charged to the
+                // load's budget before subdividing.
+                let final_tris = (idx.len() as u64).saturating_mul(1 << (2 * levels as u32));
+                crate::limits::charge(final_tris.saturating_mul(LOOP_BYTES_PER_TRIANGLE), || {
+                    format!("{at}: {what}: {levels} levels of subdivision ({final_tris} triangles)")
+                })
+                .map_err(|e| SceneError::invalid(at, e.to_string()))?;
                 let (mut positions, mut tris) = (p, idx);
                 for _ in 0..levels {
                     if tris.len() > 8_000_000 {
@@ -598,11 +612,14 @@ impl Loader {
     /// Reads every `plymesh`, in parallel, into its reserved mesh slot.
     pub(super) fn load_plys(&mut self) -> Result<(), SceneError> {
         let jobs = std::mem::take(&mut self.ply_jobs);
+        // The workers read under this load's budget and cancel flag (crate::limits).
+        let ctx = crate::limits::current();
         let results: Vec<Result<(Mesh, Vec<String>), SceneError>> = jobs
             .par_iter()
             .map(|j| {
                 let label = format!("{} (plymesh at {})", j.path.display(), j.location);
-                let bytes = read_maybe_gz(&j.path).map_err(|e| SceneError::invalid(&label, e))?;
+                let (bytes, _held) = crate::limits::scope(ctx.clone(), || read_maybe_gz(&j.path))
+                    .map_err(|e| SceneError::invalid(&label, e))?;
                 let mut warnings = Vec::new();
                 let mut mesh = crate::scene::ply::parse_mesh(&bytes, &mut warnings)
                     .map_err(|m| SceneError::invalid(&label, format!("PLY: {m}")))?;
@@ -633,17 +650,24 @@ impl Loader {
     }
 }
 
-fn read_maybe_gz(path: &std::path::Path) -> Result<Vec<u8>, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read the mesh: {e}"))?;
+/// A PLY file's bytes, gunzipped when they are gzip data, with the budget reservation holding
+/// the decompressed bytes (bounded by [`MAX_GUNZIP_RATIO`] and the load's budget).
+fn read_maybe_gz(
+    path: &std::path::Path,
+) -> Result<(Vec<u8>, Option<crate::limits::Reservation>), String> {
+    let bytes = crate::limits::read_file(path).map_err(|e| format!("cannot read the mesh: {e}"))?;
     if bytes.starts_with(&[0x1f, 0x8b]) {
-        let mut out = Vec::new();
-        flate2::read::GzDecoder::new(&bytes[..])
-            .take(MAX_GUNZIP)
-            .read_to_end(&mut out)
-            .map_err(|e| format!("cannot decompress the mesh: {e}"))?;
-        return Ok(out);
+        let max = (bytes.len() as u64)
+            .saturating_mul(MAX_GUNZIP_RATIO)
+            .min(MAX_GUNZIP);
+        let (out, held) = crate::limits::read_to_end_bounded(
+            flate2::read::GzDecoder::new(&bytes[..]),
+            max,
+            "the gzip-compressed mesh",
+        )?;
+        return Ok((out, Some(held)));
     }
-    Ok(bytes)
+    Ok((bytes, None))
 }
 
 fn checked_indices(

@@ -6,13 +6,14 @@
 use super::request::{Defaults, RenderRequest};
 use serde_json::{Value, json};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use trayecto::denoise::DenoiseOptions;
 use trayecto::film::aov::side_path;
 use trayecto::film::output::to_rgb8;
 use trayecto::film::{Film, Image};
+use trayecto::limits::{Budget, LoadContext};
 use trayecto::pipeline::{
     GivenSettings, LogLine, OutputSpec, PipelineError, PipelineObserver, RenderJob, Stage,
 };
@@ -278,6 +279,35 @@ struct Inner {
     max_queued: usize,
     history: usize,
     output_dir: PathBuf,
+    /// What all loads together may take, and one load ([`trayecto::limits`]).
+    memory: Arc<Budget>,
+    per_job: u64,
+    /// Scene loads outside render jobs (scene views) holding a slot, and those waiting for one.
+    loads_running: AtomicUsize,
+    loads_waiting: AtomicUsize,
+    /// Signalled (with the list's lock) whenever a slot frees.
+    slot_freed: Condvar,
+}
+
+/// A render slot held by a scene load outside the jobs (`GET /api/scene-view`): counted with
+/// the running jobs against `--max-jobs`, freed when dropped.
+pub struct LoadSlot {
+    jobs: Jobs,
+    ctx: Arc<LoadContext>,
+}
+
+impl LoadSlot {
+    /// Runs a load in this slot, under a job's memory budget.
+    pub fn run<R>(&self, f: impl FnOnce() -> R) -> R {
+        trayecto::limits::scope(self.ctx.clone(), f)
+    }
+}
+
+impl Drop for LoadSlot {
+    fn drop(&mut self) {
+        self.jobs.inner.loads_running.fetch_sub(1, Ordering::SeqCst);
+        self.jobs.dispatch();
+    }
 }
 
 impl Jobs {
@@ -292,8 +322,71 @@ impl Jobs {
                 max_queued,
                 history,
                 output_dir,
+                memory: Budget::new(trayecto::limits::default_limit()),
+                per_job: trayecto::limits::default_limit(),
+                loads_running: AtomicUsize::new(0),
+                loads_waiting: AtomicUsize::new(0),
+                slot_freed: Condvar::new(),
             }),
         }
+    }
+
+    /// Sets the memory all loads together may take and one load (before the list is shared).
+    pub fn with_memory(mut self, total: u64, per_job: u64) -> Jobs {
+        if let Some(inner) = Arc::get_mut(&mut self.inner) {
+            inner.memory = Budget::new(total);
+            inner.per_job = per_job.min(total);
+        }
+        self
+    }
+
+    /// A load's context: a budget of its own inside the total, and its cancel flag.
+    fn load_context(&self, cancel: Option<trayecto::limits::CancelCheck>) -> Arc<LoadContext> {
+        LoadContext::new(
+            Budget::child(&self.inner.memory, self.inner.per_job),
+            cancel,
+        )
+    }
+
+    /// Running jobs plus loads holding a slot (the list's lock held).
+    fn busy_slots(&self, list: &[Arc<Job>]) -> usize {
+        let jobs = list
+            .iter()
+            .filter(|j| {
+                let s = j.status().state;
+                s.is_active() && s != JobState::Queued
+            })
+            .count();
+        jobs + self.inner.loads_running.load(Ordering::SeqCst)
+    }
+
+    /// Waits for a render slot for a scene load outside the jobs; queued renders go first.
+    /// Refused (as a full queue refuses a render) when `max_queued` loads already wait.
+    pub fn load_slot(&self) -> Result<LoadSlot, String> {
+        let inner = &self.inner;
+        let mut list = lock(&inner.list);
+        if inner.loads_waiting.load(Ordering::SeqCst) >= inner.max_queued.max(1) {
+            return Err("the server is busy: too many scene loads wait; try again later".into());
+        }
+        inner.loads_waiting.fetch_add(1, Ordering::SeqCst);
+        loop {
+            let queued = list.iter().any(|j| j.status().state == JobState::Queued);
+            if !queued && self.busy_slots(&list) < inner.max_active {
+                break;
+            }
+            list = inner
+                .slot_freed
+                .wait_timeout(list, Duration::from_millis(500))
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        }
+        inner.loads_waiting.fetch_sub(1, Ordering::SeqCst);
+        inner.loads_running.fetch_add(1, Ordering::SeqCst);
+        drop(list);
+        Ok(LoadSlot {
+            jobs: self.clone(),
+            ctx: self.load_context(None),
+        })
     }
 
     pub fn get(&self, id: u64) -> Option<Arc<Job>> {
@@ -434,13 +527,7 @@ impl Jobs {
     /// submission and whenever a job ends.
     fn dispatch(&self) {
         let list = lock(&self.inner.list);
-        let mut running = list
-            .iter()
-            .filter(|j| {
-                let s = j.status().state;
-                s.is_active() && s != JobState::Queued
-            })
-            .count();
+        let mut running = self.busy_slots(&list);
         for job in list.iter() {
             if running >= self.inner.max_active {
                 break;
@@ -457,6 +544,8 @@ impl Jobs {
             running += 1;
             self.spawn(job.clone());
         }
+        // Scene loads waiting for a slot look again.
+        self.inner.slot_freed.notify_all();
     }
 
     fn spawn(&self, job: Arc<Job>) {
@@ -467,9 +556,14 @@ impl Jobs {
             .spawn(move || {
                 let j = worker.clone();
                 let out_dir = jobs.inner.output_dir.clone();
+                // The job's loads run under its own budget inside the server's total, and stop
+                // when it is cancelled (checked at each file read and in long loops).
+                let flag = worker.clone();
+                let load =
+                    jobs.load_context(Some(Arc::new(move || flag.cancel.load(Ordering::Relaxed))));
                 // A panic in the renderer must not leave the job counted as running forever.
                 let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    run_job(&j, &out_dir)
+                    trayecto::limits::scope(load, || run_job(&j, &out_dir))
                 }));
                 {
                     let mut st = worker.status();
@@ -707,6 +801,80 @@ mod tests {
         let next = jobs.submit(request("after-the-panic")).unwrap();
         wait(&next);
         assert_eq!(next.status().state, JobState::Done);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A cancel while the scene loads ends the job: the load checks the job's flag at each
+    /// file read. The scene includes files in a fan-out that reads 20000 of them before its
+    /// include bound stops it, so a job that ignored Cancel would end "failed", not "cancelled".
+    #[test]
+    fn a_cancel_during_loading_ends_the_job() {
+        let dir = std::env::temp_dir().join(format!("trayecto-jobs-load-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for i in 0..26 {
+            let body = if i < 25 {
+                format!("Include \"f{}.pbrt\"\nInclude \"f{}.pbrt\"\n", i + 1, i + 1)
+            } else {
+                String::new()
+            };
+            std::fs::write(dir.join(format!("f{i}.pbrt")), body).unwrap();
+        }
+        let scene = dir.join("fan.pbrt");
+        std::fs::write(&scene, "WorldBegin\nInclude \"f0.pbrt\"\n").unwrap();
+        let jobs = Jobs::new(1, 4, 10, dir.clone());
+        let mut r = request("fan", 8, 1);
+        r.source = SceneSource::File(scene);
+        let job = jobs.submit(r).unwrap();
+        assert_eq!(job.status().state, JobState::Loading);
+        std::thread::sleep(Duration::from_millis(20));
+        let t = Instant::now();
+        jobs.cancel(&job);
+        wait(&job);
+        assert_eq!(
+            job.status().state,
+            JobState::Cancelled,
+            "{:?}",
+            job.status().error
+        );
+        assert!(
+            t.elapsed() < Duration::from_millis(500),
+            "{:?}",
+            t.elapsed()
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Scene loads outside jobs (scene views) take a render slot: with one slot, a job waits
+    /// while a view holds it, and a view waits while a job runs.
+    #[test]
+    fn scene_views_wait_in_the_render_slots() {
+        let dir = std::env::temp_dir().join(format!("trayecto-jobs-views-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let jobs = Jobs::new(1, 4, 10, dir.clone()).with_memory(1 << 30, 1 << 29);
+        let slot = jobs.load_slot().unwrap();
+        let job = jobs.submit(request("after-view", 8, 1)).unwrap();
+        assert_eq!(job.status().state, JobState::Queued);
+        // The view's load runs under a job's budget inside the total.
+        let used = slot.run(|| {
+            trayecto::limits::charge(1 << 20, || "x".into()).unwrap();
+            trayecto::limits::current().budget.limit()
+        });
+        assert_eq!(used, 1 << 29);
+        drop(slot);
+        wait(&job);
+        assert_eq!(job.status().state, JobState::Done);
+        // A long job holds the slot; a view asked for meanwhile gets it only when it ends.
+        let long = jobs.submit(request("long", 64, 4096)).unwrap();
+        let j = jobs.clone();
+        let view = std::thread::spawn(move || {
+            let _slot = j.load_slot().unwrap();
+            Instant::now()
+        });
+        std::thread::sleep(Duration::from_millis(100));
+        jobs.cancel(&long);
+        wait(&long);
+        let ended = long.status().finished.unwrap();
+        assert!(view.join().unwrap() >= ended);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

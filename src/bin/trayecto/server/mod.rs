@@ -70,6 +70,14 @@ pub struct ServeArgs {
     /// Largest total size an uploaded .zip may unpack to, in MiB.
     #[arg(long, default_value_t = 1024, value_name = "MIB")]
     pub max_unpacked: u64,
+    /// Most memory one render's scene load may take (e.g. 2G); a file that asks for more fails
+    /// its job with an error naming it. Default: the total.
+    #[arg(long, value_name = "SIZE", value_parser = trayecto::limits::parse_size)]
+    pub memory_limit: Option<u64>,
+    /// Most memory all renders and scene views load together. Default: half the physical
+    /// memory (or of `ulimit -v`).
+    #[arg(long, value_name = "SIZE", value_parser = trayecto::limits::parse_size)]
+    pub memory_total: Option<u64>,
     /// Worker threads per render (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -234,6 +242,9 @@ impl ServeArgs {
             .output
             .canonicalize()
             .map_err(|e| folder(&self.output, format!("output folder: {e}")))?;
+        let total = self
+            .memory_total
+            .unwrap_or_else(trayecto::limits::default_limit);
         Ok(Policy {
             scenes_dir,
             output_dir,
@@ -247,6 +258,8 @@ impl ServeArgs {
                     max_unpacked: self.max_unpacked << 20,
                     ..Default::default()
                 },
+                memory_total: total,
+                memory_per_job: self.memory_limit.unwrap_or(total).min(total),
                 ..Limits::default()
             },
             threads: self.threads,
@@ -263,7 +276,8 @@ pub fn router(policy: Policy, loopback: bool, access: Option<Access>) -> Router 
             policy.limits.max_queue,
             HISTORY,
             policy.output_dir.clone(),
-        ),
+        )
+        .with_memory(policy.limits.memory_total, policy.limits.memory_per_job),
         policy,
         loopback,
         viewports: Default::default(),
@@ -598,7 +612,14 @@ async fn scene_defaults(
         Err(r) => return r,
     };
     let policy = st.policy.clone();
-    match tokio::task::spawn_blocking(move || request::scene_defaults(&name, &policy)).await {
+    let jobs = st.jobs.clone();
+    // Reading the scene is a load like a render's: it waits for a slot (jobs::Jobs::load_slot).
+    match tokio::task::spawn_blocking(move || {
+        jobs.load_slot()
+            .and_then(|slot| slot.run(|| request::scene_defaults(&name, &policy)))
+    })
+    .await
+    {
         Ok(Ok(v)) => json_response(StatusCode::OK, v),
         Ok(Err(m)) => error(StatusCode::BAD_REQUEST, m),
         Err(_) => error(StatusCode::INTERNAL_SERVER_ERROR, "internal error"),
@@ -1013,17 +1034,23 @@ async fn scene_view(
         Err(r) => return r,
     };
     let policy = st.policy.clone();
+    let jobs = st.jobs.clone();
+    // Loads and builds the scene in a render slot, under the job memory budget: six pages
+    // asking at once wait their turn instead of loading six times (jobs::Jobs::load_slot).
     let built = tokio::task::spawn_blocking(move || {
+        let slot = jobs.load_slot()?;
         let source = request::scene_source(&name, &policy)?;
         let rename = |m: String| match &source {
             request::SceneSource::File(p) => m.replace(&*p.to_string_lossy(), &name),
             request::SceneSource::Builtin(_) => m,
         };
-        let scene =
-            trayecto::scene::load(&source.load_spec()).map_err(|e| rename(e.to_string()))?;
-        let world = trayecto::world::World::build(scene, &Default::default())
-            .map_err(|e| rename(e.to_string()))?;
-        Ok::<_, String>(viewport::view_json(&world))
+        slot.run(|| {
+            let scene =
+                trayecto::scene::load(&source.load_spec()).map_err(|e| rename(e.to_string()))?;
+            let world = trayecto::world::World::build(scene, &Default::default())
+                .map_err(|e| rename(e.to_string()))?;
+            Ok::<_, String>(viewport::view_json(&world))
+        })
     })
     .await;
     match built {
