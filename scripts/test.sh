@@ -19,6 +19,9 @@ echo "== cargo test"
 # `cargo bench`: their timings do not belong in the test suite.
 cargo test
 
+echo "== fuzzing (scripts/fuzz.sh: every fuzz target for FUZZ_SECONDS each)"
+./scripts/fuzz.sh
+
 echo "== benchmark scoring (bench/compare.py --self-test: synthetic ladders, no renderer)"
 python3 bench/compare.py --self-test
 

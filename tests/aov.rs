@@ -253,7 +253,12 @@ fn albedo_and_normal_are_seen_through_glass() {
             );
         }
     }
-    assert!((0.86..0.96).contains(&share), "transmitted share {share}");
+    // Through the slab's two faces the share is (1 − R)²·Σ R²ᵏ = (1 − R)/(1 + R) = 0.923 for
+    // R = 0.04 (0.922–0.923 over the field of view); one face alone would give 0.96. Noise floor:
+    // 4096 paths, a binomial standard error √(0.923·0.077/4096) = 0.0042 (measured 0.9202 and 0.9207);
+    // the bounds are 4 of them either side.
+    eprintln!("transmitted share {share}");
+    assert!((0.906..0.940).contains(&share), "transmitted share {share}");
 }
 
 /// A surface seen from its back (a quad whose front face, e1 × e2, points away from the camera)
@@ -350,12 +355,42 @@ fn one_multilayer_exr_with_an_unchanged_beauty_image() {
     want.extend(AovKind::ALL.iter().flat_map(|k| k.channels()));
     want.sort();
     assert_eq!(names, want);
-    // The albedo channels hold the traced layer.
+    // Every channel of every layer holds its layer, bit for bit: the traced layers of a separate
+    // pass, and the film layers of the same render redone in memory (a swapped channel or layer,
+    // or a transposed one, fails).
     let world = cornell();
-    let traced = render_aovs(&world, &settings(20, 16, 2, 1), &[AovKind::Albedo], &stop).unwrap();
-    let g = channels.iter().find(|(n, _)| n == "albedo.G").unwrap();
-    let want_g: Vec<f32> = traced[0].data.iter().skip(1).step_by(3).copied().collect();
-    assert_eq!(g.1, want_g);
+    let mut want = render_aovs(&world, &settings(20, 16, 2, 1), &AovKind::TRACED, &stop).unwrap();
+    let s = RenderSettings {
+        track_variance: true,
+        ..settings(20, 16, 2, 2)
+    };
+    let r = trayecto::render::render_range(
+        &world,
+        &s,
+        trayecto::render::RangeStart {
+            samples: 0..2,
+            resume: None,
+        },
+        &trayecto::render::NoObserver,
+        &stop,
+    )
+    .unwrap();
+    want.extend(trayecto::film::aov::film_layers(&r.film, &AovKind::FILM));
+    assert_eq!(want.len(), AovKind::ALL.len());
+    for l in &want {
+        for (c, name) in l.channels.iter().enumerate() {
+            let got = &channels.iter().find(|(n, _)| n == name).unwrap().1;
+            let expect: Vec<u32> = l
+                .data
+                .iter()
+                .skip(c)
+                .step_by(l.depth())
+                .map(|v| v.to_bits())
+                .collect();
+            let got: Vec<u32> = got.iter().map(|v| v.to_bits()).collect();
+            assert!(got == expect, "channel {name} does not hold its layer");
+        }
+    }
     std::fs::remove_dir_all(dir).ok();
 }
 
@@ -370,9 +405,44 @@ fn side_files_for_png_and_partial_films_refuse_aovs() {
     let albedo = dir.join("out.albedo.png");
     let depth = dir.join("out.depth.png");
     assert_eq!(report.written, vec![out, albedo.clone(), depth.clone()]);
-    for p in [albedo, depth] {
-        let img = image::open(&p).unwrap();
+    // Decoded, each side file is its layer as `Display` maps it: albedo through the sRGB curve,
+    // depth normalised by its finite range; 8-bit rounding (half a step) plus one step for the
+    // range layer's trip through the linear curve and back.
+    let stop = AtomicBool::new(false);
+    let layers = render_aovs(
+        &cornell(),
+        &settings(20, 16, 2, 1),
+        &[AovKind::Albedo, AovKind::Depth],
+        &stop,
+    )
+    .unwrap();
+    let srgb = |c: f32| trayecto::material::texture::linear_to_srgb(c.clamp(0.0, 1.0));
+    for (p, l, tol) in [(&albedo, &layers[0], 0.6), (&depth, &layers[1], 1.6)] {
+        let img = image::open(p).unwrap().to_rgb8();
         assert_eq!((img.width(), img.height()), (20, 16));
+        let finite = l.data.iter().filter(|v| v.is_finite());
+        let lo = finite.clone().cloned().fold(f32::INFINITY, f32::min);
+        let hi = finite.cloned().fold(f32::NEG_INFINITY, f32::max);
+        for y in 0..16 {
+            for x in 0..20 {
+                let px = img.get_pixel(x, y).0;
+                for (c, &v) in px.iter().enumerate() {
+                    let want = if l.depth() == 3 {
+                        srgb(l.get(x, y, c))
+                    } else if l.get(x, y, 0).is_finite() {
+                        (l.get(x, y, 0) - lo) / (hi - lo)
+                    } else {
+                        1.0
+                    };
+                    let got = v as f32 / 255.0;
+                    assert!(
+                        (got - want).abs() <= tol / 255.0,
+                        "{}: pixel ({x}, {y}) channel {c} is {got}, the layer gives {want}",
+                        p.display()
+                    );
+                }
+            }
+        }
     }
     // HDR side files too, with depth +inf where rays escape (BoxTextured has a background).
     let mut hdr = job(dir.join("out.hdr"), AovKind::ALL.to_vec());
@@ -479,7 +549,12 @@ fn in_loop_aovs_follow_mirrors_and_glass() {
             );
         }
     }
-    assert!((0.86..0.96).contains(&share), "transmitted share {share}");
+    // Through the slab's two faces the share is (1 − R)²·Σ R²ᵏ = (1 − R)/(1 + R) = 0.923 for
+    // R = 0.04 (0.922–0.923 over the field of view); one face alone would give 0.96. Noise floor:
+    // 4096 paths, a binomial standard error √(0.923·0.077/4096) = 0.0042 (measured 0.9202 and 0.9207);
+    // the bounds are 4 of them either side.
+    eprintln!("transmitted share {share}");
+    assert!((0.906..0.940).contains(&share), "transmitted share {share}");
 }
 
 /// The `samples` and `variance` layers of a uniform render, through the whole pipeline (`-o

@@ -175,18 +175,21 @@ fn block_errors(img: &Image, reference: &Image) -> f64 {
 /// render of the same file do not mind). pbrt-v4 is 2.0 % darker in blue than Mitsuba: its
 /// spectral σs(λ) for the chromatic (0.2, 0.35, 0.5) scattering; Trayecto at 512 spp is +0.3 to
 /// +0.6 % of Mitsuba, so Trayecto / pbrt-v4 is +1.0 to +2.5 %, and the 64-spp render adds about
-/// 1.5 % of noise to the mean (measured +3.7 % in blue at seed 5): tolerance 4.5 %.
+/// 1.5 % of noise to the mean (measured +3.7 % in blue at seed 5): tolerance 4.5 %. The worst
+/// 4 × 4 block differs by 0.039–0.077 over seeds 0–5 (64 spp): block tolerance 0.10.
 #[test]
 fn fog_cornell_matches_pbrt_v4() {
-    check_against_pbrt("fog_cornell", 0.045, 0.12);
+    check_against_pbrt("fog_cornell", 0.045, 0.10);
 }
 
 /// Chromatic absorption: pbrt-v4's spectral exp(−σa(λ)·t) is 3.0 % brighter in red than the RGB
 /// exp that Trayecto and Mitsuba both compute (Mitsuba / pbrt-v4 = 1.030, 1.003, 1.008): the
-/// tolerance is that model difference plus noise.
+/// tolerance is that model difference plus noise (measured over seeds 0–5 at 64 spp: red
+/// +2.7 to +3.0 %). The worst 4 × 4 block differs by 0.075–0.087 over those seeds (standard
+/// deviation 0.004): block tolerance 0.10.
 #[test]
 fn absorbing_glass_matches_pbrt_v4() {
-    check_against_pbrt("absorbing_glass", 0.04, 0.12);
+    check_against_pbrt("absorbing_glass", 0.04, 0.10);
 }
 
 #[test]

@@ -203,7 +203,20 @@ fn merge_refuses_mismatched_overlapping_and_missing_parts() {
     assert!(m.contains("samples 5..13 are missing"), "{m}");
     assert!(merge_err(vec![], true).contains("no parts"));
 
-    // An incomplete but contiguous merge is allowed when asked for (a longer part).
+    // An incomplete but contiguous merge is allowed when asked for: 0..5 and 5..9 of the 13
+    // samples give the longer part 0..9, the film of rendering 0..9 at once (merging is exact);
+    // the same parts as a complete merge are refused, and a real gap is refused either way.
+    let e = part_of(&world, &s, 5, 9);
+    let ae = merge(vec![named("a.trp", &a), named("e.trp", &e)], false).unwrap();
+    assert_eq!(ae.header.samples, [0, 9]);
+    assert!(
+        ae.film == part_of(&world, &s, 0, 9).film,
+        "0..5 + 5..9 is not 0..9"
+    );
+    let m = merge_err(vec![named("a.trp", &a), named("e.trp", &e)], true);
+    assert!(m.contains("samples 9..13 are missing"), "{m}");
+    let m = merge_err(vec![named("a.trp", &a), named("d.trp", &d)], false);
+    assert!(m.contains("samples 5..6 are missing"), "{m}");
     let ab = merge(vec![named("a.trp", &a), named("b.trp", &b)], false).unwrap();
     assert_eq!(ab.header.samples, [0, SPP]);
 }

@@ -85,30 +85,29 @@ fn compare_grid(img: &Image, reference: &Image, n: u32) -> (f64, f64) {
 
 #[test]
 fn bitterli_scenes_load_with_their_settings() {
-    // (scene, triangles at least, the file's resolution and samples)
-    let cases: [(&str, usize, (u32, u32)); 5] = [
-        ("cornell-box", 10, (64, 64)),
-        ("veach-mis", 10, (1280, 720)),
-        ("coffee", 1000, (800, 1000)),
-        ("dining-room", 10_000, (960, 540)),
-        ("volumetric-caustic", 10, (512, 512)),
+    // (scene, triangles, the file's resolution, pixelsamples and maxdepth), as `trayecto info`
+    // reports them and the files state them.
+    type Case = (&'static str, usize, (u32, u32), u32, u32);
+    let cases: [Case; 5] = [
+        ("cornell-box", 36, (64, 64), 1, 4),
+        ("veach-mis", 52, (1280, 720), 1, 3),
+        ("coffee", 235_271, (800, 1000), 64, 17),
+        ("dining-room", 269_538, (960, 540), 16, 8),
+        ("volumetric-caustic", 14, (512, 512), 8, 7),
     ];
-    for (name, min_tris, (w, h)) in cases {
+    for (name, tris, (w, h), spp, depth) in cases {
         let p = common::shared_scene(&format!("pbrt/{name}/scene-v4.pbrt"));
         let s = load(&p);
-        assert!(
-            s.triangle_count() >= min_tris,
-            "{name}: {} triangles",
-            s.triangle_count()
-        );
+        assert_eq!(s.triangle_count(), tris, "{name}: triangles");
         assert_eq!(
             (s.hints.width, s.hints.height),
             (Some(w), Some(h)),
             "{name}"
         );
-        assert!(
-            s.hints.spp.is_some() && s.hints.max_depth.is_some(),
-            "{name}"
+        assert_eq!(
+            (s.hints.spp, s.hints.max_depth),
+            (Some(spp), Some(depth)),
+            "{name}: pixelsamples, maxdepth"
         );
         assert_eq!(s.cameras.len(), 1, "{name}");
         assert!(s.has_light(), "{name} has no light");
@@ -146,10 +145,12 @@ fn camera_convention_puts_the_red_wall_where_pbrt_does() {
         "the red wall is not on the right"
     );
     // fov spans the shorter (vertical) axis of this 2:1 film, and the image matches pbrt's.
+    // Measured over seeds 0–5 at 16 spp: mean error 0.0057–0.0075 (a systematic 0.007 and
+    // ±0.001 of noise), worst block 0.016–0.033; the tolerances are 0.012 and 0.05.
     let (mean_err, block_err) = compare(&img, &reference);
     eprintln!("camera-convention: mean {mean_err:.4}, worst 4x4 block {block_err:.4}");
     assert!(
-        mean_err < 0.05 && block_err < 0.15,
+        mean_err < 0.012 && block_err < 0.05,
         "mean {mean_err}, block {block_err}"
     );
 }
@@ -1063,10 +1064,12 @@ fn cornell_box_agrees_with_its_tungsten_reference() {
     };
     let (mean_err, block_err) = compare(&img, &reference);
     eprintln!("cornell-box vs Tungsten: mean {mean_err:.4}, worst 4x4 block {block_err:.4}");
-    // The file limits paths to 4 bounces (Tungsten's render used more), which costs ~3 % of the
-    // mean; the rest is noise at 64 spp.
+    // The file limits paths to 4 bounces (Tungsten's render used more), which costs 3.4 % of the
+    // mean. Measured over seeds 0–5 at 64 spp: mean error 0.0339–0.0352 (that 3.4 % and ±0.001
+    // of noise), worst block 0.119–0.125 (the same bounce limit, most in the shadowed corners;
+    // standard deviation 0.0025): the tolerances are 0.04 and 0.14.
     assert!(
-        mean_err < 0.06 && block_err < 0.15,
+        mean_err < 0.04 && block_err < 0.14,
         "mean {mean_err}, block {block_err}"
     );
 }
@@ -1332,7 +1335,9 @@ fn hostile_image_infinite_lights() {
             .map(|_| ())
             .unwrap_err()
             .to_string();
-    assert!(e.contains("non-finite") || e.contains("infinite"), "{e}");
+    // The scale 1e38 / (the map's illuminance) overflows: validation refuses the light by what
+    // is wrong with it (its name, "infinite…", would match "infinite" whatever the message).
+    assert!(e.contains("non-finite or degenerate parameters"), "{e}");
     let e = run("Scale 1 0 1\nLightSource \"infinite\" \"string filename\" \"sq.pfm\"")
         .unwrap_err()
         .to_string();

@@ -1,10 +1,9 @@
-//! Fuzzes the binary FBX reader and its conversion to a scene: any input must give `Ok` or a
-//! clean error, never a panic, an abort or unbounded memory.
-//! Run: `cargo +nightly fuzz run fbx -- -max_len=200000` (seed the corpus with the shared .fbx files).
+//! Fuzz target: binary FBX scenes. Loads and builds the world (fuzz/entries.rs);
+//! any input must give `Ok` or a clean error. Run: `scripts/fuzz.sh fbx 600` (docs/src/fuzzing.md).
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
+#[allow(dead_code)]
+#[path = "../entries.rs"]
+mod entries;
 
-fuzz_target!(|data: &[u8]| {
-    let _ = trayecto::scene::fbx::load_bytes(data, "fuzz.fbx", None).and_then(|s| s.validate());
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| entries::fbx(data));

@@ -1,12 +1,9 @@
-//! Fuzz target: the gltf scene parser must return Ok or Err on any bytes, never panic.
+//! Fuzz target: glTF scenes, JSON or binary. Loads and builds the world (fuzz/entries.rs);
+//! any input must give `Ok` or a clean error. Run: `scripts/fuzz.sh gltf 600` (docs/src/fuzzing.md).
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
+#[allow(dead_code)]
+#[path = "../entries.rs"]
+mod entries;
 
-fuzz_target!(|data: &[u8]| {
-    // An empty folder: referenced files are simply missing (warnings or errors).
-    let dir = std::env::temp_dir().join("trayecto-fuzz-empty");
-    let _ = std::fs::create_dir_all(&dir);
-    let _ = &dir;
-    let _ = trayecto::scene::load_bytes(data, &dir, "fuzz.glb");
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| entries::gltf(data));

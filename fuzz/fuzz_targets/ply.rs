@@ -1,12 +1,9 @@
-//! Fuzz target: the ply scene parser must return Ok or Err on any bytes, never panic.
+//! Fuzz target: PLY meshes. Loads and builds the world (fuzz/entries.rs);
+//! any input must give `Ok` or a clean error. Run: `scripts/fuzz.sh ply 600` (docs/src/fuzzing.md).
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
+#[allow(dead_code)]
+#[path = "../entries.rs"]
+mod entries;
 
-fuzz_target!(|data: &[u8]| {
-    // An empty folder: referenced files are simply missing (warnings or errors).
-    let dir = std::env::temp_dir().join("trayecto-fuzz-empty");
-    let _ = std::fs::create_dir_all(&dir);
-    let _ = &dir;
-    let _ = trayecto::scene::load_bytes(data, std::path::Path::new("."), "fuzz.ply");
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| entries::ply(data));

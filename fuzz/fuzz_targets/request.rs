@@ -1,24 +1,9 @@
-//! Fuzz target: the web server's render-request parser (`trayecto::server::request::
-//! parse_request`) must accept or refuse any body, field by field, never panic; an accepted
-//! request passes the renderer's own checks.
+//! Fuzz target: the web server's render-request parser (fuzz/entries.rs); any input must be accepted or refused,
+//! never a panic. Run: `scripts/fuzz.sh request 600` (docs/src/fuzzing.md).
 #![no_main]
 
-use libfuzzer_sys::fuzz_target;
-use trayecto::server::request::{Limits, Policy, parse_request};
+#[allow(dead_code)]
+#[path = "../entries.rs"]
+mod entries;
 
-fuzz_target!(|data: &[u8]| {
-    // Built-in scenes only: no scenes folder, so no file is ever resolved.
-    let policy = Policy {
-        scenes_dir: None,
-        output_dir: std::env::temp_dir(),
-        limits: Limits {
-            max_size: 64,
-            max_spp: 16,
-            ..Limits::default()
-        },
-        threads: Some(1),
-    };
-    if let Ok(r) = parse_request(data, &policy) {
-        assert!(r.settings.validate().is_ok(), "{:?}", r.settings);
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| entries::request(data));

@@ -36,7 +36,13 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
         ignore_lines: true,
     };
     let mut reader = std::io::Cursor::new(bytes);
-    let (models, materials) = tobj::load_obj_buf(&mut reader, &options, |mtl: &Path| {
+    // tobj can panic on hostile input (an `unwrap` in its MTL parser): contained, as every
+    // third-party parser is (docs/DESIGN.md §7).
+    let parsed = super::contain_panics(
+        label,
+        "the OBJ or its material library is malformed",
+        || {
+            tobj::load_obj_buf(&mut reader, &options, |mtl: &Path| {
         let name = mtl.to_string_lossy().into_owned();
         let p = match resolve_in_dir(dir, &name) {
             Ok(p) => p,
@@ -54,8 +60,11 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
                 Err(tobj::LoadError::OpenFileFailed)
             }
         }
-    })
-    .map_err(|e| err(format!("not a valid OBJ file: {e}")))?;
+        })
+        .map_err(|e| err(format!("not a valid OBJ file: {e}")))
+        },
+    );
+    let (models, materials) = parsed?;
     if let Some(why) = refused.into_inner() {
         return Err(err(why));
     }

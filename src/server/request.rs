@@ -54,8 +54,8 @@ impl Default for Limits {
             max_queue: 16,
             max_body: 16 * 1024,
             upload: Default::default(),
-            memory_total: trayecto::limits::default_limit(),
-            memory_per_job: trayecto::limits::default_limit(),
+            memory_total: crate::limits::default_limit(),
+            memory_per_job: crate::limits::default_limit(),
         }
     }
 }

@@ -1,0 +1,9 @@
+//! Fuzz target: Mitsuba .vol density grids in a grid medium. Loads and builds the world (fuzz/entries.rs);
+//! any input must give `Ok` or a clean error. Run: `scripts/fuzz.sh vol 600` (docs/src/fuzzing.md).
+#![no_main]
+
+#[allow(dead_code)]
+#[path = "../entries.rs"]
+mod entries;
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| entries::vol(data));
