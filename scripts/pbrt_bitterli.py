@@ -14,7 +14,13 @@ and Trayecto is compared against it as well: where Tungsten and pbrt-v4 disagree
 authority on what the file means.
 
 Usage: scripts/pbrt_bitterli.py [--trayecto target/release/trayecto] [--factor 8] [--spp 128]
-                                [--pbrt] [SCENE...]
+                                [--pbrt] [--corpus DIR [--all] [--placeholders]] [SCENE...]
+
+--corpus DIR reads the scenes from DIR/NAME/scene-v4.pbrt (default ../shared/scenes/pbrt; the
+whole corpus is Bitterli's pbrt-v4 scene pack, e.g. a copy of github.com/gonsolo/bitterli's
+NAME/pbrt folders outside the repository); a scene without TungstenRender.exr takes its Film
+size and is compared with pbrt-v4 only. --placeholders stands in for files the copy lacks (both
+renderers read the same stand-ins, so the comparison still measures the rest of the scene).
 """
 import re
 import argparse
@@ -69,47 +75,119 @@ def main():
     ap.add_argument("--factor", type=int, default=8)
     ap.add_argument("--spp", type=int, default=128)
     ap.add_argument("--pbrt", action="store_true", help="also compare against pbrt-v4 renders")
-    ap.add_argument("scenes", nargs="*", default=SCENES)
+    ap.add_argument("--corpus", default=os.path.join(ROOT, "..", "shared", "scenes", "pbrt"),
+                    help="folder of NAME/scene-v4.pbrt (Bitterli's pbrt-v4 scenes)")
+    ap.add_argument("--all", action="store_true", help="every scene folder of the corpus")
+    ap.add_argument("--placeholders", action="store_true",
+                    help="stand in for files the scene names but the corpus lacks (grey images, "
+                         "a tiny triangle for meshes, an empty include), the same for both renderers")
+    ap.add_argument("scenes", nargs="*")
     a = ap.parse_args()
-    shared = os.path.join(ROOT, "..", "shared", "scenes", "pbrt")
+    names = a.scenes or (sorted(d for d in os.listdir(a.corpus)
+                                if os.path.exists(os.path.join(a.corpus, d, "scene-v4.pbrt")))
+                         if a.all else SCENES)
     print(f"{'scene / reference':30} {'size':>9} {'mean T':>8} {'mean ref':>8} {'bias':>7} "
           f"{'ratio R/G/B':>18} {'block mean':>10} {'block max':>9}")
-    for name in a.scenes:
-        ref = read(os.path.join(shared, name, "TungstenRender.exr"))
-        h, w = ref.shape[0] // a.factor, ref.shape[1] // a.factor
+    for name in names:
+        src = os.path.join(a.corpus, name)
+        tungsten = os.path.join(src, "TungstenRender.exr")
+        ref = read(tungsten) if os.path.exists(tungsten) else None
+        fw, fh = film_size(os.path.join(src, "scene-v4.pbrt"))
+        if ref is not None:
+            fh, fw = ref.shape[0], ref.shape[1]
+        h, w = max(fh // a.factor, 1), max(fw // a.factor, 1)
         with tempfile.TemporaryDirectory() as d:
+            scene = overlay(src, d, w, h, a.placeholders)
             out = os.path.join(d, "out.exr")
-            cmd = [a.trayecto, "render", os.path.join(shared, name, "scene-v4.pbrt"), "-o", out,
+            cmd = [a.trayecto, "render", scene, "-o", out,
                    "--width", str(w), "--height", str(h), "--spp", str(a.spp), "-q"]
-            subprocess.run(cmd, check=True, stderr=subprocess.DEVNULL)
-            img = read(out)
-        r = downsample(ref, h, w)
-        report(name, w, h, img, r, "Tungsten")
-        if a.pbrt:
             try:
-                ref_pbrt = render_pbrt(os.path.join(shared, name), w, h, a.spp)
+                subprocess.run(cmd, check=True, stderr=subprocess.DEVNULL)
             except subprocess.CalledProcessError:
-                print(f"{name + ' / pbrt-v4':30} pbrt-v4 refused the file (run it by hand for the message)")
+                print(f"{name:30} Trayecto refused the file (run it by hand for the message)")
                 continue
-            report(name, w, h, img, ref_pbrt, "pbrt-v4")
+            img = read(out)
+            if ref is not None:
+                report(name, w, h, img, downsample(ref, h, w), "Tungsten")
+            if a.pbrt:
+                try:
+                    ref_pbrt = render_pbrt(scene, d, a.spp)
+                except subprocess.CalledProcessError:
+                    print(f"{name + ' / pbrt-v4':30} pbrt-v4 refused the file (run it by hand for the message)")
+                    continue
+                report(name, w, h, img, ref_pbrt, "pbrt-v4")
 
 
-def render_pbrt(scene_dir, w, h, spp):
-    pbrt = os.path.join(ROOT, "..", "shared", "tools", "pbrt-v4", "pbrt")
-    text = open(os.path.join(scene_dir, "scene-v4.pbrt")).read()
+def film_size(path):
+    text = open(path, errors="replace").read()
+    x = re.search(r'"integer xresolution"\s*\[?\s*(\d+)', text)
+    y = re.search(r'"integer yresolution"\s*\[?\s*(\d+)', text)
+    return (int(x.group(1)) if x else 1280), (int(y.group(1)) if y else 720)
+
+
+def overlay(scene_dir, d, w, h, placeholders):
+    """A copy of the scene's folder in `d` (links to its files) with the Film resolution set to
+    w x h; with `placeholders`, files the scene names that are missing get stand-ins there."""
+    text = open(os.path.join(scene_dir, "scene-v4.pbrt"), errors="replace").read()
     text = re.sub(r'"integer xresolution"\s*\[\s*\d+\s*\]', f'"integer xresolution" [ {w} ]', text)
     text = re.sub(r'"integer yresolution"\s*\[\s*\d+\s*\]', f'"integer yresolution" [ {h} ]', text)
-    with tempfile.TemporaryDirectory() as d:
-        for entry in os.listdir(scene_dir):
+    for entry in os.listdir(scene_dir):
+        if entry != "scene-v4.pbrt":
             os.symlink(os.path.join(os.path.abspath(scene_dir), entry), os.path.join(d, entry))
-        os.remove(os.path.join(d, "scene-v4.pbrt"))
-        with open(os.path.join(d, "scene-v4.pbrt"), "w") as f:
-            f.write(text)
-        out = os.path.join(d, "pbrt.exr")
-        subprocess.run([pbrt, "--nthreads", "2", "--spp", str(spp), "--outfile", out,
-                        os.path.join(d, "scene-v4.pbrt")], check=True,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        return read(out)
+    path = os.path.join(d, "scene-v4.pbrt")
+    with open(path, "w") as out:
+        out.write(text)
+    if placeholders:
+        for f in sorted(set(re.findall(r'"string filename"\s*\[?\s*"([^"]+)"', text))):
+            if not os.path.exists(os.path.join(d, f)):
+                stand_in(os.path.join(d, f))
+    return path
+
+
+def stand_in(path):
+    """A grey 8 x 8 image (TGA or PFM), a one-triangle PLY far below the scene, or an empty
+    include; never written into the corpus itself."""
+    # The overlay links whole sub-folders (textures/, models/): each linked folder on the way is
+    # made a real folder of links, so the stand-in does not land in the corpus.
+    d = os.path.dirname(os.path.dirname(path))
+    while not os.path.exists(os.path.join(d, "scene-v4.pbrt")):
+        d = os.path.dirname(d)
+    cur = d
+    for part in os.path.relpath(os.path.dirname(path), d).split(os.sep):
+        if part in ("", "."):
+            continue
+        cur = os.path.join(cur, part)
+        if os.path.islink(cur):
+            target = os.path.realpath(cur)
+            os.remove(cur)
+            os.makedirs(cur)
+            for e in os.listdir(target):
+                os.symlink(os.path.join(target, e), os.path.join(cur, e))
+        os.makedirs(cur, exist_ok=True)
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".pfm":
+        data = b"PF\n8 8\n-1.0\n" + np.full((8, 8, 3), 0.5, "<f4").tobytes()
+    elif ext == ".ply":
+        data = (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                b"property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                b"end_header\n0 -1000 0\n0.001 -1000 0\n0 -1000 0.001\n3 0 1 2\n")
+    elif ext == ".pbrt":
+        data = b""
+    else:
+        import struct
+        # Any other image: an uncompressed grey TGA (a .png or .exr name with TGA bytes is
+        # refused by both renderers alike, which the report then names).
+        data = struct.pack("<BBBHHBHHHHBB", 0, 0, 2, 0, 0, 0, 0, 0, 8, 8, 24, 0x20) + bytes([128]) * 192
+    with open(path, "wb") as f:
+        f.write(data)
+
+
+def render_pbrt(scene, d, spp):
+    pbrt = os.path.join(ROOT, "..", "shared", "tools", "pbrt-v4", "pbrt")
+    out = os.path.join(d, "pbrt.exr")
+    subprocess.run([pbrt, "--nthreads", "2", "--spp", str(spp), "--outfile", out, scene],
+                   check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return read(out)
 
 
 def report(name, w, h, img, r, against):

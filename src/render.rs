@@ -475,9 +475,11 @@ fn render_in_pool(
     let start = Instant::now();
     let (w, h) = (settings.width, settings.height);
     let camera = crate::camera::Camera::new(&world.camera, w, h);
-    // Filtered texture lookups need this camera's pixel footprint at every hit.
+    // Filtered texture lookups and bump maps need this camera's pixel footprint at every hit.
     let filtered;
-    let settings = if world.texture_filter == crate::material::texture::TextureFilter::Trilinear {
+    let settings = if world.texture_filter == crate::material::texture::TextureFilter::Trilinear
+        || world.has_bump
+    {
         filtered = RenderSettings {
             path: crate::integrator::path::PathSettings {
                 footprint: camera.footprint(),

@@ -92,6 +92,10 @@ pub struct World {
     /// `WorldOptions::texture_filter`: with `Trilinear` the textures carry MIP pyramids and
     /// renders give the path tracers the camera's [`crate::camera::Footprint`].
     pub texture_filter: crate::material::texture::TextureFilter,
+    /// True if a material bump-maps (pbrt-v4 `displacement`): its finite differences are taken
+    /// over the pixel footprint, so renders give the path tracers the camera's footprint even
+    /// without `--texture-filter trilinear` (`eval::bump`).
+    pub has_bump: bool,
 }
 
 /// Rays pass through at most this many cut-out surfaces; beyond it the next surface counts as
@@ -141,8 +145,17 @@ impl World {
         {
             use rayon::prelude::*;
             let mips = options.texture_filter == crate::material::texture::TextureFilter::Trilinear;
-            textures.par_iter_mut().for_each(|t| {
-                if mips {
+            // pbrt-v4 reads a bump map's displacement texture through its MIP pyramid at the
+            // pixel footprint (`BumpMap` evaluates it at three footprint-sized shifts), so those
+            // textures get pyramids whatever the option says.
+            let mut bump = vec![false; textures.len()];
+            for m in &materials {
+                if let Some(t) = &m.displacement {
+                    bump[t.texture] = true;
+                }
+            }
+            textures.par_iter_mut().zip(bump).for_each(|(t, bump)| {
+                if mips || bump {
                     t.build_mips();
                 }
                 t.tile();
@@ -162,6 +175,7 @@ impl World {
             .map(|m| m.alpha_mode != AlphaMode::Opaque)
             .collect();
         let has_cutouts = cutout.iter().any(|&c| c);
+        let has_bump = materials.iter().any(|m| m.displacement.is_some());
         Ok(World {
             geometry: g,
             accel,
@@ -176,6 +190,7 @@ impl World {
             cutout,
             has_cutouts,
             texture_filter: options.texture_filter,
+            has_bump,
         })
     }
 

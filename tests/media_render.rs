@@ -149,7 +149,11 @@ fn check_against_pbrt_v4(name: &str, tol: f32, block_tol: f64, mitsuba: bool) {
 /// Largest relative difference of the 4 × 4 block means (channel sums), blocks darker than 5 % of
 /// the image mean compared against that 5 %.
 fn block_errors(img: &Image, reference: &Image) -> f64 {
-    let n = 4;
+    block_errors_n(img, reference, 4)
+}
+
+/// [`block_errors`] on an `n × n` grid.
+fn block_errors_n(img: &Image, reference: &Image, n: usize) -> f64 {
     let blocks = |im: &Image| {
         let mut out = vec![0.0f64; n * n];
         for y in 0..im.height as usize {
@@ -220,6 +224,39 @@ fn emissive_medium_matches_pbrt_v4() {
 fn emissive_grid_matches_pbrt_v4() {
     check_against_pbrt_v4("emissive_grid", 0.02, 0.35, false);
 }
+
+/// A fog cube resting on a floor (scenes/pbrt/media/fog-on-floor.pbrt): its `interface` bottom
+/// face lies in the floor's plane, so a ray reaches both at the same `t`. The floor must win,
+/// hit inside the fog; the reference is pbrt-v4's render of the same cube reaching 1 mm into
+/// the floor (fog-on-floor-overlap.pbrt), where nothing coincides. With the interface found
+/// first (it ranked first as the lower primitive), the ray crossed it, its continuation started
+/// past the plane and missed the floor: the blocks where the cube meets the floor were 60–70 %
+/// dark. pbrt-v4's own render of the coincident file shows the same dark patch (its tie rule
+/// lets the interface win too): the overlapping cube is what the file means.
+#[test]
+fn fog_resting_on_a_floor_matches_the_overlapping_cube() {
+    let path = repo_dir().join("scenes/pbrt/media/fog-on-floor.pbrt");
+    let scene = trayecto::scene::load(path.to_str().unwrap()).expect("scene loads");
+    let reference =
+        read_exr(&repo_dir().join("tests/references/pbrt/media/fog-on-floor-overlap.exr"))
+            .expect("reference EXR");
+    let (w, h) = (reference.width, reference.height);
+    let img = render_scene(&scene, &settings(w, h, 64));
+    let worst = block_errors_n(&img, &reference, 8);
+    let (m, r) = (mean(&img), mean(&reference));
+    println!("fog-on-floor: Trayecto {m:?} vs pbrt-v4 {r:?}, worst 8x8 block {worst:.4}");
+    assert_means_close(&img, &reference, TOL_FOG_FLOOR.0, "fog-on-floor");
+    assert!(
+        worst < TOL_FOG_FLOOR.1,
+        "fog-on-floor: an 8x8 block differs by {worst} from pbrt-v4's overlapping cube"
+    );
+}
+
+/// Tolerances of [`fog_resting_on_a_floor_matches_the_overlapping_cube`] (mean per channel,
+/// worst 8 × 8 block). Measured: means within 0.6 %, worst 8 × 8 block 0.22 (seed 5, a firefly;
+/// `trayecto render` at 64 spp: mean −0.03 %, 8 × 8 blocks
+/// within 6 %; before interfaces ranked last, the contact blocks were 60–74 % off.
+const TOL_FOG_FLOOR: (f32, f64) = (0.03, 0.3);
 
 /// A slab z ∈ [0, D] of absorbing, emitting medium in black surroundings, seen straight down:
 /// L = Le·(1 − e^(−σa·D)) per channel (the RTE with emission σa·Le and no scattering). Checked

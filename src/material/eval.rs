@@ -58,15 +58,28 @@ pub fn resolve_mix<'a>(
     m
 }
 
+/// pbrt-v4's scale of its ray differentials at 64 samples per pixel and more
+/// (`max(1/8, 1/√spp)`, applied to camera rays and to `Camera::Approximate_dp_dxy`): the bump
+/// map's steps and lookups use the footprint shrunk by it. The fixed 1/8 keeps the image
+/// independent of the sample count (pbrt-v4's bump steps grow below 64 spp).
+pub const PBRT_DIFFERENTIAL_SCALE: f32 = 0.125;
+
 /// pbrt-v4 `BumpMap` (pbrt-v4 materials.h; Blinn 1978): with d = scale × displacement texture R,
-/// ∂p/∂u' = ∂p/∂u + (d(u + Δ, v) − d(u, v))/Δ · n and likewise for v, and the shading normal
+/// ∂p/∂u' = ∂p/∂u + (d(u + Δu, v) − d(u, v))/Δu · n and likewise for v, and the shading normal
 /// becomes ∂p/∂u' × ∂p/∂v' turned to the geometric normal's side. `dpdu`, `dpdv` are the shading
 /// ∂p/∂u, ∂p/∂v in pbrt's convention (v growing up the image; see
-/// [`crate::geometry::GeometryStore::pbrt_shading_dpduv`]). Δ = 0.0005, pbrt-v4's step when it
-/// has no ray differentials (with them pbrt uses the pixel footprint; the two agree for
-/// displacement that is smooth at that scale). pbrt's d·∂n/∂u term is left out: it is zero on
-/// flat-shaded meshes and changes the normal by O(d/r) on curved ones. Leaves the hit unchanged
-/// without a displacement texture or when the result is degenerate.
+/// [`crate::geometry::GeometryStore::pbrt_shading_dpduv`]). pbrt's d·∂n/∂u term is left out: it
+/// is zero on flat-shaded meshes and changes the normal by O(d/r) on curved ones. Leaves the hit
+/// unchanged without a displacement texture or when the result is degenerate.
+///
+/// The steps are pbrt-v4's: with the pixel footprint (`hit.duv`, which renders of scenes with a
+/// bump map always have, `World::has_bump`), Δu = ½(|∂u/∂x| + |∂u/∂y|) and Δv likewise, of the
+/// footprint shrunk as pbrt-v4 shrinks its ray differentials ([`PBRT_DIFFERENTIAL_SCALE`]), and
+/// the three lookups read the texture's pyramid at that footprint; without one (hits not seen
+/// through a perspective camera) Δ = 0.0005, pbrt-v4's fallback. The step matters: the finite
+/// difference of an image with sharp edges (tiles and their grout) grows as 1/Δ where an edge
+/// falls inside it, and Bitterli's bathroom floor (a colour image of tiles read as height) is
+/// 10–30 % darker with the fallback step than with pbrt-v4's.
 pub fn bump(
     material: &Material,
     textures: &[Texture],
@@ -79,18 +92,28 @@ pub fn bump(
     };
     const DELTA: f32 = 0.0005;
     let scale = material.displacement_scale;
+    let fp = hit.duv[t.texcoord as usize & 1] * PBRT_DIFFERENTIAL_SCALE;
+    let step = |s: f32| if s > 0.0 && s.is_finite() { s } else { DELTA };
+    let du = step(0.5 * (fp.x.abs() + fp.z.abs()));
+    let dv = step(0.5 * (fp.y.abs() + fp.w.abs()));
+    // pbrt-v4's MIP filter width is twice the largest derivative where Trayecto's lookup takes
+    // one pixel's footprint (`Texture::mip_level`): the lookups get the shrunk footprint doubled.
+    let mut probe = *hit;
+    probe.duv = [
+        hit.duv[0] * (2.0 * PBRT_DIFFERENTIAL_SCALE),
+        hit.duv[1] * (2.0 * PBRT_DIFFERENTIAL_SCALE),
+    ];
     // Stored uvs have v growing down the image (glTF), so pbrt's v + Δ is stored v − Δ.
-    let d = |shift: Vec2| {
-        let mut h = *hit;
-        h.uv = [hit.uv[0] + shift, hit.uv[1] + shift];
-        scale * sample_texture(textures, t, &h).x
+    let mut d = |shift: Vec2| {
+        probe.uv = [hit.uv[0] + shift, hit.uv[1] + shift];
+        scale * sample_texture(textures, t, &probe).x
     };
     let d0 = d(Vec2::ZERO);
-    let du = d(Vec2::new(DELTA, 0.0));
-    let dv = d(Vec2::new(0.0, -DELTA));
+    let d_u = d(Vec2::new(du, 0.0));
+    let d_v = d(Vec2::new(0.0, -dv));
     let n = hit.ns;
-    let pu = dpdu + n * ((du - d0) / DELTA);
-    let pv = dpdv + n * ((dv - d0) / DELTA);
+    let pu = dpdu + n * ((d_u - d0) / du);
+    let pv = dpdv + n * ((d_v - d0) / dv);
     let mut ns = pu.cross(pv).normalize_or_zero();
     if ns == Vec3::ZERO || !ns.is_finite() {
         return;

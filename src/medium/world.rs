@@ -86,6 +86,22 @@ pub fn assign(scene: &mut Scene) -> Result<WorldMedia, GridError> {
         .map(|m| m.model == MaterialModel::Interface)
         .collect();
     let active = !media.is_empty() || passthrough.iter().any(|&p| p);
+    // Interface surfaces go after every other object, so their primitives have the higher
+    // indices of their kind. A fog volume resting on a floor has its bottom face in the floor's
+    // plane: a ray reaches both at the same `t` (bit for bit on a shared plane), and the
+    // accelerators break such ties by the lower primitive (`Bvh::intersect_impl`). Found
+    // first, the interface would be crossed and its continuation ray, offset past the plane,
+    // would miss the floor (a dark patch under the volume) or reach it in the wrong medium;
+    // found second, the floor is hit in the medium the ray is in, as when the volume reaches
+    // a little into the floor. The stable partition keeps every other object's order (lights
+    // and all), and scenes without interface surfaces are not reordered.
+    if passthrough.iter().any(|&p| p) {
+        let (rest, iface): (Vec<_>, Vec<_>) = std::mem::take(&mut scene.objects)
+            .into_iter()
+            .partition(|o| !passthrough[o.material]);
+        scene.objects = rest;
+        scene.objects.extend(iface);
+    }
     Ok(WorldMedia {
         media,
         interfaces,
