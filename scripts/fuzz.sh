@@ -16,8 +16,9 @@ ROOT=$PWD
 
 ONLY="${1:-}"
 SECS="${2:-${FUZZ_SECONDS:-5}}"
-# libFuzzer's limits: the process's resident memory, one allocation, one input's run time.
-LIMITS=(-rss_limit_mb=3072 -malloc_limit_mb=2048 -timeout=20 -max_len=65536)
+# libFuzzer's limits: the process's resident memory, one allocation, one input's run time; a
+# fixed seed (FUZZ_SEED) so that what a CI run finds, the same run finds again.
+LIMITS=(-rss_limit_mb=3072 -malloc_limit_mb=2048 -timeout=20 -max_len=65536 -seed="${FUZZ_SEED:-1}")
 
 if rustup toolchain list 2>/dev/null | grep -q '^nightly'; then
     TOOLCHAIN=(+nightly)
