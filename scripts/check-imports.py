@@ -33,6 +33,8 @@ LAYERS = [
     ("", 0),
     ("math", 0),
     ("phases", 0),
+    # the memory budget and cancel flag a load charges (read by every decoder and the front ends)
+    ("limits", 0),
     # 1: random numbers and shapes
     ("sampling", 1),
     ("geometry", 1),

@@ -332,6 +332,26 @@ fn adaptive_is_bit_identical_across_thread_counts_and_stops_clean_pixels() {
         }
     }
     assert!(stopped > 0, "no pixel stopped early");
+    // The rule spends samples where one sample is noisy: the per-sample relative deviation
+    // (relative error × √n, which does not shrink with n) of the pixels that ran to the cap is
+    // larger than that of the pixels that stopped. An inverted rule (stop where the error is
+    // above the threshold) stops the noisy pixels and keeps the clean ones, and fails here.
+    let per_sample = |i: usize| one.film.relative_error(i) * (counts[i] as f64).sqrt();
+    let mean_of = |capped: bool| {
+        let v: Vec<f64> = (0..counts.len())
+            .filter(|&i| (counts[i] >= 128) == capped)
+            .map(per_sample)
+            .filter(|x| x.is_finite())
+            .collect();
+        v.iter().sum::<f64>() / v.len().max(1) as f64
+    };
+    let (capped, early) = (mean_of(true), mean_of(false));
+    eprintln!("per-sample relative deviation: capped {capped:.4}, stopped early {early:.4}");
+    assert!(
+        capped > 1.5 * early,
+        "pixels run to the cap deviate {capped:.3} per sample, pixels stopped early {early:.3}: \
+         the samples did not go to the noisy pixels"
+    );
 }
 
 /// Absurd values are refused before rendering, with a message naming the option.

@@ -4,10 +4,12 @@
 
 pub mod bvh;
 pub mod grid;
+pub mod instance;
 pub mod split;
 
 pub use bvh::Bvh;
 pub use grid::Grid;
+pub use instance::InstanceBvh;
 
 use crate::geometry::primitive::Intersection;
 use crate::geometry::{GeometryStore, PrimRef, Ray};
@@ -37,7 +39,14 @@ impl std::str::FromStr for AccelKind {
     }
 }
 
-pub enum Accel {
+/// The structure over the flat primitives, and the two-level hierarchy over the instanced
+/// meshes (empty for most scenes).
+pub struct Accel {
+    flat: FlatAccel,
+    instances: InstanceBvh,
+}
+
+enum FlatAccel {
     Bvh(Bvh),
     None(Vec<PrimRef>),
     Grid(Grid),
@@ -45,25 +54,29 @@ pub enum Accel {
 
 impl Accel {
     pub fn build(kind: AccelKind, geometry: &GeometryStore) -> Accel {
-        match kind {
-            AccelKind::Bvh => Accel::Bvh(Bvh::build(geometry)),
-            AccelKind::None => Accel::None(geometry.all_prims()),
-            AccelKind::Grid => Accel::Grid(Grid::build(geometry)),
+        let flat = match kind {
+            AccelKind::Bvh => FlatAccel::Bvh(Bvh::build(geometry)),
+            AccelKind::None => FlatAccel::None(geometry.all_prims()),
+            AccelKind::Grid => FlatAccel::Grid(Grid::build(geometry)),
+        };
+        Accel {
+            flat,
+            instances: InstanceBvh::build(&geometry.instances),
         }
     }
 
     /// One line for reports: the structure and its size.
     pub fn describe(&self) -> String {
-        match self {
-            Accel::Bvh(b) => {
+        match &self.flat {
+            FlatAccel::Bvh(b) => {
                 let s = b.stats();
                 format!(
                     "bvh ({} nodes, {} references, {} in leaves, {} packets ({} leaves of two), SAH cost {:.1})",
                     s.nodes, s.references, s.leaf_prims, s.packets, s.two_packet_leaves, s.sah_cost
                 )
             }
-            Accel::None(p) => format!("none ({} primitives tested per ray)", p.len()),
-            Accel::Grid(g) => {
+            FlatAccel::None(p) => format!("none ({} primitives tested per ray)", p.len()),
+            FlatAccel::Grid(g) => {
                 let s = g.stats();
                 format!(
                     "grid {}x{}x{} ({} cells, {} empty, {} references)",
@@ -78,20 +91,22 @@ impl Accel {
     #[inline]
     pub fn intersect(&self, geometry: &GeometryStore, ray: &Ray) -> Option<Intersection> {
         let flat = self.intersect_flat(geometry, ray);
-        if geometry.instances.is_empty() {
+        if self.instances.is_empty() {
             return flat;
         }
         // Strictly nearer only: at equal `t` the flat primitive, whose index is lower, wins, as
         // the ranking of one structure would decide.
         let t_max = flat.map_or(ray.t_max, |h| h.t);
-        geometry.instances.intersect(ray, t_max).or(flat)
+        self.instances
+            .intersect(&geometry.instances, ray, t_max)
+            .or(flat)
     }
 
     #[inline]
     fn intersect_flat(&self, geometry: &GeometryStore, ray: &Ray) -> Option<Intersection> {
-        match self {
-            Accel::Bvh(b) => b.intersect(geometry, ray),
-            Accel::None(prims) => {
+        match &self.flat {
+            FlatAccel::Bvh(b) => b.intersect(geometry, ray),
+            FlatAccel::None(prims) => {
                 let mut best: Option<Intersection> = None;
                 let mut t_max = ray.t_max;
                 for &p in prims {
@@ -102,7 +117,7 @@ impl Accel {
                 }
                 best
             }
-            Accel::Grid(g) => g.intersect(geometry, ray),
+            FlatAccel::Grid(g) => g.intersect(geometry, ray),
         }
     }
 
@@ -110,17 +125,18 @@ impl Accel {
     #[inline]
     pub fn occluded(&self, geometry: &GeometryStore, ray: &Ray) -> bool {
         self.occluded_flat(geometry, ray)
-            || (!geometry.instances.is_empty() && geometry.instances.occluded(ray, ray.t_max))
+            || (!self.instances.is_empty()
+                && self.instances.occluded(&geometry.instances, ray, ray.t_max))
     }
 
     #[inline]
     fn occluded_flat(&self, geometry: &GeometryStore, ray: &Ray) -> bool {
-        match self {
-            Accel::Bvh(b) => b.occluded(geometry, ray),
-            Accel::None(prims) => prims
+        match &self.flat {
+            FlatAccel::Bvh(b) => b.occluded(geometry, ray),
+            FlatAccel::None(prims) => prims
                 .iter()
                 .any(|&p| geometry.intersect(p, ray, ray.t_max).is_some()),
-            Accel::Grid(g) => g.occluded(geometry, ray),
+            FlatAccel::Grid(g) => g.occluded(geometry, ray),
         }
     }
 }

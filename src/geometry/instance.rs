@@ -1,8 +1,9 @@
 //! Instances: objects that place one shared mesh several times keep a single object-space copy
-//! of it with its own BVH (the bottom level), and a top-level BVH over the instances' world
-//! boxes, so memory grows with the unique geometry instead of with the copies (pbrt-v4's
-//! `ObjectInstance`, glTF meshes used by several nodes). docs/DESIGN.md §5 (acceleration) says
-//! when a mesh is instanced.
+//! of it, so memory grows with the unique geometry instead of with the copies (pbrt-v4's
+//! `ObjectInstance`, glTF meshes used by several nodes). This module holds the shared meshes and
+//! their placements; the two-level hierarchy over them (a BVH per shared mesh, one over the
+//! instances' world boxes) is the accelerator's (`accel::instance`). docs/DESIGN.md §5
+//! (acceleration) says when a mesh is instanced.
 //!
 //! Bit-identical to the flattened scene by construction where it matters: an instanced triangle
 //! is tested, and its hit expanded, on world-space vertices computed on the fly with the very
@@ -17,10 +18,9 @@
 //! index: the instance's `base` plus the triangle's index in the mesh), so hits, materials and
 //! reports keep the one `PrimRef` form.
 
-use super::primitive::{Intersection, MeshAttributes};
+use super::mesh::MeshAttributes;
 use super::triangle::TriangleVerts;
-use super::{Bounds3, PrimRef, PrimitiveKind, Ray};
-use crate::accel::Bvh;
+use super::{Bounds3, Ray};
 use crate::math::{Mat3, Mat4, Vec3, Vec4, transform_normal};
 
 /// Relative padding of the bottom-level boxes (of the mesh's extent and its distance from the
@@ -28,18 +28,19 @@ use crate::math::{Mat3, Mat4, Vec3, Vec4, transform_normal};
 /// roundings off, and a triangle grazed by the world ray must still have its box entered.
 const OBJECT_BOX_PADDING: f32 = 1e-4;
 
-/// One shared mesh in object space: vertices, attributes as the file gave them (normals and
-/// tangents untransformed), and a BVH over its triangles' (padded) boxes.
+/// One shared mesh in object space: vertices and attributes as the file gave them (normals and
+/// tangents untransformed).
 #[derive(Clone, Debug)]
 pub struct SharedMesh {
     pub positions: Vec<Vec3>,
     /// Indices in the file's winding; `material` is unused (each instance has its own).
     pub attrs: MeshAttributes,
-    pub bvh: Bvh,
+    /// The padding of the boxes of its triangles in the bottom-level BVH.
+    pub pad: f32,
 }
 
 impl SharedMesh {
-    /// Builds the bottom level of `positions` / `attrs` (object space).
+    /// A shared mesh of `positions` / `attrs` (object space).
     pub fn new(positions: Vec<Vec3>, attrs: MeshAttributes) -> SharedMesh {
         let extent = attrs
             .indices
@@ -52,22 +53,24 @@ impl SharedMesh {
             let reach = extent.min.abs().max(extent.max.abs()).max_element();
             OBJECT_BOX_PADDING * (reach + extent.diagonal().max_element())
         };
-        let prims = (0..attrs.indices.len() as u32)
-            .map(|j| PrimRef::new(PrimitiveKind::Triangle, j))
-            .collect();
-        let bvh = Bvh::build_from(prims, |p| {
-            let [a, b, c] = attrs.indices[p.index()].map(|v| positions[v as usize]);
-            let bounds = Bounds3::from_point(a).union_point(b).union_point(c);
-            Bounds3::new(bounds.min - Vec3::splat(pad), bounds.max + Vec3::splat(pad))
-        });
         SharedMesh {
             positions,
             attrs,
-            bvh,
+            pad,
         }
     }
 
-    /// Bytes held (vertices, attributes, BVH), for reports.
+    /// The padded object-space box of triangle `j` (for the bottom-level BVH).
+    pub fn triangle_bounds(&self, j: usize) -> Bounds3 {
+        let [a, b, c] = self.attrs.indices[j].map(|v| self.positions[v as usize]);
+        let bounds = Bounds3::from_point(a).union_point(b).union_point(c);
+        Bounds3::new(
+            bounds.min - Vec3::splat(self.pad),
+            bounds.max + Vec3::splat(self.pad),
+        )
+    }
+
+    /// Bytes held (vertices, attributes), for reports.
     pub fn heap_bytes(&self) -> usize {
         let a = &self.attrs;
         self.positions.len() * 12
@@ -77,7 +80,6 @@ impl SharedMesh {
             + a.uv0.as_ref().map_or(0, |v| v.len() * 8)
             + a.uv1.as_ref().map_or(0, |v| v.len() * 8)
             + a.colors.as_ref().map_or(0, |v| v.len() * 16)
-            + self.bvh.heap_bytes()
     }
 }
 
@@ -135,14 +137,12 @@ impl Instance {
     }
 }
 
-/// Every shared mesh and instance, and the top-level BVH over the instances.
+/// Every shared mesh and instance.
 #[derive(Clone, Debug, Default)]
 pub struct InstanceStore {
     pub meshes: Vec<SharedMesh>,
     /// In increasing `base` order.
     pub instances: Vec<Instance>,
-    /// Over `PrimRef::Triangle(instance index)` with the instances' world boxes.
-    pub top: Option<Bvh>,
     /// The first virtual index (the number of flat triangles).
     pub first: u32,
 }
@@ -153,8 +153,7 @@ impl InstanceStore {
         self.instances.is_empty()
     }
 
-    /// Numbers the instances' triangles from `first` (the count of flat triangles) on and builds
-    /// the top level.
+    /// Numbers the instances' triangles from `first` (the count of flat triangles) on.
     pub fn finish(&mut self, first: u32) {
         self.first = first;
         let mut base = first;
@@ -162,11 +161,6 @@ impl InstanceStore {
             inst.base = base;
             base += self.meshes[inst.mesh as usize].attrs.indices.len() as u32;
         }
-        let prims = (0..self.instances.len() as u32)
-            .map(|k| PrimRef::new(PrimitiveKind::Triangle, k))
-            .collect();
-        let instances = &self.instances;
-        self.top = Some(Bvh::build_from(prims, |p| instances[p.index()].bounds));
     }
 
     /// Triangles the instances stand for (what flattening them would store).
@@ -177,14 +171,13 @@ impl InstanceStore {
             .sum()
     }
 
-    /// Bytes held by the shared meshes, the instances and the top level.
+    /// Bytes held by the shared meshes and the instances.
     pub fn heap_bytes(&self) -> usize {
         self.meshes
             .iter()
             .map(SharedMesh::heap_bytes)
             .sum::<usize>()
             + self.instances.len() * std::mem::size_of::<Instance>()
-            + self.top.as_ref().map_or(0, Bvh::heap_bytes)
     }
 
     /// The instance and mesh-local triangle of virtual index `v`.
@@ -217,49 +210,12 @@ impl InstanceStore {
             t,
         )
     }
-
-    /// The closest instanced triangle along `ray` before `t_max`.
-    #[inline]
-    pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<Intersection> {
-        let top = self.top.as_ref()?;
-        top.closest_with(ray, t_max, |p, bound| {
-            let inst = &self.instances[p.index()];
-            let mesh = &self.meshes[inst.mesh as usize];
-            let local = object_ray(inst, ray);
-            mesh.bvh.closest_with(&local, bound, |tri, bound| {
-                let (verts, _) = self.world_triangle(inst, tri.index());
-                verts.intersect(ray, bound).map(|h| Intersection {
-                    t: h.t,
-                    prim: PrimRef::new(PrimitiveKind::Triangle, inst.base + tri.index() as u32),
-                    u: h.b1,
-                    v: h.b2,
-                })
-            })
-        })
-    }
-
-    /// True if an instanced triangle lies on `ray` before `t_max`.
-    #[inline]
-    pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        let Some(top) = self.top.as_ref() else {
-            return false;
-        };
-        top.any_with(ray, t_max, |p, bound| {
-            let inst = &self.instances[p.index()];
-            let mesh = &self.meshes[inst.mesh as usize];
-            let local = object_ray(inst, ray);
-            mesh.bvh.any_with(&local, bound, |tri, bound| {
-                let (verts, _) = self.world_triangle(inst, tri.index());
-                verts.intersect(ray, bound).is_some()
-            })
-        })
-    }
 }
 
 /// `ray` in the object space of `inst`, with the same parameter `t` (the direction is not
 /// normalised).
 #[inline]
-fn object_ray(inst: &Instance, ray: &Ray) -> Ray {
+pub fn object_ray(inst: &Instance, ray: &Ray) -> Ray {
     let m = &inst.object_from_world;
     Ray {
         o: m.transform_point3(ray.o),

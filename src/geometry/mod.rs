@@ -7,6 +7,7 @@ pub mod bounds;
 pub mod cuboid;
 pub mod curve;
 pub mod instance;
+pub mod mesh;
 pub mod primitive;
 pub mod quad;
 pub mod sample;

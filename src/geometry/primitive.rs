@@ -5,6 +5,7 @@
 use super::cuboid::Cuboid;
 use super::curve::{Curve, CurveHit};
 use super::instance::{Instance, InstanceStore};
+pub use super::mesh::MeshAttributes;
 use super::quad::Quad;
 use super::sphere::Sphere;
 use super::triangle::TriangleVerts;
@@ -66,18 +67,6 @@ pub struct Intersection {
     /// Barycentrics (b1, b2) for triangles, (u, v) for quads and curves; unused otherwise.
     pub u: f32,
     pub v: f32,
-}
-
-/// Shading attributes of a world-space triangle mesh.
-#[derive(Clone, Debug, Default)]
-pub struct MeshAttributes {
-    pub indices: Vec<[u32; 3]>,
-    pub normals: Option<Vec<Vec3>>,
-    pub tangents: Option<Vec<Vec4>>,
-    pub uv0: Option<Vec<Vec2>>,
-    pub uv1: Option<Vec<Vec2>>,
-    pub colors: Option<Vec<Vec4>>,
-    pub material: u32,
 }
 
 #[derive(Clone, Copy, Debug)]
