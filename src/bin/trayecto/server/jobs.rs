@@ -389,6 +389,22 @@ impl Jobs {
         })
     }
 
+    /// Runs a scene load outside the jobs (the page's scene view and defaults) under the job
+    /// memory budget: a file waits for a render slot ([`Jobs::load_slot`]); a built-in scene is
+    /// made from code, small and bounded, and does not wait (else a page opened while renders
+    /// queue would wait for every one of them before it could show the queue).
+    pub fn run_load<R>(
+        &self,
+        builtin: bool,
+        f: impl FnOnce() -> Result<R, String>,
+    ) -> Result<R, String> {
+        if builtin {
+            trayecto::limits::scope(self.load_context(None), f)
+        } else {
+            self.load_slot()?.run(f)
+        }
+    }
+
     pub fn get(&self, id: u64) -> Option<Arc<Job>> {
         lock(&self.inner.list).iter().find(|j| j.id == id).cloned()
     }

@@ -613,10 +613,13 @@ async fn scene_defaults(
     };
     let policy = st.policy.clone();
     let jobs = st.jobs.clone();
-    // Reading the scene is a load like a render's: it waits for a slot (jobs::Jobs::load_slot).
+    // Reading a scene file is a load like a render's: it waits for a slot (jobs::Jobs::run_load).
     match tokio::task::spawn_blocking(move || {
-        jobs.load_slot()
-            .and_then(|slot| slot.run(|| request::scene_defaults(&name, &policy)))
+        let builtin = matches!(
+            request::scene_source(&name, &policy)?,
+            request::SceneSource::Builtin(_)
+        );
+        jobs.run_load(builtin, || request::scene_defaults(&name, &policy))
     })
     .await
     {
@@ -1035,16 +1038,16 @@ async fn scene_view(
     };
     let policy = st.policy.clone();
     let jobs = st.jobs.clone();
-    // Loads and builds the scene in a render slot, under the job memory budget: six pages
-    // asking at once wait their turn instead of loading six times (jobs::Jobs::load_slot).
+    // Loads and builds a scene file in a render slot, under the job memory budget: six pages
+    // asking at once wait their turn instead of loading six times (jobs::Jobs::run_load).
     let built = tokio::task::spawn_blocking(move || {
-        let slot = jobs.load_slot()?;
         let source = request::scene_source(&name, &policy)?;
+        let builtin = matches!(source, request::SceneSource::Builtin(_));
         let rename = |m: String| match &source {
             request::SceneSource::File(p) => m.replace(&*p.to_string_lossy(), &name),
             request::SceneSource::Builtin(_) => m,
         };
-        slot.run(|| {
+        jobs.run_load(builtin, || {
             let scene =
                 trayecto::scene::load(&source.load_spec()).map_err(|e| rename(e.to_string()))?;
             let world = trayecto::world::World::build(scene, &Default::default())
