@@ -158,6 +158,17 @@ impl Budget {
         Ok(())
     }
 
+    /// [`Budget::try_add`], refused as the error that names `what` asked for `bytes`.
+    fn charge(&self, bytes: u64, what: impl FnOnce() -> String) -> Result<(), LimitError> {
+        self.try_add(bytes)
+            .map_err(|(limit, used)| LimitError::OverBudget {
+                what: what(),
+                bytes,
+                limit,
+                used,
+            })
+    }
+
     fn release(&self, bytes: u64) {
         self.used.fetch_sub(bytes, Ordering::Relaxed);
         if let Some(p) = &self.parent {
@@ -188,14 +199,7 @@ impl Reservation {
     /// [`LoadContext::reserve`]; on refusal what was held stays held until dropped.
     pub fn grow(&mut self, bytes: u64, what: impl FnOnce() -> String) -> Result<(), LimitError> {
         check_cancel()?;
-        self.budget
-            .try_add(bytes)
-            .map_err(|(limit, used)| LimitError::OverBudget {
-                what: what(),
-                bytes,
-                limit,
-                used,
-            })?;
+        self.budget.charge(bytes, what)?;
         self.bytes += bytes;
         Ok(())
     }
@@ -240,14 +244,7 @@ impl LoadContext {
         what: impl FnOnce() -> String,
     ) -> Result<Reservation, LimitError> {
         self.check_cancel()?;
-        self.budget
-            .try_add(bytes)
-            .map_err(|(limit, used)| LimitError::OverBudget {
-                what: what(),
-                bytes,
-                limit,
-                used,
-            })?;
+        self.budget.charge(bytes, what)?;
         Ok(Reservation {
             budget: self.budget.clone(),
             bytes,

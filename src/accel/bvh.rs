@@ -1325,7 +1325,7 @@ impl Bvh {
     /// Closest hit over a tree of [`Self::build_from`] whose leaves `test` answers: `test(prim,
     /// bound)` returns the hit on `prim` before `bound`, if any. The nodes are tested with
     /// `node_ray`, the leaves with whatever ray `test` holds, so a tree built in an object's own
-    /// space (a shared mesh of [`crate::geometry::instance`]) is walked with the ray taken into
+    /// space (a shared mesh's tree in [`super::instance`]) is walked with the ray taken into
     /// that space while its leaves test world-space triangles. Hits are ranked as
     /// [`Self::intersect`] ranks them (nearest, then lowest primitive), so the walk's order does
     /// not change the answer. A plain walk without the packet leaves and the AVX2 copy: it runs
