@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Browser end-to-end test of the web UI (`trayecto serve`): installs Debian's chromium (if missing)
-# and playwright-core (from e2e/package-lock.json), builds the release binary, starts the server on
+# and playwright-core (from e2e/package-lock.json), builds the binary with the `test` profile (the one
+# `cargo test` and the farm test already built: no second optimised build in CI), starts the server on
 # a free port with a temporary output folder, and runs e2e/webui.test.mjs with node's test runner.
 # WEBUI_SCREENSHOT=docs/viewport.png also takes the screenshot the README shows (the viewport mid-orbit).
 set -euo pipefail
@@ -17,9 +18,9 @@ fi
 echo "== npm ci (e2e)"
 (cd e2e && npm ci --no-audit --no-fund)
 
-echo "== cargo build --release"
-cargo build --release
-bin="${CARGO_TARGET_DIR:-target}/release/trayecto"
+echo "== cargo build --profile test --bin trayecto"
+cargo build --profile test --bin trayecto
+bin="${CARGO_TARGET_DIR:-target}/debug/trayecto"
 
 tmp="$(mktemp -d)"
 pid=""
