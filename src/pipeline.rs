@@ -867,14 +867,22 @@ impl Run<'_> {
         // AOVs are recorded by the render's own paths where the integrator can
         // (`render::aovs_in_loop`), else traced in a pass of their own below; either way the
         // beauty image is the same.
-        let mut split = crate::split::render_split_aovs(
+        let mut split = match crate::split::render_split_aovs(
             &world,
             &frame,
             &job.split,
             !traced.is_empty(),
             self.observer,
             self.cancel,
-        )?;
+        ) {
+            Ok(split) => split,
+            // The checkpoint's folder failed mid-render: the completed passes go where a failed
+            // output's film goes.
+            Err(crate::split::SplitError::Checkpoint { error, part }) => {
+                return Err(rescue(PipelineError::Part(error), &part, &job.outputs));
+            }
+            Err(e) => return Err(e.into()),
+        };
         if split.render.cancelled {
             return Err(self.interrupted(split));
         }

@@ -66,6 +66,11 @@ pub enum SplitError {
     Part(#[from] PartError),
     #[error("cannot resume from {path}: {message}")]
     Resume { path: PathBuf, message: String },
+    /// A checkpoint could not be written mid-render, so the render stopped (rendering on
+    /// without the safety net asked for could lose hours); `part` holds the passes completed,
+    /// for the caller to save elsewhere.
+    #[error("{error}")]
+    Checkpoint { error: PartError, part: Box<Part> },
 }
 
 /// The result of [`render_split`].
@@ -214,8 +219,19 @@ pub fn render_split_aovs(
         resume,
     };
     let render = crate::render::render_range_aovs(world, s, start, aovs, &obs, cancel)?;
-    if let Some(e) = obs.error.into_inner().unwrap_or_else(|e| e.into_inner()) {
-        return Err(e.into());
+    if let Some(error) = obs.error.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        let header = frame.header([range.start, render.done], render.film.discarded);
+        return Err(if render.done > range.start {
+            SplitError::Checkpoint {
+                error,
+                part: Box::new(Part {
+                    header,
+                    film: render.film,
+                }),
+            }
+        } else {
+            error.into()
+        });
     }
     let header = frame.header([range.start, render.done], render.film.discarded);
     let mut checkpoint_written = None;

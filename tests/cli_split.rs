@@ -370,6 +370,86 @@ fn a_failed_final_write_saves_the_film_and_merge_recovers_the_image() {
     );
 }
 
+/// When a checkpoint cannot be written mid-render (its folder replaced by a file after the first
+/// one was written), the render stops, the completed passes are saved in the temporary folder,
+/// and `merge` turns them into exactly the image of a render of that many samples.
+#[test]
+fn a_failed_checkpoint_write_saves_the_completed_passes() {
+    let d = dir("checkpoint-rescue");
+    let cp_dir = d.join("cp");
+    let tmp = d.join("tmp");
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(&tmp).unwrap();
+    let _ = std::fs::remove_file(&cp_dir);
+    let _ = std::fs::remove_dir_all(&cp_dir);
+    std::fs::create_dir_all(&cp_dir).unwrap();
+    let cp = cp_dir.join("ck.trp");
+    // The independent sampler's first k samples of 6000 are a render of k samples (a stratified
+    // sampler's strata depend on the sample count).
+    let settings = [
+        "--max-depth",
+        "3",
+        "--threads",
+        "1",
+        "--sampler",
+        "independent",
+    ];
+    let mut child = bin()
+        .args(["render", "cornell", "-q", "--seed", "5", "--spp", "6000"])
+        .args(SIZE)
+        .args(settings)
+        .args(["--checkpoint-interval", "0", "--checkpoint"])
+        .arg(&cp)
+        .arg("-o")
+        .arg(d.join("image.exr"))
+        .env("TMPDIR", &tmp)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while !cp.exists() {
+        assert!(t0.elapsed() < Duration::from_secs(60), "no checkpoint");
+        assert!(child.try_wait().unwrap().is_none(), "render ended early");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // Moved away in one step (the render may be writing the next checkpoint into it).
+    let moved = d.join("cp-moved");
+    let _ = std::fs::remove_dir_all(&moved);
+    std::fs::rename(&cp_dir, &moved).unwrap();
+    std::fs::write(&cp_dir, b"a file where the folder was").unwrap();
+    let o = child.wait_with_output().unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    let rescued = tmp.join("ck.trp");
+    assert!(rescued.is_file(), "nothing in {}: {e}", tmp.display());
+    assert!(e.contains("nothing is lost"), "{e}");
+    let part = Part::read(&rescued).unwrap();
+    let [start, done] = part.header.samples;
+    assert_eq!(start, 0);
+    assert!(done > 0 && done < 6000, "{done} samples rescued");
+    ok(bin()
+        .arg("merge")
+        .arg(&rescued)
+        .arg("-o")
+        .arg(d.join("recovered.exr"))
+        .output()
+        .unwrap());
+    let spp = done.to_string();
+    ok(bin()
+        .args(["render", "cornell", "-q", "--seed", "5", "--spp", &spp])
+        .args(SIZE)
+        .args(settings)
+        .arg("-o")
+        .arg(d.join("straight.exr"))
+        .output()
+        .unwrap());
+    assert!(
+        std::fs::read(d.join("straight.exr")).unwrap()
+            == std::fs::read(d.join("recovered.exr")).unwrap(),
+        "the recovered image differs from a render of {done} samples"
+    );
+}
+
 /// SIGTERM and SIGHUP stop a render as Ctrl-C does: the checkpoint is saved and the message says
 /// it survived and how to resume it.
 #[test]

@@ -290,6 +290,36 @@ fn subdivision_is_charged_for_the_triangles_it_will_make() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// The world compiled from a scene costs several times the scene's meshes (transformed copies,
+/// the BVH): it is charged to the same budget before it is built, so a scene whose meshes fit
+/// but whose world would not is refused by name instead of exhausting memory mid-build.
+#[test]
+fn the_world_is_charged_before_it_is_built() {
+    let d = dir("world");
+    let shape = "Shape \"loopsubdiv\" \"integer levels\" 6 \"point3 P\" [0 0 0 1 0 0 0 1 0] \
+                 \"integer indices\" [0 1 2]\n";
+    // 100 × 4096 triangles: ~19 MiB as scene meshes, ~63 MiB more as a world.
+    std::fs::write(
+        d.join("s.pbrt"),
+        format!("WorldBegin\n{}", shape.repeat(100)),
+    )
+    .unwrap();
+    let build = |mib: u64| {
+        let ctx = LoadContext::new(Budget::new(mib << 20), None);
+        limits::scope(ctx, || {
+            let s = scene::load_file(&d.join("s.pbrt"))?;
+            trayecto::world::World::build(s, &Default::default()).map(drop)
+        })
+    };
+    let e = build(48).expect_err("refused").to_string();
+    assert!(
+        e.contains("the world of 409600 triangles") && e.contains("budget"),
+        "{e}"
+    );
+    build(160).expect("fits");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// Shape parameters are validated where they are read; the small parser cuts.
 #[test]
 fn pbrt_parameter_cuts() {

@@ -360,9 +360,16 @@ impl Jobs {
         jobs + self.inner.loads_running.load(Ordering::SeqCst)
     }
 
-    /// Waits for a render slot for a scene load outside the jobs; queued renders go first.
-    /// Refused (as a full queue refuses a render) when `max_queued` loads already wait.
+    /// [`Jobs::load_slot_in`] under a fresh job budget.
+    #[cfg(test)]
     pub fn load_slot(&self) -> Result<LoadSlot, String> {
+        self.load_slot_in(self.load_context(None))
+    }
+
+    /// Waits for a render slot for a scene load outside the jobs (the load then runs under
+    /// `ctx`); queued renders go first. Refused (as a full queue refuses a render) when
+    /// `max_queued` loads already wait.
+    fn load_slot_in(&self, ctx: Arc<LoadContext>) -> Result<LoadSlot, String> {
         let inner = &self.inner;
         let mut list = lock(&inner.list);
         if inner.loads_waiting.load(Ordering::SeqCst) >= inner.max_queued.max(1) {
@@ -385,7 +392,7 @@ impl Jobs {
         drop(list);
         Ok(LoadSlot {
             jobs: self.clone(),
-            ctx: self.load_context(None),
+            ctx,
         })
     }
 
@@ -398,10 +405,27 @@ impl Jobs {
         builtin: bool,
         f: impl FnOnce() -> Result<R, String>,
     ) -> Result<R, String> {
+        self.run_load_in(builtin, self.load_context(None), f)
+    }
+
+    /// A job's memory budget and `cancel` flag for a load whose result outlives it (a viewport
+    /// session's world): the caller keeps the context as long as the world, so what the load
+    /// charged stays counted against the server's total until the world is dropped.
+    pub fn view_context(&self, cancel: trayecto::limits::CancelCheck) -> Arc<LoadContext> {
+        self.load_context(Some(cancel))
+    }
+
+    /// [`Jobs::run_load`] under the context `ctx`.
+    pub fn run_load_in<R>(
+        &self,
+        builtin: bool,
+        ctx: Arc<LoadContext>,
+        f: impl FnOnce() -> Result<R, String>,
+    ) -> Result<R, String> {
         if builtin {
-            trayecto::limits::scope(self.load_context(None), f)
+            trayecto::limits::scope(ctx, f)
         } else {
-            self.load_slot()?.run(f)
+            self.load_slot_in(ctx)?.run(f)
         }
     }
 

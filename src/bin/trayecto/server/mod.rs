@@ -1102,7 +1102,7 @@ async fn viewport_submit(
         Ok(r) => r,
         Err(r) => return r,
     };
-    match st.viewports.submit(&id, req) {
+    match st.viewports.submit(&id, req, &st.jobs) {
         Ok(generation) => json_response(
             StatusCode::ACCEPTED,
             json!({ "session": id, "generation": generation }),

@@ -8,11 +8,15 @@
 //! then at full size pass after pass (1, 1, 2, 4, … samples) up to the request's `spp`, publishing
 //! the linear film after each pass for the page to tone-map itself.
 //!
-//! Previews do not enter the render queue: they take no slot of `--max-jobs` and never delay or
-//! refuse a final render. They do share the CPU with running renders. At most [`MAX_SESSIONS`]
+//! Previews do not enter the render queue: rendering a view takes no slot of `--max-jobs` and
+//! never delays or refuses a final render (it shares the CPU with running renders). Loading and
+//! building a scene file's world is a load like a render's: it waits for a slot
+//! ([`super::jobs::Jobs::run_load_in`]) and runs under a job's memory budget and the session's
+//! cancel flag, whose charges stay counted as long as the session keeps the world. At most [`MAX_SESSIONS`]
 //! sessions live; a new one closes the least recently used, and a session idle for
 //! [`IDLE_CLOSE`] closes itself, freeing its world.
 
+use super::jobs::Jobs;
 use super::request::{RenderRequest, SceneSource};
 use serde_json::{Value, json};
 use std::collections::HashMap;
@@ -107,6 +111,9 @@ struct Built {
     own_camera: CameraDesc,
     /// The file's pixel filter (pbrt `PixelFilter`), used unless the request names one.
     filter: Option<trayecto::film::filter::Filter>,
+    /// The memory budget the world was loaded under: what it charged stays counted against the
+    /// server's total while the world lives.
+    _budget: Arc<trayecto::limits::LoadContext>,
 }
 
 /// What the page reads back.
@@ -141,6 +148,7 @@ pub struct Session {
     cancel: AtomicBool,
     status: Mutex<ViewStatus>,
     last_used: Mutex<Instant>,
+    jobs: Jobs,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -191,7 +199,7 @@ impl Viewports {
 
     /// Hands the session `id` a new view (opening the session if needed) and cancels the view
     /// it was rendering. Returns the request's generation.
-    pub fn submit(&self, id: &str, request: RenderRequest) -> Result<u64, String> {
+    pub fn submit(&self, id: &str, request: RenderRequest, jobs: &Jobs) -> Result<u64, String> {
         let session = {
             let mut map = lock(&self.sessions);
             match map.get(id) {
@@ -223,6 +231,7 @@ impl Viewports {
                             ..Default::default()
                         }),
                         last_used: Mutex::new(Instant::now()),
+                        jobs: jobs.clone(),
                     });
                     let worker = s.clone();
                     let all = self.clone();
@@ -294,7 +303,7 @@ impl RenderObserver for Publish<'_> {
 
 /// The session's worker: waits for the newest request, renders it, and ends when the session
 /// is closed or idle.
-fn run(session: &Session) {
+fn run(session: &Arc<Session>) {
     let mut world: Option<Built> = None;
     let mut seen = 0;
     loop {
@@ -351,7 +360,7 @@ fn run(session: &Session) {
 }
 
 fn render_view(
-    session: &Session,
+    session: &Arc<Session>,
     cache: &mut Option<Built>,
     generation: u64,
     r: &RenderRequest,
@@ -369,24 +378,40 @@ fn render_view(
             SceneSource::File(p) => m.replace(&*p.to_string_lossy(), &r.scene),
             SceneSource::Builtin(_) => m,
         };
-        let mut scene = trayecto::scene::load(&key.scene).map_err(|e| name_it(e.to_string()))?;
-        if let Some(v) = &r.variant {
-            scene
-                .select_variant(v)
-                .map_err(|e| name_it(e.to_string()))?;
-        }
-        if stale() {
-            return Ok(());
-        }
-        let filter = scene.hints.filter;
-        let options = WorldOptions {
-            default_light: r.default_light,
-            variant: r.variant.clone(),
-            env: key.env.clone(),
-            env_rotation: key.env_rotation,
-            ..WorldOptions::default()
+        let flag = session.clone();
+        let ctx = session
+            .jobs
+            .view_context(Arc::new(move || flag.cancel.load(Ordering::Relaxed)));
+        let builtin = matches!(r.source, SceneSource::Builtin(_));
+        let loaded = session.jobs.run_load_in(builtin, ctx.clone(), || {
+            let mut scene =
+                trayecto::scene::load(&key.scene).map_err(|e| name_it(e.to_string()))?;
+            if let Some(v) = &r.variant {
+                scene
+                    .select_variant(v)
+                    .map_err(|e| name_it(e.to_string()))?;
+            }
+            if stale() {
+                return Ok(None);
+            }
+            let filter = scene.hints.filter;
+            let options = WorldOptions {
+                default_light: r.default_light,
+                variant: r.variant.clone(),
+                env: key.env.clone(),
+                env_rotation: key.env_rotation,
+                ..WorldOptions::default()
+            };
+            let w = World::build(scene, &options).map_err(|e| name_it(e.to_string()))?;
+            Ok(Some((w, filter)))
+        });
+        let (w, filter) = match loaded {
+            Ok(Some(built)) => built,
+            // A newer request replaced this one while it loaded (its load was cancelled).
+            Ok(None) => return Ok(()),
+            Err(_) if stale() => return Ok(()),
+            Err(e) => return Err(e),
         };
-        let w = World::build(scene, &options).map_err(|e| name_it(e.to_string()))?;
         let view = view_json(&w);
         let mut st = lock(&session.status);
         st.view = Some(view);
@@ -397,6 +422,7 @@ fn render_view(
             own_camera: w.camera.clone(),
             world: w,
             filter,
+            _budget: ctx,
         });
     }
     let Built {
