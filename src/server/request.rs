@@ -393,6 +393,7 @@ fn resolved_settings(
             spp: false,
             max_depth: false,
             filter: false,
+            integrator: false,
         },
         split: Default::default(),
         aovs: Vec::new(),
