@@ -185,6 +185,8 @@ pub struct GivenSettings {
     pub max_depth: bool,
     /// The reconstruction filter (else the scene file's, e.g. pbrt's `PixelFilter`).
     pub filter: bool,
+    /// The integrator (else the scene file's, e.g. pbrt's `Integrator "lighttracer"`).
+    pub integrator: bool,
 }
 
 impl GivenSettings {
@@ -195,6 +197,7 @@ impl GivenSettings {
         spp: true,
         max_depth: true,
         filter: true,
+        integrator: true,
     };
 }
 
@@ -540,6 +543,14 @@ impl RenderJob {
             && let Some(f) = h.filter
         {
             s.filter = f;
+        }
+        // The light-path integrators do not render media yet: a file asking for one in a scene
+        // with media keeps the path tracer, as before they existed.
+        if !self.given.integrator
+            && scene.media.is_empty()
+            && let Some(k) = h.integrator.as_deref().and_then(|n| n.parse().ok())
+        {
+            s.integrator = k;
         }
 
         // A camera override has no frame of its own: the image's shape is the job's.

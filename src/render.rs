@@ -17,6 +17,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Condvar, Mutex, MutexGuard, RwLock};
 use std::time::{Duration, Instant};
 
+pub mod light;
+
 pub const MAX_DIMENSION: u32 = 16384;
 pub const MAX_PIXELS: u64 = 1 << 27;
 pub const MAX_SPP: u32 = 1 << 20;
@@ -336,7 +338,12 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
 /// first-hit splitting (`secondary`; the first vertex may be in a medium), so a scene with media
 /// and `secondary > 1` is an error that says what to use instead.
 pub fn check_media_settings(world: &World, settings: &RenderSettings) -> Result<(), RenderError> {
-    check_integrator_settings(Integrator::for_world(settings.integrator, world), settings)
+    let integrator = Integrator::for_world(settings.integrator, world);
+    check_integrator_settings(integrator, settings)?;
+    if integrator.capabilities().splats {
+        light::check(world, integrator, settings)?;
+    }
+    Ok(())
 }
 
 /// [`check_media_settings`] for the resolved integrator.
@@ -344,6 +351,13 @@ fn check_integrator_settings(
     integrator: Integrator,
     settings: &RenderSettings,
 ) -> Result<(), RenderError> {
+    if integrator.capabilities().splats && settings.path.secondary > 1 {
+        return Err(RenderError::InvalidSetting(format!(
+            "secondary rays ({}) do not apply to the {}: its paths start at the lights",
+            settings.path.secondary,
+            integrator.name()
+        )));
+    }
     if !integrator.capabilities().splitting && settings.path.secondary > 1 {
         return Err(RenderError::InvalidSetting(format!(
             "secondary rays ({}) are not supported in scenes with participating media or medium \
@@ -444,7 +458,13 @@ pub fn render_range_aovs(
         }
     }
     let aovs = aovs && integrator.capabilities().in_loop_aovs && start.resume.is_none();
-    let run = || render_in_pool(world, integrator, settings, start, aovs, observer, cancel);
+    let run = || {
+        // Light paths splat anywhere on the film: their own driver (`render/light.rs`).
+        if integrator.capabilities().splats {
+            return light::render(world, integrator, settings, start, observer, cancel);
+        }
+        render_in_pool(world, integrator, settings, start, aovs, observer, cancel)
+    };
     match settings.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)

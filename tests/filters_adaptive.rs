@@ -538,6 +538,7 @@ Shape "sphere" "float radius" 1
             spp: false,
             max_depth: false,
             filter: false,
+            integrator: false,
         },
         outputs: vec![],
         split: Default::default(),

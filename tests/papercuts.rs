@@ -23,6 +23,7 @@ fn job(width: Option<u32>, height: Option<u32>) -> RenderJob {
             spp: false,
             max_depth: false,
             filter: false,
+            integrator: false,
         },
         split: Default::default(),
         aovs: Vec::new(),

@@ -10,6 +10,7 @@
 pub mod aov;
 pub mod filter;
 pub mod output;
+pub mod splat;
 pub mod tonemap;
 
 use crate::math::Vec3;

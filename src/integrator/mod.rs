@@ -2,7 +2,9 @@
 //! the only unbiased one.
 
 pub mod aov;
+pub mod bdpt;
 pub mod direct;
+pub mod lighttracer;
 pub mod path;
 pub mod raycast;
 pub mod select;
@@ -41,6 +43,10 @@ pub enum IntegratorKind {
     Raycast { aov: Aov, shading: ShadingModel },
     /// The thesis's Whitted ray tracer: local shading plus mirror reflection and refraction.
     Whitted { shading: ShadingModel },
+    /// Forward path tracing from the lights, splatted onto the film (`lighttracer.rs`).
+    LightTracer,
+    /// Bidirectional path tracing, every (s, t) strategy weighted by MIS (`bdpt.rs`).
+    Bdpt,
 }
 
 impl IntegratorKind {
@@ -49,6 +55,8 @@ impl IntegratorKind {
             IntegratorKind::Path => "path",
             IntegratorKind::Raycast { .. } => "raycast",
             IntegratorKind::Whitted { .. } => "whitted",
+            IntegratorKind::LightTracer => "lighttracer",
+            IntegratorKind::Bdpt => "bdpt",
         }
     }
 
@@ -58,6 +66,8 @@ impl IntegratorKind {
             IntegratorKind::Path => IntegratorKind::Path,
             IntegratorKind::Raycast { .. } => IntegratorKind::Raycast { aov, shading },
             IntegratorKind::Whitted { .. } => IntegratorKind::Whitted { shading },
+            IntegratorKind::LightTracer => IntegratorKind::LightTracer,
+            IntegratorKind::Bdpt => IntegratorKind::Bdpt,
         }
     }
 }
@@ -74,8 +84,10 @@ impl std::str::FromStr for IntegratorKind {
             "whitted" => Ok(IntegratorKind::Whitted {
                 shading: ShadingModel::default(),
             }),
+            "lighttracer" => Ok(IntegratorKind::LightTracer),
+            "bdpt" => Ok(IntegratorKind::Bdpt),
             other => Err(format!(
-                "unknown integrator '{other}' (expected path, raycast or whitted)"
+                "unknown integrator '{other}' (expected path, raycast, whitted, lighttracer or bdpt)"
             )),
         }
     }

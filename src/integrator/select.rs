@@ -23,6 +23,12 @@ pub enum Integrator {
     Raycast { aov: Aov, shading: ShadingModel },
     /// The thesis's Whitted ray tracer.
     Whitted { shading: ShadingModel },
+    /// The light tracer (`lighttracer.rs`): its paths splat onto the film, so the driver runs
+    /// it through `render/light.rs` instead of per camera sample.
+    LightTracer,
+    /// Bidirectional path tracing (`bdpt.rs`); its t = 1 strategies splat, so it runs through
+    /// `render/light.rs` too.
+    Bdpt,
 }
 
 /// What an integrator can do, as the driver and the pipeline need to know it.
@@ -37,6 +43,9 @@ pub struct Capabilities {
     pub splitting: bool,
     /// Renders participating media and medium interfaces.
     pub media: bool,
+    /// Its contributions land anywhere on the film (splats), not on the sampled pixel: rendered
+    /// by `render/light.rs`.
+    pub splats: bool,
 }
 
 impl Integrator {
@@ -49,6 +58,8 @@ impl Integrator {
             IntegratorKind::Path => Integrator::Path,
             IntegratorKind::Raycast { aov, shading } => Integrator::Raycast { aov, shading },
             IntegratorKind::Whitted { shading } => Integrator::Whitted { shading },
+            IntegratorKind::LightTracer => Integrator::LightTracer,
+            IntegratorKind::Bdpt => Integrator::Bdpt,
         }
     }
 
@@ -64,6 +75,7 @@ impl Integrator {
                 batched_first_hits: true,
                 splitting: true,
                 media: false,
+                splats: false,
             },
             // No first-hit splitting: the first vertex may be in a medium.
             Integrator::VolPath => Capabilities {
@@ -71,6 +83,7 @@ impl Integrator {
                 batched_first_hits: false,
                 splitting: false,
                 media: true,
+                splats: false,
             },
             // They ignore `secondary`, as they always have.
             Integrator::Raycast { .. } | Integrator::Whitted { .. } => Capabilities {
@@ -78,6 +91,14 @@ impl Integrator {
                 batched_first_hits: false,
                 splitting: true,
                 media: false,
+                splats: false,
+            },
+            Integrator::LightTracer | Integrator::Bdpt => Capabilities {
+                in_loop_aovs: false,
+                batched_first_hits: false,
+                splitting: false,
+                media: false,
+                splats: true,
             },
         }
     }
@@ -88,6 +109,8 @@ impl Integrator {
             Integrator::VolPath => "volumetric path",
             Integrator::Raycast { .. } => "raycast",
             Integrator::Whitted { .. } => "whitted",
+            Integrator::LightTracer => "light tracer",
+            Integrator::Bdpt => "bidirectional path tracer",
         }
     }
 
@@ -111,6 +134,8 @@ impl Integrator {
             Integrator::Whitted { shading } => {
                 whitted::radiance(world, ray, stream, settings.max_depth, shading, stats)
             }
+            // Splatting integrators have no radiance per camera ray: the driver never asks.
+            Integrator::LightTracer | Integrator::Bdpt => Vec3::ZERO,
         }
     }
 }

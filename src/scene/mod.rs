@@ -423,6 +423,9 @@ pub struct RenderHints {
     pub pixel_bounds: Option<[u32; 4]>,
     /// The file's reconstruction filter (pbrt's `PixelFilter`, default Gaussian).
     pub filter: Option<crate::film::filter::Filter>,
+    /// The integrator the file asks for when Trayecto has it, by its `--integrator` name (pbrt's
+    /// `Integrator "lighttracer"`); `None` renders with the job's (the path tracer by default).
+    pub integrator: Option<String>,
 }
 
 impl MediumDesc {

@@ -18,7 +18,7 @@ use std::str::FromStr;
 
 /// Integrator and tone-mapping names offered to the page; only those the library parses are
 /// shown, so new modes appear by themselves when they land.
-const INTEGRATOR_NAMES: &[&str] = &["path", "whitted", "raycast"];
+const INTEGRATOR_NAMES: &[&str] = &["path", "whitted", "raycast", "lighttracer", "bdpt"];
 const TONEMAP_NAMES: &[&str] = &["clamp", "gamma2.2", "aces", "agx"];
 pub const MAX_OUTPUT_NAME: usize = 64;
 
@@ -393,6 +393,7 @@ fn resolved_settings(
             spp: false,
             max_depth: false,
             filter: false,
+            integrator: false,
         },
         split: Default::default(),
         aovs: Vec::new(),

@@ -114,9 +114,11 @@ pub struct RenderArgs {
     /// Linear multiplier applied before tone mapping [exposición].
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub exposure: f32,
-    /// Rendering mode: path, raycast or whitted.
-    #[arg(long, default_value = "path")]
-    pub integrator: IntegratorKind,
+    /// Rendering mode: path (the default), raycast, whitted, lighttracer (paths from the
+    /// lights, splatted onto the film) or bdpt (bidirectional path tracing). A pbrt file's
+    /// `Integrator "lighttracer"` or `"bdpt"` is honoured unless this is given.
+    #[arg(long)]
+    pub integrator: Option<IntegratorKind>,
     /// AOV layers to write with the image, comma-separated: albedo, normal (both at the first
     /// non-specular hit: the denoiser's guides), depth, position, shading_normal, material_id,
     /// object_id, samples (samples each pixel took), variance (the variance of one sample's
@@ -287,6 +289,7 @@ impl RenderArgs {
             sampler: self.sampler,
             integrator: self
                 .integrator
+                .unwrap_or_default()
                 .with_options(self.raycast_view(), self.shading),
             path: PathSettings {
                 max_depth: self.max_depth.unwrap_or(64),
@@ -322,7 +325,7 @@ impl RenderArgs {
     /// The raycast view `--aov` picks: with `--integrator raycast`, a single view name.
     fn raycast_view(&self) -> Aov {
         match (&self.integrator, &self.aov) {
-            (IntegratorKind::Raycast { .. }, Some(a)) => a.trim().parse().unwrap_or_default(),
+            (Some(IntegratorKind::Raycast { .. }), Some(a)) => a.trim().parse().unwrap_or_default(),
             _ => Aov::default(),
         }
     }
@@ -332,7 +335,7 @@ impl RenderArgs {
         let Some(list) = &self.aov else {
             return Ok(Vec::new());
         };
-        if matches!(self.integrator, IntegratorKind::Raycast { .. })
+        if matches!(self.integrator, Some(IntegratorKind::Raycast { .. }))
             && list.trim().parse::<Aov>().is_ok()
         {
             return Ok(Vec::new());
@@ -406,6 +409,7 @@ impl RenderArgs {
                 spp: self.spp.is_some() || self.time_limit.is_some(),
                 max_depth: self.max_depth.is_some(),
                 filter: self.filter.is_some(),
+                integrator: self.integrator.is_some(),
             },
             outputs: vec![OutputSpec {
                 path: self.output.clone(),

@@ -86,7 +86,9 @@ impl Loader {
                 if depth_v >= 0 {
                     self.scene.hints.max_depth = Some(depth_v.min(100_000) as u32);
                 }
-                if !matches!(ty.as_str(), "path" | "volpath") {
+                if matches!(ty.as_str(), "lighttracer" | "bdpt") {
+                    self.scene.hints.integrator = Some(ty.clone());
+                } else if !matches!(ty.as_str(), "path" | "volpath") {
                     self.warn(format!(
                         "{at}: Integrator \"{ty}\": Trayecto renders with its path tracer; maxdepth is used"
                     ));

@@ -1,0 +1,206 @@
+//! The render driver of the integrators whose contributions land anywhere on the film (the light
+//! tracer; docs/DESIGN.md, integrators): [`crate::render`] hands them the frame once it has
+//! validated the settings and the sample range.
+//!
+//! Every pixel sample still starts one path, seeded by (seed, pixel, sample index) as in the
+//! tiled driver, so a path is the same whoever traces it. Rows of the film window are shared
+//! out to the workers from a counter; each worker splats into its own [`SplatBuffer`] over the
+//! whole window, and at the end of a pass the buffers are added to the film. The sums are exact
+//! integers, so neither the order of the additions nor which worker traced which row changes
+//! the film: the image is a pure function of seed and settings for any thread count, and a
+//! frame split into sample ranges (the farm, `--samples-range`) or resumed from a checkpoint
+//! adds up to exactly the single run. Passes follow [`pass_schedule`], so previews and
+//! cancelling behave as in the tiled driver (a cancelled pass adds nothing).
+
+use crate::camera::Camera;
+use crate::film::Film;
+use crate::film::filter::FilterSampler;
+use crate::film::splat::SplatBuffer;
+use crate::integrator::{Integrator, RayStats, bdpt, lighttracer};
+use crate::render::{FilmRender, RangeStart, RenderError, RenderObserver, RenderSettings};
+use crate::sampling::SamplerSetup;
+use crate::world::World;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+/// Why `integrator` cannot render `world` with `settings`, if it cannot: a camera without an
+/// importance function, participating media (not yet joined to light paths), adaptive
+/// sampling (a pixel's error is not its own samples' any more).
+pub fn check(
+    world: &World,
+    integrator: Integrator,
+    settings: &RenderSettings,
+) -> Result<(), RenderError> {
+    let bad = |m: String| Err(RenderError::InvalidSetting(m));
+    let name = integrator.name();
+    let camera = Camera::new(&world.camera, settings.width, settings.height);
+    if let Err(e) = camera.importance() {
+        return bad(format!("the {name} cannot render this camera: {e}"));
+    }
+    if world.has_media() {
+        return bad(format!(
+            "the {name} does not render participating media or medium interfaces yet: use \
+             --integrator path"
+        ));
+    }
+    if settings.noise_threshold.is_some() {
+        return bad(format!(
+            "adaptive sampling (--noise-threshold) does not apply to the {name}: its paths land \
+             on other pixels than the one that started them"
+        ));
+    }
+    Ok(())
+}
+
+/// Renders `start.samples` of every pixel of the film window with the splatting `integrator`.
+pub(crate) fn render(
+    world: &World,
+    integrator: Integrator,
+    settings: &RenderSettings,
+    start: RangeStart,
+    observer: &dyn RenderObserver,
+    cancel: &AtomicBool,
+) -> Result<FilmRender, RenderError> {
+    check(world, integrator, settings)?;
+    let t0 = Instant::now();
+    let (w, h) = (settings.width, settings.height);
+    let camera = Camera::new(&world.camera, w, h);
+    let importance = camera
+        .importance()
+        .map_err(|e| RenderError::InvalidSetting(e.to_string()))?;
+    let mut path = settings.path;
+    if world.texture_filter == crate::material::texture::TextureFilter::Trilinear || world.has_bump
+    {
+        path.footprint = camera.footprint();
+    }
+    let win = settings.film_window();
+    let (fw, fh) = (win.width(), win.height());
+    // W_e integrates to 1 over the whole image; only the window's pixels start paths.
+    let scale = ((w as f64 * h as f64) / (fw as f64 * fh as f64)) as f32;
+    let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h);
+    let first = start.samples.start;
+    let (mut film, from) = match start.resume {
+        Some((film, at)) => (film, at),
+        None => (Film::new(fw, fh), first),
+    };
+    let passes: Vec<(u32, u32)> = crate::render::pass_schedule(start.samples.end - from)
+        .into_iter()
+        .map(|(a, b)| (a + from, b + from))
+        .collect();
+    let deadline = settings.time_limit.map(|t| t0 + Duration::from_secs_f64(t));
+    let threads = rayon::current_num_threads().max(1);
+    let buffers: Vec<Mutex<(SplatBuffer, RayStats, bdpt::Scratch)>> = (0..threads)
+        .map(|_| {
+            Mutex::new((
+                SplatBuffer::new(win.x0, win.y0, fw, fh, &settings.filter),
+                RayStats::default(),
+                bdpt::Scratch::default(),
+            ))
+        })
+        .collect();
+    let filter = FilterSampler::new(&settings.filter);
+    let ctx = bdpt::Context {
+        world,
+        camera: &importance,
+        set: &path,
+    };
+    let mut stats = RayStats::default();
+    let mut done = from;
+    let mut cancelled = false;
+    let mut stopped_early = false;
+    let tiles_total = passes.len() as u64 * fh as u64;
+    let rows_done = std::sync::atomic::AtomicU64::new(0);
+    for (q, &(s0, s1)) in passes.iter().enumerate() {
+        if q > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
+            stopped_early = true;
+            break;
+        }
+        let next_row = AtomicUsize::new(0);
+        let worker = |k: usize| {
+            let mut guard = buffers[k].lock().unwrap_or_else(|e| e.into_inner());
+            let (buf, st, scratch) = &mut *guard;
+            buf.clear();
+            *st = RayStats::default();
+            loop {
+                if cancel.load(Ordering::Relaxed) {
+                    return;
+                }
+                let fy = next_row.fetch_add(1, Ordering::Relaxed) as u32;
+                if fy >= fh {
+                    return;
+                }
+                let y = fy + win.y0;
+                for x in win.x0..win.x1 {
+                    let key = sampler.pixel_key((x, y));
+                    for s in s0..s1 {
+                        let mut stream = sampler.stream(key, s);
+                        match integrator {
+                            Integrator::LightTracer => lighttracer::trace(
+                                world,
+                                &importance,
+                                &mut stream,
+                                &path,
+                                scale,
+                                st,
+                                buf,
+                            ),
+                            Integrator::Bdpt => {
+                                let (ray, weight) =
+                                    super::camera_ray(&camera, &filter, &mut stream, x, y);
+                                let l = bdpt::trace(
+                                    &ctx,
+                                    &ray,
+                                    weight,
+                                    &mut stream,
+                                    scratch,
+                                    st,
+                                    scale,
+                                    buf,
+                                    &mut bdpt::NoStrategies,
+                                );
+                                buf.add_pixel(x, y, l);
+                            }
+                            _ => unreachable!("only splatting integrators come here"),
+                        }
+                    }
+                }
+                let n = rows_done.fetch_add(1, Ordering::Relaxed) + 1;
+                observer.tile_done(n, tiles_total);
+            }
+        };
+        rayon::scope(|sc| {
+            for k in 0..threads {
+                let worker = &worker;
+                sc.spawn(move |_| worker(k));
+            }
+        });
+        if cancel.load(Ordering::Relaxed) {
+            cancelled = true;
+            break;
+        }
+        // Exact integer sums: the buffers' order does not matter.
+        for b in &buffers {
+            let g = b.lock().unwrap_or_else(|e| e.into_inner());
+            film.add_splats(&g.0);
+            stats += g.1;
+        }
+        film.add_counts(s1 - s0);
+        done = s1;
+        observer.pass_done(&film, done, settings.spp);
+        if cancel.load(Ordering::Relaxed) && q + 1 < passes.len() {
+            cancelled = true;
+            break;
+        }
+    }
+    Ok(FilmRender {
+        film,
+        start: first,
+        done,
+        cancelled,
+        stopped_early,
+        stats,
+        render_time: t0.elapsed(),
+        aovs: None,
+    })
+}

@@ -1,0 +1,280 @@
+//! The light tracer (docs/DESIGN.md, integrators) against the Mitsuba 3 references the path
+//! tracer is held to, and the splat film's determinism: the same image for any thread count, and
+//! a frame split into sample ranges or resumed adds up to the single run bit for bit.
+
+mod common;
+use common::*;
+use std::sync::atomic::AtomicBool;
+use trayecto::film::Image;
+use trayecto::film::output::read_exr;
+use trayecto::integrator::{IntegratorKind, PathSettings};
+use trayecto::math::Vec3;
+use trayecto::render::{NoObserver, RangeStart, RenderSettings, render_range};
+use trayecto::sampling::SamplerKind;
+use trayecto::scene::builtin;
+use trayecto::world::World;
+
+fn lt(width: u32, height: u32, spp: u32, max_depth: u32) -> RenderSettings {
+    RenderSettings {
+        width,
+        height,
+        spp,
+        seed: 5,
+        sampler: SamplerKind::Stratified,
+        integrator: IntegratorKind::LightTracer,
+        path: PathSettings {
+            max_depth,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
+
+/// Mean of 8 × 8 blocks: the light tracer's per-pixel noise is large at test sample counts, the
+/// blocks' is not, and a bias in any region of the image shows in its blocks.
+fn blocks(img: &Image, b: u32) -> Vec<Vec3> {
+    let mut out = Vec::new();
+    for by in 0..img.height / b {
+        for bx in 0..img.width / b {
+            let mut s = Vec3::ZERO;
+            for y in by * b..(by + 1) * b {
+                for x in bx * b..(bx + 1) * b {
+                    s += img.get(x, y);
+                }
+            }
+            out.push(s / (b * b) as f32);
+        }
+    }
+    out
+}
+
+/// Relative RMS difference of the block means (over the reference's mean luminance).
+fn block_error(img: &Image, reference: &Image) -> f64 {
+    let (a, r) = (blocks(img, 8), blocks(reference, 8));
+    let mut s = 0.0f64;
+    for (p, q) in a.iter().zip(&r) {
+        s += (*p - *q).as_dvec3().length_squared() / 3.0;
+    }
+    let m = reference.mean();
+    (s / a.len() as f64).sqrt() / ((m.x + m.y + m.z) / 3.0) as f64
+}
+
+/// The Cornell box (area light, diffuse walls) lit by light paths alone: the image means match
+/// Mitsuba's within 2 % and its 8 × 8 block means within 5 % RMS, for full global illumination
+/// and for direct lighting (depth 1, against the direct-only reference). The error falls with
+/// samples, so a bias of the size of the noise would fail.
+#[test]
+fn light_tracer_matches_mitsuba_on_the_cornell_box() {
+    let scene = builtin::cornell();
+    for (depth, file) in [(1024, "cornell_128.exr"), (1, "cornell_128_direct.exr")] {
+        let reference = read_exr(&repo_dir().join("tests/references").join(file)).unwrap();
+        let low = render_scene(&scene, &lt(128, 128, 1, depth));
+        let high = render_scene(&scene, &lt(128, 128, 16, depth));
+        assert_means_close(&high, &reference, 0.02, &format!("light tracer {file}"));
+        let (e_low, e_high) = (
+            block_error(&low, &reference),
+            block_error(&high, &reference),
+        );
+        assert!(
+            e_high < 0.05 && e_high < e_low / 2.5,
+            "{file}: block error {e_low} at 1 spp, {e_high} at 16 spp"
+        );
+    }
+}
+
+/// The same frame rendered with 1 and 3 threads, in one range and in two ranges added together,
+/// and resumed from a checkpoint of its first passes: every film is the same, bit for bit.
+#[test]
+fn light_tracer_film_is_a_function_of_seed_and_settings() {
+    let world = World::build(builtin::cornell(), &Default::default()).unwrap();
+    let base = RenderSettings {
+        threads: Some(1),
+        // A Gaussian filter: splats reach several pixels.
+        filter: trayecto::film::filter::Filter::new(trayecto::film::filter::FilterKind::Gaussian),
+        ..lt(24, 20, 5, 6)
+    };
+    let cancel = AtomicBool::new(false);
+    let range = |s: &RenderSettings, samples: std::ops::Range<u32>, resume| {
+        render_range(
+            &world,
+            s,
+            RangeStart { samples, resume },
+            &NoObserver,
+            &cancel,
+        )
+        .unwrap()
+    };
+    let one = range(&base, 0..5, None).film;
+    assert!(one.to_image().mean().max_element() > 0.0);
+    let three = range(
+        &RenderSettings {
+            threads: Some(3),
+            ..base.clone()
+        },
+        0..5,
+        None,
+    )
+    .film;
+    assert_eq!(one, three);
+    let mut split = range(&base, 0..2, None).film;
+    split.add_film(&range(&base, 2..5, None).film).unwrap();
+    assert_eq!(one, split);
+    let head = range(&base, 0..2, None).film;
+    let resumed = range(&base, 0..5, Some((head, 2))).film;
+    assert_eq!(one, resumed);
+}
+
+/// Cameras without an importance function are refused with the reason.
+#[test]
+fn light_tracer_refuses_cameras_without_importance() {
+    let mut scene = builtin::cornell();
+    scene.cameras[0].projection = trayecto::scene::Projection::Orthographic { half_height: 1.0 };
+    let world = World::build(scene, &Default::default()).unwrap();
+    let err = render_range(
+        &world,
+        &lt(8, 8, 1, 4),
+        RangeStart {
+            samples: 0..1,
+            resume: None,
+        },
+        &NoObserver,
+        &AtomicBool::new(false),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("orthographic"), "{err}");
+}
+
+/// The bidirectional path tracer on the Cornell box: within 2 % of Mitsuba's means and 5 % block
+/// error on the centre of the image (a crop window, which also checks the splats' scaling).
+#[test]
+fn bdpt_matches_mitsuba_on_the_cornell_box() {
+    let reference = read_exr(&repo_dir().join("tests/references/cornell_128.exr")).unwrap();
+    let scene = builtin::cornell();
+    let settings = RenderSettings {
+        integrator: IntegratorKind::Bdpt,
+        crop: Some(trayecto::render::Crop {
+            x0: 32,
+            x1: 96,
+            y0: 32,
+            y1: 96,
+        }),
+        ..lt(128, 128, 8, 1024)
+    };
+    let img = render_scene(&scene, &settings);
+    assert_eq!((img.width, img.height), (64, 64));
+    let mut data = Vec::new();
+    for y in 32..96 {
+        for x in 32..96 {
+            data.push(reference.get(x, y));
+        }
+    }
+    let crop = Image {
+        width: 64,
+        height: 64,
+        data,
+    };
+    assert_means_close(&img, &crop, 0.02, "bdpt cornell");
+    let e = block_error(&img, &crop);
+    assert!(e < 0.05, "bdpt block error {e}");
+}
+
+/// Each (s, t) strategy alone, unweighted, estimates the same image of paths of its depth (the
+/// Cornell box is diffuse, so every strategy can make every path), and the MIS-weighted
+/// strategies of a depth add up to it: the weights of a path's strategies sum to 1 (a weight
+/// sum off by a factor would show as the same factor here).
+#[test]
+fn bdpt_strategies_agree_and_weights_sum_to_one() {
+    use trayecto::camera::Camera;
+    use trayecto::integrator::RayStats;
+    use trayecto::integrator::bdpt::{self, StrategySink};
+    use trayecto::integrator::lighttracer::Splat;
+    use trayecto::math::Vec2;
+    use trayecto::sampling::SamplerSetup;
+
+    struct Sums {
+        unweighted: [[f64; 5]; 5],
+        weighted: [[f64; 5]; 5],
+    }
+    impl StrategySink for Sums {
+        fn strategy(&mut self, s: usize, t: usize, l: Vec3, w: f32, _: Vec2) {
+            let y = trayecto::film::luminance(l) as f64;
+            self.unweighted[s][t] += y;
+            self.weighted[s][t] += y * w as f64;
+        }
+    }
+    struct Drop;
+    impl Splat for Drop {
+        fn splat(&mut self, _: Vec2, _: Vec3) {}
+    }
+    let world = World::build(builtin::cornell(), &Default::default()).unwrap();
+    let (w, h, spp) = (32u32, 32u32, 24u32);
+    let camera = Camera::new(&world.camera, w, h);
+    let importance = camera.importance().unwrap();
+    let set = PathSettings {
+        max_depth: 2,
+        // No Russian roulette before depth 2: every strategy's paths are complete.
+        rr_depth: 8,
+        ..Default::default()
+    };
+    let ctx = bdpt::Context {
+        world: &world,
+        camera: &importance,
+        set: &set,
+    };
+    let sampler = SamplerSetup::new(SamplerKind::Independent, 3, spp).for_image(w, h);
+    let mut sums = Sums {
+        unweighted: [[0.0; 5]; 5],
+        weighted: [[0.0; 5]; 5],
+    };
+    let mut scratch = bdpt::Scratch::default();
+    let mut stats = RayStats::default();
+    for y in 0..h {
+        for x in 0..w {
+            let key = sampler.pixel_key((x, y));
+            for s in 0..spp {
+                let mut stream = sampler.stream(key, s);
+                let film = Vec2::new(x as f32, y as f32) + stream.next_2d();
+                let _ = stream.next_2d();
+                let ray = camera.generate_ray(film, Vec2::splat(0.5));
+                bdpt::trace(
+                    &ctx,
+                    &ray,
+                    1.0,
+                    &mut stream,
+                    &mut scratch,
+                    &mut stats,
+                    1.0,
+                    &mut Drop,
+                    &mut sums,
+                );
+            }
+        }
+    }
+    let n = (w * h * spp) as f64;
+    for depth in 1..=2usize {
+        let strategies: Vec<(usize, usize)> = (0..=depth + 1)
+            .map(|s| (s, depth + 2 - s))
+            .filter(|&(s, t)| t >= 1 && !(s == 1 && t == 1))
+            .collect();
+        // Next-event estimation (s = 1) is the least noisy: the others are held to it.
+        let reference = sums.unweighted[1][depth + 1] / n;
+        assert!(reference > 0.0);
+        for &(s, t) in &strategies {
+            let v = sums.unweighted[s][t] / n;
+            assert!(
+                (v - reference).abs() < 0.12 * reference,
+                "depth {depth}: strategy ({s}, {t}) alone gives {v}, next-event estimation {reference}"
+            );
+        }
+        let weighted: f64 = strategies
+            .iter()
+            .map(|&(s, t)| sums.weighted[s][t])
+            .sum::<f64>()
+            / n;
+        assert!(
+            (weighted - reference).abs() < 0.05 * reference,
+            "depth {depth}: the weighted strategies add up to {weighted}, not {reference}"
+        );
+    }
+}
