@@ -1261,7 +1261,7 @@ impl<'a> Tx<'a> {
                 let Some(c) = child(self)? else {
                     return Err(SceneError::invalid(
                         e.at(),
-                        &format!("{ty} without a nested bsdf"),
+                        format!("{ty} without a nested bsdf"),
                     ));
                 };
                 let inner = self.spec_of(c)?;
@@ -1269,7 +1269,7 @@ impl<'a> Tx<'a> {
                 let Some(tex) = tex else {
                     return Err(SceneError::invalid(
                         e.at(),
-                        &format!("{ty} without a nested texture"),
+                        format!("{ty} without a nested texture"),
                     ));
                 };
                 if ty == "bumpmap" {
