@@ -27,6 +27,7 @@ pub const TARGETS: &[(&str, Entry)] = &[
     ("toml", toml),
     ("fbx", fbx),
     ("pbrt", pbrt),
+    ("mitsuba", mitsuba),
     ("meshopt", meshopt),
     ("trp", trp),
     ("envmap", envmap),
@@ -104,6 +105,11 @@ pub fn fbx(data: &[u8]) {
 /// pbrt-v4 text. `Include`, `plymesh` and image files resolve against the empty folder.
 pub fn pbrt(data: &[u8]) {
     scene_bytes(data, "fuzz.pbrt");
+}
+
+/// Mitsuba 3 XML. `include`, meshes, images and volumes resolve against the empty folder.
+pub fn mitsuba(data: &[u8]) {
+    scene_bytes(data, "fuzz.xml");
 }
 
 /// Meshopt-compressed buffer views (EXT_/KHR_meshopt_compression): the first four bytes choose

@@ -9,6 +9,7 @@ pub mod digest;
 pub mod fbx;
 pub mod gltf;
 pub mod lighting;
+pub mod mitsuba;
 pub mod obj;
 pub mod pbrt;
 pub mod ply;
@@ -387,6 +388,9 @@ pub struct Scene {
     pub camera_medium: Option<MediumId>,
     /// Everything in the file that was not understood or not supported, by name.
     pub warnings: Vec<String>,
+    /// What the loader wants the user to know that is not a problem: the plugins a Mitsuba
+    /// file used and where Trayecto approximates them (`trayecto info` lists them).
+    pub notes: Vec<String>,
     /// The file's own choice of default lighting (TOML `default_light`); the command line wins.
     pub default_light: Option<DefaultLight>,
     /// Render settings the file asks for (pbrt's Film, Sampler, Integrator); the command line
@@ -1034,6 +1038,13 @@ pub const FORMATS: &[SceneFormat] = &[
         name: "pbrt-v4",
         extensions: &["pbrt"],
         load: pbrt::load_from_file_bytes,
+        includable: false,
+        mesh_only: false,
+    },
+    SceneFormat {
+        name: "Mitsuba 3 XML",
+        extensions: &["xml"],
+        load: mitsuba::load_from_file_bytes,
         includable: false,
         mesh_only: false,
     },

@@ -84,7 +84,7 @@ pub struct MergeArgs {
 
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
-    /// Scene file (.gltf, .glb, .obj, .ply, .fbx, .pbrt, .toml) or built-in name.
+    /// Scene file (.gltf, .glb, .obj, .ply, .fbx, .pbrt, .xml, .toml) or built-in name.
     #[arg(default_value = "cornell")]
     pub scene: String,
     /// Output image; the format follows the extension (.png, .ppm, .exr, .hdr).
@@ -264,12 +264,18 @@ pub struct RenderArgs {
     /// Print only errors.
     #[arg(short, long)]
     pub quiet: bool,
+    /// A Mitsuba scene parameter, NAME=VALUE (overrides the file's <default>; repeatable).
+    #[arg(short = 'D', long = "define", value_name = "NAME=VALUE", value_parser = trayecto::scene::mitsuba::parse_define)]
+    pub define: Vec<(String, String)>,
 }
 
 #[derive(Args, Debug, Clone)]
 pub struct InfoArgs {
     /// Scene file or built-in name.
     pub scene: String,
+    /// A Mitsuba scene parameter, NAME=VALUE (overrides the file's <default>; repeatable).
+    #[arg(short = 'D', long = "define", value_name = "NAME=VALUE", value_parser = trayecto::scene::mitsuba::parse_define)]
+    pub define: Vec<(String, String)>,
 }
 
 impl RenderArgs {
@@ -478,6 +484,7 @@ pub const EXIT_INTERRUPTED: u8 = 130;
 pub struct Interrupted(String);
 
 pub fn run_render(args: &RenderArgs) -> Result<()> {
+    trayecto::scene::mitsuba::set_defines(args.define.clone());
     let job = args.job()?;
     job.check()?;
     let bar = if std::io::stderr().is_terminal() && !args.quiet {
@@ -586,11 +593,13 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
 }
 
 pub fn run_info(args: &InfoArgs) -> Result<()> {
+    trayecto::scene::mitsuba::set_defines(args.define.clone());
     let scene = trayecto::scene::load(&args.scene)?;
     // The world takes the scene; keep what is printed that the world does not hold.
     let (name, meshes, objects) = (scene.name.clone(), scene.meshes.len(), scene.objects.len());
     let (lights, cameras) = (scene.lights.clone(), scene.cameras.clone());
     let scene_warnings = scene.warnings.clone();
+    let scene_notes = scene.notes.clone();
     let hints = scene.hints.clone();
     let variants = scene.variants.clone();
     let world = World::build(scene, &WorldOptions::default())?;
@@ -718,6 +727,9 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
             c.name,
             c.camera_to_world.w_axis.truncate(),
         );
+    }
+    for n in &scene_notes {
+        println!("note        {n}");
     }
     let warnings: Vec<&String> = scene_warnings.iter().chain(world.warnings.iter()).collect();
     println!("warnings    {}", warnings.len());

@@ -21,6 +21,7 @@
 //!   parsing.
 
 mod directives;
+pub(crate) mod embed;
 pub mod materials;
 pub mod params;
 pub mod shapes;
