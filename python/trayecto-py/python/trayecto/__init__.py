@@ -16,6 +16,10 @@ import inspect
 import os
 from collections import namedtuple
 
+# numpy is what images are read as: imported with the package, so that the first
+# `Image.numpy()` does not pay for it.
+import numpy as _numpy  # noqa: F401
+
 from . import _trayecto
 from ._trayecto import (
     RENDER_IDENTITY,
