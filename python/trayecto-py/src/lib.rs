@@ -4,7 +4,7 @@
 //!
 //! Settings arrive as the command line's option names (`max_depth`, `no_nee`, …); what is not
 //! given keeps the library's defaults (`RenderSettings::default()`, `WorldOptions::default()`),
-//! which the command line's own defaults equal (a test of the binary checks it).
+//! which the command line's own defaults equal (the package's tests render both ways and compare).
 
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyKeyError, PyTypeError, PyValueError};

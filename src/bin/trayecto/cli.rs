@@ -898,32 +898,4 @@ mod readme {
         let first_section = readme.find("\n## ").unwrap();
         assert!(readme[first_section..].starts_with("\n## The two commands"));
     }
-
-    /// The Python package (python/trayecto-py) gives every render keyword the library's default
-    /// (`RenderSettings::default()`, `WorldOptions::default()`): they must be the command line's.
-    #[test]
-    fn command_line_defaults_are_the_librarys() {
-        use clap::Parser;
-        let cli = Cli::parse_from(["trayecto"]);
-        assert_eq!(
-            format!("{:?}", cli.render.settings()),
-            format!("{:?}", trayecto::render::RenderSettings::default())
-        );
-        assert_eq!(
-            format!("{:?}", cli.render.world_options()),
-            format!("{:?}", trayecto::world::WorldOptions::default())
-        );
-        let d = |id: &str| {
-            Cli::command()
-                .get_arguments()
-                .find(|a| a.get_id() == id)
-                .map(|a| a.get_default_values().to_vec())
-                .unwrap_or_default()
-        };
-        assert_eq!(d("exposure"), ["1"]);
-        assert_eq!(
-            d("tonemap"),
-            [format!("{:?}", trayecto::film::tonemap::Tonemap::default()).to_lowercase()]
-        );
-    }
 }
