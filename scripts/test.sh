@@ -25,6 +25,9 @@ echo "== fuzzing (scripts/fuzz.sh: every fuzz target for FUZZ_SECONDS each)"
 echo "== benchmark scoring (bench/compare.py --self-test: synthetic ladders, no renderer)"
 python3 bench/compare.py --self-test
 
+echo "== Python package (PyO3: built into a venv with the cargo test build, pytest)"
+./scripts/python-test.sh
+
 echo "== farm driver (Python, Dask LocalCluster)"
 ./scripts/farm-test.sh
 

@@ -875,38 +875,34 @@ impl Run<'_> {
                 }
             }
         }
-        // AOVs are recorded by the render's own paths where the integrator can
-        // (`render::aovs_in_loop`), else traced in a pass of their own below; either way the
-        // beauty image is the same.
-        let mut split = match crate::split::render_split_aovs(
+        let t = match trace(
             &world,
             &frame,
             &job.split,
-            !traced.is_empty(),
+            &traced,
             self.observer,
             self.cancel,
         ) {
-            Ok(split) => split,
+            Ok(Ok(t)) => t,
+            Ok(Err(split)) => return Err(self.interrupted(*split)),
             // The checkpoint's folder failed mid-render: the completed passes go where a failed
             // output's film goes.
-            Err(crate::split::SplitError::Checkpoint { error, part }) => {
+            Err(PipelineError::Split(crate::split::SplitError::Checkpoint { error, part })) => {
                 return Err(rescue(PipelineError::Part(error), &part, &job.outputs));
             }
-            Err(e) => return Err(e.into()),
+            Err(e) => return Err(e),
         };
-        if split.render.cancelled {
-            return Err(self.interrupted(split));
-        }
-        let samples_done = split.render.done;
-        let counts = split.render.film.counts();
-        let mean_samples =
-            counts.iter().map(|&n| n as f64).sum::<f64>() / counts.len().max(1) as f64;
-        if split.render.stopped_early || settings.noise_threshold.is_some() {
+        let samples_done = t.samples_done;
+        let mean_samples = t.mean_samples;
+        if t.stopped_early || settings.noise_threshold.is_some() {
+            let counts = t.part.film.counts();
             let max = counts.iter().copied().max().unwrap_or(0);
             let min = counts.iter().copied().min().unwrap_or(0);
-            let why = match (settings.noise_threshold, split.render.stopped_early) {
-                (Some(t), true) if samples_done < settings.spp && settings.time_limit.is_none() => {
-                    format!("every pixel reached relative error {t}")
+            let why = match (settings.noise_threshold, t.stopped_early) {
+                (Some(th), true)
+                    if samples_done < settings.spp && settings.time_limit.is_none() =>
+                {
+                    format!("every pixel reached relative error {th}")
                 }
                 (_, true) => "the time limit ended it".to_string(),
                 (_, false) => format!("{} samples per pixel were reached", settings.spp),
@@ -916,38 +912,13 @@ impl Run<'_> {
                 settings.spp
             ));
         }
-        let out = crate::render::RenderOutput {
-            image: split.render.film.to_image(),
-            stats: split.render.stats,
-            discarded_samples: split.render.film.discarded,
-            render_time: split.render.render_time,
-        };
-        let part = Part {
-            header: split.header,
-            film: split.render.film,
-        };
-        // AOVs not recorded in the render: their own pass over the same camera samples.
-        let t = Instant::now();
-        let win = settings.film_window();
-        let in_loop = split.render.aovs.take();
-        let layers = if traced.is_empty() {
-            Vec::new()
-        } else if let Some(acc) = &in_loop {
-            crate::render::aov_layers(&traced, win.width(), win.height(), acc)
-        } else {
-            match crate::render::render_aovs_samples(
-                &world,
-                &settings,
-                &traced,
-                samples_done,
-                self.cancel,
-            ) {
-                Ok(l) => l,
-                Err(RenderError::Cancelled) => return Err(PipelineError::Cancelled),
-                Err(e) => return Err(e.into()),
-            }
-        };
-        let aov_time = t.elapsed();
+        let Traced {
+            out,
+            part,
+            layers,
+            aov_time,
+            ..
+        } = t;
         self.observer
             .stage_finished(Stage::Render, out.render_time + aov_time);
         let accel_time = world.accel_build_time;
@@ -1045,21 +1016,7 @@ impl Run<'_> {
         denoised: Option<&Image>,
     ) -> Result<(Vec<PathBuf>, Duration), PipelineError> {
         let job = self.job;
-        r.layers
-            .retain(|l| job.aovs.iter().any(|k| k.name() == l.name));
-        // Per-pixel sample counts and variances, from the film: when asked for, and always
-        // from an adaptive render (which tracks the variance anyway).
-        let film_kinds: &[AovKind] = if r.settings.noise_threshold.is_some() {
-            &AovKind::FILM
-        } else {
-            &job.aovs
-        };
-        debug_assert!(
-            !film_kinds.contains(&AovKind::Variance) || r.settings.tracks_variance(),
-            "the variance layer needs a film that tracked it"
-        );
-        r.layers
-            .extend(crate::film::aov::film_layers(&r.part.film, film_kinds));
+        finish_layers(&mut r.layers, &job.aovs, &r.settings, &r.part.film);
 
         self.observer.stage_started(Stage::Write);
         let t = Instant::now();
@@ -1133,6 +1090,103 @@ impl Run<'_> {
             mean_samples: r.mean_samples,
         }
     }
+}
+
+/// What [`trace`] made of a render of a built world.
+pub struct Traced {
+    pub out: crate::render::RenderOutput,
+    /// The film and its header (the frame's identity and sample range).
+    pub part: Part,
+    /// The traced AOV layers (see [`trace`]).
+    pub layers: Vec<Layer>,
+    /// Samples per pixel of the last complete pass.
+    pub samples_done: u32,
+    /// Mean samples per pixel actually taken.
+    pub mean_samples: f64,
+    /// Adaptive sampling or the time limit ended the render before its last planned pass.
+    pub stopped_early: bool,
+    pub aov_time: Duration,
+}
+
+/// The render stage on a built world: the beauty image (whole, or the sample range `split`
+/// asks for, with its checkpoints, [`crate::split`]) and the `traced` AOV layers. AOVs are
+/// recorded by the render's own paths where the integrator can (`render::aovs_in_loop`), else
+/// traced in a pass of their own over the same camera samples; either way the beauty image is
+/// the same. An interrupted render gives back what the split render kept (`Err` inside `Ok`).
+pub fn trace(
+    world: &World,
+    frame: &FrameId,
+    split: &SplitOptions,
+    traced: &[AovKind],
+    observer: &dyn RenderObserver,
+    cancel: &AtomicBool,
+) -> Result<Result<Traced, Box<crate::split::SplitOutcome>>, PipelineError> {
+    let settings = &frame.settings;
+    let split =
+        crate::split::render_split_aovs(world, frame, split, !traced.is_empty(), observer, cancel)?;
+    if split.render.cancelled {
+        return Ok(Err(Box::new(split)));
+    }
+    let samples_done = split.render.done;
+    let counts = split.render.film.counts();
+    let mean_samples = counts.iter().map(|&n| n as f64).sum::<f64>() / counts.len().max(1) as f64;
+    let out = crate::render::RenderOutput {
+        image: split.render.film.to_image(),
+        stats: split.render.stats,
+        discarded_samples: split.render.film.discarded,
+        render_time: split.render.render_time,
+    };
+    let stopped_early = split.render.stopped_early;
+    let part = Part {
+        header: split.header,
+        film: split.render.film,
+    };
+    let t = Instant::now();
+    let win = settings.film_window();
+    let in_loop = split.render.aovs;
+    let layers = if traced.is_empty() {
+        Vec::new()
+    } else if let Some(acc) = &in_loop {
+        crate::render::aov_layers(traced, win.width(), win.height(), acc)
+    } else {
+        match crate::render::render_aovs_samples(world, settings, traced, samples_done, cancel) {
+            Ok(l) => l,
+            Err(RenderError::Cancelled) => return Err(PipelineError::Cancelled),
+            Err(e) => return Err(e.into()),
+        }
+    };
+    Ok(Ok(Traced {
+        out,
+        part,
+        layers,
+        samples_done,
+        mean_samples,
+        stopped_early,
+        aov_time: t.elapsed(),
+    }))
+}
+
+/// The AOV layers a render hands to [`write_outputs`]: of the traced `layers`, those in `aovs`
+/// (the denoiser's guides are traced without being asked for), then the layers read from the
+/// film: per-pixel sample counts and variances when asked for, and always from an adaptive
+/// render (which tracks the variance anyway).
+pub fn finish_layers(
+    layers: &mut Vec<Layer>,
+    aovs: &[AovKind],
+    settings: &RenderSettings,
+    film: &crate::film::Film,
+) {
+    layers.retain(|l| aovs.iter().any(|k| k.name() == l.name));
+    let film_kinds: &[AovKind] = if settings.noise_threshold.is_some() {
+        &AovKind::FILM
+    } else {
+        aovs
+    };
+    debug_assert!(
+        !film_kinds.contains(&AovKind::Variance) || settings.tracks_variance(),
+        "the variance layer needs a film that tracked it"
+    );
+    layers.extend(crate::film::aov::film_layers(film, film_kinds));
 }
 
 /// The output stage: writes the image (or, for `*.trp` outputs, the partial film `part`) to every

@@ -190,6 +190,13 @@ struct ObjectSpec {
     kind: String,
     /// Mesh file (OBJ, PLY, glTF) relative to the scene.
     file: Option<String>,
+    /// A mesh given inline instead of `file`: vertex positions, triangles as three vertex
+    /// indices each (default: consecutive vertices), and optional per-vertex normals and uvs.
+    /// (The Python package's `load_dict` writes numpy arrays here.)
+    positions: Option<Vec<[f32; 3]>>,
+    indices: Option<Vec<[u32; 3]>>,
+    normals: Option<Vec<[f32; 3]>>,
+    uvs: Option<Vec<[f32; 2]>>,
     /// Material name; for meshes it replaces the file's own materials.
     material: Option<String>,
     /// glTF material variant of the included file (`KHR_materials_variants`); default: the
@@ -348,11 +355,32 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
             None
         };
         let shape = match o.kind.as_str() {
+            "mesh" if o.file.is_none() && o.positions.is_some() => {
+                let mesh =
+                    inline_mesh(o, &name).map_err(|e| err(format!("object '{name}': {e}")))?;
+                Shape::Mesh(scene.add_mesh(mesh))
+            }
+            _ if o.file.is_some() && o.positions.is_some() => {
+                return Err(err(format!(
+                    "object '{name}': give the mesh as 'file' or as 'positions', not both"
+                )));
+            }
+            _ if o.kind != "mesh"
+                && (o.positions.is_some()
+                    || o.indices.is_some()
+                    || o.normals.is_some()
+                    || o.uvs.is_some()) =>
+            {
+                return Err(err(format!(
+                    "object '{name}': positions, indices, normals and uvs describe an inline mesh (type = \"mesh\")"
+                )));
+            }
             "mesh" => {
-                let f = o
-                    .file
-                    .as_deref()
-                    .ok_or_else(|| err(format!("object '{name}' (mesh) needs 'file'")))?;
+                let f = o.file.as_deref().ok_or_else(|| {
+                    err(format!(
+                        "object '{name}' (mesh) needs 'file' (or inline 'positions')"
+                    ))
+                })?;
                 add_mesh_file(
                     &mut scene,
                     dir,
@@ -511,6 +539,63 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
 
     apply_material_conventions(&mut scene);
     Ok(scene)
+}
+
+/// An inline mesh (`positions`, `indices`, `normals`, `uvs`): every index must name a vertex
+/// and the per-vertex arrays must have one entry per position.
+fn inline_mesh(o: &ObjectSpec, name: &str) -> Result<super::Mesh, String> {
+    let positions: Vec<Vec3> = o
+        .positions
+        .iter()
+        .flatten()
+        .map(|&p| Vec3::from(p))
+        .collect();
+    let n = positions.len();
+    let indices = match &o.indices {
+        Some(i) => i.clone(),
+        None if n.is_multiple_of(3) => (0..n as u32 / 3)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect(),
+        None => {
+            return Err(format!(
+                "{n} positions without 'indices' are not whole triangles (three vertices each)"
+            ));
+        }
+    };
+    if let Some(bad) = indices.iter().flatten().find(|&&i| i as usize >= n) {
+        return Err(format!(
+            "index {bad} names no vertex (there are {n} positions)"
+        ));
+    }
+    let per_vertex = |len: usize, key: &str| {
+        if len == n {
+            Ok(())
+        } else {
+            Err(format!("'{key}' has {len} entries for {n} positions"))
+        }
+    };
+    if let Some(v) = &o.normals {
+        per_vertex(v.len(), "normals")?;
+    }
+    if let Some(v) = &o.uvs {
+        per_vertex(v.len(), "uvs")?;
+    }
+    Ok(super::Mesh {
+        name: name.to_string(),
+        positions,
+        indices,
+        normals: o
+            .normals
+            .as_ref()
+            .map(|v| v.iter().map(|&p| Vec3::from(p)).collect()),
+        tangents: None,
+        uv0: o
+            .uvs
+            .as_ref()
+            .map(|v| v.iter().map(|&p| Vec2::from(p)).collect()),
+        uv1: None,
+        colors: None,
+    })
 }
 
 fn transform(o: &ObjectSpec) -> Result<Mat4, String> {
