@@ -3,6 +3,7 @@
 
 pub mod aov;
 pub mod direct;
+pub mod guiding;
 pub mod path;
 pub mod raycast;
 pub mod select;
