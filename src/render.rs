@@ -9,12 +9,13 @@ use crate::film::aov::{AovKind, Layer};
 use crate::film::filter::{Filter, FilterSampler};
 use crate::film::{Film, FilmBlock, Image};
 use crate::integrator::aov::{self, AovPath, PixelAovs};
+use crate::integrator::guiding::{Guide, Guiding, Learner, Record};
 use crate::integrator::{Integrator, IntegratorKind, PathSettings, RayStats, path};
 use crate::sampling::{SampleStream, SamplerKind, SamplerSetup};
 use crate::world::World;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Condvar, Mutex, MutexGuard, RwLock};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, RwLock};
 use std::time::{Duration, Instant};
 
 pub mod light;
@@ -51,6 +52,11 @@ pub struct RenderSettings {
     /// `variance` AOV ([`Film::variance`]). Adaptive sampling tracks it whatever this says
     /// ([`RenderSettings::tracks_variance`]). The image is the same either way.
     pub track_variance: bool,
+    /// Path guiding (docs/DESIGN.md, "Path guiding"): the surface path tracer learns the
+    /// incident radiance during the first passes ([`guide_training_samples`]) and samples
+    /// directions from a BSDF–guide mixture. The expectation is unchanged; experimental: as
+    /// measured so far it does not pay at equal time (BENCHMARKS.md, "Path guiding").
+    pub guiding: bool,
 }
 
 /// A window of the image in pixels: columns `x0..x1`, rows `y0..y1` (pbrt's `pixelbounds`).
@@ -112,6 +118,7 @@ impl Default for RenderSettings {
             time_limit: None,
             crop: None,
             track_variance: false,
+            guiding: false,
         }
     }
 }
@@ -334,6 +341,23 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
     passes
 }
 
+/// The samples per pixel a guided render of `spp` trains on: its first passes, of 1, 1, 2, 4, …
+/// samples (each a training iteration), up to the largest power of two at most a quarter of
+/// `spp`, and at most 128 (the pass schedule's doubling ends there). 0 below 4 samples: no
+/// training, no guiding. Samples after it use the last guide.
+pub fn guide_training_samples(spp: u32) -> u32 {
+    let q = spp / 4;
+    if q == 0 {
+        0
+    } else {
+        (1u32 << (31 - q.leading_zeros())).min(128)
+    }
+}
+
+/// Records a training pass keeps at most (48 bytes each): a pass of more samples records every
+/// n-th sample of each pixel only.
+const GUIDE_RECORD_BUDGET: u64 = 1 << 21;
+
 /// Settings the volumetric path tracer cannot honour are refused rather than ignored: it has no
 /// first-hit splitting (`secondary`; the first vertex may be in a medium), so a scene with media
 /// and `secondary > 1` is an error that says what to use instead.
@@ -457,6 +481,13 @@ pub fn render_range_aovs(
             )));
         }
     }
+    if settings.guiding && (range.start > 0 || start.resume.is_some()) {
+        return Err(RenderError::InvalidSetting(
+            "a guided render (--guiding) learns from its first samples: it cannot render a \
+             sample range that does not start at 0, nor resume from a checkpoint"
+                .into(),
+        ));
+    }
     let aovs = aovs && integrator.capabilities().in_loop_aovs && start.resume.is_none();
     let run = || {
         // Light paths splat anywhere on the film: their own driver (`render/light.rs`).
@@ -480,8 +511,9 @@ pub fn render_range_aovs(
 
 /// A tile of the film: its corner and size, in film coordinates.
 type TileRect = (u32, u32, u32, u32);
-/// What a tile of a pass renders: its film block, ray counts and AOVs (in-loop AOVs only).
-type Tile = (FilmBlock, RayStats, Vec<PixelAovs>);
+/// What a tile of a pass renders: its film block, ray counts, AOVs (in-loop AOVs only) and
+/// guiding's training records (training passes only).
+type Tile = (FilmBlock, RayStats, Vec<PixelAovs>, Vec<Record>);
 
 fn render_in_pool(
     world: &World,
@@ -562,6 +594,21 @@ fn render_in_pool(
             aovs: aov_film,
         });
     }
+    // Guiding: only the surface path tracer is guided; training passes are the schedule's first
+    // ones, which start at 0 (guided renders are never resumed) and double up to
+    // `guide_training_samples`.
+    let guided = settings.guiding && integrator == Integrator::Path;
+    let train_until = if guided {
+        guide_training_samples(settings.spp)
+    } else {
+        0
+    };
+    let n_train = passes.iter().take_while(|p| p.1 <= train_until).count();
+    let learner = (n_train > 0).then(|| {
+        let b = world.bounds;
+        Learner::new(b.min, b.max)
+    });
+    let guide: RwLock<Option<Arc<Guide>>> = RwLock::new(None);
     let work = TileWork {
         world,
         integrator,
@@ -573,6 +620,8 @@ fn render_in_pool(
         // Squared-luminance sums, for adaptive sampling and the variance AOV.
         track: settings.tracks_variance(),
         record_aovs,
+        guided: n_train > 0,
+        pixels: if adaptive { 0 } else { fw as u64 * fh as u64 },
     };
     let schedule = PassSchedule {
         settings,
@@ -582,6 +631,9 @@ fn render_in_pool(
         deadline: settings
             .time_limit
             .map(|t| start + Duration::from_secs_f64(t)),
+        n_train,
+        guide: &guide,
+        record_pixels: work.pixels,
     };
     let state = Commit {
         film,
@@ -590,9 +642,16 @@ fn render_in_pool(
         done: from,
         committed: 0,
         scratch,
+        learner,
     };
-    let c = schedule.run(state, active, observer, cancel, |s0, s1, tile, mask| {
-        work.render(s0, s1, tile, mask)
+    let c = schedule.run(state, active, observer, cancel, |q, s0, s1, tile, mask| {
+        // Pass q samples with the guide of the training passes before it (the schedule holds
+        // it back until they are committed).
+        let g = work
+            .guided
+            .then(|| guide.read().unwrap_or_else(|e| e.into_inner()).clone())
+            .flatten();
+        work.render(s0, s1, tile, mask, g.as_deref(), q < n_train)
     });
     let complete = c.committed == passes.len();
     // An incomplete render with the flag set was cancelled (whichever check saw it first: a
@@ -624,11 +683,25 @@ struct TileWork<'a> {
     win: Crop,
     track: bool,
     record_aovs: bool,
+    /// Guiding is on (the surface path tracer, at least one training pass).
+    guided: bool,
+    /// Film pixels (for the training passes' record stride), 0 with adaptive sampling, whose
+    /// passes render fewer pixels: then every sample is recorded.
+    pixels: u64,
 }
 
 impl TileWork<'_> {
     /// Samples `s0..s1` of every pixel of `tile` (those `mask` keeps, with adaptive sampling).
-    fn render(&self, s0: u32, s1: u32, (x0, y0, tw, th): TileRect, mask: Option<&[bool]>) -> Tile {
+    /// With guiding, `guide` is the guide to sample with, and `train` says the pass records.
+    fn render(
+        &self,
+        s0: u32,
+        s1: u32,
+        (x0, y0, tw, th): TileRect,
+        mask: Option<&[bool]>,
+        guide: Option<&Guide>,
+        train: bool,
+    ) -> Tile {
         let (world, settings, win) = (self.world, self.settings, self.win);
         let fw = win.width();
         let mut block = if self.track {
@@ -647,11 +720,21 @@ impl TileWork<'_> {
         // In-loop AOVs are only recorded by batching integrators (`aovs_in_loop`).
         debug_assert!(batched || !self.record_aovs);
         let mut batch = Batch::new(batched);
+        let mut records = Vec::new();
+        // A training pass records every `stride`-th sample of each pixel, within the budget.
+        let stride = (self.pixels * (s1 - s0) as u64 * 4)
+            .div_ceil(GUIDE_RECORD_BUDGET)
+            .max(1);
         let mut out = BatchOut {
             block: &mut block,
             stats: &mut st,
             aovs: self.record_aovs.then_some(&mut aov_block[..]),
             track: self.track,
+            guiding: self.guided.then(|| Guiding {
+                guide,
+                records: train.then_some(&mut records),
+                pending: Vec::new(),
+            }),
         };
         for fy in y0..y0 + th {
             for fx in x0..x0 + tw {
@@ -667,6 +750,8 @@ impl TileWork<'_> {
                     if batched {
                         // The sample's stream draws its camera numbers where the batch keeps it.
                         let p = batch.push(fx, fy, slot, self.sampler.stream(pixel_key, s));
+                        p.record =
+                            (fy as u64 * fw as u64 + fx as u64 + s as u64).is_multiple_of(stride);
                         (p.ray, p.weight) =
                             camera_ray(&self.camera, &self.filter, &mut p.stream, x, y);
                         if batch.is_full() {
@@ -691,7 +776,8 @@ impl TileWork<'_> {
             }
         }
         batch.trace(world, &settings.path, &mut out);
-        (block, st, aov_block)
+        drop(out);
+        (block, st, aov_block, records)
     }
 }
 
@@ -703,6 +789,8 @@ struct Commit {
     done: u32,
     committed: usize,
     scratch: Vec<bool>,
+    /// Guiding's training state (while training passes remain).
+    learner: Option<Learner>,
 }
 
 /// The pass/tile scheduler: runs every (pass, tile) job on the pool's threads and commits the
@@ -714,10 +802,16 @@ struct PassSchedule<'a> {
     tiles: &'a [TileRect],
     film_width: u32,
     deadline: Option<Instant>,
+    /// Guiding: the first `n_train` passes train the guide, which the commit of each publishes
+    /// in `guide` for the passes after it.
+    n_train: usize,
+    guide: &'a RwLock<Option<Arc<Guide>>>,
+    /// [`TileWork::pixels`]: the training passes' record stride.
+    record_pixels: u64,
 }
 
 impl PassSchedule<'_> {
-    /// Renders the passes with `render_tile(s0, s1, tile, mask)` from `state` on (`active`: the
+    /// Renders the passes with `render_tile(pass, s0, s1, tile, mask)` from `state` on (`active`: the
     /// adaptive mask, empty without adaptive sampling) and returns what was committed.
     fn run<F>(
         &self,
@@ -728,7 +822,7 @@ impl PassSchedule<'_> {
         render_tile: F,
     ) -> Commit
     where
-        F: Fn(u32, u32, TileRect, Option<&[bool]>) -> Tile + Sync,
+        F: Fn(usize, u32, u32, TileRect, Option<&[bool]>) -> Tile + Sync,
     {
         let (settings, passes, tiles, fw) =
             (self.settings, self.passes, self.tiles, self.film_width);
@@ -748,9 +842,13 @@ impl PassSchedule<'_> {
         // A worker may run `lookahead` passes ahead of the oldest uncommitted one: 1 (which bounds
         // the blocks held to two passes' worth), 0 with adaptive sampling, whose next pass renders
         // the pixels chosen from the film of every pass before it (a barrier, as before).
-        let lookahead = if adaptive { 0 } else { 1 };
+        //
+        // Guiding: a pass up to the first after the training passes waits for the commit of the
+        // pass before it, which publishes the guide it samples with.
+        let n_train = self.n_train;
+        let lookahead_of = |q: usize| if adaptive || q <= n_train { 0 } else { 1 };
         let n_tiles = tiles.len();
-        let ring = lookahead + 1;
+        let ring = 2;
         let slots: Vec<Mutex<Option<Tile>>> =
             (0..n_tiles * ring).map(|_| Mutex::new(None)).collect();
         // Tiles still to render per pass.
@@ -788,8 +886,16 @@ impl PassSchedule<'_> {
                     break;
                 }
                 let c = &mut *c;
+                let train = p < n_train;
+                let mut records = Vec::new();
                 for slot in &slots[(p % ring) * n_tiles..][..n_tiles] {
-                    let (b, st, ab) = lock(slot).take().expect("a complete pass has every tile");
+                    let (b, st, ab, rec) =
+                        lock(slot).take().expect("a complete pass has every tile");
+                    if train {
+                        // The tiles' records in tile order: the guide does not depend on which
+                        // thread rendered what.
+                        records.push(rec);
+                    }
                     c.film.add_block(&b);
                     c.stats += st;
                     if let Some(af) = c.aovs.as_mut() {
@@ -799,6 +905,20 @@ impl PassSchedule<'_> {
                         }
                     }
                 }
+                if train && let Some(learner) = c.learner.as_mut() {
+                    let (s0, s1) = passes[p];
+                    // The spatial split threshold counts the samples the pass recorded.
+                    let stride = (self.record_pixels * (s1 - s0) as u64 * 4)
+                        .div_ceil(GUIDE_RECORD_BUDGET)
+                        .max(1);
+                    let spp = ((s1 - s0) as u64).div_ceil(stride) as u32;
+                    learner.learn(records.iter().flatten(), spp);
+                    *self.guide.write().unwrap_or_else(|e| e.into_inner()) = learner.guide();
+                    if p + 1 == n_train {
+                        c.learner = None;
+                    }
+                }
+                drop(records);
                 c.done = passes[p].1;
                 observer.pass_done(&c.film, c.done, settings.spp);
                 c.committed = p + 1;
@@ -826,6 +946,7 @@ impl PassSchedule<'_> {
                 if q >= halt.load(Ordering::SeqCst) {
                     break;
                 }
+                let lookahead = lookahead_of(q);
                 if committed.load(Ordering::SeqCst) + lookahead < q {
                     let mut g = lock(&wake.0);
                     while committed.load(Ordering::SeqCst) + lookahead < q
@@ -851,7 +972,7 @@ impl PassSchedule<'_> {
                 let (s0, s1) = passes[q];
                 // Only adaptive renders take the lock; nothing writes it while a pass renders.
                 let mask = adaptive.then(|| active.read().unwrap_or_else(|e| e.into_inner()));
-                let tile = render_tile(s0, s1, tiles[t], mask.as_deref().map(|m| &m[..]));
+                let tile = render_tile(q, s0, s1, tiles[t], mask.as_deref().map(|m| &m[..]));
                 drop(mask);
                 *lock(&slots[(q % ring) * n_tiles + t]) = Some(tile);
                 let n = tiles_done.fetch_add(1, Ordering::Relaxed) + 1;
@@ -1029,6 +1150,8 @@ struct Primary {
     ray: crate::geometry::Ray,
     weight: f32,
     first: Option<crate::geometry::primitive::Intersection>,
+    /// Guiding: this sample's path is recorded for training (in a training pass).
+    record: bool,
 }
 
 /// The samples of one tile waiting for their first hits; allocated once per tile job (never per
@@ -1042,6 +1165,8 @@ struct BatchOut<'a> {
     stats: &'a mut RayStats,
     aovs: Option<&'a mut [PixelAovs]>,
     track: bool,
+    /// Guided renders: the guide and the training records.
+    guiding: Option<Guiding<'a>>,
 }
 
 impl BatchOut<'_> {
@@ -1071,6 +1196,7 @@ impl Batch {
             ray: crate::geometry::Ray::new(crate::math::Vec3::ZERO, crate::math::Vec3::Z),
             weight: 0.0,
             first: None,
+            record: false,
         });
         let last = self.0.len() - 1;
         &mut self.0[last]
@@ -1088,6 +1214,29 @@ impl Batch {
             p.first = world.candidate(&p.ray);
         }
         for p in &mut self.0 {
+            if let Some(g) = out.guiding.as_mut() {
+                // A sample left out of training hides the records for its path.
+                let held = if p.record { None } else { g.records.take() };
+                let mut rec = out.aovs.is_some().then(AovPath::new);
+                let l = path::radiance_guided_from(
+                    world,
+                    &p.ray,
+                    p.first,
+                    &mut p.stream,
+                    set,
+                    out.stats,
+                    rec.as_mut(),
+                    g,
+                );
+                if held.is_some() {
+                    g.records = held;
+                }
+                if let (Some(aovs), Some(rec)) = (out.aovs.as_deref_mut(), rec) {
+                    aovs[p.slot].add(&rec.sample);
+                }
+                out.add(p.fx, p.fy, l * p.weight);
+                continue;
+            }
             let l = match out.aovs.as_deref_mut() {
                 Some(aovs) => {
                     let mut rec = AovPath::new();

@@ -23,8 +23,9 @@ const N_SAMPLES: usize = 400_000;
 /// iridescence 2, diffuse transmission 3, dispersion 2; the layered transmissive component 7:
 /// thick and thin from either side 4, dispersive 1, smooth under layers 2; the coat on
 /// transmissive materials reflecting below the base's plane 4; the uniform environment's light
-/// samples about a normal and over the sphere 3.)
-const N_TESTS: usize = 76;
+/// samples about a normal and over the sphere 3; path guiding's quadtree and BSDF–guide mixture
+/// 2.)
+const N_TESTS: usize = 78;
 static CHI2_RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 fn cell_of(w: Vec3) -> usize {
@@ -1989,4 +1990,94 @@ fn a_coat_on_a_thin_sheet_weighs_light_entering_and_leaving() {
         }
         assert!(checked > 150, "{name}");
     }
+}
+
+use trayecto::integrator::guiding::{self, Guide, Learner, Record};
+
+/// A guide learned from synthetic records at one point: radiance from two narrow cones (a bright
+/// one and a dim one) over a faint uniform background, splatted in four iterations so that the
+/// directional quadtree refines several levels deep where the radiance is.
+fn learned_guide() -> std::sync::Arc<Guide> {
+    let mut learner = Learner::new(Vec3::ZERO, Vec3::ONE);
+    let p = Vec3::splat(0.4);
+    let cones = [
+        (Vec3::new(0.3, 0.5, 0.8).normalize(), 0.97f32, 10.0f32),
+        (Vec3::new(-0.7, 0.1, -0.2).normalize(), 0.9, 2.0),
+    ];
+    let mut rng = Pcg32::new(11, 12);
+    for _ in 0..4 {
+        let mut records = Vec::new();
+        for _ in 0..60_000 {
+            let cos = 2.0 * rng.next_f32() - 1.0;
+            let phi = 2.0 * PI * rng.next_f32();
+            let wi = dir(cos as f64, phi as f64);
+            let radiance = 0.05
+                + cones
+                    .iter()
+                    .filter(|(axis, c, _)| wi.dot(*axis) > *c)
+                    .map(|(_, _, l)| l)
+                    .sum::<f32>();
+            records.push(Record {
+                p,
+                wi,
+                radiance,
+                f_cos: 1.0,
+                pdf_bsdf: 1.0 / (4.0 * PI),
+                pdf_guide: 0.0,
+                pdf: 1.0 / (4.0 * PI),
+                alpha: 1.0,
+            });
+        }
+        learner.learn(&records, 1);
+    }
+    learner.guide().expect("a guide after training")
+}
+
+/// The guide's directional sampling (the quadtree descent, uniform in the leaf quadrant)
+/// against its own pdf, which integrates to one; and the one-sample mixture of a glossy BSDF
+/// and the guide, in a tilted shading frame, against the mixture's pdf (directions the guide
+/// proposes below the surface carry no BSDF value and are dropped, which the pdf's zero there
+/// accounts for).
+#[test]
+fn guide_and_guided_mixture_sampling_match_pdf() {
+    let guide = learned_guide();
+    assert!(guide.quad_node_count() > 20, "{}", guide.quad_node_count());
+    let mix = guide.mix_at(Vec3::splat(0.4)).expect("the leaf learned");
+    let i = chi2(
+        "guide quadtree",
+        |r| Some(guide.sample(mix.leaf, Vec2::new(r.next_f32(), r.next_f32()))),
+        |d| guide.pdf(mix.leaf, d),
+    );
+    assert!((i - 1.0).abs() < 5e-3, "guide pdf integrates to {i}");
+
+    let bsdf = metal_rough(Vec3::new(0.8, 0.7, 0.6), 0.3, 0.4);
+    let frame = trayecto::math::Frame::from_normal(Vec3::new(0.2, 0.4, 0.9).normalize());
+    let wo = wo_at(40.0);
+    let mix = guiding::Mix { alpha: 0.35, ..mix };
+    // The sample's pdf is the mixture's, but for directions within float rounding of a deep
+    // quadtree cell's edge (the density found on the way down and the one looked up again from
+    // the rounded direction then name neighbouring cells): those must stay rare.
+    let (mut differ, mut drawn) = (0usize, 0usize);
+    chi2(
+        "guided mixture",
+        |r| {
+            let u = Vec2::new(r.next_f32(), r.next_f32());
+            guiding::sample_mixture(&bsdf, &frame, wo, &mix, r.next_f32(), u).map(|s| {
+                let q = guiding::mixture_pdf(&bsdf, wo, s.bs.wi, s.wi, &mix);
+                drawn += 1;
+                differ += ((q - s.bs.pdf).abs() > 2e-3 * q + 1e-6) as usize;
+                s.bs.wi
+            })
+        },
+        |wl| {
+            if wl.z <= 0.0 {
+                return 0.0;
+            }
+            guiding::mixture_pdf(&bsdf, wo, wl, frame.to_world(wl), &mix)
+        },
+    );
+    assert!(
+        differ * 1000 <= drawn,
+        "{differ} of {drawn} samples carry a pdf other than the mixture's"
+    );
 }

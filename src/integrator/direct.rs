@@ -3,6 +3,7 @@
 //! ([`shade_local`], every analytic light plus [`AREA_SAMPLES`] area-light samples).
 
 use super::RayStats;
+use super::guiding::{Mix, mixture_pdf};
 use super::settings::PathSettings;
 use super::vertex::Vertex;
 use crate::geometry::primitive::SurfaceHit;
@@ -31,6 +32,23 @@ pub fn sample_ld(
     s: &mut SampleStream,
     set: &PathSettings,
     stats: &mut RayStats,
+) -> Vec3 {
+    sample_ld_mix(world, v, beta, s, set, stats, None)
+}
+
+/// [`sample_ld`] at a guided vertex: the light sample's MIS weight is against the density of
+/// the direction sampling the path uses there, the BSDF–guide mixture
+/// ([`super::guiding::mixture_pdf`]), so that the two strategies' weights still sum to one.
+/// With `mix` = `None` it is [`sample_ld`].
+#[inline(always)]
+pub fn sample_ld_mix(
+    world: &World,
+    v: &Vertex,
+    beta: Vec3,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+    mix: Option<&Mix>,
 ) -> Vec3 {
     // A specular vertex takes no light sample, and a black BSDF would make `f` zero below: their
     // three numbers are skipped, not computed, so the later dimensions keep their meaning (the
@@ -69,7 +87,11 @@ pub fn sample_ld(
     let weight = if ls.delta || !set.mis {
         1.0
     } else {
-        power_heuristic(ls.pmf * ls.pdf, v.bsdf.pdf(v.wo_local, wi_local))
+        let p_dir = match mix {
+            Some(m) => mixture_pdf(&v.bsdf, v.wo_local, wi_local, ls.wi, m),
+            None => v.bsdf.pdf(v.wo_local, wi_local),
+        };
+        power_heuristic(ls.pmf * ls.pdf, p_dir)
     };
     beta * f * wi_local.z.abs() * ls.li * (weight / (ls.pmf * ls.pdf))
 }

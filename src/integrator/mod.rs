@@ -5,6 +5,7 @@ pub mod aov;
 pub mod bdpt;
 pub mod direct;
 pub mod lighttracer;
+pub mod guiding;
 pub mod path;
 pub mod raycast;
 pub mod select;

@@ -13,11 +13,12 @@
 
 use super::RayStats;
 use super::aov::AovPath;
-use super::direct::sample_ld;
+use super::direct::sample_ld_mix;
+use super::guiding::{self, Guiding, Pending, Record};
 use super::vertex::Vertex;
 use crate::geometry::Ray;
 use crate::geometry::primitive::{Intersection, NO_LIGHT, SurfaceHit};
-use crate::math::Vec3;
+use crate::math::{Vec3, luminance};
 use crate::sampling::SampleStream;
 use crate::sampling::warp::power_heuristic;
 use crate::world::World;
@@ -33,7 +34,7 @@ pub fn radiance(
     set: &PathSettings,
     stats: &mut RayStats,
 ) -> Vec3 {
-    radiance_impl(world, ray, world.candidate(ray), s, set, stats, None)
+    radiance_impl(world, ray, world.candidate(ray), s, set, stats, None, None)
 }
 
 /// [`radiance`] with the camera ray's closest-hit candidate `first` (its [`World::candidate`])
@@ -48,7 +49,7 @@ pub fn radiance_from(
     set: &PathSettings,
     stats: &mut RayStats,
 ) -> Vec3 {
-    radiance_impl(world, ray, first, s, set, stats, None)
+    radiance_impl(world, ray, first, s, set, stats, None, None)
 }
 
 /// [`radiance`], also recording the sample's AOVs (the first hit; the albedo and normal at the
@@ -63,7 +64,16 @@ pub fn radiance_aov(
     stats: &mut RayStats,
     aov: &mut AovPath,
 ) -> Vec3 {
-    radiance_impl(world, ray, world.candidate(ray), s, set, stats, Some(aov))
+    radiance_impl(
+        world,
+        ray,
+        world.candidate(ray),
+        s,
+        set,
+        stats,
+        Some(aov),
+        None,
+    )
 }
 
 /// [`radiance_aov`] from the camera ray's precomputed candidate `first`, as [`radiance_from`].
@@ -76,10 +86,29 @@ pub fn radiance_aov_from(
     stats: &mut RayStats,
     aov: &mut AovPath,
 ) -> Vec3 {
-    radiance_impl(world, ray, first, s, set, stats, Some(aov))
+    radiance_impl(world, ray, first, s, set, stats, Some(aov), None)
+}
+
+/// [`radiance_from`] (with `aov`, [`radiance_aov_from`]) guided by `g` (docs/DESIGN.md, "Path
+/// guiding"): at guided vertices directions come from the BSDF–guide mixture
+/// ([`guiding::sample_mixture`]), and while training the path's vertices are recorded into
+/// `g.records`. Draws the same sampler dimensions per bounce as the unguided path.
+#[allow(clippy::too_many_arguments)]
+pub fn radiance_guided_from(
+    world: &World,
+    ray: &Ray,
+    first: Option<Intersection>,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+    aov: Option<&mut AovPath>,
+    g: &mut Guiding,
+) -> Vec3 {
+    radiance_impl(world, ray, first, s, set, stats, aov, Some(g))
 }
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn radiance_impl(
     world: &World,
     ray: &Ray,
@@ -88,6 +117,7 @@ fn radiance_impl(
     set: &PathSettings,
     stats: &mut RayStats,
     mut aov: Option<&mut AovPath>,
+    mut g: Option<&mut Guiding>,
 ) -> Vec3 {
     stats.rays += 1;
     // The path's one vertex storage: each bounce's hit is intersected into it and shaded in
@@ -124,9 +154,9 @@ fn radiance_impl(
         // storage itself.
         sum += if i < n {
             let mut copy = Vertex::unshaded(v.hit);
-            continue_path(world, &mut copy, wo, s, set, stats, rec)
+            continue_path(world, &mut copy, wo, s, set, stats, rec, g.as_deref_mut())
         } else {
-            continue_path(world, &mut v, wo, s, set, stats, rec)
+            continue_path(world, &mut v, wo, s, set, stats, rec, g.as_deref_mut())
         };
     }
     l += sum / n as f32;
@@ -136,6 +166,7 @@ fn radiance_impl(
 /// Scatters from `v.hit` (reached with direction `-wo`, not yet shaded) until the path ends;
 /// returns the radiance it gathers, not counting the hit's own emission. `v` is the path's
 /// vertex storage: each bounce's hit is intersected into `v.hit` and shaded there.
+#[allow(clippy::too_many_arguments)]
 fn continue_path(
     world: &World,
     v: &mut Vertex,
@@ -144,6 +175,7 @@ fn continue_path(
     set: &PathSettings,
     stats: &mut RayStats,
     mut aov: Option<(&mut AovPath, f32)>,
+    mut g: Option<&mut Guiding>,
 ) -> Vec3 {
     let mut l = Vec3::ZERO;
     let mut beta = Vec3::ONE;
@@ -165,20 +197,45 @@ fn continue_path(
                 aov = None;
             }
         }
-        l += sample_ld(world, v, beta, s, set, stats);
+        // A guided vertex samples the BSDF–guide mixture, and NEE weighs against it.
+        let (guide, training) = match g.as_deref() {
+            Some(g) => (g.guide, g.records.is_some()),
+            None => (None, false),
+        };
+        let mix = match guide {
+            Some(gd) if guiding::guidable(&v.bsdf) => gd.mix_at(v.hit.p),
+            _ => None,
+        };
+        l += sample_ld_mix(world, v, beta, s, set, stats, mix.as_ref());
 
-        // BSDF sampling: choose the next direction.
-        let u_lobe = if v.bsdf.has_one_lobe() {
-            s.skip(1);
-            0.0
+        // BSDF sampling (or the mixture's): choose the next direction. The mixture takes the
+        // lobe-choice number as its strategy choice, so the dimensions stay the same.
+        // `densities`: the BSDF's and the guide's densities and the BSDF's share, for a
+        // training record.
+        let (bs, wi, densities) = if let Some(m) = mix.as_ref() {
+            let u_pick = s.next_1d();
+            let u_dir = s.next_2d();
+            let Some(ms) = guiding::sample_mixture(&v.bsdf, &v.frame, v.wo_local, m, u_pick, u_dir)
+            else {
+                break;
+            };
+            (ms.bs, ms.wi, Some((ms.pdf_bsdf, ms.pdf_guide, m.alpha)))
         } else {
-            s.next_1d()
+            let u_lobe = if v.bsdf.has_one_lobe() {
+                s.skip(1);
+                0.0
+            } else {
+                s.next_1d()
+            };
+            let u_dir = s.next_2d();
+            let Some(bs) = v.bsdf.sample(v.wo_local, u_lobe, u_dir) else {
+                break;
+            };
+            let wi = v.frame.to_world(bs.wi);
+            let densities = (training && !bs.specular && guiding::guidable(&v.bsdf))
+                .then_some((bs.pdf, 0.0, 1.0));
+            (bs, wi, densities)
         };
-        let u_dir = s.next_2d();
-        let Some(bs) = v.bsdf.sample(v.wo_local, u_lobe, u_dir) else {
-            break;
-        };
-        let wi = v.frame.to_world(bs.wi);
         if !v.bsdf.side_consistent(bs.wi, wi.dot(v.ng)) {
             break;
         }
@@ -190,6 +247,26 @@ fn continue_path(
         eta_scale *= bs.eta * bs.eta;
         if !(beta.max_element() > 0.0) || !beta.is_finite() {
             break;
+        }
+        if let (Some(g), Some((pdf_bsdf, pdf_guide, alpha))) = (g.as_deref_mut(), densities)
+            && training
+            && !bs.specular
+            && g.pending.len() < guiding::MAX_RECORDED_VERTICES
+        {
+            g.pending.push(Pending {
+                record: Record {
+                    p: v.hit.p,
+                    wi,
+                    radiance: 0.0,
+                    f_cos: luminance(bs.f) * bs.wi.z.abs(),
+                    pdf_bsdf,
+                    pdf_guide,
+                    pdf: bs.pdf,
+                    alpha,
+                },
+                l_before: l,
+                beta_after: beta,
+            });
         }
         depth += 1;
 
@@ -256,6 +333,9 @@ fn continue_path(
             }
         }
         wo = wo_next;
+    }
+    if let Some(g) = g {
+        g.finish(l);
     }
     l
 }

@@ -482,7 +482,7 @@ pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
 }
 
 /// The fields a request may have, in the order the unknown-field message lists them.
-const KNOWN_FIELDS: [&str; 22] = [
+const KNOWN_FIELDS: [&str; 23] = [
     "scene",
     "output",
     "width",
@@ -505,6 +505,7 @@ const KNOWN_FIELDS: [&str; 22] = [
     "env_rotation",
     "camera",
     "aovs",
+    "guiding",
 ];
 
 /// A request body as sent. Every field is optional (absent and `null` alike) and kept as JSON,
@@ -535,6 +536,8 @@ pub struct RequestBody {
     pub env_rotation: Option<Value>,
     pub camera: Option<Value>,
     pub aovs: Option<Value>,
+    /// Path guiding (`--guiding`): true or false.
+    pub guiding: Option<Value>,
     /// Anything else, refused by name.
     #[serde(flatten)]
     pub unknown: BTreeMap<String, Value>,
@@ -583,6 +586,7 @@ struct Options {
     time_limit: Option<f64>,
     crop: Option<crate::pipeline::CropSpec>,
     denoise: bool,
+    guiding: bool,
 }
 
 /// Parses and checks a JSON render request ([`RequestBody`]). Every wrong field is reported, not
@@ -671,6 +675,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         crop: None,
         // Set by the pipeline when the variance AOV is asked for.
         track_variance: false,
+        guiding: o.guiding,
     };
     if errors.is_empty()
         && let Err(e) = settings.validate()
@@ -864,6 +869,14 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
             false
         }
     };
+    let guiding = match &b.guiding {
+        None | Some(Value::Null) => false,
+        Some(Value::Bool(b)) => *b,
+        Some(_) => {
+            errors.insert("guiding".into(), "must be true or false".into());
+            false
+        }
+    };
     Options {
         exposure,
         integrator,
@@ -875,6 +888,7 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
         time_limit,
         crop,
         denoise,
+        guiding,
     }
 }
 

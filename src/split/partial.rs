@@ -124,6 +124,7 @@ pub fn image_settings(
         time_limit,
         crop,
         track_variance: _,
+        guiding,
     } = s;
     let WorldOptions {
         accel,
@@ -168,6 +169,10 @@ pub fn image_settings(
         .map(|(k, v)| (k.to_string(), format!("{v:?}")))
         .collect();
     m.insert("light_sampler".into(), light_sampler.to_string());
+    // Only when on, so that the headers of unguided parts are unchanged.
+    if *guiding {
+        m.insert("guiding".into(), "true".into());
+    }
     m
 }
 

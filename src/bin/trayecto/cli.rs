@@ -267,6 +267,13 @@ pub struct RenderArgs {
     /// A Mitsuba scene parameter, NAME=VALUE (overrides the file's <default>; repeatable).
     #[arg(short = 'D', long = "define", value_name = "NAME=VALUE", value_parser = trayecto::scene::mitsuba::parse_define)]
     pub define: Vec<(String, String)>,
+    /// Path guiding (experimental): learn where indirect light comes from during the first
+    /// quarter of the samples (at most 128 spp) and sample those directions too. Unbiased and
+    /// deterministic; meant for light through a gap or off a small bright patch, but it does not
+    /// yet pay at equal time in the measured scenes (BENCHMARKS.md). Surfaces only (media are
+    /// not guided); a guided render cannot be split or resumed.
+    #[arg(long)]
+    pub guiding: bool,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -312,6 +319,7 @@ impl RenderArgs {
             crop: None,
             // Set by the pipeline when the variance AOV is asked for.
             track_variance: false,
+            guiding: self.guiding,
         }
     }
 

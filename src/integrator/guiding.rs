@@ -1,0 +1,683 @@
+//! Path guiding (docs/DESIGN.md, "Path guiding"): a learned approximation of the incident
+//! radiance field, from which the path tracer samples directions in a one-sample MIS mixture with
+//! the BSDF.
+//!
+//! The field is an SD-tree (Müller, Gross and Novák 2017, "Practical Path Guiding for Efficient
+//! Light-Transport Simulation"): a binary tree over the scene's bounds (split at the middle of
+//! its cell, the axes in turn) whose leaves each hold a directional quadtree over the square
+//! [0, 1]² of the cylindrical map (cos θ, φ/2π) of the sphere, which preserves area (so the
+//! solid-angle density is the square's divided by 4π). A quadtree node keeps the radiance that
+//! reached each of its four quadrants; sampling descends by those sums and a point is uniform in
+//! the leaf quadrant reached (Müller 2017 §3.3). Each spatial leaf also learns the probability
+//! of sampling the BSDF rather than the guide, by stochastic gradient descent (Adam) on the
+//! KL divergence between the mixture and the product f·Lᵢ·cos (Müller 2019, "Practical Path
+//! Guiding in Production", §10.2), clamped to [`ALPHA_MIN`, `ALPHA_MAX`] so that the BSDF always
+//! keeps some probability (the mixture then covers every direction the BSDF does: unbiased).
+//!
+//! Learning is iterative: the render's passes of 1, 1, 2, 4, … samples are the training
+//! iterations. After an iteration, its records (a path vertex's position, the direction it
+//! continued in and the radiance that came back along it) are splatted into a tree whose
+//! structure was refined from the previous iteration's; that tree becomes the guide the next
+//! iteration samples with, and its refinement the tree the next records go into. The records are
+//! merged in a fixed order (passes in order, tiles in order, samples in order), so the guide is a
+//! function of the seed and the settings, never of the thread count.
+
+use crate::material::Bsdf;
+use crate::material::bxdf::BsdfSample;
+use crate::math::{Frame, PI, Vec2, Vec3, luminance};
+
+/// Smallest and largest probability of sampling the BSDF: the guide never takes every sample
+/// (its density may be zero where light arrives), nor the BSDF (which would waste the guide).
+pub const ALPHA_MIN: f32 = 0.1;
+pub const ALPHA_MAX: f32 = 0.9;
+/// A quadtree node is subdivided while it holds more than this share of its tree's radiance
+/// (Müller 2017's ρ).
+const FLUX_SHARE: f32 = 0.01;
+/// Deepest quadtree level (2⁻²⁰ of the square's side: far below any useful resolution).
+const MAX_DEPTH: u32 = 20;
+/// A spatial leaf splits when the last iteration put more than `SPLIT_C` · √(samples per pixel
+/// of the iteration) records into it (Müller 2017 §3.4 uses 12000 at a megapixel; renders here
+/// are smaller, and a cell's directional tree needs a few thousand records to learn anything).
+const SPLIT_C: f32 = 4000.0;
+
+/// [`SPLIT_C`], unless the environment variable `TRAYECTO_GUIDING_SPLIT` sets another (a
+/// benchmarking knob, `bench/guiding.py`; the image stays a function of seed, settings and it).
+fn split_c() -> f32 {
+    static C: std::sync::OnceLock<f32> = std::sync::OnceLock::new();
+    *C.get_or_init(|| {
+        std::env::var("TRAYECTO_GUIDING_SPLIT")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .filter(|c: &f32| *c > 0.0)
+            .unwrap_or(SPLIT_C)
+    })
+}
+/// Memory bound: at most this many spatial leaves, and this many quadtree nodes over all of them
+/// (32 bytes each: 32 MiB). A tree at the cap stops refining; the image stays unbiased.
+pub const MAX_LEAVES: usize = 1 << 14;
+pub const MAX_QUAD_NODES: usize = 1 << 20;
+/// Adam's step size and moment decays (Kingma and Ba 2015), as Müller 2019 uses them.
+const ADAM_LR: f32 = 0.01;
+const ADAM_B1: f32 = 0.9;
+const ADAM_B2: f32 = 0.999;
+
+/// One training record: where a path vertex was, the direction it continued in, and what the
+/// rest of the path found along it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Record {
+    pub p: Vec3,
+    /// The sampled direction (world space, unit).
+    pub wi: Vec3,
+    /// Luminance of the incident radiance estimate Lᵢ along `wi`.
+    pub radiance: f32,
+    /// Luminance of f(wo, wi)·|cos θᵢ| at the vertex.
+    pub f_cos: f32,
+    /// Densities of `wi` under the BSDF, the guide (0 without one) and the mixture it was drawn
+    /// from, and the BSDF's share of that mixture.
+    pub pdf_bsdf: f32,
+    pub pdf_guide: f32,
+    pub pdf: f32,
+    pub alpha: f32,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct QuadNode {
+    /// Index of each quadrant's child node in [`Guide::quads`]; 0 for a leaf quadrant (node 0 is
+    /// never a child: it is the first tree's root).
+    child: [u32; 4],
+    sum: [f32; 4],
+}
+
+#[derive(Clone, Copy, Debug)]
+struct SpatialNode {
+    /// Index of the first of the two children in [`Guide::spatial`] (the second follows); 0 for
+    /// a leaf.
+    children: u32,
+    axis: u8,
+    /// The leaf's index in [`Guide::leaves`] (leaves only).
+    leaf: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Leaf {
+    root: u32,
+    /// Records splatted into this leaf in the iteration that filled it.
+    count: u32,
+    /// The BSDF's share of the mixture: α = clamp(sigmoid(θ)); Adam's moments and step count.
+    theta: f32,
+    m: f32,
+    v: f32,
+    t: u32,
+}
+
+/// The learned incident-radiance field: an SD-tree.
+#[derive(Clone, Debug)]
+pub struct Guide {
+    min: Vec3,
+    inv_extent: Vec3,
+    extent: Vec3,
+    spatial: Vec<SpatialNode>,
+    leaves: Vec<Leaf>,
+    quads: Vec<QuadNode>,
+}
+
+/// A guided vertex: the guide, the spatial leaf holding the vertex and the BSDF's share of the
+/// mixture there.
+#[derive(Clone, Copy, Debug)]
+pub struct Mix<'a> {
+    pub guide: &'a Guide,
+    pub leaf: u32,
+    pub alpha: f32,
+}
+
+/// Direction to the point of the cylindrical square (Müller 2017 eq. 10: z = cos θ).
+#[inline]
+fn square_to_dir(p: Vec2) -> Vec3 {
+    let cos = (2.0 * p.x - 1.0).clamp(-1.0, 1.0);
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    let (s, c) = (2.0 * PI * p.y).sin_cos();
+    Vec3::new(sin * c, sin * s, cos)
+}
+
+#[inline]
+fn dir_to_square(d: Vec3) -> Vec2 {
+    let x = ((d.z.clamp(-1.0, 1.0) + 1.0) * 0.5).min(1.0 - f32::EPSILON / 2.0);
+    let mut phi = d.y.atan2(d.x);
+    if phi < 0.0 {
+        phi += 2.0 * PI;
+    }
+    let y = (phi * (0.5 / PI)).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+    Vec2::new(x, y)
+}
+
+#[inline]
+fn sigmoid(t: f32) -> f32 {
+    1.0 / (1.0 + (-t).exp())
+}
+
+impl Guide {
+    /// A guide over `min..max` with one leaf and an empty (uniform) directional tree.
+    pub fn new(min: Vec3, max: Vec3) -> Guide {
+        // A little margin so that points on the bounds fall inside, and no axis of zero width.
+        let ext = (max - min).max(Vec3::splat(1e-3));
+        let min = min - ext * 1e-3;
+        let extent = ext * 1.002;
+        Guide {
+            min,
+            inv_extent: extent.recip(),
+            extent,
+            spatial: vec![SpatialNode {
+                children: 0,
+                axis: 0,
+                leaf: 0,
+            }],
+            leaves: vec![Leaf {
+                root: 0,
+                count: 0,
+                theta: 0.0,
+                m: 0.0,
+                v: 0.0,
+                t: 0,
+            }],
+            quads: vec![QuadNode::default()],
+        }
+    }
+
+    pub fn leaf_count(&self) -> usize {
+        self.leaves.len()
+    }
+
+    pub fn quad_node_count(&self) -> usize {
+        self.quads.len()
+    }
+
+    /// Bytes the tree holds.
+    pub fn memory(&self) -> usize {
+        self.quads.len() * std::mem::size_of::<QuadNode>()
+            + self.leaves.len() * std::mem::size_of::<Leaf>()
+            + self.spatial.len() * std::mem::size_of::<SpatialNode>()
+    }
+
+    /// The spatial leaf holding `p` (points outside the bounds go to the nearest cell).
+    #[inline]
+    pub fn leaf_at(&self, p: Vec3) -> u32 {
+        let mut c = ((p - self.min) * self.inv_extent).clamp(Vec3::ZERO, Vec3::ONE);
+        let mut n = 0usize;
+        loop {
+            let node = self.spatial[n];
+            if node.children == 0 {
+                return node.leaf;
+            }
+            let a = node.axis as usize;
+            let hi = c[a] >= 0.5;
+            c[a] = if hi { c[a] * 2.0 - 1.0 } else { c[a] * 2.0 };
+            n = node.children as usize + hi as usize;
+        }
+    }
+
+    /// The mixture at `p`, if its leaf learned anything (an empty leaf leaves the vertex to the
+    /// BSDF alone).
+    #[inline]
+    pub fn mix_at(&self, p: Vec3) -> Option<Mix<'_>> {
+        let leaf = self.leaf_at(p);
+        let l = &self.leaves[leaf as usize];
+        let total: f32 = self.quads[l.root as usize].sum.iter().sum();
+        (total > 0.0 && total.is_finite()).then(|| Mix {
+            guide: self,
+            leaf,
+            alpha: sigmoid(l.theta).clamp(ALPHA_MIN, ALPHA_MAX),
+        })
+    }
+
+    /// Solid-angle density of the guide of `leaf` at the unit direction `d` (world space).
+    #[inline]
+    pub fn pdf(&self, leaf: u32, d: Vec3) -> f32 {
+        let mut p = dir_to_square(d);
+        let mut n = self.leaves[leaf as usize].root as usize;
+        let mut density = 1.0 / (4.0 * PI);
+        for _ in 0..=MAX_DEPTH {
+            let q = &self.quads[n];
+            let total = q.sum[0] + q.sum[1] + q.sum[2] + q.sum[3];
+            if !(total > 0.0) {
+                return 0.0;
+            }
+            let (ix, iy) = ((p.x >= 0.5) as usize, (p.y >= 0.5) as usize);
+            let i = ix + 2 * iy;
+            density *= 4.0 * q.sum[i] / total;
+            if q.child[i] == 0 {
+                break;
+            }
+            n = q.child[i] as usize;
+            p = Vec2::new(p.x * 2.0 - ix as f32, p.y * 2.0 - iy as f32);
+        }
+        density
+    }
+
+    /// A direction drawn from the guide of `leaf` with `u` (Müller 2017 §3.3: descend by the
+    /// quadrants' sums, then uniformly in the leaf quadrant). The leaf's tree must hold some
+    /// radiance ([`Guide::mix_at`]).
+    #[inline]
+    pub fn sample(&self, leaf: u32, u: Vec2) -> Vec3 {
+        self.sample_pdf(leaf, u).0
+    }
+
+    /// [`Guide::sample`] and the direction's density ([`Guide::pdf`]), found on the way down.
+    #[inline]
+    pub fn sample_pdf(&self, leaf: u32, u: Vec2) -> (Vec3, f32) {
+        let mut n = self.leaves[leaf as usize].root as usize;
+        let mut density = 1.0 / (4.0 * PI);
+        let (mut ux, mut uy) = (u.x, u.y);
+        let (mut ox, mut oy, mut size) = (0.0f32, 0.0f32, 1.0f32);
+        for _ in 0..=MAX_DEPTH {
+            let q = &self.quads[n];
+            let s = q.sum;
+            let total = s[0] + s[1] + s[2] + s[3];
+            // Left column (ix = 0) holds quadrants 0 and 2.
+            let left = (s[0] + s[2]) / total;
+            let ix = if ux < left {
+                ux = (ux / left).min(1.0 - f32::EPSILON / 2.0);
+                0
+            } else {
+                ux = ((ux - left) / (1.0 - left)).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+                1
+            };
+            let col = s[ix] + s[ix + 2];
+            let low = s[ix] / col;
+            let iy = if uy < low {
+                uy = (uy / low).min(1.0 - f32::EPSILON / 2.0);
+                0
+            } else {
+                uy = ((uy - low) / (1.0 - low)).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+                1
+            };
+            size *= 0.5;
+            ox += ix as f32 * size;
+            oy += iy as f32 * size;
+            density *= 4.0 * s[ix + 2 * iy] / total;
+            let c = q.child[ix + 2 * iy];
+            if c == 0 {
+                break;
+            }
+            n = c as usize;
+        }
+        (
+            square_to_dir(Vec2::new(ox + ux * size, oy + uy * size)),
+            density,
+        )
+    }
+
+    /// Adds `value` to every node on the path to `d` in `leaf`'s tree.
+    fn deposit(&mut self, leaf: u32, d: Vec3, value: f32) {
+        let mut p = dir_to_square(d);
+        let mut n = self.leaves[leaf as usize].root as usize;
+        for _ in 0..=MAX_DEPTH {
+            let (ix, iy) = ((p.x >= 0.5) as usize, (p.y >= 0.5) as usize);
+            let i = ix + 2 * iy;
+            self.quads[n].sum[i] += value;
+            let c = self.quads[n].child[i];
+            if c == 0 {
+                break;
+            }
+            n = c as usize;
+            p = Vec2::new(p.x * 2.0 - ix as f32, p.y * 2.0 - iy as f32);
+        }
+    }
+
+    /// One Adam step on `leaf`'s BSDF share from a record drawn from the mixture (Müller 2019
+    /// §10.2): the gradient of the KL divergence from the normalized product F = f·Lᵢ·cos to
+    /// the mixture q = α·p_bsdf + (1−α)·p_guide, estimated with the record's direction, is
+    /// −(F/q)·(p_bsdf − p_guide)/q · dα/dθ.
+    fn adam(&mut self, leaf: u32, r: &Record) {
+        let l = &mut self.leaves[leaf as usize];
+        let a = sigmoid(l.theta);
+        let g =
+            -(r.f_cos * r.radiance / r.pdf) * (r.pdf_bsdf - r.pdf_guide) / r.pdf * a * (1.0 - a);
+        if !g.is_finite() {
+            return;
+        }
+        l.t += 1;
+        l.m = ADAM_B1 * l.m + (1.0 - ADAM_B1) * g;
+        l.v = ADAM_B2 * l.v + (1.0 - ADAM_B2) * g * g;
+        let mh = l.m / (1.0 - ADAM_B1.powi(l.t as i32));
+        let vh = l.v / (1.0 - ADAM_B2.powi(l.t as i32));
+        // θ stays where the clamp still answers to it.
+        l.theta = (l.theta - ADAM_LR * mh / (vh.sqrt() + 1e-8)).clamp(-4.0, 4.0);
+    }
+
+    /// Copies the structure of `src`'s tree rooted at `n` into `self.quads` with zero sums,
+    /// subdivided where `src`'s quadrants hold more than [`FLUX_SHARE`] of `total` (a quadrant
+    /// never seen is assumed to split its share evenly) and while `budget` nodes remain. Returns
+    /// the new root's index.
+    fn refine_quad(
+        &mut self,
+        src: &[QuadNode],
+        n: Option<usize>,
+        share: [f32; 4],
+        depth: u32,
+        budget: &mut usize,
+    ) -> u32 {
+        let idx = self.quads.len();
+        self.quads.push(QuadNode::default());
+        for (i, &s) in share.iter().enumerate() {
+            if !(s > FLUX_SHARE && depth < MAX_DEPTH && *budget >= 1) {
+                continue;
+            }
+            let child = n.and_then(|n| {
+                let c = src[n].child[i];
+                (c != 0).then_some(c as usize)
+            });
+            let sub = match child {
+                Some(c) => {
+                    let cs = src[c].sum;
+                    let ct = cs[0] + cs[1] + cs[2] + cs[3];
+                    if ct > 0.0 {
+                        cs.map(|x| s * x / ct)
+                    } else {
+                        [s / 4.0; 4]
+                    }
+                }
+                None => [s / 4.0; 4],
+            };
+            *budget -= 1;
+            let c = self.refine_quad(src, child, sub, depth + 1, budget);
+            self.quads[idx].child[i] = c;
+        }
+        idx as u32
+    }
+
+    /// The next iteration's empty tree: spatial leaves that received more than
+    /// [`SPLIT_C`]·√`spp` records are split (repeatedly, assuming the records halve with each
+    /// split), every directional tree is refined by the radiance it holds, and each leaf keeps
+    /// its BSDF share and Adam state. Both stay under [`MAX_LEAVES`] and [`MAX_QUAD_NODES`].
+    fn refined(&self, spp: u32) -> Guide {
+        let threshold = split_c() * (spp.max(1) as f32).sqrt();
+        let mut g = Guide {
+            min: self.min,
+            inv_extent: self.inv_extent,
+            extent: self.extent,
+            spatial: Vec::with_capacity(self.spatial.len()),
+            leaves: Vec::with_capacity(self.leaves.len()),
+            quads: Vec::new(),
+        };
+        // Spatial structure first (leaf roots filled in below).
+        struct Pending {
+            old_leaf: u32,
+        }
+        let mut pending: Vec<Pending> = Vec::new();
+        // Breadth-first copy: (old node, new node index, depth, records assumed in this cell).
+        g.spatial.push(SpatialNode {
+            children: 0,
+            axis: 0,
+            leaf: 0,
+        });
+        let mut stack = vec![(0usize, 0usize, 0u8, None::<f32>)];
+        let mut leaves_left = MAX_LEAVES.saturating_sub(self.leaves.len());
+        while let Some((old, new, axis, split_count)) = stack.pop() {
+            let o = self.spatial[old];
+            let (children_of_old, count) = match split_count {
+                Some(c) => (None, c),
+                None if o.children != 0 => (Some(o.children as usize), 0.0),
+                None => (None, self.leaves[o.leaf as usize].count as f32),
+            };
+            let split = match children_of_old {
+                Some(_) => true,
+                None => count > threshold && leaves_left > 0,
+            };
+            if split {
+                if children_of_old.is_none() {
+                    leaves_left -= 1;
+                }
+                let c = g.spatial.len();
+                g.spatial[new].children = c as u32;
+                let ax = match children_of_old {
+                    Some(_) => o.axis,
+                    None => axis,
+                };
+                g.spatial[new].axis = ax;
+                for k in 0..2 {
+                    g.spatial.push(SpatialNode {
+                        children: 0,
+                        axis: 0,
+                        leaf: 0,
+                    });
+                    let next_axis = (ax + 1) % 3;
+                    match children_of_old {
+                        Some(oc) => stack.push((oc + k, c + k, next_axis, None)),
+                        // A new split: both halves copy this leaf, with half its records.
+                        None => stack.push((old, c + k, next_axis, Some(count / 2.0))),
+                    }
+                }
+            } else {
+                g.spatial[new].leaf = pending.len() as u32;
+                g.spatial[new].axis = axis;
+                let old_leaf = if o.children == 0 {
+                    o.leaf
+                } else {
+                    unreachable!("an old inner node is always split")
+                };
+                pending.push(Pending { old_leaf });
+            }
+        }
+        // Directional trees, each leaf with an equal share of the node budget.
+        let per_leaf = (MAX_QUAD_NODES / pending.len().max(1)).max(1);
+        for pl in &pending {
+            let ol = self.leaves[pl.old_leaf as usize];
+            let s = self.quads[ol.root as usize].sum;
+            let t = s[0] + s[1] + s[2] + s[3];
+            let share = if t > 0.0 { s.map(|x| x / t) } else { [0.25; 4] };
+            let mut budget = per_leaf - 1;
+            let root = g.refine_quad(&self.quads, Some(ol.root as usize), share, 0, &mut budget);
+            g.leaves.push(Leaf {
+                root,
+                count: 0,
+                ..ol
+            });
+        }
+        g
+    }
+}
+
+/// The training state of a render: the guide paths sample with (none before the first
+/// iteration ends) and the tree the current iteration's records go into.
+#[derive(Clone, Debug)]
+pub struct Learner {
+    guide: Option<std::sync::Arc<Guide>>,
+    building: Guide,
+}
+
+impl Learner {
+    /// A learner for a scene within `min..max`.
+    pub fn new(min: Vec3, max: Vec3) -> Learner {
+        Learner {
+            guide: None,
+            building: Guide::new(min, max),
+        }
+    }
+
+    /// The guide learned so far.
+    pub fn guide(&self) -> Option<std::sync::Arc<Guide>> {
+        self.guide.clone()
+    }
+
+    /// Ends a training iteration of `spp` samples per pixel whose records are `records`, in
+    /// their fixed order: the BSDF shares take their Adam steps, the records are splatted (the
+    /// radiance divided by the density the direction was drawn with, an estimate of the
+    /// radiance integrated over each quadrant), the filled tree becomes the guide and its
+    /// refinement the next iteration's tree.
+    pub fn learn<'r>(&mut self, records: impl IntoIterator<Item = &'r Record>, spp: u32) {
+        let b = &mut self.building;
+        for r in records {
+            if !(r.pdf > 0.0) || !r.radiance.is_finite() || !r.p.is_finite() {
+                continue;
+            }
+            let leaf = b.leaf_at(r.p);
+            if r.pdf_guide > 0.0 || r.alpha < 1.0 {
+                b.adam(leaf, r);
+            }
+            let l = &mut b.leaves[leaf as usize];
+            l.count = l.count.saturating_add(1);
+            let value = r.radiance / r.pdf;
+            if value > 0.0 && value.is_finite() {
+                b.deposit(leaf, r.wi, value);
+            }
+        }
+        let next = self.building.refined(spp);
+        let next_count = next.leaves.len();
+        let filled = std::mem::replace(&mut self.building, next);
+        if std::env::var_os("TRAYECTO_GUIDING_LOG").is_some() {
+            // What the iteration learned (`bench/guiding.py --log`).
+            let with_flux = filled
+                .leaves
+                .iter()
+                .filter(|l| filled.quads[l.root as usize].sum.iter().sum::<f32>() > 0.0)
+                .count();
+            let alpha: f32 = filled
+                .leaves
+                .iter()
+                .map(|l| sigmoid(l.theta).clamp(ALPHA_MIN, ALPHA_MAX))
+                .sum::<f32>()
+                / filled.leaves.len() as f32;
+            let records: u32 = filled.leaves.iter().map(|l| l.count).sum();
+            eprintln!(
+                "guiding: iteration of {spp} spp: {records} records, {} leaves ({with_flux} with radiance), {} quadtree nodes, mean BSDF share {alpha:.3}; next tree {next_count} leaves",
+                filled.leaves.len(),
+                filled.quads.len(),
+            );
+        }
+        self.guide = Some(std::sync::Arc::new(filled));
+    }
+}
+
+/// Whether a vertex with this BSDF is guided: a guide cannot help a Dirac lobe, and the
+/// transmissive BSDFs (glass, hair, thin sheets) are left to their own sampling, which knows
+/// the η crossed.
+#[inline]
+pub fn guidable(bsdf: &Bsdf) -> bool {
+    !bsdf.is_specular() && !bsdf.is_transmissive() && !bsdf.is_black()
+}
+
+/// What [`sample_mixture`] drew: the sample in the local frame (its `pdf` the mixture's, or for
+/// a Dirac lobe the lobe's probability times the BSDF's share), the world direction, and the
+/// densities a training record needs.
+#[derive(Clone, Copy, Debug)]
+pub struct MixSample {
+    pub bs: BsdfSample,
+    pub wi: Vec3,
+    pub pdf_bsdf: f32,
+    pub pdf_guide: f32,
+}
+
+/// One-sample MIS between the BSDF and the guide (Müller 2017 §5.1 with the learned share):
+/// `u_pick` < α samples the BSDF (with the rescaled number as its lobe choice), otherwise the
+/// guide; either way the sample's density is the mixture's α·p_bsdf + (1 − α)·p_guide, so the
+/// estimate f·cos/q is unbiased wherever the BSDF is non-zero. `None` when the BSDF sample fails
+/// or the guide's direction carries no BSDF value.
+#[inline]
+pub fn sample_mixture(
+    bsdf: &Bsdf,
+    frame: &Frame,
+    wo_local: Vec3,
+    mix: &Mix,
+    u_pick: f32,
+    u: Vec2,
+) -> Option<MixSample> {
+    let a = mix.alpha;
+    if u_pick < a {
+        let bs = bsdf.sample(wo_local, (u_pick / a).min(1.0 - f32::EPSILON / 2.0), u)?;
+        let wi = frame.to_world(bs.wi);
+        if bs.specular {
+            // Only the BSDF produces a Dirac direction: its estimate divides by α as well.
+            return Some(MixSample {
+                bs: BsdfSample {
+                    pdf: bs.pdf * a,
+                    ..bs
+                },
+                wi,
+                pdf_bsdf: bs.pdf,
+                pdf_guide: 0.0,
+            });
+        }
+        let pg = mix.guide.pdf(mix.leaf, wi);
+        Some(MixSample {
+            bs: BsdfSample {
+                pdf: a * bs.pdf + (1.0 - a) * pg,
+                ..bs
+            },
+            wi,
+            pdf_bsdf: bs.pdf,
+            pdf_guide: pg,
+        })
+    } else {
+        let (wi, pg) = mix.guide.sample_pdf(mix.leaf, u);
+        let wl = frame.to_local(wi);
+        let f = bsdf.eval(wo_local, wl);
+        if f == Vec3::ZERO {
+            return None;
+        }
+        let pb = bsdf.pdf(wo_local, wl);
+        let pdf = a * pb + (1.0 - a) * pg;
+        if !(pdf > 0.0) {
+            return None;
+        }
+        Some(MixSample {
+            bs: BsdfSample {
+                wi: wl,
+                f,
+                pdf,
+                specular: false,
+                eta: 1.0,
+            },
+            wi,
+            pdf_bsdf: pb,
+            pdf_guide: pg,
+        })
+    }
+}
+
+/// The mixture's density at the local direction `wl` (world `wi`): what next-event estimation
+/// weighs its light samples against at a guided vertex.
+#[inline]
+pub fn mixture_pdf(bsdf: &Bsdf, wo_local: Vec3, wl: Vec3, wi: Vec3, mix: &Mix) -> f32 {
+    mix.alpha * bsdf.pdf(wo_local, wl) + (1.0 - mix.alpha) * mix.guide.pdf(mix.leaf, wi)
+}
+
+/// A vertex waiting for the radiance its continuation brings back: the path's radiance and
+/// throughput when it chose its direction.
+#[derive(Clone, Copy, Debug)]
+pub struct Pending {
+    pub record: Record,
+    pub l_before: Vec3,
+    pub beta_after: Vec3,
+}
+
+/// What a guided path needs: the guide (none in the first training iteration), and while
+/// training, where its records go. `pending` is scratch storage reused path after path.
+#[derive(Debug, Default)]
+pub struct Guiding<'a> {
+    pub guide: Option<&'a Guide>,
+    pub records: Option<&'a mut Vec<Record>>,
+    pub pending: Vec<Pending>,
+}
+
+/// Paths record at most this many vertices each (deeper ones carry little radiance).
+pub const MAX_RECORDED_VERTICES: usize = 16;
+
+impl Guiding<'_> {
+    /// Ends a path whose radiance came to `l`: each recorded vertex's incident radiance is what
+    /// the path gathered after it, divided by the throughput up to it.
+    pub fn finish(&mut self, l: Vec3) {
+        if let Some(out) = self.records.as_deref_mut() {
+            for p in self.pending.drain(..) {
+                let li = (l - p.l_before) / p.beta_after;
+                let li = luminance(Vec3::select(p.beta_after.cmpgt(Vec3::ZERO), li, Vec3::ZERO));
+                if li.is_finite() {
+                    out.push(Record {
+                        radiance: li.max(0.0),
+                        ..p.record
+                    });
+                }
+            }
+        }
+        self.pending.clear();
+    }
+}

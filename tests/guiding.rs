@@ -1,0 +1,148 @@
+//! Path guiding (`RenderSettings::guiding`, docs/DESIGN.md "Path guiding"): the guided estimate
+//! has the unguided one's expectation (on the Cornell box, a glTF scene, pbrt's veach-mis and a
+//! hard-indirect gap room), the image does not depend on the thread count, and guiding is a no-op
+//! for the volumetric path tracer.
+
+mod common;
+use common::*;
+use trayecto::film::Image;
+use trayecto::render::RenderSettings;
+use trayecto::world::{World, WorldOptions};
+
+fn world_of(spec: &str) -> World {
+    let scene = trayecto::scene::load(spec).expect("scene loads");
+    World::build(scene, &WorldOptions::default()).expect("scene builds")
+}
+
+fn settings(w: u32, h: u32, spp: u32, seed: u64, guiding: bool) -> RenderSettings {
+    RenderSettings {
+        width: w,
+        height: h,
+        spp,
+        seed,
+        threads: Some(2),
+        guiding,
+        ..Default::default()
+    }
+}
+
+/// Luminance per pixel.
+fn lum(img: &Image) -> Vec<f64> {
+    img.data
+        .iter()
+        .map(|p| (0.2126 * p.x + 0.7152 * p.y + 0.0722 * p.z) as f64)
+        .collect()
+}
+
+/// The guided and unguided renders estimate the same image: over the whole image and over each
+/// block of 8 × 8 pixels, the mean of the per-pixel differences is within 4.5 standard errors
+/// of zero (the differences of two independent estimates of a pixel have mean zero, so their
+/// spread within a block gives the standard error).
+fn assert_same_expectation(a: &Image, b: &Image, what: &str) {
+    let (da, db) = (lum(a), lum(b));
+    let w = a.width as usize;
+    let h = a.height as usize;
+    let z = |idx: &mut dyn Iterator<Item = usize>| {
+        let d: Vec<f64> = idx.map(|i| da[i] - db[i]).collect();
+        let n = d.len() as f64;
+        let m = d.iter().sum::<f64>() / n;
+        let var = d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0);
+        let scale = da.iter().chain(&db).sum::<f64>() / (2.0 * da.len() as f64);
+        // A block of identical pixels (both black) has no spread: compare with a floor.
+        m.abs() / (var / n).sqrt().max(1e-4 * scale)
+    };
+    let all = z(&mut (0..w * h));
+    assert!(
+        all < 4.5,
+        "{what}: image means differ by {all:.2} standard errors"
+    );
+    for by in (0..h).step_by(8) {
+        for bx in (0..w).step_by(8) {
+            let mut idx =
+                (by..(by + 8).min(h)).flat_map(|y| (bx..(bx + 8).min(w)).map(move |x| y * w + x));
+            let zb = z(&mut idx);
+            assert!(
+                zb < 4.5,
+                "{what}: block at ({bx}, {by}) differs by {zb:.2} standard errors"
+            );
+        }
+    }
+}
+
+fn agree(world: &World, w: u32, h: u32, spp: u32, what: &str) {
+    let plain = render_world(world, &settings(w, h, spp, 1, false));
+    let guided = render_world(world, &settings(w, h, spp, 2, true));
+    assert_same_expectation(&guided, &plain, what);
+}
+
+#[test]
+fn guided_renders_agree_with_unguided() {
+    agree(&world_of("cornell"), 32, 32, 64, "cornell");
+    agree(
+        &world_of(scene_file("pbrt/veach-mis/scene-v4.pbrt").to_str().unwrap()),
+        48,
+        27,
+        32,
+        "veach-mis",
+    );
+    agree(
+        &world_of(
+            scene_file(
+                "gltf/MetalRoughSpheresNoTextures/glTF-Binary/MetalRoughSpheresNoTextures.glb",
+            )
+            .to_str()
+            .unwrap(),
+        ),
+        32,
+        32,
+        32,
+        "glTF MetalRoughSpheresNoTextures",
+    );
+    let gap = repo_dir().join("scenes/guiding/gap-room.pbrt");
+    agree(&world_of(gap.to_str().unwrap()), 32, 24, 64, "gap room");
+}
+
+/// The guide is learned from records merged in tile order: the image is the same bit for bit
+/// for 1 and 2 threads, also with adaptive sampling and with the in-loop AOVs.
+#[test]
+fn guided_images_do_not_depend_on_thread_count() {
+    let world = world_of("cornell");
+    let mut s = settings(24, 20, 32, 5, true);
+    for noise in [None, Some(0.05)] {
+        s.noise_threshold = noise;
+        s.threads = Some(1);
+        let one = render_world(&world, &s);
+        s.threads = Some(2);
+        let two = render_world(&world, &s);
+        let bits = |i: &Image| -> Vec<u32> {
+            i.data
+                .iter()
+                .flat_map(|p| p.to_array().map(f32::to_bits))
+                .collect()
+        };
+        assert!(bits(&one) == bits(&two), "adaptive {noise:?}");
+        // And guiding changed the samples (the guide was used).
+        let plain = render_world(
+            &world,
+            &RenderSettings {
+                guiding: false,
+                ..s.clone()
+            },
+        );
+        assert!(bits(&plain) != bits(&two));
+    }
+}
+
+/// The volumetric path tracer is not guided: its image with guiding on is the unguided one.
+#[test]
+fn media_are_rendered_unguided() {
+    let world = world_of(
+        repo_dir()
+            .join("scenes/pbrt/media/fog_cornell.pbrt")
+            .to_str()
+            .unwrap(),
+    );
+    let a = render_world(&world, &settings(16, 16, 16, 3, false));
+    let b = render_world(&world, &settings(16, 16, 16, 3, true));
+    assert!(a.data == b.data);
+}
