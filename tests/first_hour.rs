@@ -84,7 +84,11 @@ fn png_defaults_to_the_view_transform_and_exr_stays_radiance() {
         &[&size[..], &["--tonemap", "clamp"]].concat(),
     ));
     let read = |n: &str| image::open(dir.join(n)).unwrap().to_rgb8().into_raw();
-    assert_eq!(read("default.png"), read("neutral.png"), "PNG default is PBR Neutral");
+    assert_eq!(
+        read("default.png"),
+        read("neutral.png"),
+        "PNG default is PBR Neutral"
+    );
     assert_ne!(read("default.png"), read("clamp.png"));
     // EXR holds radiance, whatever the tone mapping.
     ok(&render(&dir, "cornell", "a.exr", &size));
@@ -301,8 +305,18 @@ fn transparent_film_gives_premultiplied_rgba() {
     )
     .unwrap();
     let size = ["--width", "16", "--height", "16"];
-    ok(&render(&dir, "ball.toml", "t.exr", &[&size[..], &["--transparent"]].concat()));
-    ok(&render(&dir, "ball.toml", "t.png", &[&size[..], &["--transparent"]].concat()));
+    ok(&render(
+        &dir,
+        "ball.toml",
+        "t.exr",
+        &[&size[..], &["--transparent"]].concat(),
+    ));
+    ok(&render(
+        &dir,
+        "ball.toml",
+        "t.png",
+        &[&size[..], &["--transparent"]].concat(),
+    ));
     ok(&render(&dir, "ball.toml", "o.exr", &size));
     let a = exr_channel(&dir.join("t.exr"), "A");
     let r = exr_channel(&dir.join("t.exr"), "R");
@@ -322,8 +336,16 @@ fn transparent_film_gives_premultiplied_rgba() {
     let rgba = png.to_rgba8();
     assert_eq!(rgba.get_pixel(0, 0)[3], 0);
     assert_eq!(rgba.get_pixel(8, 8)[3], 255);
-    assert!(!dir.join("t.alpha.png").exists(), "alpha went into the PNG, not beside it");
+    assert!(
+        !dir.join("t.alpha.png").exists(),
+        "alpha went into the PNG, not beside it"
+    );
     // Not for the thesis's modes.
-    let o = render(&dir, "ball.toml", "w.png", &["--transparent", "--integrator", "whitted"]);
+    let o = render(
+        &dir,
+        "ball.toml",
+        "w.png",
+        &["--transparent", "--integrator", "whitted"],
+    );
     assert!(!o.status.success());
 }
