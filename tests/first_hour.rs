@@ -138,10 +138,12 @@ fn clamps_cut_bright_samples_and_are_off_by_default() {
     ));
     let lamp = max(&exr_rgb(&dir.join("free.exr")));
     assert!(lamp > 1.5, "the lamp is bright ({lamp})");
-    assert!(max(&exr_rgb(&dir.join("cd.exr"))) <= 1.0 + 1e-5);
+    // (Indirect light still adds to a clamped pixel: it is not capped at 1.)
+    assert!(max(&exr_rgb(&dir.join("cd.exr"))) < lamp / 2.0);
     assert!(max(&exr_rgb(&dir.join("ci.exr"))) > 1.5);
     for bad in ["0", "-1", "nan"] {
-        let o = render(&dir, "cornell", "x.png", &["--clamp-indirect", bad]);
+        let arg = format!("--clamp-indirect={bad}");
+        let o = render(&dir, "cornell", "x.png", &[arg.as_str()]);
         assert!(!o.status.success(), "--clamp-indirect {bad} accepted");
         assert!(
             text(&o.stderr).contains("--clamp-indirect"),
@@ -204,7 +206,7 @@ fn slips_are_forgiven_or_pointed_at() {
 #[test]
 fn adaptive_png_gets_no_side_files_unless_asked() {
     let dir = temp_dir("adaptive");
-    let a = ["--width", "16", "--spp", "32", "--noise-threshold", "0.2"];
+    let a = ["--width", "16", "--noise-threshold", "0.2"];
     ok(&render(&dir, "cornell", "a.png", &a));
     assert!(dir.join("a.png").exists());
     assert!(!dir.join("a.samples.png").exists() && !dir.join("a.variance.png").exists());
