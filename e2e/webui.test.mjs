@@ -84,7 +84,7 @@ function pngSize(buf) {
 test("an invalid field shows its message, and fixing it clears it", async () => {
   await openPage();
   await fill({ width: 0, output: "../escape" });
-  await page.click("#start");
+  await page.click("#render");
   assert.match(await page.textContent("#err-width"), /whole number from 1 to 4096/);
   assert.match(await page.textContent("#err-output"), /plain file name/);
   assert.equal(await page.getAttribute("#width", "aria-invalid"), "true");
@@ -101,7 +101,7 @@ test("a render shows a preview that refines before it finishes, then downloads a
   // Large enough to take a few seconds even on a fast, idle machine, so several passes are seen.
   await fill({ scene: "cornell", output: "e2e-progressive", width: 160, height: 120, spp: 1024,
     secondary: 1, max_depth: 8, exposure: 1 });
-  await page.click("#start");
+  await page.click("#render");
   const seen = [];
   const t0 = Date.now();
   for (;;) {
@@ -134,7 +134,7 @@ test("Cancel stops a long render", async () => {
   await openPage();
   await fill({ scene: "cornell", output: "e2e-cancel", width: 256, height: 256, spp: 16384,
     max_depth: 8 });
-  await page.click("#start");
+  await page.click("#render");
   await page.waitForFunction(() => Number(document.getElementById("preview").dataset.version) >= 1);
   assert.equal(await page.textContent("#state"), "rendering");
   const t0 = Date.now();
@@ -156,10 +156,10 @@ test("three renders with --max-jobs 1 wait in the queue and complete in order", 
   const names = ["e2e-q1", "e2e-q2", "e2e-q3"];
   // The first is long enough that the other two are submitted while it renders.
   await fill({ scene: "cornell", output: names[0], width: 128, height: 128, spp: 1024, max_depth: 6 });
-  await page.click("#start");
+  await page.click("#render");
   for (const n of names.slice(1)) {
     await fill({ output: n, width: 32, height: 32, spp: 16 });
-    await page.click("#start");
+    await page.click("#render");
   }
   // The page follows the last one, which waits behind the other two.
   await page.waitForFunction(() => /position 2 in the queue/.test(document.getElementById("queue").textContent));
@@ -364,7 +364,7 @@ test("Render final renders the framed view, the same image the viewport refined 
   await page.keyboard.press("-");
   await settle(8);
   const camera = await page.evaluate(() => orbitCamera(vp.orbit));
-  await page.click("#render-final");
+  await page.click("#render");
   await waitFinal();
   const r = await (await fetch(BASE + "/api/renders")).json();
   const job = r.renders.find((j) => j.output === "e2e-final");
@@ -392,7 +392,7 @@ test("an orthographic scene camera is kept until the view moves, and the page sa
   assert.ok(!n.hidden && /orthographic camera/.test(n.text) && !/Perspective/.test(n.text), n.text);
   // Unmoved, Render final sends no camera: the scene's own (orthographic) camera renders, the
   // same image the viewport refined to.
-  await page.click("#render-final");
+  await page.click("#render");
   await waitFinal();
   const r = await (await fetch(BASE + "/api/renders")).json();
   const job = r.renders.find((j) => j.output === "e2e-ortho");
@@ -450,7 +450,7 @@ test("a glTF scene's material variants are offered and change the viewport and t
   }
   // The final render uses the chosen variant (Red) and equals the viewport's image.
   await page.selectOption("#tonemap", "clamp");
-  await page.click("#render-final");
+  await page.click("#render");
   await waitFinal();
   const r = await (await fetch(BASE + "/api/renders")).json();
   const job = r.renders.find((j) => j.output === "e2e-variant");
@@ -472,7 +472,7 @@ test("exposure and tone mapping apply on the page and match the server's PNG wit
     await fill({ scene: "cornell", output: `e2e-tm-${i}`, width: 40, height: 30, spp: 4, max_depth: 4,
       exposure: 2.5 });
     await page.selectOption("#tonemap", tm);
-    await page.click("#start");
+    await page.click("#render");
     await page.waitForFunction((name) => {
       const c = document.getElementById("final");
       return document.getElementById("state").textContent === "done" && !c.hidden
@@ -519,7 +519,7 @@ test("the layer toggle shows the albedo and normal AOVs of a final render", asyn
   await openPage();
   await fill({ scene: "cornell", output: "e2e-aov", width: 32, height: 32, spp: 2, max_depth: 3 });
   await page.check("#aovs");
-  await page.click("#start");
+  await page.click("#render");
   await page.waitForFunction(() => !document.getElementById("layers").hidden
     && document.getElementById("final").dataset.layer === "beauty" && !document.getElementById("final").hidden
     && document.getElementById("final").dataset.job === String(current));
@@ -569,4 +569,43 @@ test("screenshot for the README", { skip: !process.env.WEBUI_SCREENSHOT }, async
     null, { timeout: 300_000 });
   await page.screenshot({ path: process.env.WEBUI_SCREENSHOT });
   await page.mouse.up();
+});
+
+test("the page fits 1400, 1280 and 390 px windows: nothing cut, one render button", async () => {
+  for (const width of [1400, 1280, 390]) {
+    await page.setViewportSize({ width, height: 900 });
+    await openPage();
+    const r = await page.evaluate(() => {
+      const doc = document.documentElement;
+      const ctx = document.createElement("canvas").getContext("2d");
+      const cut = [];
+      for (const sel of document.querySelectorAll("#render-form select")) {
+        if (sel.closest("[hidden]")) continue;
+        const st = getComputedStyle(sel);
+        ctx.font = `${st.fontSize} ${st.fontFamily}`;
+        // The widest choice plus the padding and the arrow must fit the box.
+        const widest = Math.max(0, ...[...sel.options].map((o) => ctx.measureText(o.textContent).width));
+        if (widest + 28 > sel.getBoundingClientRect().width) cut.push(`${sel.id} (${Math.round(widest)} px)`);
+      }
+      const buttons = [...document.querySelectorAll("button")].filter((b) => /render/i.test(b.textContent)
+        && !b.closest("#recent") && b.offsetParent !== null);
+      return { overflow: doc.scrollWidth - doc.clientWidth, cut, buttons: buttons.map((b) => b.id) };
+    });
+    assert.ok(r.overflow <= 0, `${width} px: the page is ${r.overflow} px wider than the window`);
+    assert.deepEqual(r.cut, [], `${width} px: choices cut`);
+    assert.deepEqual(r.buttons, ["render"], `${width} px: render buttons`);
+  }
+  // The button says what the render is doing, and is back to "Render" when it ends.
+  await page.setViewportSize({ width: 1280, height: 800 });
+  await openPage();
+  assert.equal((await page.textContent("#render")).trim(), "Render");
+  await fill({ scene: "cornell", output: "e2e-button", width: 64, height: 64, spp: 256, max_depth: 4 });
+  await page.click("#render");
+  await page.waitForFunction(() => document.getElementById("render").dataset.state !== "idle");
+  await page.waitForFunction(() => document.getElementById("render").dataset.state === "idle", null, { timeout: 60_000 });
+  assert.equal((await page.textContent("#render")).trim(), "Render");
+  assert.match(await page.textContent("#render-state"), /done: e2e-button/);
+  // The form starts from the command line's defaults.
+  const o = await (await fetch(BASE + "/api/options")).json();
+  assert.equal(o.defaults.max_depth, 64);
 });

@@ -11,6 +11,7 @@
 //!   refused. Only glTF may embed images, as base64 `data:` URIs or buffer views, and it decodes
 //!   those itself through [`decode_texture`].
 
+use crate::limits::PathRule;
 use rayon::prelude::*;
 use std::path::{Component, Path, PathBuf};
 
@@ -63,8 +64,11 @@ pub fn percent_decode(s: &str) -> String {
     String::from_utf8_lossy(&out).into_owned()
 }
 
-/// Resolves `relative_path` (a file name as written in a scene file, `/` or `\` separated) inside
-/// `scene_dir`. Refuses anything that could read outside that folder.
+/// Resolves `relative_path` (a file name as written in a scene file, `/` or `\` separated)
+/// against `scene_dir`, by the load's [`PathRule`] ([`crate::limits::path_rule`]): every loader
+/// resolves the files a scene names here. Confined (the server's rule) refuses anything that
+/// could read outside that folder; open (the command line's) reads what the file names, as
+/// pbrt-v4, Mitsuba and Blender do. URIs are refused under both.
 pub fn resolve_in_dir(scene_dir: &Path, relative_path: &str) -> Result<PathBuf, String> {
     let trimmed = relative_path.trim();
     if trimmed.is_empty() {
@@ -80,6 +84,10 @@ pub fn resolve_in_dir(scene_dir: &Path, relative_path: &str) -> Result<PathBuf, 
     // Scene files written on Windows use backslashes.
     let normalised = trimmed.replace('\\', "/");
     let rel = Path::new(&normalised);
+    if crate::limits::path_rule() == PathRule::Open {
+        // `join` keeps an absolute path as it is.
+        return Ok(scene_dir.join(rel));
+    }
     for c in rel.components() {
         match c {
             Component::Normal(_) | Component::CurDir => {}
@@ -102,11 +110,20 @@ pub fn resolve_in_dir(scene_dir: &Path, relative_path: &str) -> Result<PathBuf, 
         ));
     }
     let full = scene_dir.join(rel);
-    // Symbolic links must not lead out either.
-    if let (Ok(real), Ok(root)) = (full.canonicalize(), scene_dir.canonicalize())
+    // Symbolic links must not lead out either. A scene named without a folder (`scene.toml`)
+    // has the empty path as its folder, which does not canonicalize: it is the current one.
+    let root = if scene_dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        scene_dir
+    };
+    if let (Ok(real), Ok(root)) = (full.canonicalize(), root.canonicalize())
         && !real.starts_with(&root)
     {
-        return Err(format!("'{trimmed}' leads outside the scene's folder"));
+        return Err(format!(
+            "'{trimmed}' leads outside the scene's folder (only the command line, without \
+             --confine-paths, reads files outside it)"
+        ));
     }
     Ok(full)
 }
@@ -586,6 +603,25 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), ReadError> {
 /// claims): the file must be a regular file, big enough to hold the offset table of every chunk
 /// the header declares (8 bytes each, OpenEXR file layout), and the pixels as read
 /// (`bytes_per_pixel` of the channel count) must fit in the load's memory budget.
+/// An image file's width and height from its header alone (OpenEXR, Radiance HDR and the
+/// formats `image` reads); `None` when it is not one.
+pub fn image_dimensions(path: &Path) -> Option<(u32, u32)> {
+    let is_exr = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if is_exr {
+        let meta = exr::meta::MetaData::read_from_file(path, false).ok()?;
+        let h = meta.headers.first()?;
+        return Some((h.layer_size.width() as u32, h.layer_size.height() as u32));
+    }
+    image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .ok()?
+        .into_dimensions()
+        .ok()
+}
+
 fn check_exr_header(path: &Path, bytes_per_pixel: impl Fn(u64) -> u64) -> Result<(), String> {
     let file_len = std::fs::metadata(path)
         .map_err(|e| e.to_string())

@@ -221,16 +221,46 @@ impl Drop for Reservation {
 /// Asked by loaders whether to stop (the web UI's Cancel, Ctrl-C).
 pub type CancelCheck = Arc<dyn Fn() -> bool + Send + Sync>;
 
-/// What a load runs under: its memory budget and its cancel flag.
+/// Which files a scene may name (docs/DESIGN.md §7, "Confined paths"): the rule every loader
+/// follows through `image_io::resolve_in_dir`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PathRule {
+    /// Only files inside the scene's folder: no `..`, no absolute paths, no symbolic links
+    /// leading out. The server's rule for served and uploaded scenes, and the default of a load
+    /// that does not say (a library user, a test).
+    #[default]
+    Confined,
+    /// Whatever the file names, as pbrt-v4, Mitsuba and Blender read it: relative paths from
+    /// the scene's folder (`..` included), absolute paths, symbolic links into asset libraries.
+    /// The command line's rule: the user renders their own file.
+    Open,
+}
+
+/// What a load runs under: its memory budget, its cancel flag and which files it may read.
 #[derive(Clone)]
 pub struct LoadContext {
     pub budget: Arc<Budget>,
     pub cancel: Option<CancelCheck>,
+    pub paths: PathRule,
 }
 
 impl LoadContext {
+    /// A context confined to the scene's folder ([`PathRule::Confined`]).
     pub fn new(budget: Arc<Budget>, cancel: Option<CancelCheck>) -> Arc<LoadContext> {
-        Arc::new(LoadContext { budget, cancel })
+        LoadContext::with_paths(budget, cancel, PathRule::Confined)
+    }
+
+    /// A context reading scene-named files by `paths`.
+    pub fn with_paths(
+        budget: Arc<Budget>,
+        cancel: Option<CancelCheck>,
+        paths: PathRule,
+    ) -> Arc<LoadContext> {
+        Arc::new(LoadContext {
+            budget,
+            cancel,
+            paths,
+        })
     }
 
     /// A fresh budget of [`default_limit`], no cancel flag.
@@ -296,6 +326,11 @@ pub fn current() -> Arc<LoadContext> {
     CURRENT
         .with(|c| c.borrow().clone())
         .unwrap_or_else(LoadContext::with_default_budget)
+}
+
+/// The path rule of this thread's load (confined outside any scope).
+pub fn path_rule() -> PathRule {
+    CURRENT.with(|c| c.borrow().as_ref().map_or(PathRule::Confined, |c| c.paths))
 }
 
 fn with_current<R>(f: impl FnOnce(&LoadContext) -> R) -> R {

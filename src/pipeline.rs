@@ -594,6 +594,17 @@ impl RenderJob {
                     s.width = from_h(s.height, a);
                     source = "--height and the camera's aspect ratio";
                 }
+                // A camera without an aspect ratio of its own (glTF cameras without
+                // `aspectRatio`, the built-in scenes) frames a square image: one given side
+                // is the other too, as the default 512x512 is.
+                None if gw && h.height.is_none() => {
+                    s.height = s.width;
+                    source = "--width (the camera has no aspect ratio: square)";
+                }
+                None if gh && h.width.is_none() => {
+                    s.width = s.height;
+                    source = "--height (the camera has no aspect ratio: square)";
+                }
                 None => {
                     s.width = pick(gw, h.width, s.width);
                     s.height = pick(gh, h.height, s.height);
@@ -725,6 +736,8 @@ struct Rendered {
     aov_time: Duration,
     accel_time: Duration,
     accel_description: String,
+    /// The integrator that rendered ([`crate::integrator::Integrator::for_world`]).
+    integrator_name: &'static str,
 }
 
 impl Run<'_> {
@@ -846,7 +859,8 @@ impl Run<'_> {
             settings.spp,
             settings.path.secondary,
             settings.path.max_depth,
-            settings.integrator.name(),
+            // The one that renders: `path` in a scene with media is the volumetric tracer.
+            crate::integrator::Integrator::for_world(settings.integrator, world).name(),
             settings.threads.unwrap_or_else(rayon::current_num_threads)
         ));
     }
@@ -923,6 +937,8 @@ impl Run<'_> {
             .stage_finished(Stage::Render, out.render_time + aov_time);
         let accel_time = world.accel_build_time;
         let accel_description = world.accel.describe();
+        let integrator_name =
+            crate::integrator::Integrator::for_world(settings.integrator, &world).name();
         // The world (geometry, textures) is not needed to write the image.
         drop(world);
         Ok(Rendered {
@@ -939,6 +955,7 @@ impl Run<'_> {
             aov_time,
             accel_time,
             accel_description,
+            integrator_name,
         })
     }
 
@@ -1020,8 +1037,29 @@ impl Run<'_> {
 
         self.observer.stage_started(Stage::Write);
         let t = Instant::now();
-        let mut written = match write_outputs(&r.out.image, Some(&r.part), &job.outputs, &r.layers)
-        {
+        // An adaptive render's sample counts and variances go into a multi-layer EXR unasked
+        // (channels of the one file), but beside other formats only when `--aov` asks: side
+        // files nobody asked for are clutter.
+        let asked: Vec<Layer> = r
+            .layers
+            .iter()
+            .filter(|l| {
+                AovKind::FILM.iter().all(|k| k.name() != l.name)
+                    || job.aovs.iter().any(|k| k.name() == l.name)
+            })
+            .cloned()
+            .collect();
+        let (exr, other): (Vec<OutputSpec>, Vec<OutputSpec>) = job
+            .outputs
+            .iter()
+            .cloned()
+            .partition(|o| Format::from_path(&o.path).ok() == Some(Format::Exr));
+        let written =
+            write_outputs(&r.out.image, Some(&r.part), &exr, &r.layers).and_then(|mut w| {
+                w.extend(write_outputs(&r.out.image, Some(&r.part), &other, &asked)?);
+                Ok(w)
+            });
+        let mut written = match written {
             Ok(w) => w,
             Err(e) => return Err(rescue(e, &r.part, &job.outputs)),
         };
@@ -1053,10 +1091,7 @@ impl Run<'_> {
         phases.phase("scene loaded", r.load_time);
         phases.phase("world compiled", r.build_time.saturating_sub(r.accel_time));
         phases.phase("acceleration structure built", r.accel_time);
-        phases.phase(
-            format!("rendered ({})", r.settings.integrator.name()),
-            out.render_time,
-        );
+        phases.phase(format!("rendered ({})", r.integrator_name), out.render_time);
         if !r.traced.is_empty() {
             phases.phase("AOVs traced", r.aov_time);
         }
@@ -1225,9 +1260,24 @@ pub fn write_outputs(
             written.push(o.path.clone());
             continue;
         }
-        write_image(image, &o.path, o.exposure, o.tonemap).map_err(|e| werr(&o.path, e))?;
+        // Coverage goes into a PNG's own alpha channel (premultiplied colours unassociated, as
+        // PNG stores them), not beside it.
+        let alpha = layers
+            .iter()
+            .find(|l| l.name == AovKind::Alpha.name() && l.depth() == 1)
+            .filter(|_| format == Format::Png);
+        match alpha {
+            Some(a) => {
+                crate::film::output::write_png_rgba(image, &a.data, &o.path, o.exposure, o.tonemap)
+            }
+            None => write_image(image, &o.path, o.exposure, o.tonemap),
+        }
+        .map_err(|e| werr(&o.path, e))?;
         written.push(o.path.clone());
-        for l in layers {
+        for l in layers
+            .iter()
+            .filter(|l| alpha.is_none_or(|a| a.name != l.name))
+        {
             let side = side_path(&o.path, &l.name);
             write_image(&l.display_image(), &side, 1.0, Tonemap::Clamp)
                 .map_err(|e| werr(&side, e))?;

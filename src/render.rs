@@ -26,6 +26,9 @@ pub const MAX_SPP: u32 = 1 << 20;
 pub const MAX_DEPTH: u32 = 1024;
 pub const MAX_SECONDARY: u32 = 1024;
 const TILE: u32 = 16;
+/// The samples per pixel every front end starts from (the command line, the web page, the
+/// library).
+pub const DEFAULT_SPP: u32 = 64;
 
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
@@ -107,7 +110,7 @@ impl Default for RenderSettings {
         RenderSettings {
             width: 512,
             height: 512,
-            spp: 64,
+            spp: DEFAULT_SPP,
             seed: 0,
             threads: None,
             sampler: SamplerKind::default(),
@@ -276,7 +279,12 @@ pub trait RenderObserver: Sync {
     /// holds exactly the passes done. Setting the cancel flag here stops the render with this
     /// film: no later pass is added.
     fn pass_done(&self, _film: &Film, _samples_done: u32, _spp: u32) {}
-    /// After each tile (from worker threads): tiles done and total over the whole render.
+    /// After each tile (from worker threads): the work done and the total over the whole render,
+    /// in pixel samples (a tile of `n` pixels rendered for `k` samples adds `n·k`), so that
+    /// `done / total` is the fraction of the render's work whatever the passes' sizes (they
+    /// double: by tiles alone, the 3 first passes of 7 are 4 of 64 samples). The total shrinks
+    /// when adaptive sampling stops pixels, and a time-limited render reports the larger of
+    /// its work and its time fractions.
     fn tile_done(&self, _done: u64, _total: u64) {}
 }
 
@@ -827,8 +835,13 @@ impl PassSchedule<'_> {
         let (settings, passes, tiles, fw) =
             (self.settings, self.passes, self.tiles, self.film_width);
         let adaptive = settings.noise_threshold.is_some();
-        let total_tiles = (tiles.len() * passes.len()) as u64;
-        let tiles_done = AtomicU64::new(0);
+        // Progress in pixel samples (see `RenderObserver::tile_done`).
+        let frame_pixels: u64 = tiles.iter().map(|t| u64::from(t.2) * u64::from(t.3)).sum();
+        let samples_after =
+            |p: usize| -> u64 { passes[p..].iter().map(|(a, b)| u64::from(b - a)).sum() };
+        let work_done = AtomicU64::new(0);
+        let work_total = AtomicU64::new(samples_after(0) * frame_pixels);
+        let started = Instant::now();
 
         // Pipelined passes. A barrier after every pass left all cores but one idle while
         // the pass's last tiles finished, and during the serial film update and `pass_done`. Instead
@@ -927,9 +940,16 @@ impl PassSchedule<'_> {
                     && c.done >= ADAPTIVE_MIN_SAMPLES
                 {
                     let mut a = active.write().unwrap_or_else(|e| e.into_inner());
-                    if adaptive_mask(&c.film, t, &mut a, &mut c.scratch) == 0 {
+                    let left = adaptive_mask(&c.film, t, &mut a, &mut c.scratch);
+                    if left == 0 {
                         halt.fetch_min(p + 1, Ordering::SeqCst);
                     }
+                    // No tile of the next pass has started (lookahead 0): what is left is
+                    // the remaining passes' samples of the pixels still active.
+                    work_total.store(
+                        work_done.load(Ordering::SeqCst) + samples_after(p + 1) * left as u64,
+                        Ordering::SeqCst,
+                    );
                 }
                 committed.store(p + 1, Ordering::SeqCst);
                 notify();
@@ -973,10 +993,33 @@ impl PassSchedule<'_> {
                 // Only adaptive renders take the lock; nothing writes it while a pass renders.
                 let mask = adaptive.then(|| active.read().unwrap_or_else(|e| e.into_inner()));
                 let tile = render_tile(q, s0, s1, tiles[t], mask.as_deref().map(|m| &m[..]));
+                let (x0, y0, tw, th) = tiles[t];
+                let pixels = match mask.as_deref() {
+                    Some(m) => (y0..y0 + th)
+                        .map(|y| {
+                            let row = (y * fw) as usize;
+                            m[row + x0 as usize..row + (x0 + tw) as usize]
+                                .iter()
+                                .filter(|a| **a)
+                                .count() as u64
+                        })
+                        .sum(),
+                    None => u64::from(tw) * u64::from(th),
+                };
                 drop(mask);
                 *lock(&slots[(q % ring) * n_tiles + t]) = Some(tile);
-                let n = tiles_done.fetch_add(1, Ordering::Relaxed) + 1;
-                observer.tile_done(n, total_tiles);
+                let units = pixels * u64::from(s1 - s0);
+                let done = work_done.fetch_add(units, Ordering::SeqCst) + units;
+                let total = work_total.load(Ordering::SeqCst).max(done);
+                // A time-limited render ends when its time is up, whatever work is left.
+                let done = match settings.time_limit {
+                    Some(limit) if limit > 0.0 => {
+                        let by_time = started.elapsed().as_secs_f64() / limit;
+                        done.max((by_time.min(1.0) * total as f64) as u64)
+                    }
+                    _ => done,
+                };
+                observer.tile_done(done, total);
                 if left[q].fetch_sub(1, Ordering::AcqRel) == 1 {
                     commit();
                 }
@@ -1285,6 +1328,53 @@ fn sample_pixel(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Progress counts pixel samples, not tiles: when the passes holding the first 4 of 64
+    /// samples are in (3 of 7 passes, 43 % of the tiles), at most the next pass's 4 samples can
+    /// be on top (one pass of lookahead), so the fraction reported is at most 8/64. Adaptive
+    /// sampling shrinks the total as pixels stop, and the last report is the whole.
+    #[test]
+    fn progress_is_the_fraction_of_pixel_samples_done() {
+        struct Record(Mutex<Vec<(u64, u64)>>, Mutex<Vec<(u32, f64)>>);
+        impl RenderObserver for Record {
+            fn pass_done(&self, _film: &Film, done: u32, _spp: u32) {
+                let last = lock(&self.0).last().copied().unwrap_or((0, 1));
+                lock(&self.1).push((done, last.0 as f64 / last.1 as f64));
+            }
+            fn tile_done(&self, done: u64, total: u64) {
+                lock(&self.0).push((done, total));
+            }
+        }
+        let scene = crate::scene::builtin::load("cornell").unwrap();
+        let world = World::build(scene, &Default::default()).unwrap();
+        for noise_threshold in [None, Some(0.5)] {
+            let settings = RenderSettings {
+                width: 32,
+                height: 32,
+                spp: 64,
+                threads: Some(2),
+                noise_threshold,
+                ..Default::default()
+            };
+            let rec = Record(Mutex::new(Vec::new()), Mutex::new(Vec::new()));
+            render(&world, &settings, &rec, &AtomicBool::new(false)).unwrap();
+            // (Adaptive: the total shrinks once pixels stop, after 16 samples.)
+            for &(done, fraction) in lock(&rec.1).iter().filter(|p| p.0 <= 16) {
+                assert!(
+                    fraction <= (2 * done).min(64) as f64 / 64.0 + 1e-9,
+                    "{noise_threshold:?}: {fraction} reported when pass {done} of 64 was in"
+                );
+            }
+            let reports = lock(&rec.0);
+            let &(done, total) = reports.iter().max().unwrap();
+            assert_eq!(done, total, "{noise_threshold:?}: the render ends at 100 %");
+            if noise_threshold.is_none() {
+                assert_eq!(total, 32 * 32 * 64);
+            } else {
+                assert!(total < 32 * 32 * 64, "adaptive sampling stopped pixels");
+            }
+        }
+    }
 
     /// The batched first hits (`Batch`) render exactly what tracing each sample on its own does:
     /// every pixel's film value, the rays counted and the in-loop AOVs (float sums, so their

@@ -75,7 +75,6 @@ fn bad_options_fail_cleanly_before_rendering() {
         (&["--spp", "0"], "samples per pixel"),
         (&["--exposure", "-1"], "exposure"),
         (&["--exposure", "NaN"], "exposure"),
-        (&["--threads", "0"], "threads"),
         (&["--secondary", "0"], "secondary"),
         (&["--rr-scale", "0"], "Russian roulette scale"),
         (&["--rr-scale", "NaN"], "Russian roulette scale"),

@@ -2199,3 +2199,62 @@ fn job_logs_name_scenes_relative_to_the_scenes_folder() {
     let root = s.root.canonicalize().unwrap();
     assert!(!log.contains(&*root.to_string_lossy()), "{log}");
 }
+
+/// The page starts from the command line's defaults (64 bounces, 64 spp, the PNG view
+/// transform); only equirectangular images are offered as environment maps (not a reference
+/// render that happens to be an EXR); and a served scene still may not read outside the scenes
+/// folder, which the command line now allows.
+#[test]
+fn the_page_shares_the_cli_defaults_lists_maps_by_content_and_confines_scenes() {
+    let s = start();
+    let o = get(&s, "/api/options").json();
+    assert_eq!(o["defaults"]["max_depth"], 64, "{o}");
+    assert_eq!(o["defaults"]["spp"], 64, "{o}");
+    assert_eq!(o["defaults"]["tonemap"], "pbr-neutral", "{o}");
+    assert!(
+        o["tonemaps"]
+            .as_array()
+            .unwrap()
+            .contains(&json!("pbr-neutral"))
+    );
+
+    let scenes = s.root.join("scenes");
+    let hdr = common::shared_dir().join("scenes/hdr/studio_small_03_1k.hdr");
+    std::fs::copy(&hdr, scenes.join("studio.hdr")).unwrap();
+    let reference = trayecto::film::Image {
+        width: 16,
+        height: 16,
+        data: vec![trayecto::math::Vec3::splat(0.5); 256],
+    };
+    trayecto::film::output::write_image(
+        &reference,
+        &scenes.join("reference.exr"),
+        1.0,
+        Default::default(),
+    )
+    .unwrap();
+    let l = get(&s, "/api/scenes").json();
+    assert_eq!(l["environments"], json!(["studio.hdr"]), "{l}");
+
+    // A served scene naming a mesh above the scenes folder is refused, as before.
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/twin/cube.ply"),
+        s.root.join("cube.ply"),
+    )
+    .unwrap();
+    std::fs::write(
+        scenes.join("up.toml"),
+        "[[object]]\ntype = \"mesh\"\nfile = \"../cube.ply\"\n",
+    )
+    .unwrap();
+    let r = post_json(
+        &s,
+        "/api/renders",
+        &json!({"scene": "up.toml", "width": 8, "height": 8, "spp": 1}),
+    );
+    assert_eq!(r.status, 201, "{}", r.text());
+    let id = r.json()["id"].as_u64().unwrap();
+    let j = wait_finished(&s, id, Duration::from_secs(60));
+    assert_eq!(j["state"], "failed", "{j}");
+    assert!(j.to_string().contains("'..'"), "{j}");
+}

@@ -244,9 +244,13 @@ async function start(extra) {
     $(bad[0]).focus();
     return;
   }
-  $("start").disabled = true;
+  // The one render button renders what the viewport shows: its moved view, else the scene's
+  // camera.
+  const camera = viewCamera();
+  if (camera && !body.camera) body.camera = camera;
+  $("render").disabled = true;
   const r = await api("POST", "/api/renders", body);
-  $("start").disabled = false;
+  $("render").disabled = false;
   if (!r.ok) {
     const fields = (r.data && r.data.fields) || {};
     for (const [f, m] of Object.entries(fields)) {
@@ -303,7 +307,23 @@ async function showPreview(job) {
   }
 }
 
+/** The render button's state: "Render" when nothing runs; while the followed render runs it
+ * says how far it is, and a click queues another render. */
+function showButton(job) {
+  const b = $("render");
+  const active = !!(job && job.active);
+  b.dataset.state = active ? (job.state === "queued" ? "queued" : "rendering") : "idle";
+  b.textContent = active ? "Queue another render" : "Render";
+  let s = "ready";
+  if (active && job.state === "queued") s = `queued, position ${job.queue_position}`;
+  else if (active) s = `${job.state} ${Math.round(100 * job.progress)} %` +
+    (job.remaining_s != null ? `, ${fmtTime(job.remaining_s)} left` : "");
+  else if (job) s = `${job.state}: ${job.output}`;
+  $("render-state").textContent = s;
+}
+
 function showStatus(job) {
+  showButton(job);
   $("state").textContent = job.state;
   $("queue").textContent = job.queue_position ? `position ${job.queue_position} in the queue` : "";
   $("progress").value = job.progress;
@@ -454,6 +474,19 @@ function tonemap(op, r, g, b) {
     case "agx": {
       const v = mat3(AGX_IN, r, g, b).map((x) => agxCurve(agxEncode(x)));
       return mat3(AGX_OUT, v[0], v[1], v[2]).map(clamp01);
+    }
+    case "pbr-neutral": {
+      // Khronos PBR Neutral, as pbr_neutral in tonemap.rs.
+      const x = Math.min(r, g, b);
+      const offset = x < 0.08 ? x - 6.25 * x * x : 0.04;
+      let c = [r - offset, g - offset, b - offset];
+      const start = 0.76, d = 0.24, peak = Math.max(c[0], c[1], c[2]);
+      if (peak >= start) {
+        const np = 1 - (d * d) / (peak + d - start);
+        const t = 1 - 1 / (0.15 * (peak - np) + 1);
+        c = c.map((v) => v * (np / peak) * (1 - t) + np * t);
+      }
+      return c.map((v) => srgb(clamp01(v)));
     }
     default: return [r, g, b].map((c) => srgb(Math.min(c, 1)));
   }
@@ -666,10 +699,6 @@ function setupViewport() {
   }
   for (const f of ["exposure", "tonemap"]) $(f).addEventListener("input", redisplay);
   $("tonemap").addEventListener("change", redisplay);
-  $("render-final").addEventListener("click", () => {
-    const camera = viewCamera();
-    start(camera ? { camera } : {});
-  });
   $("reset-view").addEventListener("click", () => {
     if (vp.home) { vp.orbit = orbitFrom(vp.home); setMoved(false); sendView(); }
   });

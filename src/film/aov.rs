@@ -41,6 +41,10 @@ pub enum AovKind {
     /// one sample, what adaptive sampling judges a pixel by (the variance of the pixel's mean is
     /// s²/n). From the film's exact squared-luminance sums, not traced ([`AovKind::is_traced`]).
     Variance,
+    /// Coverage: the fraction of the pixel's camera rays that hit geometry (OpenEXR's `A`).
+    /// With `--transparent` the background seen by camera rays is not rendered, so the beauty
+    /// image is premultiplied by it. Not in `--aov all` (a PNG takes it as its alpha channel).
+    Alpha,
 }
 
 impl AovKind {
@@ -91,6 +95,7 @@ impl AovKind {
             AovKind::ObjectId => "object_id",
             AovKind::Samples => "samples",
             AovKind::Variance => "variance",
+            AovKind::Alpha => "alpha",
         }
     }
 
@@ -107,6 +112,8 @@ impl AovKind {
             // The names adaptive renders have always written.
             AovKind::Samples => &["samples.Y"],
             AovKind::Variance => &["variance.Y"],
+            // The beauty image's own alpha channel: the bare standard name, like `Z`.
+            AovKind::Alpha => &["A"],
         }
     }
 
@@ -121,6 +128,7 @@ impl AovKind {
             "object_id" => AovKind::ObjectId,
             "samples" => AovKind::Samples,
             "variance" => AovKind::Variance,
+            "alpha" | "A" => AovKind::Alpha,
             _ => return None,
         })
     }
@@ -164,6 +172,8 @@ pub enum Display {
     Range,
     /// Integer ids shown as distinct colours (a hash); 0 (nothing) is black.
     Id,
+    /// A value in [0, 1] written as it is (coverage): 0 black, 1 white.
+    Linear,
 }
 
 /// One per-pixel layer: `channels.len()` values per pixel, interleaved, rows top first.
@@ -187,6 +197,8 @@ impl Layer {
             AovKind::Depth | AovKind::Position => Display::Range,
             AovKind::MaterialId | AovKind::ObjectId => Display::Id,
             AovKind::Samples | AovKind::Variance => Display::Range,
+            // Coverage is already in [0, 1]: shown linearly as grey.
+            AovKind::Alpha => Display::Linear,
         };
         debug_assert_eq!(
             data.len(),
@@ -283,6 +295,7 @@ impl Layer {
                         srgb_to_linear(Vec3::new(f(p.x), f(p.y), f(p.z)))
                     }
                     Display::Id => srgb_to_linear(id_colour(p.x)),
+                    Display::Linear => srgb_to_linear(p.clamp(Vec3::ZERO, Vec3::ONE)),
                 }
             })
             .collect();

@@ -56,6 +56,47 @@ pub fn to_rgb8(image: &Image, exposure: f32, tonemap: Tonemap) -> Vec<u8> {
     out
 }
 
+/// Writes `image`, premultiplied by the coverage `alpha` (one value per pixel), as an RGBA PNG.
+/// PNG stores straight (unassociated) alpha, so each colour is divided by its alpha before the
+/// view transform (a tone curve applied to premultiplied values would darken the edges twice).
+pub fn write_png_rgba(
+    image: &Image,
+    alpha: &[f32],
+    path: &Path,
+    exposure: f32,
+    tonemap: Tonemap,
+) -> Result<(), OutputError> {
+    let mut out = Vec::with_capacity(image.data.len() * 4);
+    for (p, &a) in image.data.iter().zip(alpha) {
+        let a = if a.is_finite() {
+            a.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let straight = if a > 0.0 {
+            *p / a
+        } else {
+            crate::math::Vec3::ZERO
+        };
+        let c = tonemap.apply(straight * exposure);
+        for v in [c.x, c.y, c.z, a] {
+            out.push((v * 255.0 + 0.5).clamp(0.0, 255.0) as u8);
+        }
+    }
+    image::save_buffer_with_format(
+        path,
+        &out,
+        image.width,
+        image.height,
+        image::ExtendedColorType::Rgba8,
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| OutputError::Write {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
 /// Writes `image` to `path` in the format its extension names.
 pub fn write_image(
     image: &Image,

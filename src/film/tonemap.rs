@@ -5,7 +5,6 @@ use crate::math::{Mat3, Vec3};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Tonemap {
     /// Clamp to [0, 1], then the sRGB transfer curve.
-    #[default]
     Clamp,
     /// The thesis's output: clamp, then a pure 1/2.2 power (§5.3.5).
     Gamma22,
@@ -17,6 +16,15 @@ pub enum Tonemap {
     /// inverse inset matrix. The sigmoid's output is already display-encoded (middle grey lands
     /// at ≈ 0.497, a 2.2-power display value), so no sRGB curve is applied after it.
     Agx,
+    /// Khronos PBR Neutral (the Khronos 3D Commerce group's tone mapper for product shots, as
+    /// published with its GLSL reference, 2024), then sRGB. Base colours under a white light of
+    /// radiance 1 come out as the colour itself (below 0.76 it is the identity but for a small
+    /// black-level offset); brighter values are compressed towards white with a desaturation
+    /// that keeps hues from skewing. The default for display formats: measured on the Khronos
+    /// sample models it keeps the authored material contrast (docs/DESIGN.md §5, "View
+    /// transform").
+    #[default]
+    PbrNeutral,
 }
 
 impl std::str::FromStr for Tonemap {
@@ -27,8 +35,9 @@ impl std::str::FromStr for Tonemap {
             "gamma2.2" => Ok(Tonemap::Gamma22),
             "aces" => Ok(Tonemap::Aces),
             "agx" => Ok(Tonemap::Agx),
+            "pbr-neutral" => Ok(Tonemap::PbrNeutral),
             other => Err(format!(
-                "unknown tone mapping '{other}' (expected clamp, gamma2.2, aces or agx)"
+                "unknown tone mapping '{other}' (expected clamp, gamma2.2, aces, agx or pbr-neutral)"
             )),
         }
     }
@@ -88,8 +97,45 @@ impl Tonemap {
                     - Vec3::splat(0.00232);
                 (OUTSET * s).clamp(Vec3::ZERO, Vec3::ONE)
             }
+            Tonemap::PbrNeutral => srgb(pbr_neutral(c).clamp(Vec3::ZERO, Vec3::ONE)),
         }
     }
+}
+
+impl Tonemap {
+    /// The name `--tonemap` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Tonemap::Clamp => "clamp",
+            Tonemap::Gamma22 => "gamma2.2",
+            Tonemap::Aces => "aces",
+            Tonemap::Agx => "agx",
+            Tonemap::PbrNeutral => "pbr-neutral",
+        }
+    }
+}
+
+/// Khronos PBR Neutral on a linear, non-negative colour: subtract a small offset that lifts
+/// near-black values off the toe (a parabola below 0.08, 0.04 above), leave peaks below the
+/// compression start 0.76 alone, map larger peaks onto 1 − d²/(peak + d − 0.76) with
+/// d = 0.24 (a hyperbola tangent to the identity), and blend towards the new peak's grey by
+/// g = 1 − 1/(0.15·(peak − new peak) + 1).
+#[inline]
+fn pbr_neutral(c: Vec3) -> Vec3 {
+    const START: f32 = 0.8 - 0.04;
+    const DESATURATION: f32 = 0.15;
+    let x = c.min_element();
+    let offset = if x < 0.08 { x - 6.25 * x * x } else { 0.04 };
+    let c = c - Vec3::splat(offset);
+    let peak = c.max_element();
+    if peak < START {
+        return c;
+    }
+    let d = 1.0 - START;
+    let new_peak = 1.0 - d * d / (peak + d - START);
+    let c = c * (new_peak / peak);
+    let g = 1.0 - 1.0 / (DESATURATION * (peak - new_peak) + 1.0);
+    c.lerp(Vec3::splat(new_peak), g)
 }
 
 #[inline]
@@ -113,6 +159,7 @@ mod tests {
             Tonemap::Gamma22,
             Tonemap::Aces,
             Tonemap::Agx,
+            Tonemap::PbrNeutral,
         ] {
             let mut prev = -1.0;
             for i in 0..200 {
@@ -148,6 +195,22 @@ mod tests {
             assert!(
                 (got - Vec3::splat(want)).abs().max_element() < 2e-5,
                 "ACES({x}) = {got}, published {want}"
+            );
+        }
+        // Khronos PBR Neutral before its sRGB curve, worked by hand from the published
+        // formula: grey 0.5 only loses the 0.04 offset; 0.02 the parabola's 0.0175; grey 1 and
+        // an orange are compressed (peak 0.96 -> 0.869091, blend 0.013453 towards grey).
+        let neutral = [
+            ([0.5; 3], [0.46; 3]),
+            ([0.02; 3], [0.0025; 3]),
+            ([1.0; 3], [0.869091; 3]),
+            ([1.0, 0.5, 0.2], [0.869091, 0.422529, 0.154591]),
+        ];
+        for (x, want) in neutral {
+            let got = pbr_neutral(Vec3::from(x));
+            assert!(
+                (got - Vec3::from(want)).abs().max_element() < 2e-5,
+                "PBR Neutral({x:?}) = {got}, published {want:?}"
             );
         }
         let agx = [

@@ -340,6 +340,7 @@ impl PixelAovs {
                 (self.depth / hits) as f32
             }),
             AovKind::MaterialId => out.push(winner(&self.materials)),
+            AovKind::Alpha => out.push((self.hits as f64 / all) as f32),
             AovKind::ObjectId => out.push(winner(&self.objects)),
             // Not traced: they come from the film (`film::aov::film_layers`), and every caller
             // leaves them out of its rows, as `layers` does.

@@ -107,6 +107,17 @@ pub fn radiance_guided_from(
     radiance_impl(world, ray, first, s, set, stats, aov, Some(g))
 }
 
+/// What a camera ray that hits nothing sees: the lights at infinity, or nothing on a
+/// transparent film.
+#[inline]
+fn background(world: &World, ray: &Ray, set: &PathSettings) -> Vec3 {
+    if set.transparent {
+        Vec3::ZERO
+    } else {
+        set.clamp(world.escaped(ray.d.normalize()), 0)
+    }
+}
+
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn radiance_impl(
@@ -123,14 +134,14 @@ fn radiance_impl(
     // The path's one vertex storage: each bounce's hit is intersected into it and shaded in
     // place (`Vertex::shade`), never moved. Set up only once the camera ray hits something.
     let Some(isect) = first else {
-        return world.escaped(ray.d.normalize());
+        return background(world, ray, set);
     };
     let mut v = Vertex::unshaded(SurfaceHit::EMPTY);
     if !world.complete_filtered_into(ray, isect, &set.footprint, &mut v.hit) {
-        return world.escaped(ray.d.normalize());
+        return background(world, ray, set);
     }
     let wo = -ray.d.normalize();
-    let mut l = world.emitted(&v.hit, wo);
+    let mut l = set.clamp(world.emitted(&v.hit, wo), 0);
     if set.max_depth == 0 {
         if let Some(a) = aov {
             // No scattering vertex is built for the radiance: build one for the AOVs.
@@ -206,7 +217,10 @@ fn continue_path(
             Some(gd) if guiding::guidable(&v.bsdf) => gd.mix_at(v.hit.p),
             _ => None,
         };
-        l += sample_ld_mix(world, v, beta, s, set, stats, mix.as_ref());
+        l += set.clamp(
+            sample_ld_mix(world, v, beta, s, set, stats, mix.as_ref()),
+            depth + 1,
+        );
 
         // BSDF sampling (or the mixture's): choose the next direction. The mixture takes the
         // lobe-choice number as its strategy choice, so the dimensions stay the same.
@@ -278,7 +292,7 @@ fn continue_path(
         let uniform_n = v.uniform_env_normal(set.env_pdf());
         if !world.intersect_filtered_into(&ray, &set.footprint, &mut v.hit) {
             // Each light at infinity weighed against its own NEE density.
-            l += world.escaped_mis(wi, set.env_pdf(), uniform_n, |le, pdf_light| {
+            let escaped = world.escaped_mis(wi, set.env_pdf(), uniform_n, |le, pdf_light| {
                 let weight = if bs.specular || !set.nee {
                     1.0
                 } else if !set.mis {
@@ -288,6 +302,7 @@ fn continue_path(
                 };
                 beta * le * weight
             });
+            l += set.clamp(escaped, depth);
             break;
         }
         let next = &v.hit;
@@ -302,7 +317,7 @@ fn continue_path(
                 let pdf_light = world.emitter_pdf(p, ng, next);
                 power_heuristic(bs.pdf, pdf_light)
             };
-            l += beta * le * weight;
+            l += set.clamp(beta * le * weight, depth);
         }
         if depth >= set.max_depth {
             if let Some((a, _)) = aov {

@@ -3,6 +3,10 @@
 //! camera's footprint. Below all three, so that none of them imports another for it.
 
 use crate::light::EnvPdf;
+use crate::math::Vec3;
+
+/// The bounce limit every front end starts from (the command line, the web page, the library).
+pub const DEFAULT_MAX_DEPTH: u32 = 64;
 
 #[derive(Clone, Copy, Debug)]
 pub struct PathSettings {
@@ -24,23 +28,52 @@ pub struct PathSettings {
     /// The camera's pixel footprint for filtered texture lookups; set by the renderer when
     /// the world was built with `--texture-filter trilinear`, off (`Default`) otherwise.
     pub footprint: crate::camera::Footprint,
+    /// Most a sample's direct light may add (per colour channel's largest value; infinity: no
+    /// clamp): light seen by the camera or reaching it after one scattering event. Biased, like
+    /// Cycles' *Clamp Direct*: it darkens what it cuts.
+    pub clamp_direct: f32,
+    /// The same for light that scattered two or more times (Cycles' *Clamp Indirect*): removes
+    /// the fireflies of caustic paths through glass at preview sample counts; biased.
+    pub clamp_indirect: f32,
+    /// Camera rays that hit nothing add no radiance (Cycles' *Film › Transparent*): the image
+    /// is then premultiplied by the coverage the `alpha` layer holds. Light from the
+    /// environment still reaches the scene.
+    pub transparent: bool,
 }
 
 impl Default for PathSettings {
     fn default() -> Self {
         PathSettings {
-            max_depth: 64,
+            max_depth: DEFAULT_MAX_DEPTH,
             rr_depth: 3,
             rr_scale: 3.0,
             nee: true,
             mis: true,
             secondary: 1,
             footprint: Default::default(),
+            clamp_direct: f32::INFINITY,
+            clamp_indirect: f32::INFINITY,
+            transparent: false,
         }
     }
 }
 
 impl PathSettings {
+    /// `c`, a contribution of a path that scattered `bounces` times before reaching the camera,
+    /// scaled down (hue kept) so that its largest channel is at most the clamp for that depth:
+    /// [`PathSettings::clamp_direct`] up to one bounce, [`PathSettings::clamp_indirect`] beyond.
+    /// Unclamped (infinite) settings return `c` unchanged, bit for bit.
+    #[inline(always)]
+    pub fn clamp(&self, c: Vec3, bounces: u32) -> Vec3 {
+        let max = if bounces <= 1 {
+            self.clamp_direct
+        } else {
+            self.clamp_indirect
+        };
+        let m = c.max_element();
+        if m > max { c * (max / m) } else { c }
+    }
+
     /// The environment-map density next-event estimation draws from, and that BSDF-sampled
     /// escapes weigh their MIS against: the MIS-compensated one when light samples are combined
     /// with BSDF sampling by MIS (which then finds the directions it leaves out, with weight 1),

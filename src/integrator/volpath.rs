@@ -137,7 +137,7 @@ pub fn radiance(
                     // ∫₀ᵈ e^(−σa·t)·σa·Le dt = Le·(1 − e^(−σa·d)), exact and noise-free; the
                     // segment is deterministic for every channel's technique, so the MIS
                     // weight is the path's own 1/mean(r_u).
-                    l += st.beta * (Vec3::ONE - tr) * m.le / mean(st.r_u);
+                    l += set.clamp(st.beta * (Vec3::ONE - tr) * m.le / mean(st.r_u), depth);
                 }
                 st.beta *= tr;
             } else {
@@ -170,7 +170,10 @@ pub fn radiance(
                                 let pdf = t_maj[channel] * sm;
                                 let r_e = mean(st.r_u * sigma_maj * t_maj / pdf);
                                 if r_e > 0.0 && pdf > 0.0 {
-                                    l += st.beta * t_maj / pdf * props.sigma_a * m.le_at(p) / r_e;
+                                    l += set.clamp(
+                                        st.beta * t_maj / pdf * props.sigma_a * m.le_at(p) / r_e,
+                                        depth,
+                                    );
                                 }
                             }
                             let p_absorb = props.sigma_a[channel] / sm;
@@ -195,18 +198,21 @@ pub fn radiance(
                                     return l;
                                 }
                                 let wo = -ray.d;
-                                l += sample_ld(
-                                    world,
-                                    p,
-                                    Vec3::ZERO,
-                                    Vec3::ZERO,
-                                    &Scatterer::Medium { phase: m.phase, wo },
-                                    medium,
-                                    &st,
-                                    &mut rng,
-                                    s,
-                                    set,
-                                    stats,
+                                l += set.clamp(
+                                    sample_ld(
+                                        world,
+                                        p,
+                                        Vec3::ZERO,
+                                        Vec3::ZERO,
+                                        &Scatterer::Medium { phase: m.phase, wo },
+                                        medium,
+                                        &st,
+                                        &mut rng,
+                                        s,
+                                        set,
+                                        stats,
+                                    ),
+                                    depth,
                                 );
                                 let ps = m.phase.sample(ray.d, s.next_2d());
                                 if !(ps.pdf > 0.0) {
@@ -251,9 +257,14 @@ pub fn radiance(
         let Some(hit) = hit else {
             // Each light at infinity weighed against its own NEE density.
             // Its NEE samples a uniform environment over the whole sphere (`sample_light`).
-            l += world.escaped_mis(ray.d, set.env_pdf(), Vec3::ZERO, |le, pdf_light| {
+            // A transparent film leaves out the background the camera sees directly.
+            if set.transparent && depth == 0 {
+                return l;
+            }
+            let escaped = world.escaped_mis(ray.d, set.env_pdf(), Vec3::ZERO, |le, pdf_light| {
                 emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set)
             });
+            l += set.clamp(escaped, depth);
             return l;
         };
 
@@ -262,7 +273,10 @@ pub fn radiance(
         let le = world.emitted(&hit, wo);
         if le != Vec3::ZERO {
             let pdf_light = world.emitter_pdf(prev_p, prev_n, &hit);
-            l += emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set);
+            l += set.clamp(
+                emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set),
+                depth,
+            );
         }
         if world.is_interface(hit.material) {
             // A boundary between media only: carry on in the same direction.
@@ -283,25 +297,28 @@ pub fn radiance(
         let (bsdf, ng, frame, wo_local, hit) = (&v.bsdf, v.ng, &v.frame, v.wo_local, &v.hit);
 
         if !bsdf.is_specular() {
-            l += sample_ld(
-                world,
-                hit.p,
-                hit.p_error,
-                ng,
-                &Scatterer::Surface {
-                    bsdf,
-                    frame,
-                    wo_local,
+            l += set.clamp(
+                sample_ld(
+                    world,
+                    hit.p,
+                    hit.p_error,
                     ng,
-                    material: hit.material,
-                    ng_front: hit.ng,
-                },
-                medium,
-                &st,
-                &mut rng,
-                s,
-                set,
-                stats,
+                    &Scatterer::Surface {
+                        bsdf,
+                        frame,
+                        wo_local,
+                        ng,
+                        material: hit.material,
+                        ng_front: hit.ng,
+                    },
+                    medium,
+                    &st,
+                    &mut rng,
+                    s,
+                    set,
+                    stats,
+                ),
+                depth,
             );
         } else {
             s.skip(3);

@@ -156,7 +156,17 @@ pub fn list_scenes(root: &Path) -> Vec<String> {
 
 /// Environment maps (`.hdr`, `.exr`) under the scenes folder, listed as scenes are.
 pub fn list_environments(root: &Path) -> Vec<String> {
-    list_files(root, is_env_map, resolve_env)
+    list_files(root, is_equirect_image, resolve_env)
+}
+
+/// Whether `p` is an environment map by its content, not only its extension: an .hdr/.exr image
+/// twice as wide as high (the equirectangular layout the page's environment option reads).
+/// Reference renders and other pictures kept beside the scenes are left out of the list; only
+/// the header is read.
+fn is_equirect_image(p: &Path) -> bool {
+    is_env_map(p)
+        && crate::image_io::image_dimensions(p)
+            .is_some_and(|(w, h)| h > 0 && w.abs_diff(2 * h) <= 1)
 }
 
 fn list_files(

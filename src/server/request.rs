@@ -19,7 +19,7 @@ use std::str::FromStr;
 /// Integrator and tone-mapping names offered to the page; only those the library parses are
 /// shown, so new modes appear by themselves when they land.
 const INTEGRATOR_NAMES: &[&str] = &["path", "whitted", "raycast", "lighttracer", "bdpt"];
-const TONEMAP_NAMES: &[&str] = &["clamp", "gamma2.2", "aces", "agx"];
+const TONEMAP_NAMES: &[&str] = &["pbr-neutral", "agx", "clamp", "gamma2.2", "aces"];
 pub const MAX_OUTPUT_NAME: usize = 64;
 
 /// The server's caps, tighter than the renderer's (a public page should not accept a week of work).
@@ -337,9 +337,10 @@ impl Defaults {
     /// the CLI's rule, [`default_size`]).
     pub const WIDTH: u64 = 512;
     pub const HEIGHT: u64 = 512;
-    pub const SPP: u64 = 64;
+    /// The command line's samples and bounce limit: the page and the CLI render alike.
+    pub const SPP: u64 = crate::render::DEFAULT_SPP as u64;
     pub const SECONDARY: u64 = 1;
-    pub const MAX_DEPTH: u64 = 16;
+    pub const MAX_DEPTH: u64 = crate::integrator::settings::DEFAULT_MAX_DEPTH as u64;
     pub const EXPOSURE: f64 = 1.0;
     /// The prefix of the output name a request without one gets: `render-ID` (the job's id).
     pub const OUTPUT: &str = "render";

@@ -35,6 +35,15 @@ One example per front end:
   trayecto info scene.gltf                # what a scene contains and every warning about it
   trayecto serve --scenes DIR             # the web UI on http://127.0.0.1:8080";
 
+/// `render`'s option groups, in the order `-h` and `--help` show them. `-h` lists the options
+/// a first render needs; `--help` is the full reference (every option, the thesis's names).
+const HEADING_OUTPUT: &str = "Image";
+const HEADING_SAMPLING: &str = "Quality and noise";
+const HEADING_SCENE: &str = "Scene, camera and lighting";
+const HEADING_RUN: &str = "Running";
+const HEADING_FARM: &str = "Parts, resuming and cropping";
+const HEADING_EXPERT: &str = "Integrator (expert)";
+
 #[derive(Parser, Debug)]
 #[command(
     name = "trayecto",
@@ -74,8 +83,12 @@ pub struct MergeArgs {
     /// Linear multiplier applied before tone mapping.
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub exposure: f32,
-    /// Tone mapping for .png/.ppm: clamp, gamma2.2, aces or agx.
-    #[arg(long, default_value = "clamp")]
+    /// View transform for .png/.ppm: pbr-neutral, agx, clamp, gamma2.2 or aces.
+    ///
+    /// pbr-neutral (Khronos PBR Neutral) shows base colours as authored and rolls highlights
+    /// off to white; agx (Blender's default) compresses a wider range with a filmic look; clamp
+    /// is the thesis's sRGB clip. .exr and .hdr hold the radiance itself.
+    #[arg(long, default_value = "pbr-neutral")]
     pub tonemap: Tonemap,
     /// Print only errors.
     #[arg(short, long)]
@@ -88,36 +101,42 @@ pub struct RenderArgs {
     #[arg(default_value = "cornell")]
     pub scene: String,
     /// Output image; the format follows the extension (.png, .ppm, .exr, .hdr).
-    #[arg(short = 'o', long = "output", default_value = "render.png")]
+    #[arg(short = 'o', long = "output", default_value = "render.png", help_heading = HEADING_OUTPUT)]
     pub output: PathBuf,
-    /// Image width in pixels [resolución]. Default: the scene file's resolution (pbrt Film, TOML
+    /// Image width in pixels [resolución].
+    ///
+    /// Default: the scene file's resolution (pbrt Film, TOML
     /// [render]), else from the height and the camera's aspect ratio, else 512.
-    #[arg(long)]
+    #[arg(long, help_heading = HEADING_OUTPUT)]
     pub width: Option<u32>,
-    /// Image height in pixels [resolución]. Default: the scene file's resolution, else from the
+    /// Image height in pixels [resolución].
+    ///
+    /// Default: the scene file's resolution, else from the
     /// width and the camera's aspect ratio, else 512.
-    #[arg(long)]
+    #[arg(long, help_heading = HEADING_OUTPUT)]
     pub height: Option<u32>,
     /// Camera samples per pixel [sobremuestreo].
+    ///
     /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 64.)
-    #[arg(long)]
+    #[arg(long, help_heading = HEADING_SAMPLING)]
     pub spp: Option<u32>,
     /// Continuation paths split at the first hit [rayos secundarios].
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub secondary: u32,
     /// Maximum number of bounces: 0 shows emitters only, 1 is direct lighting [profundidad máxima].
+    ///
     /// Scattering events in participating media count as bounces; crossing a medium boundary
     /// (an interface surface) does not.
     /// (Default: the scene file's own setting, e.g. a pbrt Film or Sampler, else 64.)
-    #[arg(long)]
+    #[arg(long, help_heading = HEADING_SAMPLING)]
     pub max_depth: Option<u32>,
     /// Linear multiplier applied before tone mapping [exposición].
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = HEADING_OUTPUT)]
     pub exposure: f32,
     /// Rendering mode: path (the default), raycast, whitted, lighttracer (paths from the
     /// lights, splatted onto the film) or bdpt (bidirectional path tracing). A pbrt file's
     /// `Integrator "lighttracer"` or `"bdpt"` is honoured unless this is given.
-    #[arg(long)]
+    #[arg(long, help_heading = HEADING_SAMPLING)]
     pub integrator: Option<IntegratorKind>,
     /// AOV layers to write with the image, comma-separated: albedo, normal (both at the first
     /// non-specular hit: the denoiser's guides), depth, position, shading_normal, material_id,
@@ -127,65 +146,73 @@ pub struct RenderArgs {
     /// IndexOB.X, samples.Y, variance.Y); other formats get side files (out.albedo.png, ...).
     /// With --integrator raycast, a single view name (shaded, normals, barycentric, depth,
     /// albedo, uv) instead picks what the image shows.
-    #[arg(long, value_name = "LIST")]
+    #[arg(long, value_name = "LIST", help_heading = HEADING_OUTPUT, hide_short_help = true)]
     pub aov: Option<String>,
-    /// Also write the image denoised by Intel Open Image Denoise (RT filter, HDR, with prefiltered
-    /// albedo and normal guides) beside the raw one: out.denoised.png. OIDN is loaded at run time:
+    /// Also write the image denoised by Intel Open Image Denoise beside the raw one: out.denoised.png.
+    ///
+    /// The RT filter, HDR, with prefiltered albedo and normal guides. OIDN is loaded at run time:
     /// install it with ./scripts/install-oidn.sh, or point --oidn / TRAYECTO_OIDN at the library.
-    #[arg(long)]
+    #[arg(long, help_heading = HEADING_OUTPUT)]
     pub denoise: bool,
     /// The Open Image Denoise library to load (libOpenImageDenoise.so) for --denoise. Default:
     /// $TRAYECTO_OIDN, else the copy ./scripts/install-oidn.sh puts under target/, else a pyoidn
     /// wheel in Python's site-packages, else a system install.
-    #[arg(long, value_name = "PATH", requires = "denoise")]
+    #[arg(long, value_name = "PATH", requires = "denoise", help_heading = HEADING_OUTPUT, hide_short_help = true)]
     pub oidn: Option<PathBuf>,
     /// Direct-lighting model of the raycast and whitted modes: phong, blinn-phong or pbr.
-    #[arg(long, default_value = "pbr")]
+    #[arg(long, default_value = "pbr", help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub shading: ShadingModel,
     /// Acceleration structure: bvh, grid or none.
-    #[arg(long, default_value = "bvh")]
+    #[arg(long, default_value = "bvh", help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub accel: AccelKind,
     /// Camera sample generator: independent, stratified, padded, sobol, zsobol or poisson-disk.
-    #[arg(long, default_value = "stratified")]
+    #[arg(long, default_value = "stratified", help_heading = HEADING_SAMPLING, hide_short_help = true)]
     pub sampler: SamplerKind,
     /// Disable next-event estimation (light sampling) for area and environment lights.
-    #[arg(long)]
+    #[arg(long, help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub no_nee: bool,
     /// Disable multiple importance sampling (light samples get full weight).
-    #[arg(long)]
+    #[arg(long, help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub no_mis: bool,
     /// Bounces before Russian roulette starts.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub rr_depth: u32,
     /// Russian roulette keeps a path with probability min(1, scale × throughput); 1 is PBRT's rule.
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 3.0, help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub rr_scale: f32,
     /// Random seed; the image is a pure function of the seed and the settings.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, help_heading = HEADING_SAMPLING, hide_short_help = true)]
     pub seed: u64,
-    /// Worker threads (default: all cores). Does not change the image.
-    #[arg(long)]
+    /// Worker threads (default, and 0: all cores). Does not change the image.
+    #[arg(long, help_heading = HEADING_RUN)]
     pub threads: Option<usize>,
-    /// Tone mapping for .png/.ppm: clamp, gamma2.2, aces or agx.
-    #[arg(long, default_value = "clamp")]
+    /// View transform for .png/.ppm: pbr-neutral, agx, clamp, gamma2.2 or aces.
+    ///
+    /// pbr-neutral (Khronos PBR Neutral, the default) shows base colours as authored and rolls
+    /// highlights off to white; agx (Blender's default) compresses a wider range with a filmic
+    /// look; clamp is the thesis's sRGB clip. .exr and .hdr hold the radiance itself, whatever
+    /// this says.
+    #[arg(long, default_value = "pbr-neutral", help_heading = HEADING_OUTPUT)]
     pub tonemap: Tonemap,
     /// Camera to render, by name or index (default: the first).
-    #[arg(long)]
+    #[arg(long, help_heading = HEADING_SCENE)]
     pub camera: Option<String>,
-    /// When to add the default white environment: auto (no lights, or only self-lit emissive
-    /// surfaces such as decals and labels with radiance <= 1), on (unless the scene has an
+    /// When to add the default white environment: auto, on or off.
+    ///
+    /// auto: no lights, or only self-lit emissive surfaces such as decals and labels with radiance <= 1), on (unless the scene has an
     /// environment) or off. Default: the scene file's `default_light`, else auto.
-    #[arg(long, value_name = "MODE")]
+    #[arg(long, value_name = "MODE", help_heading = HEADING_SCENE)]
     pub default_light: Option<DefaultLight>,
     /// Same as `--default-light off` (kept for older scripts).
-    #[arg(long, conflicts_with = "default_light")]
+    #[arg(long, conflicts_with = "default_light", help_heading = HEADING_SCENE, hide_short_help = true)]
     pub no_default_light: bool,
     /// Light the scene with an equirectangular environment map (.hdr or .exr).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", help_heading = HEADING_SCENE)]
     pub env: Option<std::path::PathBuf>,
     /// Turn the --env map about the up axis (+y) by DEGREES, counter-clockwise seen from above
     /// (TOML scenes: `rotation` of the environment).
     #[arg(
+        help_heading = HEADING_SCENE, hide_short_help = true,
         long,
         value_name = "DEGREES",
         requires = "env",
@@ -194,86 +221,120 @@ pub struct RenderArgs {
     pub env_rotation: Option<f32>,
     /// Render from the camera in FILE: a TOML file with a `[camera]` table (eye, target, up, fov;
     /// the web viewport's "Save camera" writes one) or any scene file, whose first camera is used.
-    #[arg(long, value_name = "FILE", conflicts_with = "camera")]
+    #[arg(long, value_name = "FILE", conflicts_with = "camera", help_heading = HEADING_SCENE, hide_short_help = true)]
     pub camera_from: Option<PathBuf>,
     /// glTF material variant to render (KHR_materials_variants; `trayecto info` lists them).
     /// Default: the file's default materials.
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, value_name = "NAME", help_heading = HEADING_SCENE, hide_short_help = true)]
     pub variant: Option<String>,
     /// How next-event estimation chooses a light: auto (bvh8 above 16 emitters, points and
     /// spots, else power), power (in proportion to power), bvh (the light BVH: by importance
     /// from the shading point, four children per tree node) or bvh8 (the same with eight
     /// children per tree node).
-    #[arg(long, value_name = "SAMPLER", default_value = "auto")]
+    #[arg(long, value_name = "SAMPLER", default_value = "auto", help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub light_sampler: LightSamplerKind,
     /// Texture filtering: none (each texture's own bilinear or nearest lookup at the hit) or
     /// trilinear (MIP pyramids built at load, read over each hit's pixel footprint from
     /// pbrt-v4-style ray differentials; path tracers and perspective cameras only). See docs/DESIGN.md.
-    #[arg(long, value_name = "FILTER", default_value = "none")]
+    #[arg(long, value_name = "FILTER", default_value = "none", help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub texture_filter: trayecto::material::texture::TextureFilter,
     /// Render only sample indices A..B of the --spp frame (write a partial film: -o part.trp).
-    #[arg(long, value_name = "A..B")]
+    #[arg(long, value_name = "A..B", help_heading = HEADING_FARM, hide_short_help = true)]
     pub samples: Option<String>,
     /// Save the film to FILE (a partial film) during the render and on Ctrl-C (or SIGTERM,
     /// SIGHUP), to --resume later. Without it, Ctrl-C writes the image of the completed passes.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", help_heading = HEADING_FARM, hide_short_help = true)]
     pub checkpoint: Option<PathBuf>,
     /// Seconds between checkpoints (at the end of a pass; 0: after every pass).
-    #[arg(long, value_name = "SECONDS", default_value_t = 60.0)]
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0, help_heading = HEADING_FARM, hide_short_help = true)]
     pub checkpoint_interval: f64,
     /// Continue the render saved in FILE by --checkpoint (same scene and settings); the result is
     /// identical to an uninterrupted render. Checkpoints go on to FILE unless --checkpoint says.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", help_heading = HEADING_FARM, hide_short_help = true)]
     pub resume: Option<PathBuf>,
     /// Pixel reconstruction filter: box, tent, gaussian, mitchell or blackman-harris, by filter
     /// importance sampling. Default: the scene file's (a pbrt PixelFilter, else pbrt's Gaussian
     /// for .pbrt files), else box (one pixel, as glTF/TOML/OBJ/FBX scenes have always rendered).
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, value_name = "NAME", help_heading = HEADING_SAMPLING, hide_short_help = true)]
     pub filter: Option<FilterKind>,
     /// Filter radius in pixels (pbrt's xradius/yradius). Default per filter as in pbrt-v4: box
     /// 0.5, tent 2, gaussian 1.5, mitchell 2; blackman-harris 1.5 (Cycles' filter width).
-    #[arg(long, value_name = "PIXELS")]
+    #[arg(long, value_name = "PIXELS", help_heading = HEADING_SAMPLING, hide_short_help = true)]
     pub filter_radius: Option<f32>,
     /// Standard deviation of the gaussian filter in pixels (pbrt default 0.5).
-    #[arg(long, value_name = "PIXELS")]
+    #[arg(long, value_name = "PIXELS", help_heading = HEADING_SAMPLING, hide_short_help = true)]
     pub filter_sigma: Option<f32>,
     /// Adaptive sampling: stop a pixel once the relative standard error of its mean luminance is
-    /// below X (e.g. 0.01), judged after every pass from the passes before it; --spp is the most
-    /// any pixel gets. The image is still a pure function of the seed and the settings.
-    #[arg(long, value_name = "X", allow_negative_numbers = true)]
+    /// below X (e.g. 0.01).
+    ///
+    /// Judged after every pass from the passes before it; --spp is the most
+    /// any pixel gets. The image is still a pure function of the seed and the settings. An .exr
+    /// output holds the samples each pixel took and the variance as layers; beside other formats
+    /// they are written only when asked for (`--aov samples,variance`).
+    #[arg(long, value_name = "X", allow_negative_numbers = true, help_heading = HEADING_SAMPLING)]
     pub noise_threshold: Option<f32>,
-    /// Progressive rendering: stop after the last pass that ends within SECONDS (the first pass
-    /// always completes; a pass in flight when time runs out is dropped). Without --spp the frame
+    /// Progressive rendering: stop after the last pass that ends within SECONDS.
+    ///
+    /// The first pass always completes; a pass in flight when time runs out is dropped. Without --spp the frame
     /// is planned at 65536 spp. How many passes finish depends on the machine; the image after
     /// a given number of passes does not.
-    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true, help_heading = HEADING_SAMPLING)]
     pub time_limit: Option<f64>,
     /// Render and write only this window, as fractions of the image: x0,x1,y0,y1 in 0..1 (pbrt's
     /// cropwindow: columns ceil(width*x0)..ceil(width*x1), likewise rows). The pixels are the same
     /// as in the full render. Default: the scene file's cropwindow/pixelbounds, else the whole image.
-    #[arg(long, value_name = "X0,X1,Y0,Y1", conflicts_with = "pixel_bounds")]
+    #[arg(long, value_name = "X0,X1,Y0,Y1", conflicts_with = "pixel_bounds", help_heading = HEADING_FARM, hide_short_help = true)]
     pub crop: Option<String>,
     /// Render and write only columns x0..x1 and rows y0..y1 (pixels, ends excluded; pbrt's
     /// pixelbounds).
-    #[arg(long, value_name = "X0,X1,Y0,Y1")]
+    #[arg(long, value_name = "X0,X1,Y0,Y1", help_heading = HEADING_FARM, hide_short_help = true)]
     pub pixel_bounds: Option<String>,
     /// Most memory loading the scene may take (e.g. 4G, 512M); a file that asks for more is
     /// an error naming it. Default: half the physical memory (or of `ulimit -v`).
-    #[arg(long, value_name = "SIZE", value_parser = trayecto::limits::parse_size)]
+    #[arg(long, value_name = "SIZE", value_parser = trayecto::limits::parse_size, help_heading = HEADING_RUN, hide_short_help = true)]
     pub memory_limit: Option<u64>,
     /// Print only errors.
-    #[arg(short, long)]
+    #[arg(short, long, help_heading = HEADING_RUN)]
     pub quiet: bool,
     /// A Mitsuba scene parameter, NAME=VALUE (overrides the file's <default>; repeatable).
-    #[arg(short = 'D', long = "define", value_name = "NAME=VALUE", value_parser = trayecto::scene::mitsuba::parse_define)]
+    #[arg(short = 'D', long = "define", help_heading = HEADING_SCENE, value_name = "NAME=VALUE", value_parser = trayecto::scene::mitsuba::parse_define)]
     pub define: Vec<(String, String)>,
     /// Path guiding (experimental): learn where indirect light comes from during the first
     /// quarter of the samples (at most 128 spp) and sample those directions too. Unbiased and
     /// deterministic; meant for light through a gap or off a small bright patch, but it does not
     /// yet pay at equal time in the measured scenes (BENCHMARKS.md). Surfaces only (media are
     /// not guided); a guided render cannot be split or resumed.
-    #[arg(long)]
+    #[arg(long, help_heading = HEADING_SAMPLING)]
     pub guiding: bool,
+    /// Most a sample's direct light may add (its largest colour channel; off by default).
+    ///
+    /// Light seen by the camera or after one bounce is scaled down to X. Biased, like Cycles'
+    /// Clamp Direct: it removes noise by darkening what it cuts; leave it off for references.
+    #[arg(long, value_name = "X", help_heading = HEADING_SAMPLING)]
+    pub clamp_direct: Option<f32>,
+    /// Most a sample's indirect light may add (off by default): tames fireflies.
+    ///
+    /// Light that bounced twice or more (caustics through glass, small bright reflections) is
+    /// scaled down to X in its largest colour channel. Biased, like Cycles' Clamp Indirect:
+    /// values around 10 remove fireflies at preview sample counts and darken caustics.
+    #[arg(long, value_name = "X", help_heading = HEADING_SAMPLING)]
+    pub clamp_indirect: Option<f32>,
+    /// Read only files inside the scene file's folder, as the server does.
+    ///
+    /// By default the command line reads what a scene file names, as pbrt-v4, Mitsuba and
+    /// Blender do: `../textures/x.png`, absolute paths, symbolic links into asset libraries.
+    /// With this, each is refused with an error naming it.
+    #[arg(long, help_heading = HEADING_SCENE, hide_short_help = true)]
+    pub confine_paths: bool,
+    /// Transparent background: alpha is the coverage of camera rays hitting geometry.
+    ///
+    /// As Cycles' Film › Transparent: the background the camera sees is left out (the
+    /// environment still lights the scene), so the colours are premultiplied by the alpha. An
+    /// .exr output gets RGBA (premultiplied, OpenEXR's convention); a .png gets RGBA with
+    /// straight alpha (PNG's convention: colour divided by alpha before the view transform).
+    /// Path tracers only.
+    #[arg(long, help_heading = HEADING_OUTPUT)]
+    pub transparent: bool,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -283,6 +344,9 @@ pub struct InfoArgs {
     /// A Mitsuba scene parameter, NAME=VALUE (overrides the file's <default>; repeatable).
     #[arg(short = 'D', long = "define", value_name = "NAME=VALUE", value_parser = trayecto::scene::mitsuba::parse_define)]
     pub define: Vec<(String, String)>,
+    /// Read only files inside the scene file's folder, as the server does.
+    #[arg(long)]
+    pub confine_paths: bool,
 }
 
 impl RenderArgs {
@@ -295,22 +359,28 @@ impl RenderArgs {
             spp: self.spp.unwrap_or(if self.time_limit.is_some() {
                 trayecto::render::TIME_LIMIT_SPP
             } else {
-                64
+                trayecto::render::DEFAULT_SPP
             }),
             seed: self.seed,
-            threads: self.threads,
+            // 0 means every core, as it does for make -j and Cycles.
+            threads: self.threads.filter(|&t| t > 0),
             sampler: self.sampler,
             integrator: self
                 .integrator
                 .unwrap_or_default()
                 .with_options(self.raycast_view(), self.shading),
             path: PathSettings {
-                max_depth: self.max_depth.unwrap_or(64),
+                max_depth: self
+                    .max_depth
+                    .unwrap_or(trayecto::integrator::settings::DEFAULT_MAX_DEPTH),
                 rr_depth: self.rr_depth,
                 rr_scale: self.rr_scale,
                 nee: !self.no_nee,
                 mis: !self.no_mis,
                 secondary: self.secondary,
+                clamp_direct: self.clamp_direct.unwrap_or(f32::INFINITY),
+                clamp_indirect: self.clamp_indirect.unwrap_or(f32::INFINITY),
+                transparent: self.transparent,
                 ..Default::default()
             },
             filter: self.filter(),
@@ -401,11 +471,28 @@ impl RenderArgs {
             ),
             (None, None) => None,
         };
+        for (name, v) in [
+            ("--clamp-direct", self.clamp_direct),
+            ("--clamp-indirect", self.clamp_indirect),
+        ] {
+            if let Some(x) = v
+                && !(x.is_finite() && x > 0.0)
+            {
+                bail!("invalid setting: {name} must be a positive number (got {x})");
+            }
+        }
         if !(self.checkpoint_interval >= 0.0 && self.checkpoint_interval <= 1e9) {
             bail!(
                 "invalid setting: --checkpoint-interval must be 0 or more seconds (got {})",
                 self.checkpoint_interval
             );
+        }
+        if self.transparent && self.integrator.is_some_and(|k| k != IntegratorKind::Path) {
+            bail!("invalid setting: --transparent needs --integrator path");
+        }
+        let mut aovs = self.aov_layers()?;
+        if self.transparent && !aovs.contains(&AovKind::Alpha) {
+            aovs.push(AovKind::Alpha);
         }
         let mut world = self.world_options();
         if let Some(f) = &self.camera_from {
@@ -440,7 +527,7 @@ impl RenderArgs {
                 write_on_interrupt: true,
             },
             crop,
-            aovs: self.aov_layers()?,
+            aovs,
             denoise: self.denoise.then(|| DenoiseOptions {
                 library: self.oidn.clone(),
             }),
@@ -523,11 +610,12 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         trayecto::limits::set_default_limit(m);
     }
     // Loads stop at Ctrl-C too (checked at each file read and in long loops).
-    let load = trayecto::limits::LoadContext::new(
+    let load = trayecto::limits::LoadContext::with_paths(
         trayecto::limits::Budget::new(trayecto::limits::default_limit()),
         Some(std::sync::Arc::new(|| {
             INTERRUPTED.load(std::sync::atomic::Ordering::Relaxed)
         })),
+        path_rule(args.confine_paths),
     );
     match trayecto::limits::scope(load, || job.run(&console, &INTERRUPTED)) {
         Ok(_) => Ok(()),
@@ -600,12 +688,31 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
     Ok(())
 }
 
+/// The command line reads what a scene file names unless told to confine it to its folder.
+fn path_rule(confine: bool) -> trayecto::limits::PathRule {
+    if confine {
+        trayecto::limits::PathRule::Confined
+    } else {
+        trayecto::limits::PathRule::Open
+    }
+}
+
 pub fn run_info(args: &InfoArgs) -> Result<()> {
     trayecto::scene::mitsuba::set_defines(args.define.clone());
+    let load = trayecto::limits::LoadContext::with_paths(
+        trayecto::limits::Budget::new(trayecto::limits::default_limit()),
+        None,
+        path_rule(args.confine_paths),
+    );
+    trayecto::limits::scope(load, || info(args))
+}
+
+fn info(args: &InfoArgs) -> Result<()> {
     let scene = trayecto::scene::load(&args.scene)?;
     // The world takes the scene; keep what is printed that the world does not hold.
     let (name, meshes, objects) = (scene.name.clone(), scene.meshes.len(), scene.objects.len());
     let (lights, cameras) = (scene.lights.clone(), scene.cameras.clone());
+    let media = scene.media.clone();
     let scene_warnings = scene.warnings.clone();
     let scene_notes = scene.notes.clone();
     let hints = scene.hints.clone();
@@ -628,7 +735,7 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
             "  {i}: '{}' {} base colour {}{}{}",
             m.name,
             m.model.name(),
-            m.base_color,
+            vec3(m.base_color),
             if textures > 0 {
                 format!(", {textures} texture(s)")
             } else {
@@ -703,20 +810,20 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
                 position: p,
                 intensity: i,
                 ..
-            } => format!("point at {p}, {i} W/sr"),
+            } => format!("point at {}, {} W/sr", vec3(*p), vec3(*i)),
             L::Spot {
                 position: p,
                 intensity: i,
                 ..
-            } => format!("spot at {p}, {i} W/sr"),
+            } => format!("spot at {}, {} W/sr", vec3(*p), vec3(*i)),
             L::Directional {
                 direction: d,
                 irradiance: e,
                 ..
             } => {
-                format!("directional towards {d}, {e} W/m²")
+                format!("directional towards {}, {} W/m²", vec3(*d), vec3(*e))
             }
-            L::Ambient { radiance: r, .. } => format!("ambient, radiance {r}"),
+            L::Ambient { radiance: r, .. } => format!("ambient, radiance {}", vec3(*r)),
             L::Environment { path, .. } => format!("environment map {}", path.display()),
         };
         println!("  '{}' {what}", l.name());
@@ -726,19 +833,46 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
         let view = match c.projection {
             trayecto::scene::Projection::Perspective => format!("vfov {:.2}°", c.vfov_deg),
             trayecto::scene::Projection::Orthographic { half_height } => {
-                format!("orthographic, window half height {half_height}")
+                format!("orthographic, window half height {}", num(half_height))
             }
             trayecto::scene::Projection::Spherical(m) => format!("spherical ({m:?})"),
         };
         println!(
             "  {i}: '{}' at {} {view}",
             c.name,
-            c.camera_to_world.w_axis.truncate(),
+            vec3(c.camera_to_world.w_axis.truncate()),
         );
     }
     for n in &scene_notes {
         println!("note        {n}");
     }
+    println!("media       {}", media.len());
+    for (i, m) in media.iter().enumerate() {
+        use trayecto::scene::MediumKind as K;
+        let kind = match &m.kind {
+            K::Homogeneous => "homogeneous".to_string(),
+            K::Grid { nx, ny, nz, .. } => format!("grid {nx}x{ny}x{nz}"),
+            #[allow(unreachable_patterns)]
+            _ => "heterogeneous".to_string(),
+        };
+        println!(
+            "  {i}: '{}' {kind}, σa {}, σs {}, scale {}, g {}{}",
+            m.name,
+            vec3(m.sigma_a),
+            vec3(m.sigma_s),
+            num(m.scale),
+            num(m.g),
+            if m.le != trayecto::math::Vec3::ZERO {
+                format!(", emits {}", vec3(m.le))
+            } else {
+                String::new()
+            }
+        );
+    }
+    println!(
+        "renders     with the {} integrator by default (--integrator path)",
+        trayecto::integrator::Integrator::for_world(IntegratorKind::Path, &world).name()
+    );
     let warnings: Vec<&String> = scene_warnings.iter().chain(world.warnings.iter()).collect();
     println!("warnings    {}", warnings.len());
     for w in warnings {
@@ -747,8 +881,49 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
     Ok(())
 }
 
+/// A number for `trayecto info`: four significant digits, in scientific notation when very
+/// small or large (a denormal albedo printed in full is 30 digits of zeros).
+fn num(x: f32) -> String {
+    let a = x.abs();
+    if x == 0.0 || !x.is_finite() {
+        format!("{x}")
+    } else if !(1e-3..1e5).contains(&a) {
+        format!("{x:.3e}")
+    } else {
+        let s = format!("{x:.4}");
+        let s = s.trim_end_matches('0');
+        s.trim_end_matches('.').to_string()
+    }
+}
+
+/// A vector for `trayecto info`, each component as [`num`] prints it.
+fn vec3(v: trayecto::math::Vec3) -> String {
+    format!("[{}, {}, {}]", num(v.x), num(v.y), num(v.z))
+}
+
+/// `--sample N` is a slip for `--spp N`; clap alone would suggest `--samples`, the farm's sample
+/// range, which then fails on `N` with a message about ranges.
+fn sample_slip(args: &[std::ffi::OsString]) -> Option<String> {
+    let end = args.iter().position(|a| a == "--").unwrap_or(args.len());
+    args[..end].iter().find_map(|a| {
+        let a = a.to_str()?;
+        (a == "--sample" || a.starts_with("--sample=")).then(|| {
+            format!(
+                "error: unexpected argument '{a}' found\n\n  tip: samples per pixel are \
+                 '--spp N' ('--samples A..B' renders only a range of sample indices, for \
+                 rendering one frame on several machines)\n\nFor more information, try '--help'."
+            )
+        })
+    })
+}
+
 pub fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    if let Some(e) = sample_slip(&args) {
+        eprintln!("{e}");
+        return ExitCode::from(2);
+    }
+    let cli = Cli::parse_from(args);
     let result = match &cli.command {
         Some(Command::Render(a)) => run_render(a),
         Some(Command::Info(a)) => run_info(a),

@@ -549,7 +549,7 @@ async fn options(State(st): State<Shared>) -> Response {
                 "max_depth": D::MAX_DEPTH,
                 "exposure": D::EXPOSURE,
                 "integrator": "path",
-                "tonemap": "clamp",
+                "tonemap": trayecto::film::tonemap::Tonemap::default().name(),
                 "default_light": "",
             },
             "integrators": request::integrator_names(),

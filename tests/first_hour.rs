@@ -1,0 +1,353 @@
+//! What a new user meets first on the command line: one side deriving the other, the default view
+//! transform, firefly clamps, the short and long help, forgiving slips (`--sample`,
+//! `--threads 0`), no side files unasked, `trayecto info`'s numbers and media, and scene files
+//! naming files outside their folder.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn trayecto(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_trayecto"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("binary runs")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("trayecto-first-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn ok(o: &Output) {
+    assert!(o.status.success(), "{}", text(&o.stderr));
+}
+
+const TINY: [&str; 3] = ["--spp", "2", "-q"];
+
+fn render(dir: &Path, scene: &str, out: &str, extra: &[&str]) -> Output {
+    let mut args = vec!["render", scene, "-o", out];
+    args.extend_from_slice(&TINY);
+    args.extend_from_slice(extra);
+    trayecto(&args, dir)
+}
+
+fn exr_rgb(path: &Path) -> Vec<f32> {
+    let img = trayecto::film::output::read_exr(path).unwrap();
+    img.data.iter().flat_map(|p| [p.x, p.y, p.z]).collect()
+}
+
+/// Channel `name` of an EXR.
+fn exr_channel(path: &Path, name: &str) -> Vec<f32> {
+    let (_, _, channels) = trayecto::film::output::read_exr_channels(path).unwrap();
+    channels
+        .into_iter()
+        .find(|(n, _)| n == name)
+        .unwrap_or_else(|| panic!("{} has no channel {name}", path.display()))
+        .1
+}
+
+#[test]
+fn one_side_alone_gives_a_square_for_a_camera_without_aspect_ratio() {
+    // The built-in box's camera has no aspect ratio of its own (as glTF cameras without
+    // `aspectRatio`): one side given is both, not N×512.
+    let dir = temp_dir("side");
+    ok(&render(&dir, "cornell", "w.png", &["--width", "24"]));
+    ok(&render(&dir, "cornell", "h.png", &["--height", "20"]));
+    let w = image::open(dir.join("w.png")).unwrap();
+    let h = image::open(dir.join("h.png")).unwrap();
+    assert_eq!((w.width(), w.height()), (24, 24));
+    assert_eq!((h.width(), h.height()), (20, 20));
+}
+
+#[test]
+fn png_defaults_to_the_view_transform_and_exr_stays_radiance() {
+    let dir = temp_dir("view");
+    let size = ["--width", "16", "--height", "16"];
+    ok(&render(&dir, "cornell", "default.png", &size));
+    ok(&render(
+        &dir,
+        "cornell",
+        "neutral.png",
+        &[&size[..], &["--tonemap", "pbr-neutral"]].concat(),
+    ));
+    ok(&render(
+        &dir,
+        "cornell",
+        "clamp.png",
+        &[&size[..], &["--tonemap", "clamp"]].concat(),
+    ));
+    let read = |n: &str| image::open(dir.join(n)).unwrap().to_rgb8().into_raw();
+    assert_eq!(
+        read("default.png"),
+        read("neutral.png"),
+        "PNG default is PBR Neutral"
+    );
+    assert_ne!(read("default.png"), read("clamp.png"));
+    // EXR holds radiance, whatever the tone mapping.
+    ok(&render(&dir, "cornell", "a.exr", &size));
+    ok(&render(
+        &dir,
+        "cornell",
+        "b.exr",
+        &[&size[..], &["--tonemap", "clamp"]].concat(),
+    ));
+    assert_eq!(
+        std::fs::read(dir.join("a.exr")).unwrap(),
+        std::fs::read(dir.join("b.exr")).unwrap()
+    );
+}
+
+#[test]
+fn clamps_cut_bright_samples_and_are_off_by_default() {
+    let dir = temp_dir("clamp");
+    let size = ["--width", "16", "--height", "16"];
+    ok(&render(&dir, "cornell", "free.exr", &size));
+    let glass = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/mitsuba/glass.toml");
+    ok(&render(&dir, glass, "glass.exr", &size));
+    ok(&render(
+        &dir,
+        glass,
+        "glass-ci.exr",
+        &[&size[..], &["--clamp-indirect", "0.5"]].concat(),
+    ));
+    let free = exr_rgb(&dir.join("glass.exr"));
+    let cut = exr_rgb(&dir.join("glass-ci.exr"));
+    let max = |v: &[f32]| v.iter().copied().fold(0.0f32, f32::max);
+    let sum = |v: &[f32]| v.iter().map(|x| *x as f64).sum::<f64>();
+    assert!(sum(&cut) < sum(&free), "indirect clamp darkens");
+    assert!(max(&cut) <= max(&free));
+    // Direct light seen by the camera (the box's lamp) is cut by the direct clamp only.
+    ok(&render(
+        &dir,
+        "cornell",
+        "cd.exr",
+        &[&size[..], &["--clamp-direct", "1"]].concat(),
+    ));
+    ok(&render(
+        &dir,
+        "cornell",
+        "ci.exr",
+        &[&size[..], &["--clamp-indirect", "1"]].concat(),
+    ));
+    let lamp = max(&exr_rgb(&dir.join("free.exr")));
+    assert!(lamp > 1.5, "the lamp is bright ({lamp})");
+    // (Indirect light still adds to a clamped pixel: it is not capped at 1.)
+    assert!(max(&exr_rgb(&dir.join("cd.exr"))) < lamp / 2.0);
+    assert!(max(&exr_rgb(&dir.join("ci.exr"))) > 1.5);
+    for bad in ["0", "-1", "nan"] {
+        let arg = format!("--clamp-indirect={bad}");
+        let o = render(&dir, "cornell", "x.png", &[arg.as_str()]);
+        assert!(!o.status.success(), "--clamp-indirect {bad} accepted");
+        assert!(
+            text(&o.stderr).contains("--clamp-indirect"),
+            "{}",
+            text(&o.stderr)
+        );
+    }
+}
+
+#[test]
+fn short_help_is_a_grouped_summary_and_long_help_the_reference() {
+    let dir = temp_dir("help");
+    let short = text(&trayecto(&["render", "-h"], &dir).stdout);
+    let long = text(&trayecto(&["render", "--help"], &dir).stdout);
+    for heading in [
+        "Image:",
+        "Quality and noise:",
+        "Scene, camera and lighting:",
+    ] {
+        assert!(short.contains(heading), "-h lacks {heading}:\n{short}");
+        assert!(long.contains(heading), "--help lacks {heading}");
+    }
+    assert!(long.contains("Integrator (expert):"));
+    for expert in ["--rr-scale", "--accel", "--light-sampler", "--secondary"] {
+        assert!(!short.contains(expert), "-h shows {expert}");
+        assert!(long.contains(expert), "--help lacks {expert}");
+    }
+    for core in [
+        "--spp",
+        "--width",
+        "--output",
+        "--tonemap",
+        "--clamp-indirect",
+    ] {
+        assert!(short.contains(core), "-h lacks {core}");
+    }
+    // The thesis's names stay in the reference.
+    assert!(long.contains("[profundidad máxima]") && long.contains("[sobremuestreo]"));
+    let (ls, ll) = (short.lines().count(), long.lines().count());
+    assert!(ls <= 50 && ls * 3 < ll, "-h {ls} lines, --help {ll}");
+}
+
+#[test]
+fn slips_are_forgiven_or_pointed_at() {
+    let dir = temp_dir("slips");
+    let o = trayecto(&["render", "--sample", "16"], &dir);
+    assert!(!o.status.success());
+    let e = text(&o.stderr);
+    assert!(e.contains("--spp"), "{e}");
+    let o = trayecto(&["--sample=16"], &dir);
+    assert!(!o.status.success() && text(&o.stderr).contains("--spp"));
+    ok(&render(
+        &dir,
+        "cornell",
+        "t.png",
+        &["--width", "8", "--threads", "0"],
+    ));
+}
+
+#[test]
+fn adaptive_png_gets_no_side_files_unless_asked() {
+    let dir = temp_dir("adaptive");
+    let a = ["--width", "16", "--noise-threshold", "0.2"];
+    ok(&render(&dir, "cornell", "a.png", &a));
+    assert!(dir.join("a.png").exists());
+    assert!(!dir.join("a.samples.png").exists() && !dir.join("a.variance.png").exists());
+    ok(&render(
+        &dir,
+        "cornell",
+        "b.png",
+        &[&a[..], &["--aov", "samples"]].concat(),
+    ));
+    assert!(dir.join("b.samples.png").exists() && !dir.join("b.variance.png").exists());
+}
+
+#[test]
+fn info_prints_numbers_sensibly_lists_media_and_names_the_integrator() {
+    let dir = temp_dir("info");
+    std::fs::write(
+        dir.join("tiny.toml"),
+        "[[material]]\nname = \"dark\"\nbase_color = [1e-28, 0.5, 123456.0]\n\
+         [[object]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"dark\"\n",
+    )
+    .unwrap();
+    let o = trayecto(&["info", "tiny.toml"], &dir);
+    ok(&o);
+    let out = text(&o.stdout);
+    assert!(!out.contains("0.0000000000"), "{out}");
+    assert!(out.contains("1.000e-28") && out.contains("0.5,"), "{out}");
+    assert!(out.contains("media       0"), "{out}");
+    assert!(out.contains("path integrator"), "{out}");
+    let fog = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/media/fog_cornell.toml");
+    let o = trayecto(&["info", fog], &dir);
+    ok(&o);
+    let out = text(&o.stdout);
+    assert!(out.contains("media       1"), "{out}");
+    assert!(out.contains("homogeneous"), "{out}");
+    assert!(out.contains("volumetric path integrator"), "{out}");
+    // The render's own lines name the tracer that runs.
+    let o = trayecto(
+        &["render", fog, "-o", "f.png", "--width", "8", "--spp", "1"],
+        &dir,
+    );
+    ok(&o);
+    assert!(
+        text(&o.stderr).contains("volumetric path integrator"),
+        "{}",
+        text(&o.stderr)
+    );
+}
+
+#[test]
+fn the_command_line_reads_what_a_scene_names_unless_confined() {
+    let dir = temp_dir("paths");
+    let lib = dir.join("library");
+    let scene_dir = dir.join("project");
+    std::fs::create_dir_all(&lib).unwrap();
+    std::fs::create_dir_all(&scene_dir).unwrap();
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/twin/cube.ply"),
+        lib.join("cube.ply"),
+    )
+    .unwrap();
+    std::os::unix::fs::symlink(&lib, scene_dir.join("models")).unwrap();
+    let object = |file: &str| format!("[[object]]\ntype = \"mesh\"\nfile = \"{file}\"\n");
+    std::fs::write(scene_dir.join("up.toml"), object("../library/cube.ply")).unwrap();
+    std::fs::write(scene_dir.join("link.toml"), object("models/cube.ply")).unwrap();
+    let abs = lib.join("cube.ply");
+    std::fs::write(scene_dir.join("abs.toml"), object(abs.to_str().unwrap())).unwrap();
+    for scene in ["up.toml", "link.toml", "abs.toml"] {
+        ok(&render(&scene_dir, scene, "x.png", &["--width", "8"]));
+        ok(&trayecto(&["info", scene], &scene_dir));
+        let o = render(
+            &scene_dir,
+            scene,
+            "x.png",
+            &["--width", "8", "--confine-paths"],
+        );
+        assert!(
+            !o.status.success(),
+            "{scene} read outside its folder with --confine-paths"
+        );
+        let e = text(&o.stderr);
+        assert!(e.contains("cube.ply"), "{e}");
+        assert!(
+            !trayecto(&["info", scene, "--confine-paths"], &scene_dir)
+                .status
+                .success()
+        );
+    }
+}
+
+#[test]
+fn transparent_film_gives_premultiplied_rgba() {
+    let dir = temp_dir("alpha");
+    // A sphere filling the middle of the frame, lit by the default white environment.
+    std::fs::write(
+        dir.join("ball.toml"),
+        "[[camera]]\neye = [0.0, 0.0, 4.0]\ntarget = [0.0, 0.0, 0.0]\nfov = 40.0\n\
+         [[object]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 0.8\n",
+    )
+    .unwrap();
+    let size = ["--width", "16", "--height", "16"];
+    ok(&render(
+        &dir,
+        "ball.toml",
+        "t.exr",
+        &[&size[..], &["--transparent"]].concat(),
+    ));
+    ok(&render(
+        &dir,
+        "ball.toml",
+        "t.png",
+        &[&size[..], &["--transparent"]].concat(),
+    ));
+    ok(&render(&dir, "ball.toml", "o.exr", &size));
+    let a = exr_channel(&dir.join("t.exr"), "A");
+    let r = exr_channel(&dir.join("t.exr"), "R");
+    let (corner, centre) = (0, 8 * 16 + 8);
+    assert_eq!((a[corner], r[corner]), (0.0, 0.0), "background left out");
+    assert_eq!(a[centre], 1.0);
+    // Inside the sphere the colour is the opaque render's; the background there was white.
+    let opaque = exr_rgb(&dir.join("o.exr"));
+    assert_eq!(r[centre], opaque[3 * centre]);
+    assert!(opaque[3 * corner] > 0.9);
+    // Edge pixels are partly covered, and their colour is premultiplied: at most alpha × the
+    // brightest colour of the ball.
+    let edge: Vec<usize> = (0..256).filter(|&i| a[i] > 0.0 && a[i] < 1.0).collect();
+    assert!(!edge.is_empty(), "no partly covered pixels");
+    let png = image::open(dir.join("t.png")).unwrap();
+    assert!(png.color().has_alpha(), "PNG without alpha");
+    let rgba = png.to_rgba8();
+    assert_eq!(rgba.get_pixel(0, 0)[3], 0);
+    assert_eq!(rgba.get_pixel(8, 8)[3], 255);
+    assert!(
+        !dir.join("t.alpha.png").exists(),
+        "alpha went into the PNG, not beside it"
+    );
+    // Not for the thesis's modes.
+    let o = render(
+        &dir,
+        "ball.toml",
+        "w.png",
+        &["--transparent", "--integrator", "whitted"],
+    );
+    assert!(!o.status.success());
+}
