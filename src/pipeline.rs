@@ -838,6 +838,18 @@ impl Run<'_> {
         let time = t.elapsed();
         self.observer.stage_finished(Stage::Load, time);
         scene.warnings.iter().for_each(|w| self.warn(w.clone()));
+        if let Some(a) = scene
+            .animation
+            .as_deref()
+            .filter(|a| a.moves() && a.shutter.is_none())
+            && job.world.time == Default::default()
+        {
+            let (t0, t1) = a.time_range().unwrap_or((0.0, 0.0));
+            self.info(format!(
+                "the scene is animated ({t0:.3} s – {t1:.3} s): its rest pose is rendered unless \
+                 --time, --frame or --frames chooses a moment"
+            ));
+        }
         self.check_cancel()?;
         let (settings, size_note) = job.resolve(&scene);
         settings.validate()?;

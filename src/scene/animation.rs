@@ -99,8 +99,8 @@ impl Channel {
                 if self.path == ChannelPath::Rotation {
                     slerp(a, b, s, out);
                 } else {
-                    for i in 0..w {
-                        out[i] = a[i] * (1.0 - s) + b[i] * s;
+                    for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
+                        *o = a * (1.0 - s) + b * s;
                     }
                 }
             }
@@ -116,8 +116,8 @@ impl Channel {
                 let h10 = td * (s3 - 2.0 * s2 + s);
                 let h01 = -2.0 * s3 + 3.0 * s2;
                 let h11 = td * (s3 - s2);
-                for i in 0..w {
-                    out[i] = h00 * v0[i] + h10 * b0[i] + h01 * v1[i] + h11 * a1[i];
+                for (i, o) in out.iter_mut().enumerate() {
+                    *o = h00 * v0[i] + h10 * b0[i] + h01 * v1[i] + h11 * a1[i];
                 }
                 if self.path == ChannelPath::Rotation {
                     normalize(out);
@@ -149,8 +149,8 @@ fn slerp(a: &[f64], b: &[f64], s: f64, out: &mut [f64]) {
         let sin = theta.sin();
         (((1.0 - s) * theta).sin() / sin, (s * theta).sin() / sin)
     };
-    for i in 0..4 {
-        out[i] = wa * a[i] + wb * sign * b[i];
+    for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
+        *o = wa * a + wb * sign * b;
     }
     normalize(out);
 }
@@ -283,7 +283,7 @@ fn decompose(m: Mat4) -> (Mat3, Quat, Vec3) {
         }
     }
     if r.determinant() < 0.0 {
-        r = r * -1.0;
+        r *= -1.0;
     }
     let q = Quat::from_mat3(&r).normalize();
     let s = r.inverse() * a;
@@ -535,7 +535,7 @@ pub fn deform(
             .map(|(&j, ibm)| world.get(j).copied().unwrap_or(Mat4::IDENTITY) * *ibm)
             .collect();
         let k = d.influences;
-        for v in 0..p.len() {
+        for (v, pv) in p.iter_mut().enumerate() {
             let mut m = Mat4::ZERO;
             for i in 0..k {
                 let w = d.weights.get(v * k + i).copied().unwrap_or(0.0);
@@ -544,7 +544,7 @@ pub fn deform(
                     m += joint_mats.get(j).copied().unwrap_or(Mat4::IDENTITY) * w;
                 }
             }
-            p[v] = m.transform_point3(p[v]);
+            *pv = m.transform_point3(*pv);
             let lin = Mat3::from_mat4(m);
             if let Some(n) = n.as_mut() {
                 n[v] = lin.inverse().transpose() * n[v];

@@ -83,20 +83,18 @@ impl TimeOptions {
             .or_else(|| self.frame.map(|f| f as f64 / self.fps(anim)))
     }
 
-    /// The shutter interval in scene time: `--shutter` (after the moment, if any), else the
-    /// file's own (pbrt's camera `shutteropen`/`shutterclose`) when something in it moves.
+    /// The shutter interval in scene time: `--shutter` (after the moment, if any), else, with
+    /// no moment asked for, the file's own (pbrt's camera `shutteropen`/`shutterclose`) when
+    /// something in it moves.
     pub fn shutter_interval(&self, anim: Option<&Animation>) -> Option<(f64, f64)> {
         match self.shutter {
             Some([o, c]) => {
                 let m = self.moment(anim).unwrap_or(0.0);
                 Some((m + o, m + c))
             }
-            None => {
-                let a = anim.filter(|a| a.moves())?;
-                let (o, c) = a.shutter?;
-                let m = self.moment(anim).unwrap_or(0.0);
-                Some((m + o, m + c))
-            }
+            // The file's shutter is scene time; a moment asked for is a still.
+            None if self.moment(anim).is_some() => None,
+            None => anim.filter(|a| a.moves())?.shutter,
         }
     }
 

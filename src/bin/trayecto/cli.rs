@@ -206,7 +206,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "N", conflicts_with_all = ["time", "frames"])]
     pub frame: Option<u32>,
     /// Render frames A..B (inclusive) of the animation, loading the scene once; each output is
-    /// numbered: -o out.exr writes out_0001.exr, out_0002.exr, ...
+    /// numbered (-o out.exr writes out_0001.exr, out_0002.exr and so on).
     #[arg(long, value_name = "A..B", conflicts_with = "time")]
     pub frames: Option<String>,
     /// Frames per second for --frame/--frames. Default: the file's, else 24.
@@ -648,9 +648,15 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
     let scene_warnings = scene.warnings.clone();
     let hints = scene.hints.clone();
     let variants = scene.variants.clone();
+    let animation = scene.animation.clone();
     let world = World::build(scene, &WorldOptions::default())?;
     let b = world.bounds;
     println!("scene       {name}");
+    if let Some(a) = animation.filter(|a| a.moves()) {
+        // What --time/--frame/--frames/--shutter can choose from.
+        let (t0, t1) = a.time_range().unwrap_or((0.0, 0.0));
+        println!("animation   {t0:.3} s – {t1:.3} s (--time, --frame, --frames, --shutter)");
+    }
     println!("meshes      {meshes}");
     println!("objects     {objects}");
     println!("triangles   {}", world.triangle_count());

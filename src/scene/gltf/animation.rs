@@ -178,6 +178,10 @@ impl Loader<'_> {
         for anim in doc.animations() {
             for ch in anim.channels() {
                 let node = ch.target().node();
+                if node.index() >= self.rig.nodes.len() {
+                    // A node outside the rendered scene: nothing of it is drawn.
+                    continue;
+                }
                 let sampler = ch.sampler();
                 let interpolation = match sampler.interpolation() {
                     gltf::animation::Interpolation::Step => Interpolation::Step,
@@ -216,7 +220,7 @@ impl Loader<'_> {
                 let need = times.len() * groups * path.width();
                 if times.is_empty()
                     || values.len() != need
-                    || times.windows(2).any(|w| !(w[0] < w[1]))
+                    || times.windows(2).any(|w| w[0] >= w[1])
                     || times.iter().any(|t| !t.is_finite())
                 {
                     self.scene.warnings.push(format!(
@@ -308,8 +312,7 @@ impl Loader<'_> {
         let mut cols = Vec::new();
         // Four columns of four floats per matrix, tightly packed (a view used by matrices has
         // no byte stride, glTF 2.0 §3.6.2.4).
-        let column_view = view.clone();
-        self.read_elements_packed(&column_view, acc.offset(), count * 4, &mut cols, what)?;
+        self.read_elements_packed(&view, acc.offset(), count * 4, &mut cols, what)?;
         Ok(cols
             .chunks_exact(4)
             .map(|c| {
