@@ -605,10 +605,11 @@ mod tests {
 
     #[test]
     fn slerp_takes_the_shorter_arc() {
-        // 0° and 350° about z (the latter's quaternion negated): halfway is −5°, not 175°.
+        // 0° and 350° about z: the quaternions' dot product is negative, so the nearer copy
+        // of the second (−10°) is taken and halfway is −5°, not 175°.
         let h = |deg: f64| deg.to_radians() / 2.0;
         let a = [0.0, 0.0, 0.0, 1.0];
-        let b = [0.0, 0.0, -h(350.0).sin(), -h(350.0).cos()];
+        let b = [0.0, 0.0, h(350.0).sin(), h(350.0).cos()];
         let c = channel(
             ChannelPath::Rotation,
             Interpolation::Linear,
