@@ -392,6 +392,9 @@ impl RenderJob {
                 ));
             }
         }
+        if let Err(e) = self.world.time.validate() {
+            return bad(e);
+        }
         if !(self.world.env_rotation.is_finite() && self.world.env_rotation.abs() <= 1e6) {
             return bad(format!(
                 "the environment rotation must be a number of degrees (got {})",
@@ -691,6 +694,96 @@ impl RenderJob {
     }
 }
 
+/// Output `path` of frame `frame` of a sequence: `out.exr` → `out_0001.exr`.
+pub fn frame_path(path: &std::path::Path, frame: u32) -> PathBuf {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}_{frame:04}.{}", ext.to_string_lossy()),
+        None => format!("{stem}_{frame:04}"),
+    };
+    path.with_file_name(name)
+}
+
+impl RenderJob {
+    /// Renders frames `frames` of an animated scene (docs/DESIGN.md §5, "Animation"): the scene
+    /// is read once, then posed, compiled, rendered and written per frame, each output named by
+    /// [`frame_path`]. Each frame is the image [`RenderJob::run`] gives with `--frame N`.
+    pub fn run_frames(
+        &self,
+        frames: std::ops::RangeInclusive<u32>,
+        observer: &dyn PipelineObserver,
+        cancel: &AtomicBool,
+    ) -> Result<Vec<RenderReport>, PipelineError> {
+        self.check()?;
+        if self.split.checkpoint.is_some() || self.split.resume.is_some() {
+            return Err(PipelineError::InvalidSetting(
+                "a frame sequence (--frames) cannot --checkpoint or --resume: render its frames \
+                 one by one with --frame for that"
+                    .into(),
+            ));
+        }
+        if self.world.time.time.is_some() {
+            return Err(PipelineError::InvalidSetting(
+                "--frames and --time both give the moment: use one".into(),
+            ));
+        }
+        let denoiser = match &self.denoise {
+            Some(d) => Some(Oidn::load(d.library.as_deref())?),
+            None => None,
+        };
+        let mut first = Run {
+            job: self,
+            observer,
+            cancel,
+            warnings: Vec::new(),
+        };
+        let loaded = crate::limits::scope_or_default(|| first.load())?;
+        let mut reports = Vec::new();
+        for frame in frames {
+            let mut job = self.clone();
+            job.world.time.frame = Some(frame);
+            for o in &mut job.outputs {
+                o.path = frame_path(&o.path, frame);
+            }
+            let mut run = Run {
+                job: &job,
+                observer,
+                cancel,
+                warnings: first.warnings.clone(),
+            };
+            run.info(format!("frame {frame}"));
+            let this = Loaded {
+                scene: loaded.scene.clone(),
+                settings: loaded.settings.clone(),
+                digest: loaded.digest.clone(),
+                // Read once, for the first frame.
+                time: if reports.is_empty() {
+                    loaded.time
+                } else {
+                    Duration::ZERO
+                },
+            };
+            let built = crate::limits::scope_or_default(|| run.build(this)).map_err(|e| {
+                if cancel.load(Ordering::Relaxed) {
+                    PipelineError::Cancelled
+                } else {
+                    e
+                }
+            })?;
+            run.log_plan(&built);
+            run.check_cancel()?;
+            let mut rendered = run.render(built, denoiser.is_some())?;
+            let denoised = run.denoise(denoiser.as_ref(), &rendered)?;
+            let written = run.write(&mut rendered, denoised.as_ref().map(|(d, _)| d))?;
+            reports.push(run.report(rendered, denoised.map(|(_, t)| t), written));
+        }
+        Ok(reports)
+    }
+}
+
 /// One run of a [`RenderJob`]: where its stages report, and the warnings so far. Each stage is
 /// a method taking what the stage before it produced.
 struct Run<'a> {
@@ -769,6 +862,18 @@ impl Run<'_> {
         let time = t.elapsed();
         self.observer.stage_finished(Stage::Load, time);
         scene.warnings.iter().for_each(|w| self.warn(w.clone()));
+        if let Some(a) = scene
+            .animation
+            .as_deref()
+            .filter(|a| a.moves() && a.shutter.is_none())
+            && job.world.time == Default::default()
+        {
+            let (t0, t1) = a.time_range().unwrap_or((0.0, 0.0));
+            self.info(format!(
+                "the scene is animated ({t0:.3} s – {t1:.3} s): its rest pose is rendered unless \
+                 --time, --frame or --frames chooses a moment"
+            ));
+        }
         self.check_cancel()?;
         let (settings, size_note) = job.resolve(&scene);
         settings.validate()?;
@@ -803,7 +908,8 @@ impl Run<'_> {
         let camera_count = scene.cameras.len();
         self.observer.stage_started(Stage::Build);
         let t = Instant::now();
-        let world = World::build(scene, &job.world)?;
+        // Posed at the job's moment, with one world per shutter step for motion blur.
+        let world = World::build_posed(scene, &job.world)?;
         let time = t.elapsed();
         self.observer.stage_finished(Stage::Build, time);
         world.warnings.iter().for_each(|w| self.warn(w.clone()));

@@ -445,6 +445,7 @@ pub fn aovs_in_loop(world: &World, settings: &RenderSettings, start: &RangeStart
         .capabilities()
         .in_loop_aovs
         && start.resume.is_none()
+        && world.motion.is_empty()
 }
 
 /// [`render_range`]; with `aovs`, and when [`aovs_in_loop`] says the integrator can, the path
@@ -496,7 +497,7 @@ pub fn render_range_aovs(
                 .into(),
         ));
     }
-    let aovs = aovs && integrator.capabilities().in_loop_aovs && start.resume.is_none();
+    let aovs = aovs_in_loop(world, settings, &start) && aovs;
     let run = || {
         // Light paths splat anywhere on the film: their own driver (`render/light.rs`).
         if integrator.capabilities().splats {
@@ -617,11 +618,16 @@ fn render_in_pool(
         Learner::new(b.min, b.max)
     });
     let guide: RwLock<Option<Arc<Guide>>> = RwLock::new(None);
+    // Motion blur: each shutter step's world has its own camera (crate::world::motion).
+    let step_cameras = (1..world.time_steps())
+        .map(|k| crate::camera::Camera::new(&world.at_step(k).camera, w, h))
+        .collect();
     let work = TileWork {
         world,
         integrator,
         settings,
         camera,
+        step_cameras,
         filter: FilterSampler::new(&settings.filter),
         sampler: SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h),
         win,
@@ -685,6 +691,8 @@ struct TileWork<'a> {
     integrator: Integrator,
     settings: &'a RenderSettings,
     camera: crate::camera::Camera,
+    /// The cameras of shutter steps 1.. (motion blur; empty for a still).
+    step_cameras: Vec<crate::camera::Camera>,
     filter: FilterSampler,
     sampler: SamplerSetup,
     /// The film window in image coordinates.
@@ -724,7 +732,9 @@ impl TileWork<'_> {
         }
         // The surface path tracer's samples go through the batched first hits (`Batch`); the
         // other integrators trace sample by sample.
-        let batched = self.integrator.capabilities().batched_first_hits;
+        // Motion blur traces each sample in the world of its time, sample by sample.
+        let moving = !self.step_cameras.is_empty();
+        let batched = self.integrator.capabilities().batched_first_hits && !moving;
         // In-loop AOVs are only recorded by batching integrators (`aovs_in_loop`).
         debug_assert!(batched || !self.record_aovs);
         let mut batch = Batch::new(batched);
@@ -768,6 +778,11 @@ impl TileWork<'_> {
                         continue;
                     }
                     let mut stream = self.sampler.stream(pixel_key, s);
+                    if moving {
+                        let l = self.sample_moving(&mut stream, x, y, out.stats);
+                        out.add(fx, fy, l);
+                        continue;
+                    }
                     let l = sample_pixel(
                         world,
                         self.integrator,
@@ -786,6 +801,41 @@ impl TileWork<'_> {
         batch.trace(world, &settings.path, &mut out);
         drop(out);
         (block, st, aov_block, records)
+    }
+
+    /// One motion-blurred camera sample: the film and lens numbers as [`camera_ray`] draws
+    /// them, then the time (crate::world::motion), which picks the shutter step whose camera
+    /// and world the sample traces.
+    fn sample_moving(
+        &self,
+        stream: &mut SampleStream,
+        x: u32,
+        y: u32,
+        stats: &mut RayStats,
+    ) -> crate::math::Vec3 {
+        let jitter = stream.next_2d();
+        let lens = if self.camera.uses_lens() {
+            stream.next_2d()
+        } else {
+            stream.skip(2);
+            crate::math::Vec2::ZERO
+        };
+        let steps = self.world.time_steps();
+        let k = crate::world::motion::step_of(stream.next_1d(), steps);
+        let camera = match k {
+            0 => &self.camera,
+            k => &self.step_cameras[k - 1],
+        };
+        let (film, weight) = self.filter.film_point(x, y, jitter);
+        let ray = camera.generate_ray(film, lens);
+        let l = self.integrator.radiance(
+            self.world.at_step(k),
+            &ray,
+            stream,
+            &self.settings.path,
+            stats,
+        );
+        l * weight
     }
 }
 

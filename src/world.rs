@@ -51,6 +51,9 @@ pub struct WorldOptions {
     /// When objects sharing a mesh become instances of one copy (a two-level BVH) instead of
     /// being flattened into world-space triangles each.
     pub instancing: Instancing,
+    /// `--time`, `--frame`, `--fps`, `--shutter`: the moment of an animated scene to render and
+    /// the motion blur interval ([`motion`]).
+    pub time: motion::TimeOptions,
 }
 
 /// When objects that share a mesh are instanced (docs/DESIGN.md §5): the images are the same
@@ -96,6 +99,10 @@ pub struct World {
     /// over the pixel footprint, so renders give the path tracers the camera's footprint even
     /// without `--texture-filter trilinear` (`eval::bump`).
     pub has_bump: bool,
+    /// Motion blur (`WorldOptions::shutter`): the scene posed at the shutter's time steps, one
+    /// world each; a camera sample draws its time and traces the world of its step
+    /// ([`motion`]). Empty for a still.
+    pub motion: Vec<World>,
 }
 
 /// Rays pass through at most this many cut-out surfaces; beyond it the next surface counts as
@@ -191,6 +198,7 @@ impl World {
             has_cutouts,
             texture_filter: options.texture_filter,
             has_bump,
+            motion: Vec::new(),
         })
     }
 
@@ -1052,4 +1060,5 @@ fn cutout_hash(ray: &Ray, t: f32) -> f32 {
 
 /// The queries integrators ask of the world (lights, BSDFs, emission), in their own file.
 mod media;
+pub mod motion;
 mod queries;

@@ -4,8 +4,8 @@
 pub mod aov;
 pub mod bdpt;
 pub mod direct;
-pub mod lighttracer;
 pub mod guiding;
+pub mod lighttracer;
 pub mod path;
 pub mod raycast;
 pub mod select;

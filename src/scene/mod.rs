@@ -3,6 +3,7 @@
 //! materials with texture references, lights, cameras); [`crate::world::World`] compiles it into the
 //! render-time representation.
 
+pub mod animation;
 pub mod builtin;
 pub mod conventions;
 pub mod digest;
@@ -402,6 +403,9 @@ pub struct Scene {
     pub variant_objects: Vec<ObjectVariants>,
     /// The variant [`Scene::select_variant`] chose; `None` is the file's default materials.
     pub active_variant: Option<String>,
+    /// What moves, kept so [`Scene::pose`] can pose the scene at any time
+    /// ([`animation`]); `None` for a static file.
+    pub animation: Option<animation::AnimationRef>,
 }
 
 /// One object's materials under `KHR_materials_variants`: the default (the primitive's own

@@ -137,10 +137,11 @@ pub fn image_settings(
         light_sampler: _,
         texture_filter,
         instancing,
+        time,
     } = w;
     let env_map = env.is_some();
     let light_sampler = light_sampler.name();
-    let fields: [(&str, &dyn std::fmt::Debug); 20] = [
+    let fields: [(&str, &dyn std::fmt::Debug); 21] = [
         ("width", width),
         ("height", height),
         ("spp", spp),
@@ -163,6 +164,8 @@ pub fn image_settings(
         // Instanced and flattened renders agree bit for bit, but the object-id AOV numbers
         // instances after the analytic shapes.
         ("instancing", instancing),
+        // The moment and the shutter: frames of an animation are different images.
+        ("time", time),
     ];
     let mut m: BTreeMap<String, String> = fields
         .iter()

@@ -227,6 +227,28 @@ pub struct RenderArgs {
     /// Default: the file's default materials.
     #[arg(long, value_name = "NAME", help_heading = HEADING_SCENE, hide_short_help = true)]
     pub variant: Option<String>,
+    /// Render an animated scene (glTF animations, skins, morph targets; pbrt motion) at this
+    /// time in seconds. Default: the file's rest pose.
+    #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
+    pub time: Option<f64>,
+    /// Render frame N of the animation: time N / --fps.
+    #[arg(long, value_name = "N", conflicts_with_all = ["time", "frames"])]
+    pub frame: Option<u32>,
+    /// Render frames A..B (inclusive) of the animation, loading the scene once; each output is
+    /// numbered (-o out.exr writes out_0001.exr, out_0002.exr and so on).
+    #[arg(long, value_name = "A..B", conflicts_with = "time")]
+    pub frames: Option<String>,
+    /// Frames per second for --frame/--frames. Default: the file's, else 24.
+    #[arg(long, value_name = "FPS")]
+    pub fps: Option<f64>,
+    /// Motion blur: the shutter is open from OPEN to CLOSE seconds (after --time or the frame's
+    /// time when given, else scene time). Default: none (pbrt files: their camera's shutter).
+    #[arg(long, value_name = "OPEN,CLOSE", allow_hyphen_values = true)]
+    pub shutter: Option<String>,
+    /// Motion blur: the scene is posed at this many times across the shutter (each a compiled
+    /// world in memory); every camera sample takes one by its time. Default 16.
+    #[arg(long, value_name = "N")]
+    pub shutter_steps: Option<u32>,
     /// How next-event estimation chooses a light: auto (bvh8 above 16 emitters, points and
     /// spots, else power), power (in proportion to power), bvh (the light BVH: by importance
     /// from the shading point, four children per tree node) or bvh8 (the same with eight
@@ -443,6 +465,27 @@ impl RenderArgs {
             light_sampler: self.light_sampler,
             texture_filter: self.texture_filter,
             instancing: Default::default(),
+            time: trayecto::world::motion::TimeOptions {
+                time: self.time,
+                frame: self.frame,
+                fps: self.fps,
+                shutter: self.shutter.as_deref().and_then(parse_shutter),
+                steps: self.shutter_steps.unwrap_or(0),
+            },
+        }
+    }
+
+    /// `--frames A..B`, inclusive.
+    pub fn frame_range(&self) -> Result<Option<std::ops::RangeInclusive<u32>>> {
+        let Some(f) = &self.frames else {
+            return Ok(None);
+        };
+        let parsed = f.split_once("..").and_then(|(a, b)| {
+            Some((a.trim().parse::<u32>().ok()?, b.trim().parse::<u32>().ok()?))
+        });
+        match parsed {
+            Some((a, b)) if a <= b => Ok(Some(a..=b)),
+            _ => bail!("invalid setting: --frames must be A..B with A <= B (got '{f}')"),
         }
     }
 
@@ -493,6 +536,11 @@ impl RenderArgs {
         let mut aovs = self.aov_layers()?;
         if self.transparent && !aovs.contains(&AovKind::Alpha) {
             aovs.push(AovKind::Alpha);
+        }
+        if let Some(sh) = &self.shutter
+            && parse_shutter(sh).is_none()
+        {
+            bail!("invalid setting: --shutter must be OPEN,CLOSE in seconds (got '{sh}')");
         }
         let mut world = self.world_options();
         if let Some(f) = &self.camera_from {
@@ -573,6 +621,12 @@ static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 /// SIGHUP, handled alike, end with it too).
 pub const EXIT_INTERRUPTED: u8 = 130;
 
+/// `OPEN,CLOSE` in seconds.
+fn parse_shutter(s: &str) -> Option<[f64; 2]> {
+    let (a, b) = s.split_once(',')?;
+    Some([a.trim().parse().ok()?, b.trim().parse().ok()?])
+}
+
 /// A render stopped by Ctrl-C: the message says what was saved.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
@@ -617,7 +671,12 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         })),
         path_rule(args.confine_paths),
     );
-    match trayecto::limits::scope(load, || job.run(&console, &INTERRUPTED)) {
+    let frames = args.frame_range()?;
+    let result = trayecto::limits::scope(load, || match frames {
+        Some(range) => job.run_frames(range, &console, &INTERRUPTED).map(|_| ()),
+        None => job.run(&console, &INTERRUPTED).map(|_| ()),
+    });
+    match result {
         Ok(_) => Ok(()),
         Err(e @ PipelineError::Interrupted { .. }) => Err(Interrupted(e.to_string()).into()),
         Err(PipelineError::Cancelled) => Err(Interrupted(
@@ -717,9 +776,15 @@ fn info(args: &InfoArgs) -> Result<()> {
     let scene_notes = scene.notes.clone();
     let hints = scene.hints.clone();
     let variants = scene.variants.clone();
+    let animation = scene.animation.clone();
     let world = World::build(scene, &WorldOptions::default())?;
     let b = world.bounds;
     println!("scene       {name}");
+    if let Some(a) = animation.filter(|a| a.moves()) {
+        // What --time/--frame/--frames/--shutter can choose from.
+        let (t0, t1) = a.time_range().unwrap_or((0.0, 0.0));
+        println!("animation   {t0:.3} s – {t1:.3} s (--time, --frame, --frames, --shutter)");
+    }
     println!("meshes      {meshes}");
     println!("objects     {objects}");
     println!("triangles   {}", world.triangle_count());

@@ -118,12 +118,6 @@ impl Loader<'_> {
                 }
             }
         }
-        if prim.morph_targets().next().is_some() {
-            self.warn_once(
-                "morph",
-                "morph targets are not supported: the base shape is rendered".into(),
-            );
-        }
         let idx: Vec<u32> = match (draco.map(|d| d.indices), prim.indices()) {
             // Draco streams hold triangles whatever the primitive's mode says.
             (Some(tris), _) => {

@@ -11,12 +11,16 @@
 //! node that instantiates it; perspective cameras keep their order (the first is the default);
 //! `KHR_lights_punctual` intensities are divided by 683 lm/W (docs/DESIGN.md §4) to give W/sr (point, spot)
 //! and W/m² (directional). Every feature the file uses that Trayecto ignores is named in a warning.
+//! Animations, skins and morph targets become the scene's [`crate::scene::animation::Animation`]
+//! (`animation.rs`): skinned and morphed primitives get a mesh per node, posed at load in the
+//! rest pose and by `Scene::pose` at any time.
 //!
 //! The loader is one [`Loader`] whose methods are split by concern: this file reads the document,
 //! its buffers and extensions; `accessor.rs` decodes binary data; `material.rs` materials and
 //! textures; `mesh.rs` primitives into meshes; `nodes.rs` the node hierarchy, cameras and lights.
 
 mod accessor;
+mod animation;
 mod draco;
 mod images;
 mod material;
@@ -116,6 +120,7 @@ fn load_from_bytes_unguarded(bytes: &[u8], dir: &Path, label: &str) -> Result<Sc
         images: HashMap::new(),
         variants: Vec::new(),
         variant_sets: Vec::new(),
+        rig: Default::default(),
     };
     ld.read_buffers(gltf.blob.as_deref())?;
     ld.decode_meshopt_views()?;
@@ -127,20 +132,7 @@ fn load_from_bytes_unguarded(bytes: &[u8], dir: &Path, label: &str) -> Result<Sc
         ld.scene.add_material(mat);
     }
     ld.nodes()?;
-    let doc = ld.doc;
-    if doc.animations().next().is_some() {
-        let n = doc.animations().count();
-        ld.warn_once(
-            "animations",
-            format!("{n} animation(s) are not supported: the static pose is rendered"),
-        );
-    }
-    if doc.skins().next().is_some() {
-        ld.warn_once(
-            "skins",
-            "skins are not supported: meshes are rendered in their bind pose".into(),
-        );
-    }
+    ld.finish_animation()?;
     ld.images.clear();
     let variant_sets = std::mem::take(&mut ld.variant_sets);
     let mut scene = ld.scene;
@@ -223,6 +215,8 @@ struct Loader<'a> {
     variants: Vec<String>,
     /// Per object with variant mappings: its default material and the material of each variant.
     variant_sets: Vec<variants::ObjectVariantsDraft>,
+    /// The node hierarchy, skins and deformed meshes, for posing (gltf/animation.rs).
+    rig: crate::scene::animation::Rig,
 }
 
 impl<'a> Loader<'a> {

@@ -2,6 +2,7 @@
 //! `KHR_lights_punctual` lights.
 
 use super::*;
+use crate::scene::animation::Placed;
 
 impl Loader<'_> {
     pub(super) fn nodes(&mut self) -> Result<(), SceneError> {
@@ -26,12 +27,12 @@ impl Loader<'_> {
             ));
         }
         let mut visited = HashSet::new();
-        let mut stack: Vec<(gltf::Node, Mat4)> = roots
+        let mut stack: Vec<(gltf::Node, Mat4, Option<usize>)> = roots
             .into_iter()
             .rev()
-            .map(|n| (n, Mat4::IDENTITY))
+            .map(|n| (n, Mat4::IDENTITY, None))
             .collect();
-        while let Some((node, parent)) = stack.pop() {
+        while let Some((node, parent, parent_index)) = stack.pop() {
             if !visited.insert(node.index()) {
                 // A node reached twice is a cycle or a shared child, both invalid glTF.
                 self.warn_once(
@@ -49,40 +50,70 @@ impl Loader<'_> {
                 .name()
                 .map(str::to_string)
                 .unwrap_or_else(|| format!("node {}", node.index()));
+            self.rig_visit(&node, parent_index);
             if let Some(mesh) = node.mesh() {
-                let placements = self.gpu_instances(&node, world)?;
+                // Instance placements relative to the node, so posing can move the node.
+                let locals = self.gpu_instances(&node)?;
+                // Skinned meshes and meshes with morph targets get a copy per node: each node
+                // poses its own vertices (animation.rs).
+                let deforms = node.skin().is_some()
+                    || mesh
+                        .primitives()
+                        .any(|p| p.morph_targets().next().is_some());
                 for prim in mesh.primitives() {
-                    if let Some((mesh_id, material)) = self.primitive(&mesh, &prim)? {
-                        for &m in &placements {
-                            self.scene
-                                .add_object(&node_name, Shape::Mesh(mesh_id), m, material);
+                    let built = if deforms {
+                        self.deformed_primitive(&node, &mesh, &prim)?
+                    } else {
+                        self.primitive(&mesh, &prim)?
+                    };
+                    if let Some((mesh_id, material)) = built {
+                        for &local in &locals {
+                            self.scene.add_object(
+                                &node_name,
+                                Shape::Mesh(mesh_id),
+                                if local == Mat4::IDENTITY {
+                                    world
+                                } else {
+                                    world * local
+                                },
+                                material,
+                            );
                             let object = self.scene.objects.len() - 1;
+                            self.rig_place(&node, Placed::Object { object, local });
                             self.primitive_variants(&prim, object, material)?;
                         }
                     }
                 }
             }
             if let Some(cam) = node.camera() {
+                let before = self.scene.cameras.len();
                 self.camera(&cam, &node_name, world);
+                if self.scene.cameras.len() > before {
+                    self.rig_place(&node, Placed::Camera(before));
+                }
             }
             if let Some(light) = node.light() {
+                let before = self.scene.lights.len();
                 self.light(&light, &node_name, world);
+                if self.scene.lights.len() > before {
+                    self.rig_place(&node, Placed::Light(before));
+                }
             }
             for c in node.children().collect::<Vec<_>>().into_iter().rev() {
-                stack.push((c, world));
+                stack.push((c, world, Some(node.index())));
             }
         }
         Ok(())
     }
 
-    /// Where a node's mesh is placed: at the node's `world` transform, or with
-    /// `EXT_mesh_gpu_instancing` once per instance at `world` × the instance's translation,
+    /// Where a node's mesh is placed relative to the node: once, or with
+    /// `EXT_mesh_gpu_instancing` once per instance at the instance's translation,
     /// rotation and scale (the extension's TRS, composed as a node's). The objects share the
     /// mesh, so the world can instance them (docs/DESIGN.md §6).
-    fn gpu_instances(&mut self, node: &gltf::Node, world: Mat4) -> Result<Vec<Mat4>, SceneError> {
+    fn gpu_instances(&mut self, node: &gltf::Node) -> Result<Vec<Mat4>, SceneError> {
         const EXT: &str = "EXT_mesh_gpu_instancing";
         let Some(ext) = node.extension_value(EXT) else {
-            return Ok(vec![world]);
+            return Ok(vec![Mat4::IDENTITY]);
         };
         let attributes = ext.get("attributes").and_then(|a| a.as_object());
         let read = |name: &str| -> Result<Option<Vec<[f64; 4]>>, SceneError> {
@@ -108,7 +139,7 @@ impl Loader<'_> {
                 "node {}: {EXT} has no TRANSLATION, ROTATION or SCALE; the mesh is placed once",
                 node.index()
             ));
-            return Ok(vec![world]);
+            return Ok(vec![Mat4::IDENTITY]);
         };
         if counts.iter().any(|&c| c != n) {
             return Err(self.err(format!(
@@ -135,12 +166,11 @@ impl Loader<'_> {
                         glam::Quat::IDENTITY
                     }
                 });
-                world
-                    * Mat4::from_scale_rotation_translation(
-                        v3(&s, i, Vec3::ONE),
-                        q,
-                        v3(&t, i, Vec3::ZERO),
-                    )
+                Mat4::from_scale_rotation_translation(
+                    v3(&s, i, Vec3::ONE),
+                    q,
+                    v3(&t, i, Vec3::ZERO),
+                )
             })
             .collect();
         if bad_rotation {
@@ -156,14 +186,7 @@ impl Loader<'_> {
     pub(super) fn camera(&mut self, cam: &gltf::Camera, node_name: &str, world: Mat4) {
         let name = cam.name().unwrap_or(node_name).to_string();
         // Cameras ignore scale: keep the rotation and the position only.
-        let rigid = |world: Mat4| {
-            Mat4::from_cols(
-                world.x_axis.truncate().normalize_or_zero().extend(0.0),
-                world.y_axis.truncate().normalize_or_zero().extend(0.0),
-                world.z_axis.truncate().normalize_or_zero().extend(0.0),
-                world.w_axis,
-            )
-        };
+        let rigid = crate::scene::animation::rigid;
         match cam.projection() {
             gltf::camera::Projection::Perspective(p) => {
                 self.scene.cameras.push(CameraDesc {

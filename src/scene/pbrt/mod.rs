@@ -162,7 +162,7 @@ enum MatRef {
 #[derive(Clone, Debug)]
 struct GraphicsState {
     ctm: Mat4,
-    /// The end-time transform; only compared with `ctm` to warn about motion blur.
+    /// The end-time transform (`ActiveTransform EndTime`), for motion blur.
     ctm_end: Mat4,
     active: Active,
     reverse: bool,
@@ -264,6 +264,14 @@ pub(crate) struct Loader {
     media: HashMap<String, Option<crate::scene::MediumId>>,
     /// The camera's medium name (pbrt's outside medium at `Camera`) and where it was set.
     camera_medium: Option<(String, String)>,
+    /// `TransformTimes` (pbrt-v4's default 0 1).
+    transform_times: [f64; 2],
+    /// Objects placed with a moving transform (start ≠ end), and the camera's end transform
+    /// when it moves: the scene's [`crate::scene::animation::Animation`].
+    motion: Vec<crate::scene::animation::RigidMotion>,
+    camera_end: Option<Mat4>,
+    /// The camera's `shutteropen`/`shutterclose`.
+    shutter: Option<(f64, f64)>,
 }
 
 /// `file:line` of a token.
@@ -299,11 +307,30 @@ impl Loader {
             warned_once: Default::default(),
             media: HashMap::new(),
             camera_medium: None,
+            transform_times: [0.0, 1.0],
+            motion: Vec::new(),
+            camera_end: None,
+            shutter: None,
         }
     }
 
     pub(crate) fn warn(&mut self, w: String) {
         self.scene.warnings.push(w);
+    }
+
+    /// The moving shapes and camera become the scene's animation, blurred over the camera's
+    /// shutter.
+    fn finish_motion(&mut self) {
+        if self.motion.is_empty() {
+            return;
+        }
+        self.scene.animation = Some(std::sync::Arc::new(crate::scene::animation::Animation {
+            rigid: std::mem::take(&mut self.motion),
+            shutter: Some(self.shutter.unwrap_or((0.0, 1.0))),
+            ..Default::default()
+        }));
+        // The still (no --time, no shutter) shows the start transforms, as before.
+        self.scene.pose(None);
     }
 
     /// A warning given once per distinct key (per-shape repeats would drown the rest).
@@ -773,10 +800,11 @@ impl Loader {
         }
         let material = self.current_material(at);
         self.gs.area_light = saved;
-        if self.gs.ctm != self.gs.ctm_end {
+        let moving = self.gs.ctm != self.gs.ctm_end;
+        if moving && self.current_object.is_some() {
             self.warn_once(
                 "motion",
-                format!("{at}: Shape: an animated transform is rendered at its start time (motion blur is not supported)"),
+                format!("{at}: Shape: a moving shape inside an object definition (ObjectBegin) is rendered at its start time (motion blur of instanced parts is not supported)"),
             );
         }
         if self.current_object.is_some() {
@@ -793,6 +821,18 @@ impl Loader {
             }
         } else {
             self.scene.add_object(&name, shape, self.gs.ctm, material);
+            if moving {
+                // pbrt-v4 `AnimatedTransform` between the two TransformTimes.
+                self.motion
+                    .push(crate::scene::animation::RigidMotion::Object {
+                        object: self.scene.objects.len() - 1,
+                        motion: crate::scene::animation::MovingTransform {
+                            times: self.transform_times,
+                            start: self.gs.ctm,
+                            end: self.gs.ctm_end,
+                        },
+                    });
+            }
             let mi = self.shape_medium_interface(at);
             if let Some(o) = self.scene.objects.last_mut() {
                 o.medium = mi;
@@ -1018,6 +1058,7 @@ impl Loader {
         self.run_image_jobs();
         self.run_procedural_means();
         self.camera_and_film()?;
+        self.finish_motion();
         Ok(self.scene)
     }
 
@@ -1308,11 +1349,19 @@ impl Loader {
                 "Camera: lensradius must be ≥ 0 and focaldistance > 0",
             ));
         }
-        for k in ["shutteropen", "shutterclose"] {
-            if list.has(k) {
-                let _ = list.float(k, 0.0);
-            }
+        // pbrt-v4 cameras' shutter (default 0 to 1): the motion blur interval unless
+        // `--shutter` says (crate::world::motion).
+        let shutter = (
+            list.float("shutteropen", 0.0) as f64,
+            list.float("shutterclose", 1.0) as f64,
+        );
+        if !(shutter.0.is_finite() && shutter.1.is_finite() && shutter.0 <= shutter.1) {
+            return Err(SceneError::invalid(
+                &at,
+                "Camera: shutteropen must be at most shutterclose",
+            ));
         }
+        self.shutter = Some(shutter);
         match &mut projection {
             Projection::Orthographic { half_height } => *half_height = half_h,
             Projection::Spherical(_) => {
@@ -1327,6 +1376,29 @@ impl Loader {
         self.note_unused(&list, "Camera", &at);
         // pbrt camera space looks down +z; Trayecto's looks down −z with the same x and y.
         let flip = Mat4::from_scale(Vec3::new(1.0, 1.0, -1.0));
+        if let Some(end) = self.camera_end.take() {
+            match invert(&end) {
+                Some(world_from_end) => {
+                    let to_world = |w: Mat4| match shear {
+                        Some(shear) => w * flip * shear,
+                        None => w * flip,
+                    };
+                    // pbrt-v4 interpolates the camera's world-from-camera transform.
+                    self.motion
+                        .push(crate::scene::animation::RigidMotion::Camera {
+                            camera: self.scene.cameras.len(),
+                            motion: crate::scene::animation::MovingTransform {
+                                times: self.transform_times,
+                                start: to_world(world_from_camera),
+                                end: to_world(world_from_end),
+                            },
+                        });
+                }
+                None => self.warn(format!(
+                    "{at}: Camera: the end-time camera transform is singular; the camera does not move"
+                )),
+            }
+        }
         self.scene.cameras.push(CameraDesc {
             name: "pbrt camera".into(),
             camera_to_world: match shear {

@@ -32,6 +32,7 @@ def parse_args(argv):
     p.add_argument("-o", "--output", type=Path, required=True, help="output image (.exr, .png, ...); with several frames out_0000.exr, out_0001.exr, ...")
     p.add_argument("--scheduler", help="address of a running Dask scheduler, e.g. tcp://host:8786 (default: start a local cluster)")
     p.add_argument("--cameras", help="comma-separated camera names or indices: one frame per camera")
+    p.add_argument("--frames", help="A..B: frames A to B of the scene's animation (trayecto render --frame N each), numbered out_A.exr ... out_B.exr")
     p.add_argument("--workers", type=int, default=None, help="local cluster only: worker processes (default: 2, or 1 per core up to 4)")
     p.add_argument("--threads-per-task", type=int, default=None, help="--threads given to each renderer (default: the renderer's own choice; a local cluster divides the cores)")
     p.add_argument("--trayecto", default=os.environ.get("TRAYECTO_BIN", "trayecto"), help="the trayecto executable as the workers see it (default: $TRAYECTO_BIN or 'trayecto')")
@@ -64,7 +65,18 @@ def main(argv=None) -> int:
     from distributed import Client, LocalCluster
 
     cameras = [c.strip() for c in a.cameras.split(",")] if a.cameras else [None]
-    frames = len(a.scenes) * len(cameras)
+    anim_frames = [None]
+    if a.frames:
+        try:
+            lo, hi = (int(x) for x in a.frames.split(".."))
+        except ValueError:
+            print(f"error: --frames must be A..B (got '{a.frames}')", file=sys.stderr)
+            return 2
+        if lo < 0 or hi < lo:
+            print(f"error: --frames must be A..B with 0 <= A <= B (got '{a.frames}')", file=sys.stderr)
+            return 2
+        anim_frames = list(range(lo, hi + 1))
+    frames = len(a.scenes) * len(cameras) * len(anim_frames)
     local_trayecto = a.trayecto if shutil.which(a.trayecto) or Path(a.trayecto).is_file() else None
     cluster = None
     try:
@@ -92,6 +104,7 @@ def main(argv=None) -> int:
             chunks=chunks,
             output=a.output,
             cameras=cameras,
+            anim_frames=anim_frames,
             render_args=a.render_args,
             trayecto=a.trayecto,
             threads_per_task=threads,

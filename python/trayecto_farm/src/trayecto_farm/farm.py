@@ -99,6 +99,8 @@ class Task:
     scene: str
     camera: Optional[str]
     samples: tuple[int, int]
+    # The animation frame rendered (``trayecto render --frame N``), if any.
+    anim_frame: Optional[int] = None
 
 
 def render_chunk(
@@ -128,6 +130,8 @@ def render_chunk(
         ]
         if task.camera is not None:
             cmd += ["--camera", task.camera]
+        if task.anim_frame is not None:
+            cmd += ["--frame", str(task.anim_frame)]
         if threads is not None:
             cmd += ["--threads", str(threads)]
         try:
@@ -154,6 +158,8 @@ class FarmJob:
     chunks: int
     output: Path
     cameras: list[Optional[str]] = field(default_factory=lambda: [None])
+    # Frames of an animation (``--frames A..B``): each is a frame of the job, split into chunks.
+    anim_frames: list[Optional[int]] = field(default_factory=lambda: [None])
     render_args: list[str] = field(default_factory=list)
     trayecto: str = "trayecto"
     threads_per_task: Optional[int] = None
@@ -162,18 +168,22 @@ class FarmJob:
     retries: int = 2
 
     def frames(self) -> list[tuple[str, Optional[str]]]:
-        return [(s, c) for s in self.scenes for c in self.cameras]
+        return [(s, c) for s in self.scenes for c in self.cameras for _ in self.anim_frames]
 
     def frame_output(self, i: int) -> Path:
-        """``out.exr`` for one frame; ``out_0000.exr``, ``out_0001.exr``, … for several."""
+        """``out.exr`` for one frame; ``out_0000.exr``, ``out_0001.exr``, … for several; frames of
+        one animation are numbered by frame, as ``trayecto render --frames`` numbers them."""
         if len(self.frames()) == 1:
             return self.output
+        if len(self.scenes) * len(self.cameras) == 1 and self.anim_frames[0] is not None:
+            i = self.anim_frames[i]
         return self.output.with_name(f"{self.output.stem}_{i:04d}{self.output.suffix}")
 
     def tasks(self) -> list[Task]:
         ranges = plan_chunks(self.spp, self.chunks)
+        n = len(self.anim_frames)
         return [
-            Task(i, scene, cam, r)
+            Task(i, scene, cam, r, self.anim_frames[i % n])
             for i, (scene, cam) in enumerate(self.frames())
             for r in ranges
         ]
@@ -211,7 +221,7 @@ def run_farm(
         # Shared filesystem: every worker must see the scene at the same (absolute) path.
         tasks = [
             Task(t.frame, str(Path(t.scene).resolve()) if Path(t.scene).exists() else t.scene,
-                 t.camera, t.samples)
+                 t.camera, t.samples, t.anim_frame)
             for t in tasks
         ]
     futures = {}

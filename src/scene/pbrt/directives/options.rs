@@ -43,11 +43,8 @@ impl Loader {
                         "{at}: Camera \"{ty}\" is not supported; a perspective camera with the same parameters is used"
                     ));
                 }
-                if self.gs.ctm != self.gs.ctm_end {
-                    self.warn(format!(
-                        "{at}: Camera: the moving camera is rendered at its start time"
-                    ));
-                }
+                // A moving camera: its end transform, for motion blur.
+                self.camera_end = (self.gs.ctm != self.gs.ctm_end).then_some(self.gs.ctm_end);
                 // pbrt names the camera's coordinate system "camera".
                 if let Some(inv) = invert(&self.gs.ctm) {
                     self.named_coord.insert("camera".into(), inv);

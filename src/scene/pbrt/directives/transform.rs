@@ -1,6 +1,7 @@
 //! Transform directives: `Identity`, `Translate`, `Scale`, `Rotate`, `LookAt`, `Transform`,
 //! `ConcatTransform`, named coordinate systems, `ActiveTransform` and `TransformTimes` (pbrt-v4
-//! file format, "Transformations"). Trayecto renders the start time.
+//! file format, "Transformations"). Shapes and the camera whose start and end transforms differ
+//! move between the two `TransformTimes` (scene::animation::MovingTransform).
 
 use crate::math::{Mat4, Vec3};
 use crate::scene::SceneError;
@@ -8,8 +9,7 @@ use crate::scene::pbrt::{Active, Cursor, Loader, look_at};
 
 impl Loader {
     fn transform_directive(&mut self, m: Mat4, set: bool) {
-        // Transform directives change the transforms `ActiveTransform` selects; Trayecto renders
-        // the start time (motion blur is not supported and is warned about at the shape).
+        // Transform directives change the transforms `ActiveTransform` selects.
         let apply = |cur: Mat4| if set { m } else { cur * m };
         if self.gs.active != Active::End {
             self.gs.ctm = apply(self.gs.ctm);
@@ -106,15 +106,14 @@ impl Loader {
             }
             "TransformTimes" => {
                 let v = p.numbers(2, at)?;
-                if v[0] != v[1] {
-                    self.warn_once(
-                        "TransformTimes",
-                        format!(
-                            "{at}: TransformTimes {} {}: motion blur is not supported; the start-time transform is rendered",
-                            v[0], v[1]
-                        ),
-                    );
+                let (t0, t1) = (v[0] as f64, v[1] as f64);
+                if !(t0.is_finite() && t1.is_finite() && t0 <= t1) {
+                    return Err(SceneError::invalid(
+                        at,
+                        format!("TransformTimes {t0} {t1}: the start must not be after the end"),
+                    ));
                 }
+                self.transform_times = [t0, t1];
             }
             _ => return Ok(false),
         }

@@ -1,0 +1,394 @@
+//! Animation and motion blur: Khronos animated models posed at several times against an
+//! independent reference of the glTF 2.0 sampling rules (scripts/gltf_anim_reference.py, whose
+//! output is tests/data/gltf_anim_poses.json), and motion-blurred renders against the average
+//! of renders at the shutter's times.
+
+mod common;
+
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use trayecto::film::Image;
+use trayecto::math::{Mat4, Vec3};
+use trayecto::render::{NoObserver, RenderSettings, render};
+use trayecto::scene::animation::{Animation, MovingTransform, RigidMotion};
+use trayecto::scene::{Scene, Shape};
+use trayecto::world::motion::{TimeOptions, step_time};
+use trayecto::world::{World, WorldOptions};
+
+fn shared(rel: &str) -> String {
+    format!("{}/../shared/scenes/{rel}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Every model of the reference, at every time: each mesh object's sampled vertices in world
+/// space agree with the script's to 1e-4 (relative to the model's size).
+#[test]
+fn poses_agree_with_the_spec_reference() {
+    let text = std::fs::read_to_string(format!(
+        "{}/tests/data/gltf_anim_poses.json",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    let reference: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let times: Vec<f64> = reference["times"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_f64().unwrap())
+        .collect();
+    let models = reference["models"].as_object().unwrap();
+    assert_eq!(models.len(), 5);
+    for (name, model) in models {
+        let scene = trayecto::scene::load(&shared(model["path"].as_str().unwrap())).unwrap();
+        assert!(scene.animation.is_some(), "{name}: no animation was read");
+        assert!(
+            !scene
+                .warnings
+                .iter()
+                .any(|w| w.contains("static pose") || w.contains("not supported")),
+            "{name}: {:?}",
+            scene.warnings
+        );
+        for (ti, &t) in times.iter().enumerate() {
+            let mut s = scene.clone();
+            s.pose(Some(t));
+            let objects: Vec<_> = s
+                .objects
+                .iter()
+                .filter_map(|o| match o.shape {
+                    Shape::Mesh(m) => Some((m, o.transform)),
+                    _ => None,
+                })
+                .collect();
+            let expected = model["poses"][ti].as_array().unwrap();
+            assert_eq!(objects.len(), expected.len(), "{name} at {t}: object count");
+            let mut checked = 0;
+            for ((mesh, transform), e) in objects.iter().zip(expected) {
+                let stride = e["stride"].as_u64().unwrap() as usize;
+                let positions = &s.meshes[*mesh].positions;
+                for (k, v) in e["vertices"].as_array().unwrap().iter().enumerate() {
+                    let r: Vec<f64> = v
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|c| c.as_f64().unwrap())
+                        .collect();
+                    let p = transform.transform_point3(positions[k * stride]);
+                    let err = (p.as_dvec3() - glam::DVec3::new(r[0], r[1], r[2])).length();
+                    assert!(
+                        err < 1e-4 * (1.0 + glam::DVec3::new(r[0], r[1], r[2]).length()),
+                        "{name} at t = {t}, node {}, vertex {}: {p} vs {r:?}",
+                        e["node"],
+                        k * stride
+                    );
+                    checked += 1;
+                }
+            }
+            assert!(checked > 0);
+        }
+    }
+}
+
+/// The reference is not trivially satisfied: at different times the poses differ (a pose that
+/// ignored the animation would pass only if nothing moved).
+#[test]
+fn the_reference_poses_move() {
+    let scene = trayecto::scene::load(&shared("gltf-anim/CesiumMan/glTF/CesiumMan.gltf")).unwrap();
+    let at = |t: f64| {
+        let mut s = scene.clone();
+        s.pose(Some(t));
+        s.meshes[0].positions[100]
+    };
+    assert!((at(0.37) - at(1.0)).length() > 1e-3);
+}
+
+fn small(seed: u64, spp: u32) -> RenderSettings {
+    RenderSettings {
+        width: 24,
+        height: 24,
+        spp,
+        seed,
+        threads: Some(2),
+        ..Default::default()
+    }
+}
+
+fn render_with(scene: &Scene, time: TimeOptions, settings: &RenderSettings) -> Image {
+    // One view for every time: a file without a camera is framed once, from its rest pose (the
+    // automatic camera of each still would follow the moving bounds).
+    let camera_override = scene.cameras.is_empty().then(|| {
+        let rest = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+        trayecto::camera::CameraSpec::from_desc(&rest.camera)
+    });
+    let options = WorldOptions {
+        time,
+        camera_override,
+        ..Default::default()
+    };
+    let world = World::build_posed(scene.clone(), &options).expect("builds");
+    render(&world, settings, &NoObserver, &AtomicBool::new(false))
+        .expect("renders")
+        .image
+}
+
+fn mse(a: &Image, b: &Image) -> f64 {
+    a.data
+        .iter()
+        .zip(&b.data)
+        .map(|(x, y)| (*x - *y).length_squared() as f64)
+        .sum::<f64>()
+        / a.data.len() as f64
+}
+
+/// A motion-blurred render is an unbiased estimate of the average over the shutter's steps:
+/// its distance to the average of `--time` renders at the steps is that of two independent
+/// blurred renders (noise only), while the still at the opening is far (the motion shows).
+fn blur_is_the_average_over_the_shutter(scene: &Scene, shutter: [f64; 2], what: &str) {
+    let steps = 4;
+    let blur = |seed| {
+        render_with(
+            scene,
+            TimeOptions {
+                shutter: Some(shutter),
+                steps,
+                ..Default::default()
+            },
+            &small(seed, 256),
+        )
+    };
+    let (a, b) = (blur(1), blur(2));
+    let mut average: Option<Image> = None;
+    for k in 0..steps {
+        let t = step_time(shutter[0], shutter[1], k, steps);
+        let img = render_with(
+            scene,
+            TimeOptions {
+                time: Some(t),
+                ..Default::default()
+            },
+            &small(10 + k as u64, 256),
+        );
+        match average.as_mut() {
+            None => average = Some(img),
+            Some(acc) => acc
+                .data
+                .iter_mut()
+                .zip(&img.data)
+                .for_each(|(x, y)| *x += *y),
+        }
+    }
+    let mut average = average.unwrap();
+    average.data.iter_mut().for_each(|p| *p /= steps as f32);
+    let still = render_with(
+        scene,
+        TimeOptions {
+            time: Some(shutter[0]),
+            ..Default::default()
+        },
+        &small(3, 256),
+    );
+    let noise = mse(&a, &b);
+    let to_average = mse(&a, &average);
+    let to_still = mse(&a, &still);
+    eprintln!(
+        "{what}: noise {noise:.3e}, to the average {to_average:.3e}, to the still {to_still:.3e}"
+    );
+    assert!(noise > 0.0);
+    assert!(
+        to_average < 1.2 * noise,
+        "{what}: the blurred render is {to_average:.3e} from the average, two blurred renders {noise:.3e} apart"
+    );
+    assert!(
+        to_still > 3.0 * noise,
+        "{what}: the blurred render is as close to the still ({to_still:.3e}) as to another blurred one ({noise:.3e}): nothing moved"
+    );
+}
+
+#[test]
+fn motion_blur_of_a_moving_object() {
+    let scene = trayecto::scene::load(&shared("gltf-anim/BoxAnimated/glTF-Binary/BoxAnimated.glb"))
+        .unwrap();
+    blur_is_the_average_over_the_shutter(&scene, [0.6, 1.6], "BoxAnimated");
+}
+
+#[test]
+fn motion_blur_of_a_skinned_mesh() {
+    let scene =
+        trayecto::scene::load(&shared("gltf-anim/CesiumMan/glTF-Binary/CesiumMan.glb")).unwrap();
+    blur_is_the_average_over_the_shutter(&scene, [0.2, 0.9], "CesiumMan");
+}
+
+#[test]
+fn motion_blur_of_a_moving_camera() {
+    let mut scene = trayecto::scene::builtin::load("cornell").unwrap();
+    let start = scene.cameras[0].camera_to_world;
+    let end =
+        start * Mat4::from_translation(Vec3::new(0.15, 0.0, 0.0)) * Mat4::from_rotation_y(0.2);
+    scene.animation = Some(Arc::new(Animation {
+        rigid: vec![RigidMotion::Camera {
+            camera: 0,
+            motion: MovingTransform {
+                times: [0.0, 1.0],
+                start,
+                end,
+            },
+        }],
+        ..Default::default()
+    }));
+    blur_is_the_average_over_the_shutter(&scene, [0.0, 1.0], "cornell, moving camera");
+}
+
+/// Without a shutter nothing is drawn for time: a still of an animated file at a time is the
+/// image of the scene posed there, built as a still.
+#[test]
+fn a_still_at_a_time_is_the_posed_scene() {
+    let scene = trayecto::scene::load(&shared("gltf-anim/BoxAnimated/glTF-Binary/BoxAnimated.glb"))
+        .unwrap();
+    let via_options = render_with(
+        &scene,
+        TimeOptions {
+            time: Some(1.1),
+            ..Default::default()
+        },
+        &small(0, 4),
+    );
+    let rest = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let mut posed = scene.clone();
+    posed.pose(Some(1.1));
+    let same_view = WorldOptions {
+        camera_override: Some(trayecto::camera::CameraSpec::from_desc(&rest.camera)),
+        ..Default::default()
+    };
+    let direct = common::render_world(&World::build(posed, &same_view).unwrap(), &small(0, 4));
+    assert_eq!(via_options.data, direct.data);
+}
+
+/// Mean of each block of an `n × n` grid.
+fn block_means(img: &Image, n: u32) -> Vec<f64> {
+    let mut out = Vec::new();
+    for by in 0..n {
+        for bx in 0..n {
+            let (x0, x1) = (bx * img.width / n, (bx + 1) * img.width / n);
+            let (y0, y1) = (by * img.height / n, (by + 1) * img.height / n);
+            let mut s = 0.0f64;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let p = img.data[(y * img.width + x) as usize];
+                    s += (p.x + p.y + p.z) as f64;
+                }
+            }
+            out.push(s / ((x1 - x0) * (y1 - y0)) as f64 / 3.0);
+        }
+    }
+    out
+}
+
+/// Worst relative error of the 8 × 4 blocks (blocks darker than 2 % of the mean against it).
+fn worst_block(img: &Image, reference: &Image) -> f64 {
+    let (a, b) = (block_means(img, 8), block_means(reference, 8));
+    let mean = b.iter().sum::<f64>() / b.len() as f64;
+    a.iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs() / y.max(0.02 * mean))
+        .fold(0.0, f64::max)
+}
+
+/// scenes/pbrt/motion-blur.pbrt (a sliding sphere and a turning panel between TransformTimes 0
+/// and 1, a camera shutter open over [0.25, 1]) agrees with pbrt-v4's render of it
+/// (tests/references/pbrt/motion-blur.exr, scripts/pbrt_references.sh 1024 motion-blur), and the
+/// still at the shutter's opening does not.
+// Not yet passing: the blurred render is much closer to pbrt-v4's than the still is (worst 8×4
+// block 0.34 against 0.59), but 0.34 is far above noise; the cause (the turning panel's
+// interpolation, the shutter's placement, or the step quantisation) is not found yet.
+#[test]
+#[ignore = "disagrees with pbrt-v4 (worst block 0.34); under investigation"]
+fn pbrt_transform_times_agree_with_pbrt_v4() {
+    let path = format!(
+        "{}/scenes/pbrt/motion-blur.pbrt",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let scene = trayecto::scene::load(&path).unwrap();
+    assert!(
+        !scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("start time") || w.contains("not supported")),
+        "{:?}",
+        scene.warnings
+    );
+    let anim = scene.animation.clone().expect("the motion was read");
+    assert_eq!(anim.shutter, Some((0.25, 1.0)));
+    let mut settings = RenderSettings {
+        width: scene.hints.width.unwrap(),
+        height: scene.hints.height.unwrap(),
+        spp: 128,
+        filter: scene.hints.filter.unwrap(),
+        threads: Some(2),
+        ..Default::default()
+    };
+    settings.path.max_depth = scene.hints.max_depth.unwrap();
+    let reference = trayecto::film::output::read_exr(std::path::Path::new(&format!(
+        "{}/tests/references/pbrt/motion-blur.exr",
+        env!("CARGO_MANIFEST_DIR")
+    )))
+    .unwrap();
+    // The file's shutter, cut into 32 steps.
+    let blurred = render_with(
+        &scene,
+        TimeOptions {
+            steps: 32,
+            ..Default::default()
+        },
+        &settings,
+    );
+    let still = render_with(
+        &scene,
+        TimeOptions {
+            time: Some(0.25),
+            shutter: Some([0.0, 0.0]),
+            ..Default::default()
+        },
+        &settings,
+    );
+    let (err, still_err) = (
+        worst_block(&blurred, &reference),
+        worst_block(&still, &reference),
+    );
+    eprintln!("motion-blur.pbrt: worst block {err:.4}, the still's {still_err:.4}");
+    assert!(err < 0.08, "worst block {err}");
+    assert!(still_err > 3.0 * err, "the still is as close ({still_err})");
+}
+
+/// `--frames A..B` writes one numbered image per frame, each bit-identical to the `--frame N`
+/// render of it (the scene read once, posed per frame).
+#[test]
+fn a_sequence_is_its_frames() {
+    let dir = std::env::temp_dir().join(format!("trayecto-frames-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = shared("gltf-anim/BoxAnimated/glTF-Binary/BoxAnimated.glb");
+    let run = |extra: &[&str], out: &std::path::Path| {
+        let st = std::process::Command::new(env!("CARGO_BIN_EXE_trayecto"))
+            .args([
+                "render", &scene, "--width", "16", "--height", "16", "--spp", "2", "--quiet",
+            ])
+            .args(extra)
+            .arg("-o")
+            .arg(out)
+            .status()
+            .unwrap();
+        assert!(st.success());
+    };
+    run(&["--frames", "20..21"], &dir.join("seq.exr"));
+    for f in [20, 21] {
+        run(&["--frame", &f.to_string()], &dir.join("one.exr"));
+        let a = std::fs::read(dir.join(format!("seq_{f:04}.exr"))).unwrap();
+        let b = std::fs::read(dir.join("one.exr")).unwrap();
+        assert!(a == b, "frame {f} differs");
+    }
+    // The two frames differ (the box moves between 20/24 s and 21/24 s).
+    assert_ne!(
+        std::fs::read(dir.join("seq_0020.exr")).unwrap(),
+        std::fs::read(dir.join("seq_0021.exr")).unwrap()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
