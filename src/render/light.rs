@@ -50,6 +50,17 @@ pub fn check(
              on other pixels than the one that started them"
         ));
     }
+    if world.time_steps() > 1 {
+        return bad(format!(
+            "the {name} does not render motion blur (--shutter) yet: use --integrator path, or \
+             render a still with --time"
+        ));
+    }
+    if settings.guiding {
+        return bad(format!(
+            "path guiding (--guiding) guides the path tracer, not the {name}"
+        ));
+    }
     Ok(())
 }
 
