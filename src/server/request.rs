@@ -1020,6 +1020,16 @@ fn check_aovs(v: Option<&Value>, errors: &mut Errors) -> Vec<crate::film::aov::A
     aovs
 }
 
+/// A camera as the page and the job list show it: eye, target, up, vertical field of view.
+pub fn camera_json(c: &crate::camera::CameraSpec) -> Value {
+    serde_json::json!({
+        "eye": c.eye.to_array(),
+        "target": c.target.to_array(),
+        "up": c.up.to_array(),
+        "fov": c.fov,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1134,6 +1144,8 @@ mod tests {
     #[test]
     fn integrators_offered_parse() {
         assert!(integrator_names().contains(&"path"));
-        assert_eq!(tonemap_names().len(), 4);
+        assert!(integrator_names().contains(&"bdpt"));
+        assert_eq!(tonemap_names().len(), 5);
+        assert_eq!(tonemap_names()[0], "pbr-neutral");
     }
 }

@@ -154,7 +154,7 @@ impl Job {
             "exposure": r.exposure,
             "environment": r.environment.as_ref().map(|(n, _)| n),
             "env_rotation": r.env_rotation,
-            "camera": r.camera.map(|c| super::viewport::camera_json(&c)),
+            "camera": r.camera.map(|c| super::request::camera_json(&c)),
             // glTF KHR_materials_variants choice; null: the file's default materials.
             "variant": r.variant,
             "aovs": r.aovs.iter().map(|k| k.name()).collect::<Vec<_>>(),

@@ -17,7 +17,7 @@
 //! [`IDLE_CLOSE`] closes itself, freeing its world.
 
 use super::jobs::Jobs;
-use super::request::{RenderRequest, SceneSource};
+use super::request::{RenderRequest, SceneSource, camera_json};
 use serde_json::{Value, json};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -35,15 +35,6 @@ pub const MAX_SESSIONS: usize = 4;
 pub const IDLE_CLOSE: Duration = Duration::from_secs(300);
 /// Longest session id a page may choose.
 pub const MAX_SESSION_ID: usize = 64;
-
-pub fn camera_json(c: &CameraSpec) -> Value {
-    json!({
-        "eye": c.eye.to_array(),
-        "target": c.target.to_array(),
-        "up": c.up.to_array(),
-        "fov": c.fov,
-    })
-}
 
 /// The view the page orbits around: the camera the scene would render with (its first, or the
 /// framing camera for a model without one) with its target moved to where the view ray passes
