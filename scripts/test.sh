@@ -7,8 +7,8 @@ cd "$(dirname "$0")/.."
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
 
-echo "== cargo clippy -D warnings"
-cargo clippy --all-targets -- -D warnings
+echo "== cargo clippy -D warnings (the renderer and the Python binding crate)"
+cargo clippy --workspace --all-targets -- -D warnings
 
 echo "== Open Image Denoise (run-time library for --denoise and its tests)"
 ./scripts/install-oidn.sh

@@ -127,7 +127,7 @@ async function init() {
   fillSelect($("integrator"), options.integrators);
   fillSelect($("tonemap"), options.tonemaps);
   fillSelect($("default_light"), [""].concat(options.default_lights || []));
-  $("default_light").options[0].textContent = "as the scene says (auto)";
+  $("default_light").options[0].textContent = "as the scene says";
   await loadScenes(d.scene);
   for (const f of ["output", "width", "height", "spp", "secondary", "max_depth", "exposure",
     "integrator", "tonemap", "default_light"]) {

@@ -98,13 +98,14 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("seed", s.seed)?;
     d.set_item("width", &none)?;
     d.set_item("height", &none)?;
-    d.set_item("integrator", IntegratorKind::default().name())?;
+    // None: the scene file's (pbrt `Integrator`), else the path tracer, as on the command line.
+    d.set_item("integrator", &none)?;
     d.set_item("threads", s.threads)?;
     d.set_item("aovs", PyTuple::empty(py))?;
     d.set_item("secondary", p.secondary)?;
     d.set_item("max_depth", &none)?;
     d.set_item("exposure", 1.0f32)?;
-    d.set_item("tonemap", spelled(&Tonemap::default()))?;
+    d.set_item("tonemap", Tonemap::default().name())?;
     d.set_item("shading", spelled(&ShadingModel::default()))?;
     d.set_item("accel", spelled(&w.accel))?;
     d.set_item("sampler", spelled(&s.sampler))?;
@@ -231,7 +232,8 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
             .map_err(|_| PyTypeError::new_err("aovs: a list of AOV names"))?,
         None => Vec::new(),
     };
-    let integrator: IntegratorKind = parsed(d, "integrator")?.unwrap_or_default();
+    let integrator_given: Option<IntegratorKind> = parsed(d, "integrator")?;
+    let integrator = integrator_given.unwrap_or_default();
     let shading: ShadingModel = parsed(d, "shading")?.unwrap_or_default();
     let raycast = matches!(integrator, IntegratorKind::Raycast { .. });
     let view = match aov_names.as_slice() {
@@ -305,6 +307,7 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
             spp: spp.is_some(),
             max_depth: max_depth.is_some(),
             filter: filter_kind.is_some(),
+            integrator: integrator_given.is_some(),
         },
         crop,
         aovs,

@@ -265,7 +265,7 @@ def test_setting_errors():
 
 def test_defaults_are_the_clis():
     d = trayecto.defaults()
-    assert d["seed"] == 0 and d["spp"] is None and d["integrator"] == "path"
+    assert d["seed"] == 0 and d["spp"] is None and d["integrator"] is None
     assert d["sampler"] == "stratified" and d["rr_depth"] == 3 and d["secondary"] == 1
     img = trayecto.render(trayecto.load_file("cornell"), width=16, height=16)
     assert img.stats["samples_done"] == 64

@@ -86,7 +86,7 @@ def render(
     seed: int = ...,
     width: Optional[int] = ...,
     height: Optional[int] = ...,
-    integrator: str = ...,
+    integrator: Optional[str] = ...,
     threads: Optional[int] = ...,
     aovs: Union[str, Sequence[str]] = ...,
     secondary: int = ...,
