@@ -880,7 +880,7 @@ fn render(
                 ),
             )?;
             let r = r.bind(py);
-            Ok(!(r.is_instance_of::<PyBool>() && !r.extract::<bool>()?))
+            Ok(!r.is_instance_of::<PyBool>() || r.extract::<bool>()?)
         };
         loop {
             let got = py.allow_threads(|| {
