@@ -653,6 +653,15 @@ impl RenderJob {
         (s, note)
     }
 
+    /// The Open Image Denoise library when `--denoise` asks for it.
+    fn load_denoiser(&self) -> Result<Option<Oidn>, PipelineError> {
+        self.denoise
+            .as_ref()
+            .map(|d| Oidn::load(d.library.as_deref()))
+            .transpose()
+            .map_err(Into::into)
+    }
+
     /// Runs the whole pipeline. `cancel` is polled between stages and by the render driver.
     pub fn run(
         &self,
@@ -661,10 +670,7 @@ impl RenderJob {
     ) -> Result<RenderReport, PipelineError> {
         self.check()?;
         // The denoiser is loaded first: without it, fail before any work.
-        let denoiser = match &self.denoise {
-            Some(d) => Some(Oidn::load(d.library.as_deref())?),
-            None => None,
-        };
+        let denoiser = self.load_denoiser()?;
         let mut run = Run {
             job: self,
             observer,
@@ -678,19 +684,17 @@ impl RenderJob {
             let loaded = run.load()?;
             run.build(loaded)
         })
-        .map_err(|e| {
-            if cancel.load(Ordering::Relaxed) {
-                PipelineError::Cancelled
-            } else {
-                e
-            }
-        })?;
-        run.log_plan(&built);
-        run.check_cancel()?;
-        let mut rendered = run.render(built, denoiser.is_some())?;
-        let denoised = run.denoise(denoiser.as_ref(), &rendered)?;
-        let written = run.write(&mut rendered, denoised.as_ref().map(|(d, _)| d))?;
-        Ok(run.report(rendered, denoised.map(|(_, t)| t), written))
+        .map_err(|e| cancelled_or(cancel, e))?;
+        run.finish(built, denoiser.as_ref())
+    }
+}
+
+/// A load or build that failed because it was cancelled is a cancellation, not an error.
+fn cancelled_or(cancel: &AtomicBool, e: PipelineError) -> PipelineError {
+    if cancel.load(Ordering::Relaxed) {
+        PipelineError::Cancelled
+    } else {
+        e
     }
 }
 
@@ -730,10 +734,7 @@ impl RenderJob {
                 "--frames and --time both give the moment: use one".into(),
             ));
         }
-        let denoiser = match &self.denoise {
-            Some(d) => Some(Oidn::load(d.library.as_deref())?),
-            None => None,
-        };
+        let denoiser = self.load_denoiser()?;
         let mut first = Run {
             job: self,
             observer,
@@ -766,19 +767,9 @@ impl RenderJob {
                     Duration::ZERO
                 },
             };
-            let built = crate::limits::scope_or_default(|| run.build(this)).map_err(|e| {
-                if cancel.load(Ordering::Relaxed) {
-                    PipelineError::Cancelled
-                } else {
-                    e
-                }
-            })?;
-            run.log_plan(&built);
-            run.check_cancel()?;
-            let mut rendered = run.render(built, denoiser.is_some())?;
-            let denoised = run.denoise(denoiser.as_ref(), &rendered)?;
-            let written = run.write(&mut rendered, denoised.as_ref().map(|(d, _)| d))?;
-            reports.push(run.report(rendered, denoised.map(|(_, t)| t), written));
+            let built = crate::limits::scope_or_default(|| run.build(this))
+                .map_err(|e| cancelled_or(cancel, e))?;
+            reports.push(run.finish(built, denoiser.as_ref())?);
         }
         Ok(reports)
     }
@@ -893,6 +884,20 @@ impl Run<'_> {
             digest,
             time,
         })
+    }
+
+    /// The stages after the build: the plan's log line, render, denoise, write, report.
+    fn finish(
+        mut self,
+        built: Built,
+        denoiser: Option<&Oidn>,
+    ) -> Result<RenderReport, PipelineError> {
+        self.log_plan(&built);
+        self.check_cancel()?;
+        let mut rendered = self.render(built, denoiser.is_some())?;
+        let denoised = self.denoise(denoiser, &rendered)?;
+        let written = self.write(&mut rendered, denoised.as_ref().map(|(d, _)| d))?;
+        Ok(self.report(rendered, denoised.map(|(_, t)| t), written))
     }
 
     /// Build: the world from the scene.

@@ -18,6 +18,26 @@ fn dir(name: &str) -> PathBuf {
 
 const SIZE: [&str; 4] = ["--width", "24", "--height", "16"];
 
+/// An empty folder at each of `paths`, whatever was there before (a folder or a file).
+fn fresh_dirs(paths: &[&Path]) {
+    for p in paths {
+        let _ = std::fs::remove_file(p);
+        let _ = std::fs::remove_dir_all(p);
+        std::fs::create_dir_all(p).unwrap();
+    }
+}
+
+/// Waits until the running render `child` has written its first checkpoint `cp` (then its
+/// passes are running and its signal handlers installed).
+fn wait_for_checkpoint(cp: &Path, child: &mut std::process::Child) {
+    let t0 = Instant::now();
+    while !cp.exists() {
+        assert!(t0.elapsed() < Duration::from_secs(60), "no checkpoint");
+        assert!(child.try_wait().unwrap().is_none(), "render ended early");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 fn render(extra: &[&str], out: &Path) -> std::process::Output {
     bin()
         .args(["render", "cornell", "-q", "--seed", "5"])
@@ -193,18 +213,7 @@ fn ctrl_c_saves_a_checkpoint_and_the_resumed_render_equals_an_uninterrupted_one(
         .spawn()
         .unwrap();
     // The first checkpoint means the Ctrl-C handler is installed and passes are running.
-    let t0 = Instant::now();
-    while !cp.exists() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(60),
-            "no checkpoint appeared"
-        );
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "render ended too early"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_for_checkpoint(&cp, &mut child);
     sigint(child.id());
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
@@ -329,11 +338,7 @@ fn a_failed_final_write_saves_the_film_and_merge_recovers_the_image() {
     let d = dir("rescue");
     let out_dir = d.join("gone");
     let tmp = d.join("tmp");
-    let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(&tmp).unwrap();
-    let _ = std::fs::remove_file(&out_dir);
-    let _ = std::fs::remove_dir_all(&out_dir);
-    std::fs::create_dir_all(&out_dir).unwrap();
+    fresh_dirs(&[&tmp, &out_dir]);
     let settings = ["--spp", "3000", "--max-depth", "3", "--threads", "1"];
     let (child, _) = spawn_until_rendering(
         bin()
@@ -378,11 +383,7 @@ fn a_failed_checkpoint_write_saves_the_completed_passes() {
     let d = dir("checkpoint-rescue");
     let cp_dir = d.join("cp");
     let tmp = d.join("tmp");
-    let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(&tmp).unwrap();
-    let _ = std::fs::remove_file(&cp_dir);
-    let _ = std::fs::remove_dir_all(&cp_dir);
-    std::fs::create_dir_all(&cp_dir).unwrap();
+    fresh_dirs(&[&tmp, &cp_dir]);
     let cp = cp_dir.join("ck.trp");
     // The independent sampler's first k samples of 6000 are a render of k samples (a stratified
     // sampler's strata depend on the sample count).
@@ -406,12 +407,7 @@ fn a_failed_checkpoint_write_saves_the_completed_passes() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let t0 = Instant::now();
-    while !cp.exists() {
-        assert!(t0.elapsed() < Duration::from_secs(60), "no checkpoint");
-        assert!(child.try_wait().unwrap().is_none(), "render ended early");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_for_checkpoint(&cp, &mut child);
     // Moved away in one step (the render may be writing the next checkpoint into it).
     let moved = d.join("cp-moved");
     let _ = std::fs::remove_dir_all(&moved);
@@ -469,12 +465,7 @@ fn sigterm_and_sighup_save_the_checkpoint_as_ctrl_c_does() {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        let t0 = Instant::now();
-        while !cp.exists() {
-            assert!(t0.elapsed() < Duration::from_secs(60), "no checkpoint");
-            assert!(child.try_wait().unwrap().is_none(), "render ended early");
-            std::thread::sleep(Duration::from_millis(20));
-        }
+        wait_for_checkpoint(&cp, &mut child);
         signal(child.id(), sig);
         let out = child.wait_with_output().unwrap();
         let err = String::from_utf8_lossy(&out.stderr);

@@ -269,17 +269,18 @@ fn a_gzip_bomb_mesh_is_bounded_by_ratio_and_budget() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// A pbrt scene of `copies` triangles, each subdivided 6 levels by `loopsubdiv` (4096 triangles).
+fn write_subdivided_triangles(path: &Path, copies: usize) {
+    let shape = "Shape \"loopsubdiv\" \"integer levels\" 6 \"point3 P\" [0 0 0 1 0 0 0 1 0] \
+                 \"integer indices\" [0 1 2]\n";
+    std::fs::write(path, format!("WorldBegin\n{}", shape.repeat(copies))).unwrap();
+}
+
 /// 300 level-6 `loopsubdiv` shapes become 1.2 M triangles: charged before subdividing.
 #[test]
 fn subdivision_is_charged_for_the_triangles_it_will_make() {
     let d = dir("loop");
-    let shape = "Shape \"loopsubdiv\" \"integer levels\" 6 \"point3 P\" [0 0 0 1 0 0 0 1 0] \
-                 \"integer indices\" [0 1 2]\n";
-    std::fs::write(
-        d.join("s.pbrt"),
-        format!("WorldBegin\n{}", shape.repeat(300)),
-    )
-    .unwrap();
+    write_subdivided_triangles(&d.join("s.pbrt"), 300);
     let e = load_with(&d.join("s.pbrt"), 16)
         .expect_err("refused")
         .to_string();
@@ -296,14 +297,8 @@ fn subdivision_is_charged_for_the_triangles_it_will_make() {
 #[test]
 fn the_world_is_charged_before_it_is_built() {
     let d = dir("world");
-    let shape = "Shape \"loopsubdiv\" \"integer levels\" 6 \"point3 P\" [0 0 0 1 0 0 0 1 0] \
-                 \"integer indices\" [0 1 2]\n";
     // 100 × 4096 triangles: ~19 MiB as scene meshes, ~63 MiB more as a world.
-    std::fs::write(
-        d.join("s.pbrt"),
-        format!("WorldBegin\n{}", shape.repeat(100)),
-    )
-    .unwrap();
+    write_subdivided_triangles(&d.join("s.pbrt"), 100);
     let build = |mib: u64| {
         let ctx = LoadContext::new(Budget::new(mib << 20), None);
         limits::scope(ctx, || {
