@@ -263,29 +263,12 @@ fn a_still_at_a_time_is_the_posed_scene() {
     assert_eq!(via_options.data, direct.data);
 }
 
-/// Mean of each block of an `n × n` grid.
-fn block_means(img: &Image, n: u32) -> Vec<f64> {
-    let mut out = Vec::new();
-    for by in 0..n {
-        for bx in 0..n {
-            let (x0, x1) = (bx * img.width / n, (bx + 1) * img.width / n);
-            let (y0, y1) = (by * img.height / n, (by + 1) * img.height / n);
-            let mut s = 0.0f64;
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    let p = img.data[(y * img.width + x) as usize];
-                    s += (p.x + p.y + p.z) as f64;
-                }
-            }
-            out.push(s / ((x1 - x0) * (y1 - y0)) as f64 / 3.0);
-        }
-    }
-    out
-}
-
 /// Worst relative error of the 8 × 4 blocks (blocks darker than 2 % of the mean against it).
 fn worst_block(img: &Image, reference: &Image) -> f64 {
-    let (a, b) = (block_means(img, 8), block_means(reference, 8));
+    let (a, b) = (
+        common::block_means(img, 8),
+        common::block_means(reference, 8),
+    );
     let mean = b.iter().sum::<f64>() / b.len() as f64;
     a.iter()
         .zip(&b)

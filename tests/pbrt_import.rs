@@ -42,26 +42,6 @@ fn read_exr(p: &Path) -> Image {
     trayecto::film::output::read_exr(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
-/// Mean of each block of a `n × n` grid (luminance-weighted RGB sum).
-fn block_means(img: &Image, n: u32) -> Vec<f64> {
-    let mut out = Vec::new();
-    for by in 0..n {
-        for bx in 0..n {
-            let (x0, x1) = (bx * img.width / n, (bx + 1) * img.width / n);
-            let (y0, y1) = (by * img.height / n, (by + 1) * img.height / n);
-            let mut s = 0.0f64;
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    let p = img.data[(y * img.width + x) as usize];
-                    s += (p.x + p.y + p.z) as f64;
-                }
-            }
-            out.push(s / ((x1 - x0) * (y1 - y0)) as f64 / 3.0);
-        }
-    }
-    out
-}
-
 /// (relative error of the image mean, largest relative block error on a 4 × 4 grid, with blocks
 /// darker than 2 % of the mean compared in absolute terms against the mean).
 fn compare(img: &Image, reference: &Image) -> (f64, f64) {
@@ -71,7 +51,10 @@ fn compare(img: &Image, reference: &Image) -> (f64, f64) {
 /// [`compare`] on an `n × n` grid of blocks.
 fn compare_grid(img: &Image, reference: &Image, n: u32) -> (f64, f64) {
     assert_eq!((img.width, img.height), (reference.width, reference.height));
-    let (a, b) = (block_means(img, n), block_means(reference, n));
+    let (a, b) = (
+        common::block_means(img, n),
+        common::block_means(reference, n),
+    );
     let ma: f64 = a.iter().sum::<f64>() / a.len() as f64;
     let mb: f64 = b.iter().sum::<f64>() / b.len() as f64;
     let mean_err = (ma - mb).abs() / mb;
@@ -324,7 +307,10 @@ fn feature_against_pbrt_v4(
         "{name}: mean {mean_err:.4}, worst 4x4 block {block4:.4}, worst 8x8 block {block8:.4}"
     );
     if block8 >= block8_tol {
-        let (a, b) = (block_means(&img, 8), block_means(&reference, 8));
+        let (a, b) = (
+            common::block_means(&img, 8),
+            common::block_means(&reference, 8),
+        );
         for (i, (x, y)) in a.iter().zip(&b).enumerate() {
             eprintln!(
                 "  8x8 block ({}, {}): {x:.4} vs pbrt-v4 {y:.4}",
@@ -1019,7 +1005,10 @@ fn odd_syntax_matches_pbrt_v4() {
         "odd: mean {mean_err:.4}, worst 4x4 block {block_err:.4}, worst 8x8 block {block8:.4}"
     );
     if block8 >= 0.15 {
-        let (a, b) = (block_means(&img, 8), block_means(&reference, 8));
+        let (a, b) = (
+            common::block_means(&img, 8),
+            common::block_means(&reference, 8),
+        );
         for (i, (x, y)) in a.iter().zip(&b).enumerate() {
             eprintln!(
                 "  8x8 block ({}, {}): {x:.4} vs pbrt-v4 {y:.4}",

@@ -139,3 +139,23 @@ pub fn coverage(world: &World, width: u32, height: u32, base: &RenderSettings) -
         .map(|n| n as f32 / (K * K) as f32)
         .collect()
 }
+
+/// Mean of each block of an `n × n` grid of `img`, the mean of the three channels per pixel.
+pub fn block_means(img: &Image, n: u32) -> Vec<f64> {
+    let mut out = Vec::new();
+    for by in 0..n {
+        for bx in 0..n {
+            let (x0, x1) = (bx * img.width / n, (bx + 1) * img.width / n);
+            let (y0, y1) = (by * img.height / n, (by + 1) * img.height / n);
+            let mut s = 0.0f64;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let p = img.data[(y * img.width + x) as usize];
+                    s += (p.x + p.y + p.z) as f64;
+                }
+            }
+            out.push(s / ((x1 - x0) * (y1 - y0)) as f64 / 3.0);
+        }
+    }
+    out
+}
