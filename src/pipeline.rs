@@ -510,6 +510,18 @@ impl RenderJob {
 
     /// Whether the render must know its frame's identity (a scene digest): it writes or reads
     /// partial films.
+    /// The AOVs to write for a scene with `hints`: the job's (`--aov`), else those the scene
+    /// file asks for (Mitsuba's `aov` integrator), unless the render writes a partial film,
+    /// which holds no AOVs.
+    pub fn aovs_for(&self, hints: &crate::scene::RenderHints) -> Vec<AovKind> {
+        let partial =
+            self.split.samples.is_some() || self.outputs.iter().any(|o| is_partial_film(&o.path));
+        if !self.aovs.is_empty() || partial {
+            return self.aovs.clone();
+        }
+        hints.aovs.clone()
+    }
+
     fn writes_parts(&self) -> bool {
         self.split.checkpoint.is_some()
             || self.split.resume.is_some()
@@ -798,6 +810,8 @@ struct Built {
     world: World,
     frame: FrameId,
     settings: RenderSettings,
+    /// The AOVs to write: the job's, else the scene file's ([`RenderJob::aovs_for`]).
+    aovs: Vec<AovKind>,
     scene_name: String,
     camera_count: usize,
     load_time: Duration,
@@ -811,6 +825,8 @@ struct Rendered {
     layers: Vec<Layer>,
     /// The AOVs traced (the requested ones and the denoiser's guides).
     traced: Vec<AovKind>,
+    /// The AOVs to write ([`Built::aovs`]).
+    aovs: Vec<AovKind>,
     settings: RenderSettings,
     scene_name: String,
     samples_done: u32,
@@ -911,6 +927,14 @@ impl Run<'_> {
         } = loaded;
         let scene_name = scene.name.clone();
         let camera_count = scene.cameras.len();
+        let aovs = job.aovs_for(&scene.hints);
+        if job.aovs.is_empty() && !aovs.is_empty() {
+            let names: Vec<&str> = aovs.iter().map(|k| k.name()).collect();
+            self.info(format!(
+                "the scene file asks for AOVs: {} (--aov overrides)",
+                names.join(", ")
+            ));
+        }
         self.observer.stage_started(Stage::Build);
         let t = Instant::now();
         // Posed at the job's moment, with one world per shutter step for motion blur.
@@ -930,6 +954,7 @@ impl Run<'_> {
             world,
             frame,
             settings,
+            aovs,
             scene_name,
             camera_count,
             load_time,
@@ -984,6 +1009,7 @@ impl Run<'_> {
             world,
             frame,
             settings,
+            aovs,
             scene_name,
             load_time,
             time: build_time,
@@ -992,7 +1018,7 @@ impl Run<'_> {
         self.observer.stage_started(Stage::Render);
         // The denoiser's guides are traced too when they were not asked for (and not written).
         // Samples and variance are not traced: they are read from the film below.
-        let mut traced = crate::integrator::aov::traced(&job.aovs);
+        let mut traced = crate::integrator::aov::traced(&aovs);
         if guides {
             for k in [AovKind::Albedo, AovKind::Normal] {
                 if !traced.contains(&k) {
@@ -1057,6 +1083,7 @@ impl Run<'_> {
             part,
             layers,
             traced,
+            aovs,
             settings,
             scene_name,
             samples_done,
@@ -1144,7 +1171,7 @@ impl Run<'_> {
         denoised: Option<&Image>,
     ) -> Result<(Vec<PathBuf>, Duration), PipelineError> {
         let job = self.job;
-        finish_layers(&mut r.layers, &job.aovs, &r.settings, &r.part.film);
+        finish_layers(&mut r.layers, &r.aovs, &r.settings, &r.part.film);
 
         self.observer.stage_started(Stage::Write);
         let t = Instant::now();
@@ -1156,7 +1183,7 @@ impl Run<'_> {
             .iter()
             .filter(|l| {
                 AovKind::FILM.iter().all(|k| k.name() != l.name)
-                    || job.aovs.iter().any(|k| k.name() == l.name)
+                    || r.aovs.iter().any(|k| k.name() == l.name)
             })
             .cloned()
             .collect();

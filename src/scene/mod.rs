@@ -434,6 +434,9 @@ pub struct RenderHints {
     /// The integrator the file asks for when Trayecto has it, by its `--integrator` name (pbrt's
     /// `Integrator "lighttracer"`); `None` renders with the job's (the path tracer by default).
     pub integrator: Option<String>,
+    /// AOV layers the file asks for (Mitsuba's `aov` integrator), written when the job asks
+    /// for none itself.
+    pub aovs: Vec<crate::film::aov::AovKind>,
 }
 
 impl MediumDesc {

@@ -38,10 +38,11 @@ use crate::math::{Mat4, Vec3, Vec4};
 use crate::scene::pbrt::embed::Builder;
 use crate::scene::{LightDesc, MediumDesc, MediumKind, Scene, SceneError};
 
-/// The pbrt integrator Mitsuba's `ptracer` (a particle/light tracer) is rendered with. Switch
-/// this one line to the light tracer's name once Trayecto has one; until then the path tracer
-/// renders the same expected image (with a warning).
-const PTRACER_INTEGRATOR: &str = "path";
+/// The pbrt integrator Mitsuba's `ptracer` (a particle tracer: paths from the emitters,
+/// connected to the sensor) is rendered with: Trayecto's light tracer, the same method. Where the
+/// light tracer cannot render the scene (media), the pipeline falls back to the path tracer as
+/// for a pbrt file's `Integrator "lighttracer"`.
+const PTRACER_INTEGRATOR: &str = "lighttracer";
 
 /// Tags of property elements (everything else with a `type` is an object).
 const VALUE_TAGS: &[&str] = &[
@@ -108,6 +109,11 @@ struct Tx<'a> {
     approx: BTreeSet<String>,
     /// Children of objects that were read (the rest are reported).
     read: std::cell::RefCell<std::collections::HashSet<*const Elem>>,
+    /// Reading an emitter's properties: its sampled spectra are radiometric, not reflectances
+    /// (Mitsuba's parser converts them without the D65 weighting and without clamping).
+    emitting: bool,
+    /// AOVs asked for by an `aov` integrator.
+    aovs: Vec<crate::film::aov::AovKind>,
 }
 
 /// Translates the scene element into a [`Scene`].
@@ -130,13 +136,17 @@ pub(super) fn translate(
         used: BTreeMap::new(),
         approx: BTreeSet::new(),
         read: Default::default(),
+        emitting: false,
+        aovs: Vec::new(),
     };
     for w in warnings {
         tx.b.warn(w);
     }
     tx.scene(scene, label)?;
     let (used, approx) = (std::mem::take(&mut tx.used), std::mem::take(&mut tx.approx));
+    let aovs = std::mem::take(&mut tx.aovs);
     let mut s = tx.b.finish()?;
+    s.hints.aovs = aovs;
     let list = used
         .iter()
         .map(|(k, n)| {
@@ -183,6 +193,41 @@ fn nums(v: &[f32]) -> String {
     }
     s.push_str(" ]");
     s
+}
+
+/// Linear sRGB of a Mitsuba `<spectrum value="λ:v, …">` as Mitsuba 3's RGB variants read it
+/// (`spectrum_list_to_srgb`): the piecewise-linear spectrum, zero outside its first and last
+/// wavelength, projected on the CIE 1931 matching functions over 360–830 nm and normalised by
+/// ∫ȳ. A reflectance (`emitter` false) is seen under D65 (its XYZ is ∫ v·D65·x̄ / ∫ D65·ȳ, so a
+/// flat spectrum is grey); an emitter's spectrum is taken as it is (equal energy is slightly
+/// red in sRGB, as in Mitsuba). `None` when a value is not finite or there are no samples.
+fn sampled_rgb(pairs: &[(f32, f32)], emitter: bool) -> Option<Vec3> {
+    if pairs.is_empty() || pairs.iter().any(|(l, v)| !l.is_finite() || !v.is_finite()) {
+        return None;
+    }
+    let mut s = pairs.to_vec();
+    s.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (first, last) = (s[0].0, s[s.len() - 1].0);
+    let value = |l: f32| -> f32 {
+        if l < first || l > last {
+            return 0.0;
+        }
+        let i = s.partition_point(|p| p.0 <= l).clamp(1, s.len().max(2) - 1);
+        if s.len() == 1 {
+            return s[0].1;
+        }
+        let (a, b) = (s[i - 1], s[i]);
+        if b.0 <= a.0 {
+            return b.1;
+        }
+        a.1 + (b.1 - a.1) * ((l - a.0) / (b.0 - a.0)).clamp(0.0, 1.0)
+    };
+    let xyz = if emitter {
+        crate::spectrum::spectrum_to_xyz(value)
+    } else {
+        crate::spectrum::spectrum_to_xyz(|l| value(l) * crate::spectrum::d65(l))
+    };
+    Some(crate::spectrum::xyz_to_linear_srgb(xyz))
 }
 
 fn parse_floats(s: &str) -> Vec<f32> {
@@ -357,10 +402,20 @@ impl<'a> Tx<'a> {
                     ));
                     // Converted here, not by pbrt's light path: pbrt-v4 normalises light spectra
                     // to luminance 1, Mitsuba keeps their magnitude.
-                    let rgb =
-                        crate::scene::pbrt::spectra::sampled_rgb(&pairs).ok_or_else(|| {
-                            SceneError::invalid(c.at(), "the spectrum has no finite values")
-                        })?;
+                    let rgb = sampled_rgb(&pairs, self.emitting).ok_or_else(|| {
+                        SceneError::invalid(c.at(), "the spectrum has no finite values")
+                    })?;
+                    if !self.emitting && (rgb.min_element() < 0.0 || rgb.max_element() > 1.0) {
+                        self.warn(
+                            c,
+                            "the reflectance spectrum is outside the sRGB gamut; clamped to [0, 1] as Mitsuba does",
+                        );
+                    }
+                    let rgb = if self.emitting {
+                        rgb
+                    } else {
+                        rgb.clamp(Vec3::ZERO, Vec3::ONE)
+                    };
                     Ok(Some(Col::Rgb(rgb)))
                 } else if c.attr("filename").is_some() {
                     self.b.warn(format!(
@@ -618,14 +673,12 @@ impl<'a> Tx<'a> {
                 );
                 ("path", 1)
             }
-            // The light tracer is not in Trayecto yet: the path tracer renders the same image.
             "ptracer" => {
-                self.warn(e, "the particle tracer is rendered by the path tracer (the same image, other noise)");
+                let _ = self.prop(e, "samples_per_pass");
                 (PTRACER_INTEGRATOR, depth(self, e)?)
             }
             "aov" => {
-                let _ = self.prop(e, "aovs");
-                self.warn(e, "AOV channels are not written; the image of the nested integrator (or the path tracer) is rendered");
+                self.aov_list(e);
                 match self.objects(e, "integrator")?.first() {
                     Some((inner, _)) => return self.integrator(inner, has_media),
                     None => ("path", 1024),
@@ -647,6 +700,43 @@ impl<'a> Tx<'a> {
             e,
             &format!("Integrator {} \"integer maxdepth\" [ {maxdepth} ]", q(kind)),
         )
+    }
+
+    /// The `aovs` string of Mitsuba's `aov` integrator ("name:type, …") as Trayecto's AOV
+    /// layers. The layers keep Trayecto's channel names (`Z`, `P.X`, `N.X`, …), not the file's.
+    fn aov_list(&mut self, e: &'a Elem) {
+        use crate::film::aov::AovKind;
+        let list = self.string(e, "aovs").unwrap_or_default();
+        for item in list.split(',').map(str::trim).filter(|i| !i.is_empty()) {
+            let ty = item.split_once(':').map_or(item, |(_, t)| t).trim();
+            let kind = match ty {
+                "albedo" => AovKind::Albedo,
+                "depth" => AovKind::Depth,
+                "position" => AovKind::Position,
+                "sh_normal" => AovKind::ShadingNormal,
+                "geo_normal" => {
+                    self.approx(e, "the geo_normal AOV is the shading normal");
+                    AovKind::ShadingNormal
+                }
+                "shape_index" => AovKind::ObjectId,
+                other => {
+                    self.warn(
+                        e,
+                        &format!("the AOV type '{other}' is not supported; it is not written"),
+                    );
+                    continue;
+                }
+            };
+            if !self.aovs.contains(&kind) {
+                self.aovs.push(kind);
+            }
+        }
+        if !self.aovs.is_empty() {
+            self.approx(
+                e,
+                "AOV layers are written under Trayecto's channel names (albedo.R, Z, P.X, N.X, IndexOB.X), not the file's",
+            );
+        }
     }
 
     fn sensor(&mut self, e: &'a Elem) -> Result<(), SceneError> {
@@ -1538,9 +1628,10 @@ impl<'a> Tx<'a> {
                 self.warn(em, "only area emitters can be attached to shapes");
                 continue;
             }
-            let r = self
-                .color(em, "radiance", Some(1.0))?
-                .unwrap_or(Col::Rgb(Vec3::ONE));
+            self.emitting = true;
+            let r = self.color(em, "radiance", Some(1.0));
+            self.emitting = false;
+            let r = r?.unwrap_or(Col::Rgb(Vec3::ONE));
             let r = match r {
                 Col::Tex(_) => {
                     self.warn(em, "textured radiance is not supported; 1 is used");
@@ -1697,7 +1788,10 @@ impl<'a> Tx<'a> {
         self.note(format!("emitter {ty}"));
         let to_world = self.transform(e, "to_world")?;
         let light_col = |tx: &mut Self, k: &str| -> Result<Col, SceneError> {
-            match tx.color(e, k, Some(1.0))? {
+            tx.emitting = true;
+            let c = tx.color(e, k, Some(1.0));
+            tx.emitting = false;
+            match c? {
                 Some(Col::Tex(_)) | None => {
                     tx.warn(e, &format!("a textured '{k}' is not supported; 1 is used"));
                     Ok(Col::Rgb(Vec3::ONE))
@@ -1862,4 +1956,42 @@ fn cube() -> (Vec<f32>, Vec<u32>, Vec<f32>, Vec<f32>) {
         }
     }
     (p, idx, n, uv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: Vec3, b: [f32; 3], tol: f32) -> bool {
+        (0..3).all(|i| (a[i] - b[i]).abs() <= tol * b[i].abs().max(0.05))
+    }
+
+    /// Values printed by Mitsuba 3.9.1 (`scalar_rgb`, `mi.spectrum_list_to_srgb`, which its XML
+    /// parser calls with d65 = bounded = true for reflectances and false inside emitters).
+    #[test]
+    fn sampled_spectra_convert_as_mitsuba_does() {
+        let flat = |v| vec![(400.0, v), (700.0, v)];
+        let light = [(400.0, 0.0), (500.0, 8.0), (600.0, 15.6), (700.0, 18.4)];
+        let cases: [(Vec3, [f32; 3]); 3] = [
+            (
+                sampled_rgb(&flat(0.5), false).unwrap(),
+                [0.497671, 0.499878, 0.497455],
+            ),
+            (
+                sampled_rgb(&flat(1.0), true).unwrap(),
+                [1.19969, 0.949521, 0.903443],
+            ),
+            (
+                sampled_rgb(&light, true).unwrap(),
+                [20.7108, 10.8546, 2.77115],
+            ),
+        ];
+        for (got, want) in cases {
+            assert!(close(got, want, 0.01), "{got:?} vs Mitsuba {want:?}");
+        }
+        assert!(sampled_rgb(&[], false).is_none());
+        assert!(sampled_rgb(&[(500.0, f32::NAN)], true).is_none());
+        // One sample: a line of zero width, still a value.
+        assert!(sampled_rgb(&[(550.0, 1.0)], false).is_some());
+    }
 }
