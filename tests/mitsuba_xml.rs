@@ -351,12 +351,15 @@ fn bsdfs_match_mitsuba() {
         ("bsdf_conductor_gold", 0.0, 0.03),
         ("bsdf_dielectric_glass", 0.0, 0.03),
         ("bsdf_roughplastic_ggx", 0.0, 0.03),
+        // Beckmann α 0.1 rendered as GGX α 0.1 (a documented approximation): the highlights'
+        // tails differ, 3.7 % of the mean in block deviation beyond the noise when measured.
+        ("bsdf_roughconductor_copper", 0.05, 0.03),
     ]);
 }
 
 #[test]
 fn shapes_match_mitsuba() {
-    compare(&[("shape_rectangle", 0.0, 0.03)]);
+    compare(&[("shape_rectangle", 0.0, 0.03), ("shape_sphere_basic", 0.0, 0.03)]);
 }
 
 #[test]
@@ -366,7 +369,7 @@ fn emitters_match_mitsuba() {
 
 #[test]
 fn sensors_match_mitsuba() {
-    compare(&[("sensor_orthographic", 0.0, 0.03)]);
+    compare(&[("sensor_orthographic", 0.0, 0.03), ("sensor_thinlens", 0.0, 0.03)]);
 }
 
 #[test]
