@@ -1271,9 +1271,9 @@ impl<'a> Tx<'a> {
                     ));
                 };
                 if self.objects(e, "bsdf")?.len() > 1 {
-                    self.approx(
+                    self.warn(
                         e,
-                        "a different BSDF on the back side: the front one is used on both",
+                        "a different BSDF on the back side is not supported: the front one is used on both sides",
                     );
                 }
                 let r = self.bsdf(c)?;
