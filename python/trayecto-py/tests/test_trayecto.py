@@ -656,3 +656,12 @@ def test_animation_keywords_are_the_clis(tmp_path):
         assert (tmp_path / "py.exr").read_bytes() == (tmp_path / "cli.exr").read_bytes(), flags
         images.append(img.numpy())
     assert not np.array_equal(images[0], images[1])
+
+
+def test_type_stubs_name_every_keyword():
+    stubs = (pathlib.Path(trayecto.__file__).parent / "__init__.pyi").read_text()
+    render = stubs[stubs.index("def render("):]
+    render = render[:render.index(") -> Image:")]
+    typed = set(re.findall(r"^\s+(\w+):", render, re.M))
+    assert set(trayecto.defaults()) <= typed, set(trayecto.defaults()) - typed
+    assert typed - {"scene", "progress"} <= set(trayecto.defaults())
