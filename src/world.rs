@@ -202,6 +202,44 @@ impl World {
         })
     }
 
+    /// Changes the scene's light `index` (in `Scene::lights` order) to `desc` in place, the
+    /// geometry and its BVH kept: a front end that changes a light's power or colour renders
+    /// the world [`World::build`] would make of the changed scene without building it again.
+    /// Only the light selection (over lights, not triangles) is redone. Returns `false`, the
+    /// world unchanged, when the light cannot be changed this way: an environment map (its
+    /// sampling densities come from the texels and the scale) or a change of kind.
+    pub fn set_scene_light(&mut self, index: usize, desc: &LightDesc) -> bool {
+        if matches!(desc, LightDesc::Environment { .. }) {
+            return false;
+        }
+        // The compiled lights are the area lights, then the scene's in order (`build`).
+        let area = self
+            .lights
+            .lights
+            .iter()
+            .take_while(|l| matches!(l, Light::Area(_)))
+            .count();
+        let Ok(light) = scene_light(desc, "") else {
+            return false;
+        };
+        let same_kind = self
+            .lights
+            .lights
+            .get(area + index)
+            .is_some_and(|old| std::mem::discriminant(old) == std::mem::discriminant(&light));
+        if !same_kind
+            || !self
+                .motion
+                .iter_mut()
+                .all(|w| w.set_scene_light(index, desc))
+        {
+            return false;
+        }
+        self.lights
+            .replace(area + index, light, &self.geometry, &self.materials);
+        true
+    }
+
     /// The first surface along `ray`, with its shading attributes. Cut-out (alpha) holes are
     /// skipped, see [`World::intersect_raw`].
     #[inline]
@@ -766,65 +804,66 @@ fn area_lights(
 /// Step 3: the scene's own lights (point, spot, directional, ambient, environment maps, whose
 /// relative paths are relative to the scene file).
 fn scene_lights(scene: &Scene, label: &str) -> Result<Vec<Light>, SceneError> {
-    let mut lights = Vec::new();
-    for l in &scene.lights {
-        match l {
-            LightDesc::Point {
-                position,
-                intensity,
-                ..
-            } => lights.push(Light::Point(PointLight {
-                position: *position,
-                intensity: *intensity,
-            })),
-            LightDesc::Spot {
-                position,
-                direction,
-                intensity,
-                inner_angle,
-                outer_angle,
-                falloff,
-                ..
-            } => lights.push(Light::Spot(SpotLight {
-                position: *position,
-                direction: direction.normalize(),
-                intensity: *intensity,
-                cos_inner: inner_angle.cos(),
-                cos_outer: outer_angle.cos(),
-                falloff: *falloff,
-            })),
-            LightDesc::Directional {
-                direction,
-                irradiance,
-                ..
-            } => lights.push(Light::Directional(DirectionalLight {
-                direction: direction.normalize(),
-                irradiance: *irradiance,
-            })),
-            LightDesc::Ambient { radiance, .. } => lights.push(Light::Uniform(UniformLight {
-                radiance: *radiance,
-            })),
-            LightDesc::Environment {
-                name,
-                path,
-                scale,
-                mapping,
-                transform,
-            } => {
-                // The loaders resolve the file against the scene's folder (`resolve_in_dir`), so
-                // the path is used as given; joining the folder again read `dir/dir/map.hdr`.
-                let map = EnvMap::load_mapped(path, *scale, Mat3::from_mat4(*transform), *mapping)
-                    .map_err(|e| {
-                        SceneError::invalid(
-                            label,
-                            format!("environment light '{name}' ({}): {e}", path.display()),
-                        )
-                    })?;
-                lights.push(Light::Environment(EnvironmentLight { map: Arc::new(map) }));
-            }
+    scene.lights.iter().map(|l| scene_light(l, label)).collect()
+}
+
+/// One of the scene's lights, compiled.
+fn scene_light(l: &LightDesc, label: &str) -> Result<Light, SceneError> {
+    Ok(match l {
+        LightDesc::Point {
+            position,
+            intensity,
+            ..
+        } => Light::Point(PointLight {
+            position: *position,
+            intensity: *intensity,
+        }),
+        LightDesc::Spot {
+            position,
+            direction,
+            intensity,
+            inner_angle,
+            outer_angle,
+            falloff,
+            ..
+        } => Light::Spot(SpotLight {
+            position: *position,
+            direction: direction.normalize(),
+            intensity: *intensity,
+            cos_inner: inner_angle.cos(),
+            cos_outer: outer_angle.cos(),
+            falloff: *falloff,
+        }),
+        LightDesc::Directional {
+            direction,
+            irradiance,
+            ..
+        } => Light::Directional(DirectionalLight {
+            direction: direction.normalize(),
+            irradiance: *irradiance,
+        }),
+        LightDesc::Ambient { radiance, .. } => Light::Uniform(UniformLight {
+            radiance: *radiance,
+        }),
+        LightDesc::Environment {
+            name,
+            path,
+            scale,
+            mapping,
+            transform,
+        } => {
+            // The loaders resolve the file against the scene's folder (`resolve_in_dir`), so
+            // the path is used as given; joining the folder again read `dir/dir/map.hdr`.
+            let map = EnvMap::load_mapped(path, *scale, Mat3::from_mat4(*transform), *mapping)
+                .map_err(|e| {
+                    SceneError::invalid(
+                        label,
+                        format!("environment light '{name}' ({}): {e}", path.display()),
+                    )
+                })?;
+            Light::Environment(EnvironmentLight { map: Arc::new(map) })
         }
-    }
-    Ok(lights)
+    })
 }
 
 /// Step 4: the lights the options add: `--env`, and the default white environment when the

@@ -25,6 +25,20 @@ pub enum AccelKind {
     Grid,
 }
 
+impl AccelKind {
+    /// The name `--accel` takes (what `FromStr` parses back).
+    pub fn name(self) -> &'static str {
+        match self {
+            AccelKind::Bvh => "bvh",
+            AccelKind::None => "none",
+            AccelKind::Grid => "grid",
+        }
+    }
+
+    /// Every accelerator, for front ends that list the choices.
+    pub const ALL: [AccelKind; 3] = [AccelKind::Bvh, AccelKind::Grid, AccelKind::None];
+}
+
 impl std::str::FromStr for AccelKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {

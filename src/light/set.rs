@@ -77,6 +77,9 @@ pub struct LightSet {
     /// Scene bounding sphere (for infinite light powers and far-away shadow rays).
     pub scene_center: Vec3,
     pub scene_radius: f32,
+    /// Each light's selection power, the weights of `distribution` and `tree` (kept so that
+    /// [`LightSet::replace`] can choose again after one light changed).
+    powers: Vec<f32>,
 }
 
 /// Light selection with the light BVH (pbrt-v4's `BVHLightSampler`): a light at infinity with
@@ -150,21 +153,8 @@ impl LightSet {
             LightSamplerKind::Bvh8 | LightSamplerKind::Auto => TreeWidth::Eight,
             LightSamplerKind::Bvh | LightSamplerKind::Power => TreeWidth::Four,
         };
-        let tree = use_tree.then(|| {
-            let lb: Vec<(u32, LightBounds)> = lights
-                .iter()
-                .enumerate()
-                .zip(&powers)
-                .filter_map(|((i, l), &phi)| {
-                    l.bounds(geometry, materials, phi).map(|b| (i as u32, b))
-                })
-                .collect();
-            TreeSelection::new(
-                LightBvh::with_width(&lb, lights.len(), width),
-                &infinite,
-                &powers,
-            )
-        });
+        let tree = use_tree
+            .then(|| TreeSelection::over(&lights, &powers, &infinite, geometry, materials, width));
         LightSet {
             distribution: Distribution1D::new(&powers),
             tree,
@@ -172,6 +162,36 @@ impl LightSet {
             infinite,
             scene_center,
             scene_radius,
+            powers,
+        }
+    }
+
+    /// Replaces light `i`, a point, spot, directional or ambient light, by `light` (the same
+    /// kind; another power, colour or place) and chooses lights by the new powers: the set is
+    /// then the one [`LightSet::new`] makes with `light` in place, the sampler kind it resolved
+    /// kept. Area lights are the world's triangles and are not replaced here.
+    pub fn replace(
+        &mut self,
+        i: usize,
+        light: Light,
+        geometry: &GeometryStore,
+        materials: &[Material],
+    ) {
+        debug_assert!(!matches!(light, Light::Area(_)), "area lights are geometry");
+        // Only area lights read texture averages and footprints.
+        self.powers[i] = light.selection_power(materials, &[], None, self.scene_radius);
+        self.lights[i] = light;
+        self.distribution = Distribution1D::new(&self.powers);
+        if let Some(t) = &self.tree {
+            let width = t.bvh.width();
+            self.tree = Some(TreeSelection::over(
+                &self.lights,
+                &self.powers,
+                &self.infinite,
+                geometry,
+                materials,
+                width,
+            ));
         }
     }
 
@@ -371,6 +391,28 @@ impl LightSet {
 }
 
 impl TreeSelection {
+    /// The light BVH over the bounded `lights` weighted by `powers`, and the lights at infinity.
+    fn over(
+        lights: &[Light],
+        powers: &[f32],
+        infinite: &[u32],
+        geometry: &GeometryStore,
+        materials: &[Material],
+        width: TreeWidth,
+    ) -> TreeSelection {
+        let lb: Vec<(u32, LightBounds)> = lights
+            .iter()
+            .enumerate()
+            .zip(powers)
+            .filter_map(|((i, l), &phi)| l.bounds(geometry, materials, phi).map(|b| (i as u32, b)))
+            .collect();
+        TreeSelection::new(
+            LightBvh::with_width(&lb, lights.len(), width),
+            infinite,
+            powers,
+        )
+    }
+
     fn new(bvh: LightBvh, infinite: &[u32], powers: &[f32]) -> TreeSelection {
         let inf_powers: Vec<f32> = infinite.iter().map(|&i| powers[i as usize]).collect();
         let p_inf_power: f64 = inf_powers

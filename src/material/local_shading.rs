@@ -52,6 +52,13 @@ impl ShadingModel {
             ShadingModel::Pbr => "pbr",
         }
     }
+
+    /// Every model, for front ends that list the choices.
+    pub const ALL: [ShadingModel; 3] = [
+        ShadingModel::Phong,
+        ShadingModel::BlinnPhong,
+        ShadingModel::Pbr,
+    ];
 }
 
 /// The local-shading parameters of a hit, with textures applied.

@@ -39,6 +39,19 @@ pub enum TextureFilter {
     Trilinear,
 }
 
+impl TextureFilter {
+    /// The name `--texture-filter` takes (what `FromStr` parses back).
+    pub fn name(self) -> &'static str {
+        match self {
+            TextureFilter::None => "none",
+            TextureFilter::Trilinear => "trilinear",
+        }
+    }
+
+    /// Every filter, for front ends that list the choices.
+    pub const ALL: [TextureFilter; 2] = [TextureFilter::None, TextureFilter::Trilinear];
+}
+
 impl std::str::FromStr for TextureFilter {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {

@@ -47,6 +47,30 @@ pub enum SamplerKind {
 /// rose by 25–100 %.
 pub const PADDED_DIMS: u32 = 16;
 
+impl SamplerKind {
+    /// The name `--sampler` takes (what `FromStr` parses back; `poisson` is an alias).
+    pub fn name(self) -> &'static str {
+        match self {
+            SamplerKind::Independent => "independent",
+            SamplerKind::Stratified => "stratified",
+            SamplerKind::Sobol => "sobol",
+            SamplerKind::PoissonDisk => "poisson-disk",
+            SamplerKind::ZSobol => "zsobol",
+            SamplerKind::Padded => "padded",
+        }
+    }
+
+    /// Every sampler, for front ends that list the choices.
+    pub const ALL: [SamplerKind; 6] = [
+        SamplerKind::Independent,
+        SamplerKind::Stratified,
+        SamplerKind::Padded,
+        SamplerKind::Sobol,
+        SamplerKind::ZSobol,
+        SamplerKind::PoissonDisk,
+    ];
+}
+
 impl std::str::FromStr for SamplerKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {

@@ -13,17 +13,22 @@ use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
+use trayecto::accel::AccelKind;
 use trayecto::camera::CameraSpec;
+use trayecto::denoise::{DenoiseOptions, Oidn};
 use trayecto::film::aov::{AovKind, Layer};
 use trayecto::film::filter::{Filter, FilterKind};
 use trayecto::film::tonemap::Tonemap;
 use trayecto::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
+use trayecto::material::texture::TextureFilter;
 use trayecto::math::Vec3;
 use trayecto::pipeline::{
     CropSpec, GivenSettings, OutputSpec, PipelineError, RenderJob, finish_layers, trace,
 };
 use trayecto::render::{RenderObserver, RenderSettings};
+use trayecto::sampling::SamplerKind;
 use trayecto::scene::{LightDesc, SceneError as LibSceneError};
+use trayecto::split::partial::Part;
 use trayecto::split::{FrameId, SplitOptions};
 use trayecto::world::{World, WorldOptions};
 
@@ -76,14 +81,6 @@ fn bad(m: impl Into<String>) -> PyErr {
     PyValueError::new_err(m.into())
 }
 
-/// Lower-case name of an option value the way the command line spells it, checked by parsing it
-/// back (a name that does not round-trip is a bug here, not the user's).
-fn spelled<T: std::fmt::Debug + std::str::FromStr + PartialEq>(v: &T) -> String {
-    let name = format!("{v:?}").to_lowercase();
-    debug_assert!(name.parse::<T>().ok().as_ref() == Some(v), "{name}");
-    name
-}
-
 /// Every render keyword and its default: the command line's options by their Python names,
 /// the values from the library's defaults. `None` means "the scene file's, else the built-in
 /// default" (size, samples, depth, filter) or "not set".
@@ -106,9 +103,9 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("max_depth", &none)?;
     d.set_item("exposure", 1.0f32)?;
     d.set_item("tonemap", Tonemap::default().name())?;
-    d.set_item("shading", spelled(&ShadingModel::default()))?;
-    d.set_item("accel", spelled(&w.accel))?;
-    d.set_item("sampler", spelled(&s.sampler))?;
+    d.set_item("shading", ShadingModel::default().name())?;
+    d.set_item("accel", w.accel.name())?;
+    d.set_item("sampler", s.sampler.name())?;
     d.set_item("no_nee", !p.nee)?;
     d.set_item("no_mis", !p.mis)?;
     d.set_item("rr_depth", p.rr_depth)?;
@@ -121,7 +118,7 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("camera_from", &none)?;
     d.set_item("variant", &none)?;
     d.set_item("light_sampler", w.light_sampler.name())?;
-    d.set_item("texture_filter", spelled(&w.texture_filter))?;
+    d.set_item("texture_filter", w.texture_filter.name())?;
     d.set_item("filter", &none)?;
     d.set_item("filter_radius", &none)?;
     d.set_item("filter_sigma", &none)?;
@@ -129,6 +126,47 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("time_limit", s.time_limit)?;
     d.set_item("crop", &none)?;
     d.set_item("pixel_bounds", &none)?;
+    d.set_item("guiding", s.guiding)?;
+    // None: no clamp (infinite), as the command line's absent option.
+    d.set_item("clamp_direct", &none)?;
+    d.set_item("clamp_indirect", &none)?;
+    d.set_item("transparent", p.transparent)?;
+    // Animation and motion blur (`WorldOptions::time`): the file's rest pose, no blur.
+    d.set_item("time", &none)?;
+    d.set_item("frame", &none)?;
+    d.set_item("fps", &none)?;
+    d.set_item("shutter", &none)?;
+    d.set_item("shutter_steps", &none)?;
+    // Sample ranges, checkpoints and resuming (docs/DESIGN.md, "Splitting a frame").
+    d.set_item("samples", &none)?;
+    d.set_item("checkpoint", &none)?;
+    d.set_item("checkpoint_interval", CHECKPOINT_INTERVAL)?;
+    d.set_item("resume", &none)?;
+    d.set_item("denoise", false)?;
+    d.set_item("oidn", &none)?;
+    // Read when the scene is loaded (`load_file`), as the command line reads them.
+    d.set_item("memory_limit", &none)?;
+    d.set_item("confine_paths", false)?;
+    d.set_item("define", &none)?;
+    Ok(d)
+}
+
+/// The command line's `--checkpoint-interval` default, in seconds.
+const CHECKPOINT_INTERVAL: f64 = 60.0;
+
+/// The names each option with a fixed set of values takes, as the command line spells them
+/// (the library's `name()`, which its `FromStr` parses back).
+#[pyfunction]
+fn choices(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("sampler", SamplerKind::ALL.map(SamplerKind::name))?;
+    d.set_item("accel", AccelKind::ALL.map(AccelKind::name))?;
+    d.set_item("shading", ShadingModel::ALL.map(ShadingModel::name))?;
+    d.set_item(
+        "texture_filter",
+        TextureFilter::ALL.map(TextureFilter::name),
+    )?;
+    d.set_item("light_sampler", trayecto::light::LightSamplerKind::NAMES)?;
     Ok(d)
 }
 
@@ -187,6 +225,50 @@ struct Options {
     aovs: Vec<AovKind>,
     exposure: f32,
     tonemap: Tonemap,
+    split: SplitOptions,
+    denoise: Option<DenoiseOptions>,
+    shading: ShadingModel,
+}
+
+/// `A..B` text, or two numbers (a tuple, a list, a `range`), as the command line's `A..B`.
+fn range_text(d: &Bound<'_, PyDict>, key: &str) -> PyResult<Option<String>> {
+    let Some(v) = d.get_item(key)?.filter(|v| !v.is_none()) else {
+        return Ok(None);
+    };
+    if let Ok(s) = v.extract::<String>() {
+        return Ok(Some(s));
+    }
+    if let (Ok(a), Ok(b)) = (v.getattr("start"), v.getattr("stop")) {
+        return Ok(Some(format!(
+            "{}..{}",
+            a.extract::<u32>()?,
+            b.extract::<u32>()?
+        )));
+    }
+    let [a, b]: [u32; 2] = v
+        .extract()
+        .map_err(|_| PyTypeError::new_err(format!("{key}: 'A..B' or two numbers (A, B)")))?;
+    Ok(Some(format!("{a}..{b}")))
+}
+
+/// `OPEN,CLOSE` text or two numbers.
+fn shutter(d: &Bound<'_, PyDict>) -> PyResult<Option<[f64; 2]>> {
+    let Some(v) = d.get_item("shutter")?.filter(|v| !v.is_none()) else {
+        return Ok(None);
+    };
+    if let Ok(s) = v.extract::<String>() {
+        let parsed = s
+            .split_once(',')
+            .and_then(|(a, b)| Some([a.trim().parse().ok()?, b.trim().parse().ok()?]));
+        return parsed.map(Some).ok_or_else(|| {
+            bad(format!(
+                "invalid setting: shutter must be OPEN,CLOSE in seconds (got '{s}')"
+            ))
+        });
+    }
+    v.extract::<[f64; 2]>()
+        .map(Some)
+        .map_err(|_| PyTypeError::new_err("shutter: 'OPEN,CLOSE' or two numbers"))
 }
 
 fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
@@ -199,6 +281,7 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
         }
     }
     let mut s = RenderSettings::default();
+    let time_limit: Option<f64> = opt(d, "time_limit")?;
     let width: Option<u32> = opt(d, "width")?;
     let height: Option<u32> = opt(d, "height")?;
     let spp: Option<u32> = opt(d, "spp")?;
@@ -206,7 +289,7 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
     let filter_kind: Option<FilterKind> = parsed(d, "filter")?;
     s.width = width.unwrap_or(s.width);
     s.height = height.unwrap_or(s.height);
-    s.time_limit = opt(d, "time_limit")?;
+    s.time_limit = time_limit;
     s.noise_threshold = opt(d, "noise_threshold")?;
     // A time-limited render without a sample count runs until the time is up.
     s.spp = spp.unwrap_or(if s.time_limit.is_some() {
@@ -215,7 +298,9 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
         s.spp
     });
     s.seed = opt(d, "seed")?.unwrap_or(s.seed);
-    s.threads = opt(d, "threads")?;
+    // 0 means every core, as on the command line.
+    s.threads = opt::<usize>(d, "threads")?.filter(|&t| t > 0);
+    s.guiding = opt(d, "guiding")?.unwrap_or(s.guiding);
     s.sampler = parsed(d, "sampler")?.unwrap_or(s.sampler);
     let p = &mut s.path;
     p.max_depth = max_depth.unwrap_or(p.max_depth);
@@ -224,6 +309,20 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
     p.rr_scale = opt(d, "rr_scale")?.unwrap_or(p.rr_scale);
     p.nee &= !opt::<bool>(d, "no_nee")?.unwrap_or(false);
     p.mis &= !opt::<bool>(d, "no_mis")?.unwrap_or(false);
+    for (key, clamp) in [
+        ("clamp_direct", &mut p.clamp_direct),
+        ("clamp_indirect", &mut p.clamp_indirect),
+    ] {
+        if let Some(x) = opt::<f32>(d, key)? {
+            if !(x.is_finite() && x > 0.0) {
+                return Err(bad(format!(
+                    "invalid setting: {key} must be a positive number (got {x})"
+                )));
+            }
+            *clamp = x;
+        }
+    }
+    p.transparent = opt(d, "transparent")?.unwrap_or(p.transparent);
     // AOV names; with the raycast integrator a single view name picks what the image shows.
     let aov_names: Vec<String> = match d.get_item("aovs")?.filter(|v| !v.is_none()) {
         Some(v) if v.is_instance_of::<PyString>() => vec![v.extract()?],
@@ -236,17 +335,27 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
     let integrator = integrator_given.unwrap_or_default();
     let shading: ShadingModel = parsed(d, "shading")?.unwrap_or_default();
     let raycast = matches!(integrator, IntegratorKind::Raycast { .. });
+    let shading_name = shading;
     let view = match aov_names.as_slice() {
         [one] if raycast => one.trim().parse::<Aov>().ok(),
         _ => None,
     };
     s.integrator = integrator.with_options(view.unwrap_or_default(), shading);
-    let aovs = if view.is_some() || aov_names.is_empty() {
+    let mut aovs = if view.is_some() || aov_names.is_empty() {
         Vec::new()
     } else {
         AovKind::parse_list(&aov_names.join(","))
             .map_err(|e| bad(format!("invalid setting: aovs: {e}")))?
     };
+    if s.path.transparent {
+        if integrator_given.is_some_and(|k| k != IntegratorKind::Path) {
+            return Err(bad("invalid setting: transparent needs integrator='path'"));
+        }
+        // The coverage the image's alpha is, as the command line adds it.
+        if !aovs.contains(&AovKind::Alpha) {
+            aovs.push(AovKind::Alpha);
+        }
+    }
     let filter_radius: Option<f32> = opt(d, "filter_radius")?;
     let filter_sigma: Option<f32> = opt(d, "filter_sigma")?;
     if (filter_radius.is_some() || filter_sigma.is_some()) && filter_kind.is_none() {
@@ -292,6 +401,40 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
     w.variant = opt(d, "variant")?;
     w.light_sampler = parsed(d, "light_sampler")?.unwrap_or(w.light_sampler);
     w.texture_filter = parsed(d, "texture_filter")?.unwrap_or(w.texture_filter);
+    w.time = trayecto::world::motion::TimeOptions {
+        time: opt(d, "time")?,
+        frame: opt(d, "frame")?,
+        fps: opt(d, "fps")?,
+        shutter: shutter(d)?,
+        steps: opt(d, "shutter_steps")?.unwrap_or(0),
+    };
+    let samples = range_text(d, "samples")?
+        .map(|r| trayecto::split::parse_range(&r))
+        .transpose()
+        .map_err(|e| bad(format!("invalid setting: samples: {e}")))?;
+    let checkpoint_interval: f64 = opt(d, "checkpoint_interval")?.unwrap_or(CHECKPOINT_INTERVAL);
+    if !(0.0..=1e9).contains(&checkpoint_interval) {
+        return Err(bad(format!(
+            "invalid setting: checkpoint_interval must be 0 or more seconds (got {checkpoint_interval})"
+        )));
+    }
+    let checkpoint: Option<PathBuf> = opt(d, "checkpoint")?;
+    let resume: Option<PathBuf> = opt(d, "resume")?;
+    let split = SplitOptions {
+        samples,
+        // A resumed render goes on saving into its checkpoint.
+        checkpoint: checkpoint.or_else(|| resume.clone()),
+        checkpoint_interval: Duration::from_secs_f64(checkpoint_interval),
+        resume,
+        // A cancelled render raises; what it completed is in the checkpoint when one is named.
+        write_on_interrupt: false,
+    };
+    let oidn: Option<PathBuf> = opt(d, "oidn")?;
+    let denoise = match (opt::<bool>(d, "denoise")?.unwrap_or(false), oidn) {
+        (true, library) => Some(DenoiseOptions { library }),
+        (false, Some(_)) => return Err(bad("invalid setting: oidn needs denoise=True")),
+        (false, None) => None,
+    };
     if let Some(f) = opt::<PathBuf>(d, "camera_from")? {
         if w.camera.is_some() {
             return Err(bad("invalid setting: give camera or camera_from, not both"));
@@ -304,7 +447,7 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
         given: GivenSettings {
             width: width.is_some(),
             height: height.is_some(),
-            spp: spp.is_some(),
+            spp: spp.is_some() || time_limit.is_some(),
             max_depth: max_depth.is_some(),
             filter: filter_kind.is_some(),
             integrator: integrator_given.is_some(),
@@ -313,6 +456,9 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
         aovs,
         exposure: opt(d, "exposure")?.unwrap_or(1.0),
         tonemap: parsed(d, "tonemap")?.unwrap_or_default(),
+        split,
+        denoise,
+        shading: shading_name,
     })
 }
 
@@ -353,6 +499,30 @@ struct Scene {
     built: Option<Built>,
     /// How many times the world was built (the tests check that changes do not rebuild it).
     builds: u64,
+    /// The memory limit and path rule the scene was loaded under, for building its world.
+    load: LoadSettings,
+}
+
+/// The loading options of the command line (`--memory-limit`, `--confine-paths`).
+#[derive(Clone, Copy, Default)]
+struct LoadSettings {
+    memory_limit: Option<u64>,
+    confine_paths: bool,
+}
+
+impl LoadSettings {
+    fn context(self) -> std::sync::Arc<trayecto::limits::LoadContext> {
+        use trayecto::limits::{Budget, LoadContext, PathRule, default_limit};
+        LoadContext::with_paths(
+            Budget::new(self.memory_limit.unwrap_or_else(default_limit)),
+            None,
+            if self.confine_paths {
+                PathRule::Confined
+            } else {
+                PathRule::Open
+            },
+        )
+    }
 }
 
 fn key_of(w: &WorldOptions) -> String {
@@ -362,14 +532,21 @@ fn key_of(w: &WorldOptions) -> String {
 }
 
 impl Scene {
-    fn new(scene: trayecto::scene::Scene, label: String) -> Scene {
+    fn new(scene: trayecto::scene::Scene, label: String, load: LoadSettings) -> Scene {
         Scene {
             scene,
             label,
             camera: None,
             built: None,
             builds: 0,
+            load,
         }
+    }
+
+    /// The compiled world when it can be changed in place: built, and a still (a motion-blurred
+    /// world is several, each with its own copies).
+    fn built_still(&mut self) -> Option<&mut Built> {
+        self.built.as_mut().filter(|b| b.world.motion.is_empty())
     }
 
     fn material_index(&self, name: &Bound<'_, PyAny>) -> PyResult<usize> {
@@ -402,7 +579,8 @@ impl Scene {
     fn world(&mut self, opts: &WorldOptions) -> PyResult<&World> {
         let key = key_of(opts);
         let reuse = matches!(&self.built, Some(b) if b.key == key
-            && (b.camera == opts.camera_override || opts.camera_override.is_some()));
+            && (b.camera == opts.camera_override
+                || (opts.camera_override.is_some() && b.world.motion.is_empty())));
         if reuse {
             let b = self.built.as_mut().expect("checked");
             if b.camera != opts.camera_override
@@ -416,12 +594,13 @@ impl Scene {
         } else {
             self.built = None;
             let mut scene = self.scene.clone();
-            let world = trayecto::limits::scope_or_default(|| {
+            let world = trayecto::limits::scope(self.load.context(), || {
                 if let Some(v) = &opts.variant {
                     scene.select_variant(v)?;
                 }
                 let warnings = scene.warnings.clone();
-                World::build(scene, opts).map(|w| (w, warnings))
+                // Posed at the moment `time`/`frame` ask for, one world per shutter step.
+                World::build_posed(scene, opts).map(|w| (w, warnings))
             })
             .map_err(|e| scene_err(&e))?;
             let (world, mut warnings) = world;
@@ -642,10 +821,10 @@ impl Scene {
         let emits = |m: &trayecto::material::Material| {
             m.emissive != Vec3::ZERO || m.emissive_texture.is_some()
         };
-        let same_world = |b: &Built| b.world.materials.len() == self.scene.materials.len();
-        match &mut self.built {
+        let count = self.scene.materials.len();
+        match self.built_still() {
             // Media give bounding objects their own copies of materials: rebuild then.
-            Some(b) if !emits(&before) && !emits(&m) && same_world(b) => {
+            Some(b) if !emits(&before) && !emits(&m) && b.world.materials.len() == count => {
                 b.world.materials[i] = m;
             }
             _ => self.built = None,
@@ -671,14 +850,19 @@ impl Scene {
         Ok(out)
     }
 
-    /// Sets a light's intensity (a number or RGB, in the units `lights` lists), by name or
-    /// index. The world is rebuilt from memory at the next render (the light sampler depends
-    /// on every light's power).
-    fn set_light(&mut self, name: &Bound<'_, PyAny>, intensity: &Bound<'_, PyAny>) -> PyResult<()> {
-        let v = vec3(intensity, "intensity")?;
-        if !v.is_finite() || v.min_element() < 0.0 {
-            return Err(bad("intensity: finite, non-negative numbers"));
-        }
+    /// Sets a light's intensity and colour, by name or index: `intensity` is a number or RGB
+    /// in the units `lights` lists; `color` an RGB the intensity is multiplied by (given alone,
+    /// it keeps the light's strength, its largest channel). Point, spot, directional and
+    /// ambient lights change in the compiled world in place (the geometry and its BVH are
+    /// kept; only the choice among lights is redone); an environment map's change rebuilds
+    /// the world from memory at the next render.
+    #[pyo3(signature = (name, intensity=None, color=None))]
+    fn set_light(
+        &mut self,
+        name: &Bound<'_, PyAny>,
+        intensity: Option<&Bound<'_, PyAny>>,
+        color: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
         let count = self.scene.lights.len();
         let index = if let Ok(i) = name.extract::<usize>() {
             (i < count).then_some(i)
@@ -692,8 +876,29 @@ impl Scene {
         let i = index.ok_or_else(|| {
             PyKeyError::new_err(format!("no light {name} (the scene has {count})"))
         })?;
+        let current = *light_power(&mut self.scene.lights[i]).2;
+        let color = color.map(|c| vec3(c, "color")).transpose()?;
+        let v = match (intensity, color) {
+            (Some(x), None) => vec3(x, "intensity")?,
+            (Some(x), Some(c)) => {
+                let s: f32 = x.extract().map_err(|_| {
+                    PyTypeError::new_err("intensity: one number when color is given")
+                })?;
+                c * s
+            }
+            (None, Some(c)) => c * current.max_element(),
+            (None, None) => return Err(PyTypeError::new_err("set_light: give intensity or color")),
+        };
+        if !v.is_finite() || v.min_element() < 0.0 {
+            return Err(bad("intensity: finite, non-negative numbers"));
+        }
         *light_power(&mut self.scene.lights[i]).2 = v;
-        self.built = None;
+        let desc = self.scene.lights[i].clone();
+        if let Some(b) = self.built_still()
+            && !b.world.set_scene_light(i, &desc)
+        {
+            self.built = None;
+        }
         Ok(())
     }
 
@@ -709,14 +914,77 @@ impl Scene {
     }
 }
 
-/// Loads a scene file (every format the command line reads) or a built-in scene by name.
+/// The loading keywords: `memory_limit` (bytes, or the command line's `4G`, `512M`),
+/// `confine_paths`, and `define` (Mitsuba parameters: a dict, or `NAME=VALUE` strings).
+fn load_settings(d: &Bound<'_, PyDict>) -> PyResult<(LoadSettings, Vec<(String, String)>)> {
+    let memory_limit = match d.get_item("memory_limit")?.filter(|v| !v.is_none()) {
+        Some(v) if v.is_instance_of::<PyString>() => Some(
+            trayecto::limits::parse_size(&v.extract::<String>()?)
+                .map_err(|e| bad(format!("invalid setting: memory_limit: {e}")))?,
+        ),
+        Some(v) => Some(v.extract::<u64>()?),
+        None => None,
+    };
+    let mut define = Vec::new();
+    match d.get_item("define")?.filter(|v| !v.is_none()) {
+        Some(v) if v.is_instance_of::<PyDict>() => {
+            for (k, x) in v.downcast::<PyDict>()? {
+                let value = match x.extract::<String>() {
+                    Ok(s) => s,
+                    Err(_) => x.str()?.extract()?,
+                };
+                define.push((k.extract()?, value));
+            }
+        }
+        Some(v) => {
+            let items: Vec<String> = if v.is_instance_of::<PyString>() {
+                vec![v.extract()?]
+            } else {
+                v.extract()?
+            };
+            for s in items {
+                define.push(
+                    trayecto::scene::mitsuba::parse_define(&s)
+                        .map_err(|e| bad(format!("invalid setting: define: {e}")))?,
+                );
+            }
+        }
+        None => {}
+    }
+    let settings = LoadSettings {
+        memory_limit,
+        confine_paths: opt(d, "confine_paths")?.unwrap_or(false),
+    };
+    Ok((settings, define))
+}
+
+/// Mitsuba `-D` parameters are process-wide in the library: loads that set them take turns.
+static DEFINES: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// `load` under the loading keywords, the GIL released.
+fn load_with<T: Send>(
+    py: Python<'_>,
+    options: &Bound<'_, PyDict>,
+    load: impl FnOnce() -> Result<T, LibSceneError> + Send,
+) -> PyResult<(T, LoadSettings)> {
+    let (settings, define) = load_settings(options)?;
+    let loaded = py.allow_threads(|| {
+        let _turn = DEFINES.lock().unwrap_or_else(|e| e.into_inner());
+        trayecto::scene::mitsuba::set_defines(define);
+        let r = trayecto::limits::scope(settings.context(), load);
+        trayecto::scene::mitsuba::set_defines(Vec::new());
+        r
+    });
+    Ok((loaded.map_err(|e| scene_err(&e))?, settings))
+}
+
+/// Loads a scene file (every format the command line reads) or a built-in scene by name, under
+/// the loading keywords (`memory_limit`, `confine_paths`, `define`).
 #[pyfunction]
-fn load_file(py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
+fn load_file(py: Python<'_>, path: PathBuf, options: &Bound<'_, PyDict>) -> PyResult<Scene> {
     let spec = path.to_string_lossy().into_owned();
-    let scene = py
-        .allow_threads(|| trayecto::scene::load(&spec))
-        .map_err(|e| scene_err(&e))?;
-    Ok(Scene::new(scene, spec))
+    let (scene, load) = load_with(py, options, || trayecto::scene::load(&spec))?;
+    Ok(Scene::new(scene, spec, load))
 }
 
 /// A Python value as TOML: dicts are tables, lists and tuples arrays, numpy arrays and scalars
@@ -782,13 +1050,18 @@ fn to_toml_text(d: &Bound<'_, PyDict>) -> PyResult<String> {
 /// A scene from dicts and lists with the TOML scene file's schema; files it names are read
 /// relative to `base_dir`.
 #[pyfunction]
-fn load_dict(py: Python<'_>, d: &Bound<'_, PyDict>, base_dir: PathBuf) -> PyResult<Scene> {
+fn load_dict(
+    py: Python<'_>,
+    d: &Bound<'_, PyDict>,
+    base_dir: PathBuf,
+    options: &Bound<'_, PyDict>,
+) -> PyResult<Scene> {
     let text = to_toml_text(d)?;
     let label = "load_dict.toml";
-    let scene = py
-        .allow_threads(|| trayecto::scene::load_bytes(text.as_bytes(), &base_dir, label))
-        .map_err(|e| scene_err(&e))?;
-    Ok(Scene::new(scene, label.into()))
+    let (scene, load) = load_with(py, options, || {
+        trayecto::scene::load_bytes(text.as_bytes(), &base_dir, label)
+    })?;
+    Ok(Scene::new(scene, label.into(), load))
 }
 
 /// Progress seen from the render's worker threads.
@@ -829,9 +1102,9 @@ fn render(
         settings: o.settings.clone(),
         given: o.given,
         outputs: Vec::new(),
-        split: SplitOptions::default(),
+        split: o.split.clone(),
         aovs: o.aovs.clone(),
-        denoise: None,
+        denoise: o.denoise.clone(),
         crop: o.crop,
     };
     job.check().map_err(pipeline_err)?;
@@ -839,15 +1112,44 @@ fn render(
     settings
         .validate()
         .map_err(|e| pipeline_err(PipelineError::Render(e)))?;
+    // The denoiser is loaded first: without it, fail before any work (as the command line).
+    let denoiser = o
+        .denoise
+        .as_ref()
+        .map(|d| Oidn::load(d.library.as_deref()))
+        .transpose()
+        .map_err(|e| pipeline_err(e.into()))?;
+    // Partial films carry the frame's identity, the digest of the scene as rendered (its
+    // variant selected), so that parts from here and from the command line merge.
+    let parts = o.split.samples.is_some() || o.split.checkpoint.is_some();
+    let digest = if parts {
+        let mut scene = sc.scene.clone();
+        if let Some(v) = &world_opts.variant {
+            scene.select_variant(v).map_err(|e| scene_err(&e))?;
+        }
+        trayecto::scene::digest::digest(&sc.label, &scene, world_opts.env.as_deref())
+            .map_err(|e| scene_err(&e))?
+    } else {
+        String::new()
+    };
     let world = sc.world(&world_opts)?;
     let frame = FrameId {
         scene: job.scene.clone(),
-        digest: String::new(),
+        digest,
         settings: settings.clone(),
         world: world_opts,
         light_sampler: world.lights.sampler_kind(),
     };
-    let traced = trayecto::integrator::aov::traced(&o.aovs);
+    let mut traced = trayecto::integrator::aov::traced(&o.aovs);
+    if denoiser.is_some() {
+        // The denoiser's guides, traced when not asked for (and not kept).
+        for k in [AovKind::Albedo, AovKind::Normal] {
+            if !traced.contains(&k) {
+                traced.push(k);
+            }
+        }
+    }
+    let split = &o.split;
     let observer = Progress::default();
     let cancel = AtomicBool::new(false);
     let mut interrupt: Option<PyErr> = None;
@@ -857,14 +1159,7 @@ fn render(
     let result = std::thread::scope(|s| {
         let (observer, cancel, frame, traced, done) = (&observer, &cancel, &frame, &traced, &done);
         let handle = s.spawn(move || {
-            let r = trace(
-                world,
-                frame,
-                &SplitOptions::default(),
-                traced,
-                observer,
-                cancel,
-            );
+            let r = trace(world, frame, split, traced, observer, cancel);
             *done.0.lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
             done.1.notify_all();
         });
@@ -925,11 +1220,50 @@ fn render(
     let result = result.ok_or_else(|| RenderError::new_err("the render failed"))?;
     let t = match result.map_err(pipeline_err)? {
         Ok(t) => t,
-        Err(_) => return Err(Cancelled::new_err("render cancelled")),
+        Err(outcome) => {
+            let kept = match &outcome.checkpoint_written {
+                Some(p) => format!(
+                    ": the film of {} samples per pixel is saved in {} (resume= it to go on)",
+                    outcome.render.done,
+                    p.display()
+                ),
+                None => String::new(),
+            };
+            return Err(Cancelled::new_err(format!("render cancelled{kept}")));
+        }
+    };
+    let denoised = match &denoiser {
+        Some(oidn) => {
+            let guide = |k: AovKind| {
+                t.layers
+                    .iter()
+                    .find(|l| l.name == k.name())
+                    .and_then(Layer::to_image)
+                    .ok_or_else(|| RenderError::new_err("the denoiser's guides were not traced"))
+            };
+            let (albedo, normal) = (guide(AovKind::Albedo)?, guide(AovKind::Normal)?);
+            let threads = settings.threads;
+            let image = &t.out.image;
+            Some(
+                py.allow_threads(|| oidn.denoise(image, &albedo, &normal, threads))
+                    .map_err(|e| pipeline_err(e.into()))?,
+            )
+        }
+        None => None,
     };
     let mut layers = t.layers;
     finish_layers(&mut layers, &o.aovs, &settings, &t.part.film);
     let stats = t.out.stats;
+    let names = [
+        ("integrator", settings.integrator.name()),
+        ("sampler", settings.sampler.name()),
+        ("shading", o.shading.name()),
+        ("accel", o.world.accel.name()),
+        ("texture_filter", o.world.texture_filter.name()),
+        ("light_sampler", o.world.light_sampler.name()),
+        ("filter", settings.filter.kind.name()),
+        ("tonemap", o.tonemap.name()),
+    ];
     Ok(Image {
         image: t.out.image,
         layers,
@@ -939,6 +1273,11 @@ fn render(
         mean_samples: t.mean_samples,
         render_time: t.out.render_time.as_secs_f64(),
         rays: stats.rays + stats.shadow_rays,
+        part: parts.then_some(t.part),
+        sample_range: o.split.samples.is_some(),
+        denoised,
+        names: names.map(|(k, v)| (k, v.to_string())).to_vec(),
+        size: (settings.width, settings.height, settings.spp),
     })
 }
 
@@ -954,6 +1293,17 @@ struct Image {
     mean_samples: f64,
     render_time: f64,
     rays: u64,
+    /// The film and its header when the render wrote or read partial films (`samples`,
+    /// `checkpoint`, `resume`): what `write("part.trp")` saves.
+    part: Option<Part>,
+    /// The render covered a sample range: its image is a partial film's.
+    sample_range: bool,
+    /// The image denoised by Open Image Denoise (`denoise=True`).
+    denoised: Option<trayecto::film::Image>,
+    /// The named settings the render used, as the command line spells them.
+    names: Vec<(&'static str, String)>,
+    /// Width, height and samples per pixel of the frame (after the scene file's own).
+    size: (u32, u32, u32),
 }
 
 /// numpy's view of memory an [`Image`] owns (`__array_interface__`, version 3): the array keeps
@@ -1008,13 +1358,39 @@ impl Image {
                 .map_err(|e| bad(format!("tonemap: {e}")))?,
             None => self.tonemap,
         };
+        let partial = trayecto::pipeline::is_partial_film(&path);
+        if partial && self.part.is_none() {
+            return Err(bad(format!(
+                "{}: a partial film is written from a render given samples= (e.g. samples=(0, \
+                 spp)) or checkpoint=, which give it the frame's identity",
+                path.display()
+            )));
+        }
+        if !partial && self.sample_range {
+            // The command line's rule (`RenderJob::check`): a sample range is a part to merge.
+            return Err(bad(format!(
+                "{}: a partial render (a sample range) writes a partial film: name the output \
+                 FILE.trp, then merge the parts",
+                path.display()
+            )));
+        }
         let out = OutputSpec {
             path,
             exposure: exposure.unwrap_or(self.exposure),
             tonemap,
         };
-        trayecto::pipeline::write_outputs(&self.image, None, &[out], &self.layers)
-            .map_err(|e| RenderError::new_err(message(&e)))?;
+        let layers: &[Layer] = if partial { &[] } else { &self.layers };
+        let err = |e: PipelineError| RenderError::new_err(message(&e));
+        trayecto::pipeline::write_outputs(
+            &self.image,
+            self.part.as_ref(),
+            std::slice::from_ref(&out),
+            layers,
+        )
+        .map_err(err)?;
+        if let Some(d) = &self.denoised {
+            trayecto::pipeline::write_denoised(d, &[out]).map_err(err)?;
+        }
         Ok(())
     }
 }
@@ -1056,6 +1432,31 @@ impl Image {
         // `Vec3` is three packed f32 (glam's `#[repr(C)]` layout), so the pixels are row-major
         // RGB floats.
         view(slf.py(), slf, me.image.data.as_ptr().cast(), shape)
+    }
+
+    /// The image denoised by Open Image Denoise (a render with `denoise=True`), as `numpy()`.
+    fn denoised<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        let me = slf.get();
+        let d = me.denoised.as_ref().ok_or_else(|| {
+            PyKeyError::new_err("this image was not denoised: render with denoise=True")
+        })?;
+        let shape = (d.height as usize, d.width as usize, 3);
+        view(slf.py(), slf, d.data.as_ptr().cast(), shape)
+    }
+
+    /// The settings the render used, by their keyword names: the named choices as the command
+    /// line spells them (`sampler`, `accel`, `integrator`, ...) and the frame's `width`,
+    /// `height` and `spp` (after the scene file's own).
+    #[getter]
+    fn settings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (k, v) in &self.names {
+            d.set_item(k, v)?;
+        }
+        d.set_item("width", self.size.0)?;
+        d.set_item("height", self.size.1)?;
+        d.set_item("spp", self.size.2)?;
+        Ok(d)
     }
 
     /// An AOV layer as a float32 array (height, width, channels), sharing the image's memory.
@@ -1134,6 +1535,7 @@ fn _trayecto(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Scene>()?;
     m.add_class::<Image>()?;
     m.add_function(wrap_pyfunction!(defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(choices, m)?)?;
     m.add_function(wrap_pyfunction!(load_file, m)?)?;
     m.add_function(wrap_pyfunction!(load_dict, m)?)?;
     m.add_function(wrap_pyfunction!(to_toml_text, m)?)?;

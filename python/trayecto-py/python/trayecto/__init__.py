@@ -29,6 +29,7 @@ from ._trayecto import (
     Scene,
     SceneError,
     builtin_scenes,
+    choices,
 )
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
     "Scene",
     "SceneError",
     "builtin_scenes",
+    "choices",
     "defaults",
     "load_dict",
     "load_file",
@@ -60,17 +62,36 @@ def defaults():
 
 _DEFAULTS = _trayecto.defaults()
 
+# The keywords read while the scene is loaded (the command line's --memory-limit,
+# --confine-paths and -D): `load_file` and `load_dict` take them.
+_LOAD_KEYS = ("memory_limit", "confine_paths", "define")
+
+
+def _split_load(overrides, fn):
+    _check_keywords(overrides, fn)
+    load = {k: overrides.pop(k) for k in _LOAD_KEYS if k in overrides}
+    return load
+
 
 def load_file(path, **overrides):
-    """Loads a scene file (.gltf, .glb, .obj, .ply, .fbx, .pbrt, .toml, ...) or a built-in scene
-    by name (``builtin_scenes()``). Errors raise `SceneError` with the command line's message.
+    """Loads a scene file (.gltf, .glb, .obj, .ply, .fbx, .pbrt, .xml, .toml, ...) or a built-in
+    scene by name (``builtin_scenes()``). Errors raise `SceneError` with the command line's
+    message.
 
-    ``overrides`` are render keywords (e.g. ``camera=1``, ``variant="red"``, ``spp=16``) kept with
-    the scene: every `render` of it uses them unless the call gives its own."""
-    scene = _trayecto.load_file(os.fspath(path))
-    _check_keywords(overrides, "load_file")
+    The loading keywords are the command line's: ``memory_limit`` (bytes or ``"4G"``),
+    ``confine_paths`` and ``define`` (Mitsuba parameters, ``{"spp": 16}`` or
+    ``["spp=16"]``, the command line's ``-D``). Other ``overrides`` are render keywords (e.g.
+    ``camera=1``, ``variant="red"``, ``spp=16``) kept with the scene: every `render` of it uses
+    them unless the call gives its own."""
+    load = _split_load(overrides, "load_file")
+    scene = _trayecto.load_file(os.fspath(path), _paths(load))
     scene._overrides = dict(overrides)
+    scene._load = load
     return scene
+
+
+def _paths(d):
+    return {k: (os.fspath(v) if isinstance(v, os.PathLike) else v) for k, v in d.items()}
 
 
 def _check_keywords(kw, fn):
@@ -106,9 +127,10 @@ def load_dict(d, base_dir=None, **overrides):
     inline meshes as numpy arrays ``positions``/``indices``/``normals``/``uvs``, spheres, boxes,
     quads), lights, media. Files it names are read relative to ``base_dir`` (default: the current
     folder). ``overrides`` as for `load_file`."""
-    scene = _trayecto.load_dict(_mesh_arrays(d), os.fspath(base_dir or os.getcwd()))
-    _check_keywords(overrides, "load_dict")
+    load = _split_load(overrides, "load_dict")
+    scene = _trayecto.load_dict(_mesh_arrays(d), os.fspath(base_dir or os.getcwd()), load)
     scene._overrides = dict(overrides)
+    scene._load = load
     return scene
 
 
@@ -135,8 +157,14 @@ def render(scene, *, aovs=(), progress=None, **settings):
     options = dict(getattr(scene, "_overrides", {}))
     options.update(settings)
     _check_keywords(options, "render")
+    loaded = getattr(scene, "_load", {})
+    for k in _LOAD_KEYS:
+        if k in options and options.pop(k) != loaded.get(k, _DEFAULTS[k]):
+            raise ValueError(
+                f"{k} is read while the scene is loaded: give it to load_file() or load_dict()"
+            )
     options["aovs"] = [aovs] if isinstance(aovs, str) else list(aovs)
-    options = {k: (os.fspath(v) if isinstance(v, os.PathLike) else v) for k, v in options.items()}
+    options = _paths(options)
     callback, bar = _progress_callback(progress)
     try:
         return _trayecto.render(scene, options, callback)
@@ -161,9 +189,20 @@ Every render option of the command line is a keyword with the same name (dashes 
 and the same default (``trayecto.defaults()``): ``spp``, ``seed``, ``width``, ``height``,
 ``integrator``, ``threads``, ``max_depth``, ``sampler``, ``filter``, ``camera``, ... ``width``,
 ``height``, ``spp`` and ``max_depth`` default to the scene file's own settings, else 512x512 (or
-the camera's aspect ratio), 64 spp and depth 64, as on the command line. ``aovs`` lists AOV
-layers (albedo, normal, depth, position, shading_normal, material_id, object_id, samples,
-variance). ``exposure`` and ``tonemap`` are kept for ``Image.write`` and the notebook display.
+the camera's aspect ratio), 64 spp and depth 64, as on the command line. ``aovs`` (the command
+line's ``--aov``) lists AOV layers (albedo, normal, depth, position, shading_normal,
+material_id, object_id, samples, variance, alpha). ``exposure`` and ``tonemap`` are kept for
+``Image.write`` and the notebook display. Named values are spelled as on the command line
+(``trayecto.choices()``).
+
+Splitting and resuming: ``samples="0..16"`` (or ``(0, 16)``) renders a sample range of the
+frame, written with ``Image.write("part.trp")`` and merged with ``trayecto merge``;
+``checkpoint=FILE`` saves the film during the render and when it is cancelled,
+``resume=FILE`` continues it. ``denoise=True`` also denoises with Open Image Denoise
+(``Image.denoised()``; ``write`` writes ``out.denoised.png`` beside ``out.png``). ``time``,
+``frame``, ``fps``, ``shutter`` and ``shutter_steps`` pose an animated scene and blur its
+motion. ``memory_limit``, ``confine_paths`` and ``define`` are read while loading: give them
+to `load_file`.
 
 ``progress``: a callable ``progress(done, total)`` (tiles; return ``False`` to cancel), or
 ``True`` for a tqdm bar when tqdm is installed. The GIL is released while rendering; Ctrl-C

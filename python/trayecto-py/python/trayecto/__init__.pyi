@@ -56,7 +56,12 @@ class Scene:
     ) -> None: ...
     @property
     def lights(self) -> list[dict[str, Any]]: ...
-    def set_light(self, name: Union[str, int], intensity: Vec3) -> None: ...
+    def set_light(
+        self,
+        name: Union[str, int],
+        intensity: Optional[Vec3] = None,
+        color: Optional[Vec3] = None,
+    ) -> None: ...
 
 class Image:
     @property
@@ -67,17 +72,38 @@ class Image:
     def aovs(self) -> list[str]: ...
     @property
     def stats(self) -> dict[str, Any]: ...
+    @property
+    def settings(self) -> dict[str, Any]: ...
     def numpy(self) -> npt.NDArray[np.float32]: ...
+    def denoised(self) -> npt.NDArray[np.float32]: ...
     def aov(self, name: str) -> npt.NDArray[np.float32]: ...
     def write(
         self, path: PathLike, exposure: Optional[float] = None, tonemap: Optional[str] = None
     ) -> None: ...
     def _repr_png_(self) -> bytes: ...
 
+Defines = Union[Mapping[str, Any], Sequence[str], str, None]
+
 def builtin_scenes() -> list[str]: ...
+def choices() -> dict[str, list[str]]: ...
 def defaults() -> dict[str, Any]: ...
-def load_file(path: PathLike, **overrides: Any) -> Scene: ...
-def load_dict(d: Mapping[str, Any], base_dir: Optional[PathLike] = None, **overrides: Any) -> Scene: ...
+def load_file(
+    path: PathLike,
+    *,
+    memory_limit: Union[int, str, None] = None,
+    confine_paths: bool = False,
+    define: Defines = None,
+    **overrides: Any,
+) -> Scene: ...
+def load_dict(
+    d: Mapping[str, Any],
+    base_dir: Optional[PathLike] = None,
+    *,
+    memory_limit: Union[int, str, None] = None,
+    confine_paths: bool = False,
+    define: Defines = None,
+    **overrides: Any,
+) -> Scene: ...
 def to_toml(d: Mapping[str, Any]) -> str: ...
 def render(
     scene: Scene,
@@ -116,5 +142,23 @@ def render(
     time_limit: Optional[float] = ...,
     crop: Union[str, Sequence[float], None] = ...,
     pixel_bounds: Union[str, Sequence[int], None] = ...,
+    guiding: bool = ...,
+    clamp_direct: Optional[float] = ...,
+    clamp_indirect: Optional[float] = ...,
+    transparent: bool = ...,
+    time: Optional[float] = ...,
+    frame: Optional[int] = ...,
+    fps: Optional[float] = ...,
+    shutter: Union[str, Tuple[float, float], None] = ...,
+    shutter_steps: Optional[int] = ...,
+    samples: Union[str, Tuple[int, int], range, None] = ...,
+    checkpoint: Optional[PathLike] = ...,
+    checkpoint_interval: float = ...,
+    resume: Optional[PathLike] = ...,
+    denoise: bool = ...,
+    oidn: Optional[PathLike] = ...,
+    memory_limit: Union[int, str, None] = ...,
+    confine_paths: bool = ...,
+    define: Defines = ...,
     progress: Union[bool, Callable[[int, int], Optional[bool]], None] = ...,
 ) -> Image: ...
