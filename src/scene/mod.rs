@@ -434,6 +434,9 @@ pub struct RenderHints {
     /// The integrator the file asks for when Trayecto has it, by its `--integrator` name (pbrt's
     /// `Integrator "lighttracer"`); `None` renders with the job's (the path tracer by default).
     pub integrator: Option<String>,
+    /// pbrt's `Integrator "sppm"` parameters `photonsperiteration` (when positive) and `radius`.
+    pub photons_per_iteration: Option<u64>,
+    pub photon_radius: Option<f32>,
 }
 
 impl MediumDesc {
