@@ -144,8 +144,8 @@ pub struct RenderArgs {
     /// one per pixel).
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub photons_per_iteration: Option<u64>,
-    /// SPPM: the initial photon search radius, in scene units; each pixel's shrinks as its
-    /// photons accumulate (Default: the scene file's `radius`, else 1/200 of the scene's
+    /// SPPM and VCM: the initial photon search (merge) radius, in scene units; it shrinks as
+    /// the iterations go on (Default: the scene file's `radius`, else 1/200 of the scene's
     /// bounding-box diagonal).
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub photon_radius: Option<f32>,
