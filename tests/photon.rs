@@ -310,7 +310,7 @@ fn vcm_radius_shrinks_with_the_iteration_index() {
 /// 160 × 120, 2 threads, interleaved at 4, 16, 64 and 256 samples (iterations), each image's
 /// relative RMS error against one reference (Trayecto's VCM at 1024 iterations; pbrt-v4 renders
 /// the same file). A measurement, not a test: run by hand with
-/// `cargo test --release --test photon caustic -- --ignored --nocapture`
+/// `cargo test --test photon caustic -- --ignored --nocapture`
 /// (pbrt-v4 from ../shared/tools/pbrt-v4/pbrt, or $PBRT).
 #[test]
 #[ignore]
