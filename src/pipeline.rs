@@ -567,6 +567,9 @@ impl RenderJob {
         {
             s.integrator = k;
         }
+        // The photon settings the job was not given, from the file.
+        s.photon.photons_per_iteration = s.photon.photons_per_iteration.or(h.photons_per_iteration);
+        s.photon.radius = s.photon.radius.or(h.photon_radius);
 
         // A camera override has no frame of its own: the image's shape is the job's.
         let camera = match self.world.camera_override {

@@ -19,6 +19,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard, RwLock};
 use std::time::{Duration, Instant};
 
 pub mod light;
+pub mod photon;
 
 pub const MAX_DIMENSION: u32 = 16384;
 pub const MAX_PIXELS: u64 = 1 << 27;
@@ -60,6 +61,9 @@ pub struct RenderSettings {
     /// directions from a BSDF–guide mixture. The expectation is unchanged; experimental: as
     /// measured so far it does not pay at equal time (BENCHMARKS.md, "Path guiding").
     pub guiding: bool,
+    /// The photon integrators' photons per iteration and initial radius (`--integrator sppm`;
+    /// [`crate::integrator::sppm::PhotonSettings`]); the other integrators ignore them.
+    pub photon: crate::integrator::sppm::PhotonSettings,
 }
 
 /// A window of the image in pixels: columns `x0..x1`, rows `y0..y1` (pbrt's `pixelbounds`).
@@ -122,6 +126,7 @@ impl Default for RenderSettings {
             crop: None,
             track_variance: false,
             guiding: false,
+            photon: Default::default(),
         }
     }
 }
@@ -371,6 +376,11 @@ const GUIDE_RECORD_BUDGET: u64 = 1 << 21;
 /// and `secondary > 1` is an error that says what to use instead.
 pub fn check_media_settings(world: &World, settings: &RenderSettings) -> Result<(), RenderError> {
     let integrator = Integrator::for_world(settings.integrator, world);
+    match integrator {
+        Integrator::Sppm => photon::check(world, settings)?,
+        Integrator::Vcm => photon::check_vcm(world, settings)?,
+        _ => {}
+    }
     check_integrator_settings(integrator, settings)?;
     if integrator.capabilities().splats {
         light::check(world, integrator, settings)?;
@@ -464,6 +474,11 @@ pub fn render_range_aovs(
     settings.validate()?;
     // The one place the integrator is decided; everything below asks it what it can do.
     let integrator = Integrator::for_world(settings.integrator, world);
+    match integrator {
+        Integrator::Sppm => photon::check(world, settings)?,
+        Integrator::Vcm => photon::check_vcm(world, settings)?,
+        _ => {}
+    }
     check_integrator_settings(integrator, settings)?;
     let range = start.samples.clone();
     if !(range.start < range.end && range.end <= settings.spp) {
@@ -499,6 +514,14 @@ pub fn render_range_aovs(
     }
     let aovs = aovs_in_loop(world, settings, &start) && aovs;
     let run = || {
+        // Photon mapping's iterations share state between pixels: its own driver.
+        match integrator {
+            Integrator::Sppm => return photon::render(world, settings, start, observer, cancel),
+            Integrator::Vcm => {
+                return photon::render_vcm(world, settings, start, observer, cancel);
+            }
+            _ => {}
+        }
         // Light paths splat anywhere on the film: their own driver (`render/light.rs`).
         if integrator.capabilities().splats {
             return light::render(world, integrator, settings, start, observer, cancel);

@@ -7,9 +7,12 @@ pub mod direct;
 pub mod guiding;
 pub mod lighttracer;
 pub mod path;
+pub mod photon_grid;
 pub mod raycast;
 pub mod select;
 pub mod settings;
+pub mod sppm;
+pub mod vcm;
 pub mod vertex;
 pub mod volpath;
 pub mod whitted;
@@ -48,6 +51,10 @@ pub enum IntegratorKind {
     LightTracer,
     /// Bidirectional path tracing, every (s, t) strategy weighted by MIS (`bdpt.rs`).
     Bdpt,
+    /// Stochastic progressive photon mapping (`sppm.rs`, driven by `render/photon.rs`).
+    Sppm,
+    /// Vertex connection and merging (`vcm.rs`, driven by `render/photon.rs`).
+    Vcm,
 }
 
 impl IntegratorKind {
@@ -58,6 +65,8 @@ impl IntegratorKind {
             IntegratorKind::Whitted { .. } => "whitted",
             IntegratorKind::LightTracer => "lighttracer",
             IntegratorKind::Bdpt => "bdpt",
+            IntegratorKind::Sppm => "sppm",
+            IntegratorKind::Vcm => "vcm",
         }
     }
 
@@ -69,6 +78,8 @@ impl IntegratorKind {
             IntegratorKind::Whitted { .. } => IntegratorKind::Whitted { shading },
             IntegratorKind::LightTracer => IntegratorKind::LightTracer,
             IntegratorKind::Bdpt => IntegratorKind::Bdpt,
+            IntegratorKind::Sppm => IntegratorKind::Sppm,
+            IntegratorKind::Vcm => IntegratorKind::Vcm,
         }
     }
 }
@@ -87,8 +98,10 @@ impl std::str::FromStr for IntegratorKind {
             }),
             "lighttracer" => Ok(IntegratorKind::LightTracer),
             "bdpt" => Ok(IntegratorKind::Bdpt),
+            "sppm" => Ok(IntegratorKind::Sppm),
+            "vcm" => Ok(IntegratorKind::Vcm),
             other => Err(format!(
-                "unknown integrator '{other}' (expected path, raycast, whitted, lighttracer or bdpt)"
+                "unknown integrator '{other}' (expected path, raycast, whitted, lighttracer, bdpt, sppm or vcm)"
             )),
         }
     }

@@ -29,6 +29,12 @@ pub enum Integrator {
     /// Bidirectional path tracing (`bdpt.rs`); its t = 1 strategies splat, so it runs through
     /// `render/light.rs` too.
     Bdpt,
+    /// Stochastic progressive photon mapping (`sppm.rs`): iterations of visible points and
+    /// photons, rendered by `render/photon.rs`.
+    Sppm,
+    /// Vertex connection and merging (`vcm.rs`): iterations of light and camera subpaths,
+    /// rendered by `render/photon.rs`.
+    Vcm,
 }
 
 /// What an integrator can do, as the driver and the pipeline need to know it.
@@ -60,6 +66,8 @@ impl Integrator {
             IntegratorKind::Whitted { shading } => Integrator::Whitted { shading },
             IntegratorKind::LightTracer => Integrator::LightTracer,
             IntegratorKind::Bdpt => Integrator::Bdpt,
+            IntegratorKind::Sppm => Integrator::Sppm,
+            IntegratorKind::Vcm => Integrator::Vcm,
         }
     }
 
@@ -100,6 +108,14 @@ impl Integrator {
                 media: false,
                 splats: true,
             },
+            // Its own driver (`render/photon.rs`); no media, as pbrt-v4's SPPM.
+            Integrator::Sppm | Integrator::Vcm => Capabilities {
+                in_loop_aovs: false,
+                batched_first_hits: false,
+                splitting: false,
+                media: false,
+                splats: false,
+            },
         }
     }
 
@@ -111,6 +127,8 @@ impl Integrator {
             Integrator::Whitted { .. } => "whitted",
             Integrator::LightTracer => "light tracer",
             Integrator::Bdpt => "bidirectional path tracer",
+            Integrator::Sppm => "stochastic progressive photon mapper",
+            Integrator::Vcm => "vertex connection and merging",
         }
     }
 
@@ -135,7 +153,9 @@ impl Integrator {
                 whitted::radiance(world, ray, stream, settings.max_depth, shading, stats)
             }
             // Splatting integrators have no radiance per camera ray: the driver never asks.
-            Integrator::LightTracer | Integrator::Bdpt => Vec3::ZERO,
+            Integrator::LightTracer | Integrator::Bdpt | Integrator::Sppm | Integrator::Vcm => {
+                Vec3::ZERO
+            }
         }
     }
 }

@@ -437,6 +437,9 @@ pub struct RenderHints {
     /// AOV layers the file asks for (Mitsuba's `aov` integrator), written when the job asks
     /// for none itself.
     pub aovs: Vec<crate::film::aov::AovKind>,
+    /// pbrt's `Integrator "sppm"` parameters `photonsperiteration` (when positive) and `radius`.
+    pub photons_per_iteration: Option<u64>,
+    pub photon_radius: Option<f32>,
 }
 
 impl MediumDesc {

@@ -18,7 +18,15 @@ use std::str::FromStr;
 
 /// Integrator and tone-mapping names offered to the page; only those the library parses are
 /// shown, so new modes appear by themselves when they land.
-const INTEGRATOR_NAMES: &[&str] = &["path", "whitted", "raycast", "lighttracer", "bdpt"];
+const INTEGRATOR_NAMES: &[&str] = &[
+    "path",
+    "whitted",
+    "raycast",
+    "lighttracer",
+    "bdpt",
+    "sppm",
+    "vcm",
+];
 const TONEMAP_NAMES: &[&str] = &["pbr-neutral", "agx", "clamp", "gamma2.2", "aces"];
 pub const MAX_OUTPUT_NAME: usize = 64;
 
@@ -677,6 +685,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         // Set by the pipeline when the variance AOV is asked for.
         track_variance: false,
         guiding: o.guiding,
+        photon: Default::default(),
     };
     if errors.is_empty()
         && let Err(e) = settings.validate()

@@ -125,6 +125,7 @@ pub fn image_settings(
         crop,
         track_variance: _,
         guiding,
+        photon,
     } = s;
     let WorldOptions {
         accel,
@@ -141,7 +142,7 @@ pub fn image_settings(
     } = w;
     let env_map = env.is_some();
     let light_sampler = light_sampler.name();
-    let fields: [(&str, &dyn std::fmt::Debug); 21] = [
+    let fields: [(&str, &dyn std::fmt::Debug); 22] = [
         ("width", width),
         ("height", height),
         ("spp", spp),
@@ -166,6 +167,8 @@ pub fn image_settings(
         ("instancing", instancing),
         // The moment and the shutter: frames of an animation are different images.
         ("time", time),
+        // The photon integrators' photons per iteration and radius.
+        ("photon", photon),
     ];
     let mut m: BTreeMap<String, String> = fields
         .iter()

@@ -26,6 +26,13 @@ def single(trayecto, tmp_path, spp, extra=(), scene="cornell", name="single.exr"
     return out.read_bytes()
 
 
+def test_sppm_is_not_split(tmp_path):
+    job = FarmJob(["cornell"], 8, 2, tmp_path / "f.exr", render_args=["--integrator", "sppm"])
+    with pytest.raises(FarmError, match="sppm cannot be split"):
+        run_farm(job, client=None)
+    FarmJob(["cornell"], 8, 2, tmp_path / "f.exr", render_args=["--integrator", "vcm"]).tasks()
+
+
 def test_plan_chunks_covers_every_sample_once():
     assert plan_chunks(10, 1) == [(0, 10)]
     assert plan_chunks(10, 3) == [(0, 3), (3, 6), (6, 10)]

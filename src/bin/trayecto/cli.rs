@@ -134,10 +134,25 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = HEADING_OUTPUT)]
     pub exposure: f32,
     /// Rendering mode: path (the default), raycast, whitted, lighttracer (paths from the
-    /// lights, splatted onto the film) or bdpt (bidirectional path tracing). A pbrt file's
-    /// `Integrator "lighttracer"` or `"bdpt"` is honoured unless this is given.
+    /// lights, splatted onto the film), bdpt (bidirectional path tracing), sppm (stochastic
+    /// progressive photon mapping: --spp iterations) or vcm (vertex connection and merging:
+    /// --spp iterations). A pbrt file's `Integrator "lighttracer"`, `"bdpt"` or `"sppm"` is
+    /// honoured unless this is given.
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub integrator: Option<IntegratorKind>,
+    /// SPPM: photon paths per iteration (Default: the scene file's `photonsperiteration`, else
+    /// one per pixel).
+    #[arg(long, help_heading = HEADING_SAMPLING)]
+    pub photons_per_iteration: Option<u64>,
+    /// SPPM and VCM: the initial photon search (merge) radius, in scene units; it shrinks as
+    /// the iterations go on (Default: the scene file's `radius`, else 1/200 of the scene's
+    /// bounding-box diagonal).
+    #[arg(long, help_heading = HEADING_SAMPLING)]
+    pub photon_radius: Option<f32>,
+    /// VCM: connections only, no merges (bidirectional path tracing with one light subpath per
+    /// camera subpath, unbiased).
+    #[arg(long, help_heading = HEADING_SAMPLING)]
+    pub vcm_no_merge: bool,
     /// AOV layers to write with the image, comma-separated: albedo, normal (both at the first
     /// non-specular hit: the denoiser's guides), depth, position, shading_normal, material_id,
     /// object_id, samples (samples each pixel took), variance (the variance of one sample's
@@ -412,6 +427,11 @@ impl RenderArgs {
             // Set by the pipeline when the variance AOV is asked for.
             track_variance: false,
             guiding: self.guiding,
+            photon: trayecto::integrator::sppm::PhotonSettings {
+                photons_per_iteration: self.photons_per_iteration,
+                radius: self.photon_radius,
+                no_merge: self.vcm_no_merge,
+            },
         }
     }
 

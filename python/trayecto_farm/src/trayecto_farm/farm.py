@@ -189,7 +189,23 @@ class FarmJob:
         ]
 
 
+def _sppm_requested(args: list[str]) -> bool:
+    """Whether the render options ask for ``--integrator sppm``."""
+    return any(
+        (a == "--integrator" and i + 1 < len(args) and args[i + 1] == "sppm")
+        or a == "--integrator=sppm"
+        for i, a in enumerate(args)
+    )
+
+
 def _check_local(job: FarmJob) -> None:
+    # SPPM's pixels carry their photon radius from one iteration to the next, so its iterations
+    # cannot be rendered apart (the renderer refuses a range not starting at 0); VCM's can.
+    if job.chunks > 1 and job.spp > 1 and _sppm_requested(job.render_args):
+        raise FarmError(
+            "--integrator sppm cannot be split into chunks: each pixel's photon radius depends on "
+            "every earlier iteration; use --chunks 1, or --integrator vcm (its iterations split)"
+        )
     for s in job.scenes:
         p = Path(s)
         if (os.sep in s or p.suffix) and not p.is_file():

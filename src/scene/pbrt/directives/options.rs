@@ -83,7 +83,19 @@ impl Loader {
                 if depth_v >= 0 {
                     self.scene.hints.max_depth = Some(depth_v.min(100_000) as u32);
                 }
-                if matches!(ty.as_str(), "lighttracer" | "bdpt") {
+                if ty == "sppm" {
+                    // pbrt-v4's defaults: one photon path per pixel, radius 1; its iterations
+                    // are the sampler's pixel samples (an older file's `iterations` too).
+                    let n = list.int("photonsperiteration", -1);
+                    self.scene.hints.photons_per_iteration = (n > 0).then_some(n as u64);
+                    self.scene.hints.photon_radius = Some(list.float("radius", 1.0));
+                    let it = list.int("iterations", 0);
+                    if it > 0 {
+                        self.scene.hints.spp = Some(it.min(1 << 20) as u32);
+                    }
+                    let _ = list.int("seed", 0);
+                }
+                if matches!(ty.as_str(), "lighttracer" | "bdpt" | "sppm") {
                     self.scene.hints.integrator = Some(ty.clone());
                 } else if !matches!(ty.as_str(), "path" | "volpath") {
                     self.warn(format!(

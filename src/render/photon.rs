@@ -1,0 +1,519 @@
+//! The render driver of stochastic progressive photon mapping (`integrator/sppm.rs`;
+//! docs/DESIGN.md, integrators): [`crate::render`] hands it the frame once the settings are
+//! validated.
+//!
+//! An iteration is one sample index of every pixel: a camera pass (parallel over rows, each
+//! pixel finding its visible point and its direct light with the stream of (seed, pixel,
+//! iteration), as the tiled driver seeds a sample), a photon pass (parallel over fixed chunks of
+//! photon indices; photon j of iteration i has a stream of its own, so it is the same path
+//! whoever traces it, and the chunks' photons are concatenated in index order), a hashed grid
+//! over the photons built in that order (`integrator/photon_grid.rs`), and a gather parallel over
+//! pixels, each summing its own photons in grid order and updating its own radius and flux. No
+//! sum is shared between threads, so the image is a pure function of the seed and the settings
+//! for any thread count.
+//!
+//! A pixel's radius and count depend on every earlier iteration, so a frame cannot be split
+//! into sample ranges (the farm, `--samples-range`) nor resumed from a checkpoint: both are
+//! refused with the reason. The film is written from the pixels' estimates after every pass of
+//! [`super::pass_schedule`] (the previews) and at the end.
+
+use crate::camera::Camera;
+use crate::film::Film;
+use crate::film::filter::FilterSampler;
+use crate::film::splat::SplatBuffer;
+use crate::film::to_fixed;
+use crate::geometry::primitive::SurfaceHit;
+use crate::integrator::photon_grid::PointGrid;
+use crate::integrator::sppm::{self, Photon, PixelState, VisiblePoint};
+use crate::integrator::vcm::{self, LightVertex, Vcm};
+use crate::integrator::vertex::Vertex;
+use crate::integrator::{Integrator, RayStats};
+use crate::math::Vec3;
+use crate::render::{FilmRender, RangeStart, RenderError, RenderObserver, RenderSettings};
+use crate::sampling::{SamplerKind, SamplerSetup};
+use crate::world::World;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Photon paths traced by one task of the photon pass: a fixed split of the photon indices
+/// (whatever the thread count), whose photons are concatenated in order.
+const PHOTON_CHUNK: u64 = 4096;
+
+/// Why SPPM cannot render `world` with `settings`, if it cannot.
+pub fn check(world: &World, settings: &RenderSettings) -> Result<(), RenderError> {
+    let bad = |m: &str| Err(RenderError::InvalidSetting(m.to_string()));
+    if world.has_media() {
+        return bad(
+            "stochastic progressive photon mapping (--integrator sppm) does not render \
+             participating media or medium interfaces (nor does pbrt-v4's SPPMIntegrator, which \
+             ignores them): use --integrator path",
+        );
+    }
+    if settings.noise_threshold.is_some() {
+        return bad(
+            "adaptive sampling (--noise-threshold) does not apply to SPPM: every pixel takes \
+             part in every iteration's photon pass",
+        );
+    }
+    if world.time_steps() > 1 {
+        return bad(
+            "SPPM does not render motion blur (--shutter): its photons have no time; render a \
+             still with --time",
+        );
+    }
+    if settings.guiding {
+        return bad("path guiding (--guiding) guides the path tracer, not SPPM");
+    }
+    if settings.path.secondary > 1 {
+        return bad(
+            "secondary rays do not apply to SPPM: each iteration takes one visible point per \
+             pixel; raise the iterations (--spp) instead",
+        );
+    }
+    if let Some(r) = settings.photon.radius
+        && !(r > 0.0 && r.is_finite())
+    {
+        return bad("the photon radius (--photon-radius) must be positive");
+    }
+    if settings.photon.photons_per_iteration == Some(0) {
+        return bad("photons per iteration must be at least 1");
+    }
+    Ok(())
+}
+
+/// Why a sample range or a checkpoint cannot be rendered with SPPM.
+fn check_range(start: &RangeStart) -> Result<(), RenderError> {
+    if start.samples.start > 0 || start.resume.is_some() {
+        return Err(RenderError::InvalidSetting(
+            "SPPM cannot render a sample range that does not start at 0, nor resume from a \
+             checkpoint: each pixel's photon radius and count depend on every earlier \
+             iteration, so its iterations cannot be rendered apart and added"
+                .into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Renders iterations `start.samples` (from 0) of the frame with SPPM.
+pub(crate) fn render(
+    world: &World,
+    settings: &RenderSettings,
+    start: RangeStart,
+    observer: &dyn RenderObserver,
+    cancel: &AtomicBool,
+) -> Result<FilmRender, RenderError> {
+    check(world, settings)?;
+    check_range(&start)?;
+    let t0 = Instant::now();
+    let (w, h) = (settings.width, settings.height);
+    let camera = Camera::new(&world.camera, w, h);
+    let mut path = settings.path;
+    if world.texture_filter == crate::material::texture::TextureFilter::Trilinear || world.has_bump
+    {
+        path.footprint = camera.footprint();
+    }
+    let win = settings.film_window();
+    let (fw, fh) = (win.width(), win.height());
+    let n_pix = fw as usize * fh as usize;
+    let photons_per_iter = settings
+        .photon
+        .photons_per_iteration
+        .unwrap_or(n_pix as u64)
+        .max(1);
+    let r0 = settings
+        .photon
+        .radius
+        .unwrap_or_else(|| sppm::default_radius(world));
+    let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h);
+    // The photons' own streams: independent numbers keyed by (iteration, photon index), from a
+    // seed of their own so they are not the camera samples' numbers.
+    let photon_sampler = SamplerSetup::new(
+        SamplerKind::Independent,
+        settings.seed ^ 0x5370_706d_5068_6f74,
+        1,
+    );
+    let filter = FilterSampler::new(&settings.filter);
+    let iterations = start.samples.end;
+    let previews: Vec<u32> = crate::render::pass_schedule(iterations)
+        .into_iter()
+        .map(|(_, b)| b)
+        .collect();
+    let deadline = settings.time_limit.map(|t| t0 + Duration::from_secs_f64(t));
+
+    let mut vps: Vec<VisiblePoint> = (0..n_pix).map(|_| VisiblePoint::default()).collect();
+    let mut pixels = vec![PixelState::new(r0); n_pix];
+    let mut stats = RayStats::default();
+    let mut done = 0u32;
+    let mut cancelled = false;
+    let mut stopped_early = false;
+    let mut film = Film::new(fw, fh);
+    for it in 0..iterations {
+        if it > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
+            stopped_early = true;
+            break;
+        }
+        // Camera pass: each row's pixels write only their own visible points and sums.
+        let cam_stats = vps
+            .par_chunks_mut(fw as usize)
+            .zip(pixels.par_chunks_mut(fw as usize))
+            .enumerate()
+            .map(|(fy, (vrow, prow))| {
+                let mut st = RayStats::default();
+                if cancel.load(Ordering::Relaxed) {
+                    return st;
+                }
+                let y = fy as u32 + win.y0;
+                for (fx, (vp, px)) in vrow.iter_mut().zip(prow.iter_mut()).enumerate() {
+                    let x = fx as u32 + win.x0;
+                    let mut stream = sampler.stream(sampler.pixel_key((x, y)), it);
+                    let (ray, weight) = super::camera_ray(&camera, &filter, &mut stream, x, y);
+                    let l =
+                        sppm::visible_point(world, &ray, weight, &mut stream, &path, &mut st, vp);
+                    if l.is_finite() {
+                        px.ld[0] += l.x as f64;
+                        px.ld[1] += l.y as f64;
+                        px.ld[2] += l.z as f64;
+                    }
+                }
+                st
+            })
+            .reduce(RayStats::default, sum_stats);
+        // Photon pass: chunks of photon indices, collected in index order.
+        let chunks = photons_per_iter.div_ceil(PHOTON_CHUNK);
+        let traced: Vec<(Vec<Vec3>, Vec<Photon>, RayStats)> = (0..chunks)
+            .into_par_iter()
+            .map(|c| {
+                let mut st = RayStats::default();
+                let (mut points, mut photons) = (Vec::new(), Vec::new());
+                let mut v = Vertex::unshaded(SurfaceHit::EMPTY);
+                let end = ((c + 1) * PHOTON_CHUNK).min(photons_per_iter);
+                for j in c * PHOTON_CHUNK..end {
+                    if cancel.load(Ordering::Relaxed) {
+                        break;
+                    }
+                    let key = photon_sampler.pixel_key((j as u32, it));
+                    let key = key ^ (j >> 32).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+                    let mut s = photon_sampler.stream(key, 0);
+                    sppm::trace_photon(
+                        world,
+                        &mut s,
+                        &path,
+                        &mut st,
+                        &mut v,
+                        &mut points,
+                        &mut photons,
+                    );
+                }
+                (points, photons, st)
+            })
+            .collect();
+        if cancel.load(Ordering::Relaxed) {
+            cancelled = true;
+            break;
+        }
+        let total: usize = traced.iter().map(|t| t.0.len()).sum();
+        let (mut points, mut photons) = (Vec::with_capacity(total), Vec::with_capacity(total));
+        stats += cam_stats;
+        for (p, ph, st) in traced {
+            points.extend_from_slice(&p);
+            photons.extend_from_slice(&ph);
+            stats += st;
+        }
+        // The grid's cells are as large as the largest radius a visible point searches, so a
+        // query visits at most two cells a side.
+        let cell = vps
+            .iter()
+            .zip(&pixels)
+            .filter(|(vp, _)| vp.beta != Vec3::ZERO)
+            .map(|(_, px)| px.radius as f32)
+            .fold(0.0f32, f32::max);
+        if cell > 0.0 {
+            let grid = PointGrid::build(&points, cell);
+            let max_depth = path.max_depth;
+            vps.par_iter()
+                .zip(pixels.par_iter_mut())
+                .for_each(|(vp, px)| {
+                    if vp.beta == Vec3::ZERO {
+                        return;
+                    }
+                    let (m, phi) =
+                        sppm::gather(vp, px.radius as f32, max_depth, &grid, &points, &photons);
+                    px.update(m, phi, vp.beta);
+                });
+        }
+        done = it + 1;
+        observer.tile_done(done as u64, iterations as u64);
+        if previews.contains(&done) && done < iterations {
+            film = to_film(&pixels, fw, fh, done, photons_per_iter);
+            observer.pass_done(&film, done, settings.spp);
+        }
+    }
+    if done > 0 {
+        film = to_film(&pixels, fw, fh, done, photons_per_iter);
+        if !cancelled && done == iterations {
+            observer.pass_done(&film, done, settings.spp);
+        }
+    }
+    Ok(FilmRender {
+        film,
+        start: 0,
+        done,
+        cancelled,
+        stopped_early,
+        stats,
+        render_time: t0.elapsed(),
+        aovs: None,
+    })
+}
+
+fn sum_stats(mut a: RayStats, b: RayStats) -> RayStats {
+    a += b;
+    a
+}
+
+/// The film holding every pixel's estimate after `iterations`, as `iterations` samples of it
+/// (the film's exact fixed point; a non-finite estimate is dropped and counted).
+fn to_film(pixels: &[PixelState], fw: u32, fh: u32, iterations: u32, photons: u64) -> Film {
+    let mut discarded = 0u64;
+    let sum = pixels
+        .iter()
+        .map(|px| {
+            let l = px.estimate(iterations, photons) * iterations as f32;
+            if l.is_finite() && l.max_element() < crate::film::SAMPLE_LIMIT {
+                [to_fixed(l.x), to_fixed(l.y), to_fixed(l.z)]
+            } else {
+                discarded += 1;
+                [0; 3]
+            }
+        })
+        .collect();
+    Film::from_raw(fw, fh, sum, vec![iterations; pixels.len()], discarded)
+        .expect("one state per pixel of the window")
+}
+
+/// Why vertex connection and merging cannot render `world` with `settings`, if it cannot: the
+/// light tracer's reasons (`render/light.rs`: a camera without importance, media, adaptive
+/// sampling, motion blur, guiding), and the densities its weights do not model yet.
+pub fn check_vcm(world: &World, settings: &RenderSettings) -> Result<(), RenderError> {
+    super::light::check(world, Integrator::Vcm, settings)?;
+    let bad = |m: &str| Err(RenderError::InvalidSetting(m.to_string()));
+    if world.lights().iter().any(|l| l.is_infinite()) {
+        return bad(
+            "vertex connection and merging does not render lights at infinity (environment, \
+             distant or uniform lights) yet: use --integrator bdpt or path",
+        );
+    }
+    let camera = Camera::new(&world.camera, settings.width, settings.height);
+    if camera.importance().is_ok_and(|c| !c.is_pinhole()) {
+        return bad(
+            "vertex connection and merging does not render a thin-lens camera (depth of field) \
+             yet: its weights assume a pinhole; use --integrator bdpt or path",
+        );
+    }
+    if settings.path.secondary > 1 {
+        return bad("secondary rays do not apply to vertex connection and merging");
+    }
+    if let Some(r) = settings.photon.radius
+        && !(r > 0.0 && r.is_finite())
+    {
+        return bad("the merge radius (--photon-radius) must be positive");
+    }
+    Ok(())
+}
+
+/// Renders sample indices (iterations) `start.samples` of every pixel with vertex connection
+/// and merging (`integrator/vcm.rs`). An iteration's radius depends on its index alone and its
+/// light subpaths on (seed, pixel, index), so iterations are independent: light subpaths'
+/// splats and camera subpaths' values go to per-thread fixed-point buffers
+/// ([`SplatBuffer`]) whose exact sums make the film the same for any thread count and for a
+/// frame split into sample ranges or resumed, as the light tracer's (`render/light.rs`).
+pub(crate) fn render_vcm(
+    world: &World,
+    settings: &RenderSettings,
+    start: RangeStart,
+    observer: &dyn RenderObserver,
+    cancel: &AtomicBool,
+) -> Result<FilmRender, RenderError> {
+    check_vcm(world, settings)?;
+    let t0 = Instant::now();
+    let (w, h) = (settings.width, settings.height);
+    let camera = Camera::new(&world.camera, w, h);
+    let importance = camera
+        .importance()
+        .map_err(|e| RenderError::InvalidSetting(e.to_string()))?;
+    let mut path = settings.path;
+    if world.texture_filter == crate::material::texture::TextureFilter::Trilinear || world.has_bump
+    {
+        path.footprint = camera.footprint();
+    }
+    let win = settings.film_window();
+    let (fw, fh) = (win.width(), win.height());
+    let n_pix = fw as usize * fh as usize;
+    let scale = ((w as f64 * h as f64) / n_pix as f64) as f32;
+    let r0 = settings
+        .photon
+        .radius
+        .unwrap_or_else(|| sppm::default_radius(world));
+    let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h);
+    // The light subpaths' streams: the same sampler, from a seed of their own.
+    let light_sampler = SamplerSetup::new(
+        settings.sampler,
+        settings.seed ^ 0x7663_6d4c_6967_6874,
+        settings.spp,
+    )
+    .for_image(w, h);
+    let filter = FilterSampler::new(&settings.filter);
+    let first = start.samples.start;
+    let (mut film, from) = match start.resume {
+        Some((film, at)) => (film, at),
+        None => (Film::new(fw, fh), first),
+    };
+    let passes: Vec<(u32, u32)> = super::pass_schedule(start.samples.end - from)
+        .into_iter()
+        .map(|(a, b)| (a + from, b + from))
+        .collect();
+    let deadline = settings.time_limit.map(|t| t0 + Duration::from_secs_f64(t));
+    let threads = rayon::current_num_threads().max(1);
+    let buffers: Vec<std::sync::Mutex<SplatBuffer>> = (0..threads)
+        .map(|_| std::sync::Mutex::new(SplatBuffer::new(win.x0, win.y0, fw, fh, &settings.filter)))
+        .collect();
+    let buffer = || {
+        let k = rayon::current_thread_index().unwrap_or(0) % threads;
+        buffers[k].lock().unwrap_or_else(|e| e.into_inner())
+    };
+    let mut stats = RayStats::default();
+    let mut done = from;
+    let mut cancelled = false;
+    let mut stopped_early = false;
+    let total_work = (start.samples.end - from) as u64;
+    'passes: for (q, &(s0, s1)) in passes.iter().enumerate() {
+        if q > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
+            stopped_early = true;
+            break;
+        }
+        for b in &buffers {
+            b.lock().unwrap_or_else(|e| e.into_inner()).clear();
+        }
+        for it in s0..s1 {
+            let vcm = Vcm::new(
+                world,
+                &importance,
+                &path,
+                scale,
+                vcm::radius(r0, it),
+                n_pix as u64,
+                !settings.photon.no_merge,
+            );
+            // Light subpaths, one per pixel, stored row by row in pixel order.
+            let mut rows: Vec<LightRow> = (0..fh)
+                .into_par_iter()
+                .map(|fy| {
+                    let mut st = RayStats::default();
+                    let (mut verts, mut points) = (Vec::new(), Vec::new());
+                    let mut ends = Vec::with_capacity(fw as usize);
+                    if !cancel.load(Ordering::Relaxed) {
+                        let mut buf = buffer();
+                        let y = fy + win.y0;
+                        for x in win.x0..win.x1 {
+                            let mut s = light_sampler.stream(light_sampler.pixel_key((x, y)), it);
+                            vcm.light_path(&mut s, &mut st, &mut verts, &mut points, &mut *buf);
+                            ends.push(verts.len() as u32);
+                        }
+                    }
+                    LightRow {
+                        verts,
+                        points,
+                        ends,
+                        stats: st,
+                    }
+                })
+                .collect();
+            if cancel.load(Ordering::Relaxed) {
+                cancelled = true;
+                break 'passes;
+            }
+            let total: usize = rows.iter().map(|r| r.verts.len()).sum();
+            let (mut all, mut points) = (Vec::with_capacity(total), Vec::with_capacity(total));
+            let mut row_start = Vec::with_capacity(fh as usize);
+            for row in &mut rows {
+                row_start.push(all.len());
+                all.append(&mut row.verts);
+                points.append(&mut row.points);
+                stats += row.stats;
+            }
+            let grid = if settings.photon.no_merge {
+                PointGrid::default()
+            } else {
+                PointGrid::build(&points, vcm.radius)
+            };
+            let cam_stats = (0..fh)
+                .into_par_iter()
+                .map(|fy| {
+                    let mut st = RayStats::default();
+                    if cancel.load(Ordering::Relaxed) {
+                        return st;
+                    }
+                    let ends = &rows[fy as usize].ends;
+                    let base = row_start[fy as usize];
+                    let y = fy + win.y0;
+                    let mut values = Vec::with_capacity(fw as usize);
+                    for (fx, x) in (win.x0..win.x1).enumerate() {
+                        let a = base + if fx == 0 { 0 } else { ends[fx - 1] as usize };
+                        let b = base + ends[fx] as usize;
+                        let mut s = sampler.stream(sampler.pixel_key((x, y)), it);
+                        let (ray, weight) = super::camera_ray(&camera, &filter, &mut s, x, y);
+                        let l = vcm.camera_path(
+                            &ray,
+                            weight,
+                            &mut s,
+                            &mut st,
+                            &all[a..b],
+                            &grid,
+                            &all,
+                            &points,
+                        );
+                        values.push(l);
+                    }
+                    let mut buf = buffer();
+                    for (fx, l) in values.into_iter().enumerate() {
+                        buf.add_pixel(win.x0 + fx as u32, y, l);
+                    }
+                    st
+                })
+                .reduce(RayStats::default, sum_stats);
+            stats += cam_stats;
+            observer.tile_done((it + 1 - from) as u64, total_work);
+            if cancel.load(Ordering::Relaxed) {
+                cancelled = true;
+                break 'passes;
+            }
+        }
+        // Exact integer sums: the buffers' order does not matter.
+        for b in &buffers {
+            film.add_splats(&b.lock().unwrap_or_else(|e| e.into_inner()));
+        }
+        film.add_counts(s1 - s0);
+        done = s1;
+        observer.pass_done(&film, done, settings.spp);
+    }
+    Ok(FilmRender {
+        film,
+        start: first,
+        done,
+        cancelled,
+        stopped_early,
+        stats,
+        render_time: t0.elapsed(),
+        aovs: None,
+    })
+}
+
+/// One row's light subpaths: their stored vertices and positions in pixel order, where each
+/// pixel's end, and the rays traced.
+struct LightRow {
+    verts: Vec<LightVertex>,
+    points: Vec<Vec3>,
+    ends: Vec<u32>,
+    stats: RayStats,
+}
