@@ -127,6 +127,10 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("crop", &none)?;
     d.set_item("pixel_bounds", &none)?;
     d.set_item("guiding", s.guiding)?;
+    // SPPM and VCM: None is the scene file's, else the integrator's own default.
+    d.set_item("photons_per_iteration", s.photon.photons_per_iteration)?;
+    d.set_item("photon_radius", s.photon.radius)?;
+    d.set_item("vcm_no_merge", s.photon.no_merge)?;
     // None: no clamp (infinite), as the command line's absent option.
     d.set_item("clamp_direct", &none)?;
     d.set_item("clamp_indirect", &none)?;
@@ -301,6 +305,9 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
     // 0 means every core, as on the command line.
     s.threads = opt::<usize>(d, "threads")?.filter(|&t| t > 0);
     s.guiding = opt(d, "guiding")?.unwrap_or(s.guiding);
+    s.photon.photons_per_iteration = opt(d, "photons_per_iteration")?;
+    s.photon.radius = opt(d, "photon_radius")?;
+    s.photon.no_merge = opt(d, "vcm_no_merge")?.unwrap_or(s.photon.no_merge);
     s.sampler = parsed(d, "sampler")?.unwrap_or(s.sampler);
     let p = &mut s.path;
     p.max_depth = max_depth.unwrap_or(p.max_depth);
