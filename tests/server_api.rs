@@ -2261,7 +2261,7 @@ fn the_page_shares_the_cli_defaults_lists_maps_by_content_and_confines_scenes() 
 
 /// The page's "… left" is the renderer's estimate (`render::remaining_time`, the CLI's too):
 /// for a frame whose lowest row of tiles is dense fog and the rest empty sky (tiles differ in
-/// cost by orders of magnitude, and go top to bottom), the end it predicts at 10, 30 and 60 % of
+/// cost by orders of magnitude, and go top to bottom), the end it predicts at 30 and 60 % of
 /// the render phase is within 20 % of the phase's length of the real end. Extrapolating the work
 /// fraction, as the API did before, ended a third too early mid-way.
 #[test]
@@ -2319,7 +2319,9 @@ fn the_time_left_is_the_renderers_estimate() {
         "the render took {render_s} s: too short to time"
     );
     let start = end - render_s;
-    for mark in [0.1, 0.3, 0.6] {
+    // (The 10 % mark is checked in-process by tests/first_hour.rs: here the job's clock and
+    // 20 ms polls over HTTP blur the first fifth of a second.)
+    for mark in [0.3, 0.6] {
         let &(t, predicted) = polls
             .iter()
             .find(|p| p.0 >= start + mark * render_s)
