@@ -69,8 +69,12 @@ fn render_small(scene: &Scene, size: u32, spp: u32, no_default_light: bool) -> V
     let world = World::build(
         scene.clone(),
         &WorldOptions {
-            default_light: no_default_light
-                .then_some(trayecto::light::default_light::DefaultLight::Off),
+            // (Else the uniform white sky these checks were written for, not the studio.)
+            default_light: Some(if no_default_light {
+                trayecto::light::default_light::DefaultLight::Off
+            } else {
+                trayecto::light::default_light::DefaultLight::Uniform
+            }),
             ..Default::default()
         },
     )
