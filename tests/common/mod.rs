@@ -33,7 +33,10 @@ pub fn render_scene(scene: &Scene, settings: &RenderSettings) -> Image {
     let world = World::build(
         scene.clone(),
         &WorldOptions {
-            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            // The scene's own choice, else the uniform white sky these tests were written for.
+            default_light: scene
+                .default_light
+                .or(Some(trayecto::scene::DefaultLight::Uniform)),
             ..WorldOptions::default()
         },
     )
