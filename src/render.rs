@@ -291,6 +291,89 @@ pub trait RenderObserver: Sync {
     /// when adaptive sampling stops pixels, and a time-limited render reports the larger of
     /// its work and its time fractions.
     fn tile_done(&self, _done: u64, _total: u64) {}
+    /// After each tile, right after [`RenderObserver::tile_done`]: the same work fractions with
+    /// the render's time so far and the time left as [`remaining_time`] estimates it (the one
+    /// estimate the CLI's bar, the web page and the farm's parts show).
+    fn progress(&self, _progress: &Progress) {}
+}
+
+/// How far a render is ([`RenderObserver::progress`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Progress {
+    /// Work done and planned, in pixel samples (see [`RenderObserver::tile_done`]).
+    pub done: u64,
+    pub total: u64,
+    /// Time since the render stage started.
+    pub elapsed: Duration,
+    /// Time left ([`remaining_time`]); `None` until a tile is done.
+    pub remaining: Option<Duration>,
+}
+
+impl Progress {
+    /// `done / total`, in [0, 1].
+    pub fn fraction(&self) -> f64 {
+        if self.total == 0 {
+            0.0
+        } else {
+            (self.done as f64 / self.total as f64).min(1.0)
+        }
+    }
+}
+
+/// What the ETA knows of the complete passes ([`remaining_time`]): the first one's and the
+/// latest one's cumulative work (pixel samples) and the time it was in, how many are in and how
+/// many are still to come.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PassTimes {
+    pub first: (u64, Duration),
+    pub last: (u64, Duration),
+    pub committed: usize,
+    pub left: usize,
+}
+
+/// The time left in a render (docs/DESIGN.md §5, "Progress and ETA"). A pass costs a fixed
+/// amount (tiles set up, the film committed, the preview) plus an amount per pixel sample; the
+/// two are solved from the first complete pass and the latest (the first passes are 1, 1, 2
+/// samples: their fixed cost is most of their time, so a rate per sample alone predicted
+/// renders 70 % too long at a tenth), and the time left is the passes to come times the one
+/// plus the work left times the other, less the time already spent on the pass in flight.
+/// Tiles of one pass can differ in cost by orders of magnitude (sky against glass or fog) and
+/// are rendered top to bottom: the fraction of a pass's tiles done says little about its time,
+/// while whole passes, each covering the frame, cost in proportion to their samples. Before
+/// two passes of different sizes are in, the work fraction is all there is.
+pub fn remaining_time(
+    done: u64,
+    total: u64,
+    elapsed: Duration,
+    passes: Option<PassTimes>,
+) -> Option<Duration> {
+    let left = total.saturating_sub(done);
+    if left == 0 {
+        return Some(Duration::ZERO);
+    }
+    let secs = match passes {
+        Some(p) if p.last.0 > 0 => {
+            let (w1, t1) = (p.first.0 as f64, p.first.1.as_secs_f64());
+            let (wk, tk) = (p.last.0 as f64, p.last.1.as_secs_f64());
+            let k = p.committed as f64;
+            let det = wk - k * w1;
+            // t1 = c + r·w1 and tk = k·c + r·wk; a solution that is not positive (timing noise)
+            // falls back to a rate alone.
+            let (mut c, mut r) = (0.0, tk / wk);
+            if p.committed >= 2 && det.abs() > 1e-9 * wk {
+                let rr = (tk - k * t1) / det;
+                let cc = t1 - rr * w1;
+                if rr > 0.0 && cc >= 0.0 {
+                    (c, r) = (cc, rr);
+                }
+            }
+            let in_flight = elapsed.saturating_sub(p.last.1).as_secs_f64();
+            (p.left as f64 * c + total.saturating_sub(p.last.0) as f64 * r - in_flight).max(0.0)
+        }
+        _ if done > 0 => elapsed.as_secs_f64() * left as f64 / done as f64,
+        _ => return None,
+    };
+    Some(Duration::from_secs_f64(secs))
 }
 
 /// An observer that ignores everything.
@@ -915,6 +998,10 @@ impl PassSchedule<'_> {
         let work_done = AtomicU64::new(0);
         let work_total = AtomicU64::new(samples_after(0) * frame_pixels);
         let started = Instant::now();
+        // The ETA's measurements: each pass's work, and the work of the committed passes with
+        // the time the last of them was in (`remaining_time`).
+        let pass_work: Vec<AtomicU64> = passes.iter().map(|_| AtomicU64::new(0)).collect();
+        let committed_work = Mutex::new(None::<PassTimes>);
 
         // Pipelined passes. A barrier after every pass left all cores but one idle while
         // the pass's last tiles finished, and during the serial film update and `pass_done`. Instead
@@ -1006,6 +1093,17 @@ impl PassSchedule<'_> {
                 }
                 drop(records);
                 c.done = passes[p].1;
+                {
+                    let mut cw = lock(&committed_work);
+                    let work = cw.map_or(0, |w| w.last.0) + pass_work[p].load(Ordering::SeqCst);
+                    let last = (work, started.elapsed());
+                    *cw = Some(PassTimes {
+                        first: cw.map_or(last, |w| w.first),
+                        last,
+                        committed: p + 1,
+                        left: passes.len() - (p + 1),
+                    });
+                }
                 observer.pass_done(&c.film, c.done, settings.spp);
                 c.committed = p + 1;
                 if let Some(t) = settings.noise_threshold
@@ -1082,17 +1180,29 @@ impl PassSchedule<'_> {
                 drop(mask);
                 *lock(&slots[(q % ring) * n_tiles + t]) = Some(tile);
                 let units = pixels * u64::from(s1 - s0);
+                pass_work[q].fetch_add(units, Ordering::SeqCst);
                 let done = work_done.fetch_add(units, Ordering::SeqCst) + units;
                 let total = work_total.load(Ordering::SeqCst).max(done);
+                let elapsed = started.elapsed();
+                let mut remaining = remaining_time(done, total, elapsed, *lock(&committed_work));
                 // A time-limited render ends when its time is up, whatever work is left.
                 let done = match settings.time_limit {
                     Some(limit) if limit > 0.0 => {
-                        let by_time = started.elapsed().as_secs_f64() / limit;
+                        let by_time = elapsed.as_secs_f64() / limit;
+                        let left =
+                            Duration::from_secs_f64((limit - elapsed.as_secs_f64()).max(0.0));
+                        remaining = Some(remaining.map_or(left, |r| r.min(left)));
                         done.max((by_time.min(1.0) * total as f64) as u64)
                     }
                     _ => done,
                 };
                 observer.tile_done(done, total);
+                observer.progress(&Progress {
+                    done,
+                    total,
+                    elapsed,
+                    remaining,
+                });
                 if left[q].fetch_sub(1, Ordering::AcqRel) == 1 {
                     commit();
                 }

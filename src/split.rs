@@ -113,6 +113,10 @@ impl RenderObserver for Checkpointing<'_> {
     fn tile_done(&self, done: u64, total: u64) {
         self.inner.tile_done(done, total);
     }
+
+    fn progress(&self, progress: &crate::render::Progress) {
+        self.inner.progress(progress);
+    }
 }
 
 fn write_part(

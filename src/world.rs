@@ -134,12 +134,17 @@ impl World {
         let mut g = compile_geometry(&scene, &label, options.instancing, &mut warnings)?;
         let (mut lights, footprint_means) = area_lights(&mut g, &scene.materials, &scene.textures);
         lights.extend(scene_lights(&scene, &label)?);
-        add_option_lights(&mut lights, &scene, &g, options, &mut warnings)?;
+        let studio = add_option_lights(&mut lights, &scene, &g, options, &mut warnings)?;
         let bounds = g.scene_bounds();
         let accel_start = std::time::Instant::now();
         let accel = Accel::build(options.accel, &g);
         let accel_build_time = accel_start.elapsed();
         let camera = choose_camera(&scene, options, bounds, &accel, &g, &label)?;
+        if studio {
+            // Turned to the view (light::studio), so it waits for the camera.
+            let map = crate::light::studio::studio_environment(&camera.camera_to_world);
+            lights.push(Light::Environment(EnvironmentLight { map: Arc::new(map) }));
+        }
         let Scene {
             materials,
             mut textures,
@@ -866,15 +871,16 @@ fn scene_light(l: &LightDesc, label: &str) -> Result<Light, SceneError> {
     })
 }
 
-/// Step 4: the lights the options add: `--env`, and the default white environment when the
-/// default-light rule ([`default_light`]) calls for it.
+/// Step 4: the lights the options add: `--env`, and the default environment when the
+/// default-light rule ([`default_light`]) calls for it: the uniform one is added here; `true`
+/// asks for the studio environment, which is added once the camera is known.
 fn add_option_lights(
     lights: &mut Vec<Light>,
     scene: &Scene,
     g: &GeometryStore,
     options: &WorldOptions,
     warnings: &mut Vec<String>,
-) -> Result<(), SceneError> {
+) -> Result<bool, SceneError> {
     if let Some(path) = &options.env {
         if !options.env_rotation.is_finite() {
             return Err(SceneError::invalid(
@@ -917,7 +923,7 @@ fn add_option_lights(
         );
         (m.le.max_element() > 0.0 || grid_glows) && (m.sigma_a * m.scale).max_element() > 0.0
     });
-    let decision = if medium_glows && matches!(mode, DefaultLight::Auto) {
+    let decision = if medium_glows && matches!(mode, DefaultLight::Auto | DefaultLight::Uniform) {
         default_light::Decision {
             add: false,
             reason: String::new(),
@@ -928,12 +934,13 @@ fn add_option_lights(
     if !decision.reason.is_empty() {
         warnings.push(decision.reason);
     }
-    if decision.add {
+    if decision.add && mode == DefaultLight::Uniform {
         lights.push(Light::Uniform(UniformLight {
             radiance: Vec3::ONE,
         }));
+        return Ok(false);
     }
-    Ok(())
+    Ok(decision.add)
 }
 
 /// Step 6 (after the accelerator): the camera `--camera` names, or the scene's first, or one

@@ -219,7 +219,14 @@ fn shadow_rays_see_through_blend_holes() {
             )],
             ..Default::default()
         };
-        let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+        let world = World::build(
+            scene.clone(),
+            &WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..WorldOptions::default()
+            },
+        )
+        .unwrap();
         let mut settings = RenderSettings {
             width: SIZE,
             height: SIZE,

@@ -117,13 +117,23 @@ fn render_with(scene: &Scene, time: TimeOptions, settings: &RenderSettings) -> I
     // One view for every time: a file without a camera is framed once, from its rest pose (the
     // automatic camera of each still would follow the moving bounds).
     let camera_override = scene.cameras.is_empty().then(|| {
-        let rest = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+        let rest = World::build(
+            scene.clone(),
+            &WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..WorldOptions::default()
+            },
+        )
+        .unwrap();
         trayecto::camera::CameraSpec::from_desc(&rest.camera)
     });
     let options = WorldOptions {
         time,
         camera_override,
-        ..Default::default()
+        ..WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..Default::default()
+        }
     };
     let world = World::build_posed(scene.clone(), &options).expect("builds");
     render(&world, settings, &NoObserver, &AtomicBool::new(false))
@@ -252,12 +262,22 @@ fn a_still_at_a_time_is_the_posed_scene() {
         },
         &small(0, 4),
     );
-    let rest = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let rest = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let mut posed = scene.clone();
     posed.pose(Some(1.1));
     let same_view = WorldOptions {
         camera_override: Some(trayecto::camera::CameraSpec::from_desc(&rest.camera)),
-        ..Default::default()
+        ..WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..Default::default()
+        }
     };
     let direct = common::render_world(&World::build(posed, &same_view).unwrap(), &small(0, 4));
     assert_eq!(via_options.data, direct.data);

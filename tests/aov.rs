@@ -48,7 +48,14 @@ fn close(a: Vec3, b: Vec3, tol: f32) -> bool {
 fn cornell_albedo_and_normals_are_the_walls_reflectances_and_axes() {
     let scene = trayecto::scene::load("cornell").unwrap();
     let reflectance: Vec<Vec3> = scene.materials.iter().map(|m| m.base_color).collect();
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let (w, h) = (48, 48);
     let layers = aovs(&world, &settings(w, h, 4, 2));
     let (albedo, normal, sn) = (
@@ -164,14 +171,24 @@ fn specular_scene(front: Material, behind: (Shape, Vec3)) -> World {
         Vec3::Y,
         20.0,
     ));
-    World::build(s, &WorldOptions::default()).unwrap()
+    World::build(
+        s,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap()
 }
 
 /// The built-in Cornell box, built.
 fn cornell() -> World {
     World::build(
         trayecto::scene::load("cornell").unwrap(),
-        &WorldOptions::default(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
     )
     .unwrap()
 }
@@ -284,7 +301,14 @@ fn normals_face_the_viewer() {
         Vec3::Y,
         30.0,
     ));
-    let world = World::build(s, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        s,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let layers = aovs(&world, &settings(8, 8, 2, 1));
     for y in 0..8 {
         for x in 0..8 {
@@ -319,7 +343,10 @@ fn tmp(name: &str) -> PathBuf {
 fn job(out: PathBuf, aovs: Vec<AovKind>) -> RenderJob {
     RenderJob {
         scene: "cornell".into(),
-        world: WorldOptions::default(),
+        world: WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
         settings: settings(20, 16, 2, 2),
         given: GivenSettings::ALL,
         outputs: vec![OutputSpec {

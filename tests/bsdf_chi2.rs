@@ -813,7 +813,14 @@ fn check_light_sampling(
 #[test]
 fn area_light_sampling_and_selection_by_power_match_pdf() {
     let (scene, lights, point_power) = light_test_scene();
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     // Two triangles, two quads, a box and the point light: 6 lights.
     assert_eq!(world.lights.lights.len(), 6);
     for p in [Vec3::ZERO, Vec3::new(0.4, 0.3, 0.2)] {
@@ -833,7 +840,14 @@ fn sphere_light_samples_are_uniform_over_its_cone() {
     m.emissive = Vec3::new(3.0, 2.0, 1.0);
     let id = scene.add_material(m);
     scene.add_object("bulb", Shape::Sphere { center, radius }, Mat4::IDENTITY, id);
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let p = Vec3::new(0.2, -0.1, 0.3);
     let mut hit = plain_hit();
     hit.p = p;
@@ -906,7 +920,14 @@ fn uniform_environment_samples_match_the_mis_density() {
         name: "sky".into(),
         radiance: Vec3::new(0.8, 0.9, 1.0),
     });
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     assert_eq!(world.lights.lights.len(), 1);
     let mut hit = plain_hit();
     hit.p = Vec3::new(0.3, 0.2, -0.1);

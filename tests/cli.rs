@@ -245,7 +245,7 @@ material = "white"
         trayecto::film::output::read_exr(&dir.join(out)).unwrap()
     };
     let lit = render("lit.exr", &["--env", "sky.hdr"]);
-    let plain = render("plain.exr", &[]);
+    let plain = render("plain.exr", &["--default-light", "uniform"]);
     let sky = trayecto::math::Vec3::new(0.25, 0.5, 1.0);
     let close = |a: trayecto::math::Vec3, b: trayecto::math::Vec3, tol: f32| {
         ((a - b) / b).abs().max_element() < tol

@@ -25,12 +25,14 @@ fn build(scene: &Scene, mode: Option<DefaultLight>) -> World {
     .expect("scene builds")
 }
 
+/// The default environment is there: the studio (an environment map: these tests give no
+/// `--env`) or, with `uniform`, the white sky of radiance 1.
 fn has_default_light(world: &World) -> bool {
-    world
-        .lights
-        .lights
-        .iter()
-        .any(|l| matches!(l, Light::Uniform(u) if u.radiance == Vec3::ONE))
+    world.lights.lights.iter().any(|l| match l {
+        Light::Uniform(u) => u.radiance == Vec3::ONE,
+        Light::Environment(e) => e.map.width == trayecto::light::studio::STUDIO_WIDTH,
+        _ => false,
+    })
 }
 
 fn load(rel: &str) -> Scene {
@@ -223,4 +225,75 @@ fn command_line_modes() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("auto") && err.contains("off"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The studio environment (the default) shows a white model's form: a white diffuse sphere, the
+/// furnace case of a uniform sky (every point reflects radiance 1: contrast 0), is brighter on
+/// the upper left than on the lower right, no part of it is black, and its shading varies across
+/// it; `uniform` keeps the earlier flat sky.
+#[test]
+fn the_studio_gives_a_white_model_form() {
+    let mut scene = Scene::default();
+    let m = scene.add_material(Material::diffuse("white", Vec3::ONE));
+    scene.objects.push(Object {
+        name: "ball".into(),
+        shape: Shape::Sphere {
+            center: Vec3::ZERO,
+            radius: 1.0,
+        },
+        transform: Mat4::IDENTITY,
+        material: m,
+        medium: None,
+    });
+    let n = 32;
+    let shade = |mode: Option<DefaultLight>| {
+        let img = common::render_world(
+            &build(&scene, mode),
+            &RenderSettings {
+                width: n,
+                height: n,
+                spp: 16,
+                ..Default::default()
+            },
+        );
+        // The pixels well inside the sphere's disc (the automatic camera frames it), as
+        // (column, row, luminance).
+        let mut px = Vec::new();
+        for y in 0..n {
+            for x in 0..n {
+                let (dx, dy) = (
+                    x as f32 + 0.5 - n as f32 / 2.0,
+                    y as f32 + 0.5 - n as f32 / 2.0,
+                );
+                if dx.hypot(dy) < 0.25 * n as f32 {
+                    px.push((dx, dy, trayecto::math::luminance(img.get(x, y))));
+                }
+            }
+        }
+        px
+    };
+    let contrast = |px: &[(f32, f32, f32)]| {
+        let mean = px.iter().map(|p| p.2).sum::<f32>() / px.len() as f32;
+        let var = px.iter().map(|p| (p.2 - mean).powi(2)).sum::<f32>() / px.len() as f32;
+        var.sqrt() / mean
+    };
+    let studio = shade(None);
+    let uniform = shade(Some(DefaultLight::Uniform));
+    assert!(contrast(&uniform) < 0.05, "uniform: {}", contrast(&uniform));
+    assert!(contrast(&studio) > 0.2, "studio: {}", contrast(&studio));
+    let quadrant = |px: &[(f32, f32, f32)], sx: f32, sy: f32| {
+        let q: Vec<f32> = px
+            .iter()
+            .filter(|p| p.0 * sx > 0.0 && p.1 * sy > 0.0)
+            .map(|p| p.2)
+            .collect();
+        q.iter().sum::<f32>() / q.len() as f32
+    };
+    let (upper_left, lower_right) = (quadrant(&studio, -1.0, -1.0), quadrant(&studio, 1.0, 1.0));
+    assert!(
+        upper_left > 1.5 * lower_right,
+        "upper left {upper_left}, lower right {lower_right}"
+    );
+    let darkest = studio.iter().map(|p| p.2).fold(f32::MAX, f32::min);
+    assert!(darkest > 0.15, "darkest {darkest}");
 }

@@ -22,7 +22,10 @@ fn tmp(name: &str) -> PathBuf {
 fn job(out: PathBuf, spp: u32, threads: usize, denoise: Option<DenoiseOptions>) -> RenderJob {
     RenderJob {
         scene: "cornell".into(),
-        world: WorldOptions::default(),
+        world: WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
         settings: RenderSettings {
             width: 64,
             height: 64,

@@ -137,7 +137,10 @@ material = "grey"
     let build = |c: CameraSpec| {
         let o = WorldOptions {
             camera_override: Some(c),
-            ..WorldOptions::default()
+            ..WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..WorldOptions::default()
+            }
         };
         common::render_world(&World::build(scene.clone(), &o).unwrap(), &settings)
     };

@@ -15,7 +15,14 @@ use trayecto::world::{World, WorldOptions};
 fn emissive_by_name_light_lights_the_box() {
     let p = shared_scene("fbx/cornell_seed_conventions.fbx");
     let s = scene::load(p.to_str().unwrap()).unwrap();
-    let world = World::build(s.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        s.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     // The light quad is two emissive triangles, and it is the only light (no default one).
     assert_eq!(world.area_light_count(), 2);
     assert_eq!(world.lights.lights.len(), 2);

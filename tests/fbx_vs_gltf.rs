@@ -13,7 +13,14 @@ use trayecto::world::{World, WorldOptions};
 
 fn render_file(path: &str, seed: u64) -> Image {
     let s = scene::load(path).unwrap_or_else(|e| panic!("{e}"));
-    let world = World::build(s.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        s.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let settings = RenderSettings {
         width: 64,
         height: 64,
@@ -81,7 +88,14 @@ fn fbx_and_glb_twins_render_the_same_image() {
                 * o.transform;
     }
     let moved = render(
-        &World::build(moved, &WorldOptions::default()).unwrap(),
+        &World::build(
+            moved,
+            &WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..WorldOptions::default()
+            },
+        )
+        .unwrap(),
         &RenderSettings {
             width: 64,
             height: 64,

@@ -69,7 +69,14 @@ fn settings(w: u32, h: u32, spp: u32) -> RenderSettings {
 #[test]
 fn constant_scene_stays_constant_under_every_filter() {
     let c = Vec3::new(0.5, 0.25, 1.0);
-    let world = World::build(constant_scene(c), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        constant_scene(c),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     for kind in ALL {
         let s = RenderSettings {
             filter: Filter::new(kind),
@@ -127,7 +134,14 @@ fn image_hash(img: &trayecto::film::Image) -> u64 {
 fn default_box_is_unchanged() {
     const PRE_FILTER_HASH: u64 = 0x6de6_e141_41f5_f8ff;
     let scene = trayecto::scene::load("cornell").unwrap();
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let a = common::render_world(&world, &settings(16, 16, 4));
     let h = image_hash(&a);
     assert_eq!(h, PRE_FILTER_HASH, "default-filter image hash {h:#018x}");
@@ -176,7 +190,14 @@ fn box_radius_blurs_an_edge_as_predicted() {
         Vec3::Y,
         40.0,
     ));
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     const NOISE: f32 = 0.0104;
     let mut worst = 0.0f32;
     for (radius, profile) in [
@@ -215,7 +236,14 @@ fn box_radius_blurs_an_edge_as_predicted() {
 #[test]
 fn crop_equals_the_window_of_the_full_image() {
     let scene = trayecto::scene::load("cornell").unwrap();
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let crop = Crop {
         x0: 5,
         x1: 19,
@@ -299,7 +327,14 @@ fn adaptive_settings(threads: usize, threshold: f32) -> RenderSettings {
 #[test]
 fn adaptive_is_bit_identical_across_thread_counts_and_stops_clean_pixels() {
     let scene = trayecto::scene::load("cornell").unwrap();
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let t = cornell_threshold(&world);
     let run = |threads| {
         let s = adaptive_settings(threads, t);
@@ -466,7 +501,14 @@ fn absurd_values_are_refused() {
 #[test]
 fn time_limited_render_equals_the_render_of_its_passes() {
     let scene = trayecto::scene::load("cornell").unwrap();
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let s = RenderSettings {
         time_limit: Some(0.3),
         ..settings(16, 16, 1 << 16)
@@ -530,7 +572,10 @@ Shape "sphere" "float radius" 1
     );
     let job = RenderJob {
         scene: "t.pbrt".into(),
-        world: WorldOptions::default(),
+        world: WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
         settings: RenderSettings::default(),
         given: GivenSettings {
             width: false,
@@ -599,7 +644,10 @@ fn pipeline_writes_only_the_window() {
     let out = dir.join("crop.exr");
     let job = RenderJob {
         scene: "cornell".into(),
-        world: WorldOptions::default(),
+        world: WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
         settings: settings(32, 32, 2),
         given: GivenSettings::ALL,
         outputs: vec![OutputSpec {
@@ -647,13 +695,19 @@ fn adaptive_render_writes_sample_and_variance_layers() {
     let out = dir.join("a.exr");
     let job = RenderJob {
         scene: "cornell".into(),
-        world: WorldOptions::default(),
+        world: WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
         settings: adaptive_settings(
             2,
             cornell_threshold(
                 &World::build(
                     trayecto::scene::load("cornell").unwrap(),
-                    &WorldOptions::default(),
+                    &WorldOptions {
+                        default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                        ..WorldOptions::default()
+                    },
                 )
                 .unwrap(),
             ),
@@ -693,7 +747,10 @@ fn adaptive_render_writes_sample_and_variance_layers() {
     // counts and its per-pixel variance (a transposed layer or another variance formula fails).
     let world = World::build(
         trayecto::scene::load("cornell").unwrap(),
-        &WorldOptions::default(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
     )
     .unwrap();
     let r = render_range(
@@ -759,7 +816,14 @@ fn adaptive_benchmark() {
         (mean, e[(e.len() as f64 * 0.95) as usize])
     };
     let scene = trayecto::scene::load(&scene_name).expect("scene loads");
-    let world = World::build(scene, &WorldOptions::default()).expect("world builds");
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .expect("world builds");
     let run = |s: &RenderSettings| {
         let t = std::time::Instant::now();
         let start = trayecto::render::RangeStart {

@@ -73,7 +73,14 @@ fn furnace_render(
         )],
         ..Default::default()
     };
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let settings = RenderSettings {
         width: 32,
         height: 32,

@@ -111,7 +111,14 @@ fn clearcoat_is_read_and_files_requiring_it_load() {
 fn model_luminance(scene: &Scene, n: u32, spp: u32) -> f32 {
     use trayecto::integrator::IntegratorKind;
     use trayecto::integrator::{Aov, ShadingModel};
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let settings = |spp, integrator| RenderSettings {
         width: n,
         height: n,
@@ -229,7 +236,10 @@ fn model_pixels(
 fn studio() -> WorldOptions {
     WorldOptions {
         env: Some(common::shared_scene("hdr/studio_small_03_1k.hdr")),
-        ..Default::default()
+        ..WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..Default::default()
+        }
     }
 }
 
@@ -329,7 +339,14 @@ fn patch(
         Vec3::Y,
         2.0,
     ));
-    let world = World::build(s, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        s,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let settings = RenderSettings {
         width: 8,
         height: 8,
@@ -670,7 +687,16 @@ fn unlit_shows_its_base_colour() {
             .count() as f32
             / px.len() as f32
     };
-    let px = model_pixels(&scene, &WorldOptions::default(), 24, 4, 0);
+    let px = model_pixels(
+        &scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+        24,
+        4,
+        0,
+    );
     assert!(
         exact(&px) > 0.5,
         "{} of the pixels show the base colour",
@@ -678,7 +704,16 @@ fn unlit_shows_its_base_colour() {
     );
     let mut lit = scene.clone();
     lit.materials[0].model = trayecto::material::MaterialModel::metallic_roughness();
-    let px = model_pixels(&lit, &WorldOptions::default(), 24, 4, 0);
+    let px = model_pixels(
+        &lit,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+        24,
+        4,
+        0,
+    );
     assert!(
         exact(&px) < 0.05,
         "lit: {} of the pixels are the base colour",
@@ -713,7 +748,10 @@ fn sheen_cloth_is_sheened() {
         "SheenCloth",
         &scene,
         &bare,
-        &WorldOptions::default(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
         40,
         64,
         4.0,
@@ -1353,7 +1391,14 @@ fn a_tilted_base_normal_map_leaves_the_coat_unchanged() {
             Vec3::Z,
             20.0,
         ));
-        let world = World::build(s, &WorldOptions::default()).unwrap();
+        let world = World::build(
+            s,
+            &WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..WorldOptions::default()
+            },
+        )
+        .unwrap();
         let img = common::render_world(
             &world,
             &RenderSettings {

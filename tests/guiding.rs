@@ -11,7 +11,14 @@ use trayecto::world::{World, WorldOptions};
 
 fn world_of(spec: &str) -> World {
     let scene = trayecto::scene::load(spec).expect("scene loads");
-    World::build(scene, &WorldOptions::default()).expect("scene builds")
+    World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .expect("scene builds")
 }
 
 fn settings(w: u32, h: u32, spp: u32, seed: u64, guiding: bool) -> RenderSettings {

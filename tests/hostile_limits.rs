@@ -303,7 +303,14 @@ fn the_world_is_charged_before_it_is_built() {
         let ctx = LoadContext::new(Budget::new(mib << 20), None);
         limits::scope(ctx, || {
             let s = scene::load_file(&d.join("s.pbrt"))?;
-            trayecto::world::World::build(s, &Default::default()).map(drop)
+            trayecto::world::World::build(
+                s,
+                &trayecto::world::WorldOptions {
+                    default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                    ..Default::default()
+                },
+            )
+            .map(drop)
         })
     };
     let e = build(48).expect_err("refused").to_string();

@@ -42,7 +42,14 @@ fn settings() -> RenderSettings {
 /// Builds the world (the BVH included) and renders it; also traces rays from the origin and from
 /// huge points in many directions, so both traversals (closest hit and shadow) see the tree.
 fn build_and_render(scene: &Scene) -> World {
-    let world = World::build(scene.clone(), &WorldOptions::default()).expect("scene builds");
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .expect("scene builds");
     let image = common::render_world(&world, &settings());
     assert_eq!(image.data.len(), 64);
     for o in [Vec3::ZERO, Vec3::splat(1e20), Vec3::new(-3e38, 0.0, 3e38)] {

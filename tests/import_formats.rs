@@ -11,7 +11,14 @@ use trayecto::scene::Scene;
 use trayecto::world::{World, WorldOptions};
 
 fn render_small(scene: &Scene, size: u32, spp: u32) -> Vec<Vec3> {
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let settings = RenderSettings {
         width: size,
         height: size,
@@ -70,7 +77,14 @@ fn obj_cornell_box_is_lit_by_its_own_light() {
         "{:?}",
         scene.warnings
     );
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     // Lit by its own light: no default environment was added.
     assert!(
         world.area_light_count() >= 2,
@@ -587,7 +601,13 @@ radius = 1
     .unwrap();
     assert!(d.is_relative());
     let scene = trayecto::scene::load_file(&d.join("x.toml")).unwrap();
-    let world = World::build(scene, &WorldOptions::default());
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    );
     std::fs::remove_dir_all(&rel).unwrap();
     let world = world.unwrap();
     assert!(

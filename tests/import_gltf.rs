@@ -69,8 +69,12 @@ fn render_small(scene: &Scene, size: u32, spp: u32, no_default_light: bool) -> V
     let world = World::build(
         scene.clone(),
         &WorldOptions {
-            default_light: no_default_light
-                .then_some(trayecto::light::default_light::DefaultLight::Off),
+            // (Else the uniform white sky these checks were written for, not the studio.)
+            default_light: Some(if no_default_light {
+                trayecto::light::default_light::DefaultLight::Off
+            } else {
+                trayecto::light::default_light::DefaultLight::Uniform
+            }),
             ..Default::default()
         },
     )
@@ -97,7 +101,14 @@ fn node_transforms_compose_parent_then_child() {
  "scenes":[{{"nodes":[0]}}],"scene":0"#
     );
     let scene = load_str(&triangle_gltf(TRI, [0, 1, 2], &extra), Path::new(".")).unwrap();
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let expected = Mat4::from_translation(Vec3::new(1.0, 2.0, 3.0))
         * Mat4::from_scale_rotation_translation(
             Vec3::splat(2.0),
@@ -119,7 +130,14 @@ fn negative_scale_keeps_the_front_face() {
         r#"{PLAIN_MATERIAL},"nodes":[{{"mesh":0,"scale":[-1,1,1]}}],"scenes":[{{"nodes":[0]}}]"#
     );
     let scene = load_str(&triangle_gltf(TRI, [0, 1, 2], &extra), Path::new(".")).unwrap();
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let t = &world.geometry.triangles[0];
     let n = (t.p1 - t.p0).cross(t.p2 - t.p0);
     // The triangle faces +z; its mirror image in x still faces +z once the winding is flipped.

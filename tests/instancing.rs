@@ -105,7 +105,10 @@ fn world(instancing: Instancing) -> World {
         scene(),
         &WorldOptions {
             instancing,
-            ..Default::default()
+            ..WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..Default::default()
+            }
         },
     )
     .unwrap()
@@ -245,7 +248,10 @@ fn gltf_gpu_instancing_places_one_shared_mesh_per_instance() {
         s,
         &WorldOptions {
             instancing: Instancing::Always,
-            ..Default::default()
+            ..WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..Default::default()
+            }
         },
     )
     .unwrap();

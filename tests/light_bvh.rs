@@ -199,7 +199,14 @@ fn auto_uses_the_bvh_for_many_lights_and_power_for_few() {
         LightSamplerKind::Bvh
     );
     let cornell = trayecto::scene::builtin::cornell();
-    let w = World::build(cornell, &WorldOptions::default()).unwrap();
+    let w = World::build(
+        cornell,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     assert_eq!(w.lights.sampler_kind(), LightSamplerKind::Power);
 }
 

@@ -232,7 +232,14 @@ fn emitter_world() -> World {
         Mat4::IDENTITY,
         ids[2],
     );
-    World::build(scene, &WorldOptions::default()).unwrap()
+    World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap()
 }
 
 /// Lights not made of geometry, each with its power in closed form given the scene's bounding

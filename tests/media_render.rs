@@ -844,7 +844,14 @@ fn secondary_rays_are_refused_with_media() {
         1.0,
         0.0,
     ));
-    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let e = trayecto::render::render(
         &world,
         &s,

@@ -84,7 +84,14 @@ fn rmse_masked(img: &Image, reference: &Image, mask: &[bool]) -> f64 {
 /// convergence check leaves those pixels (and the silhouettes, partly background) out; the mean
 /// check keeps every pixel.
 fn covered_pixels(scene: &Scene, width: u32, height: u32) -> Vec<bool> {
-    let world = World::build(scene.clone(), &WorldOptions::default()).expect("scene builds");
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .expect("scene builds");
     coverage(&world, width, height, &settings(width, height, 1))
         .into_iter()
         .map(|c| c == 1.0)

@@ -20,7 +20,10 @@ fn world(scene: &Scene, accel: AccelKind) -> World {
         scene.clone(),
         &WorldOptions {
             accel,
-            ..Default::default()
+            ..WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..Default::default()
+            }
         },
     )
     .expect("scene compiles")

@@ -186,7 +186,14 @@ fn poisson_pixel_samples_keep_their_distance() {
 
 #[test]
 fn new_samplers_render_deterministically_for_any_thread_count() {
-    let w = World::build(builtin::cornell(), &WorldOptions::default()).unwrap();
+    let w = World::build(
+        builtin::cornell(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     for kind in KINDS {
         for integrator in [
             IntegratorKind::Path,

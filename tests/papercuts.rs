@@ -11,7 +11,10 @@ use trayecto::world::WorldOptions;
 fn job(width: Option<u32>, height: Option<u32>) -> RenderJob {
     RenderJob {
         scene: "unused".into(),
-        world: WorldOptions::default(),
+        world: WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
         settings: RenderSettings {
             width: width.unwrap_or(512),
             height: height.unwrap_or(512),

@@ -14,7 +14,14 @@ const SPP: u32 = 13;
 
 fn world() -> World {
     let scene = trayecto::scene::load("cornell").unwrap();
-    World::build(scene, &WorldOptions::default()).unwrap()
+    World::build(
+        scene,
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap()
 }
 
 fn settings(sampler: SamplerKind) -> RenderSettings {
@@ -52,7 +59,10 @@ fn part_of(world: &World, s: &RenderSettings, a: u32, b: u32) -> Part {
         "cornell",
         "digest",
         s,
-        &WorldOptions::default(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
         world.lights.sampler_kind(),
         [a, b],
         r.film.discarded,
@@ -342,7 +352,10 @@ fn a_resumed_render_equals_an_uninterrupted_one() {
             "cornell",
             "d",
             &s,
-            &WorldOptions::default(),
+            &WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..WorldOptions::default()
+            },
             world.lights.sampler_kind(),
             [0, stopped.done],
             stopped.film.discarded,

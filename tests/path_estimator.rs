@@ -318,7 +318,14 @@ fn triangle_mesh_and_quad_emitters_agree() {
         };
         Shape::Mesh(s.add_mesh(mesh))
     });
-    let world = trayecto::world::World::build(tris.clone(), &Default::default()).unwrap();
+    let world = trayecto::world::World::build(
+        tris.clone(),
+        &trayecto::world::WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..Default::default()
+        },
+    )
+    .unwrap();
     assert_eq!(world.emissive_triangle_count(), 2);
     let img = render_world(&world, &base(48, 128));
     assert_means_close(&img, &quad, 0.015, "triangle light vs quad light");

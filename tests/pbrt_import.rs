@@ -512,7 +512,14 @@ fn material_regions(scene: &Scene, margin: i32) -> Vec<Option<usize>> {
     use std::sync::atomic::AtomicBool;
     use trayecto::film::aov::AovKind;
     use trayecto::world::{World, WorldOptions};
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let s = RenderSettings {
         width: scene.hints.width.unwrap(),
         height: scene.hints.height.unwrap(),
@@ -703,7 +710,10 @@ fn filtered_checkerboard_has_lower_error_at_one_spp() {
     let rmse = |filter: TextureFilter| -> f64 {
         let options = WorldOptions {
             texture_filter: filter,
-            ..Default::default()
+            ..WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..Default::default()
+            }
         };
         let world = World::build(scene.clone(), &options).unwrap();
         let mut total = 0.0;
@@ -1337,8 +1347,16 @@ fn hostile_image_infinite_lights() {
         );
         let path = dir.join("s.pbrt");
         std::fs::write(&path, text).unwrap();
-        scene::load(path.to_str().unwrap())
-            .and_then(|s| trayecto::world::World::build(s.clone(), &Default::default()).map(|_| s))
+        scene::load(path.to_str().unwrap()).and_then(|s| {
+            trayecto::world::World::build(
+                s.clone(),
+                &trayecto::world::WorldOptions {
+                    default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                    ..Default::default()
+                },
+            )
+            .map(|_| s)
+        })
     };
     let s = run(r#"LightSource "infinite" "string filename" "nothere.pfm""#).expect("loads");
     assert!(s.lights.is_empty());

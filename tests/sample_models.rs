@@ -488,7 +488,14 @@ fn every_sample_model_matches_its_screenshot() {
             failures.push(format!("{}: no triangles", m.name));
             continue;
         }
-        let mut world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+        let mut world = World::build(
+            scene.clone(),
+            &WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..WorldOptions::default()
+            },
+        )
+        .unwrap();
         // The path tracer with the default lighting (or the file's lights) renders it: finite and
         // not black (LightsPunctualLamp, lit by its own dim lamps only, has a mean of ≈ 5e-4).
         let lit = common::render_world(
@@ -604,7 +611,14 @@ fn bumps_are_lit_from_the_upper_right(model: &str, integrator: IntegratorKind) {
         direction: Vec3::new(-0.6, -1.0, -0.8).normalize(),
         irradiance: Vec3::splat(3.0),
     });
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let settings = RenderSettings {
         width: 240,
         height: 240,
@@ -735,7 +749,14 @@ fn emissive_strength_test_cubes_brighten_in_the_files_ratios() {
     strengths.sort_by(f32::total_cmp);
     assert_eq!(strengths, [1.0, 2.0, 4.0, 8.0, 16.0]);
     let scene = trayecto::scene::load(path.to_str().unwrap()).unwrap();
-    let world = World::build(scene.clone(), &WorldOptions::default()).unwrap();
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            default_light: Some(trayecto::scene::DefaultLight::Uniform),
+            ..WorldOptions::default()
+        },
+    )
+    .unwrap();
     let (w, h) = (160usize, 80usize);
     let settings = RenderSettings {
         width: w as u32,
@@ -792,7 +813,10 @@ fn damaged_helmet_glows_and_is_lit_by_the_studio_hdr() {
         scene.clone(),
         &WorldOptions {
             env: Some(env),
-            ..Default::default()
+            ..WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..Default::default()
+            }
         },
     )
     .unwrap();
@@ -948,7 +972,14 @@ fn transmission_test_spheres_transmit_blur_and_cut_out_as_described() {
         ..Default::default()
     };
     let render = |s: &trayecto::scene::Scene| {
-        let world = World::build(s.clone(), &WorldOptions::default()).unwrap();
+        let world = World::build(
+            s.clone(),
+            &WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..WorldOptions::default()
+            },
+        )
+        .unwrap();
         common::render_world(&world, &settings)
     };
     // And with the backdrop black: what reaches the camera from the backdrop at all, blurred or not.
@@ -1019,10 +1050,24 @@ fn transmission_test_spheres_transmit_blur_and_cut_out_as_described() {
             let mut alone = scene.clone();
             alone.objects.retain(|o| o.material == m);
             alone.lights.clear();
-            let world = World::build(alone.clone(), &WorldOptions::default()).unwrap();
+            let world = World::build(
+                alone.clone(),
+                &WorldOptions {
+                    default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                    ..WorldOptions::default()
+                },
+            )
+            .unwrap();
             let holes_depth = raycast(&world, w as u32, h as u32, 1, Aov::Depth);
             alone.materials[m].alpha_mode = AlphaMode::Opaque;
-            let world = World::build(alone.clone(), &WorldOptions::default()).unwrap();
+            let world = World::build(
+                alone.clone(),
+                &WorldOptions {
+                    default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                    ..WorldOptions::default()
+                },
+            )
+            .unwrap();
             let disc_depth = raycast(&world, w as u32, h as u32, 1, Aov::Depth);
             let uv = raycast(&world, w as u32, h as u32, 1, Aov::Uv);
             // The inner 70 % of the disc's radius (the rim is mostly Fresnel reflection).
@@ -1187,7 +1232,10 @@ fn damaged_helmet_metal_mirrors_the_studio_hdr() {
         scene.clone(),
         &WorldOptions {
             env: Some(env_path),
-            ..Default::default()
+            ..WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..Default::default()
+            }
         },
     )
     .unwrap();

@@ -45,7 +45,10 @@ fn build(s: Scene, filter: TextureFilter) -> World {
         s,
         &WorldOptions {
             texture_filter: filter,
-            ..Default::default()
+            ..WorldOptions {
+                default_light: Some(trayecto::scene::DefaultLight::Uniform),
+                ..Default::default()
+            }
         },
     )
     .unwrap()

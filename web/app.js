@@ -4,7 +4,7 @@
 "use strict";
 
 const FIELDS = ["scene", "output", "width", "height", "spp", "secondary", "max_depth",
-  "exposure", "integrator", "tonemap", "default_light", "denoise", "environment",
+  "exposure", "integrator", "tonemap", "default_light", "denoise", "transparent", "environment",
   "env_rotation", "view_spp", "aovs", "variant"];
 const $ = (id) => document.getElementById(id);
 let options = null;
@@ -76,6 +76,7 @@ function readForm() {
   // "" = as the scene file says (auto unless a TOML scene sets default_light).
   body.default_light = $("default_light").value || null;
   body.denoise = $("denoise").checked;
+  body.transparent = $("transparent").checked;
   body.environment = $("environment").value || null;
   // "" = the file's default materials (KHR_materials_variants); the list is the scene's own.
   body.variant = $("variant").value || null;

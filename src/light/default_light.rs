@@ -1,4 +1,5 @@
-//! When a scene gets the default environment (a uniform white sky of radiance 1).
+//! When a scene gets the default environment: the studio environment ([`super::studio`]), or
+//! with `--default-light uniform` a uniform white sky of radiance 1 (the earlier default).
 //!
 //! Model files (glTF sample models, most assets from the wild) carry no lights: a model viewer
 //! lights them with an environment. Many of them do carry *emissive* surfaces — the lit visor of
@@ -31,6 +32,9 @@
 //! (or, in a closed room, only add noise). Decals cover a small part of a model and are mostly
 //! dark texels: their power is a percent or less of the environment's. Scenes with any point,
 //! spot, directional, ambient or environment light are never changed.
+//!
+//! The thresholds below are measured against the uniform sky of radiance 1 whichever environment
+//! is added (the studio's brightest side lights a white surface to about the same radiance).
 //!
 //! `--default-light on` adds the default environment unless the scene already has a light at
 //! infinity (ambient or environment map: it would only be doubled); `off` never adds it.
@@ -149,6 +153,11 @@ pub fn decide(mode: DefaultLight, lights: &[Light], emitters: &EmitterStats) -> 
         add: false,
         reason: String::new(),
     };
+    let what = if mode == DefaultLight::Uniform {
+        "a uniform white environment (radiance 1)"
+    } else {
+        "the studio environment (--default-light uniform: a uniform white one)"
+    };
     match mode {
         DefaultLight::Off => Decision {
             add: false,
@@ -161,17 +170,22 @@ pub fn decide(mode: DefaultLight, lights: &[Light], emitters: &EmitterStats) -> 
         DefaultLight::On if has_infinite_fill => keep(),
         DefaultLight::On => Decision {
             add: true,
-            reason: "--default-light on: adding a uniform white environment (radiance 1)".into(),
+            reason: format!("--default-light on: adding {what}"),
         },
-        DefaultLight::Auto if lights.is_empty() => Decision {
+        DefaultLight::Auto | DefaultLight::Uniform if lights.is_empty() => Decision {
             add: true,
-            reason: "the scene has no lights: lighting it with a uniform white environment \
-                     (radiance 1); --default-light off renders it unlit"
-                .into(),
+            reason: format!(
+                "the scene has no lights: lighting it with {what}; --default-light off renders \
+                 it unlit"
+            ),
         },
         // Any light that is not an emissive surface is the author's lighting.
-        DefaultLight::Auto if lights.iter().any(|l| !matches!(l, Light::Area(_))) => keep(),
-        DefaultLight::Auto
+        DefaultLight::Auto | DefaultLight::Uniform
+            if lights.iter().any(|l| !matches!(l, Light::Area(_))) =>
+        {
+            keep()
+        }
+        DefaultLight::Auto | DefaultLight::Uniform
             if emitters.peak_radiance <= SELF_LIT_MAX_RADIANCE
                 && emitters.power_ratio < SELF_LIT_MAX_POWER_RATIO =>
         {
@@ -180,8 +194,8 @@ pub fn decide(mode: DefaultLight, lights: &[Light], emitters: &EmitterStats) -> 
                 reason: format!(
                     "the scene's only lights are self-lit emissive surfaces ({}: peak radiance \
                      {:.3} <= 1, total power {:.4} of the default environment's < {}): lighting \
-                     it with a uniform white environment (radiance 1) as a model viewer does; \
-                     --default-light off renders it by its emitters alone",
+                     it with {what} as a model viewer does; --default-light off renders it by \
+                     its emitters alone",
                     emitters.names.join(", "),
                     emitters.peak_radiance,
                     emitters.power_ratio,
@@ -189,7 +203,7 @@ pub fn decide(mode: DefaultLight, lights: &[Light], emitters: &EmitterStats) -> 
                 ),
             }
         }
-        DefaultLight::Auto => keep(),
+        DefaultLight::Auto | DefaultLight::Uniform => keep(),
     }
 }
 
@@ -297,7 +311,13 @@ mod tests {
         let decal = [emitter(Vec3::splat(0.5))];
         let s = stats(&[area(0)], &decal, &[]);
         assert!(!decide(DefaultLight::Off, &[area(0)], &s).add);
-        for m in [DefaultLight::Auto, DefaultLight::On, DefaultLight::Off] {
+        assert!(decide(DefaultLight::Uniform, &none, &empty).add);
+        for m in [
+            DefaultLight::Auto,
+            DefaultLight::On,
+            DefaultLight::Off,
+            DefaultLight::Uniform,
+        ] {
             assert_eq!(DefaultLight::parse(m.name()), Some(m));
         }
         assert_eq!(DefaultLight::parse("yes"), None);

@@ -21,6 +21,7 @@ pub mod envmap;
 pub mod point;
 pub mod set;
 pub mod spot;
+pub mod studio;
 pub mod uniform;
 pub use area::AreaLight;
 pub use bvh::{LightBounds, LightBvh, TreeWidth};

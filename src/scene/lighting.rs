@@ -25,6 +25,9 @@ pub enum DefaultLight {
     On,
     /// Never add it.
     Off,
+    /// As `Auto`, but the environment added is the uniform white sky of radiance 1 (the default
+    /// before the studio environment; references and furnace-style checks ask for it).
+    Uniform,
 }
 
 impl DefaultLight {
@@ -33,6 +36,7 @@ impl DefaultLight {
             DefaultLight::Auto => "auto",
             DefaultLight::On => "on",
             DefaultLight::Off => "off",
+            DefaultLight::Uniform => "uniform",
         }
     }
 
@@ -41,6 +45,7 @@ impl DefaultLight {
             "auto" => Some(DefaultLight::Auto),
             "on" => Some(DefaultLight::On),
             "off" => Some(DefaultLight::Off),
+            "uniform" => Some(DefaultLight::Uniform),
             _ => None,
         }
     }
@@ -49,6 +54,6 @@ impl DefaultLight {
 impl std::str::FromStr for DefaultLight {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        DefaultLight::parse(s).ok_or_else(|| format!("'{s}' is not one of: auto, on, off"))
+        DefaultLight::parse(s).ok_or_else(|| format!("'{s}' is not one of: auto, on, off, uniform"))
     }
 }

@@ -85,7 +85,7 @@ pub fn tonemap_names() -> Vec<&'static str> {
 }
 
 /// The `default_light` values a request may give (absent or null: as the scene file says).
-pub const DEFAULT_LIGHT_NAMES: [&str; 3] = ["auto", "on", "off"];
+pub const DEFAULT_LIGHT_NAMES: [&str; 4] = ["auto", "on", "off", "uniform"];
 
 /// Where the scene comes from once resolved.
 #[derive(Clone, Debug, PartialEq)]
@@ -491,7 +491,7 @@ pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
 }
 
 /// The fields a request may have, in the order the unknown-field message lists them.
-const KNOWN_FIELDS: [&str; 23] = [
+const KNOWN_FIELDS: [&str; 24] = [
     "scene",
     "output",
     "width",
@@ -515,6 +515,7 @@ const KNOWN_FIELDS: [&str; 23] = [
     "camera",
     "aovs",
     "guiding",
+    "transparent",
 ];
 
 /// A request body as sent. Every field is optional (absent and `null` alike) and kept as JSON,
@@ -547,6 +548,8 @@ pub struct RequestBody {
     pub aovs: Option<Value>,
     /// Path guiding (`--guiding`): true or false.
     pub guiding: Option<Value>,
+    /// A transparent background (`--transparent`): true or false.
+    pub transparent: Option<Value>,
     /// Anything else, refused by name.
     #[serde(flatten)]
     pub unknown: BTreeMap<String, Value>,
@@ -596,6 +599,7 @@ struct Options {
     crop: Option<crate::pipeline::CropSpec>,
     denoise: bool,
     guiding: bool,
+    transparent: bool,
 }
 
 /// Parses and checks a JSON render request ([`RequestBody`]). Every wrong field is reported, not
@@ -631,7 +635,17 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             }
         },
     };
-    let aovs = check_aovs(b.aovs.as_ref(), &mut errors);
+    let mut aovs = check_aovs(b.aovs.as_ref(), &mut errors);
+    // As `--transparent`: the coverage is the alpha AOV, the path tracer leaves the
+    // background out (docs/DESIGN.md §5, "Transparent film").
+    if o.transparent {
+        if o.integrator != IntegratorKind::Path {
+            errors.insert("transparent".into(), "needs the path integrator".into());
+        }
+        if !aovs.contains(&crate::film::aov::AovKind::Alpha) {
+            aovs.push(crate::film::aov::AovKind::Alpha);
+        }
+    }
 
     // A size left out follows the command line's rule for the scene (its file's resolution or
     // its camera's shape), as /api/scene-defaults reports it; this loads the scene.
@@ -676,6 +690,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         path: PathSettings {
             max_depth: n.max_depth,
             secondary: n.secondary,
+            transparent: o.transparent,
             ..PathSettings::default()
         },
         filter: o.filter.unwrap_or_default(),
@@ -887,6 +902,14 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
             false
         }
     };
+    let transparent = match &b.transparent {
+        None | Some(Value::Null) => false,
+        Some(Value::Bool(b)) => *b,
+        Some(_) => {
+            errors.insert("transparent".into(), "must be true or false".into());
+            false
+        }
+    };
     Options {
         exposure,
         integrator,
@@ -899,6 +922,7 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
         crop,
         denoise,
         guiding,
+        transparent,
     }
 }
 

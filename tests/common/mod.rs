@@ -30,7 +30,17 @@ pub fn add_floor(s: &mut Scene, half: f32, albedo: f32) {
 
 /// Renders `scene` in-process and returns the linear image.
 pub fn render_scene(scene: &Scene, settings: &RenderSettings) -> Image {
-    let world = World::build(scene.clone(), &WorldOptions::default()).expect("scene builds");
+    let world = World::build(
+        scene.clone(),
+        &WorldOptions {
+            // The scene's own choice, else the uniform white sky these tests were written for.
+            default_light: scene
+                .default_light
+                .or(Some(trayecto::scene::DefaultLight::Uniform)),
+            ..WorldOptions::default()
+        },
+    )
+    .expect("scene builds");
     render_world(&world, settings)
 }
 

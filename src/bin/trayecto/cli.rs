@@ -212,10 +212,13 @@ pub struct RenderArgs {
     /// Camera to render, by name or index (default: the first).
     #[arg(long, help_heading = HEADING_SCENE)]
     pub camera: Option<String>,
-    /// When to add the default white environment: auto, on or off.
+    /// When to add the default studio environment: auto, on, off or uniform.
     ///
-    /// auto: no lights, or only self-lit emissive surfaces such as decals and labels with radiance <= 1), on (unless the scene has an
-    /// environment) or off. Default: the scene file's `default_light`, else auto.
+    /// auto: when the scene has no lights, or only self-lit emissive surfaces such as decals and
+    /// labels with radiance <= 1; on: unless the scene has an environment; off: never; uniform:
+    /// as auto, with a uniform white environment of radiance 1 instead of the studio (a soft key
+    /// light above the viewer, a fill, a rim and a darker floor, turned to the camera). Default:
+    /// the scene file's `default_light`, else auto.
     #[arg(long, value_name = "MODE", help_heading = HEADING_SCENE)]
     pub default_light: Option<DefaultLight>,
     /// Same as `--default-light off` (kept for older scripts).
@@ -617,6 +620,15 @@ impl RenderObserver for Console {
             b.set_position(done);
         }
     }
+
+    /// The renderer's estimate (`render::remaining_time`), not indicatif's rate of recent
+    /// steps: tiles of a pass differ in cost, passes do not.
+    fn progress(&self, progress: &trayecto::render::Progress) {
+        if let (Some(b), Some(left)) = (&self.bar, progress.remaining) {
+            let s = left.as_secs();
+            b.set_message(format!("eta {}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60));
+        }
+    }
 }
 
 impl PipelineObserver for Console {
@@ -658,9 +670,10 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
     job.check()?;
     let bar = if std::io::stderr().is_terminal() && !args.quiet {
         let b = indicatif::ProgressBar::new(1);
+        b.set_message("eta ?");
         b.set_style(
             indicatif::ProgressStyle::with_template(
-                "{bar:40.cyan/blue} {percent:>3}% {elapsed_precise} (eta {eta})",
+                "{bar:40.cyan/blue} {percent:>3}% {elapsed_precise} ({msg})",
             )
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );

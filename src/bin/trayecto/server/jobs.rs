@@ -67,6 +67,9 @@ pub struct JobStatus {
     /// PNG of the preview, cached for the version it was encoded from.
     pub preview_png: Option<(u64, Arc<Vec<u8>>)>,
     pub render_started: Option<Instant>,
+    /// The renderer's latest estimate of the time left and when it was made
+    /// (`RenderObserver::progress`); the API reports it less the time since.
+    pub eta: Option<(Duration, Instant)>,
     pub finished: Option<Instant>,
     pub timings: Vec<(&'static str, f64)>,
     pub log: Vec<String>,
@@ -131,14 +134,19 @@ impl Job {
             _ if total > 0 => done as f64 / total as f64,
             _ => 0.0,
         };
-        // Remaining time extrapolates the render phase's rate over the tiles left; unknown until
-        // the first tile is done.
-        let remaining = match (st.state, st.render_started) {
-            (JobState::Rendering, Some(t0)) if done > 0 => {
+        // Remaining time: the renderer's estimate (`render::remaining_time`, the CLI's too) less
+        // the time since it was made; unknown until the first tile is done.
+        // (Renderers that report tiles only, the light-path ones, get the work fraction's.)
+        let remaining = match (st.state, st.eta, st.render_started) {
+            (JobState::Rendering, Some((left, at)), _) => Some(
+                left.saturating_sub(now.saturating_duration_since(at))
+                    .as_secs_f64(),
+            ),
+            (JobState::Rendering, None, Some(t0)) if done > 0 => {
                 let spent = now.duration_since(t0).as_secs_f64();
                 Some(spent * (total - done) as f64 / done as f64)
             }
-            (s, _) if !s.is_active() => Some(0.0),
+            (s, _, _) if !s.is_active() => Some(0.0),
             _ => None,
         };
         let base = format!("/api/renders/{}", self.id);
@@ -158,6 +166,7 @@ impl Job {
             // glTF KHR_materials_variants choice; null: the file's default materials.
             "variant": r.variant,
             "aovs": r.aovs.iter().map(|k| k.name()).collect::<Vec<_>>(),
+            "transparent": r.settings.path.transparent,
             "linear": st.exr.as_ref().map(|_| format!("{base}/linear")),
             "state": st.state.name(),
             "active": st.state.is_active(),
@@ -215,6 +224,12 @@ impl RenderObserver for Observer<'_> {
     fn tile_done(&self, done: u64, total: u64) {
         self.job.tiles_total.store(total, Ordering::Relaxed);
         self.job.tiles_done.fetch_max(done, Ordering::Relaxed);
+    }
+
+    fn progress(&self, progress: &trayecto::render::Progress) {
+        if let Some(left) = progress.remaining {
+            self.job.status().eta = Some((left, Instant::now()));
+        }
     }
 }
 
@@ -534,6 +549,7 @@ impl Jobs {
                     preview_version: 0,
                     preview_png: None,
                     render_started: None,
+                    eta: None,
                     finished: None,
                     timings: Vec::new(),
                     log: Vec::new(),
