@@ -97,7 +97,7 @@ impl Integrator {
                 in_loop_aovs: false,
                 batched_first_hits: false,
                 splitting: false,
-                media: false,
+                media: true,
                 splats: true,
             },
         }
