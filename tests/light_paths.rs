@@ -284,13 +284,14 @@ fn bdpt_strategies_agree_and_weights_sum_to_one() {
 /// a quad light and a sky) rendered by BDPT, and the fog by the light tracer (the cloud's sky
 /// is seen directly, which the light tracer leaves out), against Mitsuba 3's volpath references
 /// that the volumetric path tracer is held to (tests/media_render.rs): channel means within
-/// 4 % and 8 × 8 block error within 10 %, falling with samples as noise does.
+/// 3 % and 8 × 8 block error within 6 %, falling with samples as noise does (8 times the
+/// samples: ideally 2.8 times less, at least 1.8 asked).
 #[test]
 fn light_paths_render_participating_media() {
     for (name, integrator, spp, tol) in [
-        ("fog_cornell", IntegratorKind::Bdpt, 8, 0.04),
-        ("fog_cornell", IntegratorKind::LightTracer, 16, 0.04),
-        ("cloud", IntegratorKind::Bdpt, 8, 0.04),
+        ("fog_cornell", IntegratorKind::Bdpt, 96, 0.03),
+        ("fog_cornell", IntegratorKind::LightTracer, 128, 0.03),
+        ("cloud", IntegratorKind::Bdpt, 64, 0.03),
     ] {
         let path = repo_dir().join(format!("scenes/media/{name}.toml"));
         let scene = trayecto::scene::load(path.to_str().unwrap()).unwrap();
@@ -302,7 +303,7 @@ fn light_paths_render_participating_media() {
             integrator,
             ..lt(w, h, spp, 1024)
         };
-        let low = render_scene(&scene, &settings(1));
+        let low = render_scene(&scene, &settings(spp / 8));
         let high = render_scene(&scene, &settings(spp));
         let what = format!("{name} {integrator:?}");
         assert_means_close(&high, &reference, tol, &what);
@@ -310,10 +311,14 @@ fn light_paths_render_participating_media() {
             block_error(&low, &reference),
             block_error(&high, &reference),
         );
-        println!("{what}: block error {e_low:.4} at 1 spp, {e_high:.4} at {spp} spp");
+        println!(
+            "{what}: block error {e_low:.4} at {} spp, {e_high:.4} at {spp} spp",
+            spp / 8
+        );
         assert!(
-            e_high < 0.10 && e_high < e_low / 1.8,
-            "{what}: block error {e_low} at 1 spp, {e_high} at {spp} spp"
+            e_high < 0.06 && e_high < e_low / 1.8,
+            "{what}: block error {e_low} at {} spp, {e_high} at {spp} spp",
+            spp / 8
         );
     }
 }
@@ -324,20 +329,20 @@ fn light_paths_render_participating_media() {
 /// (caustics on the wall behind them: specular chains). BDPT on all of them and the light tracer
 /// where no light at infinity or point light is seen directly, against the Mitsuba 3 references
 /// the path tracer is held to (tests/mitsuba_materials.rs): channel means within 3 % and 8 × 8
-/// block error below 8 %, falling as noise does from 2 to 16 samples per pixel.
+/// block error below 8 %, falling as noise does over 8 times the samples.
 #[test]
 fn light_paths_agree_with_mitsuba_for_every_light_type() {
     use trayecto::math::Mat4;
     use trayecto::scene::LightDesc;
-    for (name, integrator) in [
-        ("point", IntegratorKind::Bdpt),
-        ("point", IntegratorKind::LightTracer),
-        ("spot", IntegratorKind::Bdpt),
-        ("spot", IntegratorKind::LightTracer),
-        ("directional", IntegratorKind::Bdpt),
-        ("directional", IntegratorKind::LightTracer),
-        ("envmap", IntegratorKind::Bdpt),
-        ("glass", IntegratorKind::Bdpt),
+    for (name, integrator, spp) in [
+        ("point", IntegratorKind::Bdpt, 16),
+        ("point", IntegratorKind::LightTracer, 256),
+        ("spot", IntegratorKind::Bdpt, 16),
+        ("spot", IntegratorKind::LightTracer, 128),
+        ("directional", IntegratorKind::Bdpt, 16),
+        ("directional", IntegratorKind::LightTracer, 128),
+        ("envmap", IntegratorKind::Bdpt, 32),
+        ("glass", IntegratorKind::Bdpt, 32),
     ] {
         let path = repo_dir().join(format!("scenes/mitsuba/{name}.toml"));
         let mut scene = trayecto::scene::load(path.to_str().unwrap()).unwrap();
@@ -358,18 +363,22 @@ fn light_paths_agree_with_mitsuba_for_every_light_type() {
             integrator,
             ..lt(w, h, spp, 1024)
         };
-        let low = render_scene(&scene, &settings(2));
-        let high = render_scene(&scene, &settings(16));
+        let low = render_scene(&scene, &settings(spp / 8));
+        let high = render_scene(&scene, &settings(spp));
         let what = format!("{name} {integrator:?}");
         assert_means_close(&high, &reference, 0.03, &what);
         let (e_low, e_high) = (
             block_error(&low, &reference),
             block_error(&high, &reference),
         );
-        println!("{what}: block error {e_low:.4} at 2 spp, {e_high:.4} at 16 spp");
+        println!(
+            "{what}: block error {e_low:.4} at {} spp, {e_high:.4} at {spp} spp",
+            spp / 8
+        );
         assert!(
             e_high < 0.08 && e_high < e_low / 1.8,
-            "{what}: block error {e_low} at 2 spp, {e_high} at 16 spp"
+            "{what}: block error {e_low} at {} spp, {e_high} at {spp} spp",
+            spp / 8
         );
     }
 }
