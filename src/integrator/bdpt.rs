@@ -575,7 +575,7 @@ fn walk(
                     }
                 }
             }
-            if !(beta.max_element() > 0.0 && mean(r_u) > 0.0) || !beta.is_finite() {
+            if !(beta.max_element() > 0.0 && mean(r_u) > 0.0 && beta.is_finite()) {
                 return;
             }
         }
@@ -904,7 +904,7 @@ pub fn trace_light(
     for (i, qs) in light.iter().enumerate() {
         let u = s.next_2d();
         let area_light = i == 0 && qs.ng != Vec3::ZERO && !qs.is_infinite_light();
-        if !(qs.scatters() && !qs.delta) && !area_light {
+        if (!qs.scatters() || qs.delta) && !area_light {
             continue;
         }
         let Some(cs) = ctx.camera.sample_wi(qs.p, u) else {
