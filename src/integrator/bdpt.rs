@@ -1373,7 +1373,6 @@ mod tests {
     /// of all strategies that can make it add up to 1 (Veach 1997 §9.2: the weights partition
     /// unity), and every one of them is in [0, 1].
     #[test]
-    #[ignore = "not yet confirmed to pass: run with --ignored"]
     fn mis_weights_of_a_path_sum_to_one() {
         let mut scene = builtin::cornell();
         scene.lights.push(LightDesc::Point {
