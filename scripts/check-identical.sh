@@ -62,6 +62,12 @@ cases=(
   "cloud|scenes/media/cloud.toml|"
   "emissive-grid|scenes/pbrt/media/emissive_grid.pbrt|"
   "absorbing-glass|scenes/pbrt/media/absorbing_glass.pbrt|"
+  # The light-path integrators on surfaces (a media-free scene keeps their surface code).
+  "lighttracer|cornell|--integrator lighttracer"
+  "lighttracer-point|scenes/mitsuba/point.toml|--integrator lighttracer"
+  "bdpt|cornell|--integrator bdpt"
+  "bdpt-glass|scenes/mitsuba/glass.toml|--integrator bdpt"
+  "bdpt-envmap|scenes/mitsuba/envmap.toml|--integrator bdpt"
 )
 
 failed=0

@@ -465,6 +465,12 @@ impl CameraImportance {
         }
     }
 
+    /// The lens's centre in world space (the pinhole itself for a pinhole camera).
+    #[inline]
+    pub fn lens_center(&self) -> Vec3 {
+        self.camera_to_world.transform_point3(Vec3::ZERO)
+    }
+
     /// True for a pinhole: the ray's origin is a Dirac delta in position, and the pdfs use a lens
     /// area of 1 as pbrt-v4 does (light tracing then splats W_e / pdf = the delta's weight).
     #[inline]

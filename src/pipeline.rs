@@ -559,10 +559,7 @@ impl RenderJob {
         {
             s.filter = f;
         }
-        // The light-path integrators do not render media yet: a file asking for one in a scene
-        // with media keeps the path tracer, as before they existed.
         if !self.given.integrator
-            && scene.media.is_empty()
             && let Some(k) = h.integrator.as_deref().and_then(|n| n.parse().ok())
         {
             s.integrator = k;

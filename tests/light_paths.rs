@@ -278,3 +278,107 @@ fn bdpt_strategies_agree_and_weights_sum_to_one() {
         );
     }
 }
+
+/// Participating media: the fog Cornell box (a chromatic homogeneous global fog, the camera in
+/// it) and the cloud (a heterogeneous density grid inside index-matched interface faces, lit by
+/// a quad light and a sky) rendered by BDPT, and the fog by the light tracer (the cloud's sky
+/// is seen directly, which the light tracer leaves out), against Mitsuba 3's volpath references
+/// that the volumetric path tracer is held to (tests/media_render.rs): channel means within
+/// 3 % and 8 × 8 block error within 6 %, falling with samples as noise does (8 times the
+/// samples: ideally 2.8 times less, at least 1.8 asked).
+#[test]
+fn light_paths_render_participating_media() {
+    for (name, integrator, spp, tol) in [
+        ("fog_cornell", IntegratorKind::Bdpt, 96, 0.03),
+        ("fog_cornell", IntegratorKind::LightTracer, 128, 0.03),
+        ("cloud", IntegratorKind::Bdpt, 64, 0.03),
+    ] {
+        let path = repo_dir().join(format!("scenes/media/{name}.toml"));
+        let scene = trayecto::scene::load(path.to_str().unwrap()).unwrap();
+        let reference =
+            read_exr(&repo_dir().join(format!("tests/references/mitsuba_media_{name}.exr")))
+                .unwrap();
+        let (w, h) = (reference.width, reference.height);
+        let settings = |spp| RenderSettings {
+            integrator,
+            ..lt(w, h, spp, 1024)
+        };
+        let low = render_scene(&scene, &settings(spp / 8));
+        let high = render_scene(&scene, &settings(spp));
+        let what = format!("{name} {integrator:?}");
+        assert_means_close(&high, &reference, tol, &what);
+        let (e_low, e_high) = (
+            block_error(&low, &reference),
+            block_error(&high, &reference),
+        );
+        println!(
+            "{what}: block error {e_low:.4} at {} spp, {e_high:.4} at {spp} spp",
+            spp / 8
+        );
+        assert!(
+            e_high < 0.06 && e_high < e_low / 1.8,
+            "{what}: block error {e_low} at {} spp, {e_high} at {spp} spp",
+            spp / 8
+        );
+    }
+}
+
+/// Every light type on both ends of the paths: a point light, a spot, a directional light with a
+/// small emissive sphere (an area light seen directly), an image environment (textured, lighting
+/// metal and diffuse spheres), and smooth and rough glass spheres under a quad light and a sky
+/// (caustics on the wall behind them: specular chains). BDPT on all of them and the light tracer
+/// where no light at infinity or point light is seen directly, against the Mitsuba 3 references
+/// the path tracer is held to (tests/mitsuba_materials.rs): channel means within 3 % and 8 × 8
+/// block error below 8 %, falling as noise does over 8 times the samples.
+#[test]
+fn light_paths_agree_with_mitsuba_for_every_light_type() {
+    use trayecto::math::Mat4;
+    use trayecto::scene::LightDesc;
+    for (name, integrator, spp) in [
+        ("point", IntegratorKind::Bdpt, 16),
+        ("point", IntegratorKind::LightTracer, 256),
+        ("spot", IntegratorKind::Bdpt, 16),
+        ("spot", IntegratorKind::LightTracer, 128),
+        ("directional", IntegratorKind::Bdpt, 16),
+        ("directional", IntegratorKind::LightTracer, 128),
+        ("envmap", IntegratorKind::Bdpt, 32),
+        ("glass", IntegratorKind::Bdpt, 32),
+    ] {
+        let path = repo_dir().join(format!("scenes/mitsuba/{name}.toml"));
+        let mut scene = trayecto::scene::load(path.to_str().unwrap()).unwrap();
+        if name == "envmap" {
+            // As tests/mitsuba_materials.rs adds it (scene files read only their own folder).
+            scene.lights.push(LightDesc::Environment {
+                name: "studio".into(),
+                path: shared_scene("hdr/studio_small_03_1k.hdr"),
+                scale: Vec3::ONE,
+                mapping: Default::default(),
+                transform: Mat4::from_rotation_y(90f32.to_radians()),
+            });
+        }
+        let reference =
+            read_exr(&repo_dir().join(format!("tests/references/mitsuba_{name}.exr"))).unwrap();
+        let (w, h) = (reference.width, reference.height);
+        let settings = |spp| RenderSettings {
+            integrator,
+            ..lt(w, h, spp, 1024)
+        };
+        let low = render_scene(&scene, &settings(spp / 8));
+        let high = render_scene(&scene, &settings(spp));
+        let what = format!("{name} {integrator:?}");
+        assert_means_close(&high, &reference, 0.03, &what);
+        let (e_low, e_high) = (
+            block_error(&low, &reference),
+            block_error(&high, &reference),
+        );
+        println!(
+            "{what}: block error {e_low:.4} at {} spp, {e_high:.4} at {spp} spp",
+            spp / 8
+        );
+        assert!(
+            e_high < 0.08 && e_high < e_low / 1.8,
+            "{what}: block error {e_low} at {} spp, {e_high} at {spp} spp",
+            spp / 8
+        );
+    }
+}

@@ -105,7 +105,7 @@ impl Integrator {
                 in_loop_aovs: false,
                 batched_first_hits: false,
                 splitting: false,
-                media: false,
+                media: true,
                 splats: true,
             },
             // Its own driver (`render/photon.rs`); no media, as pbrt-v4's SPPM.

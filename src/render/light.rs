@@ -25,7 +25,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 /// Why `integrator` cannot render `world` with `settings`, if it cannot: a camera without an
-/// importance function, participating media (not yet joined to light paths), adaptive
+/// importance function, emissive media (neither subpath samples their emission), adaptive
 /// sampling (a pixel's error is not its own samples' any more).
 pub fn check(
     world: &World,
@@ -38,10 +38,10 @@ pub fn check(
     if let Err(e) = camera.importance() {
         return bad(format!("the {name} cannot render this camera: {e}"));
     }
-    if world.has_media() {
+    if (0..world.media.media.len()).any(|i| world.medium(i).is_emissive()) {
         return bad(format!(
-            "the {name} does not render participating media or medium interfaces yet: use \
-             --integrator path"
+            "the {name} does not render emissive media (their emission is not sampled from \
+             either end of a path): use --integrator path"
         ));
     }
     if settings.noise_threshold.is_some() {
@@ -147,6 +147,9 @@ pub(crate) fn render(
                     for s in s0..s1 {
                         let mut stream = sampler.stream(key, s);
                         match integrator {
+                            Integrator::LightTracer if world.has_media() => {
+                                bdpt::trace_light(&ctx, &mut stream, scratch, st, scale, buf)
+                            }
                             Integrator::LightTracer => lighttracer::trace(
                                 world,
                                 &importance,
