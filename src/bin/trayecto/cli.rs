@@ -142,16 +142,16 @@ pub struct RenderArgs {
     pub integrator: Option<IntegratorKind>,
     /// SPPM: photon paths per iteration (Default: the scene file's `photonsperiteration`, else
     /// one per pixel).
-    #[arg(long, help_heading = HEADING_SAMPLING)]
+    #[arg(long, help_heading = HEADING_SAMPLING, hide_short_help = true)]
     pub photons_per_iteration: Option<u64>,
     /// SPPM and VCM: the initial photon search (merge) radius, in scene units; it shrinks as
     /// the iterations go on (Default: the scene file's `radius`, else 1/200 of the scene's
     /// bounding-box diagonal).
-    #[arg(long, help_heading = HEADING_SAMPLING)]
+    #[arg(long, help_heading = HEADING_SAMPLING, hide_short_help = true)]
     pub photon_radius: Option<f32>,
     /// VCM: connections only, no merges (bidirectional path tracing with one light subpath per
     /// camera subpath, unbiased).
-    #[arg(long, help_heading = HEADING_SAMPLING)]
+    #[arg(long, help_heading = HEADING_SAMPLING, hide_short_help = true)]
     pub vcm_no_merge: bool,
     /// AOV layers to write with the image, comma-separated: albedo, normal (both at the first
     /// non-specular hit: the denoiser's guides), depth, position, shading_normal, material_id,
@@ -257,7 +257,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "A..B", conflicts_with = "time")]
     pub frames: Option<String>,
     /// Frames per second for --frame/--frames. Default: the file's, else 24.
-    #[arg(long, value_name = "FPS")]
+    #[arg(long, value_name = "FPS", hide_short_help = true)]
     pub fps: Option<f64>,
     /// Motion blur: the shutter is open from OPEN to CLOSE seconds (after --time or the frame's
     /// time when given, else scene time). Default: none (pbrt files: their camera's shutter).
@@ -265,7 +265,7 @@ pub struct RenderArgs {
     pub shutter: Option<String>,
     /// Motion blur: the scene is posed at this many times across the shutter (each a compiled
     /// world in memory); every camera sample takes one by its time. Default 16.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", hide_short_help = true)]
     pub shutter_steps: Option<u32>,
     /// How next-event estimation chooses a light: auto (bvh8 above 16 emitters, points and
     /// spots, else power), power (in proportion to power), bvh (the light BVH: by importance
