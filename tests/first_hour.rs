@@ -5,6 +5,15 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use std::sync::{RwLock, RwLockReadGuard};
+
+/// The time-left test measures wall clock: the other tests of this file (which the harness runs
+/// in parallel) wait while it runs, and it waits for them, so its render has the cores to itself.
+static TIMING: RwLock<()> = RwLock::new(());
+
+fn beside_others() -> RwLockReadGuard<'static, ()> {
+    TIMING.read().unwrap_or_else(|e| e.into_inner())
+}
 
 fn trayecto(args: &[&str], dir: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_trayecto"))
@@ -55,6 +64,7 @@ fn exr_channel(path: &Path, name: &str) -> Vec<f32> {
 
 #[test]
 fn one_side_alone_gives_a_square_for_a_camera_without_aspect_ratio() {
+    let _shared = beside_others();
     // The built-in box's camera has no aspect ratio of its own (as glTF cameras without
     // `aspectRatio`): one side given is both, not N×512.
     let dir = temp_dir("side");
@@ -68,6 +78,7 @@ fn one_side_alone_gives_a_square_for_a_camera_without_aspect_ratio() {
 
 #[test]
 fn png_defaults_to_the_view_transform_and_exr_stays_radiance() {
+    let _shared = beside_others();
     let dir = temp_dir("view");
     let size = ["--width", "16", "--height", "16"];
     ok(&render(&dir, "cornell", "default.png", &size));
@@ -106,6 +117,7 @@ fn png_defaults_to_the_view_transform_and_exr_stays_radiance() {
 
 #[test]
 fn clamps_cut_bright_samples_and_are_off_by_default() {
+    let _shared = beside_others();
     let dir = temp_dir("clamp");
     let size = ["--width", "16", "--height", "16"];
     ok(&render(&dir, "cornell", "free.exr", &size));
@@ -155,6 +167,7 @@ fn clamps_cut_bright_samples_and_are_off_by_default() {
 
 #[test]
 fn short_help_is_a_grouped_summary_and_long_help_the_reference() {
+    let _shared = beside_others();
     let dir = temp_dir("help");
     let short = text(&trayecto(&["render", "-h"], &dir).stdout);
     let long = text(&trayecto(&["render", "--help"], &dir).stdout);
@@ -188,6 +201,7 @@ fn short_help_is_a_grouped_summary_and_long_help_the_reference() {
 
 #[test]
 fn slips_are_forgiven_or_pointed_at() {
+    let _shared = beside_others();
     let dir = temp_dir("slips");
     let o = trayecto(&["render", "--sample", "16"], &dir);
     assert!(!o.status.success());
@@ -205,6 +219,7 @@ fn slips_are_forgiven_or_pointed_at() {
 
 #[test]
 fn adaptive_png_gets_no_side_files_unless_asked() {
+    let _shared = beside_others();
     let dir = temp_dir("adaptive");
     let a = ["--width", "16", "--noise-threshold", "0.2"];
     ok(&render(&dir, "cornell", "a.png", &a));
@@ -221,6 +236,7 @@ fn adaptive_png_gets_no_side_files_unless_asked() {
 
 #[test]
 fn info_prints_numbers_sensibly_lists_media_and_names_the_integrator() {
+    let _shared = beside_others();
     let dir = temp_dir("info");
     std::fs::write(
         dir.join("tiny.toml"),
@@ -257,6 +273,7 @@ fn info_prints_numbers_sensibly_lists_media_and_names_the_integrator() {
 
 #[test]
 fn the_command_line_reads_what_a_scene_names_unless_confined() {
+    let _shared = beside_others();
     let dir = temp_dir("paths");
     let lib = dir.join("library");
     let scene_dir = dir.join("project");
@@ -298,6 +315,7 @@ fn the_command_line_reads_what_a_scene_names_unless_confined() {
 
 #[test]
 fn transparent_film_gives_premultiplied_rgba() {
+    let _shared = beside_others();
     let dir = temp_dir("alpha");
     // A sphere filling the middle of the frame, lit by the default white environment.
     std::fs::write(
@@ -361,6 +379,7 @@ fn transparent_film_gives_premultiplied_rgba() {
 /// the work fraction (the estimate before this one) ends a third too early at 30 % and 60 %.
 #[test]
 fn the_time_left_holds_from_a_tenth_of_the_render_on() {
+    let _alone = TIMING.write().unwrap_or_else(|e| e.into_inner());
     use std::sync::Mutex;
     use std::sync::atomic::AtomicBool;
     use std::time::Duration;
