@@ -671,16 +671,9 @@ fn walk(
         let u_dir = s.next_2d();
         let u_rr = s.next_1d();
         let sv = &v.v;
-        let Some(bs) = sv.bsdf.sample_mode(sv.wo_local, u_lobe, u_dir, mode) else {
+        let Some((bs, wi, scatter)) = sv.sample_scatter(mode, u_lobe, u_dir) else {
             return;
         };
-        let wi = sv.frame.to_world(bs.wi);
-        if !sv.bsdf.side_consistent(bs.wi, wi.dot(sv.ng)) {
-            return;
-        }
-        let corr =
-            mode.shading_normal_correction(sv.wo_local, bs.wi, Vec3::Z, sv.frame.to_local(sv.ng));
-        let scatter = bs.f * (bs.wi.z.abs() * corr / bs.pdf);
         beta *= scatter;
         let (pdf_fwd, pdf_rev) = if bs.specular {
             v.delta = true;

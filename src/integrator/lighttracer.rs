@@ -176,23 +176,11 @@ pub fn trace(
         // Continue by sampling the adjoint BSDF.
         let u_lobe = s.next_1d();
         let u_dir = s.next_2d();
-        let Some(bs) = v
-            .bsdf
-            .sample_mode(v.wo_local, u_lobe, u_dir, TransportMode::Importance)
+        let Some((_, wi, weight)) = v.sample_scatter(TransportMode::Importance, u_lobe, u_dir)
         else {
             break;
         };
-        let wi = v.frame.to_world(bs.wi);
-        if !v.bsdf.side_consistent(bs.wi, wi.dot(v.ng)) {
-            break;
-        }
-        let corr = TransportMode::Importance.shading_normal_correction(
-            v.wo_local,
-            bs.wi,
-            Vec3::Z,
-            v.frame.to_local(v.ng),
-        );
-        beta *= bs.f * (bs.wi.z.abs() * corr / bs.pdf);
+        beta *= weight;
         if !(beta.max_element() > 0.0) || !beta.is_finite() {
             break;
         }

@@ -5,8 +5,8 @@
 use crate::geometry::primitive::SurfaceHit;
 use crate::light::EnvPdf;
 use crate::material::Bsdf;
-use crate::material::bxdf::Diffuse;
-use crate::math::{Frame, Vec3};
+use crate::material::bxdf::{BsdfSample, Diffuse, TransportMode};
+use crate::math::{Frame, Vec2, Vec3};
 use crate::world::World;
 
 /// A scattering vertex of a path: the hit (normal-mapped), its BSDF, the normals oriented for
@@ -52,6 +52,33 @@ impl Vertex {
         } else {
             Vec3::ZERO
         }
+    }
+
+    /// Samples the BSDF at this vertex for the quantity `mode` carries (the adjoint for light
+    /// paths): the sample, its direction in world space and its throughput weight
+    /// f·|cos θ|·c/pdf, with c Veach's shading-normal correction (1 for radiance; Veach 1997
+    /// §5.3). `None` without a sample, or when the sample leaves on the side the geometric
+    /// normal forbids ([`Bsdf::side_consistent`]).
+    #[inline]
+    pub fn sample_scatter(
+        &self,
+        mode: TransportMode,
+        u_lobe: f32,
+        u_dir: Vec2,
+    ) -> Option<(BsdfSample, Vec3, Vec3)> {
+        let bs = self.bsdf.sample_mode(self.wo_local, u_lobe, u_dir, mode)?;
+        let wi = self.frame.to_world(bs.wi);
+        if !self.bsdf.side_consistent(bs.wi, wi.dot(self.ng)) {
+            return None;
+        }
+        let corr = mode.shading_normal_correction(
+            self.wo_local,
+            bs.wi,
+            Vec3::Z,
+            self.frame.to_local(self.ng),
+        );
+        let weight = bs.f * (bs.wi.z.abs() * corr / bs.pdf);
+        Some((bs, wi, weight))
     }
 
     /// A vertex holding `hit` whose shading is not built yet: storage that
