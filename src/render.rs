@@ -644,9 +644,7 @@ fn render_in_pool(
     let camera = crate::camera::Camera::new(&world.camera, w, h);
     // Filtered texture lookups and bump maps need this camera's pixel footprint at every hit.
     let filtered;
-    let settings = if world.texture_filter == crate::material::texture::TextureFilter::Trilinear
-        || world.has_bump
-    {
+    let settings = if world.needs_footprint() {
         filtered = RenderSettings {
             path: crate::integrator::path::PathSettings {
                 footprint: camera.footprint(),

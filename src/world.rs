@@ -110,6 +110,13 @@ pub struct World {
 const MAX_CUTOUT_LAYERS: u32 = 256;
 
 impl World {
+    /// Whether hits need the camera's pixel footprint: filtered (trilinear) texture lookups and
+    /// bump maps take their differences over it, so the drivers hand it to the integrators.
+    #[inline]
+    pub fn needs_footprint(&self) -> bool {
+        self.texture_filter == crate::material::texture::TextureFilter::Trilinear || self.has_bump
+    }
+
     /// Compiles `scene` for rendering. The scene is consumed: its materials and textures move
     /// into the world instead of being copied. The scene must be valid: `scene::load` validated
     /// it (the one place, docs/DESIGN.md §3; `Scene::select_variant` keeps it valid), and a scene

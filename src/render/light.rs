@@ -81,8 +81,7 @@ pub(crate) fn render(
         .importance()
         .map_err(|e| RenderError::InvalidSetting(e.to_string()))?;
     let mut path = settings.path;
-    if world.texture_filter == crate::material::texture::TextureFilter::Trilinear || world.has_bump
-    {
+    if world.needs_footprint() {
         path.footprint = camera.footprint();
     }
     let win = settings.film_window();

@@ -109,8 +109,7 @@ pub(crate) fn render(
     let (w, h) = (settings.width, settings.height);
     let camera = Camera::new(&world.camera, w, h);
     let mut path = settings.path;
-    if world.texture_filter == crate::material::texture::TextureFilter::Trilinear || world.has_bump
-    {
+    if world.needs_footprint() {
         path.footprint = camera.footprint();
     }
     let win = settings.film_window();
@@ -343,8 +342,7 @@ pub(crate) fn render_vcm(
         .importance()
         .map_err(|e| RenderError::InvalidSetting(e.to_string()))?;
     let mut path = settings.path;
-    if world.texture_filter == crate::material::texture::TextureFilter::Trilinear || world.has_bump
-    {
+    if world.needs_footprint() {
         path.footprint = camera.footprint();
     }
     let win = settings.film_window();
