@@ -30,35 +30,6 @@ fn lt(width: u32, height: u32, spp: u32, max_depth: u32) -> RenderSettings {
     }
 }
 
-/// Mean of 8 × 8 blocks: the light tracer's per-pixel noise is large at test sample counts, the
-/// blocks' is not, and a bias in any region of the image shows in its blocks.
-fn blocks(img: &Image, b: u32) -> Vec<Vec3> {
-    let mut out = Vec::new();
-    for by in 0..img.height / b {
-        for bx in 0..img.width / b {
-            let mut s = Vec3::ZERO;
-            for y in by * b..(by + 1) * b {
-                for x in bx * b..(bx + 1) * b {
-                    s += img.get(x, y);
-                }
-            }
-            out.push(s / (b * b) as f32);
-        }
-    }
-    out
-}
-
-/// Relative RMS difference of the block means (over the reference's mean luminance).
-fn block_error(img: &Image, reference: &Image) -> f64 {
-    let (a, r) = (blocks(img, 8), blocks(reference, 8));
-    let mut s = 0.0f64;
-    for (p, q) in a.iter().zip(&r) {
-        s += (*p - *q).as_dvec3().length_squared() / 3.0;
-    }
-    let m = reference.mean();
-    (s / a.len() as f64).sqrt() / ((m.x + m.y + m.z) / 3.0) as f64
-}
-
 /// The Cornell box (area light, diffuse walls) lit by light paths alone: the image means match
 /// Mitsuba's within 2 % and its 8 × 8 block means within 5 % RMS, for full global illumination
 /// and for direct lighting (depth 1, against the direct-only reference). The error falls with
