@@ -426,8 +426,13 @@ impl RenderJob {
         }
         let partial =
             self.split.samples.is_some() || self.outputs.iter().any(|o| is_partial_film(&o.path));
-        if !self.aovs.is_empty() && partial {
-            let film = if self.aovs.iter().any(|k| !k.is_traced()) {
+        // Coverage (alpha) is counted by the film itself, so partial films keep it.
+        if self.aovs.iter().any(|&k| k != AovKind::Alpha) && partial {
+            let film = if self
+                .aovs
+                .iter()
+                .any(|&k| !k.is_traced() && k != AovKind::Alpha)
+            {
                 " (samples and variance neither: a partial film keeps no squared sums, so the \
                  variance of merged parts could not be exact)"
             } else {
@@ -508,8 +513,6 @@ impl RenderJob {
         Ok(())
     }
 
-    /// Whether the render must know its frame's identity (a scene digest): it writes or reads
-    /// partial films.
     /// The AOVs to write for a scene with `hints`: the job's (`--aov`), else those the scene
     /// file asks for (Mitsuba's `aov` integrator), unless the render writes a partial film,
     /// which holds no AOVs.
@@ -522,6 +525,8 @@ impl RenderJob {
         hints.aovs.clone()
     }
 
+    /// Whether the render must know its frame's identity (a scene digest): it writes or reads
+    /// partial films.
     fn writes_parts(&self) -> bool {
         self.split.checkpoint.is_some()
             || self.split.resume.is_some()
@@ -662,6 +667,7 @@ impl RenderJob {
             .filter(|c| (c.x0, c.x1, c.y0, c.y1) != (0, s.width, 0, s.height));
         // The variance AOV needs the film's squared-luminance sums.
         s.track_variance |= self.aovs.contains(&AovKind::Variance);
+        s.track_coverage |= self.aovs.contains(&AovKind::Alpha);
         (s, note)
     }
 
@@ -1350,16 +1356,19 @@ pub fn finish_layers(
     film: &crate::film::Film,
 ) {
     layers.retain(|l| aovs.iter().any(|k| k.name() == l.name));
-    let film_kinds: &[AovKind] = if settings.noise_threshold.is_some() {
-        &AovKind::FILM
+    let mut film_kinds: Vec<AovKind> = if settings.noise_threshold.is_some() {
+        AovKind::FILM.to_vec()
     } else {
-        aovs
+        aovs.to_vec()
     };
+    if aovs.contains(&AovKind::Alpha) && !film_kinds.contains(&AovKind::Alpha) {
+        film_kinds.push(AovKind::Alpha);
+    }
     debug_assert!(
         !film_kinds.contains(&AovKind::Variance) || settings.tracks_variance(),
         "the variance layer needs a film that tracked it"
     );
-    layers.extend(crate::film::aov::film_layers(film, film_kinds));
+    layers.extend(crate::film::aov::film_layers(film, &film_kinds));
 }
 
 /// The output stage: writes the image (or, for `*.trp` outputs, the partial film `part`) to every

@@ -56,6 +56,10 @@ pub struct RenderSettings {
     /// `variance` AOV ([`Film::variance`]). Adaptive sampling tracks it whatever this says
     /// ([`RenderSettings::tracks_variance`]). The image is the same either way.
     pub track_variance: bool,
+    /// Count each pixel's samples whose camera ray hit geometry ([`Film::track_coverage`]), for
+    /// the `alpha` AOV; a `--transparent` render counts them whatever this says
+    /// ([`RenderSettings::counts_coverage`]). The image is the same either way.
+    pub track_coverage: bool,
     /// Path guiding (docs/DESIGN.md, "Path guiding"): the surface path tracer learns the
     /// incident radiance during the first passes ([`guide_training_samples`]) and samples
     /// directions from a BSDF–guide mixture. The expectation is unchanged; experimental: as
@@ -125,6 +129,7 @@ impl Default for RenderSettings {
             time_limit: None,
             crop: None,
             track_variance: false,
+            track_coverage: false,
             guiding: false,
             photon: Default::default(),
         }
@@ -241,6 +246,12 @@ impl RenderSettings {
     /// it to judge pixels.
     pub fn tracks_variance(&self) -> bool {
         self.track_variance || self.noise_threshold.is_some()
+    }
+
+    /// Whether the film counts coverage (the alpha channel): when asked for
+    /// ([`RenderSettings::track_coverage`], the `alpha` AOV) or for a transparent film.
+    pub fn counts_coverage(&self) -> bool {
+        self.track_coverage || self.path.transparent
     }
 }
 
@@ -670,8 +681,17 @@ fn render_in_pool(
     let first = range_start.samples.start;
     let (film, from) = match range_start.resume {
         Some((film, at)) => (film, at),
+        // `--transparent`: the film counts the samples whose camera ray hit geometry (alpha).
+        None if settings.counts_coverage() => (Film::new(fw, fh).track_coverage(), first),
         None => (Film::new(fw, fh), first),
     };
+    if settings.counts_coverage() != film.coverage().is_some() {
+        return Err(RenderError::InvalidSetting(
+            "the film resumed from has no coverage (alpha) but the render counts it \
+             (--transparent, --aov alpha), or the other way round"
+                .into(),
+        ));
+    }
     // Passes over the samples still to do. The film's sums are exact (see `film`), so how the
     // samples are grouped into passes does not change the image.
     let passes: Vec<(u32, u32)> = pass_schedule(range_start.samples.end - from)
@@ -737,6 +757,7 @@ fn render_in_pool(
         win,
         // Squared-luminance sums, for adaptive sampling and the variance AOV.
         track: settings.tracks_variance(),
+        coverage: settings.counts_coverage(),
         record_aovs,
         guided: n_train > 0,
         pixels: if adaptive { 0 } else { fw as u64 * fh as u64 },
@@ -802,6 +823,8 @@ struct TileWork<'a> {
     /// The film window in image coordinates.
     win: Crop,
     track: bool,
+    /// Count coverage (`--transparent`): whether each sample's camera ray hits geometry.
+    coverage: bool,
     record_aovs: bool,
     /// Guiding is on (the surface path tracer, at least one training pass).
     guided: bool,
@@ -829,6 +852,9 @@ impl TileWork<'_> {
         } else {
             FilmBlock::new(x0, y0, tw, th)
         };
+        if self.coverage {
+            block = block.with_coverage();
+        }
         let mut st = RayStats::default();
         let mut aov_block = Vec::new();
         if self.record_aovs {
@@ -852,6 +878,7 @@ impl TileWork<'_> {
             stats: &mut st,
             aovs: self.record_aovs.then_some(&mut aov_block[..]),
             track: self.track,
+            coverage: self.coverage,
             guiding: self.guided.then(|| Guiding {
                 guide,
                 records: train.then_some(&mut records),
@@ -882,9 +909,17 @@ impl TileWork<'_> {
                         continue;
                     }
                     let mut stream = self.sampler.stream(pixel_key, s);
+                    // The camera ray the sample will draw, intersected on its own: these
+                    // integrators do not report whether their first ray hit. A motion-blurred
+                    // sample is judged at the shutter's opening.
+                    let covered = self.coverage && {
+                        let (ray, _) =
+                            camera_ray(&self.camera, &self.filter, &mut stream.clone(), x, y);
+                        aov::covers(world, &ray)
+                    };
                     if moving {
                         let l = self.sample_moving(&mut stream, x, y, out.stats);
-                        out.add(fx, fy, l);
+                        out.add(fx, fy, l, covered);
                         continue;
                     }
                     let l = sample_pixel(
@@ -898,7 +933,7 @@ impl TileWork<'_> {
                         y,
                         out.stats,
                     );
-                    out.add(fx, fy, l);
+                    out.add(fx, fy, l, covered);
                 }
             }
         }
@@ -1389,18 +1424,16 @@ struct BatchOut<'a> {
     stats: &'a mut RayStats,
     aovs: Option<&'a mut [PixelAovs]>,
     track: bool,
+    /// Count the coverage of each sample's camera ray (`--transparent`).
+    coverage: bool,
     /// Guided renders: the guide and the training records.
     guiding: Option<Guiding<'a>>,
 }
 
 impl BatchOut<'_> {
     #[inline]
-    fn add(&mut self, fx: u32, fy: u32, l: crate::math::Vec3) {
-        if self.track {
-            self.block.add_tracked(fx, fy, l);
-        } else {
-            self.block.add(fx, fy, l);
-        }
+    fn add(&mut self, fx: u32, fy: u32, l: crate::math::Vec3, covered: bool) {
+        self.block.add_covered(fx, fy, l, self.track, covered);
     }
 }
 
@@ -1438,6 +1471,9 @@ impl Batch {
             p.first = world.candidate(&p.ray);
         }
         for p in &mut self.0 {
+            // The first hit found above may be a medium interface or a cut-out: coverage asks
+            // for the first solid surface, as the alpha AOV always has.
+            let covered = out.coverage && aov::covers(world, &p.ray);
             if let Some(g) = out.guiding.as_mut() {
                 // A sample left out of training hides the records for its path.
                 let held = if p.record { None } else { g.records.take() };
@@ -1458,7 +1494,7 @@ impl Batch {
                 if let (Some(aovs), Some(rec)) = (out.aovs.as_deref_mut(), rec) {
                     aovs[p.slot].add(&rec.sample);
                 }
-                out.add(p.fx, p.fy, l * p.weight);
+                out.add(p.fx, p.fy, l * p.weight, covered);
                 continue;
             }
             let l = match out.aovs.as_deref_mut() {
@@ -1479,7 +1515,7 @@ impl Batch {
                 None => path::radiance_from(world, &p.ray, p.first, &mut p.stream, set, out.stats),
             };
             // As in `sample_pixel`: ×1 is exact for box and tent samples.
-            out.add(p.fx, p.fy, l * p.weight);
+            out.add(p.fx, p.fy, l * p.weight, covered);
         }
         self.0.clear();
     }

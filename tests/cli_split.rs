@@ -663,3 +663,107 @@ fn a_forged_partial_film_is_refused_by_merge_and_resume() {
         "{e}"
     );
 }
+
+/// A `--transparent` frame rendered in parts keeps its alpha: the parts hold the film's exact
+/// coverage counts, so the merged EXR (beauty and `A`) and a render resumed from a part equal the
+/// single render bit for bit, and a merged PNG is RGBA.
+#[test]
+fn a_transparent_frame_merges_and_resumes_with_its_alpha() {
+    let d = dir("alpha");
+    // A ball in the middle of the frame: background at the corners, partly covered edges.
+    let scene = d.join("ball.toml");
+    std::fs::write(
+        &scene,
+        "[[camera]]\neye = [0.0, 0.0, 4.0]\ntarget = [0.0, 0.0, 0.0]\nfov = 40.0\n\
+         [[object]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 0.8\n",
+    )
+    .unwrap();
+    let render = |extra: &[&str], out: &Path| {
+        ok(bin()
+            .arg("render")
+            .arg(&scene)
+            .args(["-q", "--transparent", "--spp", "6"])
+            .args(SIZE)
+            .args(extra)
+            .arg("-o")
+            .arg(out)
+            .output()
+            .unwrap())
+    };
+    render(&[], &d.join("full.exr"));
+    render(&["--samples", "0..2"], &d.join("a.trp"));
+    render(&["--samples", "2..6"], &d.join("b.trp"));
+    for out in ["merged.exr", "merged.png"] {
+        ok(bin()
+            .arg("merge")
+            .args([d.join("b.trp"), d.join("a.trp")])
+            .arg("-o")
+            .arg(d.join(out))
+            .output()
+            .unwrap());
+    }
+    assert_eq!(
+        std::fs::read(d.join("full.exr")).unwrap(),
+        std::fs::read(d.join("merged.exr")).unwrap(),
+        "merged EXR differs from the single render"
+    );
+    let (_, _, channels) = trayecto::film::output::read_exr_channels(&d.join("full.exr")).unwrap();
+    let alpha = &channels
+        .iter()
+        .find(|(n, _)| n == "A")
+        .expect("no A channel")
+        .1;
+    assert!(alpha.contains(&0.0) && alpha.contains(&1.0));
+    assert!(
+        alpha.iter().any(|&a| a > 0.0 && a < 1.0),
+        "no partly covered pixel"
+    );
+    let png = image::open(d.join("merged.png")).unwrap();
+    assert!(png.color().has_alpha(), "merged PNG without alpha");
+    // `--aov alpha` counts the same coverage without leaving the background out.
+    ok(bin()
+        .args(["render", "-q", "--spp", "6", "--aov", "alpha"])
+        .arg(&scene)
+        .args(SIZE)
+        .arg("-o")
+        .arg(d.join("opaque.exr"))
+        .output()
+        .unwrap());
+    let (_, _, opaque) = trayecto::film::output::read_exr_channels(&d.join("opaque.exr")).unwrap();
+    assert_eq!(
+        &opaque
+            .iter()
+            .find(|(n, _)| n == "A")
+            .expect("no A channel")
+            .1,
+        alpha
+    );
+    // Resumed from the first part: the same frame.
+    render(
+        &["--resume", d.join("a.trp").to_str().unwrap()],
+        &d.join("resumed.exr"),
+    );
+    assert_eq!(
+        std::fs::read(d.join("full.exr")).unwrap(),
+        std::fs::read(d.join("resumed.exr")).unwrap(),
+        "resumed EXR differs from the single render"
+    );
+    // An opaque part does not merge with a transparent one.
+    ok(bin()
+        .args(["render", "-q", "--spp", "6", "--samples", "0..2"])
+        .arg(&scene)
+        .args(SIZE)
+        .arg("-o")
+        .arg(d.join("opaque.trp"))
+        .output()
+        .unwrap());
+    let o = bin()
+        .arg("merge")
+        .args([d.join("opaque.trp"), d.join("b.trp")])
+        .arg("-o")
+        .arg(d.join("bad.exr"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("path"), "{e}");
+}

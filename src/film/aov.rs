@@ -44,6 +44,8 @@ pub enum AovKind {
     /// Coverage: the fraction of the pixel's camera rays that hit geometry (OpenEXR's `A`).
     /// With `--transparent` the background seen by camera rays is not rendered, so the beauty
     /// image is premultiplied by it. Not in `--aov all` (a PNG takes it as its alpha channel).
+    /// From the film's exact coverage counts ([`crate::film::Film::track_coverage`]), not traced,
+    /// so it is kept in partial films and checkpoints and merges exactly.
     Alpha,
 }
 
@@ -80,7 +82,7 @@ impl AovKind {
     /// Whether the AOV is traced per hit ([`AovKind::TRACED`]) rather than read from the film
     /// ([`AovKind::FILM`]). The tracing code skips film AOVs; [`film_layers`] skips traced ones.
     pub fn is_traced(self) -> bool {
-        !matches!(self, AovKind::Samples | AovKind::Variance)
+        !matches!(self, AovKind::Samples | AovKind::Variance | AovKind::Alpha)
     }
 
     /// The name given to `--aov` and used for side files (`out.NAME.png`).
@@ -320,6 +322,7 @@ pub fn film_layers(film: &super::Film, kinds: &[AovKind]) -> Vec<Layer> {
             let data = match k {
                 AovKind::Samples => film.counts().iter().map(|&c| c as f32).collect(),
                 AovKind::Variance => (0..n).map(|i| film.variance(i) as f32).collect(),
+                AovKind::Alpha => film.alpha()?,
                 _ => return None,
             };
             Some(Layer::new(k, film.width, film.height, data))

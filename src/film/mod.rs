@@ -67,6 +67,10 @@ pub struct Film {
     /// the per-pixel variance that adaptive sampling and the `variance` layer use. All zero when
     /// the render does not track variance.
     sq: Vec<i128>,
+    /// Per pixel, how many of its accepted samples' camera rays hit geometry (OpenEXR's alpha,
+    /// `--transparent`): an exact count, so coverage merges across parts and checkpoints like
+    /// the sums. `None` when the render does not track it ([`Film::track_coverage`]).
+    cov: Option<Vec<u32>>,
     pub discarded: u64,
 }
 
@@ -94,8 +98,48 @@ impl Film {
             sum: vec![[0; 3]; n],
             count: vec![0; n],
             sq: vec![0; n],
+            cov: None,
             discarded: 0,
         }
+    }
+
+    /// This film, counting the coverage of its samples from now on (all zero so far).
+    pub fn track_coverage(mut self) -> Film {
+        self.cov = Some(vec![0; self.count.len()]);
+        self
+    }
+
+    /// Per pixel, the accepted samples whose camera ray hit geometry, if tracked.
+    pub fn coverage(&self) -> Option<&[u32]> {
+        self.cov.as_deref()
+    }
+
+    /// The fraction of each pixel's samples that hit geometry (0 where a pixel has none), if
+    /// coverage is tracked: the alpha channel of a `--transparent` render.
+    pub fn alpha(&self) -> Option<Vec<f32>> {
+        let cov = self.cov.as_ref()?;
+        Some(
+            cov.iter()
+                .zip(&self.count)
+                .map(|(&c, &n)| {
+                    if n == 0 {
+                        0.0
+                    } else {
+                        (c as f64 / n as f64) as f32
+                    }
+                })
+                .collect(),
+        )
+    }
+
+    /// A film read back with its coverage counts; `None` if their length does not match, or a
+    /// pixel claims more covered samples than it has.
+    pub fn with_coverage(mut self, cov: Vec<u32>) -> Option<Film> {
+        if cov.len() != self.count.len() || cov.iter().zip(&self.count).any(|(c, n)| c > n) {
+            return None;
+        }
+        self.cov = Some(cov);
+        Some(self)
     }
 
     #[inline]
@@ -115,6 +159,9 @@ impl Film {
                 self.count[i] += block.count[j];
                 if let Some(sq) = &block.sq {
                     self.sq[i] += sq[j];
+                }
+                if let (Some(cov), Some(b)) = (&mut self.cov, &block.cov) {
+                    cov[i] += b[j];
                 }
             }
         }
@@ -146,6 +193,20 @@ impl Film {
         for (s, o) in self.sq.iter_mut().zip(&other.sq) {
             *s = s.saturating_add(*o);
         }
+        match (&mut self.cov, &other.cov) {
+            (Some(c), Some(o)) => {
+                for (c, o) in c.iter_mut().zip(o) {
+                    // Never above the count, which was checked not to overflow.
+                    *c += *o;
+                }
+            }
+            (None, None) => {}
+            _ => {
+                return Err(
+                    "one part has coverage (alpha, --transparent) and the other not".into(),
+                );
+            }
+        }
         // Saturating: parts of one frame never come near it, and a forged count must not wrap.
         self.discarded = self.discarded.saturating_add(other.discarded);
         Ok(())
@@ -172,6 +233,7 @@ impl Film {
             sum,
             count,
             sq: vec![0; n],
+            cov: None,
             discarded,
         })
     }
@@ -253,6 +315,8 @@ pub struct FilmBlock {
     pub count: Vec<u32>,
     /// Squared-luminance sums when the render tracks variance ([`FilmBlock::tracked`]).
     pub sq: Option<Vec<i128>>,
+    /// Coverage counts when the render tracks them ([`Film::track_coverage`]).
+    pub cov: Option<Vec<u32>>,
     pub discarded: u64,
 }
 
@@ -274,7 +338,33 @@ impl FilmBlock {
             sum: vec![[0; 3]; n],
             count: vec![0; n],
             sq: None,
+            cov: None,
             discarded: 0,
+        }
+    }
+
+    /// This block, counting coverage ([`FilmBlock::add_covered`]).
+    pub fn with_coverage(mut self) -> FilmBlock {
+        self.cov = Some(vec![0; self.count.len()]);
+        self
+    }
+
+    /// [`FilmBlock::add_tracked`] (or [`FilmBlock::add`] when `track` is false), then, if the
+    /// sample was accepted and its camera ray hit geometry, one more covered sample for the
+    /// pixel. Coverage counts only accepted samples, so it never exceeds the count.
+    #[inline]
+    pub fn add_covered(&mut self, x: u32, y: u32, l: Vec3, track: bool, covered: bool) {
+        let before = self.discarded;
+        if track {
+            self.add_tracked(x, y, l);
+        } else {
+            self.add(x, y, l);
+        }
+        if covered
+            && before == self.discarded
+            && let Some(cov) = &mut self.cov
+        {
+            cov[((y - self.y0) * self.w + (x - self.x0)) as usize] += 1;
         }
     }
 

@@ -96,6 +96,12 @@ fn intersect_solid(world: &World, mut ray: Ray) -> Option<(SurfaceHit, f32)> {
     None
 }
 
+/// Whether the camera ray `ray` hits a solid surface (not only medium interfaces): the coverage a
+/// `--transparent` film counts ([`crate::film::Film::track_coverage`]).
+pub fn covers(world: &World, ray: &Ray) -> bool {
+    intersect_solid(world, *ray).is_some()
+}
+
 /// Traces the AOVs of the camera ray `ray`, drawing the specular chain's choices from `s`.
 pub fn trace(world: &World, ray: &Ray, s: &mut SampleStream) -> AovSample {
     let mut out = AovSample::default();
@@ -340,11 +346,10 @@ impl PixelAovs {
                 (self.depth / hits) as f32
             }),
             AovKind::MaterialId => out.push(winner(&self.materials)),
-            AovKind::Alpha => out.push((self.hits as f64 / all) as f32),
             AovKind::ObjectId => out.push(winner(&self.objects)),
             // Not traced: they come from the film (`film::aov::film_layers`), and every caller
             // leaves them out of its rows, as `layers` does.
-            AovKind::Samples | AovKind::Variance => {}
+            AovKind::Samples | AovKind::Variance | AovKind::Alpha => {}
         }
     }
 }

@@ -699,6 +699,8 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         crop: None,
         // Set by the pipeline when the variance AOV is asked for.
         track_variance: false,
+        // Set by the pipeline when the alpha AOV is asked for.
+        track_coverage: false,
         guiding: o.guiding,
         photon: Default::default(),
     };

@@ -10,7 +10,7 @@
 //! | 8 | magic `TRAYPART` |
 //! | 4 | `u32` length `L` of the header (at most [`MAX_HEADER`]) |
 //! | `L` | the header, JSON ([`PartHeader`]) |
-//! | rest | a zlib stream (RFC 1950, with its Adler-32 check) of: `width·height` pixels × 3 channels of `i128` fixed-point sums (row-major, top row first, RGB; value = sum · 2^-`frac_bits`), then `width·height` `u32` sample counts |
+//! | rest | a zlib stream (RFC 1950, with its Adler-32 check) of: `width·height` pixels × 3 channels of `i128` fixed-point sums (row-major, top row first, RGB; value = sum · 2^-`frac_bits`), then `width·height` `u32` sample counts, then, when the header says `coverage` (a `--transparent` render), `width·height` `u32` counts of the samples whose camera ray hit geometry (the alpha channel's numerators) |
 //!
 //! The header names the scene by content (a SHA-256 of the scene file's bytes and of everything
 //! the loader read from it, see [`crate::scene::digest`]), lists every setting that changes the
@@ -61,6 +61,10 @@ pub struct PartHeader {
     pub frac_bits: u32,
     /// Samples discarded as NaN, infinite or beyond the sample limit.
     pub discarded: u64,
+    /// The pixel data ends with coverage counts (`--transparent`: the alpha channel). Absent
+    /// (false) from the headers of opaque renders, which are therefore unchanged.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub coverage: bool,
 }
 
 /// A partial film read back or about to be written.
@@ -124,6 +128,8 @@ pub fn image_settings(
         time_limit,
         crop,
         track_variance: _,
+        // Whether the pixels end with coverage counts: the header's `coverage`.
+        track_coverage: _,
         guiding,
         photon,
     } = s;
@@ -232,6 +238,7 @@ impl PartHeader {
             samples,
             frac_bits: FRAC_BITS,
             discarded,
+            coverage: settings.counts_coverage(),
         }
     }
 
@@ -319,10 +326,10 @@ pub fn write_film(header: &PartHeader, film: &Film, path: &Path) -> Result<(), P
     let result = (|| {
         let file = std::fs::File::create(&tmp)?;
         let mut out = std::io::BufWriter::new(file);
-        let header = serde_json::to_vec(header).map_err(std::io::Error::other)?;
+        let json = serde_json::to_vec(header).map_err(std::io::Error::other)?;
         out.write_all(MAGIC)?;
-        out.write_all(&(header.len() as u32).to_le_bytes())?;
-        out.write_all(&header)?;
+        out.write_all(&(json.len() as u32).to_le_bytes())?;
+        out.write_all(&json)?;
         let mut z = flate2::write::ZlibEncoder::new(out, flate2::Compression::fast());
         let (sum, count) = film.raw();
         let mut buf = Vec::with_capacity(48 * 1024);
@@ -335,7 +342,16 @@ pub fn write_film(header: &PartHeader, film: &Film, path: &Path) -> Result<(), P
                 buf.clear();
             }
         }
-        for n in count {
+        let coverage = match (header.coverage, film.coverage()) {
+            (false, _) => &[][..],
+            (true, Some(c)) => c,
+            (true, None) => {
+                return Err(std::io::Error::other(
+                    "the header promises coverage (alpha) the film does not hold",
+                ));
+            }
+        };
+        for n in count.iter().chain(coverage) {
             buf.extend_from_slice(&n.to_le_bytes());
             if buf.len() >= 48 * 1024 {
                 z.write_all(&buf)?;
@@ -358,8 +374,11 @@ pub fn write_film(header: &PartHeader, film: &Film, path: &Path) -> Result<(), P
 /// of `n` bytes cannot unpack to more than about this many times `n`.
 const MAX_DEFLATE_RATIO: u64 = 1032;
 
-/// Bytes of pixel data per pixel once unpacked: three `i128` sums and a `u32` count.
-const PIXEL_BYTES: u64 = 48 + 4;
+/// Bytes of pixel data per pixel once unpacked: three `i128` sums and a `u32` count, and a `u32`
+/// coverage count when the header says so.
+fn pixel_bytes(h: &PartHeader) -> u64 {
+    48 + 4 + if h.coverage { 4 } else { 0 }
+}
 
 /// A partial film whose header has been read and checked, its pixels not yet: what a merge or
 /// a resume looks at first, so that parts of another frame are refused before any pixel memory
@@ -456,7 +475,7 @@ impl PartFile {
         }
         let data_start = 12 + len as u64;
         let data_len = meta.len().saturating_sub(data_start);
-        let expected = pixels * PIXEL_BYTES;
+        let expected = pixels * pixel_bytes(&h);
         if expected > data_len.saturating_mul(MAX_DEFLATE_RATIO) {
             return Err(format_err(
                 path,
@@ -489,7 +508,7 @@ impl PartFile {
             .map_err(io)?;
         let n = self.header.width as u64 * self.header.height as u64;
         let z = flate2::read::ZlibDecoder::new(std::io::BufReader::new(file.take(self.data_len)));
-        Ok(z.take(n * PIXEL_BYTES + 1))
+        Ok(z.take(n * pixel_bytes(&self.header) + 1))
     }
 
     /// Reads the pixels, checked twice: a first pass over the stream, holding nothing, checks
@@ -537,6 +556,28 @@ impl PartFile {
                 missing += (span - c) as u64;
             }
             counts_left -= k;
+        }
+        // Coverage: never more covered samples than the range holds (checked against the
+        // pixel's own count once both are read).
+        let mut cover_left = if h.coverage { n } else { 0 };
+        while cover_left > 0 {
+            let k = cover_left.min(buf.len() / 4);
+            z.read_exact(&mut buf[..4 * k]).map_err(short)?;
+            if let Some(i) = buf[..4 * k]
+                .chunks_exact(4)
+                .position(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]) > span)
+            {
+                let p = (n - cover_left + i) as u64;
+                return Err(format_err(
+                    path,
+                    format!(
+                        "pixel ({}, {}) claims more covered samples than its range of {span}",
+                        p % h.width as u64,
+                        p / h.width as u64
+                    ),
+                ));
+            }
+            cover_left -= k;
         }
         let mut rest = [0u8; 1];
         if z.read(&mut rest).map_err(short)? != 0 {
@@ -588,6 +629,18 @@ impl PartFile {
             );
             left -= k;
         }
+        let mut coverage: Vec<u32> = Vec::with_capacity(if h.coverage { n } else { 0 });
+        let mut left = if h.coverage { n } else { 0 };
+        while left > 0 {
+            let k = left.min(buf.len() / 4);
+            z.read_exact(&mut buf[..4 * k]).map_err(short)?;
+            coverage.extend(
+                buf[..4 * k]
+                    .chunks_exact(4)
+                    .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])),
+            );
+            left -= k;
+        }
         // The file may have changed between the passes: the counts are checked again with the
         // sums. Every sum is within what its count of samples below the sample limit can reach,
         // so merging parts of one frame cannot overflow.
@@ -608,8 +661,16 @@ impl PartFile {
             }
         }
         drop(z);
-        let film = Film::from_raw(h.width, h.height, sum, count, h.discarded)
+        let mut film = Film::from_raw(h.width, h.height, sum, count, h.discarded)
             .ok_or_else(|| format_err(path, "inconsistent pixel data"))?;
+        if h.coverage {
+            film = film.with_coverage(coverage).ok_or_else(|| {
+                format_err(
+                    path,
+                    "a pixel claims more covered samples (alpha) than it holds",
+                )
+            })?;
+        }
         Ok(Part {
             header: self.header.clone(),
             film,
@@ -688,6 +749,9 @@ pub fn merge(parts: Vec<(PathBuf, Part)>, complete: bool) -> Result<Part, PartEr
     let [start, end] = check_merge(&headers, complete)?;
     let first = &parts[0].1;
     let mut film = Film::new(first.header.width, first.header.height);
+    if first.header.coverage {
+        film = film.track_coverage();
+    }
     for (p, part) in &parts {
         film.add_film(&part.film)
             .map_err(|e| PartError::Merge(format!("{}: {e}", p.display())))?;

@@ -184,3 +184,23 @@ def test_command_line_on_a_local_cluster(trayecto, tmp_path):
         capture_output=True, text=True, timeout=300,
     )
     assert r.returncode == 1 and "no such scene file" in r.stderr
+
+
+def test_a_transparent_frame_keeps_its_alpha(trayecto, tmp_path, cluster):
+    """``--transparent`` through the farm: the chunks carry the film's coverage counts, so the
+    merged EXR, alpha channel included, is the single render's bit for bit."""
+    _, client = cluster
+    scene = tmp_path / "ball.toml"
+    scene.write_text(
+        '[[camera]]\neye = [0.0, 0.0, 4.0]\ntarget = [0.0, 0.0, 0.0]\nfov = 40.0\n'
+        '[[object]]\ntype = "sphere"\ncenter = [0.0, 0.0, 0.0]\nradius = 0.8\n'
+    )
+    extra = ["--transparent"]
+    want = single(trayecto, tmp_path, 6, extra=extra, scene=str(scene))
+    assert b"A\x00" in want[:1000], "the single render has no alpha channel"
+    job = FarmJob(
+        scenes=[str(scene)], spp=6, chunks=3, output=tmp_path / "alpha.exr",
+        render_args=SIZE + extra, trayecto=trayecto, threads_per_task=1,
+    )
+    [out] = run_farm(job, client)
+    assert out.read_bytes() == want

@@ -11,7 +11,7 @@ use trayecto::accel::AccelKind;
 use trayecto::denoise::DenoiseOptions;
 use trayecto::film::aov::AovKind;
 use trayecto::film::filter::{Filter, FilterKind};
-use trayecto::film::output::{Format, write_image};
+use trayecto::film::output::Format;
 use trayecto::film::tonemap::Tonemap;
 use trayecto::integrator::{Aov, IntegratorKind, PathSettings, ShadingModel};
 use trayecto::light::LightSamplerKind;
@@ -429,6 +429,8 @@ impl RenderArgs {
             crop: None,
             // Set by the pipeline when the variance AOV is asked for.
             track_variance: false,
+            // Set by the pipeline when the alpha AOV is asked for.
+            track_coverage: false,
             guiding: self.guiding,
             photon: trayecto::integrator::sppm::PhotonSettings {
                 photons_per_iteration: self.photons_per_iteration,
@@ -759,12 +761,15 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
     if partial_output {
         merged.write(&args.output)?;
     } else {
-        write_image(
-            &merged.film.to_image(),
-            &args.output,
-            args.exposure,
-            args.tonemap,
-        )?;
+        // A `--transparent` frame's parts hold coverage: the image gets its alpha channel (EXR
+        // `A`, PNG RGBA), as the single render writes it.
+        let layers = trayecto::film::aov::film_layers(&merged.film, &[AovKind::Alpha]);
+        let output = trayecto::pipeline::OutputSpec {
+            path: args.output.clone(),
+            exposure: args.exposure,
+            tonemap: args.tonemap,
+        };
+        trayecto::pipeline::write_outputs(&merged.film.to_image(), None, &[output], &layers)?;
     }
     if args.quiet {
         return Ok(());
