@@ -266,13 +266,17 @@ fn sppm_update_shrinks_the_radius_and_rescales_the_flux() {
     assert!((p.radius - r * ((20.0 + 40.0 / 3.0) / 40.0f64).sqrt()).abs() < 1e-12);
 }
 
-/// VCM's radius r_i = r_0 · i^((α−1)/2) (i from 1): r_0 first, then shrinking.
+/// VCM's radius r_i = r_0 · i^((α−1)/2) (i from 1): r_0 first, then shrinking; a stored light
+/// vertex takes at most 448 bytes.
 #[test]
 fn vcm_radius_shrinks_with_the_iteration_index() {
     assert_eq!(vcm_radius(0.5, 0), 0.5);
     let r = vcm_radius(0.5, 15);
     assert!((r - 0.5 * 16f32.powf(-0.125)).abs() < 1e-6, "{r}");
     assert!(vcm_radius(0.5, 16) < r);
+    // The memory bound docs/DESIGN.md states for VCM's light vertex store (a vertex keeps its
+    // shading: hit, BSDF, frame), so that growing it is a decision, not an accident.
+    assert!(std::mem::size_of::<trayecto::integrator::vcm::LightVertex>() <= 448);
 }
 
 /// The time-to-equal-error comparison of BENCHMARKS.md ("Caustics seen through glass"): VCM,
