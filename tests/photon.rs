@@ -414,11 +414,26 @@ fn caustic_through_glass_time_to_equal_error() {
 /// and a uniform light at infinity), which SPPM passes through to its diffuse visible points as
 /// pbrt-v4's SPPM does, against Trayecto's path tracer at 64 spp (itself held to pbrt-v4's
 /// render of the file elsewhere); a thin-lens camera (screenwindow.pbrt) against pbrt-v4's
-/// render; a uniform environment and a distant light against Mitsuba 3's (scenes/mitsuba/).
+/// render; glass on a floor under an area light and a uniform sky (caustics), a uniform
+/// environment and a distant light against Mitsuba 3's (scenes/mitsuba/).
 /// Channel means within 3 % and 8 × 8 block error below a bound about 1.5 × the measured one.
 #[test]
 fn photon_methods_agree_with_references_on_glossy_lens_and_infinite_lights() {
-    let cases: [(&str, &str, IntegratorKind, u32, f64); 6] = [
+    let cases: [(&str, &str, IntegratorKind, u32, f64); 8] = [
+        (
+            "scenes/mitsuba/glass.toml",
+            "mitsuba_glass",
+            IntegratorKind::Vcm,
+            16,
+            0.075,
+        ),
+        (
+            "scenes/mitsuba/glass.toml",
+            "mitsuba_glass",
+            IntegratorKind::Sppm,
+            16,
+            0.075,
+        ),
         (
             "scenes/pbrt/roughness.pbrt",
             "",
