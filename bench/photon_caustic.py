@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Error against iterations for SPPM, VCM and BDPT on scenes/pbrt/caustic-through-glass.pbrt over
+"""Error against iterations for SPPM, VCM, BDPT and the path tracer on scenes/pbrt/caustic-through-glass.pbrt over
 several seeds (BENCHMARKS.md, "Caustics seen through glass"). One seed's relative RMS error is
 dominated by rare full-radiance samples (the small light seen through the sphere and the pane),
 so a ladder from one seed can rise where the method converges; this reports, per method and
@@ -78,7 +78,7 @@ def main():
     print("| method | spp | rel. RMS error (RMS over seeds) | without the highlight | mean s |")
     print("| --- | --- | --- | --- | --- |")
     for spp in (4, 16):
-        for integrator in ("sppm", "vcm", "bdpt"):
+        for integrator in ("sppm", "vcm", "bdpt", "path"):
             e, em, ts = [], [], []
             for seed in range(1, a.seeds + 1):
                 out = f"{d}/{integrator}_{spp}_{seed}.hdr"
