@@ -68,6 +68,12 @@ cases=(
   "bdpt|cornell|--integrator bdpt"
   "bdpt-glass|scenes/mitsuba/glass.toml|--integrator bdpt"
   "bdpt-envmap|scenes/mitsuba/envmap.toml|--integrator bdpt"
+  # The photon integrators on diffuse and specular surfaces with an area light (scenes whose
+  # SPPM and VCM images no change to their glossy, lens or infinite-light handling touches).
+  "sppm|cornell|--integrator sppm"
+  "vcm|cornell|--integrator vcm"
+  "sppm-caustic|scenes/pbrt/caustic-through-glass.pbrt|--integrator sppm"
+  "vcm-caustic|scenes/pbrt/caustic-through-glass.pbrt|--integrator vcm"
 )
 
 failed=0

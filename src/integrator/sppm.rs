@@ -1,7 +1,8 @@
 //! Stochastic progressive photon mapping (Hachisuka & Jensen 2009; pbrt-v4 `SPPMIntegrator`,
 //! read as a specification): each iteration traces one camera path per pixel through specular
-//! bounces to its first non-specular vertex (the pixel's *visible point*), adds the direct
-//! lighting there by next-event estimation, and then shoots photons from the lights; the photons
+//! and glossy-only bounces to its first vertex with a diffuse lobe (the pixel's *visible
+//! point*), adds the direct lighting there by next-event estimation, and then shoots photons
+//! from the lights; the photons
 //! landing within the pixel's radius of its visible point are its density estimate of the
 //! indirect light. After every iteration each pixel shrinks its radius and rescales its flux
 //! (Hachisuka et al. 2008, eqs. 6–7, with α = 2/3), so the estimate's bias and variance both go
@@ -23,10 +24,11 @@ use super::lighttracer::sample_emission;
 use super::settings::PathSettings;
 use super::vertex::Vertex;
 use crate::geometry::Ray;
-use crate::geometry::primitive::SurfaceHit;
+use crate::geometry::primitive::{NO_LIGHT, SurfaceHit};
 use crate::material::bxdf::TransportMode;
 use crate::math::Vec3;
 use crate::sampling::SampleStream;
+use crate::sampling::warp::power_heuristic;
 use crate::world::World;
 
 /// The photon integrators' own settings (`--photons-per-iteration`, `--photon-radius`; pbrt's
@@ -85,12 +87,18 @@ pub struct Photon {
     pub bounces: u32,
 }
 
-/// Traces the camera ray `ray` (filter weight `weight`) through specular bounces, filling `vp`
-/// with the first non-specular vertex, and returns the radiance the path gathers on the way:
-/// emitters hit (directly or through specular bounces) and the visible point's direct light,
-/// one light sample without MIS (BSDF-sampled hits of lights are never followed from it, so
-/// the light sample carries the whole direct term). Draws 3 numbers at the visible point and 3
-/// per specular bounce.
+/// Traces the camera ray `ray` (filter weight `weight`) to its visible point, filling `vp`, and
+/// returns the radiance the path gathers on the way. As pbrt-v4's `SPPMIntegrator`, the visible
+/// point is the first vertex whose BSDF has a diffuse lobe ([`crate::material::Bsdf::has_diffuse_lobe`]),
+/// or a glossy one where no photon could still reach it (the last bounce): the path continues
+/// through specular vertices by sampling, and through glossy-only ones (rough conductors and
+/// dielectrics) by sampling too, after a light sample weighted by MIS against that BSDF
+/// sample's hit of the light (a narrow lobe's photon density estimate would be noisy and
+/// blurred; pbrt-v4 does the same). Emitters are counted when the camera sees them directly or
+/// through specular bounces, and with the MIS weight after a glossy bounce. At the visible
+/// point the direct light is one light sample without MIS (BSDF-sampled hits of lights are
+/// never followed from it, so the light sample carries the whole direct term). Draws 3
+/// numbers at the visible point, 3 per specular bounce and 6 per glossy one.
 pub fn visible_point(
     world: &World,
     ray: &Ray,
@@ -106,31 +114,60 @@ pub fn visible_point(
         mis: false,
         ..*set
     };
+    let glossy = PathSettings {
+        nee: true,
+        mis: true,
+        ..*set
+    };
+    let env = glossy.env_pdf();
     let mut beta = Vec3::splat(weight);
     let mut l = Vec3::ZERO;
     let mut ray = *ray;
     let mut depth = 0u32;
+    // The last non-specular bounce: its BSDF density, position, normal and the normal its
+    // light sample took a uniform environment about (`None`: the path so far is specular).
+    let mut prev: Option<(f32, Vec3, Vec3, Vec3)> = None;
     loop {
         stats.rays += 1;
         if !world.intersect_filtered_into(&ray, &set.footprint, &mut vp.v.hit) {
-            if depth > 0 || !set.transparent {
-                l += beta * world.escaped(ray.d.normalize());
+            let d = ray.d.normalize();
+            match prev {
+                None if depth > 0 || !set.transparent => l += beta * world.escaped(d),
+                None => {}
+                Some((p_b, _, _, uniform_n)) => {
+                    l += world.escaped_mis(d, env, uniform_n, |le, p_l| {
+                        beta * le * power_heuristic(p_b, p_l)
+                    });
+                }
             }
             return l;
         }
         let wo = -ray.d.normalize();
-        l += beta * world.emitted(&vp.v.hit, wo);
+        let le = world.emitted(&vp.v.hit, wo);
+        if le != Vec3::ZERO {
+            let w = match prev {
+                Some((p_b, p, ng, _)) if vp.v.hit.light != NO_LIGHT => {
+                    power_heuristic(p_b, world.emitter_pdf(p, ng, &vp.v.hit))
+                }
+                _ => 1.0,
+            };
+            l += beta * le * w;
+        }
         if depth >= set.max_depth {
             return l;
         }
         vp.v.shade(world, wo);
-        if !vp.v.bsdf.is_specular() {
-            l += sample_ld(world, &vp.v, beta, s, &direct, stats);
-            if !vp.v.bsdf.is_black() {
-                vp.beta = beta;
-                vp.bounces = depth;
+        let specular = vp.v.bsdf.is_specular();
+        if !specular {
+            if vp.v.bsdf.has_diffuse_lobe() || depth + 1 >= set.max_depth {
+                l += sample_ld(world, &vp.v, beta, s, &direct, stats);
+                if !vp.v.bsdf.is_black() {
+                    vp.beta = beta;
+                    vp.bounces = depth;
+                }
+                return l;
             }
-            return l;
+            l += sample_ld(world, &vp.v, beta, s, &glossy, stats);
         }
         let u_lobe = s.next_1d();
         let u_dir = s.next_2d();
@@ -146,6 +183,11 @@ pub fn visible_point(
         if !(beta.max_element() > 0.0) || !beta.is_finite() {
             return l;
         }
+        prev = if bs.specular {
+            None
+        } else {
+            Some((bs.pdf, v.hit.p, v.ng, v.uniform_env_normal(env)))
+        };
         depth += 1;
         ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
     }

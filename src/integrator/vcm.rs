@@ -25,8 +25,13 @@
 //!
 //! Densities: area conversions use the geometric normal, the throughputs the shading normal (as
 //! the path tracer's); Russian roulette is left out of the weights (they stay a partition of
-//! one; the throughput divides by the survival probability). Lights at infinity and the thin
-//! lens are refused by the driver (their densities are not modelled here).
+//! one; the throughput divides by the survival probability). Lights at infinity follow the
+//! technical report's background light: a light subpath leaves the scene's bounding disk (its
+//! first segment's length and the disk's cosine take no part), next-event estimation and an
+//! escaping camera subpath see a direction density, and each light at infinity is weighted
+//! as a light of its own. A thin lens needs nothing more: the lens point has the same density
+//! (uniform over the lens) whether the camera subpath or a join to the camera (t = 1) chose
+//! it, so only the direction densities enter the weights, as for a pinhole.
 
 use super::RayStats;
 use super::lighttracer::{Splat, sample_emission};
@@ -124,11 +129,17 @@ impl<'a> Vcm<'a> {
             return;
         };
         let light = &world.lights()[em.index];
-        if light.is_infinite() {
-            return;
-        }
+        // A light at infinity: its "position" is the direction it shines from, which next-event
+        // estimation samples per solid angle; its origin on the scene's disk is no vertex of
+        // the path, so the first segment's length takes no part in the densities (the
+        // technical report's background light).
+        let infinite = light.is_infinite();
         let emission_pdf_w = em.pmf * em.le.pdf_pos * em.le.pdf_dir;
-        let direct_pdf_a = em.pmf * em.le.pdf_pos;
+        let direct_pdf_a = if infinite {
+            em.pmf * self.infinite_direct_pdf(em.index, -em.le.ray.d.normalize())
+        } else {
+            em.pmf * em.le.pdf_pos
+        };
         let cos_light = em.le.cos();
         let mut beta = em.le.le * (cos_light / emission_pdf_w);
         if !(beta.max_element() > 0.0) || !beta.is_finite() {
@@ -153,9 +164,13 @@ impl<'a> Vcm<'a> {
             len += 1;
             let wo = -ray.d.normalize();
             v.shade(world, wo);
-            let dist2 = (v.hit.p - ray.o).length_squared();
             let cos_in = mis(v.ng.dot(wo).abs());
-            d_vcm *= mis(dist2) / cos_in;
+            let g = if infinite && len == 1 {
+                1.0
+            } else {
+                mis((v.hit.p - ray.o).length_squared())
+            };
+            d_vcm *= g / cos_in;
             d_vc /= cos_in;
             d_vm /= cos_in;
             let u_cam = s.next_2d();
@@ -242,6 +257,46 @@ impl<'a> Vcm<'a> {
         }
     }
 
+    /// The solid-angle density with which a light sample ([`Vcm::light_sample`]) picks the
+    /// direction `d` (towards the light) from the light at infinity `index`, its choice not
+    /// included: 1 for a direction's delta.
+    fn infinite_direct_pdf(&self, index: usize, d: Vec3) -> f32 {
+        let light = &self.world.lights()[index];
+        if light.is_delta() {
+            1.0
+        } else {
+            light
+                .le_pdf(d, EnvPdf::Full, Vec3::ZERO)
+                .map_or(0.0, |(_, pdf)| pdf)
+        }
+    }
+
+    /// What the lights at infinity send along the escaping camera ray direction `d` (unit),
+    /// each weighted against the strategies that could have made its path (s = 0 of the
+    /// technical report's background light), from the camera subpath's quantities after its
+    /// last scattering. Not yet multiplied by the throughput.
+    fn escaped(&self, d: Vec3, d_vcm: f32, d_vc: f32) -> Vec3 {
+        let world = self.world;
+        let scene = world.light_scene();
+        let mut l = Vec3::ZERO;
+        for &i in &world.lights.infinite {
+            let i = i as usize;
+            let light = &world.lights()[i];
+            let Some(le) = light.le(d) else {
+                continue;
+            };
+            if le == Vec3::ZERO {
+                continue;
+            }
+            let pmf = world.lights.distribution.discrete_pdf(i);
+            let (pos, dir) = light.pdf_le(&scene, Vec3::ZERO, -d);
+            let w_camera =
+                mis(pmf * self.infinite_direct_pdf(i, d)) * d_vcm + mis(pmf * pos * dir) * d_vc;
+            l += le / (1.0 + w_camera);
+        }
+        l
+    }
+
     /// Joins the light vertex `lv` to the camera (t = 1) and splats it, weighted.
     fn to_camera(
         &self,
@@ -325,6 +380,14 @@ impl<'a> Vcm<'a> {
         loop {
             stats.rays += 1;
             if !world.intersect_filtered_into(&ray, &set.footprint, &mut v.hit) {
+                if !world.lights.infinite.is_empty() {
+                    let d = ray.d.normalize();
+                    if len > 0 {
+                        l += beta * self.escaped(d, d_vcm, d_vc);
+                    } else if !set.transparent {
+                        l += beta * world.escaped(d);
+                    }
+                }
                 return l;
             }
             len += 1;
@@ -454,12 +517,33 @@ impl<'a> Vcm<'a> {
                     shadow,
                     false,
                 )
+            } else if light.is_infinite() {
+                // A direction, sampled per solid angle (a delta's weight for a distant light);
+                // emitted from the scene's disk, whose cosine is 1.
+                let Some(ls) = light.sample_li(&scene, &v.hit, v.ng, u, EnvPdf::Full, Vec3::ZERO)
+                else {
+                    return Vec3::ZERO;
+                };
+                if ls.li == Vec3::ZERO {
+                    return Vec3::ZERO;
+                }
+                let (pos, dir) = light.pdf_le(&scene, Vec3::ZERO, -ls.wi);
+                let dir = if ls.delta { 1.0 } else { dir };
+                (
+                    ls.wi,
+                    ls.li,
+                    pmf * ls.pdf,
+                    pmf * pos * dir,
+                    1.0,
+                    ls.shadow,
+                    ls.delta,
+                )
             } else {
                 let Some(ls) = light.sample_li(&scene, &v.hit, v.ng, u, EnvPdf::Full, Vec3::ZERO)
                 else {
                     return Vec3::ZERO;
                 };
-                if ls.li == Vec3::ZERO || !ls.delta || light.is_infinite() {
+                if ls.li == Vec3::ZERO || !ls.delta {
                     return Vec3::ZERO;
                 }
                 let p = ls.shadow.o + ls.shadow.d;

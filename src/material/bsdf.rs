@@ -131,6 +131,27 @@ impl Bsdf {
         }
     }
 
+    /// True if some lobe is diffuse (pbrt-v4's `IsDiffuse(bsdf.Flags())`): a Lambertian base,
+    /// reflected or transmitted, or a layer's scattering medium. Glossy-only and specular BSDFs
+    /// (conductors, dielectrics, mirrors, hair) are not. SPPM places its visible points by it.
+    #[inline]
+    pub fn has_diffuse_lobe(&self) -> bool {
+        match self {
+            Bsdf::Diffuse(_) | Bsdf::DiffuseTransmission(_) => true,
+            Bsdf::MetallicRoughness(b) => b.metallic < 1.0,
+            Bsdf::Layered(b) => {
+                matches!(b.base, super::bxdf::layered::Base::Diffuse { .. })
+                    || b.albedo != Vec3::ZERO
+            }
+            Bsdf::Mirror(_)
+            | Bsdf::Dielectric(_)
+            | Bsdf::ThinDielectric(_)
+            | Bsdf::Conductor(_)
+            | Bsdf::GltfTransmission(_)
+            | Bsdf::Hair(_) => false,
+        }
+    }
+
     /// True if `sample` ignores its lobe-choice number.
     #[inline]
     pub fn has_one_lobe(&self) -> bool {

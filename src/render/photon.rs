@@ -293,23 +293,10 @@ fn to_film(pixels: &[PixelState], fw: u32, fh: u32, iterations: u32, photons: u6
 
 /// Why vertex connection and merging cannot render `world` with `settings`, if it cannot: the
 /// light tracer's reasons (`render/light.rs`: a camera without importance, media, adaptive
-/// sampling, motion blur, guiding), and the densities its weights do not model yet.
+/// sampling, motion blur, guiding) and its own settings'.
 pub fn check_vcm(world: &World, settings: &RenderSettings) -> Result<(), RenderError> {
     super::light::check(world, Integrator::Vcm, settings)?;
     let bad = |m: &str| Err(RenderError::InvalidSetting(m.to_string()));
-    if world.lights().iter().any(|l| l.is_infinite()) {
-        return bad(
-            "vertex connection and merging does not render lights at infinity (environment, \
-             distant or uniform lights) yet: use --integrator bdpt or path",
-        );
-    }
-    let camera = Camera::new(&world.camera, settings.width, settings.height);
-    if camera.importance().is_ok_and(|c| !c.is_pinhole()) {
-        return bad(
-            "vertex connection and merging does not render a thin-lens camera (depth of field) \
-             yet: its weights assume a pinhole; use --integrator bdpt or path",
-        );
-    }
     if settings.path.secondary > 1 {
         return bad("secondary rays do not apply to vertex connection and merging");
     }
