@@ -387,6 +387,21 @@ pub fn remaining_time(
     Some(Duration::from_secs_f64(secs))
 }
 
+/// Reports `done` of `total` units of work to `observer` ([`RenderObserver::tile_done`], then
+/// [`RenderObserver::progress`] with the time left from the work fraction and the time since
+/// `started`): for the drivers whose units (light-path passes, photon iterations) cost alike, so
+/// that the fraction of them done is the fraction of the time.
+pub fn report_work(observer: &dyn RenderObserver, done: u64, total: u64, started: Instant) {
+    observer.tile_done(done, total);
+    let elapsed = started.elapsed();
+    observer.progress(&Progress {
+        done,
+        total,
+        elapsed,
+        remaining: remaining_time(done, total, elapsed, None),
+    });
+}
+
 /// An observer that ignores everything.
 pub struct NoObserver;
 impl RenderObserver for NoObserver {}

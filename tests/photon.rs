@@ -224,6 +224,50 @@ fn vcm_film_is_a_function_of_seed_and_settings() {
     assert_eq!(one, split);
 }
 
+/// The photon integrators report their progress with a time left, as the tiled renderer does (the
+/// CLI's bar showed "eta ?" throughout): every report after the first unit of work has an
+/// estimate, the work fraction grows to the whole, and nothing is left at the end.
+#[test]
+fn photon_renders_report_the_time_left() {
+    use std::sync::Mutex;
+    use trayecto::render::{Progress, RenderObserver};
+    struct Record(Mutex<Vec<Progress>>);
+    impl RenderObserver for Record {
+        fn progress(&self, p: &Progress) {
+            self.0.lock().unwrap().push(*p);
+        }
+    }
+    let world = World::build(builtin::cornell(), &Default::default()).unwrap();
+    for settings in [sppm(16, 16, 4, 4), vcm(16, 16, 4, 4, true)] {
+        let rec = Record(Mutex::new(Vec::new()));
+        render_range(
+            &world,
+            &settings,
+            RangeStart {
+                samples: 0..4,
+                resume: None,
+            },
+            &rec,
+            &AtomicBool::new(false),
+        )
+        .unwrap();
+        let reports = rec.0.into_inner().unwrap();
+        let what = format!("{:?}", settings.integrator);
+        assert!(!reports.is_empty(), "{what}: no progress reported");
+        assert!(
+            reports.iter().all(|p| p.remaining.is_some()),
+            "{what}: {reports:?}"
+        );
+        assert!(
+            reports.windows(2).all(|w| w[1].done >= w[0].done),
+            "{what}: {reports:?}"
+        );
+        let last = reports.last().unwrap();
+        assert_eq!(last.fraction(), 1.0, "{what}");
+        assert_eq!(last.remaining, Some(std::time::Duration::ZERO), "{what}");
+    }
+}
+
 /// Every point within the radius is found exactly once and no other, against a brute-force
 /// scan, for radii below, at and above the cell size (so boxes of 1 to 5 cells a side, whose
 /// cells collide in the small table).

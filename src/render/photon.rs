@@ -242,7 +242,7 @@ pub(crate) fn render(
                 });
         }
         done = it + 1;
-        observer.tile_done(done as u64, iterations as u64);
+        crate::render::report_work(observer, done as u64, iterations as u64, t0);
         if previews.contains(&done) && done < iterations {
             film = to_film(&pixels, fw, fh, done, photons_per_iter);
             observer.pass_done(&film, done, settings.spp);
@@ -468,7 +468,7 @@ pub(crate) fn render_vcm(
                 })
                 .reduce(RayStats::default, sum_stats);
             stats += cam_stats;
-            observer.tile_done((it + 1 - from) as u64, total_work);
+            crate::render::report_work(observer, (it + 1 - from) as u64, total_work, t0);
             if cancel.load(Ordering::Relaxed) {
                 cancelled = true;
                 break 'passes;
