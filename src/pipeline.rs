@@ -733,20 +733,23 @@ impl RenderJob {
     /// Renders frames `frames` of an animated scene (docs/DESIGN.md §5, "Animation"): the scene
     /// is read once, then posed, compiled, rendered and written per frame, each output named by
     /// [`frame_path`]. Each frame is the image [`RenderJob::run`] gives with `--frame N`.
+    ///
+    /// With `--checkpoint FILE` each frame checkpoints into its own [`frame_path`] of FILE. With
+    /// `--resume FILE` the sequence goes on where it stopped: a frame with a checkpoint newer
+    /// than its outputs continues from it (exactly, as a resumed still), a frame whose outputs
+    /// are all newer than its checkpoint (or have none) was finished and is skipped, and the
+    /// others are rendered.
     pub fn run_frames(
         &self,
         frames: std::ops::RangeInclusive<u32>,
         observer: &dyn PipelineObserver,
         cancel: &AtomicBool,
     ) -> Result<Vec<RenderReport>, PipelineError> {
-        self.check()?;
-        if self.split.checkpoint.is_some() || self.split.resume.is_some() {
-            return Err(PipelineError::InvalidSetting(
-                "a frame sequence (--frames) cannot --checkpoint or --resume: render its frames \
-                 one by one with --frame for that"
-                    .into(),
-            ));
-        }
+        let resume = self.split.resume.clone();
+        // The checkpoints of a sequence are per frame: the one named is a pattern.
+        let mut base = self.clone();
+        base.split.resume = None;
+        base.check()?;
         if self.world.time.time.is_some() {
             return Err(PipelineError::InvalidSetting(
                 "--frames and --time both give the moment: use one".into(),
@@ -759,13 +762,29 @@ impl RenderJob {
             cancel,
             warnings: Vec::new(),
         };
-        let loaded = crate::limits::scope_or_default(|| first.load())?;
+        let loaded = crate::limits::scope_or_default(|| first.load())
+            .map_err(|e| cancelled_or(cancel, e))?;
         let mut reports = Vec::new();
+        let mut read_once = false;
         for frame in frames {
-            let mut job = self.clone();
+            let mut job = base.clone();
             job.world.time.frame = Some(frame);
             for o in &mut job.outputs {
                 o.path = frame_path(&o.path, frame);
+            }
+            job.split.checkpoint = job.split.checkpoint.map(|c| frame_path(&c, frame));
+            if let Some(r) = &resume {
+                match frame_progress(&job, &frame_path(r, frame)) {
+                    FrameProgress::Done => {
+                        first.info(format!("frame {frame}: rendered before, skipped"));
+                        continue;
+                    }
+                    FrameProgress::Resume(c) => {
+                        job.split.resume = Some(c);
+                        job.check()?;
+                    }
+                    FrameProgress::Start => {}
+                }
             }
             let mut run = Run {
                 job: &job,
@@ -778,18 +797,43 @@ impl RenderJob {
                 scene: loaded.scene.clone(),
                 settings: loaded.settings.clone(),
                 digest: loaded.digest.clone(),
-                // Read once, for the first frame.
-                time: if reports.is_empty() {
-                    loaded.time
-                } else {
+                // Read once, for the first frame rendered.
+                time: if read_once {
                     Duration::ZERO
+                } else {
+                    loaded.time
                 },
             };
+            read_once = true;
             let built = crate::limits::scope_or_default(|| run.build(this))
                 .map_err(|e| cancelled_or(cancel, e))?;
             reports.push(run.finish(built, denoiser.as_ref())?);
         }
         Ok(reports)
+    }
+}
+
+/// Where frame `job` of a resumed sequence stands ([`RenderJob::run_frames`]).
+enum FrameProgress {
+    /// Its outputs were all written after its last checkpoint (or it has none).
+    Done,
+    /// Continue from this checkpoint.
+    Resume(PathBuf),
+    /// Not begun.
+    Start,
+}
+
+fn frame_progress(job: &RenderJob, checkpoint: &std::path::Path) -> FrameProgress {
+    let modified = |p: &std::path::Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let saved = modified(checkpoint);
+    let outputs: Option<Vec<_>> = job.outputs.iter().map(|o| modified(&o.path)).collect();
+    match (saved, outputs) {
+        (Some(c), Some(out)) if !out.is_empty() && out.iter().all(|&t| t >= c) => {
+            FrameProgress::Done
+        }
+        (None, Some(out)) if !out.is_empty() => FrameProgress::Done,
+        (Some(_), _) => FrameProgress::Resume(checkpoint.to_path_buf()),
+        (None, _) => FrameProgress::Start,
     }
 }
 

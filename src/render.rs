@@ -564,7 +564,7 @@ pub fn aovs_in_loop(world: &World, settings: &RenderSettings, start: &RangeStart
         .capabilities()
         .in_loop_aovs
         && start.resume.is_none()
-        && world.motion.is_empty()
+        && world.is_still()
 }
 
 /// [`render_range`]; with `aovs`, and when [`aovs_in_loop`] says the integrator can, the path
@@ -757,16 +757,11 @@ fn render_in_pool(
         Learner::new(b.min, b.max)
     });
     let guide: RwLock<Option<Arc<Guide>>> = RwLock::new(None);
-    // Motion blur: each shutter step's world has its own camera (crate::world::motion).
-    let step_cameras = (1..world.time_steps())
-        .map(|k| crate::camera::Camera::new(&world.at_step(k).camera, w, h))
-        .collect();
     let work = TileWork {
         world,
         integrator,
         settings,
         camera,
-        step_cameras,
         filter: FilterSampler::new(&settings.filter),
         sampler: SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h),
         win,
@@ -831,8 +826,6 @@ struct TileWork<'a> {
     integrator: Integrator,
     settings: &'a RenderSettings,
     camera: crate::camera::Camera,
-    /// The cameras of shutter steps 1.. (motion blur; empty for a still).
-    step_cameras: Vec<crate::camera::Camera>,
     filter: FilterSampler,
     sampler: SamplerSetup,
     /// The film window in image coordinates.
@@ -878,7 +871,7 @@ impl TileWork<'_> {
         // The surface path tracer's samples go through the batched first hits (`Batch`); the
         // other integrators trace sample by sample.
         // Motion blur traces each sample in the world of its time, sample by sample.
-        let moving = !self.step_cameras.is_empty();
+        let moving = !world.is_still();
         let batched = self.integrator.capabilities().batched_first_hits && !moving;
         // In-loop AOVs are only recorded by batching integrators (`aovs_in_loop`).
         debug_assert!(batched || !self.record_aovs);
@@ -958,8 +951,8 @@ impl TileWork<'_> {
     }
 
     /// One motion-blurred camera sample: the film and lens numbers as [`camera_ray`] draws
-    /// them, then the time (crate::world::motion), which picks the shutter step whose camera
-    /// and world the sample traces.
+    /// them, then the time (crate::world::motion): the fraction of the shutter that places a
+    /// moving camera and picks the shutter step whose world the sample traces.
     fn sample_moving(
         &self,
         stream: &mut SampleStream,
@@ -974,12 +967,12 @@ impl TileWork<'_> {
             stream.skip(2);
             crate::math::Vec2::ZERO
         };
-        let steps = self.world.time_steps();
-        let k = crate::world::motion::step_of(stream.next_1d(), steps);
-        let camera = match k {
-            0 => &self.camera,
-            k => &self.step_cameras[k - 1],
-        };
+        let u = stream.next_1d();
+        let k = crate::world::motion::step_of(u, self.world.time_steps());
+        let mut camera = self.camera.clone();
+        if let Some(m) = &self.world.camera_motion {
+            camera.camera_to_world = m.at(u);
+        }
         let (film, weight) = self.filter.film_point(x, y, jitter);
         let ray = camera.generate_ray(film, lens);
         let l = self.integrator.radiance(

@@ -103,6 +103,9 @@ pub struct World {
     /// world each; a camera sample draws its time and traces the world of its step
     /// ([`motion`]). Empty for a still.
     pub motion: Vec<World>,
+    /// Motion blur of a moving camera: its transform at a sample's time ([`motion`]). `None`
+    /// when the camera does not move.
+    pub camera_motion: Option<motion::CameraMotion>,
 }
 
 /// Rays pass through at most this many cut-out surfaces; beyond it the next surface counts as
@@ -211,6 +214,7 @@ impl World {
             texture_filter: options.texture_filter,
             has_bump,
             motion: Vec::new(),
+            camera_motion: None,
         })
     }
 

@@ -50,7 +50,7 @@ pub fn check(
              on other pixels than the one that started them"
         ));
     }
-    if world.time_steps() > 1 {
+    if !world.is_still() {
         return bad(format!(
             "the {name} does not render motion blur (--shutter) yet: use --integrator path, or \
              render a still with --time"

@@ -56,7 +56,7 @@ pub fn check(world: &World, settings: &RenderSettings) -> Result<(), RenderError
              part in every iteration's photon pass",
         );
     }
-    if world.time_steps() > 1 {
+    if !world.is_still() {
         return bad(
             "SPPM does not render motion blur (--shutter): its photons have no time; render a \
              still with --time",

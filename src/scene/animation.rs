@@ -266,7 +266,7 @@ impl MovingTransform {
 
 /// M = T·R·S with S symmetric (pbrt-v4 `AnimatedTransform::Decompose`: the polar decomposition of
 /// the upper 3×3 by iterating R ← (R + R⁻ᵀ)/2, then S = R⁻¹M).
-fn decompose(m: Mat4) -> (Mat3, Quat, Vec3) {
+pub(crate) fn decompose(m: Mat4) -> (Mat3, Quat, Vec3) {
     let t = m.w_axis.truncate();
     let a = Mat3::from_mat4(m);
     let mut r = a;
@@ -343,6 +343,65 @@ impl Animation {
     /// Whether anything changes with time (a rig may only have static skins).
     pub fn moves(&self) -> bool {
         !self.rigid.is_empty() || self.rig.as_ref().is_some_and(|r| !r.channels.is_empty())
+    }
+
+    /// Whether anything but cameras changes with time: objects, lights or deformed meshes.
+    /// A scene whose only motion is its camera's is blurred with one world
+    /// (crate::world::motion).
+    pub fn moves_beyond_cameras(&self) -> bool {
+        if self
+            .rigid
+            .iter()
+            .any(|m| matches!(m, RigidMotion::Object { .. }))
+        {
+            return true;
+        }
+        let Some(rig) = &self.rig else {
+            return false;
+        };
+        // A node moves when a channel animates it or an ancestor (parents come first in
+        // `order`).
+        let mut moving = vec![false; rig.nodes.len()];
+        for c in &rig.channels {
+            if let Some(m) = moving.get_mut(c.node) {
+                *m = true;
+            }
+        }
+        for &i in &rig.order {
+            if let Some(p) = rig.nodes[i].parent {
+                moving[i] |= moving[p];
+            }
+        }
+        let placed_moves = rig
+            .placed
+            .iter()
+            .any(|&(node, p)| moving[node] && !matches!(p, Placed::Camera(_)));
+        let deformed_moves = rig.deformed.iter().any(|d| {
+            moving[d.node]
+                || d.skin
+                    .is_some_and(|s| rig.skins[s].joints.iter().any(|&j| moving[j]))
+        });
+        placed_moves || deformed_moves
+    }
+
+    /// The world-from-camera transform of scene camera `camera` at time `t`, as
+    /// [`Scene::pose`] would set it, if the animation moves that camera; the rest of the scene
+    /// is not posed.
+    pub fn camera_at(&self, camera: usize, t: f64) -> Option<Mat4> {
+        for m in &self.rigid {
+            if let RigidMotion::Camera { camera: c, motion } = m
+                && *c == camera
+            {
+                return Some(motion.at(t));
+            }
+        }
+        let rig = self.rig.as_ref().filter(|r| !r.channels.is_empty())?;
+        let &(node, _) = rig
+            .placed
+            .iter()
+            .find(|(_, p)| matches!(p, Placed::Camera(c) if *c == camera))?;
+        let (world, _) = rig.node_pose(Some(t));
+        Some(rigid(world[node]))
     }
 }
 

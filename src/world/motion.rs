@@ -2,18 +2,26 @@
 //! "Motion blur").
 //!
 //! The scene is posed ([`Scene::pose`]) at `--time` seconds, or at `--frame` N of `--fps`
-//! (the file's frame rate where it has one, else [`DEFAULT_FPS`]). With a shutter the shutter
-//! interval is cut into [`TimeOptions::steps`] equal parts and the scene is posed and compiled at
-//! the middle of each: every camera sample draws a time in [0, 1) after its film and lens
-//! numbers (one more dimension of the sample's stream, so the image is a pure function of the
-//! seed and splits and resumes stay exact), and traces the world of the part holding it — a
-//! stratified estimate of the shutter's average in which moving cameras, rigid objects, skinned
-//! and morphing meshes all move, each world with its own exact BVH. Without a shutter nothing
-//! is drawn and stills are unchanged.
-
+//! (the file's frame rate where it has one, else [`DEFAULT_FPS`]). With a shutter every camera
+//! sample draws a time in [0, 1) after its film and lens numbers (one more dimension of the
+//! sample's stream, so the image is a pure function of the seed and splits and resumes stay
+//! exact; a still draws nothing and is unchanged), the fraction of the shutter it sees:
+//! - the camera moves continuously: its world-from-camera transform at the sample's time is
+//!   interpolated ([`CameraMotion`]) between poses at [`TimeOptions::steps`] + 1 times across the
+//!   shutter, decomposed into translation, rotation and scale (pbrt-v4 `AnimatedTransform`),
+//!   the rotation by slerp. A pbrt camera's two-key motion is reproduced exactly (its path
+//!   between keys is itself such an interpolation); a glTF camera node's is followed between
+//!   the poses.
+//! - moving objects, lights and deforming meshes are posed and compiled at the middle of each
+//!   of [`TimeOptions::steps`] equal parts of the shutter, each world with its own exact BVH,
+//!   and a sample traces the world of the part holding its time: a stratified estimate of the
+//!   shutter's average that converges to it as the steps grow. A scene whose only motion is
+//!   its camera's is compiled once.
 use super::{World, WorldOptions};
-use crate::scene::animation::Animation;
+use crate::math::{Mat3, Mat4, Vec3};
+use crate::scene::animation::{Animation, decompose};
 use crate::scene::{Scene, SceneError};
+use glam::Quat;
 
 /// Frames per second when neither `--fps` nor the file gives one (film's rate, and Blender's
 /// default).
@@ -34,7 +42,8 @@ pub struct TimeOptions {
     /// `--shutter OPEN,CLOSE` in seconds: relative to the moment when `time` or `frame` is
     /// given, else scene time.
     pub shutter: Option<[f64; 2]>,
-    /// `--shutter-steps`: worlds the shutter is cut into (0: [`DEFAULT_SHUTTER_STEPS`]).
+    /// `--shutter-steps`: worlds the shutter is cut into for moving objects, and the intervals
+    /// between the camera's poses (0: [`DEFAULT_SHUTTER_STEPS`]).
     pub steps: u32,
 }
 
@@ -148,10 +157,44 @@ impl World {
             }
             return Ok(w);
         };
-        let steps = if close > open { opts.steps() } else { 1 };
+        // The camera the world will show, when it is one of the scene's: it may move.
+        let camera_index = if options.camera_override.is_some() {
+            None
+        } else {
+            match options.camera.as_deref() {
+                Some(sel) => scene
+                    .camera_by(Some(sel))
+                    .and_then(|c| scene.cameras.iter().position(|d| std::ptr::eq(c, d))),
+                None => (!scene.cameras.is_empty()).then_some(0),
+            }
+        };
+        let camera_keys = camera_index
+            .zip(anim.as_deref())
+            .filter(|_| close > open)
+            .and_then(|(i, a)| {
+                let n = opts.steps();
+                let keys: Option<Vec<Mat4>> = (0..=n)
+                    .map(|k| a.camera_at(i, open + (close - open) * k as f64 / n as f64))
+                    .collect();
+                keys.filter(|k| k.iter().any(|m| *m != k[0]))
+            });
+        let objects_move = anim.as_ref().is_some_and(|a| a.moves_beyond_cameras());
+        let steps = if close > open && objects_move {
+            opts.steps()
+        } else {
+            1
+        };
         let mut first = scene.clone();
         first.pose(Some(step_time(open, close, 0, steps)));
         let mut w = World::build(first, options)?;
+        w.camera_motion = camera_keys.map(|k| CameraMotion::new(&k));
+        if steps == 1 {
+            if w.camera_motion.is_none() && close > open {
+                w.warnings
+                    .push("motion blur: nothing the render shows moves during the shutter".into());
+            }
+            return Ok(w);
+        }
         // A scene without a camera is framed once, at the shutter's opening: the automatic
         // camera must not follow the moving objects' bounds from step to step.
         let fixed;
@@ -183,14 +226,67 @@ impl World {
         Ok(w)
     }
 
+    /// True for a still: no step worlds and no moving camera.
+    pub fn is_still(&self) -> bool {
+        self.motion.is_empty() && self.camera_motion.is_none()
+    }
+
     /// Worlds a camera sample chooses from by its time: 1 for a still.
     pub fn time_steps(&self) -> usize {
         1 + self.motion.len()
     }
 
-    /// The world of shutter step `k` ([`World::build_posed`]).
+    /// The world of shutter step `k` ([`World::build_posed`]); the camera at that moment is the
+    /// one [`World::camera_motion`] gives (the step worlds' own cameras are not used).
     #[inline]
     pub fn at_step(&self, k: usize) -> &World {
         if k == 0 { self } else { &self.motion[k - 1] }
+    }
+}
+
+/// A camera's motion over the shutter: its world-from-camera transform at `n + 1` evenly spaced
+/// times, decomposed into translation, rotation and scale, interpolated piecewise (pbrt-v4
+/// `AnimatedTransform::Interpolate`: translation and scale linearly, the rotation by slerp).
+#[derive(Clone, Debug)]
+pub struct CameraMotion {
+    keys: Vec<(Vec3, Quat, Mat3)>,
+}
+
+impl CameraMotion {
+    /// From the transforms at the shutter's opening, `keys.len() − 2` times between and its
+    /// closing (at least two).
+    pub fn new(keys: &[Mat4]) -> CameraMotion {
+        assert!(keys.len() >= 2, "a camera motion needs two poses");
+        let mut out: Vec<(Vec3, Quat, Mat3)> = Vec::with_capacity(keys.len());
+        for &m in keys {
+            let (s, mut r, t) = decompose(m);
+            // q and −q are one rotation: keep each key on the previous one's side, so every
+            // interval turns the short way.
+            if let Some(prev) = out.last()
+                && prev.1.dot(r) < 0.0
+            {
+                r = -r;
+            }
+            out.push((t, r, s));
+        }
+        CameraMotion { keys: out }
+    }
+
+    /// The world-from-camera transform at fraction `u` in [0, 1] of the shutter.
+    #[inline]
+    pub fn at(&self, u: f32) -> Mat4 {
+        let n = self.keys.len() - 1;
+        let x = u.clamp(0.0, 1.0) * n as f32;
+        let i = (x as usize).min(n - 1);
+        let f = x - i as f32;
+        let (t0, r0, s0) = self.keys[i];
+        let (t1, r1, s1) = self.keys[i + 1];
+        let r = if f == 0.0 {
+            r0
+        } else {
+            r0.slerp(r1, f).normalize()
+        };
+        let s = s0 * (1.0 - f) + s1 * f;
+        Mat4::from_translation(t0.lerp(t1, f)) * Mat4::from_quat(r) * Mat4::from_mat3(s)
     }
 }

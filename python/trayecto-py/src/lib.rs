@@ -587,7 +587,7 @@ impl Scene {
         let key = key_of(opts);
         let reuse = matches!(&self.built, Some(b) if b.key == key
             && (b.camera == opts.camera_override
-                || (opts.camera_override.is_some() && b.world.motion.is_empty())));
+                || (opts.camera_override.is_some() && b.world.is_still())));
         if reuse {
             let b = self.built.as_mut().expect("checked");
             if b.camera != opts.camera_override

@@ -263,8 +263,9 @@ pub struct RenderArgs {
     /// time when given, else scene time). Default: none (pbrt files: their camera's shutter).
     #[arg(long, value_name = "OPEN,CLOSE", allow_hyphen_values = true)]
     pub shutter: Option<String>,
-    /// Motion blur: the scene is posed at this many times across the shutter (each a compiled
-    /// world in memory); every camera sample takes one by its time. Default 16.
+    /// Motion blur: moving objects are posed at this many times across the shutter (each a
+    /// compiled world in memory) and every camera sample takes one by its time; a moving camera
+    /// is interpolated between this many + 1 poses. Default 16.
     #[arg(long, value_name = "N", hide_short_help = true)]
     pub shutter_steps: Option<u32>,
     /// How next-event estimation chooses a light: auto (bvh8 above 16 emitters, points and
@@ -283,6 +284,7 @@ pub struct RenderArgs {
     pub samples: Option<String>,
     /// Save the film to FILE (a partial film) during the render and on Ctrl-C (or SIGTERM,
     /// SIGHUP), to --resume later. Without it, Ctrl-C writes the image of the completed passes.
+    /// With --frames each frame saves to its own FILE_NNNN.
     #[arg(long, value_name = "FILE", help_heading = HEADING_FARM, hide_short_help = true)]
     pub checkpoint: Option<PathBuf>,
     /// Seconds between checkpoints (at the end of a pass; 0: after every pass).
@@ -290,6 +292,7 @@ pub struct RenderArgs {
     pub checkpoint_interval: f64,
     /// Continue the render saved in FILE by --checkpoint (same scene and settings); the result is
     /// identical to an uninterrupted render. Checkpoints go on to FILE unless --checkpoint says.
+    /// With --frames: the sequence goes on where it stopped (finished frames are skipped).
     #[arg(long, value_name = "FILE", help_heading = HEADING_FARM, hide_short_help = true)]
     pub resume: Option<PathBuf>,
     /// Pixel reconstruction filter: box, tent, gaussian, mitchell or blackman-harris, by filter
@@ -669,7 +672,11 @@ pub struct Interrupted(String);
 pub fn run_render(args: &RenderArgs) -> Result<()> {
     trayecto::scene::mitsuba::set_defines(args.define.clone());
     let job = args.job()?;
-    job.check()?;
+    let frames = args.frame_range()?;
+    // A sequence checks itself per frame (`RenderJob::run_frames`: its --resume names a pattern).
+    if frames.is_none() {
+        job.check()?;
+    }
     let bar = if std::io::stderr().is_terminal() && !args.quiet {
         let b = indicatif::ProgressBar::new(1);
         b.set_message("eta ?");
@@ -706,7 +713,6 @@ pub fn run_render(args: &RenderArgs) -> Result<()> {
         })),
         path_rule(args.confine_paths),
     );
-    let frames = args.frame_range()?;
     let result = trayecto::limits::scope(load, || match frames {
         Some(range) => job.run_frames(range, &console, &INTERRUPTED).map(|_| ()),
         None => job.run(&console, &INTERRUPTED).map(|_| ()),

@@ -1120,8 +1120,16 @@ impl Loader {
     }
 
     fn camera_and_film(&mut self) -> Result<(), SceneError> {
-        let (xres, yres, crop, pixel_bounds) = match self.settings.film.take() {
+        let (xres, yres, crop, pixel_bounds, iso) = match self.settings.film.take() {
             Some((film, at)) => {
+                // The sensor's ISO (pbrt-v4 `PixelSensor::Create`, default 100).
+                let iso = film.float("iso", 100.0);
+                if !(iso.is_finite() && iso > 0.0) {
+                    return Err(SceneError::invalid(
+                        &at,
+                        format!("Film: iso must be a positive number (got {iso})"),
+                    ));
+                }
                 let x = film.int("xresolution", 1280);
                 let y = film.int("yresolution", 720);
                 if !(1..=65536).contains(&x) || !(1..=65536).contains(&y) {
@@ -1201,9 +1209,9 @@ impl Loader {
                 if crop.is_some() && pixel_bounds.is_some() {
                     self.warn(format!("{at}: Film has both \"cropwindow\" and \"pixelbounds\": the crop window is used, as pbrt-v4 does"));
                 }
-                (x as u32, y as u32, crop, pixel_bounds)
+                (x as u32, y as u32, crop, pixel_bounds, iso)
             }
-            None => (1280, 720, None, None),
+            None => (1280, 720, None, None, 100.0),
         };
         self.scene.hints.width = Some(xres);
         self.scene.hints.height = Some(yres);
@@ -1415,7 +1423,59 @@ impl Loader {
             focus_distance: focus,
             projection,
         });
+        self.sensor_gain(shutter, iso, &at);
         Ok(())
+    }
+
+    /// pbrt-v4's film records `exposureTime · ISO / 100` times the radiance (`PixelSensor`'s
+    /// imaging ratio), the exposure time being the camera's `shutterclose − shutteropen`
+    /// (`Film::Create` reads it from the camera): a shutter open over [0.25, 1] gives an image
+    /// three quarters as bright as over the default [0, 1]. Trayecto's film records radiance, so
+    /// the ratio is folded into every emitter (the image is linear in them); at pbrt's defaults
+    /// it is 1 and nothing is touched. `--shutter` changes the blur, not this gain, which is the
+    /// file's.
+    fn sensor_gain(&mut self, shutter: (f64, f64), iso: f32, at: &str) {
+        let exposure = (shutter.1 - shutter.0) as f32;
+        if exposure <= 0.0 {
+            self.warn(format!(
+                "{at}: Camera: the shutter never opens (shutteropen = shutterclose); pbrt-v4 refuses such a file, Trayecto renders it without the exposure time's gain"
+            ));
+        }
+        let ratio = if exposure > 0.0 { exposure } else { 1.0 } * iso / 100.0;
+        if ratio != 1.0 {
+            scale_emission(&mut self.scene, ratio);
+        }
+    }
+}
+
+/// Multiplies everything that emits light in `scene` by `k`: lights, emissive materials and
+/// emitting media.
+fn scale_emission(scene: &mut Scene, k: f32) {
+    for l in &mut scene.lights {
+        match l {
+            LightDesc::Point { intensity, .. } | LightDesc::Spot { intensity, .. } => {
+                *intensity *= k
+            }
+            LightDesc::Directional { irradiance, .. } => *irradiance *= k,
+            LightDesc::Ambient { radiance, .. } => *radiance *= k,
+            LightDesc::Environment { scale, .. } => *scale *= k,
+        }
+    }
+    for m in &mut scene.materials {
+        m.emissive *= k;
+    }
+    for m in &mut scene.media {
+        m.le *= k;
+        if let crate::scene::MediumKind::Grid {
+            emission: Some(e), ..
+        } = &mut m.kind
+        {
+            let scale = match e {
+                crate::scene::GridEmission::Radiance { scale, .. }
+                | crate::scene::GridEmission::Blackbody { scale, .. } => scale,
+            };
+            scale.data.iter_mut().for_each(|v| *v *= k);
+        }
     }
 }
 
