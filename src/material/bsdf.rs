@@ -333,6 +333,17 @@ impl Bsdf {
     }
 }
 
+/// The IORs at `lambda` of the Cauchy law n(λ) = A + B/λ² through per-channel IORs `rgb` given at
+/// [`super::bxdf::dielectric::CHANNEL_WAVELENGTHS`] (fitted through red and blue). The
+/// KHR_materials_dispersion law is of this form, so its IOR is recovered exactly; never below 1.
+fn cauchy_at(rgb: Vec3, lambda: Vec3) -> Vec3 {
+    let [lr, _, lb] = super::bxdf::dielectric::CHANNEL_WAVELENGTHS;
+    let (ir, ib) = (1.0 / (lr * lr), 1.0 / (lb * lb));
+    let b = (rgb.z - rgb.x) / (ib - ir);
+    let a = rgb.x - b * ir;
+    (Vec3::splat(a) + Vec3::splat(b) / (lambda * lambda)).max(Vec3::ONE)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -528,15 +539,4 @@ mod tests {
         }
         assert!(n > 100);
     }
-}
-
-/// The IORs at `lambda` of the Cauchy law n(λ) = A + B/λ² through per-channel IORs `rgb` given at
-/// [`super::bxdf::dielectric::CHANNEL_WAVELENGTHS`] (fitted through red and blue). The
-/// KHR_materials_dispersion law is of this form, so its IOR is recovered exactly; never below 1.
-fn cauchy_at(rgb: Vec3, lambda: Vec3) -> Vec3 {
-    let [lr, _, lb] = super::bxdf::dielectric::CHANNEL_WAVELENGTHS;
-    let (ir, ib) = (1.0 / (lr * lr), 1.0 / (lb * lb));
-    let b = (rgb.z - rgb.x) / (ib - ir);
-    let a = rgb.x - b * ir;
-    (Vec3::splat(a) + Vec3::splat(b) / (lambda * lambda)).max(Vec3::ONE)
 }
