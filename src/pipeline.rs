@@ -1038,6 +1038,12 @@ impl Run<'_> {
         if let Some(t) = settings.time_limit {
             extras += &format!(", time limit {t} s");
         }
+        // Which colour representation renders (docs/DESIGN.md "Spectral rendering").
+        extras += if settings.path.spectral {
+            ", spectral (3 wavelengths per sample)"
+        } else {
+            ", RGB"
+        };
         self.info(format!(
             "rendering {}x{} at {} spp, {} secondary, max depth {}, {} integrator, {} threads{extras}",
             settings.width,

@@ -509,6 +509,24 @@ fn check_integrator_settings(
             integrator.name()
         )));
     }
+    // Spectral transport is built into the surface path tracer only; the others would silently
+    // render RGB (docs/DESIGN.md "Spectral rendering").
+    if settings.path.spectral && integrator == Integrator::VolPath {
+        return Err(RenderError::InvalidSetting(
+            "spectral rendering of scenes with participating media or medium interfaces is not \
+             available yet (the volumetric path tracer carries RGB): render them without \
+             --spectral"
+                .into(),
+        ));
+    }
+    if settings.path.spectral && integrator != Integrator::Path {
+        return Err(RenderError::InvalidSetting(format!(
+            "spectral rendering is not available with the {} yet (only the path tracer carries \
+             wavelengths; the light-path integrators' splats and photons are RGB): render it \
+             without --spectral or use --integrator path",
+            integrator.name()
+        )));
+    }
     if !integrator.capabilities().splitting && settings.path.secondary > 1 {
         return Err(RenderError::InvalidSetting(format!(
             "secondary rays ({}) are not supported in scenes with participating media or medium \

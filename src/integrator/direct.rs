@@ -93,7 +93,7 @@ pub fn sample_ld_mix(
         };
         power_heuristic(ls.pmf * ls.pdf, p_dir)
     };
-    beta * f * wi_local.z.abs() * ls.li * (weight / (ls.pmf * ls.pdf))
+    beta * f * wi_local.z.abs() * set.emission(ls.li) * (weight / (ls.pmf * ls.pdf))
 }
 
 /// Local shading at `hit` seen from `wo` (unit, away from the surface): ambient plus direct light

@@ -114,13 +114,38 @@ fn background(world: &World, ray: &Ray, set: &PathSettings) -> Vec3 {
     if set.transparent {
         Vec3::ZERO
     } else {
-        set.clamp(world.escaped(ray.d.normalize()), 0)
+        set.clamp(set.emission(world.escaped(ray.d.normalize())), 0)
     }
 }
 
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn radiance_impl(
+    world: &World,
+    ray: &Ray,
+    first: Option<Intersection>,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+    aov: Option<&mut AovPath>,
+    g: Option<&mut Guiding>,
+) -> Vec3 {
+    // Spectral mode: this sample's wavelengths ride on a copy of the settings, and its radiance
+    // (one value per wavelength) reaches the film as RGB (docs/DESIGN.md "Spectral rendering").
+    match set.for_sample(s) {
+        None => radiance_rgb(world, ray, first, s, set, stats, aov, g),
+        Some(set) => {
+            let l = radiance_rgb(world, ray, first, s, &set, stats, aov, g);
+            set.to_film(l)
+        }
+    }
+}
+
+/// [`radiance_impl`] in the path's own colour representation: linear sRGB, or in spectral mode
+/// the radiance at `set.wavelengths`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn radiance_rgb(
     world: &World,
     ray: &Ray,
     first: Option<Intersection>,
@@ -141,7 +166,7 @@ fn radiance_impl(
         return background(world, ray, set);
     }
     let wo = -ray.d.normalize();
-    let mut l = set.clamp(world.emitted(&v.hit, wo), 0);
+    let mut l = set.clamp(set.emission(world.emitted(&v.hit, wo)), 0);
     if set.max_depth == 0 {
         if let Some(a) = aov {
             // No scattering vertex is built for the radiance: build one for the AOVs.
@@ -207,6 +232,10 @@ fn continue_path(
             if a.is_done() {
                 aov = None;
             }
+        }
+        // The AOVs above saw the RGB BSDF; the path carries it at its wavelengths.
+        if let Some(w) = &set.wavelengths {
+            v.bsdf = v.bsdf.to_spectral(w.lambda);
         }
         // A guided vertex samples the BSDF–guide mixture, and NEE weighs against it.
         let (guide, training) = match g.as_deref() {
@@ -300,14 +329,14 @@ fn continue_path(
                 } else {
                     power_heuristic(bs.pdf, pdf_light)
                 };
-                beta * le * weight
+                beta * set.emission(le) * weight
             });
             l += set.clamp(escaped, depth);
             break;
         }
         let next = &v.hit;
         let wo_next = -wi;
-        let le = world.emitted(next, wo_next);
+        let le = set.emission(world.emitted(next, wo_next));
         if le != Vec3::ZERO {
             let weight = if bs.specular || !set.nee || next.light == NO_LIGHT {
                 1.0

@@ -39,6 +39,14 @@ pub struct PathSettings {
     /// is then premultiplied by the coverage the `alpha` layer holds. Light from the
     /// environment still reaches the scene.
     pub transparent: bool,
+    /// Render spectrally (`--spectral`, docs/DESIGN.md "Spectral rendering"): each camera sample
+    /// carries three wavelengths in the lanes of its `Vec3` radiance, and RGB quantities are
+    /// upsampled where they enter the path. Off: linear sRGB, as always.
+    pub spectral: bool,
+    /// The wavelengths of the sample being traced: set by the path tracers on their own copy of
+    /// the settings at the start of each spectral sample, `None` in RGB mode (and in the
+    /// settings the renderer hands them).
+    pub wavelengths: Option<crate::spectrum::Wavelengths>,
 }
 
 impl Default for PathSettings {
@@ -54,6 +62,8 @@ impl Default for PathSettings {
             clamp_direct: f32::INFINITY,
             clamp_indirect: f32::INFINITY,
             transparent: false,
+            spectral: false,
+            wavelengths: None,
         }
     }
 }
@@ -72,6 +82,37 @@ impl PathSettings {
         };
         let m = c.max_element();
         if m > max { c * (max / m) } else { c }
+    }
+
+    /// A light's RGB emission as the path carries it: unchanged in RGB mode, at the sample's
+    /// wavelengths in spectral mode (an RGB illuminant spectrum, [`crate::spectrum::rgb2spec`]).
+    #[inline(always)]
+    pub fn emission(&self, rgb: Vec3) -> Vec3 {
+        match &self.wavelengths {
+            None => rgb,
+            Some(w) => crate::spectrum::rgb2spec::illuminant(rgb, w.lambda),
+        }
+    }
+
+    /// The settings for one camera sample: in spectral mode, a copy carrying the wavelengths
+    /// drawn from `s` (one extra sampler dimension, taken before the path's); in RGB mode `None`
+    /// and nothing is drawn.
+    #[inline(always)]
+    pub fn for_sample(&self, s: &mut crate::sampling::SampleStream) -> Option<PathSettings> {
+        self.spectral.then(|| PathSettings {
+            wavelengths: Some(crate::spectrum::Wavelengths::sample(s.next_1d())),
+            ..*self
+        })
+    }
+
+    /// The RGB a sample's radiance `l` adds to the film: `l` in RGB mode, its wavelengths'
+    /// projection in spectral mode ([`crate::spectrum::Wavelengths::to_rgb`]).
+    #[inline(always)]
+    pub fn to_film(&self, l: Vec3) -> Vec3 {
+        match &self.wavelengths {
+            None => l,
+            Some(w) => w.to_rgb(l),
+        }
     }
 
     /// The environment-map density next-event estimation draws from, and that BSDF-sampled

@@ -35,6 +35,64 @@ pub enum Bsdf {
 }
 
 impl Bsdf {
+    /// The same BSDF at the three wavelengths `lambda` (nm) of a spectral path, one per `Vec3`
+    /// lane (docs/DESIGN.md "Spectral rendering"): reflectance-like colours (albedos, tints,
+    /// F0s, sheen) become their bounded Jakob–Hanika spectra, unbounded ones (a conductor's
+    /// η and k, hair's σₐ, the layered medium's albedo) pbrt-v4's unbounded spectra, and a
+    /// dispersive dielectric's per-channel IORs its Cauchy law n(λ) = A + B/λ² at the three
+    /// wavelengths — the channel mixture that samples it ([`Dielectric`]) then is exactly a
+    /// mixture over wavelengths. Thin-film iridescence keeps its RGB evaluation.
+    pub fn to_spectral(&self, lambda: Vec3) -> Bsdf {
+        use crate::spectrum::rgb2spec::{reflectance as refl, unbounded};
+        let mut b = *self;
+        match &mut b {
+            Bsdf::Diffuse(d) => d.albedo = refl(d.albedo, lambda),
+            Bsdf::MetallicRoughness(m) => {
+                m.base = refl(m.base, lambda);
+                m.f0_dielectric = refl(m.f0_dielectric, lambda);
+                if let Some(sh) = m.ext.sheen.as_mut() {
+                    sh.color = refl(sh.color, lambda);
+                }
+                m.ext.diffuse_transmission_color = refl(m.ext.diffuse_transmission_color, lambda);
+            }
+            Bsdf::Mirror(m) => m.color = refl(m.color, lambda),
+            Bsdf::Dielectric(d) => {
+                d.tint = refl(d.tint, lambda);
+                d.dispersion = d.dispersion.map(|e| cauchy_at(e, lambda));
+            }
+            Bsdf::ThinDielectric(d) => d.tint = refl(d.tint, lambda),
+            Bsdf::Conductor(c) => {
+                c.eta = unbounded(c.eta, lambda);
+                c.k = unbounded(c.k, lambda);
+            }
+            Bsdf::DiffuseTransmission(d) => {
+                d.reflectance = refl(d.reflectance, lambda);
+                d.transmittance = refl(d.transmittance, lambda);
+            }
+            Bsdf::Layered(l) => {
+                l.albedo = refl(l.albedo, lambda);
+                match &mut l.base {
+                    super::bxdf::layered::Base::Diffuse { reflectance } => {
+                        *reflectance = refl(*reflectance, lambda)
+                    }
+                    super::bxdf::layered::Base::Conductor(c) => {
+                        c.eta = unbounded(c.eta, lambda);
+                        c.k = unbounded(c.k, lambda);
+                    }
+                }
+            }
+            Bsdf::GltfTransmission(t) => {
+                t.tint = refl(t.tint, lambda);
+                t.dispersion = t.dispersion.map(|e| cauchy_at(e, lambda));
+                if let Some(sh) = t.sheen.as_mut() {
+                    sh.color = refl(sh.color, lambda);
+                }
+            }
+            Bsdf::Hair(h) => h.sigma_a = unbounded(h.sigma_a, lambda),
+        }
+        b
+    }
+
     /// A dielectric with glTF roughness `roughness` (α = roughness²); smooth below the GGX floor.
     pub fn dielectric(eta: f32, roughness: f32, tint: Vec3) -> Bsdf {
         Bsdf::Dielectric(Dielectric::new(eta, roughness, tint))
@@ -294,6 +352,17 @@ impl Bsdf {
             Bsdf::Hair(b) => b.albedo(),
         }
     }
+}
+
+/// The IORs at `lambda` of the Cauchy law n(λ) = A + B/λ² through per-channel IORs `rgb` given at
+/// [`super::bxdf::dielectric::CHANNEL_WAVELENGTHS`] (fitted through red and blue). The
+/// KHR_materials_dispersion law is of this form, so its IOR is recovered exactly; never below 1.
+fn cauchy_at(rgb: Vec3, lambda: Vec3) -> Vec3 {
+    let [lr, _, lb] = super::bxdf::dielectric::CHANNEL_WAVELENGTHS;
+    let (ir, ib) = (1.0 / (lr * lr), 1.0 / (lb * lb));
+    let b = (rgb.z - rgb.x) / (ib - ir);
+    let a = rgb.x - b * ir;
+    (Vec3::splat(a) + Vec3::splat(b) / (lambda * lambda)).max(Vec3::ONE)
 }
 
 #[cfg(test)]

@@ -19,6 +19,9 @@
 //!   disperses; Trayecto's RGB dielectric cannot).
 
 mod data;
+pub mod rgb2spec;
+
+pub use rgb2spec::{SigmoidPolynomial, Wavelengths};
 
 use crate::material::microfacet::fresnel_complex;
 use crate::math::Vec3;

@@ -135,6 +135,7 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("clamp_direct", &none)?;
     d.set_item("clamp_indirect", &none)?;
     d.set_item("transparent", p.transparent)?;
+    d.set_item("spectral", p.spectral)?;
     // Animation and motion blur (`WorldOptions::time`): the file's rest pose, no blur.
     d.set_item("time", &none)?;
     d.set_item("frame", &none)?;
@@ -330,6 +331,7 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
         }
     }
     p.transparent = opt(d, "transparent")?.unwrap_or(p.transparent);
+    p.spectral = opt(d, "spectral")?.unwrap_or(p.spectral);
     // AOV names; with the raycast integrator a single view name picks what the image shows.
     let aov_names: Vec<String> = match d.get_item("aovs")?.filter(|v| !v.is_none()) {
         Some(v) if v.is_instance_of::<PyString>() => vec![v.extract()?],

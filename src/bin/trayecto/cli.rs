@@ -378,6 +378,14 @@ pub struct RenderArgs {
     /// Path tracers only.
     #[arg(long, help_heading = HEADING_OUTPUT)]
     pub transparent: bool,
+    /// Render spectrally: each sample carries three wavelengths, accumulated through CIE 1931.
+    ///
+    /// RGB colours are upsampled to smooth spectra where they enter a path (Jakob & Hanika 2019;
+    /// illuminants × D65) and dispersive glass (KHR_materials_dispersion) splits white light.
+    /// The path tracer only: scenes with participating media and the other integrators are
+    /// refused. Off: linear-sRGB rendering, as pbrt files and every other format use by default.
+    #[arg(long, help_heading = HEADING_EXPERT, hide_short_help = true)]
+    pub spectral: bool,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -424,6 +432,7 @@ impl RenderArgs {
                 clamp_direct: self.clamp_direct.unwrap_or(f32::INFINITY),
                 clamp_indirect: self.clamp_indirect.unwrap_or(f32::INFINITY),
                 transparent: self.transparent,
+                spectral: self.spectral,
                 ..Default::default()
             },
             filter: self.filter(),
@@ -556,6 +565,15 @@ impl RenderArgs {
             bail!(
                 "invalid setting: --checkpoint-interval must be 0 or more seconds (got {})",
                 self.checkpoint_interval
+            );
+        }
+        if self.spectral
+            && let Some(k) = self.integrator
+            && k != IntegratorKind::Path
+        {
+            bail!(
+                "invalid setting: --spectral needs --integrator path (got {})",
+                k.name()
             );
         }
         if self.transparent && self.integrator.is_some_and(|k| k != IntegratorKind::Path) {
