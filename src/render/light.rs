@@ -50,6 +50,19 @@ pub fn check(
              on other pixels than the one that started them"
         ));
     }
+    if integrator == Integrator::Mlt {
+        if settings.time_limit.is_some() {
+            return bad(
+                "a time limit (--time-limit) does not apply to Metropolis light transport: its \
+                 image is normalised by the mutations of every chain, run to the end"
+                    .into(),
+            );
+        }
+        settings
+            .mlt
+            .validate()
+            .map_err(RenderError::InvalidSetting)?;
+    }
     if world.time_steps() > 1 {
         return bad(format!(
             "the {name} does not render motion blur (--shutter) yet: use --integrator path, or \
@@ -74,6 +87,16 @@ pub(crate) fn render(
     cancel: &AtomicBool,
 ) -> Result<FilmRender, RenderError> {
     check(world, integrator, settings)?;
+    if integrator == Integrator::Mlt {
+        if start.samples != (0..settings.spp) || start.resume.is_some() {
+            return Err(RenderError::InvalidSetting(
+                "Metropolis light transport renders the whole frame at once: its chains are \
+                 not split into sample ranges (--samples-range, the farm) nor resumed"
+                    .into(),
+            ));
+        }
+        return crate::integrator::mlt::render(world, settings, observer, cancel);
+    }
     let t0 = Instant::now();
     let (w, h) = (settings.width, settings.height);
     let camera = Camera::new(&world.camera, w, h);

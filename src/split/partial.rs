@@ -126,6 +126,7 @@ pub fn image_settings(
         track_variance: _,
         guiding,
         photon,
+        mlt,
     } = s;
     let WorldOptions {
         accel,
@@ -178,6 +179,10 @@ pub fn image_settings(
     // Only when on, so that the headers of unguided parts are unchanged.
     if *guiding {
         m.insert("guiding".into(), "true".into());
+    }
+    // Only for Metropolis light transport, which reads them (other parts' headers unchanged).
+    if *integrator == crate::integrator::IntegratorKind::Mlt {
+        m.insert("mlt".into(), format!("{mlt:?}"));
     }
     m
 }
