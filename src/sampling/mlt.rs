@@ -230,7 +230,7 @@ mod tests {
         for sigma in [0.01f32, 0.2] {
             let mut small = MltSampler::new(rng(2), sigma, 0.0, 3);
             let mut prev = read(&mut small);
-            let (mut values, mut moved) = (Vec::new(), 0.0f64);
+            let (mut values, mut moved) = (Vec::<f32>::new(), 0.0f64);
             for _ in 0..3000 {
                 small.start_iteration();
                 let v = read(&mut small);
