@@ -572,6 +572,16 @@ impl RenderJob {
         // The photon settings the job was not given, from the file.
         s.photon.photons_per_iteration = s.photon.photons_per_iteration.or(h.photons_per_iteration);
         s.photon.radius = s.photon.radius.or(h.photon_radius);
+        if let Some(m) = h.mlt {
+            s.mlt = s.mlt.or(m);
+        }
+        // pbrt's `mutationsperpixel` is MLT's samples per pixel, over the file's pixelsamples.
+        if let Some(n) = h.mlt_mutations
+            && !self.given.spp
+            && s.integrator == crate::integrator::IntegratorKind::Mlt
+        {
+            s.spp = n;
+        }
 
         // A camera override has no frame of its own: the image's shape is the job's.
         let camera = match self.world.camera_override {

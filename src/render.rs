@@ -68,6 +68,9 @@ pub struct RenderSettings {
     /// The photon integrators' photons per iteration and initial radius (`--integrator sppm`;
     /// [`crate::integrator::sppm::PhotonSettings`]); the other integrators ignore them.
     pub photon: crate::integrator::sppm::PhotonSettings,
+    /// Metropolis light transport's bootstrap, chains and mutation sizes (`--integrator mlt`;
+    /// [`crate::integrator::mlt::MltSettings`]); the other integrators ignore them.
+    pub mlt: crate::integrator::mlt::MltSettings,
 }
 
 /// A window of the image in pixels: columns `x0..x1`, rows `y0..y1` (pbrt's `pixelbounds`).
@@ -132,6 +135,7 @@ impl Default for RenderSettings {
             track_coverage: false,
             guiding: false,
             photon: Default::default(),
+            mlt: Default::default(),
         }
     }
 }

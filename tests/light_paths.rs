@@ -353,3 +353,141 @@ fn light_paths_agree_with_mitsuba_for_every_light_type() {
         );
     }
 }
+
+fn mlt(width: u32, height: u32, mutations: u32, max_depth: u32) -> RenderSettings {
+    RenderSettings {
+        integrator: IntegratorKind::Mlt,
+        mlt: trayecto::integrator::mlt::MltSettings {
+            bootstrap_samples: Some(20_000),
+            chains: Some(64),
+            ..Default::default()
+        },
+        ..lt(width, height, mutations, max_depth)
+    }
+}
+
+/// Metropolis light transport on the Cornell box, on a window below the light (the light seen
+/// directly is a few pixels whose share of b the bootstrap estimates with tens of per cent of
+/// noise at test sizes): direct light (depth 1) against Mitsuba's direct-only reference, and
+/// depth 4 against the path tracer at the same depth. The image mean is b, the
+/// bootstrap's estimate, whatever the mutations: it must lie within 3 standard errors of the
+/// bootstrap (`mlt::normalisation`) plus 1 %. The image's shape is the chains': with its mean
+/// scaled to the reference's, the 8 × 8 block error falls as noise does over 8 times the
+/// mutations (at least by 1.8) and ends below 20 % (MLT at 32 mutations per pixel is blotchy:
+/// its chains are correlated).
+#[test]
+fn mlt_matches_the_path_tracer_on_the_cornell_box() {
+    let world = World::build(builtin::cornell(), &Default::default()).unwrap();
+    let direct = read_exr(&repo_dir().join("tests/references/cornell_128_direct.exr")).unwrap();
+    let window = trayecto::render::Crop {
+        x0: 0,
+        x1: 64,
+        y0: 16,
+        y1: 64,
+    };
+    let path_4 = render_world(
+        &world,
+        &RenderSettings {
+            integrator: IntegratorKind::Path,
+            crop: Some(window),
+            ..lt(64, 64, 256, 4)
+        },
+    );
+    // The window of `direct` at half its size: each pixel the mean of its 2 × 2 pixels (what
+    // a box-filtered render of half the size converges to).
+    let direct = Image {
+        width: 64,
+        height: 48,
+        data: (16..64)
+            .flat_map(|y: u32| (0..64u32).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                let p = |dx: u32, dy: u32| direct.get(2 * x + dx, 2 * y + dy);
+                (p(0, 0) + p(1, 0) + p(0, 1) + p(1, 1)) * 0.25
+            })
+            .collect(),
+    };
+    for (depth, reference) in [(1, &direct), (4, &path_4)] {
+        let mutations = 32;
+        let settings = |m| RenderSettings {
+            crop: Some(window),
+            ..mlt(64, 64, m, depth)
+        };
+        let low = render_world(&world, &settings(mutations / 8));
+        let high = render_world(&world, &settings(mutations));
+        let (b, err) = trayecto::integrator::mlt::normalisation(&world, &settings(1)).unwrap();
+        let what = format!("mlt depth {depth}");
+        let lum = |i: &Image| trayecto::film::luminance(i.mean()) as f64;
+        let off = lum(&high) / lum(reference) - 1.0;
+        println!(
+            "{what}: b {b:.5} ± {:.2} %, image mean off by {:.2} %",
+            err * 100.0,
+            off * 100.0
+        );
+        assert!(
+            off.abs() < 3.0 * err + 0.01,
+            "{what}: mean off by {off}, b's error {err}"
+        );
+        let scaled = |i: &Image| Image {
+            data: i
+                .data
+                .iter()
+                .map(|&p| p * (lum(reference) / lum(i)) as f32)
+                .collect(),
+            ..i.clone()
+        };
+        let (e_low, e_high) = (
+            block_error(&scaled(&low), reference),
+            block_error(&scaled(&high), reference),
+        );
+        println!(
+            "{what}: block error {e_low:.4} at {} mutations per pixel, {e_high:.4} at {mutations}",
+            mutations / 8
+        );
+        assert!(
+            e_high < 0.2 && e_high < e_low / 1.8,
+            "{what}: block error {e_low} at {} mutations per pixel, {e_high} at {mutations}",
+            mutations / 8
+        );
+    }
+}
+
+/// Metropolis light transport's film is a function of the seed and settings: 1 and 2 threads
+/// give the same film bit for bit (the chains are independent, each with its own generators,
+/// and splat into exact sums), through a Gaussian filter; and a sample range is refused with
+/// the reason (a chain is not split).
+#[test]
+fn mlt_film_is_a_function_of_seed_and_settings() {
+    let world = World::build(builtin::cornell(), &Default::default()).unwrap();
+    let base = RenderSettings {
+        threads: Some(1),
+        filter: trayecto::film::filter::Filter::new(trayecto::film::filter::FilterKind::Gaussian),
+        mlt: trayecto::integrator::mlt::MltSettings {
+            bootstrap_samples: Some(500),
+            chains: Some(7),
+            ..Default::default()
+        },
+        ..mlt(20, 16, 4, 4)
+    };
+    let cancel = AtomicBool::new(false);
+    let range = |s: &RenderSettings, samples: std::ops::Range<u32>| {
+        render_range(
+            &world,
+            s,
+            RangeStart {
+                samples,
+                resume: None,
+            },
+            &NoObserver,
+            &cancel,
+        )
+    };
+    let one = range(&base, 0..4).unwrap().film;
+    assert!(one.to_image().mean().max_element() > 0.0);
+    let two = RenderSettings {
+        threads: Some(2),
+        ..base.clone()
+    };
+    assert_eq!(one, range(&two, 0..4).unwrap().film);
+    let err = range(&base, 0..2).err().unwrap().to_string();
+    assert!(err.contains("sample ranges"), "{err}");
+}

@@ -41,7 +41,7 @@ use crate::light::EnvPdf;
 use crate::material::bxdf::TransportMode;
 use crate::math::{PI, Vec2, Vec3};
 use crate::medium::{HenyeyGreenstein, TrackStep};
-use crate::sampling::SampleStream;
+use crate::sampling::mlt::UniformSource;
 use crate::sampling::rng::{Pcg32, hash_words};
 use crate::world::World;
 
@@ -407,7 +407,7 @@ pub struct MediaState {
 impl MediaState {
     /// The state for a sample of `world` whose stream is `s`: one number is drawn from the
     /// stream when the scene has media, none otherwise (media-free images keep their streams).
-    pub fn new(world: &World, s: &mut SampleStream, salt: Vec3) -> MediaState {
+    pub fn new(world: &World, s: &mut impl UniformSource, salt: Vec3) -> MediaState {
         if !world.has_media() {
             return MediaState { rng: None };
         }
@@ -461,8 +461,8 @@ pub fn medium_at(world: &World, lens: Vec3, p: Vec3) -> Option<usize> {
 /// Per-worker storage of the two subpaths and the weights' scratch, allocated once.
 #[derive(Default)]
 pub struct Scratch {
-    camera: Vec<PathVertex>,
-    light: Vec<PathVertex>,
+    pub(crate) camera: Vec<PathVertex>,
+    pub(crate) light: Vec<PathVertex>,
     fwd: Vec<f32>,
     rev: Vec<f32>,
     delta: Vec<bool>,
@@ -496,7 +496,7 @@ fn walk(
     mode: TransportMode,
     max_vertices: usize,
     path: &mut Vec<PathVertex>,
-    s: &mut SampleStream,
+    s: &mut impl UniformSource,
     stats: &mut RayStats,
     mut medium: Option<usize>,
     media: &mut MediaState,
@@ -744,7 +744,7 @@ pub fn trace(
     ctx: &Context,
     ray: &Ray,
     weight: f32,
-    s: &mut SampleStream,
+    s: &mut impl UniformSource,
     scratch: &mut Scratch,
     stats: &mut RayStats,
     scale: f32,
@@ -760,30 +760,21 @@ pub fn trace(
         rev,
         delta,
     } = scratch;
-    camera.clear();
     light.clear();
     let d = ray.d.normalize();
     let mut media = MediaState::new(world, s, d);
     // The camera subpath: the lens point, then up to max_depth + 1 scattering vertices.
-    let mut c0 = PathVertex::new(Kind::Camera, ray.o, Vec3::ZERO, Vec3::splat(weight));
-    c0.dir = d;
-    c0.medium = world.camera_medium();
-    camera.push(c0);
-    let pdf_dir = ctx.camera.pdf_we(&Ray::new(ray.o, d)).1;
-    walk(
+    camera_subpath(
         ctx,
-        Ray::new(ray.o, d),
-        Vec3::splat(weight),
-        pdf_dir,
-        TransportMode::Radiance,
+        ray,
+        weight,
         max_depth + 1,
-        camera,
         s,
         stats,
-        world.camera_medium(),
+        camera,
         &mut media,
     );
-    light_subpath(ctx, ray.o, s, stats, light, &mut media);
+    light_subpath(ctx, ray.o, s, stats, light, &mut media, max_depth);
 
     let mut l_pixel = Vec3::ZERO;
     for t in 1..=camera.len() {
@@ -807,16 +798,54 @@ pub fn trace(
     l_pixel
 }
 
+/// The camera subpath (pbrt-v4 `GenerateCameraSubpath`) into `camera` (emptied first): the
+/// lens point of `ray` with filter weight `weight`, then up to `max_vertices` scattering
+/// vertices.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn camera_subpath(
+    ctx: &Context,
+    ray: &Ray,
+    weight: f32,
+    max_vertices: usize,
+    s: &mut impl UniformSource,
+    stats: &mut RayStats,
+    camera: &mut Vec<PathVertex>,
+    media: &mut MediaState,
+) {
+    let world = ctx.world;
+    camera.clear();
+    let d = ray.d.normalize();
+    let mut c0 = PathVertex::new(Kind::Camera, ray.o, Vec3::ZERO, Vec3::splat(weight));
+    c0.dir = d;
+    c0.medium = world.camera_medium();
+    camera.push(c0);
+    let pdf_dir = ctx.camera.pdf_we(&Ray::new(ray.o, d)).1;
+    walk(
+        ctx,
+        Ray::new(ray.o, d),
+        Vec3::splat(weight),
+        pdf_dir,
+        TransportMode::Radiance,
+        max_vertices,
+        camera,
+        s,
+        stats,
+        world.camera_medium(),
+        media,
+    );
+}
+
 /// The light subpath (pbrt-v4 `GenerateLightSubpath`): a light point chosen by power, then up
-/// to `max_depth` scattering vertices. `lens` is where [`medium_at`] starts looking for the
+/// to `max_vertices` scattering vertices. `lens` is where [`medium_at`] starts looking for the
 /// light's medium in a scene with media.
-fn light_subpath(
+pub(crate) fn light_subpath(
     ctx: &Context,
     lens: Vec3,
-    s: &mut SampleStream,
+    s: &mut impl UniformSource,
     stats: &mut RayStats,
     light: &mut Vec<PathVertex>,
     media: &mut MediaState,
+    max_vertices: usize,
 ) {
     let world = ctx.world;
     let Some(em) = super::lighttracer::sample_emission(world, s) else {
@@ -858,7 +887,7 @@ fn light_subpath(
         beta,
         les.pdf_dir,
         TransportMode::Importance,
-        ctx.set.max_depth as usize,
+        max_vertices,
         light,
         s,
         stats,
@@ -882,7 +911,7 @@ fn light_subpath(
 /// into `out` times `scale`. The media-free light tracer is `lighttracer::trace`.
 pub fn trace_light(
     ctx: &Context,
-    s: &mut SampleStream,
+    s: &mut impl UniformSource,
     scratch: &mut Scratch,
     stats: &mut RayStats,
     scale: f32,
@@ -893,7 +922,15 @@ pub fn trace_light(
     light.clear();
     let lens = ctx.camera.lens_center();
     let mut media = MediaState::new(world, s, lens);
-    light_subpath(ctx, lens, s, stats, light, &mut media);
+    light_subpath(
+        ctx,
+        lens,
+        s,
+        stats,
+        light,
+        &mut media,
+        ctx.set.max_depth as usize,
+    );
     for (i, qs) in light.iter().enumerate() {
         let u = s.next_2d();
         let area_light = i == 0 && qs.ng != Vec3::ZERO && !qs.is_infinite_light();
@@ -930,6 +967,42 @@ pub fn trace_light(
     }
 }
 
+/// Strategy (s, t) alone on the subpaths in `scratch` (at least s light and t camera
+/// vertices; the light subpath may be empty for s = 1, which samples its own light point): its
+/// MIS-weighted contribution and, for t = 1, the film point it lands on. Metropolis light
+/// transport evaluates one strategy per path this way (`mlt.rs`).
+pub(crate) fn connect_strategy(
+    ctx: &Context,
+    scratch: &mut Scratch,
+    s: usize,
+    t: usize,
+    stream: &mut impl UniformSource,
+    stats: &mut RayStats,
+    media: &mut MediaState,
+) -> Option<(Vec3, Vec2)> {
+    let Scratch {
+        camera,
+        light,
+        fwd,
+        rev,
+        delta,
+    } = scratch;
+    connect(
+        ctx,
+        light,
+        camera,
+        s,
+        t,
+        stream,
+        stats,
+        fwd,
+        rev,
+        delta,
+        &mut NoStrategies,
+        media,
+    )
+}
+
 /// The connection strategy (s, t): its MIS-weighted contribution and, for t = 1, the film point
 /// it lands on (pbrt-v4 `ConnectBDPT`).
 #[allow(clippy::too_many_arguments)]
@@ -939,7 +1012,7 @@ fn connect(
     camera: &[PathVertex],
     s: usize,
     t: usize,
-    stream: &mut SampleStream,
+    stream: &mut impl UniformSource,
     stats: &mut RayStats,
     fwd: &mut Vec<f32>,
     rev: &mut Vec<f32>,

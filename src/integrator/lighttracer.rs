@@ -27,6 +27,7 @@ use crate::geometry::primitive::SurfaceHit;
 use crate::material::bxdf::TransportMode;
 use crate::math::{Vec2, Vec3};
 use crate::sampling::SampleStream;
+use crate::sampling::mlt::UniformSource;
 use crate::world::World;
 
 /// Where a light path's contributions go: the film point and the value.
@@ -53,7 +54,7 @@ pub struct Emission {
 /// Chooses a light by power (a light path has no receiver to choose for) and samples a ray
 /// leaving it: one 1D and two 2D numbers, always drawn.
 #[inline]
-pub fn sample_emission(world: &World, s: &mut SampleStream) -> Option<Emission> {
+pub fn sample_emission(world: &World, s: &mut impl UniformSource) -> Option<Emission> {
     let u_light = s.next_1d();
     let u1 = s.next_2d();
     let u2 = s.next_2d();

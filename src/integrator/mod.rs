@@ -6,6 +6,7 @@ pub mod bdpt;
 pub mod direct;
 pub mod guiding;
 pub mod lighttracer;
+pub mod mlt;
 pub mod path;
 pub mod photon_grid;
 pub mod raycast;
@@ -53,6 +54,8 @@ pub enum IntegratorKind {
     Bdpt,
     /// Stochastic progressive photon mapping (`sppm.rs`, driven by `render/photon.rs`).
     Sppm,
+    /// Metropolis light transport over BDPT's strategies (`mlt.rs`).
+    Mlt,
     /// Vertex connection and merging (`vcm.rs`, driven by `render/photon.rs`).
     Vcm,
 }
@@ -67,6 +70,7 @@ impl IntegratorKind {
             IntegratorKind::Bdpt => "bdpt",
             IntegratorKind::Sppm => "sppm",
             IntegratorKind::Vcm => "vcm",
+            IntegratorKind::Mlt => "mlt",
         }
     }
 
@@ -80,6 +84,7 @@ impl IntegratorKind {
             IntegratorKind::Bdpt => IntegratorKind::Bdpt,
             IntegratorKind::Sppm => IntegratorKind::Sppm,
             IntegratorKind::Vcm => IntegratorKind::Vcm,
+            IntegratorKind::Mlt => IntegratorKind::Mlt,
         }
     }
 }
@@ -100,8 +105,9 @@ impl std::str::FromStr for IntegratorKind {
             "bdpt" => Ok(IntegratorKind::Bdpt),
             "sppm" => Ok(IntegratorKind::Sppm),
             "vcm" => Ok(IntegratorKind::Vcm),
+            "mlt" => Ok(IntegratorKind::Mlt),
             other => Err(format!(
-                "unknown integrator '{other}' (expected path, raycast, whitted, lighttracer, bdpt, sppm or vcm)"
+                "unknown integrator '{other}' (expected path, raycast, whitted, lighttracer, bdpt, sppm, vcm or mlt)"
             )),
         }
     }

@@ -29,6 +29,9 @@ pub enum Integrator {
     /// Bidirectional path tracing (`bdpt.rs`); its t = 1 strategies splat, so it runs through
     /// `render/light.rs` too.
     Bdpt,
+    /// Metropolis light transport (`mlt.rs`): Markov chains over BDPT's strategies, splatting;
+    /// `render/light.rs` hands it the frame.
+    Mlt,
     /// Stochastic progressive photon mapping (`sppm.rs`): iterations of visible points and
     /// photons, rendered by `render/photon.rs`.
     Sppm,
@@ -68,6 +71,7 @@ impl Integrator {
             IntegratorKind::Bdpt => Integrator::Bdpt,
             IntegratorKind::Sppm => Integrator::Sppm,
             IntegratorKind::Vcm => Integrator::Vcm,
+            IntegratorKind::Mlt => Integrator::Mlt,
         }
     }
 
@@ -101,7 +105,7 @@ impl Integrator {
                 media: false,
                 splats: false,
             },
-            Integrator::LightTracer | Integrator::Bdpt => Capabilities {
+            Integrator::LightTracer | Integrator::Bdpt | Integrator::Mlt => Capabilities {
                 in_loop_aovs: false,
                 batched_first_hits: false,
                 splitting: false,
@@ -129,6 +133,7 @@ impl Integrator {
             Integrator::Bdpt => "bidirectional path tracer",
             Integrator::Sppm => "stochastic progressive photon mapper",
             Integrator::Vcm => "vertex connection and merging",
+            Integrator::Mlt => "Metropolis light transport",
         }
     }
 
@@ -153,9 +158,11 @@ impl Integrator {
                 whitted::radiance(world, ray, stream, settings.max_depth, shading, stats)
             }
             // Splatting integrators have no radiance per camera ray: the driver never asks.
-            Integrator::LightTracer | Integrator::Bdpt | Integrator::Sppm | Integrator::Vcm => {
-                Vec3::ZERO
-            }
+            Integrator::LightTracer
+            | Integrator::Bdpt
+            | Integrator::Sppm
+            | Integrator::Vcm
+            | Integrator::Mlt => Vec3::ZERO,
         }
     }
 }

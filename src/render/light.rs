@@ -50,6 +50,19 @@ pub fn check(
              on other pixels than the one that started them"
         ));
     }
+    if integrator == Integrator::Mlt {
+        if settings.time_limit.is_some() {
+            return bad(
+                "a time limit (--time-limit) does not apply to Metropolis light transport: its \
+                 image is normalised by the mutations of every chain, run to the end"
+                    .into(),
+            );
+        }
+        settings
+            .mlt
+            .validate()
+            .map_err(RenderError::InvalidSetting)?;
+    }
     if !world.is_still() {
         return bad(format!(
             "the {name} does not render motion blur (--shutter) yet: use --integrator path, or \
@@ -74,6 +87,16 @@ pub(crate) fn render(
     cancel: &AtomicBool,
 ) -> Result<FilmRender, RenderError> {
     check(world, integrator, settings)?;
+    if integrator == Integrator::Mlt {
+        if start.samples != (0..settings.spp) || start.resume.is_some() {
+            return Err(RenderError::InvalidSetting(
+                "Metropolis light transport renders the whole frame at once: its chains are \
+                 not split into sample ranges (--samples-range, the farm) nor resumed"
+                    .into(),
+            ));
+        }
+        return crate::integrator::mlt::render(world, settings, observer, cancel);
+    }
     let t0 = Instant::now();
     let (w, h) = (settings.width, settings.height);
     let camera = Camera::new(&world.camera, w, h);
@@ -119,8 +142,10 @@ pub(crate) fn render(
     let mut done = from;
     let mut cancelled = false;
     let mut stopped_early = false;
-    let tiles_total = passes.len() as u64 * fh as u64;
-    let rows_done = std::sync::atomic::AtomicU64::new(0);
+    // Progress in pixel samples (passes double in size: rows alone would front-load it).
+    let work_total: u64 =
+        passes.iter().map(|&(a, b)| (b - a) as u64).sum::<u64>() * fw as u64 * fh as u64;
+    let work_done = std::sync::atomic::AtomicU64::new(0);
     for (q, &(s0, s1)) in passes.iter().enumerate() {
         if q > 0 && deadline.is_some_and(|d| Instant::now() >= d) {
             stopped_early = true;
@@ -178,8 +203,9 @@ pub(crate) fn render(
                         }
                     }
                 }
-                let n = rows_done.fetch_add(1, Ordering::Relaxed) + 1;
-                observer.tile_done(n, tiles_total);
+                let row = (s1 - s0) as u64 * fw as u64;
+                let n = work_done.fetch_add(row, Ordering::Relaxed) + row;
+                super::report_work(observer, n, work_total, t0);
             }
         };
         rayon::scope(|sc| {

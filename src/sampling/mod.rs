@@ -4,6 +4,7 @@
 
 pub mod distribution;
 pub mod equal_area;
+pub mod mlt;
 pub mod poisson;
 pub mod rng;
 pub mod sampler;

@@ -440,6 +440,10 @@ pub struct RenderHints {
     /// pbrt's `Integrator "sppm"` parameters `photonsperiteration` (when positive) and `radius`.
     pub photons_per_iteration: Option<u64>,
     pub photon_radius: Option<f32>,
+    /// pbrt's `Integrator "mlt"` parameters (its `mutationsperpixel` in `mlt_mutations`, the
+    /// render's samples per pixel).
+    pub mlt: Option<crate::integrator::mlt::MltSettings>,
+    pub mlt_mutations: Option<u32>,
 }
 
 impl MediumDesc {

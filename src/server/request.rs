@@ -26,6 +26,7 @@ const INTEGRATOR_NAMES: &[&str] = &[
     "bdpt",
     "sppm",
     "vcm",
+    "mlt",
 ];
 const TONEMAP_NAMES: &[&str] = &["pbr-neutral", "agx", "clamp", "gamma2.2", "aces"];
 pub const MAX_OUTPUT_NAME: usize = 64;
@@ -703,6 +704,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         track_coverage: false,
         guiding: o.guiding,
         photon: Default::default(),
+        mlt: Default::default(),
     };
     if errors.is_empty()
         && let Err(e) = settings.validate()

@@ -132,6 +132,7 @@ pub fn image_settings(
         track_coverage: _,
         guiding,
         photon,
+        mlt,
     } = s;
     let WorldOptions {
         accel,
@@ -184,6 +185,10 @@ pub fn image_settings(
     // Only when on, so that the headers of unguided parts are unchanged.
     if *guiding {
         m.insert("guiding".into(), "true".into());
+    }
+    // Only for Metropolis light transport, which reads them (other parts' headers unchanged).
+    if *integrator == crate::integrator::IntegratorKind::Mlt {
+        m.insert("mlt".into(), format!("{mlt:?}"));
     }
     m
 }

@@ -131,6 +131,11 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("photons_per_iteration", s.photon.photons_per_iteration)?;
     d.set_item("photon_radius", s.photon.radius)?;
     d.set_item("vcm_no_merge", s.photon.no_merge)?;
+    // MLT: None is the scene file's, else pbrt-v4's default.
+    d.set_item("mlt_bootstrap_samples", s.mlt.bootstrap_samples)?;
+    d.set_item("mlt_chains", s.mlt.chains)?;
+    d.set_item("mlt_large_step_probability", s.mlt.large_step_probability)?;
+    d.set_item("mlt_sigma", s.mlt.sigma)?;
     // None: no clamp (infinite), as the command line's absent option.
     d.set_item("clamp_direct", &none)?;
     d.set_item("clamp_indirect", &none)?;
@@ -309,6 +314,10 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
     s.photon.photons_per_iteration = opt(d, "photons_per_iteration")?;
     s.photon.radius = opt(d, "photon_radius")?;
     s.photon.no_merge = opt(d, "vcm_no_merge")?.unwrap_or(s.photon.no_merge);
+    s.mlt.bootstrap_samples = opt(d, "mlt_bootstrap_samples")?;
+    s.mlt.chains = opt(d, "mlt_chains")?;
+    s.mlt.large_step_probability = opt(d, "mlt_large_step_probability")?;
+    s.mlt.sigma = opt(d, "mlt_sigma")?;
     s.sampler = parsed(d, "sampler")?.unwrap_or(s.sampler);
     let p = &mut s.path;
     p.max_depth = max_depth.unwrap_or(p.max_depth);

@@ -135,8 +135,9 @@ pub struct RenderArgs {
     pub exposure: f32,
     /// Rendering mode: path (the default), raycast, whitted, lighttracer (paths from the
     /// lights, splatted onto the film), bdpt (bidirectional path tracing), sppm (stochastic
-    /// progressive photon mapping: --spp iterations) or vcm (vertex connection and merging:
-    /// --spp iterations). A pbrt file's `Integrator "lighttracer"`, `"bdpt"` or `"sppm"` is
+    /// progressive photon mapping: --spp iterations), vcm (vertex connection and merging:
+    /// --spp iterations) or mlt (Metropolis light transport over BDPT: --spp mutations per
+    /// pixel). A pbrt file's `Integrator "lighttracer"`, `"bdpt"`, `"sppm"` or `"mlt"` is
     /// honoured unless this is given.
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub integrator: Option<IntegratorKind>,
@@ -153,6 +154,21 @@ pub struct RenderArgs {
     /// camera subpath, unbiased).
     #[arg(long, help_heading = HEADING_SAMPLING, hide_short_help = true)]
     pub vcm_no_merge: bool,
+    /// MLT: bootstrap paths per depth, to estimate the image's brightness and start the chains
+    /// (Default: the scene file's `bootstrapsamples`, else 100000).
+    #[arg(long, help_heading = HEADING_SAMPLING, hide_short_help = true)]
+    pub mlt_bootstrap_samples: Option<u32>,
+    /// MLT: independent Markov chains (Default: the scene file's `chains`, else 1000).
+    #[arg(long, help_heading = HEADING_SAMPLING, hide_short_help = true)]
+    pub mlt_chains: Option<u32>,
+    /// MLT: probability of a large step, a fresh path (Default: the scene file's
+    /// `largestepprobability`, else 0.3).
+    #[arg(long, help_heading = HEADING_SAMPLING, hide_short_help = true)]
+    pub mlt_large_step_probability: Option<f32>,
+    /// MLT: deviation of a small step in primary sample space (Default: the scene file's
+    /// `sigma`, else 0.01).
+    #[arg(long, help_heading = HEADING_SAMPLING, hide_short_help = true)]
+    pub mlt_sigma: Option<f32>,
     /// AOV layers to write with the image, comma-separated: albedo, normal (both at the first
     /// non-specular hit: the denoiser's guides), depth, position, shading_normal, material_id,
     /// object_id, samples (samples each pixel took), variance (the variance of one sample's
@@ -448,6 +464,12 @@ impl RenderArgs {
                 photons_per_iteration: self.photons_per_iteration,
                 radius: self.photon_radius,
                 no_merge: self.vcm_no_merge,
+            },
+            mlt: trayecto::integrator::mlt::MltSettings {
+                bootstrap_samples: self.mlt_bootstrap_samples,
+                chains: self.mlt_chains,
+                large_step_probability: self.mlt_large_step_probability,
+                sigma: self.mlt_sigma,
             },
         }
     }

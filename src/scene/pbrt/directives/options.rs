@@ -95,7 +95,29 @@ impl Loader {
                     }
                     let _ = list.int("seed", 0);
                 }
-                if matches!(ty.as_str(), "lighttracer" | "bdpt" | "sppm") {
+                if ty == "mlt" {
+                    // pbrt-v4's defaults where the file gives none (`MltSettings`).
+                    let n =
+                        |k: &str| (list.int(k, 0) > 0).then(|| list.int(k, 0).min(1 << 30) as u32);
+                    let x = |k: &str| list.has(k).then(|| list.float(k, 0.0));
+                    self.scene.hints.mlt = Some(crate::integrator::mlt::MltSettings {
+                        bootstrap_samples: n("bootstrapsamples"),
+                        chains: n("chains"),
+                        large_step_probability: x("largestepprobability"),
+                        sigma: x("sigma"),
+                    });
+                    // pbrt-v4 renders 100 mutations per pixel when the file gives none.
+                    let m = list.int("mutationsperpixel", 100).clamp(1, 1 << 20);
+                    self.scene.hints.mlt_mutations = Some(m as u32);
+                    let _ = list.int("seed", 0);
+                }
+                if matches!(ty.as_str(), "bdpt" | "mlt") && list.bool("regularize", false) {
+                    self.warn(format!(
+                        "{at}: Integrator \"{ty}\": \"regularize\" is not implemented; rendered \
+                         without (unbiased)"
+                    ));
+                }
+                if matches!(ty.as_str(), "lighttracer" | "bdpt" | "sppm" | "mlt") {
                     self.scene.hints.integrator = Some(ty.clone());
                 } else if !matches!(ty.as_str(), "path" | "volpath") {
                     self.warn(format!(
