@@ -19,6 +19,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard, RwLock};
 use std::time::{Duration, Instant};
 
 pub mod light;
+pub mod mlt;
 pub mod photon;
 
 pub const MAX_DIMENSION: u32 = 16384;
@@ -69,8 +70,8 @@ pub struct RenderSettings {
     /// [`crate::integrator::sppm::PhotonSettings`]); the other integrators ignore them.
     pub photon: crate::integrator::sppm::PhotonSettings,
     /// Metropolis light transport's bootstrap, chains and mutation sizes (`--integrator mlt`;
-    /// [`crate::integrator::mlt::MltSettings`]); the other integrators ignore them.
-    pub mlt: crate::integrator::mlt::MltSettings,
+    /// [`crate::sampling::mlt::MltSettings`]); the other integrators ignore them.
+    pub mlt: crate::sampling::mlt::MltSettings,
 }
 
 /// A window of the image in pixels: columns `x0..x1`, rows `y0..y1` (pbrt's `pixelbounds`).

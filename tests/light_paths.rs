@@ -357,7 +357,7 @@ fn light_paths_agree_with_mitsuba_for_every_light_type() {
 fn mlt(width: u32, height: u32, mutations: u32, max_depth: u32) -> RenderSettings {
     RenderSettings {
         integrator: IntegratorKind::Mlt,
-        mlt: trayecto::integrator::mlt::MltSettings {
+        mlt: trayecto::sampling::mlt::MltSettings {
             bootstrap_samples: Some(20_000),
             chains: Some(64),
             ..Default::default()
@@ -414,7 +414,7 @@ fn mlt_matches_the_path_tracer_on_the_cornell_box() {
         };
         let low = render_world(&world, &settings(mutations / 8));
         let high = render_world(&world, &settings(mutations));
-        let (b, err) = trayecto::integrator::mlt::normalisation(&world, &settings(1)).unwrap();
+        let (b, err) = trayecto::render::mlt::normalisation(&world, &settings(1)).unwrap();
         let what = format!("mlt depth {depth}");
         let lum = |i: &Image| trayecto::film::luminance(i.mean()) as f64;
         let off = lum(&high) / lum(reference) - 1.0;
@@ -461,7 +461,7 @@ fn mlt_film_is_a_function_of_seed_and_settings() {
     let base = RenderSettings {
         threads: Some(1),
         filter: trayecto::film::filter::Filter::new(trayecto::film::filter::FilterKind::Gaussian),
-        mlt: trayecto::integrator::mlt::MltSettings {
+        mlt: trayecto::sampling::mlt::MltSettings {
             bootstrap_samples: Some(500),
             chains: Some(7),
             ..Default::default()

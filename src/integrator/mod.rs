@@ -6,7 +6,6 @@ pub mod bdpt;
 pub mod direct;
 pub mod guiding;
 pub mod lighttracer;
-pub mod mlt;
 pub mod path;
 pub mod photon_grid;
 pub mod raycast;

@@ -95,7 +95,7 @@ pub(crate) fn render(
                     .into(),
             ));
         }
-        return crate::integrator::mlt::render(world, settings, observer, cancel);
+        return super::mlt::render(world, settings, observer, cancel);
     }
     let t0 = Instant::now();
     let (w, h) = (settings.width, settings.height);

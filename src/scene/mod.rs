@@ -442,7 +442,7 @@ pub struct RenderHints {
     pub photon_radius: Option<f32>,
     /// pbrt's `Integrator "mlt"` parameters (its `mutationsperpixel` in `mlt_mutations`, the
     /// render's samples per pixel).
-    pub mlt: Option<crate::integrator::mlt::MltSettings>,
+    pub mlt: Option<crate::sampling::mlt::MltSettings>,
     pub mlt_mutations: Option<u32>,
 }
 

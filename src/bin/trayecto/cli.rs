@@ -465,7 +465,7 @@ impl RenderArgs {
                 radius: self.photon_radius,
                 no_merge: self.vcm_no_merge,
             },
-            mlt: trayecto::integrator::mlt::MltSettings {
+            mlt: trayecto::sampling::mlt::MltSettings {
                 bootstrap_samples: self.mlt_bootstrap_samples,
                 chains: self.mlt_chains,
                 large_step_probability: self.mlt_large_step_probability,

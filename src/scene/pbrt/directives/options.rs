@@ -100,7 +100,7 @@ impl Loader {
                     let n =
                         |k: &str| (list.int(k, 0) > 0).then(|| list.int(k, 0).min(1 << 30) as u32);
                     let x = |k: &str| list.has(k).then(|| list.float(k, 0.0));
-                    self.scene.hints.mlt = Some(crate::integrator::mlt::MltSettings {
+                    self.scene.hints.mlt = Some(crate::sampling::mlt::MltSettings {
                         bootstrap_samples: n("bootstrapsamples"),
                         chains: n("chains"),
                         large_step_probability: x("largestepprobability"),

@@ -23,15 +23,15 @@
 //!   fixed-point buffers ([`crate::film::splat`]), so the image is the same for any number of
 //!   threads. A chain is not split: a frame cannot be rendered in sample ranges or resumed.
 
-use super::RayStats;
-use super::bdpt::{self, Context, MediaState, Scratch};
 use crate::camera::Camera;
 use crate::film::Film;
 use crate::film::splat::SplatBuffer;
+use crate::integrator::RayStats;
+use crate::integrator::bdpt::{self, Context, MediaState, Scratch};
 use crate::math::{Vec2, Vec3, luminance};
 use crate::render::{Crop, FilmRender, RenderError, RenderObserver};
 use crate::sampling::Distribution1D;
-use crate::sampling::mlt::{MltSampler, UniformSource};
+use crate::sampling::mlt::{MltSampler, MltSettings, UniformSource};
 use crate::sampling::rng::{Pcg32, hash_words};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -43,62 +43,6 @@ const CAMERA_STREAM: u32 = 0;
 const LIGHT_STREAM: u32 = 1;
 const CONNECTION_STREAM: u32 = 2;
 const STREAMS: u32 = 3;
-
-/// Metropolis light transport's settings (`--integrator mlt`; pbrt's `Integrator "mlt"`
-/// parameters of the same names). `None`: pbrt-v4's default. The mutations per pixel are the
-/// render's samples per pixel (pbrt's `mutationsperpixel`).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct MltSettings {
-    /// Bootstrap states per depth (`bootstrapsamples`, 100 000).
-    pub bootstrap_samples: Option<u32>,
-    /// Markov chains (`chains`, 1000).
-    pub chains: Option<u32>,
-    /// Probability of a large step (`largestepprobability`, 0.3).
-    pub large_step_probability: Option<f32>,
-    /// Deviation of a small step's normal offsets (`sigma`, 0.01).
-    pub sigma: Option<f32>,
-}
-
-impl MltSettings {
-    pub fn bootstrap(&self) -> u32 {
-        self.bootstrap_samples.unwrap_or(100_000)
-    }
-    pub fn chain_count(&self) -> u32 {
-        self.chains.unwrap_or(1000)
-    }
-    pub fn large_step(&self) -> f32 {
-        self.large_step_probability.unwrap_or(0.3)
-    }
-    pub fn small_sigma(&self) -> f32 {
-        self.sigma.unwrap_or(0.01)
-    }
-
-    /// Each field given here, else `other`'s (a job's options over a scene file's).
-    pub fn or(self, other: MltSettings) -> MltSettings {
-        MltSettings {
-            bootstrap_samples: self.bootstrap_samples.or(other.bootstrap_samples),
-            chains: self.chains.or(other.chains),
-            large_step_probability: self.large_step_probability.or(other.large_step_probability),
-            sigma: self.sigma.or(other.sigma),
-        }
-    }
-
-    /// Refuses values that make no chain or no valid proposal.
-    pub fn validate(&self) -> Result<(), String> {
-        if self.bootstrap() == 0 || self.chain_count() == 0 {
-            return Err("MLT needs at least one bootstrap sample and one chain".into());
-        }
-        let p = self.large_step();
-        if !(0.0..=1.0).contains(&p) {
-            return Err(format!("MLT large-step probability {p} is not in [0, 1]"));
-        }
-        let s = self.small_sigma();
-        if !(s > 0.0 && s.is_finite()) {
-            return Err(format!("MLT sigma {s} must be positive"));
-        }
-        Ok(())
-    }
-}
 
 /// What evaluating a state needs besides its numbers.
 struct Frame<'a> {
