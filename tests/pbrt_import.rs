@@ -1219,12 +1219,16 @@ fn includes_are_confined_and_cycles_detected() {
 #[test]
 fn unsupported_features_are_warnings_with_locations() {
     let s = scene::pbrt::load_from_str(
-        "Film \"rgb\" \"float iso\" 100\nCamera \"perspective\"\nWorldBegin\nMaterial \"subsurface\"\nLightSource \"goniometric\"\nShape \"sphere\" \"float bogus\" 1\n",
+        "Film \"rgb\" \"float whitebalance\" 6500\nCamera \"perspective\"\nWorldBegin\nMaterial \"subsurface\"\nLightSource \"goniometric\"\nShape \"sphere\" \"float bogus\" 1\n",
         "w.pbrt",
     )
     .unwrap();
     let has = |needle: &str| s.warnings.iter().any(|w| w.contains(needle));
-    assert!(has("w.pbrt:1") && has("\"float iso\""), "{:?}", s.warnings);
+    assert!(
+        has("w.pbrt:1") && has("\"float whitebalance\""),
+        "{:?}",
+        s.warnings
+    );
     assert!(has("w.pbrt:4") && has("subsurface"), "{:?}", s.warnings);
     assert!(has("w.pbrt:5") && has("goniometric"), "{:?}", s.warnings);
     assert!(
