@@ -153,6 +153,7 @@ def render(
     mlt_large_step_probability: Optional[float] = ...,
     mlt_sigma: Optional[float] = ...,
     transparent: bool = ...,
+    spectral: bool = ...,
     time: Optional[float] = ...,
     frame: Optional[int] = ...,
     fps: Optional[float] = ...,
