@@ -255,17 +255,13 @@ fn with_frame<T>(
     settings: &crate::render::RenderSettings,
     body: impl FnOnce(&Frame) -> Result<T, RenderError>,
 ) -> Result<T, RenderError> {
-    let (w, h) = (settings.width, settings.height);
-    let camera = Camera::new(&world.camera, w, h);
-    let importance = camera
-        .importance()
-        .map_err(|e| RenderError::InvalidSetting(e.to_string()))?;
-    let mut path = settings.path;
-    if world.needs_footprint() {
-        path.footprint = camera.footprint();
-    }
-    let win = settings.film_window();
-    let (fw, fh) = (win.width(), win.height());
+    let super::light::SplatSetup {
+        camera,
+        importance,
+        path,
+        win,
+        scale,
+    } = super::light::SplatSetup::new(world, settings)?;
     let frame = Frame {
         ctx: Context {
             world,
@@ -274,7 +270,7 @@ fn with_frame<T>(
         },
         camera: &camera,
         window: win,
-        scale: ((w as f64 * h as f64) / (fw as f64 * fh as f64)) as f32,
+        scale,
         max_depth: path.max_depth as usize,
     };
     body(&frame)

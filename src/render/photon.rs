@@ -324,18 +324,15 @@ pub(crate) fn render_vcm(
     check_vcm(world, settings)?;
     let t0 = Instant::now();
     let (w, h) = (settings.width, settings.height);
-    let camera = Camera::new(&world.camera, w, h);
-    let importance = camera
-        .importance()
-        .map_err(|e| RenderError::InvalidSetting(e.to_string()))?;
-    let mut path = settings.path;
-    if world.needs_footprint() {
-        path.footprint = camera.footprint();
-    }
-    let win = settings.film_window();
+    let super::light::SplatSetup {
+        camera,
+        importance,
+        path,
+        win,
+        scale,
+    } = super::light::SplatSetup::new(world, settings)?;
     let (fw, fh) = (win.width(), win.height());
     let n_pix = fw as usize * fh as usize;
-    let scale = ((w as f64 * h as f64) / n_pix as f64) as f32;
     let r0 = settings
         .photon
         .radius
