@@ -407,6 +407,41 @@ pub fn report_work(observer: &dyn RenderObserver, done: u64, total: u64, started
     });
 }
 
+/// What the splatting drivers (the light tracer and BDPT, VCM, MLT) set up before tracing:
+/// the camera and its importance W_e, the path settings with the camera's footprint where
+/// textures or bumps need it, the film window, and W_e's scale from the whole image to the window.
+pub(crate) struct SplatSetup {
+    pub camera: crate::camera::Camera,
+    pub importance: crate::camera::CameraImportance,
+    pub path: crate::integrator::PathSettings,
+    pub win: crate::render::Crop,
+    /// W_e integrates to 1 over the whole image; only the window's pixels start paths.
+    pub scale: f32,
+}
+
+impl SplatSetup {
+    pub(crate) fn new(world: &World, settings: &RenderSettings) -> Result<SplatSetup, RenderError> {
+        let (w, h) = (settings.width, settings.height);
+        let camera = crate::camera::Camera::new(&world.camera, w, h);
+        let importance = camera
+            .importance()
+            .map_err(|e| RenderError::InvalidSetting(e.to_string()))?;
+        let mut path = settings.path;
+        if world.needs_footprint() {
+            path.footprint = camera.footprint();
+        }
+        let win = settings.film_window();
+        let scale = ((w as f64 * h as f64) / (win.width() as f64 * win.height() as f64)) as f32;
+        Ok(SplatSetup {
+            camera,
+            importance,
+            path,
+            win,
+            scale,
+        })
+    }
+}
+
 /// An observer that ignores everything.
 pub struct NoObserver;
 impl RenderObserver for NoObserver {}

@@ -255,13 +255,13 @@ fn with_frame<T>(
     settings: &crate::render::RenderSettings,
     body: impl FnOnce(&Frame) -> Result<T, RenderError>,
 ) -> Result<T, RenderError> {
-    let super::light::SplatSetup {
+    let super::SplatSetup {
         camera,
         importance,
         path,
         win,
         scale,
-    } = super::light::SplatSetup::new(world, settings)?;
+    } = super::SplatSetup::new(world, settings)?;
     let frame = Frame {
         ctx: Context {
             world,

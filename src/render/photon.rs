@@ -324,13 +324,13 @@ pub(crate) fn render_vcm(
     check_vcm(world, settings)?;
     let t0 = Instant::now();
     let (w, h) = (settings.width, settings.height);
-    let super::light::SplatSetup {
+    let super::SplatSetup {
         camera,
         importance,
         path,
         win,
         scale,
-    } = super::light::SplatSetup::new(world, settings)?;
+    } = super::SplatSetup::new(world, settings)?;
     let (fw, fh) = (win.width(), win.height());
     let n_pix = fw as usize * fh as usize;
     let r0 = settings
