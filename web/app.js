@@ -5,7 +5,7 @@
 
 const FIELDS = ["scene", "output", "width", "height", "spp", "secondary", "max_depth",
   "exposure", "integrator", "tonemap", "default_light", "denoise", "transparent", "environment",
-  "env_rotation", "view_spp", "aovs", "variant"];
+  "env_rotation", "view_spp", "aovs", "variant", "time", "frames", "fps", "shutter"];
 const $ = (id) => document.getElementById(id);
 let options = null;
 let current = null;       // id of the job the page is following
@@ -85,6 +85,35 @@ function readForm() {
   else if (rot !== 0 && !body.environment) errors.env_rotation = "turns the environment map: choose one (environment)";
   body.env_rotation = rot;
   if ($("aovs").checked) body.aovs = ["albedo", "normal"];
+  // The moment of an animated scene: a time, one frame (N) or a sequence (A..B).
+  const time = $("time").value.trim();
+  if (time !== "") {
+    const t = Number(time);
+    if (!isFinite(t) || Math.abs(t) > 1e6) errors.time = "must be a number of seconds (at most 1000000 either way)";
+    else body.time = t;
+  }
+  const frames = $("frames").value.trim();
+  if (frames !== "") {
+    const m = /^(\d+)(?:\s*\.\.\s*(\d+))?$/.exec(frames);
+    if (!m) errors.frames = "must be a frame N or a sequence A..B (whole numbers from 0)";
+    else if (m[2] === undefined) body.frame = Number(m[1]);
+    else if (Number(m[1]) > Number(m[2])) errors.frames = "must be A..B with A <= B";
+    else body.frames = [Number(m[1]), Number(m[2])];
+    if (m && body.time !== undefined) errors.frames = "time and frames both give the moment: use one";
+  }
+  const fps = $("fps").value.trim();
+  if (fps !== "") {
+    const f = Number(fps);
+    if (!isFinite(f) || f <= 0 || f > 1e6) errors.fps = "must be a positive number (at most 1000000)";
+    else body.fps = f;
+  }
+  const shutter = $("shutter").value.trim();
+  if (shutter !== "") {
+    const parts = shutter.split(",").map((x) => Number(x.trim()));
+    if (parts.length !== 2 || !parts.every(isFinite) || parts[0] > parts[1]) {
+      errors.shutter = "must be open,close in seconds with open <= close";
+    } else body.shutter = parts;
+  }
   if (!errors.spp && body.width && body.height && body.spp && body.secondary) {
     const samples = body.width * body.height * body.spp * body.secondary;
     if (samples > L.max_samples) {
@@ -328,7 +357,9 @@ function showStatus(job) {
   $("state").textContent = job.state;
   $("queue").textContent = job.queue_position ? `position ${job.queue_position} in the queue` : "";
   $("progress").value = job.progress;
-  $("samples").textContent = `${job.samples_done} / ${job.spp} spp`;
+  $("samples").textContent = `${job.samples_done} / ${job.spp} spp` +
+    (job.frames && job.frames.current != null
+      ? `, frame ${job.frames.current} (${job.frames.first}..${job.frames.last})` : "");
   $("elapsed").textContent = "elapsed " + fmtTime(job.elapsed_s);
   $("remaining").textContent = "remaining " + fmtTime(job.remaining_s);
 }
@@ -355,6 +386,21 @@ function showResult(job) {
     a.hidden = !url;
     if (url) { a.href = url; a.download = `${job.output}.${ext}`; }
   }
+  // A sequence: every frame written, each its own PNG and EXR (the image shown is the last).
+  const links = $("frame-links");
+  links.innerHTML = "";
+  const done = (job.frames && job.frames.done) || [];
+  for (const f of done) {
+    for (const [url, ext] of [[f.png, "png"], [f.exr, "exr"]]) {
+      const a = document.createElement("a");
+      a.href = url;
+      const n = String(f.frame).padStart(4, "0");
+      a.download = `${job.output}_${n}.${ext}`;
+      a.textContent = `frame ${f.frame} ${ext.toUpperCase()}`;
+      links.appendChild(a);
+    }
+  }
+  links.hidden = done.length === 0;
   $("result").hidden = false;
   $("show-denoised").hidden = true;
   // The finished image is tone-mapped here from its linear data, so exposure and tone mapping

@@ -143,6 +143,11 @@ pub struct RenderRequest {
     /// The canonical scenes folder the request was checked against, which the job's log and
     /// errors never show ([`RenderRequest::relative_paths`]).
     pub scenes_dir: Option<PathBuf>,
+    /// `time`, `frame`, `fps`, `shutter`: the moment rendered and the motion blur.
+    pub time: crate::world::motion::TimeOptions,
+    /// `frames`: a sequence, first and last frame (inclusive), written as `<output>_NNNN.png`
+    /// and `.exr` (`pipeline::frame_path`).
+    pub frames: Option<(u32, u32)>,
 }
 
 impl RenderRequest {
@@ -492,7 +497,7 @@ pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
 }
 
 /// The fields a request may have, in the order the unknown-field message lists them.
-const KNOWN_FIELDS: [&str; 24] = [
+const KNOWN_FIELDS: [&str; 29] = [
     "scene",
     "output",
     "width",
@@ -517,6 +522,11 @@ const KNOWN_FIELDS: [&str; 24] = [
     "aovs",
     "guiding",
     "transparent",
+    "time",
+    "frame",
+    "frames",
+    "fps",
+    "shutter",
 ];
 
 /// A request body as sent. Every field is optional (absent and `null` alike) and kept as JSON,
@@ -551,6 +561,16 @@ pub struct RequestBody {
     pub guiding: Option<Value>,
     /// A transparent background (`--transparent`): true or false.
     pub transparent: Option<Value>,
+    /// The moment of an animated scene (`--time`): seconds.
+    pub time: Option<Value>,
+    /// The frame of an animated scene (`--frame`): a whole number, time `frame / fps`.
+    pub frame: Option<Value>,
+    /// A sequence (`--frames A..B`): `[A, B]`, inclusive; each frame's images are their own files.
+    pub frames: Option<Value>,
+    /// Frames per second for `frame`/`frames` (`--fps`); the file's rate, else 24.
+    pub fps: Option<Value>,
+    /// Motion blur (`--shutter OPEN,CLOSE`): `[open, close]` in seconds after the moment.
+    pub shutter: Option<Value>,
     /// Anything else, refused by name.
     #[serde(flatten)]
     pub unknown: BTreeMap<String, Value>,
@@ -636,6 +656,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             }
         },
     };
+    let (time, frames) = check_time(&b, &mut errors);
     let mut aovs = check_aovs(b.aovs.as_ref(), &mut errors);
     // As `--transparent`: the coverage is the alpha AOV, the path tracer leaves the
     // background out (docs/DESIGN.md §5, "Transparent film").
@@ -670,11 +691,22 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
     }
 
     let samples = n.width as u64 * n.height as u64 * n.spp as u64 * n.secondary as u64;
+    let frame_count = frames.map_or(1, |(a, b)| u64::from(b - a) + 1);
     if !errors.contains_key("spp") && samples > lim.max_samples {
         errors.insert(
             "spp".into(),
             format!(
                 "width × height × samples × secondary rays = {samples} is over this server's budget of {}",
+                lim.max_samples
+            ),
+        );
+    } else if !errors.contains_key("frames")
+        && samples.saturating_mul(frame_count) > lim.max_samples
+    {
+        errors.insert(
+            "frames".into(),
+            format!(
+                "{frame_count} frames × {samples} samples each is over this server's budget of {}",
                 lim.max_samples
             ),
         );
@@ -730,9 +762,126 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             camera,
             aovs,
             scenes_dir: policy.scenes_dir.clone(),
+            time,
+            frames,
         }),
         _ => Err(RequestError::Fields(errors)),
     }
+}
+
+/// The most frames one request may render (`frames`).
+pub const MAX_FRAMES: u32 = 10_000;
+/// The largest scene time, frame rate or shutter time a request may give, in seconds (or frames
+/// per second).
+const MAX_TIME: f64 = 1e6;
+
+/// `time`, `frame`, `frames`, `fps` and `shutter`: the moment of an animated scene, a sequence
+/// and the motion blur, checked as the command line's `--time`, `--frame`, `--frames`, `--fps`
+/// and `--shutter` are (`TimeOptions::validate`).
+fn check_time(
+    b: &RequestBody,
+    errors: &mut Errors,
+) -> (crate::world::motion::TimeOptions, Option<(u32, u32)>) {
+    let mut t = crate::world::motion::TimeOptions::default();
+    let number = |v: &Value| v.as_f64().filter(|x| x.is_finite() && x.abs() <= MAX_TIME);
+    let whole = |v: &Value| {
+        v.as_u64()
+            .filter(|&x| x <= u64::from(u32::MAX))
+            .map(|x| x as u32)
+    };
+    match &b.time {
+        None | Some(Value::Null) => {}
+        Some(v) => match number(v) {
+            Some(x) => t.time = Some(x),
+            None => {
+                errors.insert(
+                    "time".into(),
+                    format!("must be a number of seconds (at most {MAX_TIME} either way)"),
+                );
+            }
+        },
+    }
+    match &b.frame {
+        None | Some(Value::Null) => {}
+        Some(v) => match whole(v) {
+            Some(f) => t.frame = Some(f),
+            None => {
+                errors.insert("frame".into(), "must be a whole number from 0".into());
+            }
+        },
+    }
+    let frames = match &b.frames {
+        None | Some(Value::Null) => None,
+        Some(Value::Array(a)) if a.len() == 2 => match (whole(&a[0]), whole(&a[1])) {
+            (Some(first), Some(last)) if first <= last && last - first < MAX_FRAMES => {
+                Some((first, last))
+            }
+            _ => {
+                errors.insert(
+                    "frames".into(),
+                    format!(
+                        "must be [first, last]: whole numbers from 0, first <= last, at most \
+                         {MAX_FRAMES} frames"
+                    ),
+                );
+                None
+            }
+        },
+        Some(_) => {
+            errors.insert(
+                "frames".into(),
+                "must be [first, last] (two whole numbers)".into(),
+            );
+            None
+        }
+    };
+    match &b.fps {
+        None | Some(Value::Null) => {}
+        Some(v) => match number(v).filter(|&x| x > 0.0) {
+            Some(x) => t.fps = Some(x),
+            None => {
+                errors.insert(
+                    "fps".into(),
+                    format!("must be a positive number (at most {MAX_TIME})"),
+                );
+            }
+        },
+    }
+    match &b.shutter {
+        None | Some(Value::Null) => {}
+        Some(Value::Array(a)) if a.len() == 2 => match (number(&a[0]), number(&a[1])) {
+            (Some(open), Some(close)) if open <= close => t.shutter = Some([open, close]),
+            _ => {
+                errors.insert(
+                    "shutter".into(),
+                    "must be [open, close] in seconds with open <= close".into(),
+                );
+            }
+        },
+        Some(_) => {
+            errors.insert(
+                "shutter".into(),
+                "must be [open, close] (two numbers of seconds)".into(),
+            );
+        }
+    }
+    // One moment: a time, a frame or a sequence.
+    let given: Vec<&str> = [
+        ("time", t.time.is_some()),
+        ("frame", t.frame.is_some()),
+        ("frames", frames.is_some()),
+    ]
+    .iter()
+    .filter(|(_, g)| *g)
+    .map(|(k, _)| *k)
+    .collect();
+    if given.len() > 1 {
+        errors.insert(
+            given[1].into(),
+            format!("{} both give the moment: use one", given.join(" and ")),
+        );
+    }
+    (t, frames)
 }
 
 /// `scene`: a built-in name, or a file inside the scenes folder.

@@ -16,6 +16,7 @@ use trayecto::film::{Film, Image};
 use trayecto::limits::{Budget, LoadContext};
 use trayecto::pipeline::{
     GivenSettings, LogLine, OutputSpec, PipelineError, PipelineObserver, RenderJob, Stage,
+    frame_path,
 };
 use trayecto::render::RenderObserver;
 use trayecto::world::WorldOptions;
@@ -78,6 +79,19 @@ pub struct JobStatus {
     pub exr: Option<PathBuf>,
     /// The denoised images (`<output>.denoised.png`/`.exr`), when the request asked for them.
     pub denoised: Option<(PathBuf, PathBuf)>,
+    /// A sequence (`frames`): the frame in flight and when its build started, and each frame
+    /// written.
+    pub frame: Option<(u32, Instant)>,
+    pub frames_done: Vec<FrameDone>,
+}
+
+/// A frame of a sequence, written.
+pub struct FrameDone {
+    pub frame: u32,
+    /// From its build to its files.
+    pub seconds: f64,
+    pub png: PathBuf,
+    pub exr: PathBuf,
 }
 
 pub struct Job {
@@ -129,11 +143,19 @@ impl Job {
         let elapsed = now.duration_since(self.created).as_secs_f64();
         let total = self.tiles_total.load(Ordering::Relaxed);
         let done = self.tiles_done.load(Ordering::Relaxed).min(total);
-        let progress = match st.state {
+        let mut progress = match st.state {
             JobState::Done => 1.0,
             _ if total > 0 => done as f64 / total as f64,
             _ => 0.0,
         };
+        // A sequence: the frames written and the fraction of the one in flight.
+        let frame_count = r.frames.map(|(a, b)| f64::from(b - a) + 1.0);
+        if let Some(n) = frame_count
+            && st.state.is_active()
+        {
+            let in_flight = if st.frame.is_some() { progress } else { 0.0 };
+            progress = ((st.frames_done.len() as f64 + in_flight) / n).min(1.0);
+        }
         // Remaining time: the renderer's estimate (`render::remaining_time`, the CLI's too) less
         // the time since it was made; unknown until the first tile is done.
         // (Renderers that report tiles only, the light-path ones, get the work fraction's.)
@@ -149,7 +171,43 @@ impl Job {
             (s, _, _) if !s.is_active() => Some(0.0),
             _ => None,
         };
+        // A sequence: the frame in flight's time left, and the frames after it at the mean time
+        // of those written (or, before one is, at this one's time so far plus its time left).
+        let remaining = match (frame_count, st.frame, remaining) {
+            (Some(n), Some((_, started)), Some(left)) if st.state.is_active() => {
+                let after = (n - st.frames_done.len() as f64 - 1.0).max(0.0);
+                let per_frame = if st.frames_done.is_empty() {
+                    now.saturating_duration_since(started).as_secs_f64() + left
+                } else {
+                    st.frames_done.iter().map(|f| f.seconds).sum::<f64>()
+                        / st.frames_done.len() as f64
+                };
+                Some(left + after * per_frame)
+            }
+            _ => remaining,
+        };
         let base = format!("/api/renders/{}", self.id);
+        // A sequence: its range, the frame in flight and each frame's files as written.
+        let frames = r.frames.map(|(first, last)| {
+            let done: Vec<Value> = st
+                .frames_done
+                .iter()
+                .map(|d| {
+                    let f = d.frame;
+                    json!({
+                        "frame": f,
+                        "png": format!("{base}/frame-{f:04}.png"),
+                        "exr": format!("{base}/frame-{f:04}.exr"),
+                    })
+                })
+                .collect();
+            json!({
+                "first": first,
+                "last": last,
+                "current": st.frame.map(|f| f.0),
+                "done": done,
+            })
+        });
         json!({
             "id": self.id,
             "scene": r.scene,
@@ -185,6 +243,11 @@ impl Job {
             "denoise": r.denoise,
             "denoised_png": st.denoised.as_ref().map(|_| format!("{base}/denoised.png")),
             "denoised_exr": st.denoised.as_ref().map(|_| format!("{base}/denoised.exr")),
+            "time": r.time.time,
+            "frame": r.time.frame,
+            "fps": r.time.fps,
+            "shutter": r.time.shutter,
+            "frames": frames,
             "created_unix": self.created_unix,
         })
     }
@@ -236,6 +299,13 @@ impl RenderObserver for Observer<'_> {
 impl PipelineObserver for Observer<'_> {
     fn stage_started(&self, stage: Stage) {
         let mut st = self.job.status();
+        // A sequence builds each frame's world after the one load: a new frame starts.
+        if let (Stage::Build, Some((first, _))) = (stage, self.job.request.frames) {
+            st.frame = Some((first + st.frames_done.len() as u32, Instant::now()));
+            self.job.tiles_done.store(0, Ordering::Relaxed);
+            self.job.tiles_total.store(0, Ordering::Relaxed);
+            st.eta = None;
+        }
         st.state = match stage {
             Stage::Load => JobState::Loading,
             Stage::Build => JobState::Building,
@@ -256,7 +326,22 @@ impl PipelineObserver for Observer<'_> {
             Stage::Denoise => "denoise",
             Stage::Write => "write",
         };
-        self.job.status().timings.push((name, took.as_secs_f64()));
+        let mut st = self.job.status();
+        st.timings.push((name, took.as_secs_f64()));
+        if stage == Stage::Write
+            && let Some((frame, started)) = st.frame.take()
+        {
+            let out = |ext: &str| {
+                let file = format!("{}{}.{ext}", self.out_dir, self.job.request.output);
+                frame_path(std::path::Path::new(&file), frame)
+            };
+            st.frames_done.push(FrameDone {
+                frame,
+                seconds: started.elapsed().as_secs_f64(),
+                png: out("png"),
+                exr: out("exr"),
+            });
+        }
     }
 
     fn log(&self, line: LogLine) {
@@ -506,10 +591,22 @@ impl Jobs {
             };
             // Files are never overwritten: a name an earlier render wrote (in this run of the
             // server or before it) is refused rather than silently replaced.
+            let frames = request.frames;
+            // A sequence writes `<name>_NNNN.png` (and `<name>_NNNN.denoised.png`) per frame.
             let written = |name: &str| {
-                ["png", "exr", "denoised.png", "denoised.exr"]
-                    .iter()
-                    .any(|ext| inner.output_dir.join(format!("{name}.{ext}")).exists())
+                let frame_files = |f: Option<u32>| {
+                    ["png", "exr"].iter().any(|ext| {
+                        let mut file = inner.output_dir.join(format!("{name}.{ext}"));
+                        if let Some(f) = f {
+                            file = frame_path(&file, f);
+                        }
+                        file.exists() || side_path(&file, "denoised").exists()
+                    })
+                };
+                match frames {
+                    None => frame_files(None),
+                    Some((a, b)) => (a..=b).any(|f| frame_files(Some(f))),
+                }
             };
             // Ids are handed out under this lock, so this is the new job's.
             let id = inner.next_id.load(Ordering::Relaxed);
@@ -557,6 +654,8 @@ impl Jobs {
                     png: None,
                     exr: None,
                     denoised: None,
+                    frame: None,
+                    frames_done: Vec::new(),
                 }),
             });
             list.push(job.clone());
@@ -689,6 +788,7 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
             env: r.environment.as_ref().map(|(_, p)| p.clone()),
             env_rotation: r.env_rotation,
             camera_override: r.camera,
+            time: r.time.clone(),
             ..WorldOptions::default()
         },
         settings: r.settings.clone(),
@@ -710,8 +810,14 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
         job,
         out_dir: format!("{}{}", out_dir.display(), std::path::MAIN_SEPARATOR),
     };
-    match render.run(&observer, &job.cancel) {
-        Ok(_) => {}
+    let ran = match r.frames {
+        Some((first, last)) => render
+            .run_frames(first..=last, &observer, &job.cancel)
+            .map(|_| ()),
+        None => render.run(&observer, &job.cancel).map(|_| ()),
+    };
+    match ran {
+        Ok(()) => {}
         Err(PipelineError::Cancelled) => return Err(JobEnd::Cancelled),
         Err(PipelineError::Write { path, error }) => {
             // Report the name only, not the server's folder layout (the error names the path).
@@ -737,6 +843,11 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
     let mut st = job.status();
     st.timings
         .push(("total", job.created.elapsed().as_secs_f64()));
+    // A sequence shows (and serves as `image.png`/`.exr`) its last frame.
+    let (png, exr) = match r.frames {
+        Some((_, last)) => (frame_path(&png, last), frame_path(&exr, last)),
+        None => (png, exr),
+    };
     if r.denoise {
         st.denoised = Some((side_path(&png, "denoised"), side_path(&exr, "denoised")));
     }
@@ -776,6 +887,8 @@ mod tests {
             camera: None,
             aovs: Vec::new(),
             scenes_dir: None,
+            time: Default::default(),
+            frames: None,
         }
     }
 

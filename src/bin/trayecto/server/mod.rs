@@ -873,15 +873,44 @@ async fn download(
     let (path, mime, ext) = {
         let s = job.status();
         match file.as_str() {
-            "image.png" => (s.png.clone(), "image/png", "png"),
-            "image.exr" => (s.exr.clone(), "image/x-exr", "exr"),
-            "denoised.png" => (s.denoised.clone().map(|d| d.0), "image/png", "denoised.png"),
+            "image.png" => (s.png.clone(), "image/png", "png".to_string()),
+            "image.exr" => (s.exr.clone(), "image/x-exr", "exr".to_string()),
+            "denoised.png" => (
+                s.denoised.clone().map(|d| d.0),
+                "image/png",
+                "denoised.png".to_string(),
+            ),
             "denoised.exr" => (
                 s.denoised.clone().map(|d| d.1),
                 "image/x-exr",
-                "denoised.exr",
+                "denoised.exr".to_string(),
             ),
-            _ => return error(StatusCode::NOT_FOUND, "no such file"),
+            // A sequence's frames as written: `frame-NNNN.png`/`.exr`.
+            f => match f
+                .strip_prefix("frame-")
+                .and_then(|f| f.split_once('.'))
+                .and_then(|(n, ext)| Some((n.parse::<u32>().ok()?, ext)))
+            {
+                Some((n, ext @ ("png" | "exr"))) => {
+                    let file = s.frames_done.iter().find(|d| d.frame == n).map(|d| {
+                        if ext == "png" {
+                            d.png.clone()
+                        } else {
+                            d.exr.clone()
+                        }
+                    });
+                    let Some(file) = file else {
+                        return error(StatusCode::NOT_FOUND, "that frame has not been written");
+                    };
+                    let mime = if ext == "png" {
+                        "image/png"
+                    } else {
+                        "image/x-exr"
+                    };
+                    (Some(file), mime, format!("{n:04}.{ext}"))
+                }
+                _ => return error(StatusCode::NOT_FOUND, "no such file"),
+            },
         }
     };
     let Some(path) = path else {
@@ -894,7 +923,13 @@ async fn download(
                 (header::CONTENT_TYPE, mime.to_string()),
                 (
                     header::CONTENT_DISPOSITION,
-                    format!("attachment; filename=\"{}.{ext}\"", job.request.output),
+                    // A frame's name is the sequence's `<output>_NNNN.png`.
+                    match ext.split_once('.') {
+                        Some((n, e)) if n.bytes().all(|b| b.is_ascii_digit()) => {
+                            format!("attachment; filename=\"{}_{n}.{e}\"", job.request.output)
+                        }
+                        _ => format!("attachment; filename=\"{}.{ext}\"", job.request.output),
+                    },
                 ),
             ],
             Body::from(bytes),

@@ -79,6 +79,9 @@ struct WorldKey {
     variant: Option<String>,
     env: Option<std::path::PathBuf>,
     env_rotation: f32,
+    /// The moment of an animated scene (a sequence's first frame); the viewport shows that
+    /// pose without motion blur.
+    time: trayecto::world::motion::TimeOptions,
 }
 
 impl WorldKey {
@@ -89,6 +92,13 @@ impl WorldKey {
             variant: r.variant.clone(),
             env: r.environment.as_ref().map(|(_, p)| p.clone()),
             env_rotation: r.env_rotation,
+            time: trayecto::world::motion::TimeOptions {
+                time: r.time.time,
+                frame: r.time.frame.or(r.frames.map(|f| f.0)),
+                fps: r.time.fps,
+                shutter: None,
+                steps: 0,
+            },
         }
     }
 }
@@ -391,9 +401,10 @@ fn render_view(
                 variant: r.variant.clone(),
                 env: key.env.clone(),
                 env_rotation: key.env_rotation,
+                time: key.time.clone(),
                 ..WorldOptions::default()
             };
-            let w = World::build(scene, &options).map_err(|e| name_it(e.to_string()))?;
+            let w = World::build_posed(scene, &options).map_err(|e| name_it(e.to_string()))?;
             Ok(Some((w, filter)))
         });
         let (w, filter) = match loaded {
