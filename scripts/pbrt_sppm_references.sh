@@ -4,7 +4,8 @@
 # tests/references/pbrt/NAME-sppm.exr (docs/DESIGN.md, "Photon mapping: SPPM and VCM").
 # The file's own integrator settings (radius, maxdepth) are kept; only the resolution and the
 # iteration count change. Usage: scripts/pbrt_sppm_references.sh [ITERATIONS]   (default 512)
-# Bitterli's glass-of-water is not in ../shared/scenes, so only water-caustic is rendered.
+# Bitterli's glass-of-water is not in ../shared/scenes: its pbrt-v4 reference (BDPT, as its file asks) is
+# made by `bench/glass_of_water.py --make-reference --scene DIR`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PBRT=$(realpath ../shared/tools/pbrt-v4/pbrt)

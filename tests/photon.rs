@@ -1,7 +1,8 @@
-//! Stochastic progressive photon mapping (docs/DESIGN.md, integrators) against the Mitsuba 3
-//! reference of the Cornell box: it converges (the error falls with iterations, the bias at the
-//! test's budget is bounded), its image is a function of the seed and the settings for any
-//! thread count, and what it cannot do (split frames, media) is refused with the reason.
+//! Stochastic progressive photon mapping and vertex connection and merging (docs/DESIGN.md,
+//! integrators) against Mitsuba 3's references: they converge (the error falls with iterations,
+//! the bias at the test's budget is bounded), their images are a function of the seed and the
+//! settings for any thread count, and what they cannot do (SPPM: split frames; both: media) is
+//! refused with the reason.
 
 mod common;
 use common::*;
@@ -33,29 +34,6 @@ fn sppm(width: u32, height: u32, iterations: u32, max_depth: u32) -> RenderSetti
         },
         ..Default::default()
     }
-}
-
-/// The Cornell box by SPPM converges to Mitsuba's reference: the 8 × 8 block error at 16
-/// iterations is below 2/3 of the error at 4 (measured: 0.072 and 0.026), and the image means are within 3 % (the bias at
-/// this budget: the initial radius blurs the corners' darkening, and the radius has shrunk by
-/// only ~(2/3)^(1/2) per doubling of a pixel's photons).
-#[test]
-fn sppm_converges_to_mitsuba_on_the_cornell_box() {
-    let scene = builtin::cornell();
-    let world = World::build(scene, &Default::default()).unwrap();
-    let reference = read_exr(&repo_dir().join("tests/references/cornell_128.exr")).unwrap();
-    let low = render_world(&world, &sppm(128, 128, 4, 1024));
-    let high = render_world(&world, &sppm(128, 128, 16, 1024));
-    let (e_low, e_high) = (
-        block_error(&low, &reference),
-        block_error(&high, &reference),
-    );
-    eprintln!("sppm block error: {e_low} at 4 iterations, {e_high} at 16");
-    assert_means_close(&high, &reference, 0.03, "sppm, 16 iterations");
-    assert!(
-        e_high < 0.06 && e_high < e_low * (2.0 / 3.0),
-        "block error {e_low} at 4 iterations, {e_high} at 16"
-    );
 }
 
 /// Direct lighting only (depth 1): no photon is used, the visible points' light samples match
@@ -139,6 +117,147 @@ Shape "sphere" "float radius" 1
     assert_eq!(scene.hints.max_depth, Some(7));
 }
 
+/// Per-channel means of the blocks of `img` (`b` pixels a side) against those of `reference`
+/// (`rb` pixels a side: the same grid over a reference `rb / b` times finer), as differences.
+fn block_diffs(img: &Image, b: u32, reference: &Image, rb: u32) -> Vec<Vec3> {
+    let (a, r) = (block_rgb_means(img, b), block_rgb_means(reference, rb));
+    assert_eq!(a.len(), r.len(), "block grids differ");
+    a.iter().zip(&r).map(|(p, q)| *p - *q).collect()
+}
+
+/// RMS over blocks and channels of `d`, over `norm`.
+fn rms(d: &[Vec3], norm: f64) -> f64 {
+    let s: f64 = d.iter().map(|v| v.as_dvec3().length_squared() / 3.0).sum();
+    (s / d.len() as f64).sqrt() / norm
+}
+
+/// SPPM and VCM converge to Mitsuba 3's references on the Cornell box and on two scenes of glTF
+/// materials (scenes/mitsuba/glass.toml: smooth and rough glass, caustics under an area light and
+/// a uniform sky; metals.toml: metallic-roughness metals at three roughnesses), each rendered at
+/// half the reference's resolution (the reference's 2 × 2 pixels averaged: the box filter's) at
+/// N and 4N iterations over the fixed seeds 1, 2, 3, so the verdicts are a function of the code,
+/// not of luck:
+/// - the error falls: the 4 × 4 block error summed over the seeds at 4N is below 0.6 × the sum
+///   at N (noise alone: 0.5; measured 0.34 to 0.44);
+/// - the bias at the budget (4N), bounded by the noise measured there: the seeds' mean image's
+///   mean squared block error less its noise (the seeds' block variance over 3) leaves the
+///   bias's square; the bias must be below a fraction of one render's block noise (the seeds'
+///   spread): 3/4 for SPPM (measured 0.21 to 0.54), 1/2 for VCM (0 to 0.31);
+/// - the image mean (the seeds' average) within 3 standard errors of the seeds' means plus the
+///   consistent estimator's bias at this budget: 2.5 % for SPPM (measured on the glass scene:
+///   −2.1 % at 16 iterations, the initial radius's blur; −0.06 % at 64 and 256), 0.5 % for VCM
+///   (measured within 0.5 %; merges weighted twice make 1.4 to 2.6 %).
+///
+/// Measured: 8.4 s in all, under load.
+#[test]
+fn photon_methods_converge_to_mitsuba_over_a_seed_set() {
+    const SEEDS: [u64; 3] = [1, 2, 3];
+    // (scene: "" for the built-in Cornell box, reference, integrator, N)
+    let cases: [(&str, &str, IntegratorKind, u32); 6] = [
+        ("", "cornell_128", IntegratorKind::Sppm, 4),
+        ("", "cornell_128", IntegratorKind::Vcm, 2),
+        ("glass", "mitsuba_glass", IntegratorKind::Sppm, 4),
+        ("glass", "mitsuba_glass", IntegratorKind::Vcm, 4),
+        ("metals", "mitsuba_metals", IntegratorKind::Sppm, 4),
+        ("metals", "mitsuba_metals", IntegratorKind::Vcm, 2),
+    ];
+    let mut failed = Vec::new();
+    for (name, reference, integrator, n) in cases {
+        let (world, filter) = if name.is_empty() {
+            let w = World::build(builtin::cornell(), &Default::default()).unwrap();
+            (w, Default::default())
+        } else {
+            let file = repo_dir().join(format!("scenes/mitsuba/{name}.toml"));
+            let scene = trayecto::scene::load(file.to_str().unwrap()).unwrap();
+            let filter = scene.hints.filter.unwrap_or_default();
+            let options = trayecto::world::WorldOptions {
+                default_light: scene
+                    .default_light
+                    .or(Some(trayecto::scene::DefaultLight::Uniform)),
+                ..Default::default()
+            };
+            (World::build(scene, &options).unwrap(), filter)
+        };
+        let reference =
+            read_exr(&repo_dir().join(format!("tests/references/{reference}.exr"))).unwrap();
+        let m = reference.mean();
+        let norm = ((m.x + m.y + m.z) / 3.0) as f64;
+        let render = |spp, seed| {
+            let s = RenderSettings {
+                seed,
+                filter,
+                ..sppm(reference.width / 2, reference.height / 2, spp, 1024)
+            };
+            render_world(&world, &RenderSettings { integrator, ..s })
+        };
+        let (mut e_low, mut e_high) = (0.0, 0.0);
+        let mut high = Vec::new();
+        for seed in SEEDS {
+            e_low += rms(&block_diffs(&render(n, seed), 4, &reference, 8), norm);
+            let img = render(4 * n, seed);
+            e_high += rms(&block_diffs(&img, 4, &reference, 8), norm);
+            high.push(img);
+        }
+        let k = SEEDS.len() as f64;
+        // Per block: the seeds' mean difference and their variance about it.
+        let diffs: Vec<Vec<Vec3>> = high
+            .iter()
+            .map(|img| block_diffs(img, 4, &reference, 8))
+            .collect();
+        let blocks = diffs[0].len();
+        let (mut mean_sq, mut var) = (0.0f64, 0.0f64);
+        for j in 0..blocks {
+            let v: Vec<[f64; 3]> = diffs
+                .iter()
+                .map(|d| [d[j].x as f64, d[j].y as f64, d[j].z as f64])
+                .collect();
+            for c in 0..3 {
+                let mean = v.iter().map(|x| x[c]).sum::<f64>() / k;
+                mean_sq += mean * mean / 3.0;
+                var += v.iter().map(|x| (x[c] - mean).powi(2)).sum::<f64>() / (k - 1.0) / 3.0;
+            }
+        }
+        let (mean_sq, var) = (mean_sq / blocks as f64, var / blocks as f64);
+        let noise = var.sqrt() / norm;
+        let bias = (mean_sq - var / k).max(0.0).sqrt() / norm;
+        let means: Vec<f64> = high
+            .iter()
+            .map(|img| {
+                let m = img.mean();
+                ((m.x + m.y + m.z) / 3.0) as f64 / norm - 1.0
+            })
+            .collect();
+        let mean_off = means.iter().sum::<f64>() / k;
+        let spread = (means.iter().map(|x| (x - mean_off).powi(2)).sum::<f64>() / (k - 1.0)).sqrt();
+        let what = format!("{name:?} {integrator:?}");
+        eprintln!(
+            "{what}: block error (sum over seeds) {e_low:.4} at {n}, {e_high:.4} at {}; \
+             bias {bias:.4}, noise {noise:.4}; mean off {mean_off:+.4} (spread {spread:.4})",
+            4 * n
+        );
+        let falls = e_high < 0.6 * e_low;
+        if !falls {
+            failed.push(format!(
+                "{what}: block error {e_low} at {n}, {e_high} at {}",
+                4 * n
+            ));
+        }
+        let (bias_bound, mean_bound) = match integrator {
+            IntegratorKind::Sppm => (0.75, 0.025),
+            _ => (0.5, 0.005),
+        };
+        let bounded = bias < bias_bound * noise;
+        if !bounded {
+            failed.push(format!("{what}: bias {bias} above the noise {noise}"));
+        }
+        let close = mean_off.abs() < 3.0 * spread / k.sqrt() + mean_bound;
+        if !close {
+            failed.push(format!("{what}: mean off by {mean_off} (spread {spread})"));
+        }
+    }
+    assert!(failed.is_empty(), "{failed:#?}");
+}
+
 fn vcm(width: u32, height: u32, iterations: u32, max_depth: u32, merge: bool) -> RenderSettings {
     RenderSettings {
         integrator: IntegratorKind::Vcm,
@@ -150,36 +269,20 @@ fn vcm(width: u32, height: u32, iterations: u32, max_depth: u32, merge: bool) ->
     }
 }
 
-/// Vertex connection and merging on the Cornell box converges to Mitsuba's reference: with
-/// merges, the block error at 8 iterations is below 2/3 of the error at 2 (measured: 0.104 and
-/// 0.055, the 1/√4 of noise) and below 0.08, and the means are within 2 %; without merges (bidirectional path tracing with one light subpath per camera
-/// subpath, unbiased) the means are within 2 % too, and at depth 1 (the direct-only reference)
-/// both are.
+/// Vertex connection and merging on the Cornell box (its convergence with merges is
+/// [`photon_methods_converge_to_mitsuba_over_a_seed_set`]'s): without merges (bidirectional path
+/// tracing with one light subpath per camera subpath, unbiased) the means are within 2 % of
+/// Mitsuba's, and at depth 1 (the direct-only reference) with and without merges too. At 64 × 64
+/// (image means do not depend on the resolution with the box filter).
 #[test]
-fn vcm_converges_to_mitsuba_on_the_cornell_box() {
+fn vcm_matches_mitsuba_on_the_cornell_box_without_merges_and_at_depth_1() {
     let world = World::build(builtin::cornell(), &Default::default()).unwrap();
     let reference = read_exr(&repo_dir().join("tests/references/cornell_128.exr")).unwrap();
     let direct = read_exr(&repo_dir().join("tests/references/cornell_128_direct.exr")).unwrap();
-    let low = render_world(&world, &vcm(128, 128, 2, 1024, true));
-    let high = render_world(&world, &vcm(128, 128, 8, 1024, true));
-    let (e_low, e_high) = (
-        block_error(&low, &reference),
-        block_error(&high, &reference),
-    );
-    eprintln!("vcm block error: {e_low} at 2 iterations, {e_high} at 8");
-    assert_means_close(&high, &reference, 0.02, "vcm, 8 iterations");
-    assert!(
-        e_high < 0.08 && e_high < e_low * (2.0 / 3.0),
-        "block error {e_low} at 2 iterations, {e_high} at 8"
-    );
-    let vc = render_world(&world, &vcm(128, 128, 4, 1024, false));
-    eprintln!(
-        "vcm without merges: block error {}",
-        block_error(&vc, &reference)
-    );
+    let vc = render_world(&world, &vcm(64, 64, 8, 1024, false));
     assert_means_close(&vc, &reference, 0.02, "vcm without merges");
     for merge in [true, false] {
-        let d = render_world(&world, &vcm(128, 128, 2, 1, merge));
+        let d = render_world(&world, &vcm(64, 64, 4, 1, merge));
         assert_means_close(&d, &direct, 0.02, &format!("vcm depth 1, merge {merge}"));
     }
 }
@@ -222,6 +325,20 @@ fn vcm_film_is_a_function_of_seed_and_settings() {
     let mut split = range(&base, 0..2);
     split.add_film(&range(&base, 2..5)).unwrap();
     assert_eq!(one, split);
+    // A medium is refused with the reason, not ignored (its paths join surfaces only).
+    let fog = trayecto::scene::load(
+        repo_dir()
+            .join("scenes/media/fog_cornell.toml")
+            .to_str()
+            .unwrap(),
+    )
+    .unwrap();
+    let fog = World::build(fog, &Default::default()).unwrap();
+    let err = match trayecto::render::render(&fog, &base, &NoObserver, &cancel) {
+        Ok(_) => panic!("a medium is refused"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains("participating media"), "{err}");
 }
 
 /// The photon and light-path integrators report their progress with a time left, as the tiled
@@ -318,7 +435,7 @@ fn sppm_update_shrinks_the_radius_and_rescales_the_flux() {
 }
 
 /// VCM's radius r_i = r_0 · i^((α−1)/2) (i from 1): r_0 first, then shrinking; a stored light
-/// vertex takes at most 448 bytes.
+/// vertex takes at most 320 bytes.
 #[test]
 fn vcm_radius_shrinks_with_the_iteration_index() {
     assert_eq!(vcm_radius(0.5, 0), 0.5);
@@ -327,7 +444,9 @@ fn vcm_radius_shrinks_with_the_iteration_index() {
     assert!(vcm_radius(0.5, 16) < r);
     // The memory bound docs/DESIGN.md states for VCM's light vertex store (a vertex keeps its
     // shading: hit, BSDF, frame), so that growing it is a decision, not an accident.
-    assert!(std::mem::size_of::<trayecto::integrator::vcm::LightVertex>() <= 448);
+    let size = std::mem::size_of::<trayecto::integrator::vcm::LightVertex>();
+    eprintln!("light vertex: {size} bytes");
+    assert!(size <= 320);
 }
 
 /// The time-to-equal-error comparison of BENCHMARKS.md ("Caustics seen through glass"): VCM,
@@ -465,26 +584,12 @@ fn caustic_through_glass_time_to_equal_error() {
 /// and a uniform light at infinity), which SPPM passes through to its diffuse visible points as
 /// pbrt-v4's SPPM does, against Trayecto's path tracer at 64 spp (itself held to pbrt-v4's
 /// render of the file elsewhere); a thin-lens camera (screenwindow.pbrt) against pbrt-v4's
-/// render; glass on a floor under an area light and a uniform sky (caustics), a uniform
-/// environment and a distant light against Mitsuba 3's (scenes/mitsuba/).
+/// render; a uniform environment and a distant light against Mitsuba 3's (scenes/mitsuba/; the
+/// glass scene's caustics are [`photon_methods_converge_to_mitsuba_over_a_seed_set`]'s).
 /// Channel means within 3 % and 8 × 8 block error below a bound about 1.5 × the measured one.
 #[test]
 fn photon_methods_agree_with_references_on_glossy_lens_and_infinite_lights() {
-    let cases: [(&str, &str, IntegratorKind, u32, f64); 8] = [
-        (
-            "scenes/mitsuba/glass.toml",
-            "mitsuba_glass",
-            IntegratorKind::Vcm,
-            16,
-            0.075,
-        ),
-        (
-            "scenes/mitsuba/glass.toml",
-            "mitsuba_glass",
-            IntegratorKind::Sppm,
-            16,
-            0.075,
-        ),
+    let cases: [(&str, &str, IntegratorKind, u32, f64); 6] = [
         (
             "scenes/pbrt/roughness.pbrt",
             "",

@@ -42,8 +42,9 @@ use crate::camera::CameraImportance;
 use crate::geometry::Ray;
 use crate::geometry::primitive::{NO_LIGHT, SurfaceHit};
 use crate::light::EnvPdf;
+use crate::material::bsdf::Bsdf;
 use crate::material::bxdf::TransportMode;
-use crate::math::{PI, Vec3};
+use crate::math::{Frame, PI, Vec3};
 use crate::sampling::SampleStream;
 use crate::world::World;
 
@@ -61,10 +62,21 @@ pub fn radius(r0: f32, index: u32) -> f32 {
     r0 * ((index as f64 + 1.0).powf((ALPHA as f64 - 1.0) / 2.0)) as f32
 }
 
-/// A stored light subpath vertex: its shading, the throughput that reached it, the segments
-/// from the light (first hit: 1) and its MIS quantities.
+/// A stored light subpath vertex: what its joins to the camera, its connections and its merges
+/// read of its shading (position, normals, BSDF), the throughput that reached it, the segments
+/// from the light (first hit: 1) and its MIS quantities. Not a whole [`Vertex`]: the surface
+/// hit's texture coordinates, differentials and ids are spent once the BSDF is built, and every
+/// light vertex of an iteration is stored and copied into one array, so its size is the store's
+/// memory and copying (docs/DESIGN.md, "Photon mapping: SPPM and VCM").
 pub struct LightVertex {
-    pub v: Vertex,
+    pub p: Vec3,
+    pub p_error: Vec3,
+    /// The geometric normal, oriented as [`Vertex::ng`].
+    pub ng: Vec3,
+    pub frame: Frame,
+    /// Toward where the light subpath came from, in `frame`.
+    pub wo_local: Vec3,
+    pub bsdf: Bsdf,
     pub beta: Vec3,
     pub len: u32,
     pub d_vcm: f32,
@@ -175,16 +187,13 @@ impl<'a> Vcm<'a> {
             d_vm /= cos_in;
             let u_cam = s.next_2d();
             if !v.bsdf.is_specular() && !v.bsdf.is_black() {
-                let copy = Vertex {
-                    hit: v.hit,
-                    bsdf: v.bsdf,
+                out.push(LightVertex {
+                    p: v.hit.p,
+                    p_error: v.hit.p_error,
                     ng: v.ng,
                     frame: v.frame,
                     wo_local: v.wo_local,
-                    transmissive: v.transmissive,
-                };
-                out.push(LightVertex {
-                    v: copy,
+                    bsdf: v.bsdf,
                     beta,
                     len,
                     d_vcm,
@@ -305,11 +314,11 @@ impl<'a> Vcm<'a> {
         stats: &mut RayStats,
         film: &mut impl Splat,
     ) {
-        let v = &lv.v;
+        let v = lv;
         if lv.len > self.set.max_depth {
             return;
         }
-        let Some(cs) = self.camera.sample_wi(v.hit.p, u_cam) else {
+        let Some(cs) = self.camera.sample_wi(v.p, u_cam) else {
             return;
         };
         let wi_local = v.frame.to_local(cs.wi);
@@ -335,14 +344,7 @@ impl<'a> Vcm<'a> {
         let w_light = mis(camera_pdf_a) * (self.vm_weight + lv.d_vcm + lv.d_vc * mis(rev));
         let weight = 1.0 / (1.0 + w_light);
         stats.shadow_rays += 1;
-        let shadow = Ray::spawn_to(
-            v.hit.p,
-            v.hit.p_error,
-            v.ng,
-            cs.p_lens,
-            Vec3::ZERO,
-            Vec3::ZERO,
-        );
+        let shadow = Ray::spawn_to(v.p, v.p_error, v.ng, cs.p_lens, Vec3::ZERO, Vec3::ZERO);
         if !self.world.occluded(&shadow) {
             film.splat(cs.raster, c * (self.scale * weight));
         }
@@ -594,8 +596,8 @@ impl<'a> Vcm<'a> {
         lv: &LightVertex,
         stats: &mut RayStats,
     ) -> Vec3 {
-        let q = &lv.v;
-        let to = q.hit.p - v.hit.p;
+        let q = lv;
+        let to = q.p - v.hit.p;
         let dist2 = to.length_squared();
         if !(dist2 > 0.0) {
             return Vec3::ZERO;
@@ -627,7 +629,7 @@ impl<'a> Vcm<'a> {
         let w_camera = mis(light_dir_a) * (self.vm_weight + d_vcm + d_vc * mis(cam_rev));
         let weight = 1.0 / (w_light + 1.0 + w_camera);
         stats.shadow_rays += 1;
-        let shadow = Ray::spawn_to(v.hit.p, v.hit.p_error, v.ng, q.hit.p, q.hit.p_error, q.ng);
+        let shadow = Ray::spawn_to(v.hit.p, v.hit.p_error, v.ng, q.p, q.p_error, q.ng);
         if self.world.occluded(&shadow) {
             return Vec3::ZERO;
         }
@@ -652,7 +654,7 @@ impl<'a> Vcm<'a> {
             if len + lv.len > max_depth + 1 {
                 return;
             }
-            let wi = lv.v.frame.to_world(lv.v.wo_local);
+            let wi = lv.frame.to_world(lv.wo_local);
             let wl = v.frame.to_local(wi);
             if !v.bsdf.side_consistent(wl, wi.dot(v.ng)) {
                 return;

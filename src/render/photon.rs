@@ -297,6 +297,17 @@ fn to_film(pixels: &[PixelState], fw: u32, fh: u32, iterations: u32, photons: u6
 pub fn check_vcm(world: &World, settings: &RenderSettings) -> Result<(), RenderError> {
     super::light::check(world, Integrator::Vcm, settings)?;
     let bad = |m: &str| Err(RenderError::InvalidSetting(m.to_string()));
+    if world.has_media() {
+        // Its subpaths trace straight from surface to surface (no transmittance, no scattering
+        // in a medium), so a medium would be silently ignored. Merging is a density estimate
+        // on surfaces (Georgiev et al. 2012); in a medium it needs volume kernels and their
+        // own MIS (points and beams: Křivánek et al. 2014's unified points, beams and paths).
+        return bad(
+            "vertex connection and merging (--integrator vcm) does not render participating \
+             media or medium interfaces: its paths and merges are on surfaces only, so a medium \
+             would be ignored; use --integrator bdpt or volpath",
+        );
+    }
     if settings.path.secondary > 1 {
         return bad("secondary rays do not apply to vertex connection and merging");
     }
