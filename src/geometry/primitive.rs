@@ -435,15 +435,12 @@ impl GeometryStore {
         };
     }
 
-    /// `[∂p/∂u, ∂p/∂v, ∂n/∂u, ∂n/∂v]` of the shading geometry at a triangle hit, as pbrt-v4's `Triangle`
+    /// ∂p/∂u and ∂p/∂v of the shading geometry at a triangle hit, as pbrt-v4's `Triangle`
     /// builds them (for bump mapping): v grows up the image (pbrt's convention; stored uvs grow
     /// down, so this is −∂p/∂v of the stored ones); on a mesh with normals, ∂p/∂u is projected
     /// onto the shading normal's plane and ∂p/∂v is n × ∂p/∂u (pbrt-v4 `ss`, `ts`). `None` for
-    /// other primitives and for triangles without a usable uv parameterisation. Then the shading
-    /// normal's ∂n/∂u, ∂n/∂v, as pbrt-v4's `Triangle` computes them from the vertex normals'
-    /// differences over the uv parameterisation (zero on a mesh without normals), with the sign
-    /// of `hit.ns` (which is turned to the winding's side; pbrt-v4 keeps the vertex normals').
-    pub fn pbrt_shading_derivatives(&self, hit: &SurfaceHit) -> Option<[Vec3; 4]> {
+    /// other primitives and for triangles without a usable uv parameterisation.
+    pub fn pbrt_shading_dpduv(&self, hit: &SurfaceHit) -> Option<(Vec3, Vec3)> {
         if hit.prim.kind() != PrimitiveKind::Triangle {
             return None;
         }
@@ -464,40 +461,15 @@ impl GeometryStore {
         if !(dpdu.is_finite() && dpdv.is_finite()) {
             return None;
         }
-        let Some(normals) = &mesh.normals else {
-            return Some([dpdu, dpdv, Vec3::ZERO, Vec3::ZERO]);
-        };
+        if mesh.normals.is_none() {
+            return Some((dpdu, dpdv));
+        }
         let n = hit.ns;
         let ts = n.cross(dpdu);
         if !(ts.length_squared() > 0.0) {
             return None;
         }
-        // The vertex normals in the world, as `triangle_hit` interpolates them.
-        let [n0, n1, n2] = match self.triangles.get(hit.prim.index()) {
-            Some(_) => [normals[i0], normals[i1], normals[i2]],
-            None => {
-                let (inst, _) = self.instances.locate(hit.prim.index());
-                [
-                    inst.normal(normals[i0]),
-                    inst.normal(normals[i1]),
-                    inst.normal(normals[i2]),
-                ]
-            }
-        };
-        let (dn1, dn2) = (n0 - n2, n1 - n2);
-        let mut dndu = (dn1 * duv12.y - dn2 * duv02.y) * inv;
-        let mut dndv = (dn2 * duv02.x - dn1 * duv12.x) * inv;
-        // `hit.ns` was turned when the interpolated normal faced away from the winding (the
-        // vertex normals' mean stands in for it: barycentrics are not kept in the hit).
-        if (n0 + n1 + n2).dot(n) < 0.0 {
-            dndu = -dndu;
-            dndv = -dndv;
-        }
-        if !(dndu.is_finite() && dndv.is_finite()) {
-            dndu = Vec3::ZERO;
-            dndv = Vec3::ZERO;
-        }
-        Some([ts.cross(n), ts, dndu, dndv])
+        Some((ts.cross(n), ts))
     }
 
     /// Screen-space uv derivatives ([`SurfaceHit::duv`]) of each uv set at a triangle hit from

@@ -65,15 +65,12 @@ pub fn resolve_mix<'a>(
 pub const PBRT_DIFFERENTIAL_SCALE: f32 = 0.125;
 
 /// pbrt-v4 `BumpMap` (pbrt-v4 materials.h; Blinn 1978): with d = scale × displacement texture R,
-/// ∂p/∂u' = ∂p/∂u + (d(u + Δu, v) − d(u, v))/Δu · n + d·∂n/∂u and likewise for v, and the
-/// shading normal becomes ∂p/∂u' × ∂p/∂v' turned to the geometric normal's side. `[dpdu, dpdv,
-/// dndu, dndv]` are the shading ∂p/∂u, ∂p/∂v and ∂n/∂u, ∂n/∂v in pbrt's convention (v growing up
-/// the image; see [`crate::geometry::GeometryStore::pbrt_shading_derivatives`]). The d·∂n/∂u
-/// term is zero on flat-shaded meshes but not small on curved ones: the displacement is the
-/// texture's value in scene units, unscaled, so it tilts the normal by O(d/r) for a curvature
-/// radius r (Bitterli's bathroom foam, d up to 1 on lumps a few centimetres wide, is mostly that
-/// term). Leaves the hit unchanged without a displacement texture or when the result is
-/// degenerate.
+/// ∂p/∂u' = ∂p/∂u + (d(u + Δu, v) − d(u, v))/Δu · n and likewise for v, and the shading normal
+/// becomes ∂p/∂u' × ∂p/∂v' turned to the geometric normal's side. `dpdu`, `dpdv` are the shading
+/// ∂p/∂u, ∂p/∂v in pbrt's convention (v growing up the image; see
+/// [`crate::geometry::GeometryStore::pbrt_shading_dpduv`]). pbrt's d·∂n/∂u term is left out: it
+/// is zero on flat-shaded meshes and changes the normal by O(d/r) on curved ones. Leaves the hit
+/// unchanged without a displacement texture or when the result is degenerate.
 ///
 /// The steps are pbrt-v4's: with the pixel footprint (`hit.duv`, which renders of scenes with a
 /// bump map always have, `World::has_bump`), Δu = ½(|∂u/∂x| + |∂u/∂y|) and Δv likewise, of the
@@ -87,7 +84,8 @@ pub fn bump(
     material: &Material,
     textures: &[Texture],
     hit: &mut SurfaceHit,
-    [dpdu, dpdv, dndu, dndv]: [Vec3; 4],
+    dpdu: Vec3,
+    dpdv: Vec3,
 ) {
     let Some(t) = &material.displacement else {
         return;
@@ -114,12 +112,8 @@ pub fn bump(
     let d_u = d(Vec2::new(du, 0.0));
     let d_v = d(Vec2::new(0.0, -dv));
     let n = hit.ns;
-    let mut pu = dpdu + n * ((d_u - d0) / du);
-    let mut pv = dpdv + n * ((d_v - d0) / dv);
-    if dndu != Vec3::ZERO || dndv != Vec3::ZERO {
-        pu += dndu * d0;
-        pv += dndv * d0;
-    }
+    let pu = dpdu + n * ((d_u - d0) / du);
+    let pv = dpdv + n * ((d_v - d0) / dv);
     let mut ns = pu.cross(pv).normalize_or_zero();
     if ns == Vec3::ZERO || !ns.is_finite() {
         return;
