@@ -19,8 +19,9 @@
 //! that chooses one of the two per hit with probability `amount` (textured or not), as pbrt-v4's
 //! `MixMaterial` does (`eval::resolve_mix`); `interface` → an index-matched boundary.
 //! `roughness`/`uroughness`/`vroughness` textures are evaluated per hit (with `remaproughness`);
-//! `displacement` bump-maps the shading normal per hit (`eval::bump`). Textured η, albedo and
-//! transmittance use their mean (warned).
+//! `displacement` bump-maps the shading normal per hit (`eval::bump`); a conductor's η and k
+//! textures are evaluated per hit. A dielectric's textured η, layer albedo and transmittance use
+//! their mean (warned).
 
 use std::collections::HashMap;
 use std::path::PathBuf;
