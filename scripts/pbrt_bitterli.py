@@ -14,7 +14,8 @@ and Trayecto is compared against it as well: where Tungsten and pbrt-v4 disagree
 authority on what the file means.
 
 Usage: scripts/pbrt_bitterli.py [--trayecto target/release/trayecto] [--factor 8] [--spp 128]
-                                [--pbrt] [--corpus DIR [--all] [--placeholders]] [SCENE...]
+                                [--pbrt] [--corpus DIR [--all] [--placeholders]] [--keep DIR]
+                                [SCENE...]
 
 --corpus DIR reads the scenes from DIR/NAME/scene-v4.pbrt (default ../shared/scenes/pbrt; the
 whole corpus is Bitterli's pbrt-v4 scene pack, e.g. a copy of github.com/gonsolo/bitterli's
@@ -25,6 +26,7 @@ renderers read the same stand-ins, so the comparison still measures the rest of 
 import re
 import argparse
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -80,7 +82,11 @@ def main():
     ap.add_argument("--all", action="store_true", help="every scene folder of the corpus")
     ap.add_argument("--placeholders", action="store_true",
                     help="stand in for files the scene names but the corpus lacks (grey images, "
-                         "a tiny triangle for meshes, an empty include), the same for both renderers")
+                         "a tiny triangle for meshes, an empty file for an Include/Import), the "
+                         "same for both renderers")
+    ap.add_argument("--keep", metavar="DIR",
+                    help="keep both renders as DIR/NAME-trayecto.exr and DIR/NAME-pbrt.exr; a kept "
+                         "pbrt-v4 render of the same size is reused instead of rendering it again")
     ap.add_argument("scenes", nargs="*")
     a = ap.parse_args()
     names = a.scenes or (sorted(d for d in os.listdir(a.corpus)
@@ -107,11 +113,20 @@ def main():
                 print(f"{name:30} Trayecto refused the file (run it by hand for the message)")
                 continue
             img = read(out)
+            if a.keep:
+                os.makedirs(a.keep, exist_ok=True)
+                shutil.copy(out, os.path.join(a.keep, name + "-trayecto.exr"))
             if ref is not None:
                 report(name, w, h, img, downsample(ref, h, w), "Tungsten")
             if a.pbrt:
+                kept = os.path.join(a.keep, name + "-pbrt.exr") if a.keep else None
                 try:
-                    ref_pbrt = render_pbrt(scene, d, a.spp)
+                    if kept and os.path.exists(kept) and read(kept).shape == img.shape:
+                        ref_pbrt = read(kept)
+                    else:
+                        ref_pbrt = render_pbrt(scene, d, a.spp)
+                        if kept:
+                            shutil.copy(os.path.join(d, "pbrt.exr"), kept)
                 except subprocess.CalledProcessError:
                     print(f"{name + ' / pbrt-v4':30} pbrt-v4 refused the file (run it by hand for the message)")
                     continue
@@ -138,19 +153,26 @@ def overlay(scene_dir, d, w, h, placeholders):
     with open(path, "w") as out:
         out.write(text)
     if placeholders:
-        for f in sorted(set(re.findall(r'"string filename"\s*\[?\s*"([^"]+)"', text))):
+        names = re.findall(r'"string filename"\s*\[?\s*"([^"]+)"', text)
+        # Included files too (the hair scenes' models/hair.pbrt): an empty stand-in.
+        names += re.findall(r'(?m)^\s*(?:Include|Import)\s+"([^"]+)"', text)
+        for f in sorted(set(names)):
             if not os.path.exists(os.path.join(d, f)):
                 stand_in(os.path.join(d, f))
     return path
 
 
 def stand_in(path):
-    """A grey 8 x 8 image (TGA or PFM), a one-triangle PLY far below the scene, or an empty
+    """A grey 8 x 8 image (TGA, PFM or EXR), a one-triangle PLY far below the scene, or an empty
     include; never written into the corpus itself."""
     # The overlay links whole sub-folders (textures/, models/): each linked folder on the way is
     # made a real folder of links, so the stand-in does not land in the corpus.
-    d = os.path.dirname(os.path.dirname(path))
+    # (From the file's own folder up: a missing file beside the scene, e.g. an environment
+    # map, has the overlay itself as its folder.)
+    d = os.path.dirname(path)
     while not os.path.exists(os.path.join(d, "scene-v4.pbrt")):
+        if os.path.dirname(d) == d:
+            raise RuntimeError(f"{path} is not inside a scene folder")
         d = os.path.dirname(d)
     cur = d
     for part in os.path.relpath(os.path.dirname(path), d).split(os.sep):
@@ -164,7 +186,8 @@ def stand_in(path):
             for e in os.listdir(target):
                 os.symlink(os.path.join(target, e), os.path.join(cur, e))
         os.makedirs(cur, exist_ok=True)
-    ext = os.path.splitext(path)[1].lower()
+    # ("x" + the name: living-room-3 includes "models/.pbrt", a name that is all extension.)
+    ext = os.path.splitext("x" + os.path.basename(path))[1].lower()
     if ext == ".pfm":
         data = b"PF\n8 8\n-1.0\n" + np.full((8, 8, 3), 0.5, "<f4").tobytes()
     elif ext == ".ply":
@@ -173,6 +196,12 @@ def stand_in(path):
                 b"end_header\n0 -1000 0\n0.001 -1000 0\n0 -1000 0.001\n3 0 1 2\n")
     elif ext == ".pbrt":
         data = b""
+    elif ext == ".exr" and "OpenEXR" in sys.modules:
+        # A grey EXR (an environment map beside the scene, e.g. bathroom's) both renderers read.
+        px = np.full((8, 8, 3), 0.5, "float32")
+        OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                     {"RGB": px}).write(path)
+        return
     else:
         import struct
         # Any other image: an uncompressed grey TGA (a .png or .exr name with TGA bytes is

@@ -861,6 +861,36 @@ fn displacement_bump_matches_pbrt_v4() {
     );
 }
 
+/// pbrt-v4 `displacement` on a curved mesh with vertex normals (scenes/pbrt/bump-curved.pbrt: a
+/// tessellated sphere, heights read unscaled so d/r ≈ 1, as Bitterli's bathroom foam): pbrt-v4's
+/// `BumpMap` adds d·∂n/∂u to ∂p/∂u and d·∂n/∂v to ∂p/∂v (∂n/∂u, ∂n/∂v of the vertex normals,
+/// pbrt-v4 `Triangle`), which `eval::bump` leaves out: the sphere's blocks are up to 24 % darker
+/// than pbrt-v4's (worst 4 × 4 block 0.239, mean −5.8 %). A first version of the term, taken from
+/// the vertex normals over the uv parameterisation as pbrt-v4 does, made it worse (worst block
+/// 0.87: the v term nearly cancels pbrt's shading ∂p/∂v = n × ∂p/∂u, which points against the
+/// true ∂p/∂v on this sphere), so how pbrt-v4's frame and Trayecto's differ there is still to be
+/// found. Ignored until then; run with `--ignored`.
+#[test]
+#[ignore = "d·∂n/∂u of pbrt-v4's BumpMap is not in eval::bump yet (docs/src/correctness.md)"]
+fn displacement_on_curved_meshes_adds_d_dndu_like_pbrt_v4() {
+    let scene = load(&repo("scenes/pbrt/bump-curved.pbrt"));
+    assert!(
+        warnings_about(&scene, "displacement").is_empty(),
+        "{:?}",
+        scene.warnings
+    );
+    feature_against_pbrt_v4(
+        "bump-curved",
+        &scene,
+        |s| {
+            for m in &mut s.materials {
+                m.displacement = None;
+            }
+        },
+        (0.03, 0.1, 0.15),
+    );
+}
+
 /// pbrt-v4 `displacement` from an image with sharp edges (scenes/pbrt/bump-tiles.pbrt: tiles,
 /// grout and grain read as height, as Bitterli's bathroom floor): the finite differences are
 /// taken over the pixel footprint shrunk by pbrt-v4's ray-differential scale and read the
@@ -1540,5 +1570,53 @@ fn coated_conductor_fresnel_is_relative_to_the_coat_like_pbrt_v4() {
         // these were 5.6 % and 14.2 %, part noise; with the hemisphere sampling the noise fell,
         // so the 8×8 tolerance is 6 % (was 7 %) and the feature must show beyond 12 %.
         (0.02, 0.04, 0.06),
+    );
+}
+
+/// pbrt-v4 `conductor` and `coatedconductor` with textured `eta` and `k`, evaluated per hit: a
+/// floor of four metals (η a checkerboard of gold and silver, k a coarser one) and a coated wall
+/// whose k is a `scale` of a checkerboard. Without the textures (each η, k the mean of its two
+/// values, as a constant stand-in reads it) the metals' checker is gone.
+#[test]
+fn textured_conductor_eta_and_k_match_pbrt_v4() {
+    let scene = load(&repo("scenes/pbrt/conductor-textured.pbrt"));
+    for word in ["eta", "\"k\"", "textured"] {
+        assert!(
+            warnings_about(&scene, word).is_empty(),
+            "{:?}",
+            scene.warnings
+        );
+    }
+    feature_against_pbrt_v4(
+        "conductor-textured",
+        &scene,
+        |s| {
+            let (au, ag) = (
+                trayecto::spectrum::named_conductor_rgb("metal-Au").unwrap(),
+                trayecto::spectrum::named_conductor_rgb("metal-Ag").unwrap(),
+            );
+            let mut textured = 0;
+            for m in &mut s.materials {
+                let (c, wall_k) = match &mut m.model {
+                    MaterialModel::Conductor(c) => (c, None),
+                    // The wall's k: 4 × the mean of the checkerboard's (0.98, 0.61, 0.53) and 0.3.
+                    MaterialModel::CoatedConductor(c) => (
+                        &mut c.conductor,
+                        Some(trayecto::math::Vec3::new(2.56, 1.82, 1.66)),
+                    ),
+                    _ => continue,
+                };
+                if c.eta_texture.take().is_some() {
+                    c.eta = 0.5 * (au.0 + ag.0);
+                    textured += 1;
+                }
+                if c.k_texture.take().is_some() {
+                    c.k = wall_k.unwrap_or(0.5 * (au.1 + ag.1));
+                    textured += 1;
+                }
+            }
+            assert_eq!(textured, 3, "the scene's three textured η/k");
+        },
+        (0.03, 0.06, 0.1),
     );
 }

@@ -87,7 +87,8 @@ impl LocalSurface {
         // diffuse transmission its reflection only. GGX α becomes glTF roughness √α.
         let rough_of = |a: crate::math::Vec2| (0.5 * (a.x + a.y)).max(0.0).sqrt().min(1.0);
         let conductor_f0 = |c: &crate::material::models::Conductor, base: Vec3| {
-            let (eta, k) = c.eta_k(|| base);
+            let tx = crate::material::eval::HitTextures::new(textures, hit, None);
+            let (eta, k) = c.eta_k(&tx, || base);
             crate::material::microfacet::fresnel_conductor(1.0, eta, k)
         };
         match &m.model {

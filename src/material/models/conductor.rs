@@ -2,6 +2,7 @@
 //! of the base colour as pbrt's `reflectance`, over a smooth or anisotropic GGX surface.
 
 use super::RoughnessTextures;
+use crate::material::TextureRef;
 use crate::material::bxdf;
 use crate::material::eval::HitTextures;
 use crate::material::microfacet::conductor_from_reflectance;
@@ -9,13 +10,18 @@ use crate::math::{Vec2, Vec3};
 
 /// A conductor's parameters. Roughness is GGX α already (x along the tangent, pbrt's
 /// `uroughness`; y along the bitangent, `vroughness`); `roughness` textures, when set, replace
-/// the constant α per hit ([`RoughnessTextures::alpha`]). Defaults are pbrt-v4's (copper).
+/// the constant α per hit ([`RoughnessTextures::alpha`]), and `eta_texture`/`k_texture`, when
+/// set, scale η and k per hit by their RGB (pbrt-v4 evaluates a conductor's `eta` and `k` spectrum
+/// textures at the hit, `ConductorMaterial::GetBxDF`). Defaults are pbrt-v4's (copper).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Conductor {
     /// η and k per linear-sRGB channel (default: pbrt's `metal-Cu-eta`/`metal-Cu-k` converted by
     /// [`crate::spectrum`]).
     pub eta: Vec3,
     pub k: Vec3,
+    /// Textures of η and k (linear RGB), multiplying `eta` and `k` per hit.
+    pub eta_texture: Option<TextureRef>,
+    pub k_texture: Option<TextureRef>,
     /// Use the material's base colour (× texture) as pbrt's `reflectance` instead of η/k.
     pub reflectance: bool,
     pub alpha: Vec2,
@@ -29,6 +35,8 @@ impl Default for Conductor {
         Conductor {
             eta,
             k,
+            eta_texture: None,
+            k_texture: None,
             reflectance: false,
             alpha: Vec2::ZERO,
             roughness: RoughnessTextures::default(),
@@ -37,14 +45,22 @@ impl Default for Conductor {
 }
 
 impl Conductor {
-    /// η and k, from the base colour `base` when the conductor is given by its reflectance.
+    /// η and k at the hit of `tx`, from the base colour `base` when the conductor is given by
+    /// its reflectance.
     #[inline]
-    pub fn eta_k(&self, base: impl FnOnce() -> Vec3) -> (Vec3, Vec3) {
+    pub fn eta_k(&self, tx: &HitTextures, base: impl FnOnce() -> Vec3) -> (Vec3, Vec3) {
         if self.reflectance {
-            conductor_from_reflectance(base())
-        } else {
-            (self.eta, self.k)
+            return conductor_from_reflectance(base());
         }
+        let textured = |c: Vec3, t: &Option<TextureRef>| match t {
+            // A texture's negative or non-finite texels would make the Fresnel term NaN.
+            Some(t) => (c * tx.sample(t).truncate()).max(Vec3::ZERO),
+            None => c,
+        };
+        (
+            textured(self.eta, &self.eta_texture),
+            textured(self.k, &self.k_texture),
+        )
     }
 
     /// The conductor lobe at a hit. `outside_ior` is the IOR of the medium its surface faces:
@@ -59,7 +75,7 @@ impl Conductor {
         base: impl FnOnce() -> Vec3,
     ) -> bxdf::Conductor {
         let alpha = self.roughness.alpha(self.alpha, tx);
-        let (eta, k) = self.eta_k(base);
+        let (eta, k) = self.eta_k(tx, base);
         bxdf::Conductor::new(eta / outside_ior, k / outside_ior, alpha.x, alpha.y)
     }
 

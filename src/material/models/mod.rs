@@ -109,46 +109,76 @@ impl MaterialModel {
 
     /// The texture slots of the model's own parameters (each set or not).
     pub fn texture_slots(&self) -> impl Iterator<Item = &Option<TextureRef>> {
-        let (x, r1, r2, mix) = match self {
+        let (x, r1, r2, c) = match self {
             MaterialModel::MetallicRoughness(x) => (Some(x), None, None, None),
-            MaterialModel::Conductor(c) => (None, Some(&c.roughness), None, None),
+            MaterialModel::Conductor(c) => (None, Some(&c.roughness), None, Some(c)),
             MaterialModel::Dielectric(d) => (None, Some(&d.roughness), None, None),
             MaterialModel::CoatedDiffuse(c) => (None, Some(&c.coat.roughness), None, None),
             MaterialModel::CoatedConductor(c) => (
                 None,
                 Some(&c.conductor.roughness),
                 Some(&c.coat.roughness),
-                None,
+                Some(&c.conductor),
             ),
-            MaterialModel::Mix(m) => (None, None, None, Some(&m.amount_texture)),
             _ => (None, None, None, None),
+        };
+        let mix = match self {
+            MaterialModel::Mix(m) => Some(&m.amount_texture),
+            _ => None,
         };
         x.into_iter()
             .flat_map(MetallicRoughness::texture_slots)
             .chain(r1.into_iter().chain(r2).flat_map(|r| [&r.u, &r.v]))
             .chain(mix)
+            .chain(c.into_iter().flat_map(|c| [&c.eta_texture, &c.k_texture]))
     }
 
     /// [`MaterialModel::texture_slots`], mutable.
     pub fn texture_slots_mut(&mut self) -> impl Iterator<Item = &mut Option<TextureRef>> {
-        let (x, r1, r2, mix) = match self {
-            MaterialModel::MetallicRoughness(x) => (Some(x), None, None, None),
-            MaterialModel::Conductor(c) => (None, Some(&mut c.roughness), None, None),
-            MaterialModel::Dielectric(d) => (None, Some(&mut d.roughness), None, None),
-            MaterialModel::CoatedDiffuse(c) => (None, Some(&mut c.coat.roughness), None, None),
-            MaterialModel::CoatedConductor(c) => (
-                None,
-                Some(&mut c.conductor.roughness),
-                Some(&mut c.coat.roughness),
-                None,
-            ),
-            MaterialModel::Mix(m) => (None, None, None, Some(&mut m.amount_texture)),
-            _ => (None, None, None, None),
+        let (x, r1, r2, mix, c) = match self {
+            MaterialModel::MetallicRoughness(x) => (Some(x), None, None, None, None),
+            MaterialModel::Conductor(c) => {
+                let Conductor {
+                    roughness,
+                    eta_texture,
+                    k_texture,
+                    ..
+                } = c;
+                (
+                    None,
+                    Some(roughness),
+                    None,
+                    None,
+                    Some([eta_texture, k_texture]),
+                )
+            }
+            MaterialModel::Dielectric(d) => (None, Some(&mut d.roughness), None, None, None),
+            MaterialModel::CoatedDiffuse(c) => {
+                (None, Some(&mut c.coat.roughness), None, None, None)
+            }
+            MaterialModel::CoatedConductor(c) => {
+                let Conductor {
+                    roughness,
+                    eta_texture,
+                    k_texture,
+                    ..
+                } = &mut c.conductor;
+                (
+                    None,
+                    Some(roughness),
+                    Some(&mut c.coat.roughness),
+                    None,
+                    Some([eta_texture, k_texture]),
+                )
+            }
+            MaterialModel::Mix(m) => (None, None, None, Some(&mut m.amount_texture), None),
+            _ => (None, None, None, None, None),
         };
         x.into_iter()
             .flat_map(MetallicRoughness::texture_slots_mut)
             .chain(r1.into_iter().chain(r2).flat_map(|r| [&mut r.u, &mut r.v]))
             .chain(mix)
+            .chain(c.into_iter().flatten())
     }
 
     /// Rejects model parameters that would produce NaNs or that the BSDF does not accept.

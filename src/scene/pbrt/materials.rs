@@ -19,8 +19,9 @@
 //! that chooses one of the two per hit with probability `amount` (textured or not), as pbrt-v4's
 //! `MixMaterial` does (`eval::resolve_mix`); `interface` → an index-matched boundary.
 //! `roughness`/`uroughness`/`vroughness` textures are evaluated per hit (with `remaproughness`);
-//! `displacement` bump-maps the shading normal per hit (`eval::bump`). Textured η, albedo and
-//! transmittance use their mean (warned).
+//! `displacement` bump-maps the shading normal per hit (`eval::bump`); a conductor's η and k
+//! textures are evaluated per hit. A dielectric's textured η, layer albedo and transmittance use
+//! their mean (warned).
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -938,8 +939,9 @@ impl Loader {
             m.base_color_texture = t;
             c.reflectance = true;
         } else {
-            c.eta = self.conductor_spectrum(p, &format!("{pre}eta"), "metal-Cu-eta", at);
-            c.k = self.conductor_spectrum(p, &format!("{pre}k"), "metal-Cu-k", at);
+            (c.eta, c.eta_texture) =
+                self.conductor_spectrum(p, &format!("{pre}eta"), "metal-Cu-eta", at);
+            (c.k, c.k_texture) = self.conductor_spectrum(p, &format!("{pre}k"), "metal-Cu-k", at);
             c.reflectance = false;
             let e = c.eta;
             let k = c.k;
@@ -954,19 +956,33 @@ impl Loader {
     }
 
     /// η or k of a conductor: named spectra through [`crate::spectrum`] (the conversion measured
-    /// against pbrt-v4 in `scripts/references/pbrt_metal_patches.py`), RGB as given.
-    fn conductor_spectrum(&mut self, p: &ParamList, key: &str, default: &str, at: &str) -> Vec3 {
-        if let Some(TexOr::Value(SpectrumValue::Named(n))) = p.spectrum_tex(key)
-            && let Some(c) = crate::spectrum::named_spectrum_rgb(&n)
-        {
-            return c;
+    /// against pbrt-v4 in `scripts/references/pbrt_metal_patches.py`), RGB as given, a texture
+    /// as its factor and texture, evaluated per hit ([`Conductor::eta_k`]).
+    fn conductor_spectrum(
+        &mut self,
+        p: &ParamList,
+        key: &str,
+        default: &str,
+        at: &str,
+    ) -> (Vec3, Option<TextureRef>) {
+        match p.spectrum_tex(key) {
+            Some(TexOr::Value(SpectrumValue::Named(n))) => {
+                if let Some(c) = crate::spectrum::named_spectrum_rgb(&n) {
+                    return (c, None);
+                }
+            }
+            Some(TexOr::Texture(t)) => {
+                let n = self.lookup_texture(&t, false, at);
+                return self.node_to_factor(&n);
+            }
+            _ => {}
         }
         if !p.has(key)
             && let Some(c) = crate::spectrum::named_spectrum_rgb(default)
         {
-            return c;
+            return (c, None);
         }
-        self.spectrum_const(p, key, default, at)
+        (self.spectrum_const(p, key, default, at), None)
     }
 
     fn spectrum_factor(
