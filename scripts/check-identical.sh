@@ -43,6 +43,9 @@ cases=(
   # specular vertices), a many-light textured model, and the other samplers' streams.
   "pbrt-thin-lens|scenes/pbrt/screenwindow.pbrt|"
   "pbrt-roughness|scenes/pbrt/roughness.pbrt|"
+  "pbrt-spectra|scenes/pbrt/spectra.pbrt|"
+  "pbrt-metals|scenes/pbrt/metals.pbrt|"
+  "pbrt-prism|scenes/pbrt/prism-bk7.pbrt|"
   "toycar|$shared/gltf-ext/ToyCar/glTF/ToyCar.gltf|"
   # ToyCar by its 2 720 emissive triangles alone: every light choice walks the light BVH.
   "toycar-emitters|$shared/gltf-ext/ToyCar/glTF/ToyCar.gltf|--default-light off"

@@ -219,6 +219,9 @@ fn continue_path(
     // whose survival should not depend on which medium the path is in (PBRT-v4 §14.1.2).
     let mut eta_scale = 1.0f32;
     let mut depth = 0u32;
+    // Spectral mode: whether the path has dropped all but its hero wavelength (at the first
+    // dispersive surface, [`crate::material::Bsdf::disperses`]).
+    let mut hero_only = false;
     // Sampler dimensions per bounce, taken whatever the vertex is: light (1D spare + 2D, see
     // `sample_ld`), BSDF lobe (1D) and direction (2D), and from `rr_depth` on Russian roulette
     // (1D).
@@ -233,8 +236,14 @@ fn continue_path(
                 aov = None;
             }
         }
-        // The AOVs above saw the RGB BSDF; the path carries it at its wavelengths.
+        // The AOVs above saw the RGB BSDF; the path carries it at its wavelengths. A
+        // dispersive surface keeps the hero wavelength alone, weighted by the number of
+        // wavelengths (pbrt-v4 `TerminateSecondary`; docs/DESIGN.md "Spectral rendering").
         if let Some(w) = &set.wavelengths {
+            if !hero_only && v.bsdf.disperses() {
+                hero_only = true;
+                beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
+            }
             v.bsdf = v.bsdf.to_spectral(w.lambda);
         }
         // A guided vertex samples the BSDF–guide mixture, and NEE weighs against it.

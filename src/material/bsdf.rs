@@ -38,10 +38,12 @@ impl Bsdf {
     /// The same BSDF at the three wavelengths `lambda` (nm) of a spectral path, one per `Vec3`
     /// lane (docs/DESIGN.md "Spectral rendering"): reflectance-like colours (albedos, tints,
     /// F0s, sheen) become their bounded Jakob–Hanika spectra, unbounded ones (a conductor's
-    /// η and k, hair's σₐ, the layered medium's albedo) pbrt-v4's unbounded spectra, and a
-    /// dispersive dielectric's per-channel IORs its Cauchy law n(λ) = A + B/λ² at the three
-    /// wavelengths — the channel mixture that samples it ([`Dielectric`]) then is exactly a
-    /// mixture over wavelengths. Thin-film iridescence keeps its RGB evaluation.
+    /// η and k, hair's σₐ, the layered medium's albedo) pbrt-v4's unbounded spectra, or a
+    /// conductor's named η/k spectra their exact values. A dispersive dielectric
+    /// ([`Bsdf::disperses`]) takes the IOR of the hero wavelength `lambda.x` alone — a named
+    /// glass's Sellmeier η(λ), or the Cauchy law n(λ) = A + B/λ² through KHR_materials_dispersion's
+    /// per-channel IORs — and the path has dropped the other two wavelengths before it gets
+    /// here. Thin-film iridescence keeps its RGB evaluation.
     pub fn to_spectral(&self, lambda: Vec3) -> Bsdf {
         use crate::spectrum::rgb2spec::{reflectance as refl, unbounded};
         let mut b = *self;
@@ -58,13 +60,16 @@ impl Bsdf {
             Bsdf::Mirror(m) => m.color = refl(m.color, lambda),
             Bsdf::Dielectric(d) => {
                 d.tint = refl(d.tint, lambda);
-                d.dispersion = d.dispersion.map(|e| cauchy_at(e, lambda));
+                if let Some(g) = d.glass {
+                    d.eta = crate::spectrum::glass_eta_by_id(g, lambda.x);
+                    d.dispersion = None;
+                } else if let Some(e) = d.dispersion {
+                    d.eta = cauchy_at(e, lambda.x);
+                    d.dispersion = None;
+                }
             }
             Bsdf::ThinDielectric(d) => d.tint = refl(d.tint, lambda),
-            Bsdf::Conductor(c) => {
-                c.eta = unbounded(c.eta, lambda);
-                c.k = unbounded(c.k, lambda);
-            }
+            Bsdf::Conductor(c) => conductor_at(c, lambda),
             Bsdf::DiffuseTransmission(d) => {
                 d.reflectance = refl(d.reflectance, lambda);
                 d.transmittance = refl(d.transmittance, lambda);
@@ -75,15 +80,15 @@ impl Bsdf {
                     super::bxdf::layered::Base::Diffuse { reflectance } => {
                         *reflectance = refl(*reflectance, lambda)
                     }
-                    super::bxdf::layered::Base::Conductor(c) => {
-                        c.eta = unbounded(c.eta, lambda);
-                        c.k = unbounded(c.k, lambda);
-                    }
+                    super::bxdf::layered::Base::Conductor(c) => conductor_at(c, lambda),
                 }
             }
             Bsdf::GltfTransmission(t) => {
                 t.tint = refl(t.tint, lambda);
-                t.dispersion = t.dispersion.map(|e| cauchy_at(e, lambda));
+                if let Some(e) = t.dispersion {
+                    t.eta = cauchy_at(e, lambda.x);
+                    t.dispersion = None;
+                }
                 if let Some(sh) = t.sheen.as_mut() {
                     sh.color = refl(sh.color, lambda);
                 }
@@ -91,6 +96,20 @@ impl Bsdf {
             Bsdf::Hair(h) => h.sigma_a = unbounded(h.sigma_a, lambda),
         }
         b
+    }
+
+    /// True if where the BSDF sends light depends on the wavelength: a dielectric of a named glass
+    /// or with KHR_materials_dispersion. A spectral path meeting one keeps only its hero
+    /// wavelength, with thrice its weight (pbrt-v4 `SampledWavelengths::TerminateSecondary`: the
+    /// hero alone is an unbiased estimate of the three, and one direction cannot serve three
+    /// IORs); RGB rendering samples its per-channel mixture instead ([`Dielectric`]).
+    #[inline]
+    pub fn disperses(&self) -> bool {
+        match self {
+            Bsdf::Dielectric(d) => d.glass.is_some() || d.dispersion.is_some(),
+            Bsdf::GltfTransmission(t) => t.dispersion.is_some(),
+            _ => false,
+        }
     }
 
     /// A dielectric with glTF roughness `roughness` (α = roughness²); smooth below the GGX floor.
@@ -354,15 +373,26 @@ impl Bsdf {
     }
 }
 
-/// The IORs at `lambda` of the Cauchy law n(λ) = A + B/λ² through per-channel IORs `rgb` given at
+/// The IOR at `lambda` of the Cauchy law n(λ) = A + B/λ² through per-channel IORs `rgb` given at
 /// [`super::bxdf::dielectric::CHANNEL_WAVELENGTHS`] (fitted through red and blue). The
 /// KHR_materials_dispersion law is of this form, so its IOR is recovered exactly; never below 1.
-fn cauchy_at(rgb: Vec3, lambda: Vec3) -> Vec3 {
+fn cauchy_at(rgb: Vec3, lambda: f32) -> f32 {
     let [lr, _, lb] = super::bxdf::dielectric::CHANNEL_WAVELENGTHS;
     let (ir, ib) = (1.0 / (lr * lr), 1.0 / (lb * lb));
     let b = (rgb.z - rgb.x) / (ib - ir);
     let a = rgb.x - b * ir;
-    (Vec3::splat(a) + Vec3::splat(b) / (lambda * lambda)).max(Vec3::ONE)
+    (a + b / (lambda * lambda)).max(1.0)
+}
+
+/// A conductor at three wavelengths: its named η/k spectra where it has them, else its RGB η and
+/// k upsampled as unbounded spectra (pbrt-v4 `RGBUnboundedSpectrum`).
+#[inline]
+fn conductor_at(c: &mut super::bxdf::Conductor, lambda: Vec3) {
+    use crate::spectrum::rgb2spec::unbounded;
+    (c.eta, c.k) = match c.spectra {
+        Some(s) => s.eta_k(lambda),
+        None => (unbounded(c.eta, lambda), unbounded(c.k, lambda)),
+    };
 }
 
 #[cfg(test)]

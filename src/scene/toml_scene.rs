@@ -740,6 +740,10 @@ fn material(m: &MaterialSpec, dir: &Path, scene: &mut Scene) -> MatResult {
             )));
         };
         (conductor.eta, conductor.k) = (eta, k);
+        conductor.spectra = crate::spectrum::ConductorSpectra::named(
+            &format!("{metal}-eta"),
+            &format!("{metal}-k"),
+        );
     }
     match (m.eta, m.k) {
         (Some(e), Some(k)) if m.metal.is_none() => {

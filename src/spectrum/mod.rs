@@ -282,16 +282,91 @@ pub const METALS: [&str; 6] = [
 /// A tabulated spectrum: (wavelength in nm, value) pairs in increasing wavelength.
 type Table = &'static [(f32, f32)];
 
+/// η and k tables of [`METALS`], in its order.
+const METAL_TABLES: [(Table, Table); 6] = [
+    (&data::AG_ETA, &data::AG_K),
+    (&data::AL_ETA, &data::AL_K),
+    (&data::AU_ETA, &data::AU_K),
+    (&data::CU_ETA, &data::CU_K),
+    (&data::MGO_ETA, &data::MGO_K),
+    (&data::TIO2_ETA, &data::TIO2_K),
+];
+
 fn metal_tables(metal: &str) -> Option<(Table, Table)> {
-    Some(match metal {
-        "metal-Ag" => (&data::AG_ETA[..], &data::AG_K[..]),
-        "metal-Al" => (&data::AL_ETA[..], &data::AL_K[..]),
-        "metal-Au" => (&data::AU_ETA[..], &data::AU_K[..]),
-        "metal-Cu" => (&data::CU_ETA[..], &data::CU_K[..]),
-        "metal-MgO" => (&data::MGO_ETA[..], &data::MGO_K[..]),
-        "metal-TiO2" => (&data::TIO2_ETA[..], &data::TIO2_K[..]),
+    let i = METALS.iter().position(|&m| m == metal)?;
+    Some(METAL_TABLES[i])
+}
+
+/// The id of a named metal spectrum (`metal-Au-eta`, `metal-Au-k`, …) for [`tabulated`]:
+/// 2 · the metal's index in [`METALS`], + 1 for k. A `u8` so that a BSDF can carry it.
+pub fn tabulated_id(name: &str) -> Option<u8> {
+    let (metal, part) = name.rsplit_once('-')?;
+    let i = METALS.iter().position(|&m| m == metal)?;
+    let k = match part {
+        "eta" => 0,
+        "k" => 1,
         _ => return None,
-    })
+    };
+    Some((2 * i + k) as u8)
+}
+
+/// The value at `lambda` nm of the named spectrum with id `id` ([`tabulated_id`]); 0 for an
+/// unknown id.
+#[inline]
+pub fn tabulated(id: u8, lambda: f32) -> f32 {
+    match METAL_TABLES.get(id as usize / 2) {
+        Some(&(eta, k)) => table(if id.is_multiple_of(2) { eta } else { k }, lambda),
+        None => 0.0,
+    }
+}
+
+/// A conductor's η and k as named spectra, which spectral rendering evaluates per wavelength
+/// (pbrt-v4's conductor takes its `eta`/`k` spectra at the sampled wavelengths; the RGB path uses
+/// their projections, [`named_conductor_rgb`]). `outside_ior` divides both, as under a coat
+/// (pbrt-v4 `CoatedConductorMaterial`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConductorSpectra {
+    /// [`tabulated_id`]s of η and k.
+    pub eta: u8,
+    pub k: u8,
+    pub outside_ior: f32,
+}
+
+impl ConductorSpectra {
+    /// The spectra of `eta_name` and `k_name`, both named metal spectra, over air.
+    pub fn named(eta_name: &str, k_name: &str) -> Option<ConductorSpectra> {
+        Some(ConductorSpectra {
+            eta: tabulated_id(eta_name)?,
+            k: tabulated_id(k_name)?,
+            outside_ior: 1.0,
+        })
+    }
+
+    /// η and k at the three wavelengths `lambda`, relative to the outside medium.
+    #[inline]
+    pub fn eta_k(&self, lambda: Vec3) -> (Vec3, Vec3) {
+        let at = |id: u8| {
+            Vec3::new(
+                tabulated(id, lambda.x),
+                tabulated(id, lambda.y),
+                tabulated(id, lambda.z),
+            ) / self.outside_ior
+        };
+        (at(self.eta), at(self.k))
+    }
+}
+
+/// The id of a named glass (`glass-BK7`, …) for [`glass_eta_by_id`].
+pub fn glass_id(name: &str) -> Option<u8> {
+    GLASSES.iter().position(|g| g.0 == name).map(|i| i as u8)
+}
+
+/// η(λ) of the named glass with id `id` ([`glass_id`]): its Sellmeier law; 1 for an unknown id.
+#[inline]
+pub fn glass_eta_by_id(id: u8, lambda: f32) -> f32 {
+    GLASSES
+        .get(id as usize)
+        .map_or(1.0, |g| sellmeier(&g.1, lambda))
 }
 
 /// Value at `lambda` of a pbrt-v4 named spectrum: `metal-X-eta`, `metal-X-k`, `glass-*`,

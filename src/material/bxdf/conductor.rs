@@ -19,6 +19,9 @@ pub struct Conductor {
     pub k: Vec3,
     /// Microfacet distribution; a Dirac mirror when [`Ggx::effectively_smooth`].
     pub dist: Ggx,
+    /// η and k as named spectra, which spectral rendering evaluates per wavelength
+    /// ([`crate::material::Bsdf::to_spectral`]); `eta`/`k` are their RGB projections.
+    pub spectra: Option<crate::spectrum::ConductorSpectra>,
 }
 
 impl Conductor {
@@ -27,6 +30,7 @@ impl Conductor {
             eta,
             k,
             dist: Ggx::anisotropic(alpha_x, alpha_y),
+            spectra: None,
         }
     }
 

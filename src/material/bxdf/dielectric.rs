@@ -29,6 +29,9 @@ pub struct Dielectric {
     pub tint: Vec3,
     /// Per-channel IORs (KHR_materials_dispersion); `None` = `eta` for all channels.
     pub dispersion: Option<Vec3>,
+    /// A named glass ([`crate::spectrum::glass_id`]) whose η(λ) spectral rendering follows
+    /// ([`crate::material::Bsdf::to_spectral`]); RGB rendering ignores it (`eta` is its index).
+    pub glass: Option<u8>,
 }
 
 /// Representative wavelengths (nm) of the linear-sRGB channels: the dominant wavelengths of the
@@ -68,6 +71,7 @@ impl Dielectric {
             },
             tint,
             dispersion: None,
+            glass: None,
         }
     }
 

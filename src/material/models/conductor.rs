@@ -26,6 +26,9 @@ pub struct Conductor {
     pub reflectance: bool,
     pub alpha: Vec2,
     pub roughness: RoughnessTextures,
+    /// `eta` and `k` as the named spectra they were projected from, for spectral rendering
+    /// (`None`: upsampled from the RGB values, as pbrt-v4 does for an RGB η/k).
+    pub spectra: Option<crate::spectrum::ConductorSpectra>,
 }
 
 impl Default for Conductor {
@@ -40,6 +43,7 @@ impl Default for Conductor {
             reflectance: false,
             alpha: Vec2::ZERO,
             roughness: RoughnessTextures::default(),
+            spectra: None,
         }
     }
 }
@@ -76,7 +80,15 @@ impl Conductor {
     ) -> bxdf::Conductor {
         let alpha = self.roughness.alpha(self.alpha, tx);
         let (eta, k) = self.eta_k(tx, base);
-        bxdf::Conductor::new(eta / outside_ior, k / outside_ior, alpha.x, alpha.y)
+        let mut c = bxdf::Conductor::new(eta / outside_ior, k / outside_ior, alpha.x, alpha.y);
+        // Named spectra stand for constant η and k: a texture on either wins.
+        if !self.reflectance && self.eta_texture.is_none() && self.k_texture.is_none() {
+            c.spectra = self.spectra.map(|s| crate::spectrum::ConductorSpectra {
+                outside_ior: s.outside_ior * outside_ior,
+                ..s
+            });
+        }
+        c
     }
 
     pub(super) fn validate(&self) -> Result<(), String> {

@@ -14,6 +14,9 @@ pub struct Dielectric {
     /// the raycast/Whitted local shading uses).
     pub alpha: Vec2,
     pub roughness: RoughnessTextures,
+    /// The named glass (`glass-BK7`, …, [`crate::spectrum::glass_id`]) the material's IOR was
+    /// taken from: spectral rendering follows its η(λ) (dispersion); RGB uses the IOR.
+    pub glass: Option<u8>,
 }
 
 impl Dielectric {
@@ -26,9 +29,17 @@ impl Dielectric {
             // dielectric is isotropic (glTF roughness √α of α = √(αu·αv)).
             let alpha = self.roughness.alpha(self.alpha, tx);
             let a = (alpha.x * alpha.y).sqrt();
-            return Bsdf::dielectric(eta, a.sqrt().clamp(0.0, 1.0), Vec3::ONE);
+            return self.with_glass(Bsdf::dielectric(eta, a.sqrt().clamp(0.0, 1.0), Vec3::ONE));
         }
-        Bsdf::dielectric(eta, roughness(), Vec3::ONE)
+        self.with_glass(Bsdf::dielectric(eta, roughness(), Vec3::ONE))
+    }
+
+    #[inline]
+    fn with_glass(&self, mut b: Bsdf) -> Bsdf {
+        if let Bsdf::Dielectric(d) = &mut b {
+            d.glass = self.glass;
+        }
+        b
     }
 
     pub(super) fn validate(&self) -> Result<(), String> {

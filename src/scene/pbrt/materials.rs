@@ -943,6 +943,19 @@ impl Loader {
                 self.conductor_spectrum(p, &format!("{pre}eta"), "metal-Cu-eta", at);
             (c.k, c.k_texture) = self.conductor_spectrum(p, &format!("{pre}k"), "metal-Cu-k", at);
             c.reflectance = false;
+            // Named η and k (or pbrt-v4's copper default) stay spectra for spectral rendering.
+            let name = |key: String, default: &str| match p.spectrum_tex(&key) {
+                Some(TexOr::Value(SpectrumValue::Named(n))) => Some(n),
+                None if !p.has(&key) => Some(default.to_string()),
+                _ => None,
+            };
+            c.spectra = match (
+                name(format!("{pre}eta"), "metal-Cu-eta"),
+                name(format!("{pre}k"), "metal-Cu-k"),
+            ) {
+                (Some(e), Some(k)) => crate::spectrum::ConductorSpectra::named(&e, &k),
+                _ => None,
+            };
             let e = c.eta;
             let k = c.k;
             if !(e.is_finite() && k.is_finite()) || e.min_element() < 0.0 || k.min_element() < 0.0 {
@@ -1066,11 +1079,15 @@ impl Loader {
             }
             "dielectric" | "thindielectric" => {
                 let eta = self.eta(p, at, &what);
-                let (rough, dielectric) = if spec.ty == "dielectric" {
+                let (rough, mut dielectric) = if spec.ty == "dielectric" {
                     self.roughness(p, at, &what)
                 } else {
                     (0.0, Dielectric::default())
                 };
+                // A named glass disperses in spectral rendering (pbrt-v4 follows its η(λ)).
+                if let Some(SpectrumValue::Named(n)) = p.spectrum("eta") {
+                    dielectric.glass = crate::spectrum::glass_id(&n);
+                }
                 m.ior = eta;
                 m.base_color = Vec3::ONE;
                 m.roughness = rough;
@@ -1285,7 +1302,7 @@ impl Loader {
                     Some(e) => {
                         self.warn_once(
                             &format!("disp {n}"),
-                            format!("{at}: {what}: spectrally varying eta \"{n}\" is rendered with its index at 587.6 nm ({e}); dispersion is not modelled"),
+                            format!("{at}: {what}: spectrally varying eta \"{n}\" is rendered with its index at 587.6 nm ({e}) in RGB; --spectral disperses it"),
                         );
                         e
                     }

@@ -218,12 +218,11 @@ pub fn named_glass_eta(name: &str) -> Option<f32> {
         "glass-BAF10" => 1.6700,
         "glass-FK51A" => 1.4866,
         "glass-LASF9" => 1.8503,
-        "glass-F5" => 1.6034,
-        "glass-F10" => 1.6200,
-        "glass-F11" => 1.6209,
-        "glass-SF5" => 1.6727,
-        "glass-SF10" => 1.7283,
-        "glass-SF11" => 1.7847,
+        // pbrt-v4's `glass-F5`/`-F10`/`-F11` are its tables of Schott's dense flints SF5, SF10,
+        // SF11 (spectrum.cpp `GlassSF5_eta`, …); the SF names are accepted as well.
+        "glass-F5" | "glass-SF5" => 1.6727,
+        "glass-F10" | "glass-SF10" => 1.7283,
+        "glass-F11" | "glass-SF11" => 1.7847,
         _ => return None,
     })
 }
