@@ -428,11 +428,7 @@ impl RenderJob {
             self.split.samples.is_some() || self.outputs.iter().any(|o| is_partial_film(&o.path));
         // Coverage (alpha) is counted by the film itself, so partial films keep it.
         if self.aovs.iter().any(|&k| k != AovKind::Alpha) && partial {
-            let film = if self
-                .aovs
-                .iter()
-                .any(|&k| !k.is_traced() && k != AovKind::Alpha)
-            {
+            let film = if self.aovs.iter().any(|&k| AovKind::FILM.contains(&k)) {
                 " (samples and variance neither: a partial film keeps no squared sums, so the \
                  variance of merged parts could not be exact)"
             } else {
@@ -1085,6 +1081,8 @@ impl Run<'_> {
         // The denoiser's guides are traced too when they were not asked for (and not written).
         // Samples and variance are not traced: they are read from the film below.
         let mut traced = crate::integrator::aov::traced(&aovs);
+        // BDPT's strategy layers are rendered by the render stage too ([`trace`]).
+        traced.extend(aovs.iter().filter(|k| k.is_strategy()));
         if guides {
             for k in [AovKind::Albedo, AovKind::Normal] {
                 if !traced.contains(&k) {
@@ -1351,7 +1349,9 @@ pub struct Traced {
 /// asks for, with its checkpoints, [`crate::split`]) and the `traced` AOV layers. AOVs are
 /// recorded by the render's own paths where the integrator can (`render::aovs_in_loop`), else
 /// traced in a pass of their own over the same camera samples; either way the beauty image is
-/// the same. An interrupted render gives back what the split render kept (`Err` inside `Ok`).
+/// the same. BDPT's strategy layers among `traced` ([`AovKind::Strategy`]) are rendered after
+/// the image by `render::light::render_strategies`, over the same samples. An interrupted render
+/// gives back what the split render kept (`Err` inside `Ok`).
 pub fn trace(
     world: &World,
     frame: &FrameId,
@@ -1361,6 +1361,11 @@ pub fn trace(
     cancel: &AtomicBool,
 ) -> Result<Result<Traced, Box<crate::split::SplitOutcome>>, PipelineError> {
     let settings = &frame.settings;
+    // BDPT's strategy layers come from a pass of their own after the render: checked first.
+    let (strategies, traced): (Vec<AovKind>, Vec<AovKind>) =
+        traced.iter().partition(|k| k.is_strategy());
+    let traced = &traced[..];
+    crate::render::light::check_strategies(world, settings, &strategies)?;
     let split =
         crate::split::render_split_aovs(world, frame, split, !traced.is_empty(), observer, cancel)?;
     if split.render.cancelled {
@@ -1383,7 +1388,7 @@ pub fn trace(
     let t = Instant::now();
     let win = settings.film_window();
     let in_loop = split.render.aovs;
-    let layers = if traced.is_empty() {
+    let mut layers = if traced.is_empty() {
         Vec::new()
     } else if let Some(acc) = &in_loop {
         crate::render::aov_layers(traced, win.width(), win.height(), acc)
@@ -1394,6 +1399,20 @@ pub fn trace(
             Err(e) => return Err(e.into()),
         }
     };
+    if !strategies.is_empty() {
+        let r = crate::render::light::render_strategies(
+            world,
+            settings,
+            &strategies,
+            samples_done,
+            cancel,
+        );
+        match r {
+            Ok(l) => layers.extend(l),
+            Err(RenderError::Cancelled) => return Err(PipelineError::Cancelled),
+            Err(e) => return Err(e.into()),
+        }
+    }
     Ok(Ok(Traced {
         out,
         part,

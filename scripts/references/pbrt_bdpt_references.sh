@@ -16,17 +16,20 @@ SPP=${2:?samples per pixel}
 shift 2
 names=("$@")
 [ ${#names[@]} -gt 0 ] || names=(veach-bidir water-caustic volumetric-caustic)
-out=tests/references/pbrt/bdpt
+out=${OUT:-tests/references/pbrt/bdpt}
 mkdir -p "$out"
 for name in "${names[@]}"; do
   src=../shared/scenes/pbrt/$name
   tmp=$(mktemp -d)
   for f in "$src"/*; do ln -s "$(realpath "$f")" "$tmp/$(basename "$f")"; done
   rm "$tmp/scene-v4.pbrt"
-  # The first Integrator line (commented alternatives are left alone) becomes bdpt; the film's
-  # resolution lines become RES.
+  # The first Integrator line (commented alternatives are left alone) becomes bdpt, keeping its
+  # maxdepth and dropping the parameters bdpt does not have (SPPM's radius: pbrt-v4 refuses
+  # unused parameters); the film's resolution lines become RES.
   awk -v res="$RES" '
-    /^Integrator / && !done { print "Integrator \"bdpt\""; done = 1; next }
+    /^Integrator / && !done { print "Integrator \"bdpt\""; done = 1; params = 1; next }
+    params && /^[[:space:]]+"/ { if ($0 ~ /maxdepth/) print; next }
+    { params = 0 }
     /^[[:space:]]*"integer (x|y)resolution"/ { sub(/\[ *[0-9]+ *\]/, "[ " res " ]") }
     { print }
   ' "$src/scene-v4.pbrt" >"$tmp/scene-v4.pbrt"

@@ -47,6 +47,108 @@ pub enum AovKind {
     /// From the film's exact coverage counts ([`crate::film::Film::track_coverage`]), not traced,
     /// so it is kept in partial films and checkpoints and merges exactly.
     Alpha,
+    /// One strategy of the bidirectional path tracer alone (pbrt-v4's `visualizestrategies` and
+    /// `visualizeweights`): rendered by `render::light::render_strategies` in a pass of its own
+    /// over the beauty image's samples, neither traced per hit nor read from the film.
+    Strategy(Strategy),
+}
+
+/// Strategy (s, t) of bidirectional path tracing (Veach 1997 §10.2): the paths made by joining
+/// the first s vertices of a light subpath to the first t of a camera subpath, a path of depth
+/// s + t − 2 (bounces). `weighted`: its contribution to the image, times its multiple importance
+/// sampling weight (the weighted layers of every strategy up to the render's depth add up to the
+/// beauty image); otherwise the strategy alone, an estimate of the image of the paths of its
+/// depth that it can sample. Named `bdpt-sS-tT` and `bdpt-sS-tT-unweighted`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Strategy {
+    pub s: u8,
+    pub t: u8,
+    pub weighted: bool,
+}
+
+impl Strategy {
+    /// The deepest strategy that can be asked for (depth s + t − 2): the layers are for looking
+    /// at, and deeper paths are a sliver of most images.
+    pub const MAX_DEPTH: u32 = 8;
+
+    /// (s, t) if it is a strategy BDPT has: t ≥ 1 (every path reaches the lens), and (1, 1) is
+    /// left out (the light seen directly is (0, 2)), at most [`Strategy::MAX_DEPTH`] deep.
+    pub fn new(s: u32, t: u32, weighted: bool) -> Option<Strategy> {
+        let valid = t >= 1 && s + t >= 2 && !(s == 1 && t == 1);
+        (valid && s + t - 2 <= Strategy::MAX_DEPTH).then_some(Strategy {
+            s: s as u8,
+            t: t as u8,
+            weighted,
+        })
+    }
+
+    /// The depth (bounces) of the paths the strategy makes: s + t − 2.
+    pub fn depth(self) -> u32 {
+        u32::from(self.s) + u32::from(self.t) - 2
+    }
+
+    /// Every strategy of depth `depth`, from s = 0 (the camera subpath hits a light) to s =
+    /// depth + 1 (a light subpath joined to the lens).
+    pub fn of_depth(depth: u32, weighted: bool) -> Vec<Strategy> {
+        (0..=depth + 1)
+            .filter_map(|s| Strategy::new(s, depth + 2 - s, weighted))
+            .collect()
+    }
+
+    /// Parses `bdpt-sS-tT` or `bdpt-sS-tT-unweighted`.
+    fn parse(name: &str) -> Option<Strategy> {
+        let rest = name.strip_prefix("bdpt-s")?;
+        let (rest, weighted) = match rest.strip_suffix("-unweighted") {
+            Some(r) => (r, false),
+            None => (rest, true),
+        };
+        let (s, t) = rest.split_once("-t")?;
+        let digits =
+            |x: &str| !x.is_empty() && x.len() <= 2 && x.bytes().all(|b| b.is_ascii_digit());
+        if !digits(s) || !digits(t) {
+            return None;
+        }
+        Strategy::new(s.parse().ok()?, t.parse().ok()?, weighted)
+    }
+
+    /// Parses a group `bdpt-depthD` (or `bdpt-depthD-unweighted`): every strategy of depth D.
+    fn parse_group(name: &str) -> Option<Vec<Strategy>> {
+        let rest = name.strip_prefix("bdpt-depth")?;
+        let (d, weighted) = match rest.strip_suffix("-unweighted") {
+            Some(r) => (r, false),
+            None => (rest, true),
+        };
+        let d: u32 = d.parse().ok().filter(|&d| d <= Strategy::MAX_DEPTH)?;
+        Some(Strategy::of_depth(d, weighted))
+    }
+
+    /// Its names and channels, from a table made once (the names are `&'static` like every
+    /// other AOV's): (name, [R, G, B] channel names).
+    fn names(self) -> (&'static str, &'static [&'static str]) {
+        type Names = (&'static str, &'static [&'static str]);
+        static TABLE: std::sync::OnceLock<Vec<Names>> = std::sync::OnceLock::new();
+        let n = Strategy::MAX_DEPTH as usize + 3;
+        let index = |s: usize, t: usize, w: bool| (s * n + t) * 2 + usize::from(w);
+        let table = TABLE.get_or_init(|| {
+            let mut table: Vec<Names> = vec![("", &[]); n * n * 2];
+            for s in 0..n {
+                for t in 0..n {
+                    for w in [false, true] {
+                        let suffix = if w { "" } else { "-unweighted" };
+                        // Leaked once: a fixed table of a few hundred short strings.
+                        let name: &'static str = format!("bdpt-s{s}-t{t}{suffix}").leak();
+                        let channels: Vec<&'static str> = ["R", "G", "B"]
+                            .iter()
+                            .map(|c| &*format!("{name}.{c}").leak())
+                            .collect();
+                        table[index(s, t, w)] = (name, channels.leak());
+                    }
+                }
+            }
+            table
+        });
+        table[index(self.s as usize, self.t as usize, self.weighted)]
+    }
 }
 
 impl AovKind {
@@ -82,7 +184,15 @@ impl AovKind {
     /// Whether the AOV is traced per hit ([`AovKind::TRACED`]) rather than read from the film
     /// ([`AovKind::FILM`]). The tracing code skips film AOVs; [`film_layers`] skips traced ones.
     pub fn is_traced(self) -> bool {
-        !matches!(self, AovKind::Samples | AovKind::Variance | AovKind::Alpha)
+        !matches!(
+            self,
+            AovKind::Samples | AovKind::Variance | AovKind::Alpha | AovKind::Strategy(_)
+        )
+    }
+
+    /// Whether the AOV is one of the bidirectional path tracer's strategies ([`Strategy`]).
+    pub fn is_strategy(self) -> bool {
+        matches!(self, AovKind::Strategy(_))
     }
 
     /// The name given to `--aov` and used for side files (`out.NAME.png`).
@@ -98,6 +208,7 @@ impl AovKind {
             AovKind::Samples => "samples",
             AovKind::Variance => "variance",
             AovKind::Alpha => "alpha",
+            AovKind::Strategy(st) => st.names().0,
         }
     }
 
@@ -116,6 +227,7 @@ impl AovKind {
             AovKind::Variance => &["variance.Y"],
             // The beauty image's own alpha channel: the bare standard name, like `Z`.
             AovKind::Alpha => &["A"],
+            AovKind::Strategy(st) => st.names().1,
         }
     }
 
@@ -131,21 +243,28 @@ impl AovKind {
             "samples" => AovKind::Samples,
             "variance" => AovKind::Variance,
             "alpha" | "A" => AovKind::Alpha,
-            _ => return None,
+            _ => return Strategy::parse(s).map(AovKind::Strategy),
         })
     }
 
-    /// Parses `--aov a,b,c` (`all` for every AOV); duplicates are dropped, order is kept.
+    /// Parses `--aov a,b,c` (`all` for every AOV; `bdpt-depthD` for every strategy of depth
+    /// D); duplicates are dropped, order is kept.
     pub fn parse_list(s: &str) -> Result<Vec<AovKind>, String> {
         let mut out = Vec::new();
         for item in s.split(',').map(str::trim).filter(|i| !i.is_empty()) {
             let kinds: Vec<AovKind> = if item == "all" {
                 AovKind::ALL.to_vec()
+            } else if let Some(group) = Strategy::parse_group(item) {
+                group.into_iter().map(AovKind::Strategy).collect()
             } else {
                 vec![AovKind::from_name(item).ok_or_else(|| {
                     format!(
-                        "unknown AOV '{item}' (expected a comma-separated list of {}, or all)",
-                        AovKind::ALL.map(|k| k.name()).join(", ")
+                        "unknown AOV '{item}' (expected a comma-separated list of {}, or all; \
+                         with --integrator bdpt also bdpt-sS-tT for strategy (s, t) weighted, \
+                         bdpt-sS-tT-unweighted alone, bdpt-depthD[-unweighted] for every \
+                         strategy of depth D ≤ {})",
+                        AovKind::ALL.map(|k| k.name()).join(", "),
+                        Strategy::MAX_DEPTH
                     )
                 })?]
             };
@@ -201,6 +320,7 @@ impl Layer {
             AovKind::Samples | AovKind::Variance => Display::Range,
             // Coverage is already in [0, 1]: shown linearly as grey.
             AovKind::Alpha => Display::Linear,
+            AovKind::Strategy(_) => Display::Colour,
         };
         debug_assert_eq!(
             data.len(),
@@ -387,6 +507,50 @@ mod tests {
         let e = AovKind::parse_list("albedo,wireframe").unwrap_err();
         assert!(e.contains("wireframe") && e.contains("object_id"), "{e}");
         assert!(AovKind::parse_list(" , ").is_err());
+    }
+
+    /// BDPT's strategy layers: names round-trip, a depth group lists its strategies from s = 0,
+    /// and what is not a strategy BDPT has is refused (t = 0, (1, 1), too deep, junk).
+    #[test]
+    fn strategy_names_parse() {
+        let st = |s, t, w| AovKind::Strategy(Strategy::new(s, t, w).unwrap());
+        for d in 0..=Strategy::MAX_DEPTH {
+            for w in [false, true] {
+                for k in Strategy::of_depth(d, w) {
+                    let k = AovKind::Strategy(k);
+                    assert_eq!(AovKind::from_name(k.name()), Some(k));
+                    assert_eq!(k.channels()[0], format!("{}.R", k.name()));
+                }
+            }
+        }
+        assert_eq!(st(2, 1, true).name(), "bdpt-s2-t1");
+        assert_eq!(st(0, 3, false).name(), "bdpt-s0-t3-unweighted");
+        assert_eq!(
+            AovKind::parse_list("bdpt-depth1-unweighted,albedo").unwrap(),
+            vec![
+                st(0, 3, false),
+                st(1, 2, false),
+                st(2, 1, false),
+                AovKind::Albedo
+            ]
+        );
+        assert_eq!(
+            AovKind::parse_list("bdpt-depth0").unwrap(),
+            vec![st(0, 2, true)]
+        );
+        for bad in [
+            "bdpt-s1-t1",
+            "bdpt-s3-t0",
+            "bdpt-s0-t11",
+            "bdpt-s-t2",
+            "bdpt-s+1-t2",
+            "bdpt-s1-t2-weighted",
+            "bdpt-depth9",
+        ] {
+            assert_eq!(AovKind::from_name(bad), None, "{bad}");
+            assert!(AovKind::parse_list(bad).is_err(), "{bad}");
+        }
+        assert!(!st(2, 2, true).is_traced() && st(2, 2, true).is_strategy());
     }
 
     /// Every AOV is either traced or read from the film, and the two lists say which.

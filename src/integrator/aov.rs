@@ -347,9 +347,9 @@ impl PixelAovs {
             }),
             AovKind::MaterialId => out.push(winner(&self.materials)),
             AovKind::ObjectId => out.push(winner(&self.objects)),
-            // Not traced: they come from the film (`film::aov::film_layers`), and every caller
-            // leaves them out of its rows, as `layers` does.
-            AovKind::Samples | AovKind::Variance | AovKind::Alpha => {}
+            // Not traced: they come from the film (`film::aov::film_layers`) or BDPT's own pass
+            // (strategies), and every caller leaves them out of its rows, as `layers` does.
+            AovKind::Samples | AovKind::Variance | AovKind::Alpha | AovKind::Strategy(_) => {}
         }
     }
 }

@@ -14,12 +14,15 @@
 
 use crate::camera::Camera;
 use crate::film::Film;
+use crate::film::aov::{AovKind, Layer, Strategy};
 use crate::film::filter::FilterSampler;
 use crate::film::splat::SplatBuffer;
 use crate::integrator::{Integrator, RayStats, bdpt, lighttracer};
+use crate::math::{Vec2, Vec3};
 use crate::render::{FilmRender, RangeStart, RenderError, RenderObserver, RenderSettings};
 use crate::sampling::SamplerSetup;
 use crate::world::World;
+use rayon::prelude::*;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
@@ -238,4 +241,203 @@ pub(crate) fn render(
         render_time: t0.elapsed(),
         aovs: None,
     })
+}
+
+/// Why the strategy layers `kinds` ([`AovKind::Strategy`]) cannot be rendered with `settings`
+/// in `world`, if they cannot: they are the bidirectional path tracer's, and a strategy deeper
+/// than `--max-depth` makes no path.
+pub fn check_strategies(
+    world: &World,
+    settings: &RenderSettings,
+    kinds: &[AovKind],
+) -> Result<(), RenderError> {
+    let Some(first) = kinds.iter().find(|k| k.is_strategy()) else {
+        return Ok(());
+    };
+    if Integrator::for_world(settings.integrator, world) != Integrator::Bdpt {
+        return Err(RenderError::InvalidSetting(format!(
+            "--aov {}: the strategy layers are the bidirectional path tracer's: render with \
+             --integrator bdpt",
+            first.name()
+        )));
+    }
+    for k in kinds {
+        if let AovKind::Strategy(st) = k
+            && st.depth() > settings.path.max_depth
+        {
+            return Err(RenderError::InvalidSetting(format!(
+                "--aov {}: its paths have {} bounces, more than --max-depth {}: the layer would \
+                 be black",
+                k.name(),
+                st.depth(),
+                settings.path.max_depth
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Where each strategy's contributions go: `slots[s][t]` holds the buffer indices of its
+/// weighted and unweighted layers (pbrt-v4 `BDPTIntegrator`'s `visualizeStrategies` and
+/// `visualizeWeights` films). Contributions land as the beauty's do: on the sample's pixel, or
+/// splatted where a t = 1 strategy joined the lens.
+struct StrategyFilms<'a> {
+    slots: &'a [[[Option<usize>; 2]; STRATEGY_T]],
+    bufs: &'a mut [SplatBuffer],
+    pixel: (u32, u32),
+    scale: f32,
+}
+
+/// Strategies (s, t) with s, t < this have a slot ([`Strategy::MAX_DEPTH`] + 3).
+const STRATEGY_T: usize = Strategy::MAX_DEPTH as usize + 3;
+
+impl bdpt::StrategySink for StrategyFilms<'_> {
+    #[inline]
+    fn strategy(&mut self, s: usize, t: usize, l: Vec3, w: f32, raster: Vec2) {
+        let Some(slot) = self.slots.get(s).and_then(|r| r.get(t)) else {
+            return;
+        };
+        for (i, v) in slot.iter().zip([l * w, l]) {
+            let Some(i) = *i else { continue };
+            if t == 1 {
+                self.bufs[i].splat(raster, v * self.scale);
+            } else {
+                self.bufs[i].add_pixel(self.pixel.0, self.pixel.1, v);
+            }
+        }
+    }
+}
+
+/// The strategy layers among `kinds` ([`AovKind::Strategy`]; the others are skipped), rendered
+/// over sample indices `0..samples` of the film window by the bidirectional path tracer: the
+/// beauty render's paths again (the same sample streams; the strategies draw no numbers of
+/// their own), each strategy's contribution kept apart, so the weighted layers of every
+/// strategy up to `--max-depth` add up to the beauty image (to the rounding of the separate
+/// sums). A pass of its own, as the other AOVs without an in-loop recording: it costs about
+/// another render. Exact fixed-point sums like the beauty's, so the layers do not depend on
+/// the thread count. Polls `cancel` between rows.
+pub fn render_strategies(
+    world: &World,
+    settings: &RenderSettings,
+    kinds: &[AovKind],
+    samples: u32,
+    cancel: &AtomicBool,
+) -> Result<Vec<Layer>, RenderError> {
+    let strategies: Vec<Strategy> = kinds
+        .iter()
+        .filter_map(|k| match k {
+            AovKind::Strategy(s) => Some(*s),
+            _ => None,
+        })
+        .collect();
+    if strategies.is_empty() {
+        return Ok(Vec::new());
+    }
+    settings.validate()?;
+    check(world, Integrator::Bdpt, settings)?;
+    check_strategies(world, settings, kinds)?;
+    let (w, h) = (settings.width, settings.height);
+    let super::SplatSetup {
+        camera,
+        importance,
+        path,
+        win,
+        scale,
+    } = super::SplatSetup::new(world, settings)?;
+    let (fw, fh) = (win.width(), win.height());
+    let sampler = SamplerSetup::new(settings.sampler, settings.seed, settings.spp).for_image(w, h);
+    let filter = FilterSampler::new(&settings.filter);
+    let samples = samples.clamp(1, settings.spp);
+    let mut slots = [[[None; 2]; STRATEGY_T]; STRATEGY_T];
+    for (i, st) in strategies.iter().enumerate() {
+        slots[st.s as usize][st.t as usize][usize::from(!st.weighted)] = Some(i);
+    }
+    let ctx = bdpt::Context {
+        world,
+        camera: &importance,
+        set: &path,
+    };
+    let run = || {
+        let threads = rayon::current_num_threads().max(1);
+        let next_row = AtomicUsize::new(0);
+        let worker = |_| {
+            let mut bufs: Vec<SplatBuffer> = strategies
+                .iter()
+                .map(|_| SplatBuffer::new(win.x0, win.y0, fw, fh, &settings.filter))
+                .collect();
+            let mut scratch = bdpt::Scratch::default();
+            let mut stats = RayStats::default();
+            loop {
+                let fy = next_row.fetch_add(1, Ordering::Relaxed) as u32;
+                if fy >= fh || cancel.load(Ordering::Relaxed) {
+                    return bufs;
+                }
+                let y = fy + win.y0;
+                for x in win.x0..win.x1 {
+                    let key = sampler.pixel_key((x, y));
+                    for s in 0..samples {
+                        let mut stream = sampler.stream(key, s);
+                        let (ray, weight) = super::camera_ray(&camera, &filter, &mut stream, x, y);
+                        let mut sink = StrategyFilms {
+                            slots: &slots,
+                            bufs: &mut bufs,
+                            pixel: (x, y),
+                            scale,
+                        };
+                        // The beauty's own sums are not kept: its film is the render's.
+                        bdpt::trace(
+                            &ctx,
+                            &ray,
+                            weight,
+                            &mut stream,
+                            &mut scratch,
+                            &mut stats,
+                            scale,
+                            &mut NoSplats,
+                            &mut sink,
+                        );
+                    }
+                }
+            }
+        };
+        let per_worker: Vec<Vec<SplatBuffer>> = (0..threads).into_par_iter().map(worker).collect();
+        per_worker
+    };
+    let per_worker = match settings.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(|e| RenderError::ThreadPool(n, e.to_string()))?
+            .install(run),
+        None => run(),
+    };
+    if cancel.load(Ordering::Relaxed) {
+        return Err(RenderError::Cancelled);
+    }
+    // Exact integer sums: the workers' order does not matter.
+    Ok(strategies
+        .iter()
+        .enumerate()
+        .map(|(i, &st)| {
+            let mut film = Film::new(fw, fh);
+            for bufs in &per_worker {
+                film.add_splats(&bufs[i]);
+            }
+            film.add_counts(samples);
+            let data = film
+                .to_image()
+                .data
+                .iter()
+                .flat_map(|p| [p.x, p.y, p.z])
+                .collect();
+            Layer::new(AovKind::Strategy(st), fw, fh, data)
+        })
+        .collect())
+}
+
+/// Splats dropped: the strategy pass keeps only the strategies' own sums.
+struct NoSplats;
+impl lighttracer::Splat for NoSplats {
+    #[inline]
+    fn splat(&mut self, _: Vec2, _: Vec3) {}
 }

@@ -1159,6 +1159,8 @@ fn render(
         light_sampler: world.lights.sampler_kind(),
     };
     let mut traced = trayecto::integrator::aov::traced(&o.aovs);
+    // BDPT's strategy layers are rendered by the render stage too (`trace`).
+    traced.extend(o.aovs.iter().filter(|k| k.is_strategy()));
     if denoiser.is_some() {
         // The denoiser's guides, traced when not asked for (and not kept).
         for k in [AovKind::Albedo, AovKind::Normal] {

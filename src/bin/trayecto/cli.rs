@@ -176,7 +176,9 @@ pub struct RenderArgs {
     /// them as channels of one multi-layer file (albedo.R, normal.X, Z, P.X, N.X, IndexMA.X,
     /// IndexOB.X, samples.Y, variance.Y); other formats get side files (out.albedo.png, ...).
     /// With --integrator raycast, a single view name (shaded, normals, barycentric, depth,
-    /// albedo, uv) instead picks what the image shows.
+    /// albedo, uv) instead picks what the image shows. With --integrator bdpt, bdpt-sS-tT is
+    /// strategy (s, t) weighted as it adds to the image, bdpt-sS-tT-unweighted the strategy
+    /// alone, bdpt-depthD[-unweighted] every strategy of depth D (a pass of their own).
     #[arg(long, value_name = "LIST", help_heading = HEADING_OUTPUT, hide_short_help = true)]
     pub aov: Option<String>,
     /// Also write the image denoised by Intel Open Image Denoise beside the raw one: out.denoised.png.
