@@ -18,40 +18,15 @@ import tempfile
 
 import numpy as np
 
+from exr_compare import lum, read, summary
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENE = os.path.join(ROOT, "..", "shared", "scenes", "pbrt", "water-caustic", "scene-v4.pbrt")
 REF = os.path.join(ROOT, "tests", "references", "pbrt", "water-caustic-sppm.exr")
 
 
-def read(path):
-    try:
-        import mitsuba as mi
-
-        mi.set_variant("scalar_rgb")
-        return np.array(mi.Bitmap(path), dtype=np.float64)[:, :, :3]
-    except ImportError:
-        import OpenEXR
-
-        with OpenEXR.File(path) as f:
-            ch = f.channels()
-            rgb = ch["RGB"].pixels if "RGB" in ch else np.stack([ch[c].pixels for c in "RGB"], -1)
-        return np.asarray(rgb, dtype=np.float64)[:, :, :3]
-
-
-def lum(a):
-    return a @ [0.2126, 0.7152, 0.0722]
-
-
 def report(what, t, p):
-    bias = lum(t).sum() / lum(p).sum() - 1
-    n = 4
-    h, w = t.shape[:2]
-    block = lambda a: lum(a)[: h // n * n, : w // n * n].reshape(n, h // n, n, w // n).sum(axis=(1, 3))
-    bt, bp = block(t), block(p)
-    e = np.abs(bt - bp) / np.maximum(bp, 1e-9)
-    ratio = t.reshape(-1, 3).sum(0) / p.reshape(-1, 3).sum(0)
-    print(f"{what}: bias {100 * bias:+.2f} %, R/G/B {ratio.round(3)}, "
-          f"4x4 blocks mean {100 * e.mean():.1f} % worst {100 * e.max():.1f} %")
+    print(f"{what}: {summary(t, p)}")
 
 
 def main():
