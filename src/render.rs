@@ -735,16 +735,25 @@ pub fn render_range_aovs(
         }
         render_in_pool(world, integrator, settings, start, aovs, observer, cancel)
     };
-    match settings.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
+    in_pool(settings.threads, "render", run)?
+}
+
+/// Runs `run` on a pool of `threads` workers named `name-0`, `name-1`, … (so profilers and
+/// `bench/scaling.py`, which reads the render workers' scheduler statistics, can tell the
+/// stages' workers apart), or on the global pool when `threads` is `None`.
+pub(crate) fn in_pool<T: Send>(
+    threads: Option<usize>,
+    name: &'static str,
+    run: impl FnOnce() -> T + Send,
+) -> Result<T, RenderError> {
+    match threads {
+        Some(n) => Ok(rayon::ThreadPoolBuilder::new()
             .num_threads(n)
-            // Named so profilers and `bench/scaling.py` (which reads their scheduler
-            // statistics) can tell the render's workers from the others.
-            .thread_name(|i| format!("render-{i}"))
+            .thread_name(move |i| format!("{name}-{i}"))
             .build()
             .map_err(|e| RenderError::ThreadPool(n, e.to_string()))?
-            .install(run),
-        None => run(),
+            .install(run)),
+        None => Ok(run()),
     }
 }
 
@@ -1487,14 +1496,7 @@ pub fn render_aovs_samples(
             })
             .collect::<Vec<Vec<f32>>>()
     };
-    let rows = match settings.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .map_err(|e| RenderError::ThreadPool(n, e.to_string()))?
-            .install(run),
-        None => run(),
-    };
+    let rows = in_pool(settings.threads, "aov", run)?;
     if cancel.load(Ordering::Relaxed) {
         return Err(RenderError::Cancelled);
     }

@@ -403,14 +403,7 @@ pub fn render_strategies(
         let per_worker: Vec<Vec<SplatBuffer>> = (0..threads).into_par_iter().map(worker).collect();
         per_worker
     };
-    let per_worker = match settings.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .map_err(|e| RenderError::ThreadPool(n, e.to_string()))?
-            .install(run),
-        None => run(),
-    };
+    let per_worker = super::in_pool(settings.threads, "strategies", run)?;
     if cancel.load(Ordering::Relaxed) {
         return Err(RenderError::Cancelled);
     }
