@@ -348,6 +348,32 @@ pub struct PassTimes {
     pub fit: PassFit,
 }
 
+impl PassTimes {
+    /// What the ETA knows once pass number `committed` (counting from 1), of `work` pixel
+    /// samples, is in at `at` since the render started, with `left` passes to come; `before` is
+    /// what it knew after the pass before (`None` for the first).
+    pub fn after(
+        before: Option<PassTimes>,
+        work: u64,
+        at: Duration,
+        committed: usize,
+        left: usize,
+    ) -> PassTimes {
+        let last = (before.map_or(0, |b| b.last.0) + work, at);
+        let mut fit = before.map_or(PassFit::default(), |b| b.fit);
+        if let Some(b) = before {
+            fit.add(work as f64, at.saturating_sub(b.last.1).as_secs_f64());
+        }
+        PassTimes {
+            first: before.map_or(last, |b| b.first),
+            last,
+            committed,
+            left,
+            fit,
+        }
+    }
+}
+
 /// Sums for the least-squares line `duration = c + r·work` through the passes after the first
 /// (the first carries the render's one-time costs: cold caches, lazily built tables, the first
 /// preview): counted as a cost of every pass, they skewed both terms of the line.
@@ -1243,23 +1269,13 @@ impl PassSchedule<'_> {
                 c.done = passes[p].1;
                 {
                     let mut cw = lock(&committed_work);
-                    let this = pass_work[p].load(Ordering::SeqCst);
-                    let work = cw.map_or(0, |w| w.last.0) + this;
-                    let last = (work, started.elapsed());
-                    let mut fit = cw.map_or(PassFit::default(), |w| w.fit);
-                    if let Some(before) = *cw {
-                        fit.add(
-                            this as f64,
-                            last.1.saturating_sub(before.last.1).as_secs_f64(),
-                        );
-                    }
-                    *cw = Some(PassTimes {
-                        first: cw.map_or(last, |w| w.first),
-                        last,
-                        committed: p + 1,
-                        left: passes.len() - (p + 1),
-                        fit,
-                    });
+                    *cw = Some(PassTimes::after(
+                        *cw,
+                        pass_work[p].load(Ordering::SeqCst),
+                        started.elapsed(),
+                        p + 1,
+                        passes.len() - (p + 1),
+                    ));
                 }
                 observer.pass_done(&c.film, c.done, settings.spp);
                 c.committed = p + 1;
@@ -1680,19 +1696,8 @@ mod tests {
         }
         let mut state: Option<PassTimes> = None;
         for (k, (&w, &t)) in sizes.iter().zip(&times).enumerate().take(4) {
-            let last_w = state.map_or(0, |s| s.last.0) + w;
-            let mut fit = state.map_or(PassFit::default(), |s| s.fit);
-            if let Some(before) = state {
-                fit.add(w as f64, t - before.last.1.as_secs_f64());
-            }
-            let last = (last_w, Duration::from_secs_f64(t));
-            state = Some(PassTimes {
-                first: state.map_or(last, |s| s.first),
-                last,
-                committed: k + 1,
-                left: sizes.len() - (k + 1),
-                fit,
-            });
+            let at = Duration::from_secs_f64(t);
+            state = Some(PassTimes::after(state, w, at, k + 1, sizes.len() - (k + 1)));
         }
         let p = state.unwrap();
         let (done, now) = (p.last.0, p.last.1);
