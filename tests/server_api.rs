@@ -2464,6 +2464,13 @@ fn a_frame_range_renders_each_frame_as_the_command_line_does() {
         );
         let png = get(&s, f["png"].as_str().unwrap());
         assert_eq!(decode_png(&png.body), decode_png(&cli.0), "frame {n}: PNG");
+        let named = format!("seq_{:04}.png", f["frame"].as_u64().unwrap());
+        assert!(
+            png.header("content-disposition")
+                .is_some_and(|h| h.contains(&named)),
+            "frame {n}: downloads as {:?}, not {named}",
+            png.header("content-disposition")
+        );
         images.push(server);
     }
     assert_ne!(

@@ -870,44 +870,40 @@ async fn download(
         Ok(j) => j,
         Err(r) => return r,
     };
-    let (path, mime, ext) = {
+    // The file, its type and the name it downloads as.
+    let out = &job.request.output;
+    let (path, mime, name) = {
         let s = job.status();
         match file.as_str() {
-            "image.png" => (s.png.clone(), "image/png", "png".to_string()),
-            "image.exr" => (s.exr.clone(), "image/x-exr", "exr".to_string()),
+            "image.png" => (s.png.clone(), "image/png", format!("{out}.png")),
+            "image.exr" => (s.exr.clone(), "image/x-exr", format!("{out}.exr")),
             "denoised.png" => (
                 s.denoised.clone().map(|d| d.0),
                 "image/png",
-                "denoised.png".to_string(),
+                format!("{out}.denoised.png"),
             ),
             "denoised.exr" => (
                 s.denoised.clone().map(|d| d.1),
                 "image/x-exr",
-                "denoised.exr".to_string(),
+                format!("{out}.denoised.exr"),
             ),
-            // A sequence's frames as written: `frame-NNNN.png`/`.exr`.
+            // A sequence's frames as written (`frame-NNNN.png`/`.exr`), named as the sequence
+            // names them, `<output>_NNNN.png`.
             f => match f
                 .strip_prefix("frame-")
                 .and_then(|f| f.split_once('.'))
                 .and_then(|(n, ext)| Some((n.parse::<u32>().ok()?, ext)))
             {
                 Some((n, ext @ ("png" | "exr"))) => {
-                    let file = s.frames_done.iter().find(|d| d.frame == n).map(|d| {
-                        if ext == "png" {
-                            d.png.clone()
-                        } else {
-                            d.exr.clone()
-                        }
-                    });
-                    let Some(file) = file else {
+                    let Some(done) = s.frames_done.iter().find(|d| d.frame == n) else {
                         return error(StatusCode::NOT_FOUND, "that frame has not been written");
                     };
-                    let mime = if ext == "png" {
-                        "image/png"
+                    let (file, mime) = if ext == "png" {
+                        (&done.png, "image/png")
                     } else {
-                        "image/x-exr"
+                        (&done.exr, "image/x-exr")
                     };
-                    (Some(file), mime, format!("{n:04}.{ext}"))
+                    (Some(file.clone()), mime, format!("{out}_{n:04}.{ext}"))
                 }
                 _ => return error(StatusCode::NOT_FOUND, "no such file"),
             },
@@ -923,13 +919,7 @@ async fn download(
                 (header::CONTENT_TYPE, mime.to_string()),
                 (
                     header::CONTENT_DISPOSITION,
-                    // A frame's name is the sequence's `<output>_NNNN.png`.
-                    match ext.split_once('.') {
-                        Some((n, e)) if n.bytes().all(|b| b.is_ascii_digit()) => {
-                            format!("attachment; filename=\"{}_{n}.{e}\"", job.request.output)
-                        }
-                        _ => format!("attachment; filename=\"{}.{ext}\"", job.request.output),
-                    },
+                    format!("attachment; filename=\"{name}\""),
                 ),
             ],
             Body::from(bytes),
