@@ -211,7 +211,9 @@ impl Material {
     /// KHR_materials_unlit: the surface shows its base colour and scatters nothing.
     #[inline]
     pub fn is_unlit(&self) -> bool {
-        self.model == MaterialModel::Unlit
+        // A discriminant test: the derived `PartialEq` of the whole model is an out-of-line call
+        // comparing every field, and this runs at every hit (`World::emitted`).
+        matches!(self.model, MaterialModel::Unlit)
     }
 
     pub fn is_emissive(&self) -> bool {

@@ -132,7 +132,7 @@ impl World {
         // The exception is an unlit surface (KHR_materials_unlit): it shows its base colour but
         // is not a light (NEE never samples it), so it is looked up here too.
         let material = self.material(hit);
-        if hit.light == NO_LIGHT && material.model != crate::material::MaterialModel::Unlit {
+        if hit.light == NO_LIGHT && !material.is_unlit() {
             return Vec3::ZERO;
         }
         eval::emitted(material, &self.textures, hit, wo)
