@@ -615,17 +615,9 @@ fn check_integrator_settings(
             integrator.name()
         )));
     }
-    // Spectral transport is built into the surface path tracer only; the others would silently
-    // render RGB (docs/DESIGN.md "Spectral rendering").
-    if settings.path.spectral && integrator == Integrator::VolPath {
-        return Err(RenderError::InvalidSetting(
-            "spectral rendering of scenes with participating media or medium interfaces is not \
-             available yet (the volumetric path tracer carries RGB): render them without \
-             --spectral"
-                .into(),
-        ));
-    }
-    if settings.path.spectral && integrator != Integrator::Path {
+    // Spectral transport is built into the path tracers (surface and volumetric) only; the
+    // others would silently render RGB (docs/DESIGN.md "Spectral rendering").
+    if settings.path.spectral && !matches!(integrator, Integrator::Path | Integrator::VolPath) {
         return Err(RenderError::InvalidSetting(format!(
             "spectral rendering is not available with the {} yet (only the path tracer carries \
              wavelengths; the light-path integrators' splats and photons are RGB): render it \

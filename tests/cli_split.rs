@@ -126,6 +126,37 @@ fn parts_rendered_by_separate_processes_merge_to_the_single_render() {
     refuse(&[&d.join("m.trp"), &parts[1], &parts[0]], "max_depth");
     assert!(!d.join("bad.exr").exists());
 
+    // Spectral parts merge to the spectral render bit for bit (each sample draws its wavelengths
+    // from its own stream), and never with RGB parts of the same samples.
+    ok(render(&["--spp", "6", "--spectral"], &d.join("sfull.exr")));
+    let mut sparts = Vec::new();
+    for (a, b) in [(0, 2), (2, 6)] {
+        let p = d.join(format!("s{a}.trp"));
+        let range = format!("{a}..{b}");
+        ok(render(
+            &["--spp", "6", "--spectral", "--samples", &range],
+            &p,
+        ));
+        sparts.push(p);
+    }
+    ok(bin()
+        .arg("merge")
+        .args(&sparts)
+        .arg("-o")
+        .arg(d.join("smerged.exr"))
+        .output()
+        .unwrap());
+    assert_eq!(
+        std::fs::read(d.join("sfull.exr")).unwrap(),
+        std::fs::read(d.join("smerged.exr")).unwrap(),
+        "merged spectral EXR differs from the single spectral render"
+    );
+    ok(render(
+        &["--spp", "6", "--samples", "2..6"],
+        &d.join("rgb.trp"),
+    ));
+    refuse(&[&sparts[0], &d.join("rgb.trp")], "spectral");
+
     // Bad options.
     for (args, want) in [
         (&["--spp", "11", "--samples", "5..3"][..], "empty"),

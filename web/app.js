@@ -4,7 +4,7 @@
 "use strict";
 
 const FIELDS = ["scene", "output", "width", "height", "spp", "secondary", "max_depth",
-  "exposure", "integrator", "tonemap", "default_light", "denoise", "transparent", "environment",
+  "exposure", "integrator", "tonemap", "default_light", "denoise", "transparent", "spectral", "environment",
   "env_rotation", "view_spp", "aovs", "variant", "time", "frames", "fps", "shutter"];
 const $ = (id) => document.getElementById(id);
 let options = null;
@@ -77,6 +77,7 @@ function readForm() {
   body.default_light = $("default_light").value || null;
   body.denoise = $("denoise").checked;
   body.transparent = $("transparent").checked;
+  body.spectral = $("spectral").checked;
   body.environment = $("environment").value || null;
   // "" = the file's default materials (KHR_materials_variants); the list is the scene's own.
   body.variant = $("variant").value || null;

@@ -91,8 +91,36 @@ pub fn radiance(
     set: &PathSettings,
     stats: &mut RayStats,
 ) -> Vec3 {
+    // Spectral mode, as the surface path tracer: the wavelengths ride on a copy of the settings
+    // and the radiance at them reaches the film as RGB.
+    match set.for_sample(s) {
+        None => radiance_in(world, ray, s, set, stats),
+        Some(set) => {
+            let l = radiance_in(world, ray, s, &set, stats);
+            set.to_film(l)
+        }
+    }
+}
+
+/// [`radiance`] in the path's own colour representation: RGB, or at `set.wavelengths`. There
+/// the three lanes are wavelengths: σa, σs and Le are their spectra at them
+/// ([`crate::medium::Medium::coefficients`]), the hero is lane 0 (the wavelengths are already
+/// a random rotation, pbrt-v4 `VolPathIntegrator` tracks with λ₀'s majorant), and r_u, r_l are
+/// the per-wavelength pdf ratios of the spectral MIS above.
+fn radiance_in(
+    world: &World,
+    ray: &Ray,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+) -> Vec3 {
     let u_channel = s.next_1d();
-    let channel = ((u_channel * 3.0) as usize).min(2);
+    let lambda = set.wavelengths.map(|w| w.lambda);
+    let channel = if lambda.is_some() {
+        0
+    } else {
+        ((u_channel * 3.0) as usize).min(2)
+    };
     // The tracking decisions use their own generator, seeded from the sample (so the image stays
     // a pure function of seed, pixel and sample index) — as pbrt-v4 seeds its per-ray RNG.
     let d = ray.d.normalize();
@@ -123,6 +151,9 @@ pub fn radiance(
     // and so the pdf, depends on it.
     let mut prev_n = Vec3::ZERO;
     let mut crossings = 0u32;
+    // Spectral mode: whether a dispersive surface has left only the hero wavelength (as in
+    // `path.rs`, pbrt-v4 `TerminateSecondary`).
+    let mut hero_only = false;
     loop {
         stats.rays += 1;
         let hit = world.intersect_filtered(&ray, &set.footprint);
@@ -131,17 +162,18 @@ pub fn radiance(
         // --- The medium between the ray's origin and the surface (or infinity).
         if let Some(mi) = medium {
             let m = world.medium(mi);
+            let c = m.coefficients(lambda);
             if m.is_analytic() {
-                let tr = m.analytic_transmittance(t_max);
-                if m.le != Vec3::ZERO && depth < set.max_depth {
+                let tr = m.analytic_transmittance_in(&c, t_max);
+                if c.le != Vec3::ZERO && depth < set.max_depth {
                     // ∫₀ᵈ e^(−σa·t)·σa·Le dt = Le·(1 − e^(−σa·d)), exact and noise-free; the
                     // segment is deterministic for every channel's technique, so the MIS
                     // weight is the path's own 1/mean(r_u).
-                    l += set.clamp(st.beta * (Vec3::ONE - tr) * m.le / mean(st.r_u), depth);
+                    l += set.clamp(st.beta * (Vec3::ONE - tr) * c.le / mean(st.r_u), depth);
                 }
                 st.beta *= tr;
             } else {
-                let mut tracker = m.tracker(&ray, t_max, channel);
+                let mut tracker = m.tracker_in(&c, &ray, t_max, channel);
                 let mut scattered = false;
                 loop {
                     match tracker.step(m, &mut rng) {
@@ -171,7 +203,8 @@ pub fn radiance(
                                 let r_e = mean(st.r_u * sigma_maj * t_maj / pdf);
                                 if r_e > 0.0 && pdf > 0.0 {
                                     l += set.clamp(
-                                        st.beta * t_maj / pdf * props.sigma_a * m.le_at(p) / r_e,
+                                        st.beta * t_maj / pdf * props.sigma_a * m.le_in(&c, p)
+                                            / r_e,
                                         depth,
                                     );
                                 }
@@ -262,7 +295,14 @@ pub fn radiance(
                 return l;
             }
             let escaped = world.escaped_mis(ray.d, set.env_pdf(), Vec3::ZERO, |le, pdf_light| {
-                emitter_contribution(&st, le, pdf_light, depth, specular_bounce, set)
+                emitter_contribution(
+                    &st,
+                    set.emission(le),
+                    pdf_light,
+                    depth,
+                    specular_bounce,
+                    set,
+                )
             });
             l += set.clamp(escaped, depth);
             return l;
@@ -270,7 +310,7 @@ pub fn radiance(
 
         // --- The surface.
         let wo = -ray.d;
-        let le = world.emitted(&hit, wo);
+        let le = set.emission(world.emitted(&hit, wo));
         if le != Vec3::ZERO {
             let pdf_light = world.emitter_pdf(prev_p, prev_n, &hit);
             l += set.clamp(
@@ -293,7 +333,14 @@ pub fn radiance(
             return l;
         }
         depth += 1;
-        let v = Vertex::new(world, hit, wo);
+        let mut v = Vertex::new(world, hit, wo);
+        if let Some(l) = lambda {
+            if !hero_only && v.bsdf.disperses() {
+                hero_only = true;
+                st.beta = Vec3::new(3.0 * st.beta.x, 0.0, 0.0);
+            }
+            v.bsdf = v.bsdf.to_spectral(l);
+        }
         let (bsdf, ng, frame, wo_local, hit) = (&v.bsdf, v.ng, &v.frame, v.wo_local, &v.hit);
 
         if !bsdf.is_specular() {
@@ -465,10 +512,11 @@ fn sample_ld(
     if f == Vec3::ZERO {
         return Vec3::ZERO;
     }
-    let Some((t_ray, r_l_tr, r_u_tr)) = world.transmittance(
+    let Some((t_ray, r_l_tr, r_u_tr)) = world.transmittance_at(
         &ls.shadow,
         medium_start,
         st.channel,
+        set.wavelengths.map(|w| w.lambda),
         rng,
         &mut stats.shadow_rays,
     ) else {
@@ -485,5 +533,5 @@ fn sample_ld(
     if !(denom > 0.0) {
         return Vec3::ZERO;
     }
-    st.beta * f * t_ray * ls.li / denom
+    st.beta * f * t_ray * set.emission(ls.li) / denom
 }

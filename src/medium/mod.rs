@@ -31,6 +31,20 @@ pub struct MediumProperties {
     pub sigma_s: Vec3,
 }
 
+/// A medium's coefficients as one path carries them ([`Medium::coefficients`]): its RGB values,
+/// or in spectral mode their values at the path's three wavelengths (docs/DESIGN.md "Spectral
+/// rendering"). Made once per ray segment, so that the tracker and the emission lookups do not
+/// upsample per collision.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coefficients {
+    pub sigma_a: Vec3,
+    pub sigma_s: Vec3,
+    /// The homogeneous emission `le`.
+    pub le: Vec3,
+    /// The wavelengths (nm), in spectral mode: grid emission is evaluated at them.
+    pub lambda: Option<Vec3>,
+}
+
 /// A compiled medium: RGB coefficients per unit world length (already multiplied by the
 /// description's `scale`), the phase function and an optional density grid.
 #[derive(Clone, Debug)]
@@ -143,23 +157,38 @@ impl GridLe {
         }
     }
 
-    /// Le at unit-cube point `q` of the grid.
+    /// Le at unit-cube point `q` of the grid: RGB, or at the wavelengths `lambda` (an RGB `Le`
+    /// as an illuminant spectrum, a temperature as Planck's law itself, as pbrt-v4's
+    /// `GridMedium::SamplePoint` evaluates them).
     #[inline]
-    fn at(&self, q: Vec3, edge: grid::GridEdge) -> Vec3 {
+    fn at(&self, q: Vec3, edge: grid::GridEdge, lambda: Option<Vec3>) -> Vec3 {
         let look =
             |g: &crate::scene::VoxelGrid| grid::trilinear(g.nx, g.ny, g.nz, &g.data, q, edge);
         let s = look(&self.scale);
         if !(s > 0.0) {
             return Vec3::ZERO;
         }
-        match &self.source {
-            LeSource::Rgb(le) => *le * s,
-            LeSource::Blackbody {
-                temperature,
-                temperature_scale,
-                offset,
-                table,
-            } => table.lookup((look(temperature) - offset) * temperature_scale) * s,
+        match (&self.source, lambda) {
+            (LeSource::Rgb(le), None) => *le * s,
+            (LeSource::Rgb(le), Some(l)) => crate::spectrum::rgb2spec::illuminant(*le, l) * s,
+            (
+                LeSource::Blackbody {
+                    temperature,
+                    temperature_scale,
+                    offset,
+                    table,
+                },
+                lambda,
+            ) => {
+                let t = (look(temperature) - offset) * temperature_scale;
+                match lambda {
+                    None => table.lookup(t) * s,
+                    // As the table: nothing at or below its lowest temperature, and the
+                    // hottest voxel's value above its top.
+                    Some(_) if !(t > BLACKBODY_MIN_K) => Vec3::ZERO,
+                    Some(l) => crate::spectrum::blackbody_peak_spectral(l, t.min(table.t_hi)) * s,
+                }
+            }
         }
     }
 }
@@ -230,9 +259,39 @@ impl Medium {
     /// Emitted radiance Le at world point `p` (the medium adds σa(p)·Le(p) per unit length).
     #[inline]
     pub fn le_at(&self, p: Vec3) -> Vec3 {
+        self.le_in(&self.coefficients(None), p)
+    }
+
+    /// [`Medium::le_at`] as the path carrying `c` sees it (RGB or at its wavelengths).
+    #[inline]
+    pub fn le_in(&self, c: &Coefficients, p: Vec3) -> Vec3 {
         match (&self.grid_le, &self.grid) {
-            (Some(e), Some(g)) => self.le + e.at(g.unit(p), g.edge),
-            _ => self.le,
+            (Some(e), Some(g)) => c.le + e.at(g.unit(p), g.edge, c.lambda),
+            _ => c.le,
+        }
+    }
+
+    /// The coefficients a path carries through this medium: the RGB ones (`lambda` `None`), or
+    /// at the wavelengths `lambda`: σa and σs as pbrt-v4's unbounded spectra of their RGB
+    /// (`RGBUnboundedSpectrum`; the scale is linear, so upsampling the scaled RGB is the same),
+    /// `Le` as an illuminant spectrum (`RGBIlluminantSpectrum`). A zero RGB stays zero, so an
+    /// absorbing-only medium stays one.
+    #[inline]
+    pub fn coefficients(&self, lambda: Option<Vec3>) -> Coefficients {
+        use crate::spectrum::rgb2spec::{illuminant, unbounded};
+        match lambda {
+            None => Coefficients {
+                sigma_a: self.sigma_a,
+                sigma_s: self.sigma_s,
+                le: self.le,
+                lambda: None,
+            },
+            Some(l) => Coefficients {
+                sigma_a: unbounded(self.sigma_a, l),
+                sigma_s: unbounded(self.sigma_s, l),
+                le: illuminant(self.le, l),
+                lambda: Some(l),
+            },
         }
     }
 
@@ -255,16 +314,20 @@ impl Medium {
     /// Coefficients at world point `p`.
     #[inline]
     pub fn properties(&self, p: Vec3) -> MediumProperties {
+        self.properties_in(self.sigma_a, self.sigma_s, p)
+    }
+
+    /// Coefficients at world point `p` of this medium's density with coefficients `sigma_a`,
+    /// `sigma_s` (its own, or their spectral values).
+    #[inline]
+    fn properties_in(&self, sigma_a: Vec3, sigma_s: Vec3, p: Vec3) -> MediumProperties {
         match &self.grid {
-            None => MediumProperties {
-                sigma_a: self.sigma_a,
-                sigma_s: self.sigma_s,
-            },
+            None => MediumProperties { sigma_a, sigma_s },
             Some(g) => {
                 let d = g.density(p);
                 MediumProperties {
-                    sigma_a: self.sigma_a * d,
-                    sigma_s: self.sigma_s * d,
+                    sigma_a: sigma_a * d,
+                    sigma_s: sigma_s * d,
                 }
             }
         }
@@ -275,8 +338,14 @@ impl Medium {
     /// tracks (see [`Medium::sample_t_maj`]).
     #[inline]
     pub fn analytic_transmittance(&self, t_max: f32) -> Vec3 {
+        self.analytic_transmittance_in(&self.coefficients(None), t_max)
+    }
+
+    /// [`Medium::analytic_transmittance`] with the coefficients `c` (RGB or spectral).
+    #[inline]
+    pub fn analytic_transmittance_in(&self, c: &Coefficients, t_max: f32) -> Vec3 {
         debug_assert!(self.grid.is_none());
-        let st = self.sigma_t();
+        let st = c.sigma_a + c.sigma_s;
         if t_max.is_infinite() {
             return Vec3::select(st.cmpgt(Vec3::ZERO), Vec3::ZERO, Vec3::ONE);
         }
@@ -287,6 +356,15 @@ impl Medium {
     /// with distances sampled in channel `channel` (the hero channel); see [`Tracker`].
     #[inline]
     pub fn tracker(&self, ray: &Ray, t_max: f32, channel: usize) -> Tracker {
+        self.tracker_in(&self.coefficients(None), ray, t_max, channel)
+    }
+
+    /// [`Medium::tracker`] with the coefficients `c` (RGB or spectral): the majorant is σt of
+    /// `c` times the grid's bound, so in spectral mode every wavelength has its own and the hero
+    /// channel's samples the distances (pbrt-v4's `SampleT_maj` with its `SampledSpectrum`
+    /// majorant, §14.2.1).
+    #[inline]
+    pub fn tracker_in(&self, c: &Coefficients, ray: &Ray, t_max: f32, channel: usize) -> Tracker {
         let mut tr = Tracker {
             o: ray.o,
             d: ray.d,
@@ -295,12 +373,15 @@ impl Medium {
             dda: None,
             t_maj: Vec3::ONE,
             channel,
+            sigma_a: c.sigma_a,
+            sigma_s: c.sigma_s,
         };
+        let sigma_t = c.sigma_a + c.sigma_s;
         match &self.grid {
             None => {
                 tr.seg = Some(MajorantSegment {
                     t1: t_max,
-                    sigma_maj: self.sigma_t(),
+                    sigma_maj: sigma_t,
                 });
             }
             Some(g) => {
@@ -308,7 +389,7 @@ impl Medium {
                 if let Some((t0, t1)) = grid::clip_unit(o, d, t_max) {
                     tr.t = t0;
                     let mut dda = grid::Dda::new(o, d, t0, t1);
-                    tr.seg = next_segment(&mut dda, g, self.sigma_t());
+                    tr.seg = next_segment(&mut dda, g, sigma_t);
                     tr.dda = Some(dda);
                 }
             }
@@ -380,6 +461,10 @@ pub struct Tracker {
     /// exp(−∫σ_maj) since the last collision, over the segments already left.
     t_maj: Vec3,
     channel: usize,
+    /// The coefficients tracked with ([`Coefficients`]): the medium's RGB ones or their
+    /// spectral values.
+    sigma_a: Vec3,
+    sigma_s: Vec3,
 }
 
 /// The next non-empty stretch of a grid's majorant walk.
@@ -415,7 +500,7 @@ impl Tracker {
                     self.t_maj = Vec3::ONE;
                     return TrackStep::Collision {
                         p,
-                        props: medium.properties(p),
+                        props: medium.properties_in(self.sigma_a, self.sigma_s, p),
                         sigma_maj: sm,
                         t_maj,
                     };
@@ -426,7 +511,7 @@ impl Tracker {
             self.t_maj *= exp_segment(sm, seg.t1 - self.t);
             self.t = seg.t1;
             self.seg = match (&mut self.dda, &medium.grid) {
-                (Some(dda), Some(g)) => next_segment(dda, g, medium.sigma_t()),
+                (Some(dda), Some(g)) => next_segment(dda, g, self.sigma_a + self.sigma_s),
                 _ => None,
             };
         }

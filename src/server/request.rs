@@ -497,7 +497,7 @@ pub fn scene_defaults(name: &str, policy: &Policy) -> Result<Value, String> {
 }
 
 /// The fields a request may have, in the order the unknown-field message lists them.
-const KNOWN_FIELDS: [&str; 29] = [
+const KNOWN_FIELDS: [&str; 30] = [
     "scene",
     "output",
     "width",
@@ -523,6 +523,7 @@ const KNOWN_FIELDS: [&str; 29] = [
     "guiding",
     "transparent",
     "time",
+    "spectral",
     "frame",
     "frames",
     "fps",
@@ -561,6 +562,8 @@ pub struct RequestBody {
     pub guiding: Option<Value>,
     /// A transparent background (`--transparent`): true or false.
     pub transparent: Option<Value>,
+    /// Spectral rendering (`--spectral`): true or false.
+    pub spectral: Option<Value>,
     /// The moment of an animated scene (`--time`): seconds.
     pub time: Option<Value>,
     /// The frame of an animated scene (`--frame`): a whole number, time `frame / fps`.
@@ -621,6 +624,7 @@ struct Options {
     denoise: bool,
     guiding: bool,
     transparent: bool,
+    spectral: bool,
 }
 
 /// Parses and checks a JSON render request ([`RequestBody`]). Every wrong field is reported, not
@@ -660,6 +664,10 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
     let mut aovs = check_aovs(b.aovs.as_ref(), &mut errors);
     // As `--transparent`: the coverage is the alpha AOV, the path tracer leaves the
     // background out (docs/DESIGN.md §5, "Transparent film").
+    // As `--spectral`: the path tracers carry wavelengths, the other integrators refuse them.
+    if o.spectral && o.integrator != IntegratorKind::Path {
+        errors.insert("spectral".into(), "needs the path integrator".into());
+    }
     if o.transparent {
         if o.integrator != IntegratorKind::Path {
             errors.insert("transparent".into(), "needs the path integrator".into());
@@ -724,6 +732,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             max_depth: n.max_depth,
             secondary: n.secondary,
             transparent: o.transparent,
+            spectral: o.spectral,
             ..PathSettings::default()
         },
         filter: o.filter.unwrap_or_default(),
@@ -1063,6 +1072,14 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
             false
         }
     };
+    let spectral = match &b.spectral {
+        None | Some(Value::Null) => false,
+        Some(Value::Bool(b)) => *b,
+        Some(_) => {
+            errors.insert("spectral".into(), "must be true or false".into());
+            false
+        }
+    };
     Options {
         exposure,
         integrator,
@@ -1076,6 +1093,7 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
         denoise,
         guiding,
         transparent,
+        spectral,
     }
 }
 

@@ -142,6 +142,21 @@ pub fn blackbody_peak_rgb(t: f32) -> Vec3 {
     xyz_to_linear_srgb(spectrum_to_xyz(|l| blackbody(l, t)) * cie_y_integral())
 }
 
+/// pbrt-v4's unnormalised `BlackbodySpectrum(t)` (a grid medium's `temperature` voxel) at the
+/// three wavelengths `lambda`, in the units of a spectral path: [`blackbody`] × Σ ȳ, so that the
+/// film's projection ([`Wavelengths::to_rgb`]) gives [`blackbody_peak_rgb`]. Zero at t ≤ 0.
+#[inline]
+pub fn blackbody_peak_spectral(lambda: Vec3, t: f32) -> Vec3 {
+    if !(t > 0.0) {
+        return Vec3::ZERO;
+    }
+    Vec3::new(
+        blackbody(lambda.x, t),
+        blackbody(lambda.y, t),
+        blackbody(lambda.z, t),
+    ) * rgb2spec::CIE_Y_INTEGRAL
+}
+
 /// A piecewise-linear tabulated spectrum; 0 outside its range (pbrt-v4 `PiecewiseLinearSpectrum`).
 fn table(tab: &[(f32, f32)], lambda: f32) -> f32 {
     let (Some(first), Some(last)) = (tab.first(), tab.last()) else {

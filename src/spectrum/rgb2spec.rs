@@ -14,7 +14,7 @@ use super::{cie_xyz, d65, xyz_to_linear_srgb};
 use crate::math::Vec3;
 
 /// Σ ȳ over the 1 nm table (pbrt-v4's `CIE_Y_integral` for it); see [`super::spectrum_to_xyz`].
-const CIE_Y_INTEGRAL: f32 = 106.856_895;
+pub const CIE_Y_INTEGRAL: f32 = 106.856_895;
 
 static TABLE: &[u8] = include_bytes!("rgb2spec_srgb.bin");
 

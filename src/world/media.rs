@@ -66,8 +66,22 @@ impl World {
     pub fn transmittance(
         &self,
         shadow: &Ray,
+        medium: Option<usize>,
+        channel: usize,
+        rng: &mut Pcg32,
+        shadow_rays: &mut u64,
+    ) -> Option<(Vec3, Vec3, Vec3)> {
+        self.transmittance_at(shadow, medium, channel, None, rng, shadow_rays)
+    }
+
+    /// [`World::transmittance`] at the wavelengths `lambda` of a spectral path (the media's
+    /// coefficients upsampled there, [`Medium::coefficients`]); RGB for `None`.
+    pub fn transmittance_at(
+        &self,
+        shadow: &Ray,
         mut medium: Option<usize>,
         channel: usize,
+        lambda: Option<Vec3>,
         rng: &mut Pcg32,
         shadow_rays: &mut u64,
     ) -> Option<(Vec3, Vec3, Vec3)> {
@@ -98,10 +112,11 @@ impl World {
             let seg = hit.as_ref().map_or(ray.t_max, |h| h.t);
             if let Some(mi) = medium {
                 let m: &Medium = self.medium(mi);
+                let c = m.coefficients(lambda);
                 if m.is_analytic() {
-                    t_ray *= m.analytic_transmittance(seg);
+                    t_ray *= m.analytic_transmittance_in(&c, seg);
                 } else {
-                    let mut tracker = m.tracker(&ray, seg, channel);
+                    let mut tracker = m.tracker_in(&c, &ray, seg, channel);
                     loop {
                         match tracker.step(m, rng) {
                             TrackStep::End { t_maj } => {

@@ -400,8 +400,8 @@ pub struct RenderArgs {
     ///
     /// RGB colours are upsampled to smooth spectra where they enter a path (Jakob & Hanika 2019;
     /// illuminants × D65) and dispersive glass (KHR_materials_dispersion) splits white light.
-    /// The path tracer only: scenes with participating media and the other integrators are
-    /// refused. Off: linear-sRGB rendering, as pbrt files and every other format use by default.
+    /// The path tracers only (media included): the light-path integrators, raycast and Whitted
+    /// are refused. Off: linear-sRGB rendering, as pbrt files and every other format use by default.
     #[arg(long, help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub spectral: bool,
 }
