@@ -261,8 +261,8 @@ fn light_paths_fill_the_edge_pixels_through_a_wide_filter() {
 #[test]
 fn bdpt_agrees_with_pbrt_v4_on_veach_bidir_and_water_caustic() {
     for (name, spp, mean_bound, block_bound) in [
-        ("veach-bidir", 64, 0.1, 0.2),
-        ("water-caustic", 64, 0.1, 0.2),
+        ("veach-bidir", 64, 0.03, 0.05),
+        ("water-caustic", 64, 0.06, 0.2),
     ] {
         let t0 = std::time::Instant::now();
         let file = shared_scene(&format!("pbrt/{name}/scene-v4.pbrt"));
