@@ -475,8 +475,9 @@ pub fn report_work(observer: &dyn RenderObserver, done: u64, total: u64, started
 
 /// What the splatting drivers (the light tracer and BDPT, VCM, MLT) set up before tracing:
 /// the camera and its importance W_e (on the film widened by the filter's reach,
-/// [`crate::camera::CameraImportance::with_film_margin`]), the path settings with the camera's footprint where
-/// textures or bumps need it, the film window, and W_e's scale from the whole image to the window.
+/// [`crate::camera::CameraImportance::with_film_margin`]), the path settings with the camera's
+/// footprint where textures or bumps need it, the film window, and W_e's scale from the whole
+/// image to the window.
 pub(crate) struct SplatSetup {
     pub camera: crate::camera::Camera,
     pub importance: crate::camera::CameraImportance,
