@@ -407,8 +407,9 @@ pub struct ImportanceSample {
 /// W_e = 1 / (A · A_lens · cos⁴θ), A the film's area on the plane at depth 1 and A_lens = π r²
 /// (1 for a pinhole). The densities are converted to world measure through the camera-to-world
 /// matrix, which need not be rigid: a pbrt screen window is a shear of camera space, a
-/// handedness flip a reflection. The film is the whole image, [0, width) × [0, height) pixels;
-/// a crop window is the caller's to apply.
+/// handedness flip a reflection. The film is the whole image, [0, width) × [0, height) pixels,
+/// widened by [`CameraImportance::with_film_margin`] where the reconstruction filter reaches past
+/// the image; a crop window is the caller's to apply.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraImportance {
     camera_to_world: Mat4,
@@ -428,6 +429,8 @@ pub struct CameraImportance {
     det: f32,
     /// The lens plane's world normal, towards the scene.
     n_lens: Vec3,
+    /// How far (pixels, per axis) past the image's edges film points still count as on the film.
+    margin: Vec2,
 }
 
 impl CameraImportance {
@@ -462,7 +465,20 @@ impl CameraImportance {
                 .transpose()
                 .transform_vector3(-Vec3::Z)
                 .normalize(),
+            margin: Vec2::ZERO,
         }
+    }
+
+    /// The same importance over the image widened by `margin` pixels on every side (per axis),
+    /// W_e's normalisation unchanged (it stays a density over the image's area). A pixel's
+    /// camera samples land up to the filter's radius from its centre, so an edge pixel's measure
+    /// reaches radius − ½ pixel past the image: light paths must be able to land there too, or the
+    /// edge pixels of a light-traced image lose what their camera samples see outside it
+    /// (pbrt-v4's `PerspectiveCamera::We` tests the film's `SampleBounds`, the pixel bounds
+    /// widened by the same amount).
+    pub fn with_film_margin(mut self, margin: Vec2) -> CameraImportance {
+        self.margin = margin.max(Vec2::ZERO);
+        self
     }
 
     /// The lens's centre in world space (the pinhole itself for a pinhole camera).
@@ -516,8 +532,11 @@ impl CameraImportance {
             (x / self.half_w + 1.0) * 0.5 * self.width,
             (1.0 - y / self.half_h) * 0.5 * self.height,
         );
-        let inside =
-            raster.x >= 0.0 && raster.x < self.width && raster.y >= 0.0 && raster.y < self.height;
+        let m = self.margin;
+        let inside = raster.x >= -m.x
+            && raster.x < self.width + m.x
+            && raster.y >= -m.y
+            && raster.y < self.height + m.y;
         if !inside {
             return None;
         }

@@ -474,8 +474,10 @@ pub fn report_work(observer: &dyn RenderObserver, done: u64, total: u64, started
 }
 
 /// What the splatting drivers (the light tracer and BDPT, VCM, MLT) set up before tracing:
-/// the camera and its importance W_e, the path settings with the camera's footprint where
-/// textures or bumps need it, the film window, and W_e's scale from the whole image to the window.
+/// the camera and its importance W_e (on the film widened by the filter's reach,
+/// [`crate::camera::CameraImportance::with_film_margin`]), the path settings with the camera's
+/// footprint where textures or bumps need it, the film window, and W_e's scale from the whole
+/// image to the window.
 pub(crate) struct SplatSetup {
     pub camera: crate::camera::Camera,
     pub importance: crate::camera::CameraImportance,
@@ -489,9 +491,12 @@ impl SplatSetup {
     pub(crate) fn new(world: &World, settings: &RenderSettings) -> Result<SplatSetup, RenderError> {
         let (w, h) = (settings.width, settings.height);
         let camera = crate::camera::Camera::new(&world.camera, w, h);
+        // Light paths may land as far past the image as a camera sample of an edge pixel does.
+        let [rx, ry] = settings.filter.radius;
         let importance = camera
             .importance()
-            .map_err(|e| RenderError::InvalidSetting(e.to_string()))?;
+            .map_err(|e| RenderError::InvalidSetting(e.to_string()))?
+            .with_film_margin(crate::math::Vec2::new(rx - 0.5, ry - 0.5));
         let mut path = settings.path;
         if world.needs_footprint() {
             path.footprint = camera.footprint();

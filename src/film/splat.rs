@@ -121,19 +121,23 @@ impl SplatBuffer {
 
     /// Splats `v` at the film point `raster` (image pixels, as [`crate::camera::Camera`]'s
     /// importance reports it) into the pixels the filter reaches, each weighted by the filter at
-    /// its centre over the filter's integral.
+    /// its centre over the filter's integral. The point may lie outside the image (up to the
+    /// filter's reach, where the camera's samples of edge pixels land too): its share of the
+    /// pixels inside is kept.
     #[inline]
     pub fn splat(&mut self, raster: Vec2, v: Vec3) {
         if !(v.x.abs() < SAMPLE_LIMIT && v.y.abs() < SAMPLE_LIMIT && v.z.abs() < SAMPLE_LIMIT) {
             self.discarded += 1;
             return;
         }
-        if v == Vec3::ZERO || !(raster.x >= 0.0 && raster.y >= 0.0) {
+        if v == Vec3::ZERO || !(raster.x.is_finite() && raster.y.is_finite()) {
             return;
         }
         let f = self.filter;
         if f.pixel_box {
-            self.add_pixel(raster.x as u32, raster.y as u32, v);
+            if raster.x >= 0.0 && raster.y >= 0.0 {
+                self.add_pixel(raster.x as u32, raster.y as u32, v);
+            }
             return;
         }
         let [rx, ry] = f.filter.radius;

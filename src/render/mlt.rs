@@ -49,9 +49,18 @@ struct Frame<'a> {
     ctx: Context<'a>,
     camera: &'a Camera,
     window: Crop,
-    /// Image pixels over window pixels: t = 1 strategies' importance is normalised over the
-    /// whole image, the film points of the others are uniform over the window.
+    /// Where the film points of the t ≥ 2 strategies are drawn, uniformly: the window widened
+    /// by the filter's reach (radius − ½ pixel per side), so that the window's edge pixels get
+    /// the light their filter sees past the window as a path tracer's samples of them do
+    /// (pbrt-v4 `MLTIntegrator` draws them over the film's `SampleBounds`): corner and size.
+    film_min: Vec2,
+    film_size: Vec2,
+    /// Image pixels over the sampled film area: t = 1 strategies' importance is normalised over
+    /// the whole image, the film points of the others are uniform over the sampled area.
     scale: f32,
+    /// The sampled film area over the window's: the mutations are `spp` per window pixel, the
+    /// states spread over the larger area.
+    area_ratio: f64,
     max_depth: usize,
 }
 
@@ -74,11 +83,10 @@ fn contribution(
         let s = ((u.next_1d() * n as f32) as usize).min(n - 1);
         (s, n - s, n)
     };
-    let w = f.window;
     let uf = u.next_2d();
     let film = Vec2::new(
-        w.x0 as f32 + uf.x * (w.x1 - w.x0) as f32,
-        w.y0 as f32 + uf.y * (w.y1 - w.y0) as f32,
+        f.film_min.x + uf.x * f.film_size.x,
+        f.film_min.y + uf.y * f.film_size.y,
     );
     let lens = u.next_2d();
     let ray = f.camera.generate_ray(film, lens);
@@ -245,7 +253,15 @@ pub fn normalisation(
             b += mean;
             var += (s2 / n - mean * mean).max(0.0) / (n - 1.0).max(1.0);
         }
-        Ok((b, if b > 0.0 { var.sqrt() / b } else { 0.0 }))
+        let b = b * f.area_ratio;
+        Ok((
+            b,
+            if b > 0.0 {
+                var.sqrt() * f.area_ratio / b
+            } else {
+                0.0
+            },
+        ))
     })
 }
 
@@ -260,8 +276,17 @@ fn with_frame<T>(
         importance,
         path,
         win,
-        scale,
+        scale: _,
     } = super::SplatSetup::new(world, settings)?;
+    let [rx, ry] = settings.filter.radius;
+    let margin = Vec2::new(rx - 0.5, ry - 0.5).max(Vec2::ZERO);
+    let film_min = Vec2::new(win.x0 as f32 - margin.x, win.y0 as f32 - margin.y);
+    let film_size = Vec2::new(
+        (win.x1 - win.x0) as f32 + 2.0 * margin.x,
+        (win.y1 - win.y0) as f32 + 2.0 * margin.y,
+    );
+    let area = film_size.x as f64 * film_size.y as f64;
+    let image = settings.width as f64 * settings.height as f64;
     let frame = Frame {
         ctx: Context {
             world,
@@ -270,7 +295,10 @@ fn with_frame<T>(
         },
         camera: &camera,
         window: win,
-        scale,
+        film_min,
+        film_size,
+        scale: (image / area) as f32,
+        area_ratio: area / (win.width() as f64 * win.height() as f64),
         max_depth: path.max_depth as usize,
     };
     body(&frame)
@@ -293,6 +321,9 @@ fn render_frame(
     let mut b_d = vec![0.0f64; depths];
     for (i, &w) in weights.iter().enumerate() {
         b_d[i % depths] += w as f64 / set.bootstrap() as f64;
+    }
+    for bd in &mut b_d {
+        *bd *= frame.area_ratio;
     }
     let b: f64 = b_d.iter().sum();
     let mut stats = stats_boot.into_inner().unwrap_or_else(|e| e.into_inner());
