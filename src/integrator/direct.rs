@@ -45,6 +45,8 @@ pub type NeeSeen = (Vec3, f32, f32);
 /// ([`super::guiding::mixture_pdf`]), so that the two strategies' weights still sum to one.
 /// With `mix` = `None` it is [`sample_ld`]. With `seen`, an unoccluded non-delta light
 /// sample is also reported there ([`NeeSeen`]): guide training records it.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn sample_ld_mix(
     world: &World,
     v: &Vertex,
