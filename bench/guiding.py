@@ -78,11 +78,12 @@ def read_hdr(path):
     return out
 
 
-def render(exe, scene, out, res, seed, threads, extra):
+def render(exe, scene, out, res, seed, threads, extra, off=""):
     cmd = [exe, "render", scene, "-o", out, "--width", str(res[0]), "--height", str(res[1]),
            "--seed", str(seed), "--threads", str(threads), "--quiet"] + extra
+    env = dict(os.environ, TRAYECTO_GUIDING_OFF=off) if off else None
     t = time.time()
-    subprocess.run(cmd, check=True)
+    subprocess.run(cmd, check=True, env=env)
     return time.time() - t
 
 
@@ -102,10 +103,18 @@ def main():
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--ref-spp", type=int, default=8192)
     ap.add_argument("--trayecto-bin", default=os.path.join(ROOT, "target/release/trayecto"))
+    ap.add_argument("--ref-bin", default=None,
+                    help="binary for the references (default: --trayecto-bin; unguided images "
+                         "are the same with any build that renders them bit-identically)")
+    ap.add_argument("--refs-only", action="store_true", help="make the missing references and stop")
+    ap.add_argument("--off", default="",
+                    help="TRAYECTO_GUIDING_OFF for the guided renders: refinements to leave out "
+                         "(bins, filter, nee), to measure each one's share")
     args = ap.parse_args()
     res = tuple(int(v) for v in args.res.split("x"))
     os.makedirs(OUT, exist_ok=True)
     exe = os.path.abspath(args.trayecto_bin)
+    ref_exe = os.path.abspath(args.ref_bin or args.trayecto_bin)
     print(f"| scene | unguided relMSE (min-max) | guided relMSE (min-max) | unguided / guided |")
     print(f"| --- | --- | --- | --- |")
     for name in args.scenes:
@@ -113,15 +122,18 @@ def main():
         tag = f"{name}_{res[0]}x{res[1]}"
         ref_path = os.path.join(OUT, f"ref_{tag}_{args.ref_spp}.hdr")
         if not os.path.exists(ref_path):
-            t = render(exe, scene, ref_path, res, 999, args.threads, ["--spp", str(args.ref_spp)])
+            t = render(ref_exe, scene, ref_path, res, 999, args.threads, ["--spp", str(args.ref_spp)])
             print(f"[{name}] reference {args.ref_spp} spp: {t:.0f} s", file=sys.stderr, flush=True)
+        if args.refs_only:
+            continue
         ref = read_hdr(ref_path)
         errs = {"plain": [], "guided": []}
         for rep in range(args.reps):
             for mode in ("plain", "guided"):
                 extra = ["--time-limit", str(args.seconds)] + (["--guiding"] if mode == "guided" else [])
                 out = os.path.join(OUT, f"{tag}_{mode}_{rep}.hdr")
-                render(exe, scene, out, res, 1 + rep, args.threads, extra)
+                render(exe, scene, out, res, 1 + rep, args.threads, extra,
+                       args.off if mode == "guided" else "")
                 errs[mode].append(rel_mse(read_hdr(out), ref))
             print(f"[{name}] rep {rep}: plain {errs['plain'][-1]:.4g} guided {errs['guided'][-1]:.4g}",
                   file=sys.stderr, flush=True)

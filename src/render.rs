@@ -61,10 +61,11 @@ pub struct RenderSettings {
     /// the `alpha` AOV; a `--transparent` render counts them whatever this says
     /// ([`RenderSettings::counts_coverage`]). The image is the same either way.
     pub track_coverage: bool,
-    /// Path guiding (docs/DESIGN.md, "Path guiding"): the surface path tracer learns the
-    /// incident radiance during the first passes ([`guide_training_samples`]) and samples
-    /// directions from a BSDF–guide mixture. The expectation is unchanged; experimental: as
-    /// measured so far it does not pay at equal time (BENCHMARKS.md, "Path guiding").
+    /// Path guiding (docs/DESIGN.md, "Path guiding"): the surface and volumetric path tracers
+    /// learn the incident radiance during the first passes ([`guide_training_samples`]) and
+    /// sample directions from a BSDF– (or phase-function–) guide mixture. The expectation is
+    /// unchanged; experimental: as measured so far it does not pay at equal time
+    /// (BENCHMARKS.md, "Path guiding").
     pub guiding: bool,
     /// The photon integrators' photons per iteration and initial radius (`--integrator sppm`;
     /// [`crate::integrator::sppm::PhotonSettings`]); the other integrators ignore them.
@@ -872,10 +873,10 @@ fn render_in_pool(
             aovs: aov_film,
         });
     }
-    // Guiding: only the surface path tracer is guided; training passes are the schedule's first
-    // ones, which start at 0 (guided renders are never resumed) and double up to
-    // `guide_training_samples`.
-    let guided = settings.guiding && integrator == Integrator::Path;
+    // Guiding: the surface and the volumetric path tracers are guided; training passes are the
+    // schedule's first ones, which start at 0 (guided renders are never resumed) and double up
+    // to `guide_training_samples`.
+    let guided = settings.guiding && matches!(integrator, Integrator::Path | Integrator::VolPath);
     let train_until = if guided {
         guide_training_samples(settings.spp)
     } else {
@@ -1058,6 +1059,29 @@ impl TileWork<'_> {
                     if moving {
                         let l = self.sample_moving(&mut stream, x, y, out.stats);
                         out.add(fx, fy, l, covered);
+                        continue;
+                    }
+                    if self.integrator == Integrator::VolPath
+                        && let Some(g) = out.guiding.as_mut()
+                    {
+                        // As in `Batch::trace`: a sample left out of training hides the records.
+                        let record =
+                            (fy as u64 * fw as u64 + fx as u64 + s as u64).is_multiple_of(stride);
+                        let held = if record { None } else { g.records.take() };
+                        let (ray, weight) =
+                            camera_ray(&self.camera, &self.filter, &mut stream, x, y);
+                        let l = crate::integrator::volpath::radiance_guided(
+                            world,
+                            &ray,
+                            &mut stream,
+                            &settings.path,
+                            out.stats,
+                            g,
+                        );
+                        if held.is_some() {
+                            g.records = held;
+                        }
+                        out.add(fx, fy, l * weight, covered);
                         continue;
                     }
                     let l = sample_pixel(

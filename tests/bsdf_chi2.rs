@@ -24,8 +24,8 @@ const N_SAMPLES: usize = 400_000;
 /// thick and thin from either side 4, dispersive 1, smooth under layers 2; the coat on
 /// transmissive materials reflecting below the base's plane 4; the uniform environment's light
 /// samples about a normal and over the sphere 3; path guiding's quadtree and BSDF–guide mixture
-/// 2.)
-const N_TESTS: usize = 78;
+/// 2, and its phase–guide mixture in media 1.)
+const N_TESTS: usize = 79;
 static CHI2_RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 fn cell_of(w: Vec3) -> usize {
@@ -2040,6 +2040,7 @@ fn learned_guide() -> std::sync::Arc<Guide> {
                     .sum::<f32>();
             records.push(Record {
                 p,
+                bin: 3,
                 wi,
                 radiance,
                 f_cos: 1.0,
@@ -2063,7 +2064,9 @@ fn learned_guide() -> std::sync::Arc<Guide> {
 fn guide_and_guided_mixture_sampling_match_pdf() {
     let guide = learned_guide();
     assert!(guide.quad_node_count() > 20, "{}", guide.quad_node_count());
-    let mix = guide.mix_at(Vec3::splat(0.4)).expect("the leaf learned");
+    let mix = guide.mix_in(Vec3::splat(0.4), 3).expect("the leaf learned");
+    // The records were made at surfaces facing one way: the other trees learned nothing.
+    assert!(guide.mix_in(Vec3::splat(0.4), 0).is_none());
     let i = chi2(
         "guide quadtree",
         |r| Some(guide.sample(mix.leaf, Vec2::new(r.next_f32(), r.next_f32()))),
@@ -2101,4 +2104,28 @@ fn guide_and_guided_mixture_sampling_match_pdf() {
         differ * 1000 <= drawn,
         "{differ} of {drawn} samples carry a pdf other than the mixture's"
     );
+
+    // A medium vertex's mixture of a forward-scattering phase function and the guide, over
+    // the whole sphere, against its pdf (the density it returns must be that pdf too).
+    let phase = trayecto::medium::HenyeyGreenstein::new(0.6);
+    let d_in = Vec3::new(0.3, -0.2, 0.9).normalize();
+    let mix = guiding::Mix { alpha: 0.4, ..mix };
+    let (mut differ, mut drawn) = (0usize, 0usize);
+    let i = chi2(
+        "phase-guide mixture",
+        |r| {
+            let u = Vec2::new(r.next_f32(), r.next_f32());
+            let (d, q, _, _) = guiding::sample_phase_mixture(&phase, d_in, &mix, r.next_f32(), u);
+            let q2 = guiding::phase_mixture_pdf(&phase, d_in, d, &mix);
+            drawn += 1;
+            differ += ((q - q2).abs() > 2e-3 * q2 + 1e-6) as usize;
+            Some(d)
+        },
+        |d| guiding::phase_mixture_pdf(&phase, d_in, d, &mix),
+    );
+    assert!(
+        (i - 1.0).abs() < 5e-3,
+        "phase-guide mixture pdf integrates to {i}"
+    );
+    assert!(differ * 1000 <= drawn, "{differ} of {drawn}");
 }

@@ -33,14 +33,20 @@ pub fn sample_ld(
     set: &PathSettings,
     stats: &mut RayStats,
 ) -> Vec3 {
-    sample_ld_mix(world, v, beta, s, set, stats, None)
+    sample_ld_mix(world, v, beta, s, set, stats, None, None)
 }
+
+/// What a light sample saw, for a guide's training ([`sample_ld_mix`]): the direction, the
+/// luminance of the incident radiance times the sample's MIS weight, and its density.
+pub type NeeSeen = (Vec3, f32, f32);
 
 /// [`sample_ld`] at a guided vertex: the light sample's MIS weight is against the density of
 /// the direction sampling the path uses there, the BSDF–guide mixture
 /// ([`super::guiding::mixture_pdf`]), so that the two strategies' weights still sum to one.
-/// With `mix` = `None` it is [`sample_ld`].
+/// With `mix` = `None` it is [`sample_ld`]. With `seen`, an unoccluded non-delta light
+/// sample is also reported there ([`NeeSeen`]): guide training records it.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn sample_ld_mix(
     world: &World,
     v: &Vertex,
@@ -49,6 +55,7 @@ pub fn sample_ld_mix(
     set: &PathSettings,
     stats: &mut RayStats,
     mix: Option<&Mix>,
+    seen: Option<&mut Option<NeeSeen>>,
 ) -> Vec3 {
     // A specular vertex takes no light sample, and a black BSDF would make `f` zero below: their
     // three numbers are skipped, not computed, so the later dimensions keep their meaning (the
@@ -93,6 +100,15 @@ pub fn sample_ld_mix(
         };
         power_heuristic(ls.pmf * ls.pdf, p_dir)
     };
+    if let Some(out) = seen
+        && !ls.delta
+    {
+        *out = Some((
+            ls.wi,
+            crate::math::luminance(set.emission(ls.li)) * weight,
+            ls.pmf * ls.pdf,
+        ));
+    }
     beta * f * wi_local.z.abs() * set.emission(ls.li) * (weight / (ls.pmf * ls.pdf))
 }
 

@@ -25,6 +25,7 @@
 use crate::material::Bsdf;
 use crate::material::bxdf::BsdfSample;
 use crate::math::{Frame, PI, Vec2, Vec3, luminance};
+use crate::medium::HenyeyGreenstein;
 
 /// Smallest and largest probability of sampling the BSDF: the guide never takes every sample
 /// (its density may be zero where light arrives), nor the BSDF (which would waste the guide).
@@ -56,6 +57,74 @@ fn split_c() -> f32 {
 /// (32 bytes each: 32 MiB). A tree at the cap stops refining; the image stays unbiased.
 pub const MAX_LEAVES: usize = 1 << 14;
 pub const MAX_QUAD_NODES: usize = 1 << 20;
+/// The spatial forest's trees: one per dominant axis and sign of the surface normal (faced
+/// toward the arriving path), and one for medium vertices. A floor, a wall and a ceiling then
+/// never share a directional distribution: each tree's leaves learn radiance arriving over one
+/// hemisphere's worth of directions, instead of an average over surfaces facing apart whose
+/// mass half lies below any one of them (measured: docs/DESIGN.md "Path guiding").
+pub const ROOTS: usize = 7;
+pub const MEDIUM_BIN: u8 = 6;
+
+/// Benchmarking knob: `TRAYECTO_GUIDING_OFF` lists refinements to leave out (`bins`, `filter`,
+/// `nee`), so that `bench/guiding.py` can measure each one's share; unset in normal use.
+fn knob_off(name: &str) -> bool {
+    static OFF: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    OFF.get_or_init(|| std::env::var("TRAYECTO_GUIDING_OFF").unwrap_or_default())
+        .split(',')
+        .any(|k| k == name)
+}
+
+/// Benchmarking knob: `TRAYECTO_GUIDING_ALPHA` fixes the BSDF's share of the mixture (within
+/// [`ALPHA_MIN`, `ALPHA_MAX`]) instead of the learned one, to measure what the learning gives.
+fn fixed_alpha() -> Option<f32> {
+    static A: std::sync::OnceLock<Option<f32>> = std::sync::OnceLock::new();
+    *A.get_or_init(|| {
+        std::env::var("TRAYECTO_GUIDING_ALPHA")
+            .ok()
+            .and_then(|v| v.parse::<f32>().ok())
+            .map(|a| a.clamp(ALPHA_MIN, ALPHA_MAX))
+    })
+}
+
+/// Whether training records light samples too (`TRAYECTO_GUIDING_OFF=nee` leaves them out).
+pub fn records_nee() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| !knob_off("nee"))
+}
+
+/// The surface tree for a vertex whose geometric normal, faced toward the side the path came
+/// from, is `n`.
+#[inline]
+pub fn normal_bin(n: Vec3) -> u8 {
+    static ONE_TREE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    if *ONE_TREE.get_or_init(|| knob_off("bins")) {
+        return 0;
+    }
+    let a = n.abs();
+    let axis = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
+    (2 * axis + (n[axis] < 0.0) as usize) as u8
+}
+
+/// A 64-bit integer hash (the SplitMix64 finalizer): the filters' jitter is a function of the
+/// record's place in its iteration, never of which thread made it.
+#[inline]
+fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+#[inline]
+fn unit(bits: u64) -> f32 {
+    (bits >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+}
+
 /// Adam's step size and moment decays (Kingma and Ba 2015), as Müller 2019 uses them.
 const ADAM_LR: f32 = 0.01;
 const ADAM_B1: f32 = 0.9;
@@ -66,6 +135,8 @@ const ADAM_B2: f32 = 0.999;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Record {
     pub p: Vec3,
+    /// The vertex's tree in the forest ([`normal_bin`], or [`MEDIUM_BIN`]).
+    pub bin: u8,
     /// The sampled direction (world space, unit).
     pub wi: Vec3,
     /// Luminance of the incident radiance estimate Lᵢ along `wi`.
@@ -166,20 +237,24 @@ impl Guide {
             min,
             inv_extent: extent.recip(),
             extent,
-            spatial: vec![SpatialNode {
-                children: 0,
-                axis: 0,
-                leaf: 0,
-            }],
-            leaves: vec![Leaf {
-                root: 0,
-                count: 0,
-                theta: 0.0,
-                m: 0.0,
-                v: 0.0,
-                t: 0,
-            }],
-            quads: vec![QuadNode::default()],
+            spatial: (0..ROOTS as u32)
+                .map(|k| SpatialNode {
+                    children: 0,
+                    axis: 0,
+                    leaf: k,
+                })
+                .collect(),
+            leaves: (0..ROOTS as u32)
+                .map(|k| Leaf {
+                    root: k,
+                    count: 0,
+                    theta: 0.0,
+                    m: 0.0,
+                    v: 0.0,
+                    t: 0,
+                })
+                .collect(),
+            quads: vec![QuadNode::default(); ROOTS],
         }
     }
 
@@ -198,34 +273,49 @@ impl Guide {
             + self.spatial.len() * std::mem::size_of::<SpatialNode>()
     }
 
-    /// The spatial leaf holding `p` (points outside the bounds go to the nearest cell).
+    /// The spatial leaf of tree `bin` holding `p` (points outside the bounds go to the nearest
+    /// cell).
     #[inline]
-    pub fn leaf_at(&self, p: Vec3) -> u32 {
+    pub fn leaf_at(&self, p: Vec3, bin: u8) -> u32 {
+        self.locate(p, bin).0
+    }
+
+    /// [`Guide::leaf_at`] and the leaf cell's extent (world units).
+    #[inline]
+    fn locate(&self, p: Vec3, bin: u8) -> (u32, Vec3) {
         let mut c = ((p - self.min) * self.inv_extent).clamp(Vec3::ZERO, Vec3::ONE);
-        let mut n = 0usize;
+        let mut size = self.extent;
+        let mut n = bin as usize % ROOTS;
         loop {
             let node = self.spatial[n];
             if node.children == 0 {
-                return node.leaf;
+                return (node.leaf, size);
             }
             let a = node.axis as usize;
             let hi = c[a] >= 0.5;
             c[a] = if hi { c[a] * 2.0 - 1.0 } else { c[a] * 2.0 };
+            size[a] *= 0.5;
             n = node.children as usize + hi as usize;
         }
     }
 
-    /// The mixture at `p`, if its leaf learned anything (an empty leaf leaves the vertex to the
-    /// BSDF alone).
+    /// The mixture at a surface point `p` whose geometric normal faced toward the arriving path
+    /// is `n`, if its leaf learned anything (an empty leaf leaves the vertex to the BSDF alone).
     #[inline]
-    pub fn mix_at(&self, p: Vec3) -> Option<Mix<'_>> {
-        let leaf = self.leaf_at(p);
+    pub fn mix_at(&self, p: Vec3, n: Vec3) -> Option<Mix<'_>> {
+        self.mix_in(p, normal_bin(n))
+    }
+
+    /// The mixture of tree `bin` at `p` ([`Guide::mix_at`]; media: [`MEDIUM_BIN`]).
+    #[inline]
+    pub fn mix_in(&self, p: Vec3, bin: u8) -> Option<Mix<'_>> {
+        let leaf = self.leaf_at(p, bin);
         let l = &self.leaves[leaf as usize];
         let total: f32 = self.quads[l.root as usize].sum.iter().sum();
         (total > 0.0 && total.is_finite()).then(|| Mix {
             guide: self,
             leaf,
-            alpha: sigmoid(l.theta).clamp(ALPHA_MIN, ALPHA_MAX),
+            alpha: fixed_alpha().unwrap_or_else(|| sigmoid(l.theta).clamp(ALPHA_MIN, ALPHA_MAX)),
         })
     }
 
@@ -306,9 +396,25 @@ impl Guide {
         )
     }
 
-    /// Adds `value` to every node on the path to `d` in `leaf`'s tree.
-    fn deposit(&mut self, leaf: u32, d: Vec3, value: f32) {
-        let mut p = dir_to_square(d);
+    /// Side of the leaf quadrant of `leaf`'s tree that holds the square point `p`.
+    fn quad_size_at(&self, leaf: u32, mut p: Vec2) -> f32 {
+        let mut n = self.leaves[leaf as usize].root as usize;
+        let mut size = 1.0f32;
+        for _ in 0..=MAX_DEPTH {
+            let (ix, iy) = ((p.x >= 0.5) as usize, (p.y >= 0.5) as usize);
+            size *= 0.5;
+            let c = self.quads[n].child[ix + 2 * iy];
+            if c == 0 {
+                break;
+            }
+            n = c as usize;
+            p = Vec2::new(p.x * 2.0 - ix as f32, p.y * 2.0 - iy as f32);
+        }
+        size
+    }
+
+    /// Adds `value` to every node on the path to the square point `p` in `leaf`'s tree.
+    fn deposit(&mut self, leaf: u32, mut p: Vec2, value: f32) {
         let mut n = self.leaves[leaf as usize].root as usize;
         for _ in 0..=MAX_DEPTH {
             let (ix, iy) = ((p.x >= 0.5) as usize, (p.y >= 0.5) as usize);
@@ -404,13 +510,16 @@ impl Guide {
             old_leaf: u32,
         }
         let mut pending: Vec<Pending> = Vec::new();
-        // Breadth-first copy: (old node, new node index, depth, records assumed in this cell).
-        g.spatial.push(SpatialNode {
-            children: 0,
-            axis: 0,
-            leaf: 0,
-        });
-        let mut stack = vec![(0usize, 0usize, 0u8, None::<f32>)];
+        // Depth-first copy of each tree: (old node, new node index, axis of a new split, records
+        // assumed in this cell). The roots keep their indices.
+        for _ in 0..ROOTS {
+            g.spatial.push(SpatialNode {
+                children: 0,
+                axis: 0,
+                leaf: 0,
+            });
+        }
+        let mut stack: Vec<_> = (0..ROOTS).rev().map(|k| (k, k, 0u8, None::<f32>)).collect();
         let mut leaves_left = MAX_LEAVES.saturating_sub(self.leaves.len());
         while let Some((old, new, axis, split_count)) = stack.pop() {
             let o = self.spatial[old];
@@ -483,6 +592,8 @@ impl Guide {
 pub struct Learner {
     guide: Option<std::sync::Arc<Guide>>,
     building: Guide,
+    /// Iterations learned so far (the filters' jitter differs from one to the next).
+    iteration: u64,
 }
 
 impl Learner {
@@ -491,6 +602,7 @@ impl Learner {
         Learner {
             guide: None,
             building: Guide::new(min, max),
+            iteration: 0,
         }
     }
 
@@ -504,21 +616,51 @@ impl Learner {
     /// radiance divided by the density the direction was drawn with, an estimate of the
     /// radiance integrated over each quadrant), the filled tree becomes the guide and its
     /// refinement the next iteration's tree.
+    ///
+    /// Splatting filters each record over a box the size of the cell it falls in, spatially and
+    /// directionally (Müller 2019, "Practical Path Guiding in Production"), stochastically:
+    /// the record lands at one point drawn uniformly in the box (the spatial leaf's extent
+    /// centred on its position, the leaf quadrant's side centred on its direction, φ wrapping
+    /// around), whose expectation is the box filter's splat. Neighbouring cells then share what
+    /// their records saw, which a tree trained on few records per cell needs.
     pub fn learn<'r>(&mut self, records: impl IntoIterator<Item = &'r Record>, spp: u32) {
+        self.iteration += 1;
+        let key = mix64(self.iteration.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        let filter = !knob_off("filter");
         let b = &mut self.building;
-        for r in records {
+        for (i, r) in records.into_iter().enumerate() {
             if !(r.pdf > 0.0) || !r.radiance.is_finite() || !r.p.is_finite() {
                 continue;
             }
-            let leaf = b.leaf_at(r.p);
+            let (leaf, size) = b.locate(r.p, r.bin);
             if r.pdf_guide > 0.0 || r.alpha < 1.0 {
                 b.adam(leaf, r);
             }
-            let l = &mut b.leaves[leaf as usize];
+            let h0 = mix64(key ^ i as u64);
+            let h1 = mix64(h0);
+            let h2 = mix64(h1);
+            let j = Vec3::new(unit(h0), unit(h0 << 24), unit(h1)) - Vec3::splat(0.5);
+            let target = if filter {
+                b.leaf_at(r.p + j * size, r.bin)
+            } else {
+                leaf
+            };
+            let l = &mut b.leaves[target as usize];
             l.count = l.count.saturating_add(1);
             let value = r.radiance / r.pdf;
             if value > 0.0 && value.is_finite() {
-                b.deposit(leaf, r.wi, value);
+                let sq = dir_to_square(r.wi);
+                let side = if filter {
+                    b.quad_size_at(target, sq)
+                } else {
+                    0.0
+                };
+                let (jx, jy) = (unit(h1 << 24) - 0.5, unit(h2) - 0.5);
+                let x = (sq.x + jx * side).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+                let y = (sq.y + jy * side)
+                    .rem_euclid(1.0)
+                    .min(1.0 - f32::EPSILON / 2.0);
+                b.deposit(target, Vec2::new(x, y), value);
             }
         }
         let next = self.building.refined(spp);
@@ -632,6 +774,36 @@ pub fn sample_mixture(
             pdf_guide: pg,
         })
     }
+}
+
+/// One-sample MIS between a medium's phase function and the guide (volume path guiding,
+/// Herholz et al. 2019, with the learned share as at surfaces), for light travelling along
+/// `d_in`: `u_pick` < α samples the phase function, otherwise the guide. Returns the direction
+/// leaving the vertex, the mixture's density, and the phase function's and the guide's densities
+/// there. The estimate multiplies by p_phase/q: unbiased since the phase function is positive
+/// everywhere.
+#[inline]
+pub fn sample_phase_mixture(
+    phase: &HenyeyGreenstein,
+    d_in: Vec3,
+    mix: &Mix,
+    u_pick: f32,
+    u: Vec2,
+) -> (Vec3, f32, f32, f32) {
+    let d = if u_pick < mix.alpha {
+        phase.sample(d_in, u).d_out
+    } else {
+        mix.guide.sample(mix.leaf, u)
+    };
+    let pp = phase.eval(d_in, d);
+    let pg = mix.guide.pdf(mix.leaf, d);
+    (d, mix.alpha * pp + (1.0 - mix.alpha) * pg, pp, pg)
+}
+
+/// The phase–guide mixture's density at the leaving direction `d` ([`sample_phase_mixture`]).
+#[inline]
+pub fn phase_mixture_pdf(phase: &HenyeyGreenstein, d_in: Vec3, d: Vec3, mix: &Mix) -> f32 {
+    mix.alpha * phase.eval(d_in, d) + (1.0 - mix.alpha) * mix.guide.pdf(mix.leaf, d)
 }
 
 /// The mixture's density at the local direction `wl` (world `wi`): what next-event estimation

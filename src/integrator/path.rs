@@ -251,14 +251,49 @@ fn continue_path(
             Some(g) => (g.guide, g.records.is_some()),
             None => (None, false),
         };
-        let mix = match guide {
-            Some(gd) if guiding::guidable(&v.bsdf) => gd.mix_at(v.hit.p),
+        // The vertex's tree: its normal faced toward the side the path arrived from.
+        let bin = g
+            .is_some()
+            .then(|| guiding::normal_bin(if v.ng.dot(wo) < 0.0 { -v.ng } else { v.ng }));
+        let mix = match (guide, bin) {
+            (Some(gd), Some(b)) if guiding::guidable(&v.bsdf) => gd.mix_in(v.hit.p, b),
             _ => None,
         };
+        // While training, the light sample is a record too: the radiance NEE found along its
+        // direction, weighted by its MIS weight, as the BSDF-sampled records carry theirs
+        // (together they estimate the direct light arriving at the vertex, as in Müller 2019).
+        let mut seen = None;
+        let record_nee = training && guiding::records_nee() && guiding::guidable(&v.bsdf);
         l += set.clamp(
-            sample_ld_mix(world, v, beta, s, set, stats, mix.as_ref()),
+            sample_ld_mix(
+                world,
+                v,
+                beta,
+                s,
+                set,
+                stats,
+                mix.as_ref(),
+                record_nee.then_some(&mut seen),
+            ),
             depth + 1,
         );
+        if let (Some((wi, radiance, pdf)), Some(out), Some(bin)) = (
+            seen,
+            g.as_deref_mut().and_then(|g| g.records.as_deref_mut()),
+            bin,
+        ) {
+            out.push(Record {
+                p: v.hit.p,
+                bin,
+                wi,
+                radiance,
+                f_cos: 0.0,
+                pdf_bsdf: 0.0,
+                pdf_guide: 0.0,
+                pdf,
+                alpha: 1.0,
+            });
+        }
 
         // BSDF sampling (or the mixture's): choose the next direction. The mixture takes the
         // lobe-choice number as its strategy choice, so the dimensions stay the same.
@@ -308,6 +343,7 @@ fn continue_path(
             g.pending.push(Pending {
                 record: Record {
                     p: v.hit.p,
+                    bin: bin.unwrap_or(0),
                     wi,
                     radiance: 0.0,
                     f_cos: luminance(bs.f) * bs.wi.z.abs(),

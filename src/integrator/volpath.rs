@@ -39,6 +39,7 @@
 //! the pipeline refuses `--secondary` above 1 for scenes with media.
 
 use super::RayStats;
+use super::guiding::{self, Guiding, Mix, Pending, Record};
 use super::settings::PathSettings;
 use super::vertex::Vertex;
 use crate::geometry::Ray;
@@ -71,9 +72,15 @@ enum Scatterer<'a> {
         /// ray leaves into.
         material: u32,
         ng_front: Vec3,
+        /// A guided vertex's BSDF–guide mixture, the density light samples are weighed against.
+        mix: Option<&'a Mix<'a>>,
     },
     /// A point in a medium; `wo` points back along the path (towards the camera).
-    Medium { phase: HenyeyGreenstein, wo: Vec3 },
+    Medium {
+        phase: HenyeyGreenstein,
+        wo: Vec3,
+        mix: Option<&'a Mix<'a>>,
+    },
 }
 
 struct PathState {
@@ -94,26 +101,58 @@ pub fn radiance(
     // Spectral mode, as the surface path tracer: the wavelengths ride on a copy of the settings
     // and the radiance at them reaches the film as RGB.
     match set.for_sample(s) {
-        None => radiance_in(world, ray, s, set, stats),
+        None => trace(world, ray, s, set, stats, None),
         Some(set) => {
-            let l = radiance_in(world, ray, s, &set, stats);
+            let l = trace(world, ray, s, &set, stats, None);
             set.to_film(l)
         }
     }
 }
 
-/// [`radiance`] in the path's own colour representation: RGB, or at `set.wavelengths`. There
-/// the three lanes are wavelengths: σa, σs and Le are their spectra at them
-/// ([`crate::medium::Medium::coefficients`]), the hero is lane 0 (the wavelengths are already
-/// a random rotation, pbrt-v4 `VolPathIntegrator` tracks with λ₀'s majorant), and r_u, r_l are
-/// the per-wavelength pdf ratios of the spectral MIS above.
-fn radiance_in(
+/// [`radiance`] guided by `g` (docs/DESIGN.md, "Path guiding"): surface vertices sample the
+/// BSDF–guide mixture as the surface path tracer does, medium vertices the mixture of the phase
+/// function and the guide of the medium tree (volume path guiding, Herholz et al. 2019, with
+/// Müller's SD-tree as the guide), the mixture's choice drawn from the tracking generator; while
+/// training, both kinds of vertex are recorded into `g.records`.
+pub fn radiance_guided(
     world: &World,
     ray: &Ray,
     s: &mut SampleStream,
     set: &PathSettings,
     stats: &mut RayStats,
+    g: &mut Guiding,
 ) -> Vec3 {
+    // The records learn from the radiance in the path's own representation (at the sample's
+    // wavelengths in spectral mode), as the surface path tracer's do.
+    let (l, film) = match set.for_sample(s) {
+        None => {
+            let l = trace(world, ray, s, set, stats, Some(&mut *g));
+            (l, l)
+        }
+        Some(set) => {
+            let l = trace(world, ray, s, &set, stats, Some(&mut *g));
+            (l, set.to_film(l))
+        }
+    };
+    // A record's incident radiance is what the path gathered after it over the path's
+    // MIS-weighted throughput there (an approximation: a learning signal only).
+    g.finish(l);
+    film
+}
+
+#[inline(always)]
+fn trace(
+    world: &World,
+    ray: &Ray,
+    s: &mut SampleStream,
+    set: &PathSettings,
+    stats: &mut RayStats,
+    mut g: Option<&mut Guiding>,
+) -> Vec3 {
+    let (guide, training) = match g.as_deref() {
+        Some(g) => (g.guide, g.records.is_some()),
+        None => (None, false),
+    };
     let u_channel = s.next_1d();
     let lambda = set.wavelengths.map(|w| w.lambda);
     let channel = if lambda.is_some() {
@@ -231,13 +270,18 @@ fn radiance_in(
                                     return l;
                                 }
                                 let wo = -ray.d;
+                                let mix = guide.and_then(|gd| gd.mix_in(p, guiding::MEDIUM_BIN));
                                 l += set.clamp(
                                     sample_ld(
                                         world,
                                         p,
                                         Vec3::ZERO,
                                         Vec3::ZERO,
-                                        &Scatterer::Medium { phase: m.phase, wo },
+                                        &Scatterer::Medium {
+                                            phase: m.phase,
+                                            wo,
+                                            mix: mix.as_ref(),
+                                        },
                                         medium,
                                         &st,
                                         &mut rng,
@@ -247,16 +291,53 @@ fn radiance_in(
                                     ),
                                     depth,
                                 );
-                                let ps = m.phase.sample(ray.d, s.next_2d());
-                                if !(ps.pdf > 0.0) {
+                                let u_dir = s.next_2d();
+                                // (direction, its density, the phase function's, the guide's)
+                                let (d_out, pdf, p_phase, p_guide) = match mix.as_ref() {
+                                    None => {
+                                        let ps = m.phase.sample(ray.d, u_dir);
+                                        (ps.d_out, ps.pdf, ps.pdf, 0.0)
+                                    }
+                                    Some(mx) => guiding::sample_phase_mixture(
+                                        &m.phase,
+                                        ray.d,
+                                        mx,
+                                        rng.next_f32(),
+                                        u_dir,
+                                    ),
+                                };
+                                if !(pdf > 0.0) {
                                     return l;
                                 }
-                                // β·p/pdf = β for HG (its own pdf); r_l = r_u / pdf.
-                                st.r_l = st.r_u / ps.pdf;
+                                // β·p/pdf = β for HG sampled alone (its own pdf); r_l = r_u / pdf.
+                                if mix.is_some() {
+                                    st.beta *= p_phase / pdf;
+                                }
+                                st.r_l = st.r_u / pdf;
+                                if let Some(g) = g.as_deref_mut()
+                                    && training
+                                    && g.pending.len() < guiding::MAX_RECORDED_VERTICES
+                                {
+                                    g.pending.push(Pending {
+                                        record: Record {
+                                            p,
+                                            bin: guiding::MEDIUM_BIN,
+                                            wi: d_out,
+                                            radiance: 0.0,
+                                            f_cos: p_phase,
+                                            pdf_bsdf: p_phase,
+                                            pdf_guide: p_guide,
+                                            pdf,
+                                            alpha: mix.as_ref().map_or(1.0, |m| m.alpha),
+                                        },
+                                        l_before: l,
+                                        beta_after: st.beta / mean(st.r_u),
+                                    });
+                                }
                                 prev_p = p;
                                 prev_n = Vec3::ZERO;
                                 specular_bounce = false;
-                                ray = Ray::new(p, ps.d_out);
+                                ray = Ray::new(p, d_out);
                                 scattered = true;
                                 break;
                             }
@@ -342,6 +423,18 @@ fn radiance_in(
             v.bsdf = v.bsdf.to_spectral(l);
         }
         let (bsdf, ng, frame, wo_local, hit) = (&v.bsdf, v.ng, &v.frame, v.wo_local, &v.hit);
+        // A guided surface vertex: its tree by the normal faced toward the arriving path.
+        let bin = g.is_some().then(|| {
+            guiding::normal_bin(if hit.ng.dot(wo) < 0.0 {
+                -hit.ng
+            } else {
+                hit.ng
+            })
+        });
+        let mix = match (guide, bin) {
+            (Some(gd), Some(b)) if guiding::guidable(bsdf) => gd.mix_in(hit.p, b),
+            _ => None,
+        };
 
         if !bsdf.is_specular() {
             l += set.clamp(
@@ -357,6 +450,7 @@ fn radiance_in(
                         ng,
                         material: hit.material,
                         ng_front: hit.ng,
+                        mix: mix.as_ref(),
                     },
                     medium,
                     &st,
@@ -371,17 +465,31 @@ fn radiance_in(
             s.skip(3);
         }
 
-        let u_lobe = if bsdf.has_one_lobe() {
-            s.skip(1);
-            0.0
+        // `densities`: the BSDF's and the guide's densities and the BSDF's share, for a
+        // training record (as in the surface path tracer).
+        let (bs, wi, densities) = if let Some(m) = mix.as_ref() {
+            let u_pick = s.next_1d();
+            let u_dir = s.next_2d();
+            let Some(ms) = guiding::sample_mixture(bsdf, frame, wo_local, m, u_pick, u_dir) else {
+                return l;
+            };
+            (ms.bs, ms.wi, Some((ms.pdf_bsdf, ms.pdf_guide, m.alpha)))
         } else {
-            s.next_1d()
+            let u_lobe = if bsdf.has_one_lobe() {
+                s.skip(1);
+                0.0
+            } else {
+                s.next_1d()
+            };
+            let u_dir = s.next_2d();
+            let Some(bs) = bsdf.sample(wo_local, u_lobe, u_dir) else {
+                return l;
+            };
+            let wi = frame.to_world(bs.wi);
+            let densities =
+                (training && !bs.specular && guiding::guidable(bsdf)).then_some((bs.pdf, 0.0, 1.0));
+            (bs, wi, densities)
         };
-        let u_dir = s.next_2d();
-        let Some(bs) = bsdf.sample(wo_local, u_lobe, u_dir) else {
-            return l;
-        };
-        let wi = frame.to_world(bs.wi);
         if !bsdf.side_consistent(bs.wi, wi.dot(ng)) || !(bs.pdf > 0.0) {
             return l;
         }
@@ -389,6 +497,28 @@ fn radiance_in(
         st.r_l = st.r_u / bs.pdf;
         if !(st.beta.max_element() > 0.0) || !st.beta.is_finite() {
             return l;
+        }
+        if let (Some(g), Some((pdf_bsdf, pdf_guide, alpha)), Some(bin)) =
+            (g.as_deref_mut(), densities, bin)
+            && training
+            && !bs.specular
+            && g.pending.len() < guiding::MAX_RECORDED_VERTICES
+        {
+            g.pending.push(Pending {
+                record: Record {
+                    p: hit.p,
+                    bin,
+                    wi,
+                    radiance: 0.0,
+                    f_cos: crate::math::luminance(bs.f) * bs.wi.z.abs(),
+                    pdf_bsdf,
+                    pdf_guide,
+                    pdf: bs.pdf,
+                    alpha,
+                },
+                l_before: l,
+                beta_after: st.beta / mean(st.r_u),
+            });
         }
         specular_bounce = bs.specular;
         eta_scale *= bs.eta * bs.eta;
@@ -491,6 +621,7 @@ fn sample_ld(
             ng,
             material,
             ng_front,
+            mix,
         } => {
             let wi_local = frame.to_local(ls.wi);
             // Shading and geometric normals must agree on the side of `wi`.
@@ -500,13 +631,21 @@ fn sample_ld(
             let f = bsdf.eval(*wo_local, wi_local) * wi_local.z.abs();
             // At a medium transition the shadow ray starts in the medium of the side `wi` is on.
             let start = world.medium_after(*material, ls.wi, *ng_front, medium_in);
-            (f, bsdf.pdf(*wo_local, wi_local), start)
+            let pdf = match mix {
+                Some(m) => guiding::mixture_pdf(bsdf, *wo_local, wi_local, ls.wi, m),
+                None => bsdf.pdf(*wo_local, wi_local),
+            };
+            (f, pdf, start)
         }
-        Scatterer::Medium { phase, wo } => {
+        Scatterer::Medium { phase, wo, mix } => {
             // Light arrives travelling along −wi and leaves travelling along wo (towards the
             // camera).
             let pv = phase.eval(-ls.wi, *wo);
-            (Vec3::splat(pv), pv, medium_in)
+            let pdf = match mix {
+                Some(m) => guiding::phase_mixture_pdf(phase, -*wo, ls.wi, m),
+                None => pv,
+            };
+            (Vec3::splat(pv), pdf, medium_in)
         }
     };
     if f == Vec3::ZERO {

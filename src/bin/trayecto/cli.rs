@@ -361,10 +361,10 @@ pub struct RenderArgs {
     #[arg(short = 'D', long = "define", help_heading = HEADING_SCENE, value_name = "NAME=VALUE", value_parser = trayecto::scene::mitsuba::parse_define)]
     pub define: Vec<(String, String)>,
     /// Path guiding (experimental): learn where indirect light comes from during the first
-    /// quarter of the samples (at most 128 spp) and sample those directions too. Unbiased and
-    /// deterministic; meant for light through a gap or off a small bright patch, but it does not
-    /// yet pay at equal time in the measured scenes (BENCHMARKS.md). Surfaces only (media are
-    /// not guided); a guided render cannot be split or resumed.
+    /// quarter of the samples (at most 128 spp) and sample those directions too, at surfaces and
+    /// in media. Unbiased and deterministic; meant for light through a gap or off a small bright
+    /// patch, but it does not yet pay at equal time in the measured scenes (BENCHMARKS.md). A
+    /// guided render cannot be split or resumed.
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub guiding: bool,
     /// Most a sample's direct light may add (its largest colour channel; off by default).
