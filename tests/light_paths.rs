@@ -249,20 +249,23 @@ fn light_paths_fill_the_edge_pixels_through_a_wide_filter() {
 }
 
 /// pbrt-v4's BDPT renders of `veach-bidir` and `water-caustic` (32 × 32, 1024 samples,
-/// `scripts/references/pbrt_bdpt_references.sh 32 1024`; tests/references/pbrt/bdpt/):
-/// Trayecto's BDPT of the same files, their filter and depth, agrees with them within noise
-/// (image mean and the 8 × 8 blocks). The lamp of `veach-bidir` is seen through its glass shade
-/// and the caustic of `water-caustic` is light refracted twice by the water's surface: a wrong
-/// specular vertex, MIS weight or importance shows as a block off by tens of per cent. Left out
+/// `scripts/references/pbrt_bdpt_references.sh 32 1024`) and `volumetric-caustic` (64 × 64, 512
+/// samples, `… 64 512 volumetric-caustic`; tests/references/pbrt/bdpt/): Trayecto's BDPT of the
+/// same files, their filter and depth, agrees with them within noise (image mean and the 8 × 8
+/// blocks). The lamp of `veach-bidir` is seen through its glass shade, the caustic of
+/// `water-caustic` is light refracted twice by the water's surface and that of
+/// `volumetric-caustic` is focused by a glass sphere into fog: a wrong specular vertex, medium
+/// vertex, MIS weight or importance shows as a block off by tens of per cent. Left out
 /// of both images: pixels above 100 times the reference's median, `water-caustic`'s lamp seen
 /// directly (a 5 × 4 mm emitter of radiance 5·10⁵ covering a per cent of one pixel: whether a
 /// render at test sample counts catches it is a lottery, and it is a third of the reference's
 /// mean).
 #[test]
-fn bdpt_agrees_with_pbrt_v4_on_veach_bidir_and_water_caustic() {
-    for (name, spp, mean_bound, block_bound) in [
-        ("veach-bidir", 64, 0.03, 0.05),
-        ("water-caustic", 64, 0.06, 0.2),
+fn bdpt_agrees_with_pbrt_v4_on_veach_bidir_and_the_caustics() {
+    for (name, size, spp, mean_bound, block_bound) in [
+        ("veach-bidir", 32, 64, 0.03, 0.05),
+        ("water-caustic", 32, 64, 0.06, 0.2),
+        ("volumetric-caustic", 64, 32, 0.03, 0.1),
     ] {
         let t0 = std::time::Instant::now();
         let file = shared_scene(&format!("pbrt/{name}/scene-v4.pbrt"));
@@ -270,12 +273,12 @@ fn bdpt_agrees_with_pbrt_v4_on_veach_bidir_and_water_caustic() {
         let mut settings = RenderSettings {
             integrator: IntegratorKind::Bdpt,
             filter: scene.hints.filter.unwrap_or_default(),
-            ..lt(32, 32, spp, scene.hints.max_depth.unwrap())
+            ..lt(size, size, spp, scene.hints.max_depth.unwrap())
         };
         settings.seed = 1;
         let img = render_scene(&scene, &settings);
         let reference =
-            read_exr(&repo_dir().join(format!("tests/references/pbrt/bdpt/{name}-32.exr")))
+            read_exr(&repo_dir().join(format!("tests/references/pbrt/bdpt/{name}-{size}.exr")))
                 .unwrap();
         let mut sorted: Vec<f32> = reference
             .data
