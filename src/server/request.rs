@@ -224,6 +224,18 @@ pub fn camera_field(v: &Value) -> Result<crate::camera::CameraSpec, String> {
 /// Longest time limit a request may ask for, in seconds.
 pub const MAX_TIME_LIMIT: f64 = 24.0 * 3600.0;
 
+/// A switch: `true` or `false`, off when absent or null; anything else is an error naming `key`.
+fn bool_field(v: Option<&Value>, key: &str, errors: &mut BTreeMap<String, String>) -> bool {
+    match v {
+        None | Some(Value::Null) => false,
+        Some(Value::Bool(b)) => *b,
+        Some(_) => {
+            errors.insert(key.into(), "must be true or false".into());
+            false
+        }
+    }
+}
+
 /// A positive number field at most `max` (`None` when absent or null).
 fn positive_field(
     v: Option<&Value>,
@@ -1048,38 +1060,10 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
             .map(|x| x as f32);
     let time_limit = positive_field(b.time_limit.as_ref(), "time_limit", MAX_TIME_LIMIT, errors);
     let crop = check_crop(b.crop.as_ref(), errors);
-    let denoise = match &b.denoise {
-        None | Some(Value::Null) => false,
-        Some(Value::Bool(b)) => *b,
-        Some(_) => {
-            errors.insert("denoise".into(), "must be true or false".into());
-            false
-        }
-    };
-    let guiding = match &b.guiding {
-        None | Some(Value::Null) => false,
-        Some(Value::Bool(b)) => *b,
-        Some(_) => {
-            errors.insert("guiding".into(), "must be true or false".into());
-            false
-        }
-    };
-    let transparent = match &b.transparent {
-        None | Some(Value::Null) => false,
-        Some(Value::Bool(b)) => *b,
-        Some(_) => {
-            errors.insert("transparent".into(), "must be true or false".into());
-            false
-        }
-    };
-    let spectral = match &b.spectral {
-        None | Some(Value::Null) => false,
-        Some(Value::Bool(b)) => *b,
-        Some(_) => {
-            errors.insert("spectral".into(), "must be true or false".into());
-            false
-        }
-    };
+    let denoise = bool_field(b.denoise.as_ref(), "denoise", errors);
+    let guiding = bool_field(b.guiding.as_ref(), "guiding", errors);
+    let transparent = bool_field(b.transparent.as_ref(), "transparent", errors);
+    let spectral = bool_field(b.spectral.as_ref(), "spectral", errors);
     Options {
         exposure,
         integrator,
