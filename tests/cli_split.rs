@@ -49,6 +49,20 @@ fn render(extra: &[&str], out: &Path) -> std::process::Output {
         .unwrap()
 }
 
+/// `trayecto merge PARTS… -o OUT`.
+fn merge<P: AsRef<std::ffi::OsStr>>(
+    parts: impl IntoIterator<Item = P>,
+    out: &Path,
+) -> std::process::Output {
+    bin()
+        .arg("merge")
+        .args(parts)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 fn ok(o: std::process::Output) {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
@@ -67,34 +81,18 @@ fn parts_rendered_by_separate_processes_merge_to_the_single_render() {
         parts.push(p);
     }
     parts.reverse();
-    ok(bin()
-        .arg("merge")
-        .args(&parts)
-        .arg("-o")
-        .arg(d.join("merged.exr"))
-        .output()
-        .unwrap());
+    ok(merge(&parts, &d.join("merged.exr")));
     assert_eq!(
         std::fs::read(d.join("full.exr")).unwrap(),
         std::fs::read(d.join("merged.exr")).unwrap(),
         "merged EXR differs from the single render"
     );
     // Two parts merged into a longer part, then with the third: the same image.
-    ok(bin()
-        .arg("merge")
-        .args(&parts[..2])
-        .arg("-o")
-        .arg(d.join("p4-11.trp"))
-        .output()
-        .unwrap());
-    ok(bin()
-        .arg("merge")
-        .arg(d.join("p4-11.trp"))
-        .arg(&parts[2])
-        .arg("-o")
-        .arg(d.join("merged2.exr"))
-        .output()
-        .unwrap());
+    ok(merge(&parts[..2], &d.join("p4-11.trp")));
+    ok(merge(
+        [&d.join("p4-11.trp"), &parts[2]],
+        &d.join("merged2.exr"),
+    ));
     assert_eq!(
         std::fs::read(d.join("full.exr")).unwrap(),
         std::fs::read(d.join("merged2.exr")).unwrap()
@@ -102,13 +100,7 @@ fn parts_rendered_by_separate_processes_merge_to_the_single_render() {
 
     // Refusals, with the file named and a non-zero exit.
     let refuse = |args: &[&Path], want: &str| {
-        let o = bin()
-            .arg("merge")
-            .args(args)
-            .arg("-o")
-            .arg(d.join("bad.exr"))
-            .output()
-            .unwrap();
+        let o = merge(args, &d.join("bad.exr"));
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && e.contains(want), "{e}");
     };
@@ -139,13 +131,7 @@ fn parts_rendered_by_separate_processes_merge_to_the_single_render() {
         ));
         sparts.push(p);
     }
-    ok(bin()
-        .arg("merge")
-        .args(&sparts)
-        .arg("-o")
-        .arg(d.join("smerged.exr"))
-        .output()
-        .unwrap());
+    ok(merge(&sparts, &d.join("smerged.exr")));
     assert_eq!(
         std::fs::read(d.join("sfull.exr")).unwrap(),
         std::fs::read(d.join("smerged.exr")).unwrap(),
@@ -350,13 +336,7 @@ fn an_output_naming_a_folder_is_refused_before_rendering() {
         .output()
         .unwrap();
     assert!(String::from_utf8_lossy(&o.stderr).contains("is a folder"));
-    let o = bin()
-        .arg("merge")
-        .arg(d.join("none.trp"))
-        .arg("-o")
-        .arg(&d)
-        .output()
-        .unwrap();
+    let o = merge([d.join("none.trp")], &d);
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("is a folder"), "{e}");
 }
@@ -391,13 +371,7 @@ fn a_failed_final_write_saves_the_film_and_merge_recovers_the_image() {
         e.contains(&format!("trayecto merge {}", rescued.display())),
         "{e}"
     );
-    ok(bin()
-        .arg("merge")
-        .arg(&rescued)
-        .arg("-o")
-        .arg(d.join("recovered.exr"))
-        .output()
-        .unwrap());
+    ok(merge([&rescued], &d.join("recovered.exr")));
     ok(render(&settings, &d.join("straight.exr")));
     assert_eq!(
         std::fs::read(d.join("straight.exr")).unwrap(),
@@ -454,13 +428,7 @@ fn a_failed_checkpoint_write_saves_the_completed_passes() {
     let [start, done] = part.header.samples;
     assert_eq!(start, 0);
     assert!(done > 0 && done < 6000, "{done} samples rescued");
-    ok(bin()
-        .arg("merge")
-        .arg(&rescued)
-        .arg("-o")
-        .arg(d.join("recovered.exr"))
-        .output()
-        .unwrap());
+    ok(merge([&rescued], &d.join("recovered.exr")));
     let spp = done.to_string();
     ok(bin()
         .args(["render", "cornell", "-q", "--seed", "5", "--spp", &spp])
@@ -595,14 +563,7 @@ fn merge_and_resume_refuse_another_texture_filter() {
         ],
         &d.join("b.trp"),
     ));
-    let o = bin()
-        .arg("merge")
-        .arg(d.join("a.trp"))
-        .arg(d.join("b.trp"))
-        .arg("-o")
-        .arg(d.join("mixed.exr"))
-        .output()
-        .unwrap();
+    let o = merge([d.join("a.trp"), d.join("b.trp")], &d.join("mixed.exr"));
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(
         !o.status.success() && e.contains("texture_filter") && e.contains("Trilinear"),
@@ -667,13 +628,7 @@ fn a_forged_partial_film_is_refused_by_merge_and_resume() {
     let forged = d.join("forged.trp");
     std::fs::write(&forged, z.finish().unwrap()).unwrap();
     // Merged into a longer part (an image would need the whole frame): the pixels are read.
-    let o = bin()
-        .arg("merge")
-        .arg(&forged)
-        .arg("-o")
-        .arg(d.join("forged-merged.trp"))
-        .output()
-        .unwrap();
+    let o = merge([&forged], &d.join("forged-merged.trp"));
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(
         !o.status.success() && e.contains("forged.trp") && e.contains("discarded"),
@@ -725,13 +680,7 @@ fn a_transparent_frame_merges_and_resumes_with_its_alpha() {
     render(&["--samples", "0..2"], &d.join("a.trp"));
     render(&["--samples", "2..6"], &d.join("b.trp"));
     for out in ["merged.exr", "merged.png"] {
-        ok(bin()
-            .arg("merge")
-            .args([d.join("b.trp"), d.join("a.trp")])
-            .arg("-o")
-            .arg(d.join(out))
-            .output()
-            .unwrap());
+        ok(merge([d.join("b.trp"), d.join("a.trp")], &d.join(out)));
     }
     assert_eq!(
         std::fs::read(d.join("full.exr")).unwrap(),
@@ -788,13 +737,7 @@ fn a_transparent_frame_merges_and_resumes_with_its_alpha() {
         .arg(d.join("opaque.trp"))
         .output()
         .unwrap());
-    let o = bin()
-        .arg("merge")
-        .args([d.join("opaque.trp"), d.join("b.trp")])
-        .arg("-o")
-        .arg(d.join("bad.exr"))
-        .output()
-        .unwrap();
+    let o = merge([d.join("opaque.trp"), d.join("b.trp")], &d.join("bad.exr"));
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("path"), "{e}");
 }
