@@ -92,14 +92,15 @@ pub fn records_nee() -> bool {
     *ON.get_or_init(|| !knob_off("nee"))
 }
 
-/// The surface tree for a vertex whose geometric normal, faced toward the side the path came
-/// from, is `n`.
+/// The surface tree of a vertex with geometric normal `ng` reached along `wo` (pointing back
+/// along the path): chosen by the normal faced toward the side the path came from.
 #[inline]
-pub fn normal_bin(n: Vec3) -> u8 {
+pub fn normal_bin(ng: Vec3, wo: Vec3) -> u8 {
     static ONE_TREE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     if *ONE_TREE.get_or_init(|| knob_off("bins")) {
         return 0;
     }
+    let n = if ng.dot(wo) < 0.0 { -ng } else { ng };
     let a = n.abs();
     let axis = if a.x >= a.y && a.x >= a.z {
         0
@@ -299,14 +300,8 @@ impl Guide {
         }
     }
 
-    /// The mixture at a surface point `p` whose geometric normal faced toward the arriving path
-    /// is `n`, if its leaf learned anything (an empty leaf leaves the vertex to the BSDF alone).
-    #[inline]
-    pub fn mix_at(&self, p: Vec3, n: Vec3) -> Option<Mix<'_>> {
-        self.mix_in(p, normal_bin(n))
-    }
-
-    /// The mixture of tree `bin` at `p` ([`Guide::mix_at`]; media: [`MEDIUM_BIN`]).
+    /// The mixture of tree `bin` ([`normal_bin`]; media: [`MEDIUM_BIN`]) at `p`, if its leaf
+    /// learned anything (an empty leaf leaves the vertex to the BSDF alone).
     #[inline]
     pub fn mix_in(&self, p: Vec3, bin: u8) -> Option<Mix<'_>> {
         let leaf = self.leaf_at(p, bin);
@@ -345,7 +340,7 @@ impl Guide {
 
     /// A direction drawn from the guide of `leaf` with `u` (Müller 2017 §3.3: descend by the
     /// quadrants' sums, then uniformly in the leaf quadrant). The leaf's tree must hold some
-    /// radiance ([`Guide::mix_at`]).
+    /// radiance ([`Guide::mix_in`]).
     #[inline]
     pub fn sample(&self, leaf: u32, u: Vec2) -> Vec3 {
         self.sample_pdf(leaf, u).0

@@ -252,9 +252,7 @@ fn continue_path(
             None => (None, false),
         };
         // The vertex's tree: its normal faced toward the side the path arrived from.
-        let bin = g
-            .is_some()
-            .then(|| guiding::normal_bin(if v.ng.dot(wo) < 0.0 { -v.ng } else { v.ng }));
+        let bin = g.is_some().then(|| guiding::normal_bin(v.ng, wo));
         let mix = match (guide, bin) {
             (Some(gd), Some(b)) if guiding::guidable(&v.bsdf) => gd.mix_in(v.hit.p, b),
             _ => None,

@@ -424,13 +424,7 @@ fn trace(
         }
         let (bsdf, ng, frame, wo_local, hit) = (&v.bsdf, v.ng, &v.frame, v.wo_local, &v.hit);
         // A guided surface vertex: its tree by the normal faced toward the arriving path.
-        let bin = g.is_some().then(|| {
-            guiding::normal_bin(if hit.ng.dot(wo) < 0.0 {
-                -hit.ng
-            } else {
-                hit.ng
-            })
-        });
+        let bin = g.is_some().then(|| guiding::normal_bin(hit.ng, wo));
         let mix = match (guide, bin) {
             (Some(gd), Some(b)) if guiding::guidable(bsdf) => gd.mix_in(hit.p, b),
             _ => None,
