@@ -1038,8 +1038,7 @@ impl TileWork<'_> {
                     if batched {
                         // The sample's stream draws its camera numbers where the batch keeps it.
                         let p = batch.push(fx, fy, slot, self.sampler.stream(pixel_key, s));
-                        p.record =
-                            (fy as u64 * fw as u64 + fx as u64 + s as u64).is_multiple_of(stride);
+                        p.record = records_sample(fx, fy, fw, s, stride);
                         (p.ray, p.weight) =
                             camera_ray(&self.camera, &self.filter, &mut p.stream, x, y);
                         if batch.is_full() {
@@ -1064,23 +1063,19 @@ impl TileWork<'_> {
                     if self.integrator == Integrator::VolPath
                         && let Some(g) = out.guiding.as_mut()
                     {
-                        // As in `Batch::trace`: a sample left out of training hides the records.
-                        let record =
-                            (fy as u64 * fw as u64 + fx as u64 + s as u64).is_multiple_of(stride);
-                        let held = if record { None } else { g.records.take() };
                         let (ray, weight) =
                             camera_ray(&self.camera, &self.filter, &mut stream, x, y);
-                        let l = crate::integrator::volpath::radiance_guided(
-                            world,
-                            &ray,
-                            &mut stream,
-                            &settings.path,
-                            out.stats,
-                            g,
-                        );
-                        if held.is_some() {
-                            g.records = held;
-                        }
+                        let record = records_sample(fx, fy, fw, s, stride);
+                        let l = with_records(g, record, |g| {
+                            crate::integrator::volpath::radiance_guided(
+                                world,
+                                &ray,
+                                &mut stream,
+                                &settings.path,
+                                out.stats,
+                                g,
+                            )
+                        });
                         out.add(fx, fy, l * weight, covered);
                         continue;
                     }
@@ -1591,6 +1586,25 @@ impl BatchOut<'_> {
     }
 }
 
+/// Whether a training pass records sample `s` of film pixel (`fx`, `fy`) (`fw` pixels a row):
+/// every `stride`-th sample, counted along the film so that every pixel takes its turn.
+#[inline]
+fn records_sample(fx: u32, fy: u32, fw: u32, s: u32, stride: u64) -> bool {
+    (fy as u64 * fw as u64 + fx as u64 + s as u64).is_multiple_of(stride)
+}
+
+/// Runs a guided sample's `trace` with `g`'s records hidden unless `record`: a sample left out
+/// of training adds nothing to them.
+#[inline]
+fn with_records<T>(g: &mut Guiding, record: bool, trace: impl FnOnce(&mut Guiding) -> T) -> T {
+    let held = if record { None } else { g.records.take() };
+    let out = trace(g);
+    if held.is_some() {
+        g.records = held;
+    }
+    out
+}
+
 impl Batch {
     fn new(batched: bool) -> Batch {
         Batch(Vec::with_capacity(if batched { BATCH } else { 0 }))
@@ -1629,22 +1643,19 @@ impl Batch {
             // for the first solid surface, as the alpha AOV always has.
             let covered = out.coverage && aov::covers(world, &p.ray);
             if let Some(g) = out.guiding.as_mut() {
-                // A sample left out of training hides the records for its path.
-                let held = if p.record { None } else { g.records.take() };
                 let mut rec = out.aovs.is_some().then(AovPath::new);
-                let l = path::radiance_guided_from(
-                    world,
-                    &p.ray,
-                    p.first,
-                    &mut p.stream,
-                    set,
-                    out.stats,
-                    rec.as_mut(),
-                    g,
-                );
-                if held.is_some() {
-                    g.records = held;
-                }
+                let l = with_records(g, p.record, |g| {
+                    path::radiance_guided_from(
+                        world,
+                        &p.ray,
+                        p.first,
+                        &mut p.stream,
+                        set,
+                        out.stats,
+                        rec.as_mut(),
+                        g,
+                    )
+                });
                 if let (Some(aovs), Some(rec)) = (out.aovs.as_deref_mut(), rec) {
                     aovs[p.slot].add(&rec.sample);
                 }
