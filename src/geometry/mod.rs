@@ -15,7 +15,7 @@ pub mod sphere;
 pub mod triangle;
 
 pub use bounds::Bounds3;
-pub use primitive::{GeometryStore, PrimRef, PrimitiveKind, SurfaceHit};
+pub use primitive::{GeometryStore, PrimRef, PrimitiveKind, ShadingDerivatives, SurfaceHit};
 
 use crate::math::{Vec3, offset_ray_origin};
 

@@ -76,6 +76,16 @@ pub struct AnalyticPrim<S> {
     pub light: u32,
 }
 
+/// The shading geometry's derivatives at a hit in pbrt-v4's convention
+/// ([`GeometryStore::pbrt_shading_derivatives`]), which its bump mapping reads.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadingDerivatives {
+    pub dpdu: Vec3,
+    pub dpdv: Vec3,
+    pub dndu: Vec3,
+    pub dndv: Vec3,
+}
+
 /// Everything the integrator needs to know about the closest hit.
 #[derive(Clone, Copy, Debug)]
 pub struct SurfaceHit {
@@ -435,12 +445,17 @@ impl GeometryStore {
         };
     }
 
-    /// ∂p/∂u and ∂p/∂v of the shading geometry at a triangle hit, as pbrt-v4's `Triangle`
-    /// builds them (for bump mapping): v grows up the image (pbrt's convention; stored uvs grow
-    /// down, so this is −∂p/∂v of the stored ones); on a mesh with normals, ∂p/∂u is projected
-    /// onto the shading normal's plane and ∂p/∂v is n × ∂p/∂u (pbrt-v4 `ss`, `ts`). `None` for
-    /// other primitives and for triangles without a usable uv parameterisation.
-    pub fn pbrt_shading_dpduv(&self, hit: &SurfaceHit) -> Option<(Vec3, Vec3)> {
+    /// ∂p/∂u, ∂p/∂v, ∂n/∂u and ∂n/∂v of the shading geometry at a triangle hit, as pbrt-v4's
+    /// `Triangle` builds them (for bump mapping): v grows up the image (pbrt's convention; stored
+    /// uvs grow down, so this is −∂p/∂v of the stored ones); on a mesh with normals, ∂p/∂u is
+    /// projected onto the shading normal's plane and ∂p/∂v is n × ∂p/∂u (pbrt-v4 `ss`, `ts`),
+    /// and ∂n/∂u, ∂n/∂v are the vertex normals' differences solved in the same uv system (PBRT
+    /// §6.5.3, eq. 6.7 with n for p) — zero on a mesh without normals, which is flat. They are
+    /// the derivatives of the normal on the side [`SurfaceHit::ns`] faces (negated where the
+    /// vertex normals face the other way), so that the bumped surface p + d·n and its derivatives
+    /// describe one surface. `None` for other primitives and for triangles without a usable uv
+    /// parameterisation.
+    pub fn pbrt_shading_derivatives(&self, hit: &SurfaceHit) -> Option<ShadingDerivatives> {
         if hit.prim.kind() != PrimitiveKind::Triangle {
             return None;
         }
@@ -461,15 +476,49 @@ impl GeometryStore {
         if !(dpdu.is_finite() && dpdv.is_finite()) {
             return None;
         }
-        if mesh.normals.is_none() {
-            return Some((dpdu, dpdv));
-        }
+        let Some(normals) = &mesh.normals else {
+            return Some(ShadingDerivatives {
+                dpdu,
+                dpdv,
+                dndu: Vec3::ZERO,
+                dndv: Vec3::ZERO,
+            });
+        };
         let n = hit.ns;
         let ts = n.cross(dpdu);
         if !(ts.length_squared() > 0.0) {
             return None;
         }
-        Some((ts.cross(n), ts))
+        // The vertex normals as the hit interpolated them (an instance's taken to the world).
+        let i = hit.prim.index();
+        let [n0, n1, n2] = if i < self.triangles.len() {
+            [normals[i0], normals[i1], normals[i2]]
+        } else {
+            let x = self.instances.locate(i).0;
+            [
+                x.normal(normals[i0]),
+                x.normal(normals[i1]),
+                x.normal(normals[i2]),
+            ]
+        };
+        let (dn02, dn12) = (n0 - n2, n1 - n2);
+        let mut dndu = (dn02 * duv12.y - dn12 * duv02.y) * inv;
+        let mut dndv = (dn12 * duv02.x - dn02 * duv12.x) * inv;
+        if !(dndu.is_finite() && dndv.is_finite()) {
+            (dndu, dndv) = (Vec3::ZERO, Vec3::ZERO);
+        }
+        // `triangle_hit` turns the interpolated normal to the winding's side; its derivatives
+        // turn with it. (The hit keeps no barycentrics: they are solved again from its point.)
+        let [b0, b1, b2] = tri.barycentrics(hit.p);
+        if (n0 * b0 + n1 * b1 + n2 * b2).dot(n) < 0.0 {
+            (dndu, dndv) = (-dndu, -dndv);
+        }
+        Some(ShadingDerivatives {
+            dpdu: ts.cross(n),
+            dpdv: ts,
+            dndu,
+            dndv,
+        })
     }
 
     /// Screen-space uv derivatives ([`SurfaceHit::duv`]) of each uv set at a triangle hit from

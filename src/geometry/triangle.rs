@@ -92,6 +92,22 @@ impl TriangleVerts {
         (p, err)
     }
 
+    /// Barycentrics `[b0, b1, b2]` of `p` projected onto the triangle's plane (PBRT §6.5.3's
+    /// inverse of [`Self::point`], by the normal equations of the two edges); equal thirds for a
+    /// degenerate triangle.
+    pub fn barycentrics(&self, p: Vec3) -> [f32; 3] {
+        let (e1, e2, d) = (self.p1 - self.p0, self.p2 - self.p0, p - self.p0);
+        let (a11, a12, a22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let (r1, r2) = (e1.dot(d), e2.dot(d));
+        let det = a11 * a22 - a12 * a12;
+        if !(det.abs() > 0.0) || !det.is_finite() {
+            return [1.0 / 3.0; 3];
+        }
+        let b1 = (a22 * r1 - a12 * r2) / det;
+        let b2 = (a11 * r2 - a12 * r1) / det;
+        [1.0 - b1 - b2, b1, b2]
+    }
+
     /// Unnormalised geometric normal; its direction follows the counter-clockwise winding
     /// (p0 → p1 → p2), which defines the front face.
     #[inline]

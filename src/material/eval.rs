@@ -5,7 +5,7 @@
 
 use super::texture::SharedFootprint;
 use super::{Material, Texture, TextureRef};
-use crate::geometry::SurfaceHit;
+use crate::geometry::{ShadingDerivatives, SurfaceHit};
 use crate::math::{Vec2, Vec3, Vec4};
 use std::cell::Cell;
 
@@ -64,13 +64,16 @@ pub fn resolve_mix<'a>(
 /// independent of the sample count (pbrt-v4's bump steps grow below 64 spp).
 pub const PBRT_DIFFERENTIAL_SCALE: f32 = 0.125;
 
-/// pbrt-v4 `BumpMap` (pbrt-v4 materials.h; Blinn 1978): with d = scale × displacement texture R,
-/// ∂p/∂u' = ∂p/∂u + (d(u + Δu, v) − d(u, v))/Δu · n and likewise for v, and the shading normal
-/// becomes ∂p/∂u' × ∂p/∂v' turned to the geometric normal's side. `dpdu`, `dpdv` are the shading
-/// ∂p/∂u, ∂p/∂v in pbrt's convention (v growing up the image; see
-/// [`crate::geometry::GeometryStore::pbrt_shading_dpduv`]). pbrt's d·∂n/∂u term is left out: it
-/// is zero on flat-shaded meshes and changes the normal by O(d/r) on curved ones. Leaves the hit
-/// unchanged without a displacement texture or when the result is degenerate.
+/// pbrt-v4 `BumpMap` (pbrt-v4 materials.h; Blinn 1978; PBRT §10.5.1, eq. 10.12): the surface
+/// displaced along its normal, p' = p + d·n with d = scale × displacement texture R, has
+/// ∂p'/∂u ≈ ∂p/∂u + (d(u + Δu, v) − d(u, v))/Δu · n + d · ∂n/∂u and likewise for v, and the
+/// shading normal becomes ∂p'/∂u × ∂p'/∂v turned to the geometric normal's side. `sd` holds the
+/// shading ∂p/∂u, ∂p/∂v, ∂n/∂u, ∂n/∂v in pbrt's convention (v growing up the image; see
+/// [`crate::geometry::GeometryStore::pbrt_shading_derivatives`]). The d·∂n/∂u term is zero on
+/// flat-shaded meshes; on a curved one it changes the bump's tilt by O(d/r), which is not small
+/// where a displacement texture with values near 1 and no scale lies on a surface of radius ~1
+/// (the tub's foam in Bitterli's bathroom). Leaves the hit unchanged without a displacement
+/// texture or when the result is degenerate.
 ///
 /// The steps are pbrt-v4's: with the pixel footprint (`hit.duv`, which renders of scenes with a
 /// bump map always have, `World::has_bump`), Δu = ½(|∂u/∂x| + |∂u/∂y|) and Δv likewise, of the
@@ -84,8 +87,7 @@ pub fn bump(
     material: &Material,
     textures: &[Texture],
     hit: &mut SurfaceHit,
-    dpdu: Vec3,
-    dpdv: Vec3,
+    sd: &ShadingDerivatives,
 ) {
     let Some(t) = &material.displacement else {
         return;
@@ -112,8 +114,8 @@ pub fn bump(
     let d_u = d(Vec2::new(du, 0.0));
     let d_v = d(Vec2::new(0.0, -dv));
     let n = hit.ns;
-    let pu = dpdu + n * ((d_u - d0) / du);
-    let pv = dpdv + n * ((d_v - d0) / dv);
+    let pu = sd.dpdu + n * ((d_u - d0) / du) + sd.dndu * d0;
+    let pv = sd.dpdv + n * ((d_v - d0) / dv) + sd.dndv * d0;
     let mut ns = pu.cross(pv).normalize_or_zero();
     if ns == Vec3::ZERO || !ns.is_finite() {
         return;

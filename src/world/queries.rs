@@ -65,9 +65,9 @@ impl World {
         if material.normal_texture.is_some() {
             normal_map::apply_normal_map_shared(material, &self.textures, hit, shared);
         } else if material.displacement.is_some()
-            && let Some((dpdu, dpdv)) = self.geometry.pbrt_shading_dpduv(hit)
+            && let Some(d) = self.geometry.pbrt_shading_derivatives(hit)
         {
-            eval::bump(material, &self.textures, hit, dpdu, dpdv);
+            eval::bump(material, &self.textures, hit, &d);
         }
     }
 
