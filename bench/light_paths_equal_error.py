@@ -3,15 +3,20 @@
 BDPT, path tracer and MLT against pbrt-v4's `bdpt` and `mlt`, on the same files, interleaved.
 
     nice -n 10 python3 bench/light_paths_equal_error.py target/release/trayecto \
-        [--scenes veach-bidir water-caustic] [--ladder 4 16 64] [--rounds 2] [--res 32]
+        [--scenes veach-bidir water-caustic] [--ladder 4 16 64] [--rounds 2] [--res 32] \
+        [--mlt-scenes veach-bidir] [--ref-spp PBRT_SPP TRAYECTO_SPP]
 
 Each scene is rendered at RES x RES (the file's filter and maxdepth) by every method at every
 sample count of the ladder (MLT: mutations per pixel), the methods interleaved within a round and
 the rounds repeated, each run with its own seed. Error: relative MSE, mean over pixels of
 (x - r)^2 / (r^2 + 0.01) in luminance, against the pbrt-v4 BDPT reference of
 tests/references/pbrt/bdpt/NAME-RES.exr (`scripts/references/pbrt_bdpt_references.sh RES 1024`),
+or with --ref-spp the samples-weighted mean of it and Trayecto's BDPT render
+NAME-RES-trayecto-SPP.exr (`trayecto render ... --integrator bdpt --spp SPP --seed 900001`), for
+ladders whose errors a single reference's noise would not be well below,
 leaving out pixels above 100 times the reference's median (water-caustic's lamp seen directly, a
-lottery at any of these sample counts). Time: the process's wall time, scene loading included
+lottery at any of these sample counts; with --ref-spp also those above 50 times the median of
+either reference). Time: the process's wall time, scene loading included
 (both renderers; 2 threads each). Prints per method and sample count the median error and time
 over the rounds, and each method's time to reach Trayecto BDPT's error at the ladder's middle
 count, estimated as the median over the ladder of error x time / target (relative MSE of an unbiased
@@ -101,14 +106,17 @@ def main():
     ap.add_argument("--ladder", nargs="+", type=int, default=[4, 16, 64])
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--res", type=int, default=32)
+    ap.add_argument("--mlt-scenes", nargs="*", default=["veach-bidir"],
+                    help="scenes on which the two MLTs run too")
+    ap.add_argument("--ref-spp", nargs=2, type=int, metavar=("PBRT", "TRAYECTO"),
+                    help="reference = the samples-weighted mean of pbrt-v4's BDPT at PBRT spp "
+                    "(NAME-RES.exr) and Trayecto's at TRAYECTO spp (NAME-RES-trayecto-TRAYECTO.exr)")
     args = ap.parse_args()
     tmp = tempfile.mkdtemp()
     try:
         for name in args.scenes:
-            ref = read(os.path.join(ROOT, "tests", "references", "pbrt", "bdpt", f"{name}-{args.res}.exr"))
-            keep = lum(ref) < 100 * np.median(lum(ref))
             methods = ["trayecto-bdpt", "pbrt-bdpt", "trayecto-path"]
-            if name == "veach-bidir":
+            if name in args.mlt_scenes:
                 methods += ["trayecto-mlt", "pbrt-mlt"]
             res = {(m, s): [] for m in methods for s in args.ladder}
             for m in methods:
@@ -116,8 +124,26 @@ def main():
             for r in range(args.rounds):
                 for s in args.ladder:
                     for m in methods:
-                        img, t = run(m, args.trayecto, name, args.res, s, 100 * r + s, tmp)
-                        res[(m, s)].append((rel_mse(img, ref, keep), t))
+                        res[(m, s)].append(run(m, args.trayecto, name, args.res, s, 100 * r + s, tmp))
+            # The reference is read after the renders, so that it may be made meanwhile.
+            refs = os.path.join(ROOT, "tests", "references", "pbrt", "bdpt")
+            ref = read(os.path.join(refs, f"{name}-{args.res}.exr"))
+            if args.ref_spp:
+                # Both renderers are unbiased and agree within noise on these files
+                # (tests/light_paths.rs), so weighting each by its sample count is the
+                # minimum-variance combination; Trayecto's share biases the comparison toward it
+                # only by its own noise, which is ~1/sqrt(total spp / ladder top) of the errors.
+                p, t = args.ref_spp
+                ours = read(os.path.join(refs, f"{name}-{args.res}-trayecto-{t}.exr"))
+                ref = (p * ref + t * ours) / (p + t)
+            keep = lum(ref) < 100 * np.median(lum(ref))
+            if args.ref_spp:
+                # The lamp seen directly is a sub-pixel lottery at these sizes, and the two
+                # renderers put it in different pixels (16 x 16: pbrt-v4 one pixel, Trayecto its
+                # neighbours): pixels above 50 times the median in either reference are left out.
+                for r in (read(os.path.join(refs, f"{name}-{args.res}.exr")), ours):
+                    keep &= lum(r) < 50 * np.median(lum(r))
+            res = {k: [(rel_mse(img, ref, keep), t) for img, t in v] for k, v in res.items()}
             print(f"== {name} {args.res}x{args.res}, {args.rounds} rounds (median rel. MSE, median wall s)")
             for m in methods:
                 row = [f"{s}: {np.median([e for e, _ in res[(m, s)]]):.4g} / "
@@ -128,9 +154,16 @@ def main():
                 target = res[("trayecto-bdpt", mid)][r][0]
                 times = {m: time_to([res[(m, s)][r][0] for s in args.ladder],
                                     [res[(m, s)][r][1] for s in args.ladder], target) for m in methods}
+                # A method whose error stays above the target over the whole ladder is only
+                # extrapolated (1 / time); its measured lower bound is its top count's time.
+                unreached = {m for m in methods if min(res[(m, s)][r][0] for s in args.ladder) > target}
                 print(f"  round {r}: time to Trayecto BDPT's error at {mid} ({target:.4g}): "
-                      + ", ".join(f"{m} {t:.2f} s" for m, t in times.items())
-                      + f"; pbrt-bdpt / trayecto-bdpt = {times['pbrt-bdpt'] / times['trayecto-bdpt']:.2f}")
+                      + ", ".join(f"{m} {t:.2f} s" + (f" (not reached: > {res[(m, args.ladder[-1])][r][1]:.2f} s)"
+                                                      if m in unreached else "")
+                                  for m, t in times.items())
+                      + f"; pbrt-bdpt / trayecto-bdpt = {times['pbrt-bdpt'] / times['trayecto-bdpt']:.2f}"
+                      + (f"; pbrt-mlt / trayecto-mlt = {times['pbrt-mlt'] / times['trayecto-mlt']:.2f}"
+                         if "pbrt-mlt" in times else ""))
     finally:
         shutil.rmtree(tmp)
 

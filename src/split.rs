@@ -183,6 +183,16 @@ pub fn render_split_aovs(
     cancel: &AtomicBool,
 ) -> Result<SplitOutcome, SplitError> {
     let s = &frame.settings;
+    if s.integrator == crate::integrator::IntegratorKind::Mlt && opts.checkpoint.is_some() {
+        // Its chains run over the whole frame and are not continued (render::light), so a
+        // checkpoint could never be resumed; its previews still reach the observer.
+        return Err(RenderError::InvalidSetting(
+            "--checkpoint: Metropolis light transport cannot be resumed (its chains run over the \
+             whole frame); Ctrl-C writes the image of the chains done so far"
+                .into(),
+        )
+        .into());
+    }
     let range = opts.samples.clone().unwrap_or(0..s.spp);
     let resume = match &opts.resume {
         Some(p) => Some(load_checkpoint(p, frame, &range)?),

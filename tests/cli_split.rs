@@ -160,6 +160,51 @@ fn parts_rendered_by_separate_processes_merge_to_the_single_render() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("name the output FILE.trp"));
 }
 
+/// The splatting integrators split as the path tracer does: the light tracer's and BDPT's parts
+/// (sample ranges of the same paths, splatted into exact fixed-point sums) merge byte for byte to
+/// the whole render. Metropolis light transport, whose chains run over the whole frame, refuses a
+/// sample range and a checkpoint with the reason.
+#[test]
+fn light_tracer_and_bdpt_parts_merge_to_the_single_render_and_mlt_refuses_them() {
+    let d = dir("light-paths");
+    for integrator in ["lighttracer", "bdpt"] {
+        let args = ["--integrator", integrator, "--spp", "6", "--max-depth", "4"];
+        let full = d.join(format!("{integrator}-full.exr"));
+        ok(render(&args, &full));
+        let mut parts = Vec::new();
+        for range in ["0..2", "2..6"] {
+            let p = d.join(format!("{integrator}-{range}.trp"));
+            ok(render(&[&args[..], &["--samples", range]].concat(), &p));
+            parts.push(p);
+        }
+        let merged = d.join(format!("{integrator}-merged.exr"));
+        ok(merge(&parts, &merged));
+        assert_eq!(
+            std::fs::read(&full).unwrap(),
+            std::fs::read(&merged).unwrap(),
+            "{integrator}: merged EXR differs from the single render"
+        );
+    }
+    let mlt = ["--integrator", "mlt", "--spp", "6"];
+    for (extra, out, want) in [
+        (
+            &["--samples", "0..2"][..],
+            "mlt.trp",
+            "not split into sample ranges",
+        ),
+        (
+            &["--checkpoint", d.join("mlt-cp.trp").to_str().unwrap()],
+            "mlt.exr",
+            "cannot be resumed",
+        ),
+    ] {
+        let o = render(&[&mlt[..], extra].concat(), &d.join(out));
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && e.contains(want), "{extra:?}: {e}");
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 /// A part's header names the light sampler the render used, resolved from `auto` by the scene's
 /// light count (power for cornell, the 8-wide light BVH above 16 lights), and the build's render
 /// identity; `auto` itself never appears.

@@ -677,7 +677,7 @@ fn mlt_matches_the_path_tracer_on_the_cornell_box() {
 /// Metropolis light transport's film is a function of the seed and settings: 1 and 2 threads
 /// give the same film bit for bit (the chains are independent, each with its own generators,
 /// and splat into exact sums), through a Gaussian filter; and a sample range is refused with
-/// the reason (a chain is not split).
+/// the reason (a chain is not split); previews reach the observer while the chains run.
 #[test]
 fn mlt_film_is_a_function_of_seed_and_settings() {
     let world = World::build(builtin::cornell(), &Default::default()).unwrap();
@@ -713,4 +713,46 @@ fn mlt_film_is_a_function_of_seed_and_settings() {
     assert_eq!(one, range(&two, 0..4).unwrap().film);
     let err = range(&base, 0..2).err().unwrap().to_string();
     assert!(err.contains("sample ranges"), "{err}");
+
+    // Previews while the chains run: the film after each batch of chains, counted as the
+    // mutations per pixel done, then the final film. The preview's mean is the final image's
+    // (every mutation splats b in all; the batches hold each depth's share of the chains) up
+    // to the rounding of the mutations per pixel (at most 1/16 once 8 of 32 are done).
+    struct Previews(std::sync::Mutex<Vec<(u32, trayecto::film::Film)>>);
+    impl trayecto::render::RenderObserver for Previews {
+        fn pass_done(&self, film: &trayecto::film::Film, done: u32, _spp: u32) {
+            self.0.lock().unwrap().push((done, film.clone()));
+        }
+    }
+    let previews = Previews(Default::default());
+    let settings = RenderSettings {
+        mlt: trayecto::sampling::mlt::MltSettings {
+            chains: Some(16),
+            ..base.mlt
+        },
+        ..mlt(20, 16, 32, 4)
+    };
+    let out = render_range(
+        &world,
+        &settings,
+        RangeStart {
+            samples: 0..32,
+            resume: None,
+        },
+        &previews,
+        &cancel,
+    )
+    .unwrap();
+    let passes = previews.0.into_inner().unwrap();
+    assert_eq!(passes.last(), Some(&(32, out.film.clone())));
+    let lum = |f: &trayecto::film::Film| trayecto::film::luminance(f.to_image().mean()) as f64;
+    let done: Vec<u32> = passes.iter().map(|p| p.0).collect();
+    assert!(
+        done.len() >= 5 && done.windows(2).all(|w| w[0] <= w[1]),
+        "previews at {done:?} mutations per pixel"
+    );
+    for (k, film) in passes.iter().filter(|p| p.0 >= 8) {
+        let off = lum(film) / lum(&out.film) - 1.0;
+        assert!(off.abs() < 0.1, "preview at {k} of 32 off by {off}");
+    }
 }

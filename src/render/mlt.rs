@@ -22,6 +22,9 @@
 //!   bootstrap state i's numbers from one seeded by (seed, i); the chains splat into exact
 //!   fixed-point buffers ([`crate::film::splat`]), so the image is the same for any number of
 //!   threads. A chain is not split: a frame cannot be rendered in sample ranges or resumed.
+//! * Previews: the chains run in batches, their depths interleaved, and after each batch the
+//!   film so far, over the mutations per pixel done, goes to the observer (the web page's
+//!   viewport; the image Ctrl-C writes) as a pass of the tiled driver does.
 
 use crate::camera::Camera;
 use crate::film::Film;
@@ -214,6 +217,37 @@ fn plan(b_d: &[f64], total: u64, chains: u64) -> Vec<Chain> {
     out
 }
 
+/// The order the chains of `plan` run in: the i-th of a depth's k chains at (i + ½) / k of the
+/// way, so that any prefix of the order holds about the same share of every depth's chains.
+fn interleaved(chains: &[Chain]) -> Vec<usize> {
+    let mut keyed = Vec::with_capacity(chains.len());
+    let mut i = 0;
+    while i < chains.len() {
+        let d = chains[i].depth;
+        let k = chains[i..].iter().take_while(|c| c.depth == d).count();
+        keyed.extend((0..k).map(|j| ((j as f64 + 0.5) / k as f64, i + j)));
+        i += k;
+    }
+    keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    keyed.into_iter().map(|(_, c)| c).collect()
+}
+
+/// The batches of `n` chains between previews: 1, 1, 2, 4, … chains, at most an eighth of
+/// them per batch (a batch waits for its slowest chain, so not many more batches than that).
+fn batches(n: usize) -> Vec<(usize, usize)> {
+    let cap = (n / 8).max(1);
+    let (mut out, mut a, mut size) = (Vec::new(), 0, 1);
+    while a < n {
+        let z = (a + size).min(n);
+        out.push((a, z));
+        a = z;
+        if out.len() > 1 {
+            size = (size * 2).min(cap);
+        }
+    }
+    out
+}
+
 /// Renders the frame with Metropolis light transport: `settings.spp` mutations per pixel of the
 /// film window over all chains.
 pub(crate) fn render(
@@ -374,49 +408,83 @@ fn render_frame(
             ))
         })
         .collect();
-    let next_chain = AtomicUsize::new(0);
+    // The chains run in batches of growing size, in an order that interleaves the depths, so
+    // that the chains done after each batch are a fair share of every depth's mutations: the
+    // film so far, counted as the mutations per pixel done, is a preview of the image (pbrt-v4's
+    // MLT writes such intermediate images too), for the web page and for Ctrl-C. The splats are
+    // exact integer sums, so the batches leave the final film as it was.
+    let order = interleaved(&chains);
     let chains_done = AtomicU64::new(0);
-    let worker = |k: usize| {
-        let mut guard = buffers[k].lock().unwrap_or_else(|e| e.into_inner());
-        let (buf, st, scratch) = &mut *guard;
-        loop {
-            let c = next_chain.fetch_add(1, Ordering::Relaxed);
-            if c >= chains.len() || cancel.load(Ordering::Relaxed) {
-                return;
+    let mut mutations_done = 0u64;
+    let mut preview: Option<(Film, u32)> = None;
+    let batches = batches(chains.len());
+    for (q, &(a, z)) in batches.iter().enumerate() {
+        let next = AtomicUsize::new(a);
+        let worker = |k: usize| {
+            let mut guard = buffers[k].lock().unwrap_or_else(|e| e.into_inner());
+            let (buf, st, scratch) = &mut *guard;
+            loop {
+                let j = next.fetch_add(1, Ordering::Relaxed);
+                if j >= z || cancel.load(Ordering::Relaxed) {
+                    return;
+                }
+                let c = order[j];
+                let run = Run {
+                    frame,
+                    set: &set,
+                    seed,
+                    depths,
+                };
+                run.chain(
+                    c as u64,
+                    &chains[c],
+                    &starts[chains[c].depth],
+                    scratch,
+                    st,
+                    buf,
+                    cancel,
+                );
+                let n = chains_done.fetch_add(1, Ordering::Relaxed) + 1;
+                crate::render::report_work(observer, n, n_chains, t0);
             }
-            let run = Run {
-                frame,
-                set: &set,
-                seed,
-                depths,
-            };
-            run.chain(
-                c as u64,
-                &chains[c],
-                &starts[chains[c].depth],
-                scratch,
-                st,
-                buf,
-                cancel,
-            );
-            let n = chains_done.fetch_add(1, Ordering::Relaxed) + 1;
-            crate::render::report_work(observer, n, n_chains, t0);
+        };
+        rayon::scope(|sc| {
+            for k in 0..threads {
+                let worker = &worker;
+                sc.spawn(move |_| worker(k));
+            }
+        });
+        if cancel.load(Ordering::Relaxed) {
+            // The chains of this batch are cut short: the last preview is what is kept.
+            return Ok(match preview {
+                Some((film, k)) => FilmRender {
+                    done: k,
+                    ..finish(film, stats, true)
+                },
+                None => finish(Film::new(fw, fh), stats, true),
+            });
         }
-    };
-    rayon::scope(|sc| {
-        for k in 0..threads {
-            let worker = &worker;
-            sc.spawn(move |_| worker(k));
+        for buf in &buffers {
+            let mut g = buf.lock().unwrap_or_else(|e| e.into_inner());
+            film.add_splats(&g.0);
+            g.0.clear();
+            stats += std::mem::take(&mut g.1);
         }
-    });
-    if cancel.load(Ordering::Relaxed) {
-        return Ok(finish(Film::new(fw, fh), stats, true));
-    }
-    // Exact integer sums: neither the buffers' order nor which worker ran a chain matters.
-    for buf in &buffers {
-        let g = buf.lock().unwrap_or_else(|e| e.into_inner());
-        film.add_splats(&g.0);
-        stats += g.1;
+        mutations_done += order[a..z]
+            .iter()
+            .map(|&c| chains[c].mutations)
+            .sum::<u64>();
+        if q + 1 < batches.len() {
+            // The mutations per pixel done, rounded: the preview's brightness is off by at
+            // most half a mutation per pixel in `k`.
+            let t = total.max(1) as u128;
+            let k = ((2 * spp as u128 * mutations_done as u128 + t) / (2 * t)) as u32;
+            let k = k.max(1);
+            let mut p = film.clone();
+            p.add_counts(k);
+            observer.pass_done(&p, k, spp);
+            preview = Some((p, k));
+        }
     }
     film.add_counts(spp);
     observer.pass_done(&film, spp, spp);
@@ -482,6 +550,40 @@ impl Run<'_> {
                 u.accept();
             } else {
                 u.reject();
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// After every batch, the chains run hold each depth's share of its chains to within one
+    /// chain (so a preview has every depth's light in proportion), and every chain runs once.
+    #[test]
+    fn every_batch_ends_with_each_depths_share_of_its_chains() {
+        let chains = plan(&[0.05, 0.6, 0.25, 0.1], 1 << 20, 1000);
+        let order = interleaved(&chains);
+        let mut seen = order.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..chains.len()).collect::<Vec<_>>());
+        let per_depth =
+            |cs: &[usize], d: usize| cs.iter().filter(|&&c| chains[c].depth == d).count();
+        let all: Vec<usize> = (0..chains.len()).collect();
+        let b = batches(chains.len());
+        assert!(b.len() >= 8 && b.last().unwrap().1 == chains.len());
+        for &(_, z) in &b {
+            let f = z as f64 / chains.len() as f64;
+            for d in 0..4 {
+                let (got, want) = (
+                    per_depth(&order[..z], d) as f64,
+                    per_depth(&all, d) as f64 * f,
+                );
+                assert!(
+                    (got - want).abs() <= 1.0,
+                    "depth {d} after {z} chains: {got}, not {want}"
+                );
             }
         }
     }
