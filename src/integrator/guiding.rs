@@ -691,12 +691,17 @@ impl Learner {
     }
 }
 
+/// Diagnostic counters (`TRAYECTO_GUIDING_DIAG=1`, printed at the end of a render): guide
+/// samples drawn, those whose direction the BSDF does not reflect into (f = 0: the path ends),
+/// and the splatted flux above and below each record's tree normal. They checked that the guide
+/// does not aim below the surface (BENCHMARKS.md, "Path guiding").
 pub static DIAG: [std::sync::atomic::AtomicU64; 4] = [
     std::sync::atomic::AtomicU64::new(0),
     std::sync::atomic::AtomicU64::new(0),
     std::sync::atomic::AtomicU64::new(0),
     std::sync::atomic::AtomicU64::new(0),
 ];
+/// Whether [`DIAG`] counts (read once).
 pub fn diag_on() -> bool {
     static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *ON.get_or_init(|| std::env::var_os("TRAYECTO_GUIDING_DIAG").is_some())

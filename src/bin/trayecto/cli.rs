@@ -364,8 +364,8 @@ pub struct RenderArgs {
     /// from training samples of its own (about 2^17 in all, at most spp/4 per pixel, not in the
     /// image) and sample those directions too, at surfaces and in media. Unbiased and
     /// deterministic (split and resumed renders train the same guide); meant for light through a
-    /// gap or off a small bright patch, but it does not yet pay at equal time in every measured
-    /// scene (BENCHMARKS.md).
+    /// gap or off a small bright patch, but it does not yet pay at equal time in the measured
+    /// scenes (BENCHMARKS.md).
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub guiding: bool,
     /// Most a sample's direct light may add (its largest colour channel; off by default).
