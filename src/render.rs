@@ -62,7 +62,7 @@ pub struct RenderSettings {
     /// ([`RenderSettings::counts_coverage`]). The image is the same either way.
     pub track_coverage: bool,
     /// Path guiding (docs/DESIGN.md, "Path guiding"): the surface and volumetric path tracers
-    /// learn the incident radiance during the first passes ([`guide_training_samples`]) and
+    /// learn the incident radiance in a training phase of their own ([`guide_training_passes`]) and
     /// sample directions from a BSDF– (or phase-function–) guide mixture. The expectation is
     /// unchanged; experimental: as measured so far it does not pay at equal time
     /// (BENCHMARKS.md, "Path guiding").
@@ -575,7 +575,8 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
     passes
 }
 
-/// The samples per pixel a guided render of `spp` trains on: its first passes, of 1, 1, 2, 4, …
+/// With `TRAYECTO_GUIDING_TRAIN=0` (the scheme before the training phase, kept to measure
+/// against): the samples per pixel a guided render of `spp` trains on: its first passes, of 1, 1, 2, 4, …
 /// samples (each a training iteration), up to the largest power of two at most a quarter of
 /// `spp`, and at most 128 (the pass schedule's doubling ends there). 0 below 4 samples: no
 /// training, no guiding. Samples after it use the last guide.
