@@ -576,8 +576,8 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
 }
 
 /// With `TRAYECTO_GUIDING_TRAIN=0` (the scheme before the training phase, kept to measure
-/// against): the samples per pixel a guided render of `spp` trains on: its first passes, of 1, 1, 2, 4, …
-/// samples (each a training iteration), up to the largest power of two at most a quarter of
+/// against): the samples per pixel a guided render of `spp` trains on: its first passes, of 1,
+/// 1, 2, 4, … samples (each a training iteration), up to the largest power of two at most a quarter of
 /// `spp`, and at most 128 (the pass schedule's doubling ends there). 0 below 4 samples: no
 /// training, no guiding. Samples after it use the last guide.
 pub fn guide_training_samples(spp: u32) -> u32 {
