@@ -78,10 +78,11 @@ def read_hdr(path):
     return out
 
 
-def render(exe, scene, out, res, seed, threads, extra, off=""):
+def render(exe, scene, out, res, seed, threads, extra, off="", env_extra=()):
     cmd = [exe, "render", scene, "-o", out, "--width", str(res[0]), "--height", str(res[1]),
            "--seed", str(seed), "--threads", str(threads), "--quiet"] + extra
-    env = dict(os.environ, TRAYECTO_GUIDING_OFF=off) if off else None
+    env = dict(os.environ, TRAYECTO_GUIDING_OFF=off) if off else dict(os.environ)
+    env.update(kv.split("=", 1) for kv in env_extra)
     t = time.time()
     subprocess.run(cmd, check=True, env=env)
     return time.time() - t
@@ -110,6 +111,8 @@ def main():
     ap.add_argument("--off", default="",
                     help="TRAYECTO_GUIDING_OFF for the guided renders: refinements to leave out "
                          "(bins, filter, nee), to measure each one's share")
+    ap.add_argument("--guided-env", nargs="*", default=[], metavar="KEY=VALUE",
+                    help="environment of the guided renders only (the TRAYECTO_GUIDING_* knobs)")
     args = ap.parse_args()
     res = tuple(int(v) for v in args.res.split("x"))
     os.makedirs(OUT, exist_ok=True)
@@ -133,7 +136,8 @@ def main():
                 extra = ["--time-limit", str(args.seconds)] + (["--guiding"] if mode == "guided" else [])
                 out = os.path.join(OUT, f"{tag}_{mode}_{rep}.hdr")
                 render(exe, scene, out, res, 1 + rep, args.threads, extra,
-                       args.off if mode == "guided" else "")
+                       args.off if mode == "guided" else "",
+                       args.guided_env if mode == "guided" else ())
                 errs[mode].append(rel_mse(read_hdr(out), ref))
             print(f"[{name}] rep {rep}: plain {errs['plain'][-1]:.4g} guided {errs['guided'][-1]:.4g}",
                   file=sys.stderr, flush=True)

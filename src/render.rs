@@ -62,7 +62,7 @@ pub struct RenderSettings {
     /// ([`RenderSettings::counts_coverage`]). The image is the same either way.
     pub track_coverage: bool,
     /// Path guiding (docs/DESIGN.md, "Path guiding"): the surface and volumetric path tracers
-    /// learn the incident radiance during the first passes ([`guide_training_samples`]) and
+    /// learn the incident radiance in a training phase of their own ([`guide_training_passes`]) and
     /// sample directions from a BSDF– (or phase-function–) guide mixture. The expectation is
     /// unchanged; experimental: as measured so far it does not pay at equal time
     /// (BENCHMARKS.md, "Path guiding").
@@ -575,8 +575,9 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
     passes
 }
 
-/// The samples per pixel a guided render of `spp` trains on: its first passes, of 1, 1, 2, 4, …
-/// samples (each a training iteration), up to the largest power of two at most a quarter of
+/// With `TRAYECTO_GUIDING_TRAIN=0` (the scheme before the training phase, kept to measure
+/// against): the samples per pixel a guided render of `spp` trains on: its first passes, of 1,
+/// 1, 2, 4, … samples (each a training iteration), up to the largest power of two at most a quarter of
 /// `spp`, and at most 128 (the pass schedule's doubling ends there). 0 below 4 samples: no
 /// training, no guiding. Samples after it use the last guide.
 pub fn guide_training_samples(spp: u32) -> u32 {
@@ -586,6 +587,90 @@ pub fn guide_training_samples(spp: u32) -> u32 {
     } else {
         (1u32 << (31 - q.leading_zeros())).min(128)
     }
+}
+
+/// The training iterations of a guided render, as sample ranges of the training sampler
+/// ([`guide_training_seed`]): 1, 2, 4, … samples per pixel (the last one takes the rest) up to
+/// [`GUIDE_TRAINING_SAMPLES`] camera samples in all, whatever the resolution (a small image
+/// trains on more samples per pixel: the guide needs records per cell, not per pixel), but at
+/// most `spp`/4 per pixel (at least 1), so training costs at most a fifth of the render. Empty
+/// when training is left to the render's own first passes (`TRAYECTO_GUIDING_TRAIN=0`).
+pub fn guide_training_passes(spp: u32, pixels: u64) -> Vec<(u32, u32)> {
+    let per_pixel = match guide_training_knob() {
+        Some(n) => n,
+        None => (GUIDE_TRAINING_SAMPLES.div_ceil(pixels.max(1)) as u32).clamp(1, (spp / 4).max(1)),
+    };
+    // Doubling iterations; the last one takes the rest, so that the total is `per_pixel`.
+    let mut passes: Vec<(u32, u32)> = Vec::new();
+    let (mut s, mut n) = (0u32, 1u32);
+    while s.saturating_add(n) <= per_pixel {
+        passes.push((s, s + n));
+        s += n;
+        n = n.saturating_mul(2);
+    }
+    match passes.last_mut() {
+        Some(last) if s < per_pixel => last.1 = per_pixel,
+        None if per_pixel > 0 => passes.push((0, per_pixel)),
+        _ => {}
+    }
+    passes
+}
+
+/// Camera samples a guided render's training phase draws in all (over every pixel).
+pub const GUIDE_TRAINING_SAMPLES: u64 = 1 << 17;
+
+/// `TRAYECTO_GUIDING_TRAIN`: training samples per pixel instead of the budget (a benchmarking
+/// knob; 0 trains on the render's own first passes, as before the training phase).
+fn guide_training_knob() -> Option<u32> {
+    static K: std::sync::OnceLock<Option<u32>> = std::sync::OnceLock::new();
+    *K.get_or_init(|| {
+        std::env::var("TRAYECTO_GUIDING_TRAIN")
+            .ok()
+            .and_then(|v| v.parse().ok())
+    })
+}
+
+/// The training sampler's seed: a function of the render's, with streams of their own.
+fn guide_training_seed(seed: u64) -> u64 {
+    crate::sampling::rng::hash_words(&[seed, 0x6775_6964_696e_6721])
+}
+
+/// Runs the training iterations `passes` with `trainer` (whose sampler is the training one) and
+/// returns the guide learned. Each iteration's tiles render in parallel; their records are
+/// learned in tile order, so the guide is the same for any thread count.
+fn train_guide(
+    trainer: &TileWork,
+    passes: &[(u32, u32)],
+    tiles: &[TileRect],
+    world: &World,
+) -> Arc<Guide> {
+    let b = world.bounds;
+    let mut learner = Learner::new(b.min, b.max);
+    let mut guide: Option<Arc<Guide>> = None;
+    let log = std::env::var_os("TRAYECTO_GUIDING_LOG").is_some();
+    for &(s0, s1) in passes {
+        let t0 = Instant::now();
+        let blocks: Vec<Tile> = tiles
+            .par_iter()
+            .map(|&t| trainer.render(s0, s1, t, None, guide.as_deref(), true))
+            .collect();
+        let stride = (trainer.pixels * (s1 - s0) as u64 * 4)
+            .div_ceil(GUIDE_RECORD_BUDGET)
+            .max(1);
+        let spp = ((s1 - s0) as u64).div_ceil(stride) as u32;
+        let t1 = Instant::now();
+        learner.learn(blocks.iter().flat_map(|b| b.3.iter()), spp);
+        guide = learner.guide();
+        if log {
+            // Where the training time goes (`bench/guiding.py`).
+            eprintln!(
+                "guiding: training samples {s0}..{s1}: tracing {:.3} s, learning {:.3} s",
+                (t1 - t0).as_secs_f64(),
+                t1.elapsed().as_secs_f64()
+            );
+        }
+    }
+    guide.unwrap_or_else(|| Arc::new(Guide::new(b.min, b.max)))
 }
 
 /// Records a training pass keeps at most (48 bytes each): a pass of more samples records every
@@ -736,10 +821,18 @@ pub fn render_range_aovs(
             )));
         }
     }
-    if settings.guiding && (range.start > 0 || start.resume.is_some()) {
+    // A guide trained in the render's own first passes (`TRAYECTO_GUIDING_TRAIN=0`) depends
+    // on them; one trained in the training phase does not.
+    let fwin = settings.film_window();
+    if settings.guiding
+        && guide_training_passes(settings.spp, fwin.width() as u64 * fwin.height() as u64)
+            .is_empty()
+        && (range.start > 0 || start.resume.is_some())
+    {
         return Err(RenderError::InvalidSetting(
-            "a guided render (--guiding) learns from its first samples: it cannot render a \
-             sample range that does not start at 0, nor resume from a checkpoint"
+            "a guided render trained on its own first samples (TRAYECTO_GUIDING_TRAIN=0) \
+             cannot render a sample range that does not start at 0, nor resume from a \
+             checkpoint"
                 .into(),
         ));
     }
@@ -882,12 +975,46 @@ fn render_in_pool(
     } else {
         0
     };
-    let n_train = passes.iter().take_while(|p| p.1 <= train_until).count();
+    // A training phase of its own (`guide_training_passes`): samples drawn from a sampler of
+    // their own, discarded from the image, so the guide depends on the seed and the settings,
+    // never on the sample range; the render's passes then all sample the trained guide.
+    let pretrain = if guided {
+        guide_training_passes(settings.spp, fw as u64 * fh as u64)
+    } else {
+        Vec::new()
+    };
+    let n_train = if pretrain.is_empty() {
+        passes.iter().take_while(|p| p.1 <= train_until).count()
+    } else {
+        0
+    };
     let learner = (n_train > 0).then(|| {
         let b = world.bounds;
         Learner::new(b.min, b.max)
     });
-    let guide: RwLock<Option<Arc<Guide>>> = RwLock::new(None);
+    let pretrained = (!pretrain.is_empty()).then(|| {
+        let trainer = TileWork {
+            world,
+            integrator,
+            settings,
+            camera: camera.clone(),
+            filter: FilterSampler::new(&settings.filter),
+            sampler: SamplerSetup::new(
+                settings.sampler,
+                guide_training_seed(settings.seed),
+                pretrain.last().map_or(1, |p| p.1),
+            )
+            .for_image(w, h),
+            win,
+            track: false,
+            coverage: false,
+            record_aovs: false,
+            guided: true,
+            pixels: fw as u64 * fh as u64,
+        };
+        train_guide(&trainer, &pretrain, &tiles, world)
+    });
+    let guide: RwLock<Option<Arc<Guide>>> = RwLock::new(pretrained);
     let work = TileWork {
         world,
         integrator,
@@ -900,7 +1027,7 @@ fn render_in_pool(
         track: settings.tracks_variance(),
         coverage: settings.counts_coverage(),
         record_aovs,
-        guided: n_train > 0,
+        guided: n_train > 0 || !pretrain.is_empty(),
         pixels: if adaptive { 0 } else { fw as u64 * fh as u64 },
     };
     let schedule = PassSchedule {
@@ -938,6 +1065,16 @@ fn render_in_pool(
     // worker before its tile or the commit before a pass), else it stopped early (time limit,
     // adaptive sampling's clean film).
     let cancelled = !complete && cancel.load(Ordering::Relaxed);
+    if crate::integrator::guiding::diag_on() {
+        let d = &crate::integrator::guiding::DIAG;
+        eprintln!(
+            "guiding diag: guide samples {} (f = 0: {}), record flux above/below the bin's normal {} / {}",
+            d[0].load(Ordering::Relaxed),
+            d[1].load(Ordering::Relaxed),
+            d[2].load(Ordering::Relaxed),
+            d[3].load(Ordering::Relaxed)
+        );
+    }
     Ok(FilmRender {
         film: c.film,
         start: first,

@@ -143,6 +143,40 @@ fn parts_rendered_by_separate_processes_merge_to_the_single_render() {
     ));
     refuse(&[&sparts[0], &d.join("rgb.trp")], "spectral");
 
+    // Guided parts too: each part trains the same guide (the training phase draws samples of
+    // its own, whatever the range), so they merge to the guided render bit for bit, and a part
+    // resumed to the frame's end is that render as well.
+    let guided = ["--spp", "8", "--guiding"];
+    ok(render(&guided, &d.join("gfull.exr")));
+    let mut gparts = Vec::new();
+    for (a, b) in [(0, 3), (3, 8)] {
+        let p = d.join(format!("g{a}.trp"));
+        ok(render(
+            &[&guided[..], &["--samples", &format!("{a}..{b}")]].concat(),
+            &p,
+        ));
+        gparts.push(p);
+    }
+    ok(merge(&gparts, &d.join("gmerged.exr")));
+    let gfull = std::fs::read(d.join("gfull.exr")).unwrap();
+    assert!(
+        gfull == std::fs::read(d.join("gmerged.exr")).unwrap(),
+        "merged guided EXR differs from the single guided render"
+    );
+    ok(render(
+        &[&guided[..], &["--resume", gparts[0].to_str().unwrap()]].concat(),
+        &d.join("gresumed.exr"),
+    ));
+    assert!(
+        gfull == std::fs::read(d.join("gresumed.exr")).unwrap(),
+        "resumed guided EXR differs from the single guided render"
+    );
+    ok(render(
+        &["--spp", "8", "--samples", "0..3"],
+        &d.join("u.trp"),
+    ));
+    refuse(&[&d.join("u.trp"), &gparts[1]], "guiding");
+
     // Bad options.
     for (args, want) in [
         (&["--spp", "11", "--samples", "5..3"][..], "empty"),

@@ -142,7 +142,9 @@ fn guided_images_do_not_depend_on_thread_count() {
 
 /// Volume path guiding: in a fog scene (the volumetric path tracer, medium vertices sampling
 /// the phase–guide mixture) the guided render has the unguided expectation, is the same bit for
-/// bit for 1 and 2 threads, and differs from the unguided render (the guide was used).
+/// bit for 1 and 2 threads, and differs from the unguided render (the guide was used). With
+/// the guide trained before the render, the medium tree guides enough samples that a mixture
+/// weighed by the phase function's density alone (β unchanged) fails here (6.4 standard errors).
 #[test]
 fn guided_media_agree_with_unguided() {
     let world = world_of(

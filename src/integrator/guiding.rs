@@ -643,6 +643,12 @@ impl Learner {
             let l = &mut b.leaves[target as usize];
             l.count = l.count.saturating_add(1);
             let value = r.radiance / r.pdf;
+            if diag_on() && r.bin < 6 && value > 0.0 && value.is_finite() {
+                let mut n = Vec3::ZERO;
+                n[(r.bin / 2) as usize] = if r.bin % 2 == 0 { 1.0 } else { -1.0 };
+                let k = if r.wi.dot(n) > 0.0 { 2 } else { 3 };
+                DIAG[k].fetch_add(value as u64 + 1, std::sync::atomic::Ordering::Relaxed);
+            }
             if value > 0.0 && value.is_finite() {
                 let sq = dir_to_square(r.wi);
                 let side = if filter {
@@ -683,6 +689,22 @@ impl Learner {
         }
         self.guide = Some(std::sync::Arc::new(filled));
     }
+}
+
+/// Diagnostic counters (`TRAYECTO_GUIDING_DIAG=1`, printed at the end of a render): guide
+/// samples drawn, those whose direction the BSDF does not reflect into (f = 0: the path ends),
+/// and the splatted flux above and below each record's tree normal. They checked that the guide
+/// does not aim below the surface (BENCHMARKS.md, "Path guiding").
+pub static DIAG: [std::sync::atomic::AtomicU64; 4] = [
+    std::sync::atomic::AtomicU64::new(0),
+    std::sync::atomic::AtomicU64::new(0),
+    std::sync::atomic::AtomicU64::new(0),
+    std::sync::atomic::AtomicU64::new(0),
+];
+/// Whether [`DIAG`] counts (read once).
+pub fn diag_on() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| std::env::var_os("TRAYECTO_GUIDING_DIAG").is_some())
 }
 
 /// Whether a vertex with this BSDF is guided: a guide cannot help a Dirac lobe, and the
@@ -748,6 +770,12 @@ pub fn sample_mixture(
         let (wi, pg) = mix.guide.sample_pdf(mix.leaf, u);
         let wl = frame.to_local(wi);
         let f = bsdf.eval(wo_local, wl);
+        if diag_on() {
+            DIAG[0].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            if f == Vec3::ZERO {
+                DIAG[1].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
+        }
         if f == Vec3::ZERO {
             return None;
         }
@@ -815,6 +843,29 @@ pub struct Pending {
     pub record: Record,
     pub l_before: Vec3,
     pub beta_after: Vec3,
+    /// What the emitter found by this vertex's direction added to the path (left out of the
+    /// record's radiance: [`learns_direct`]).
+    pub direct: Vec3,
+}
+
+/// Whether the records carry the direct light (the emitter a direction hits, and the light
+/// samples) besides the indirect. Off by default: next-event estimation already samples the
+/// lights, and a guide that learns them too sends its samples where NEE went, while its density
+/// there takes MIS weight from NEE's light samples (measured: BENCHMARKS.md "Path guiding").
+/// `TRAYECTO_GUIDING_DIRECT=1` learns them (a benchmarking knob).
+pub fn learns_direct() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| std::env::var_os("TRAYECTO_GUIDING_DIRECT").is_some())
+}
+
+/// Whether Russian roulette at a guided vertex judges the path by the throughput BSDF sampling
+/// would have given it (β·q/p_bsdf) rather than β: a guided direction toward bright light has a
+/// small β (its density q is high) precisely because much light comes back along it, and
+/// roulette on β would end most of those paths, undoing the guide (`TRAYECTO_GUIDING_OFF=rr`
+/// keeps roulette on β).
+pub fn rr_as_bsdf() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| !knob_off("rr"))
 }
 
 /// What a guided path needs: the guide (none in the first training iteration), and while
@@ -835,7 +886,7 @@ impl Guiding<'_> {
     pub fn finish(&mut self, l: Vec3) {
         if let Some(out) = self.records.as_deref_mut() {
             for p in self.pending.drain(..) {
-                let li = (l - p.l_before) / p.beta_after;
+                let li = (l - p.l_before - p.direct) / p.beta_after;
                 let li = luminance(Vec3::select(p.beta_after.cmpgt(Vec3::ZERO), li, Vec3::ZERO));
                 if li.is_finite() {
                     out.push(Record {

@@ -218,6 +218,8 @@ fn continue_path(
     // Product of η² over refractions: undoes the 1/η² radiance scaling for Russian roulette,
     // whose survival should not depend on which medium the path is in (PBRT-v4 §14.1.2).
     let mut eta_scale = 1.0f32;
+    // Product over guided bounces of q/p_bsdf (`guiding::rr_as_bsdf`); 1 unguided.
+    let mut rr_ratio = 1.0f32;
     let mut depth = 0u32;
     // Spectral mode: whether the path has dropped all but its hero wavelength (at the first
     // dispersive surface, [`crate::material::Bsdf::disperses`]).
@@ -261,7 +263,10 @@ fn continue_path(
         // direction, weighted by its MIS weight, as the BSDF-sampled records carry theirs
         // (together they estimate the direct light arriving at the vertex, as in Müller 2019).
         let mut seen = None;
-        let record_nee = training && guiding::records_nee() && guiding::guidable(&v.bsdf);
+        let record_nee = training
+            && guiding::records_nee()
+            && guiding::learns_direct()
+            && guiding::guidable(&v.bsdf);
         l += set.clamp(
             sample_ld_mix(
                 world,
@@ -297,6 +302,7 @@ fn continue_path(
         // lobe-choice number as its strategy choice, so the dimensions stay the same.
         // `densities`: the BSDF's and the guide's densities and the BSDF's share, for a
         // training record.
+        let mut mix_densities = None;
         let (bs, wi, densities) = if let Some(m) = mix.as_ref() {
             let u_pick = s.next_1d();
             let u_dir = s.next_2d();
@@ -304,6 +310,7 @@ fn continue_path(
             else {
                 break;
             };
+            mix_densities = (!ms.bs.specular).then_some((ms.pdf_bsdf, ms.pdf_guide, m.alpha));
             (ms.bs, ms.wi, Some((ms.pdf_bsdf, ms.pdf_guide, m.alpha)))
         } else {
             let u_lobe = if v.bsdf.has_one_lobe() {
@@ -326,6 +333,13 @@ fn continue_path(
         }
         let w = bs.f * (bs.wi.z.abs() / bs.pdf);
         beta *= w;
+        // Roulette's view of a guided bounce: the throughput BSDF sampling would have given.
+        if let Some((pdf_bsdf, _, _)) = mix_densities
+            && pdf_bsdf > 0.0
+            && guiding::rr_as_bsdf()
+        {
+            rr_ratio *= bs.pdf / pdf_bsdf;
+        }
         if let Some((a, _)) = aov.as_mut() {
             a.specular_bounce(w);
         }
@@ -333,6 +347,7 @@ fn continue_path(
         if !(beta.max_element() > 0.0) || !beta.is_finite() {
             break;
         }
+        let mut recorded = false;
         if let (Some(g), Some((pdf_bsdf, pdf_guide, alpha))) = (g.as_deref_mut(), densities)
             && training
             && !bs.specular
@@ -352,7 +367,9 @@ fn continue_path(
                 },
                 l_before: l,
                 beta_after: beta,
+                direct: Vec3::ZERO,
             });
+            recorded = !guiding::learns_direct();
         }
         depth += 1;
 
@@ -374,7 +391,14 @@ fn continue_path(
                 };
                 beta * set.emission(le) * weight
             });
-            l += set.clamp(escaped, depth);
+            let escaped = set.clamp(escaped, depth);
+            l += escaped;
+            if recorded
+                && set.nee
+                && let Some(p) = g.as_deref_mut().and_then(|g| g.pending.last_mut())
+            {
+                p.direct = escaped;
+            }
             break;
         }
         let next = &v.hit;
@@ -389,7 +413,16 @@ fn continue_path(
                 let pdf_light = world.emitter_pdf(p, ng, next);
                 power_heuristic(bs.pdf, pdf_light)
             };
-            l += set.clamp(beta * le * weight, depth);
+            let hit = set.clamp(beta * le * weight, depth);
+            l += hit;
+            // An emitter NEE samples is direct light; one it does not is the guide's to learn.
+            if recorded
+                && set.nee
+                && next.light != NO_LIGHT
+                && let Some(p) = g.as_deref_mut().and_then(|g| g.pending.last_mut())
+            {
+                p.direct = hit;
+            }
         }
         if depth >= set.max_depth {
             if let Some((a, _)) = aov {
@@ -404,7 +437,7 @@ fn continue_path(
         // stratified across the pixel's samples, which a draw made by some samples and not by
         // others would shift out of step. With q = 1 the number is skipped, not computed.
         if depth >= set.rr_depth {
-            let q = (beta.max_element() * eta_scale * set.rr_scale).min(1.0);
+            let q = (beta.max_element() * rr_ratio * eta_scale * set.rr_scale).min(1.0);
             if q < 1.0 {
                 let u_rr = s.next_1d();
                 if u_rr >= q {

@@ -332,6 +332,7 @@ fn trace(
                                         },
                                         l_before: l,
                                         beta_after: st.beta / mean(st.r_u),
+                                        direct: Vec3::ZERO,
                                     });
                                 }
                                 prev_p = p;
@@ -512,6 +513,7 @@ fn trace(
                 },
                 l_before: l,
                 beta_after: st.beta / mean(st.r_u),
+                direct: Vec3::ZERO,
             });
         }
         specular_bounce = bs.specular;
