@@ -58,6 +58,10 @@ impl std::str::FromStr for AccelKind {
 pub struct Accel {
     flat: FlatAccel,
     instances: InstanceBvh,
+    /// Motion blur: a BVH over the moving primitives ([`GeometryStore::motion`]), each boxed
+    /// over the whole shutter, whose leaves test the primitive where it is at the ray's time.
+    /// The still primitives keep the structure above, as in a still world.
+    moving: Option<Bvh>,
 }
 
 enum FlatAccel {
@@ -70,12 +74,17 @@ impl Accel {
     pub fn build(kind: AccelKind, geometry: &GeometryStore) -> Accel {
         let flat = match kind {
             AccelKind::Bvh => FlatAccel::Bvh(Bvh::build(geometry)),
-            AccelKind::None => FlatAccel::None(geometry.all_prims()),
+            AccelKind::None => FlatAccel::None(geometry.static_prims()),
             AccelKind::Grid => FlatAccel::Grid(Grid::build(geometry)),
         };
+        let moving = geometry
+            .motion
+            .as_ref()
+            .map(|m| Bvh::build_from(m.prims.clone(), |p| geometry.sweep_bounds(p)));
         Accel {
             flat,
             instances: InstanceBvh::build(&geometry.instances),
+            moving,
         }
     }
 
@@ -105,15 +114,26 @@ impl Accel {
     #[inline]
     pub fn intersect(&self, geometry: &GeometryStore, ray: &Ray) -> Option<Intersection> {
         let flat = self.intersect_flat(geometry, ray);
-        if self.instances.is_empty() {
-            return flat;
+        let near = if self.instances.is_empty() {
+            flat
+        } else {
+            // Strictly nearer only: at equal `t` the flat primitive, whose index is lower, wins,
+            // as the ranking of one structure would decide.
+            let t_max = flat.map_or(ray.t_max, |h| h.t);
+            self.instances
+                .intersect(&geometry.instances, ray, t_max)
+                .or(flat)
+        };
+        match &self.moving {
+            None => near,
+            Some(b) => {
+                let t_max = near.map_or(ray.t_max, |h| h.t);
+                b.closest_with(ray, t_max, |p, bound| {
+                    geometry.intersect_moving(p, ray, bound)
+                })
+                .or(near)
+            }
         }
-        // Strictly nearer only: at equal `t` the flat primitive, whose index is lower, wins, as
-        // the ranking of one structure would decide.
-        let t_max = flat.map_or(ray.t_max, |h| h.t);
-        self.instances
-            .intersect(&geometry.instances, ray, t_max)
-            .or(flat)
     }
 
     #[inline]
@@ -141,6 +161,11 @@ impl Accel {
         self.occluded_flat(geometry, ray)
             || (!self.instances.is_empty()
                 && self.instances.occluded(&geometry.instances, ray, ray.t_max))
+            || self.moving.as_ref().is_some_and(|b| {
+                b.any_with(ray, ray.t_max, |p, bound| {
+                    geometry.intersect_moving(p, ray, bound).is_some()
+                })
+            })
     }
 
     #[inline]
