@@ -9,10 +9,9 @@
 //! follows its arc by chords. Only the moving primitives are stored per key; the static ones,
 //! and their BVH, are the still world's.
 
-use super::primitive::PrimitiveKind;
 use super::sphere::Sphere;
 use super::triangle::TriangleVerts;
-use super::{Bounds3, PrimRef};
+use super::{Bounds3, PrimRef, PrimitiveKind};
 use crate::math::{Vec3, Vec4};
 
 /// Marks a mesh or sphere that does not move.
