@@ -154,10 +154,10 @@ impl World {
         let media = crate::medium::world::assign(&mut scene)
             .map_err(|e| SceneError::invalid(&label, format!("medium grid: {e}")))?;
         let mut g = compile_geometry(&scene, &label, options.instancing, &mut warnings)?;
-        if let Some(mut m) = motion {
+        if let Some(m) = motion {
             debug_assert_eq!(m.mesh_slot.len(), g.meshes.len());
             debug_assert_eq!(m.sphere_slot.len(), g.spheres.len());
-            m.prims = (0..g.triangles.len())
+            g.moving_prims = (0..g.triangles.len())
                 .filter(|&i| m.mesh(g.tri_mesh[i].0).is_some())
                 .map(|i| PrimRef::new(PrimitiveKind::Triangle, i as u32))
                 .chain(

@@ -284,7 +284,7 @@ fn motion_blur_is_continuous_between_keys() {
     )
     .unwrap();
     let motion = world.geometry.motion.as_ref().expect("continuous motion");
-    assert!(world.motion.is_empty() && motion.keys == 3 && motion.prims.len() == 2);
+    assert!(world.motion.is_empty() && motion.keys == 3 && world.geometry.moving_prims.len() == 2);
     let one = render_with(
         &scene,
         time.clone(),

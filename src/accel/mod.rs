@@ -80,7 +80,7 @@ impl Accel {
         let moving = geometry
             .motion
             .as_ref()
-            .map(|m| Bvh::build_from(m.prims.clone(), |p| geometry.sweep_bounds(p)));
+            .map(|_| Bvh::build_from(geometry.moving_prims.clone(), |p| geometry.sweep_bounds(p)));
         Accel {
             flat,
             instances: InstanceBvh::build(&geometry.instances),

@@ -9,9 +9,9 @@
 //! follows its arc by chords. Only the moving primitives are stored per key; the static ones,
 //! and their BVH, are the still world's.
 
+use super::bounds::Bounds3;
 use super::sphere::Sphere;
 use super::triangle::TriangleVerts;
-use super::{Bounds3, PrimRef, PrimitiveKind};
 use crate::math::{Vec3, Vec4};
 
 /// Marks a mesh or sphere that does not move.
@@ -86,9 +86,6 @@ pub struct MotionStore {
     pub sphere_slot: Vec<u32>,
     /// Moving sphere s's key k at `s * keys + k`.
     pub spheres: Vec<Sphere>,
-    /// Every moving primitive (flat triangles of moving meshes, moving spheres), in `PrimRef`
-    /// order: what the motion BVH is built over; the still BVH leaves them out.
-    pub prims: Vec<PrimRef>,
 }
 
 impl MotionStore {
@@ -140,31 +137,27 @@ impl MotionStore {
         }
     }
 
-    /// The box of a moving primitive over the whole shutter: the union of its boxes at the
-    /// keys, which holds it at every time between (a point moving linearly between two keys
-    /// stays in the box of its two ends).
-    pub fn sweep_bounds(&self, prim: PrimRef, idx: Option<(u32, [usize; 3])>) -> Bounds3 {
+    /// The box of a moving triangle (vertices `vs` of moving mesh `mesh`) over the whole
+    /// shutter: the union of its boxes at the keys, which holds it at every time between (a
+    /// point moving linearly between two keys stays in the box of its two ends).
+    pub fn triangle_sweep(&self, mesh: &MovingMesh, vs: [usize; 3]) -> Bounds3 {
         let mut b = Bounds3::EMPTY;
-        match (prim.kind(), idx) {
-            (PrimitiveKind::Triangle, Some((mesh, vs))) => {
-                if let Some(m) = self.mesh(mesh) {
-                    for k in 0..self.keys {
-                        for v in vs {
-                            b = b.union_point(m.positions[k * m.verts + v]);
-                        }
-                    }
-                }
+        for k in 0..self.keys {
+            for v in vs {
+                b = b.union_point(mesh.positions[k * mesh.verts + v]);
             }
-            (PrimitiveKind::Sphere, _) => {
-                let s = self.sphere_slot[prim.index()] as usize;
-                for k in 0..self.keys {
-                    let sp = self.spheres[s * self.keys + k];
-                    b = b
-                        .union_point(sp.center - Vec3::splat(sp.radius))
-                        .union_point(sp.center + Vec3::splat(sp.radius));
-                }
-            }
-            _ => {}
+        }
+        b
+    }
+
+    /// The box of moving sphere `i` over the whole shutter, as [`Self::triangle_sweep`].
+    pub fn sphere_sweep(&self, i: usize) -> Bounds3 {
+        let s = self.sphere_slot[i] as usize;
+        let mut b = Bounds3::EMPTY;
+        for sp in &self.spheres[s * self.keys..(s + 1) * self.keys] {
+            b = b
+                .union_point(sp.center - Vec3::splat(sp.radius))
+                .union_point(sp.center + Vec3::splat(sp.radius));
         }
         b
     }
@@ -176,6 +169,6 @@ impl MotionStore {
             .map(MovingMesh::heap_bytes)
             .sum::<usize>()
             + self.spheres.len() * std::mem::size_of::<Sphere>()
-            + (self.mesh_slot.len() + self.sphere_slot.len() + self.prims.len()) * 4
+            + (self.mesh_slot.len() + self.sphere_slot.len()) * 4
     }
 }

@@ -142,6 +142,10 @@ pub struct GeometryStore {
     /// The moving primitives' keys over the shutter (continuous motion blur,
     /// [`super::motion`]); `None` for a still.
     pub motion: Option<Box<MotionStore>>,
+    /// Every moving primitive (flat triangles of moving meshes, moving spheres), in `PrimRef`
+    /// order: what the motion BVH is built over; the still BVH leaves them out. Empty for a
+    /// still.
+    pub moving_prims: Vec<PrimRef>,
 }
 
 impl GeometryStore {
@@ -159,11 +163,12 @@ impl GeometryStore {
     }
 
     /// The primitives that do not move: all of them for a still. The still accelerator is
-    /// built over these; the moving ones ([`MotionStore::prims`]) have their own.
+    /// built over these; the moving ones ([`GeometryStore::moving_prims`]) have their own.
     pub fn static_prims(&self) -> Vec<PrimRef> {
         let mut all = self.all_prims();
-        if let Some(m) = &self.motion {
-            all.retain(|p| m.prims.binary_search_by_key(&p.0, |q| q.0).is_err());
+        if !self.moving_prims.is_empty() {
+            let moving = &self.moving_prims;
+            all.retain(|p| moving.binary_search_by_key(&p.0, |q| q.0).is_err());
         }
         all
     }
@@ -183,15 +188,19 @@ impl GeometryStore {
         let Some(m) = &self.motion else {
             return self.bounds(prim);
         };
-        let idx = (prim.kind() == PrimitiveKind::Triangle).then(|| {
-            let (mesh_i, local) = self.tri_mesh[prim.index()];
-            let idx = self.meshes[mesh_i as usize].indices[local as usize].map(|x| x as usize);
-            (mesh_i, idx)
-        });
-        m.sweep_bounds(prim, idx)
+        match prim.kind() {
+            PrimitiveKind::Triangle => match self.moving_triangle(prim.index()) {
+                Some((mesh, idx)) => m.triangle_sweep(mesh, idx),
+                None => self.bounds(prim),
+            },
+            PrimitiveKind::Sphere if m.sphere_slot[prim.index()] != super::motion::STILL => {
+                m.sphere_sweep(prim.index())
+            }
+            _ => self.bounds(prim),
+        }
     }
 
-    /// Tests a moving primitive ([`MotionStore::prims`]) where it is at `ray.time`.
+    /// Tests a moving primitive ([`GeometryStore::moving_prims`]) where it is at `ray.time`.
     #[inline]
     pub fn intersect_moving(&self, prim: PrimRef, ray: &Ray, t_max: f32) -> Option<Intersection> {
         let m = self.motion.as_ref()?;
