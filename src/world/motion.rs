@@ -194,8 +194,15 @@ impl World {
         if close > open && objects_move {
             match motion_keys(&mut scene, options, open, close, opts.steps() as usize + 1) {
                 Ok((mid, store)) => {
-                    let mut w = World::build_with_motion(mid, options, Some(store))?;
+                    // Keys only for what moves within the shutter.
+                    let moving = !(store.meshes.is_empty() && store.spheres.is_empty());
+                    let mut w = World::build_with_motion(mid, options, moving.then_some(store))?;
                     w.camera_motion = camera_keys.map(|k| CameraMotion::new(&k));
+                    if w.is_still() {
+                        w.warnings.push(
+                            "motion blur: nothing the render shows moves during the shutter".into(),
+                        );
+                    }
                     return Ok(w);
                 }
                 Err(reason) => {
@@ -491,9 +498,6 @@ fn motion_keys(
             }
             _ => unreachable!("only meshes and spheres get here"),
         }
-    }
-    if store.meshes.is_empty() && store.spheres.is_empty() {
-        return Err("nothing but cameras moves".into());
     }
     Ok((mid, store))
 }
