@@ -58,10 +58,11 @@ impl std::str::FromStr for AccelKind {
 pub struct Accel {
     flat: FlatAccel,
     instances: InstanceBvh,
-    /// Motion blur: a BVH over the moving primitives ([`GeometryStore::motion`]), each boxed
-    /// over the whole shutter, whose leaves test the primitive where it is at the ray's time.
-    /// The still primitives keep the structure above, as in a still world.
-    moving: Option<Bvh>,
+    /// Motion blur: per key segment of the shutter, a BVH over the moving primitives
+    /// ([`GeometryStore::motion`]), each boxed over that segment, whose leaves test the
+    /// primitive where it is at the ray's time; a ray walks its segment's. The still
+    /// primitives keep the structure above, as in a still world. Empty for a still.
+    moving: Vec<Bvh>,
 }
 
 enum FlatAccel {
@@ -77,10 +78,14 @@ impl Accel {
             AccelKind::None => FlatAccel::None(geometry.static_prims()),
             AccelKind::Grid => FlatAccel::Grid(Grid::build(geometry)),
         };
-        let moving = geometry
-            .motion
-            .as_ref()
-            .map(|_| Bvh::build_from(geometry.moving_prims.clone(), |p| geometry.sweep_bounds(p)));
+        let segments = geometry.motion.as_ref().map_or(0, |m| m.keys - 1);
+        let moving = (0..segments)
+            .map(|k| {
+                Bvh::build_from(geometry.moving_prims.clone(), |p| {
+                    geometry.sweep_bounds(p, k)
+                })
+            })
+            .collect();
         Accel {
             flat,
             instances: InstanceBvh::build(&geometry.instances),
@@ -124,7 +129,7 @@ impl Accel {
                 .intersect(&geometry.instances, ray, t_max)
                 .or(flat)
         };
-        match &self.moving {
+        match self.segment_bvh(geometry, ray) {
             None => near,
             Some(b) => {
                 let t_max = near.map_or(ray.t_max, |h| h.t);
@@ -134,6 +139,13 @@ impl Accel {
                 .or(near)
             }
         }
+    }
+
+    /// The moving primitives' BVH of the key segment holding `ray`'s time, if any move.
+    #[inline]
+    fn segment_bvh(&self, geometry: &GeometryStore, ray: &Ray) -> Option<&Bvh> {
+        let m = geometry.motion.as_ref()?;
+        self.moving.get(m.segment(ray.time).0)
     }
 
     #[inline]
@@ -161,7 +173,7 @@ impl Accel {
         self.occluded_flat(geometry, ray)
             || (!self.instances.is_empty()
                 && self.instances.occluded(&geometry.instances, ray, ray.t_max))
-            || self.moving.as_ref().is_some_and(|b| {
+            || self.segment_bvh(geometry, ray).is_some_and(|b| {
                 b.any_with(ray, ray.t_max, |p, bound| {
                     geometry.intersect_moving(p, ray, bound).is_some()
                 })

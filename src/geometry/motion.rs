@@ -137,12 +137,13 @@ impl MotionStore {
         }
     }
 
-    /// The box of a moving triangle (vertices `vs` of moving mesh `mesh`) over the whole
-    /// shutter: the union of its boxes at the keys, which holds it at every time between (a
-    /// point moving linearly between two keys stays in the box of its two ends).
-    pub fn triangle_sweep(&self, mesh: &MovingMesh, vs: [usize; 3]) -> Bounds3 {
+    /// The box of a moving triangle (vertices `vs` of moving mesh `mesh`) over key segment
+    /// `seg` (between keys `seg` and `seg + 1`): the union of its boxes at the two keys, which
+    /// holds it at every time between (a point moving linearly between two keys stays in the
+    /// box of its two ends).
+    pub fn triangle_sweep(&self, mesh: &MovingMesh, vs: [usize; 3], seg: usize) -> Bounds3 {
         let mut b = Bounds3::EMPTY;
-        for k in 0..self.keys {
+        for k in seg..seg + 2 {
             for v in vs {
                 b = b.union_point(mesh.positions[k * mesh.verts + v]);
             }
@@ -150,11 +151,11 @@ impl MotionStore {
         b
     }
 
-    /// The box of moving sphere `i` over the whole shutter, as [`Self::triangle_sweep`].
-    pub fn sphere_sweep(&self, i: usize) -> Bounds3 {
-        let s = self.sphere_slot[i] as usize;
+    /// The box of moving sphere `i` over key segment `seg`, as [`Self::triangle_sweep`].
+    pub fn sphere_sweep(&self, i: usize, seg: usize) -> Bounds3 {
+        let s = self.sphere_slot[i] as usize * self.keys + seg;
         let mut b = Bounds3::EMPTY;
-        for sp in &self.spheres[s * self.keys..(s + 1) * self.keys] {
+        for sp in &self.spheres[s..s + 2] {
             b = b
                 .union_point(sp.center - Vec3::splat(sp.radius))
                 .union_point(sp.center + Vec3::splat(sp.radius));

@@ -183,18 +183,18 @@ impl GeometryStore {
         Some((moving, idx))
     }
 
-    /// A moving primitive's box over the whole shutter ([`MotionStore::sweep_bounds`]).
-    pub fn sweep_bounds(&self, prim: PrimRef) -> Bounds3 {
+    /// A moving primitive's box over key segment `seg` ([`MotionStore::triangle_sweep`]).
+    pub fn sweep_bounds(&self, prim: PrimRef, seg: usize) -> Bounds3 {
         let Some(m) = &self.motion else {
             return self.bounds(prim);
         };
         match prim.kind() {
             PrimitiveKind::Triangle => match self.moving_triangle(prim.index()) {
-                Some((mesh, idx)) => m.triangle_sweep(mesh, idx),
+                Some((mesh, idx)) => m.triangle_sweep(mesh, idx, seg),
                 None => self.bounds(prim),
             },
             PrimitiveKind::Sphere if m.sphere_slot[prim.index()] != super::motion::STILL => {
-                m.sphere_sweep(prim.index())
+                m.sphere_sweep(prim.index(), seg)
             }
             _ => self.bounds(prim),
         }
