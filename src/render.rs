@@ -1260,7 +1260,8 @@ impl TileWork<'_> {
             camera.camera_to_world = m.at(u);
         }
         let (film, weight) = self.filter.film_point(x, y, jitter);
-        let ray = camera.generate_ray(film, lens);
+        // The ray, and every ray of its path, sees moving primitives at time u.
+        let ray = camera.generate_ray(film, lens).with_time(u);
         let l = self.integrator.radiance(
             self.world.at_step(k),
             &ray,

@@ -99,9 +99,10 @@ pub struct World {
     /// over the pixel footprint, so renders give the path tracers the camera's footprint even
     /// without `--texture-filter trilinear` (`eval::bump`).
     pub has_bump: bool,
-    /// Motion blur (`WorldOptions::shutter`): the scene posed at the shutter's time steps, one
-    /// world each; a camera sample draws its time and traces the world of its step
-    /// ([`motion`]). Empty for a still.
+    /// Motion blur that moving primitives' keys do not cover (`GeometryStore::motion` does the
+    /// rest): the scene posed at the shutter's time steps, one world each; a camera sample
+    /// draws its time and traces the world of its step ([`motion`]). Empty for a still and
+    /// for continuous motion.
     pub motion: Vec<World>,
     /// Motion blur of a moving camera: its transform at a sample's time ([`motion`]). `None`
     /// when the camera does not move.
@@ -125,7 +126,18 @@ impl World {
     /// it (the one place, docs/DESIGN.md §3; `Scene::select_variant` keeps it valid), and a scene
     /// built in code is checked with `Scene::validate` before it comes here. Debug builds check
     /// again, so a test that builds an invalid scene by hand fails here rather than deeper.
-    pub fn build(mut scene: Scene, options: &WorldOptions) -> Result<World, SceneError> {
+    pub fn build(scene: Scene, options: &WorldOptions) -> Result<World, SceneError> {
+        Self::build_with_motion(scene, options, None)
+    }
+
+    /// [`World::build`] with the keys of the primitives that move during the shutter
+    /// ([`motion`]): its mesh and sphere slots follow the order [`compile_geometry`] gives the
+    /// flattened meshes and spheres; the moving primitives go to their own BVH.
+    fn build_with_motion(
+        mut scene: Scene,
+        options: &WorldOptions,
+        motion: Option<crate::geometry::motion::MotionStore>,
+    ) -> Result<World, SceneError> {
         debug_assert!(
             scene.validate().is_ok(),
             "World::build got an invalid scene: {:?}",
@@ -142,6 +154,20 @@ impl World {
         let media = crate::medium::world::assign(&mut scene)
             .map_err(|e| SceneError::invalid(&label, format!("medium grid: {e}")))?;
         let mut g = compile_geometry(&scene, &label, options.instancing, &mut warnings)?;
+        if let Some(m) = motion {
+            debug_assert_eq!(m.mesh_slot.len(), g.meshes.len());
+            debug_assert_eq!(m.sphere_slot.len(), g.spheres.len());
+            g.moving_prims = (0..g.triangles.len())
+                .filter(|&i| m.mesh(g.tri_mesh[i].0).is_some())
+                .map(|i| PrimRef::new(PrimitiveKind::Triangle, i as u32))
+                .chain(
+                    (0..g.spheres.len())
+                        .filter(|&i| m.sphere_slot[i] != crate::geometry::motion::STILL)
+                        .map(|i| PrimRef::new(PrimitiveKind::Sphere, i as u32)),
+                )
+                .collect();
+            g.motion = Some(Box::new(m));
+        }
         let (mut lights, footprint_means) = area_lights(&mut g, &scene.materials, &scene.textures);
         lights.extend(scene_lights(&scene, &label)?);
         let studio = add_option_lights(&mut lights, &scene, &g, options, &mut warnings)?;
@@ -402,7 +428,7 @@ impl World {
                 return Some((isect, Some(hit)));
             }
             // Step through the hole: respawn on the far side with the remaining extent.
-            let mut next = Ray::spawn(hit.p, hit.p_error, hit.ng, ray.d);
+            let mut next = Ray::spawn(hit.p, hit.p_error, hit.ng, ray.d).with_time(ray.time);
             t_offset = (next.o - ray.o).dot(ray.d) / d2;
             if ray.t_max.is_finite() {
                 next.t_max = ray.t_max - t_offset;

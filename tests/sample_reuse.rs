@@ -115,6 +115,7 @@ fn receiver(p: Vec3) -> SurfaceHit {
         material: 0,
         light: NO_LIGHT,
         prim: PrimRef(0),
+        time: 0.0,
     }
 }
 

@@ -52,7 +52,7 @@ pub struct GridStats {
 
 impl Grid {
     pub fn build(geometry: &GeometryStore) -> Grid {
-        Self::build_from(geometry.all_prims(), |p| geometry.bounds(p))
+        Self::build_from(geometry.static_prims(), |p| geometry.bounds(p))
     }
 
     /// Builds over any set of primitives given their bounds. Primitives with empty or non-finite

@@ -58,6 +58,11 @@ impl std::str::FromStr for AccelKind {
 pub struct Accel {
     flat: FlatAccel,
     instances: InstanceBvh,
+    /// Motion blur: per key segment of the shutter, a BVH over the moving primitives
+    /// ([`GeometryStore::motion`]), each boxed over that segment, whose leaves test the
+    /// primitive where it is at the ray's time; a ray walks its segment's. The still
+    /// primitives keep the structure above, as in a still world. Empty for a still.
+    moving: Vec<Bvh>,
 }
 
 enum FlatAccel {
@@ -70,12 +75,21 @@ impl Accel {
     pub fn build(kind: AccelKind, geometry: &GeometryStore) -> Accel {
         let flat = match kind {
             AccelKind::Bvh => FlatAccel::Bvh(Bvh::build(geometry)),
-            AccelKind::None => FlatAccel::None(geometry.all_prims()),
+            AccelKind::None => FlatAccel::None(geometry.static_prims()),
             AccelKind::Grid => FlatAccel::Grid(Grid::build(geometry)),
         };
+        let segments = geometry.motion.as_ref().map_or(0, |m| m.keys - 1);
+        let moving = (0..segments)
+            .map(|k| {
+                Bvh::build_from(geometry.moving_prims.clone(), |p| {
+                    geometry.sweep_bounds(p, k)
+                })
+            })
+            .collect();
         Accel {
             flat,
             instances: InstanceBvh::build(&geometry.instances),
+            moving,
         }
     }
 
@@ -105,15 +119,33 @@ impl Accel {
     #[inline]
     pub fn intersect(&self, geometry: &GeometryStore, ray: &Ray) -> Option<Intersection> {
         let flat = self.intersect_flat(geometry, ray);
-        if self.instances.is_empty() {
-            return flat;
+        let near = if self.instances.is_empty() {
+            flat
+        } else {
+            // Strictly nearer only: at equal `t` the flat primitive, whose index is lower, wins,
+            // as the ranking of one structure would decide.
+            let t_max = flat.map_or(ray.t_max, |h| h.t);
+            self.instances
+                .intersect(&geometry.instances, ray, t_max)
+                .or(flat)
+        };
+        match self.segment_bvh(geometry, ray) {
+            None => near,
+            Some(b) => {
+                let t_max = near.map_or(ray.t_max, |h| h.t);
+                b.closest_with(ray, t_max, |p, bound| {
+                    geometry.intersect_moving(p, ray, bound)
+                })
+                .or(near)
+            }
         }
-        // Strictly nearer only: at equal `t` the flat primitive, whose index is lower, wins, as
-        // the ranking of one structure would decide.
-        let t_max = flat.map_or(ray.t_max, |h| h.t);
-        self.instances
-            .intersect(&geometry.instances, ray, t_max)
-            .or(flat)
+    }
+
+    /// The moving primitives' BVH of the key segment holding `ray`'s time, if any move.
+    #[inline]
+    fn segment_bvh(&self, geometry: &GeometryStore, ray: &Ray) -> Option<&Bvh> {
+        let m = geometry.motion.as_ref()?;
+        self.moving.get(m.segment(ray.time).0)
     }
 
     #[inline]
@@ -141,6 +173,11 @@ impl Accel {
         self.occluded_flat(geometry, ray)
             || (!self.instances.is_empty()
                 && self.instances.occluded(&geometry.instances, ray, ray.t_max))
+            || self.segment_bvh(geometry, ray).is_some_and(|b| {
+                b.any_with(ray, ray.t_max, |p, bound| {
+                    geometry.intersect_moving(p, ray, bound).is_some()
+                })
+            })
     }
 
     #[inline]

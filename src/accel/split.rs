@@ -60,7 +60,7 @@ pub fn budget_from_env() -> f32 {
 /// Every primitive of `geometry` as one reference, and triangles with a large box cut into up to
 /// `budget × triangles` extra references. Primitives with empty or non-finite bounds are left out.
 pub fn references(geometry: &GeometryStore, budget: f32) -> Vec<Reference> {
-    let prims = geometry.all_prims();
+    let prims = geometry.static_prims();
     let bounds: Vec<Bounds3> = prims.par_iter().map(|&p| geometry.bounds(p)).collect();
     let valid = |b: &Bounds3| !b.is_empty() && b.min.is_finite() && b.max.is_finite();
     let scene = bounds

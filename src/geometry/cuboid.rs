@@ -38,6 +38,7 @@ impl Cuboid {
             o: self.world_to_object.transform_point3(ray.o),
             d: self.world_to_object.transform_vector3(ray.d),
             t_max,
+            time: ray.time,
         }
     }
 

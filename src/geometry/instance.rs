@@ -221,5 +221,6 @@ pub fn object_ray(inst: &Instance, ray: &Ray) -> Ray {
         o: m.transform_point3(ray.o),
         d: m.transform_vector3(ray.d),
         t_max: ray.t_max,
+        time: ray.time,
     }
 }

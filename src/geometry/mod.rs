@@ -8,6 +8,7 @@ pub mod cuboid;
 pub mod curve;
 pub mod instance;
 pub mod mesh;
+pub mod motion;
 pub mod primitive;
 pub mod quad;
 pub mod sample;
@@ -25,6 +26,11 @@ pub struct Ray {
     pub o: Vec3,
     pub d: Vec3,
     pub t_max: f32,
+    /// The moment the ray sees, as a fraction u ∈ [0, 1) of the shutter (docs/DESIGN.md,
+    /// "Motion blur"): moving primitives are intersected where they are at u. 0 for a still,
+    /// whose geometry has no motion and never reads it. A ray spawned from a hit takes the hit's
+    /// time ([`Ray::with_time`], [`SurfaceHit::time`]), as pbrt-v4's `SpawnRay` does.
+    pub time: f32,
 }
 
 impl Ray {
@@ -34,7 +40,14 @@ impl Ray {
             o,
             d,
             t_max: f32::INFINITY,
+            time: 0.0,
         }
+    }
+
+    /// The ray at shutter time `time` (see [`Ray::time`]).
+    #[inline(always)]
+    pub fn with_time(self, time: f32) -> Ray {
+        Ray { time, ..self }
     }
 
     /// True if the origin and direction are finite. A ray that is not (a camera placed at an
@@ -75,6 +88,7 @@ impl Ray {
             o: pf,
             d: pt - pf,
             t_max: 1.0 - SHADOW_EPSILON,
+            time: 0.0,
         }
     }
 }

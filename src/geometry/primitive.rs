@@ -6,6 +6,7 @@ use super::cuboid::Cuboid;
 use super::curve::{Curve, CurveHit};
 use super::instance::{Instance, InstanceStore};
 pub use super::mesh::MeshAttributes;
+use super::motion::{MotionStore, MovingMesh};
 use super::quad::Quad;
 use super::sphere::Sphere;
 use super::triangle::TriangleVerts;
@@ -108,6 +109,9 @@ pub struct SurfaceHit {
     pub material: u32,
     pub light: u32,
     pub prim: PrimRef,
+    /// The shutter time of the ray that found the hit ([`super::Ray::time`]): rays spawned
+    /// here, shadow rays included, see the scene at that moment.
+    pub time: f32,
 }
 
 impl SurfaceHit {
@@ -127,6 +131,7 @@ impl SurfaceHit {
         material: 0,
         light: NO_LIGHT,
         prim: PrimRef(0),
+        time: 0.0,
     };
 }
 
@@ -144,6 +149,13 @@ pub struct GeometryStore {
     /// primitive indices past `triangles` ([`super::instance`]). Empty for most scenes.
     pub instances: InstanceStore,
     pub curves: Vec<AnalyticPrim<Curve>>,
+    /// The moving primitives' keys over the shutter (continuous motion blur,
+    /// [`super::motion`]); `None` for a still.
+    pub motion: Option<Box<MotionStore>>,
+    /// Every moving primitive (flat triangles of moving meshes, moving spheres), in `PrimRef`
+    /// order: what the motion BVH is built over; the still BVH leaves them out. Empty for a
+    /// still.
+    pub moving_prims: Vec<PrimRef>,
 }
 
 impl GeometryStore {
@@ -158,6 +170,74 @@ impl GeometryStore {
         v.extend((0..self.quads.len() as u32).map(|i| PrimRef::new(PrimitiveKind::Quad, i)));
         v.extend((0..self.curves.len() as u32).map(|i| PrimRef::new(PrimitiveKind::Curve, i)));
         v
+    }
+
+    /// The primitives that do not move: all of them for a still. The still accelerator is
+    /// built over these; the moving ones ([`GeometryStore::moving_prims`]) have their own.
+    pub fn static_prims(&self) -> Vec<PrimRef> {
+        let mut all = self.all_prims();
+        if !self.moving_prims.is_empty() {
+            let moving = &self.moving_prims;
+            all.retain(|p| moving.binary_search_by_key(&p.0, |q| q.0).is_err());
+        }
+        all
+    }
+
+    /// The moving mesh of flat triangle `i` and the triangle's vertex indices in it, if it moves.
+    #[inline]
+    fn moving_triangle(&self, i: usize) -> Option<(&MovingMesh, [usize; 3])> {
+        let m = self.motion.as_ref()?;
+        let &(mesh_i, local) = self.tri_mesh.get(i)?;
+        let moving = m.mesh(mesh_i)?;
+        let idx = self.meshes[mesh_i as usize].indices[local as usize].map(|x| x as usize);
+        Some((moving, idx))
+    }
+
+    /// A moving primitive's box over key segment `seg` ([`MotionStore::triangle_sweep`]).
+    pub fn sweep_bounds(&self, prim: PrimRef, seg: usize) -> Bounds3 {
+        let Some(m) = &self.motion else {
+            return self.bounds(prim);
+        };
+        match prim.kind() {
+            PrimitiveKind::Triangle => match self.moving_triangle(prim.index()) {
+                Some((mesh, idx)) => m.triangle_sweep(mesh, idx, seg),
+                None => self.bounds(prim),
+            },
+            PrimitiveKind::Sphere if m.sphere_slot[prim.index()] != super::motion::STILL => {
+                m.sphere_sweep(prim.index(), seg)
+            }
+            _ => self.bounds(prim),
+        }
+    }
+
+    /// Tests a moving primitive ([`GeometryStore::moving_prims`]) where it is at `ray.time`.
+    #[inline]
+    pub fn intersect_moving(&self, prim: PrimRef, ray: &Ray, t_max: f32) -> Option<Intersection> {
+        let m = self.motion.as_ref()?;
+        match prim.kind() {
+            PrimitiveKind::Triangle => {
+                let (mesh, idx) = self.moving_triangle(prim.index())?;
+                MotionStore::triangle(mesh, idx, m.segment(ray.time))
+                    .intersect(ray, t_max)
+                    .map(|h| Intersection {
+                        t: h.t,
+                        prim,
+                        u: h.b1,
+                        v: h.b2,
+                    })
+            }
+            PrimitiveKind::Sphere => {
+                m.sphere(prim.index(), ray.time)?
+                    .intersect(ray, t_max)
+                    .map(|t| Intersection {
+                        t,
+                        prim,
+                        u: 0.0,
+                        v: 0.0,
+                    })
+            }
+            _ => None,
+        }
     }
 
     pub fn len(&self) -> usize {
@@ -357,18 +437,33 @@ impl GeometryStore {
                     let (mesh_i, local) = self.tri_mesh[i];
                     let mesh = &self.meshes[mesh_i as usize];
                     let idx = mesh.indices[local as usize].map(|x| x as usize);
-                    triangle_hit(tri, mesh, idx, None, isect.u, isect.v, &mut hit);
+                    match self.moving_triangle(i) {
+                        None => {
+                            triangle_hit(tri, mesh, idx, Vertices::Flat, isect.u, isect.v, &mut hit)
+                        }
+                        Some((moving, _)) => {
+                            let seg = self
+                                .motion
+                                .as_ref()
+                                .map_or((0, 0.0), |m| m.segment(ray.time));
+                            let tri = MotionStore::triangle(moving, idx, seg);
+                            let v = Vertices::Moving(moving, seg);
+                            triangle_hit(&tri, mesh, idx, v, isect.u, isect.v, &mut hit);
+                        }
+                    }
                 }
                 None => {
                     let (inst, j) = self.instances.locate(i);
                     let (tri, idx) = self.instances.world_triangle(inst, j);
                     let mesh = &self.instances.meshes[inst.mesh as usize].attrs;
                     let idx = idx.map(|x| x as usize);
-                    triangle_hit(&tri, mesh, idx, Some(inst), isect.u, isect.v, &mut hit);
+                    let v = Vertices::Instance(inst);
+                    triangle_hit(&tri, mesh, idx, v, isect.u, isect.v, &mut hit);
                 }
             },
             PrimitiveKind::Sphere => {
-                let s = &self.spheres[i].shape;
+                let moved = self.motion.as_ref().and_then(|m| m.sphere(i, ray.time));
+                let s = moved.as_ref().unwrap_or(&self.spheres[i].shape);
                 let (p, err, n) = s.surface_point(ray, isect.t);
                 let (u, v) = s.uv(n);
                 hit.p = p;
@@ -442,6 +537,7 @@ impl GeometryStore {
             material: hit.material,
             light: hit.light,
             prim: hit.prim,
+            time: ray.time,
         };
     }
 
@@ -590,17 +686,28 @@ impl GeometryStore {
     }
 }
 
+/// Where a triangle's vertex normals and tangents come from ([`triangle_hit`]).
+#[derive(Clone, Copy)]
+enum Vertices<'a> {
+    /// A flat triangle: its mesh's world-space attributes.
+    Flat,
+    /// An instanced triangle: its mesh's object-space attributes, taken to the world per vertex
+    /// as the flattening takes them (so the interpolation sees the same values).
+    Instance(&'a Instance),
+    /// A moving triangle: its moving mesh's keys, interpolated at the segment.
+    Moving(&'a MovingMesh, (usize, f32)),
+}
+
 /// The shading attributes of a triangle hit at barycentrics (b1, b2): `tri` in world space,
-/// `mesh` its attributes and `[i0, i1, i2]` its vertices in them. `inst` is the instance of an
-/// instanced triangle, whose normals and tangents are taken to the world per vertex here as the
-/// flattening takes them (so the interpolation sees the same values); `None` for a flat one.
+/// `mesh` its attributes and `[i0, i1, i2]` its vertices in them; `inst` says where its vertex
+/// normals and tangents come from ([`Vertices`]).
 /// Always inlined: the hit it fills must stay a local of [`GeometryStore::surface_hit_into`].
 #[inline(always)]
 fn triangle_hit(
     tri: &TriangleVerts,
     mesh: &MeshAttributes,
     [i0, i1, i2]: [usize; 3],
-    inst: Option<&Instance>,
+    inst: Vertices,
     b1: f32,
     b2: f32,
     hit: &mut SurfaceHit,
@@ -617,8 +724,13 @@ fn triangle_hit(
         hit.ns = match &mesh.normals {
             Some(n) => {
                 let ns = match inst {
-                    None => lerp3(n[i0], n[i1], n[i2]),
-                    Some(x) => lerp3(x.normal(n[i0]), x.normal(n[i1]), x.normal(n[i2])),
+                    Vertices::Flat => lerp3(n[i0], n[i1], n[i2]),
+                    Vertices::Instance(x) => {
+                        lerp3(x.normal(n[i0]), x.normal(n[i1]), x.normal(n[i2]))
+                    }
+                    Vertices::Moving(m, s) => {
+                        lerp3(m.normal(s, i0), m.normal(s, i1), m.normal(s, i2))
+                    }
                 };
                 if ns.length_squared() > 1e-20 && ns.is_finite() {
                     let ns = ns.normalize();
@@ -646,8 +758,9 @@ fn triangle_hit(
         let mut tangent = None;
         if let Some(t) = &mesh.tangents {
             let [t0, t1, t2] = match inst {
-                None => [t[i0], t[i1], t[i2]],
-                Some(x) => [x.tangent(t[i0]), x.tangent(t[i1]), x.tangent(t[i2])],
+                Vertices::Flat => [t[i0], t[i1], t[i2]],
+                Vertices::Instance(x) => [x.tangent(t[i0]), x.tangent(t[i1]), x.tangent(t[i2])],
+                Vertices::Moving(m, s) => [m.tangent(s, i0), m.tangent(s, i1), m.tangent(s, i2)],
             };
             let t4 = t0 * b0 + t1 * b1 + t2 * b2;
             let t3 = t4.truncate();
@@ -759,6 +872,7 @@ mod tests {
             material: 99,
             light: 42,
             prim: PrimRef::new(PrimitiveKind::Quad, 5),
+            time: 0.0,
         };
         let mut kinds = 0;
         for prim in g.all_prims() {

@@ -91,7 +91,7 @@ fn intersect_solid(world: &World, mut ray: Ray) -> Option<(SurfaceHit, f32)> {
         } else {
             hit.ng
         };
-        ray = Ray::spawn(hit.p, hit.p_error, n, ray.d);
+        ray = Ray::spawn(hit.p, hit.p_error, n, ray.d).with_time(hit.time);
     }
     None
 }
@@ -135,7 +135,7 @@ pub fn trace(world: &World, ray: &Ray, s: &mut SampleStream) -> AovSample {
         if !weight.is_finite() || !(weight.max_element() > 0.0) {
             return out;
         }
-        let next = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
+        let next = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi).with_time(v.hit.time);
         let Some((hit, _)) = intersect_solid(world, next) else {
             // Reflected or seen through into the background: nothing to guide with.
             return out;

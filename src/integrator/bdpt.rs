@@ -448,6 +448,7 @@ pub fn medium_at(world: &World, lens: Vec3, p: Vec3) -> Option<usize> {
             o,
             d: dir,
             t_max: len * (1.0 - crate::geometry::SHADOW_EPSILON),
+            time: 0.0,
         };
         let Some(h) = world.intersect(&ray) else {
             break;

@@ -152,7 +152,7 @@ pub fn shade_local(
             continue;
         }
         stats.shadow_rays += 1;
-        if !world.occluded(&shadow) {
+        if !world.occluded(&shadow.with_time(hit.time)) {
             l += f * e_perp * ns.dot(wi);
         }
     }

@@ -373,7 +373,7 @@ fn continue_path(
         }
         depth += 1;
 
-        let ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
+        let ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi).with_time(v.hit.time);
         stats.rays += 1;
         // The next hit overwrites this vertex's; MIS below still needs where it was (and the
         // normal its NEE sampled a uniform environment about).

@@ -88,6 +88,8 @@ struct PathState {
     r_u: Vec3,
     r_l: Vec3,
     channel: usize,
+    /// The camera ray's shutter time, which every ray of the path inherits ([`Ray::time`]).
+    time: f32,
 }
 
 /// Radiance arriving at the camera along `ray`.
@@ -177,8 +179,9 @@ fn trace(
         r_u: Vec3::ONE,
         r_l: Vec3::ONE,
         channel,
+        time: ray.time,
     };
-    let mut ray = Ray::new(ray.o, d);
+    let mut ray = Ray::new(ray.o, d).with_time(ray.time);
     let mut medium = world.camera_medium();
     let mut l = Vec3::ZERO;
     let mut depth = 0u32;
@@ -338,7 +341,7 @@ fn trace(
                                 prev_p = p;
                                 prev_n = Vec3::ZERO;
                                 specular_bounce = false;
-                                ray = Ray::new(p, d_out);
+                                ray = Ray::new(p, d_out).with_time(st.time);
                                 scattered = true;
                                 break;
                             }
@@ -403,7 +406,7 @@ fn trace(
         if world.is_interface(hit.material) {
             // A boundary between media only: carry on in the same direction.
             medium = world.medium_after(hit.material, ray.d, hit.ng, medium);
-            ray = Ray::spawn(hit.p, hit.p_error, hit.ng, ray.d);
+            ray = Ray::spawn(hit.p, hit.p_error, hit.ng, ray.d).with_time(st.time);
             crossings += 1;
             if crossings > MAX_CROSSINGS {
                 return l;
@@ -521,7 +524,7 @@ fn trace(
         prev_p = hit.p;
         prev_n = ng;
         medium = world.medium_after(hit.material, wi, hit.ng, medium);
-        ray = Ray::spawn(hit.p, hit.p_error, ng, wi);
+        ray = Ray::spawn(hit.p, hit.p_error, ng, wi).with_time(st.time);
         if roulette(&mut st, depth, eta_scale, set, s).is_some() {
             return l;
         }
@@ -601,6 +604,7 @@ fn sample_ld(
         p_error,
         ng: n,
         ns: n,
+        time: st.time,
         ..SurfaceHit::EMPTY
     };
     let Some(ls) = world.sample_light(&here, n_offset, u_light, u2, set.env_pdf()) else {

@@ -105,7 +105,7 @@ fn trace(
                 };
                 let wr = reflect(wo, ns);
                 if wr.dot(ng) > 0.0 {
-                    let r = Ray::spawn(hit.p, hit.p_error, ng, wr);
+                    let r = Ray::spawn(hit.p, hit.p_error, ng, wr).with_time(hit.time);
                     l += surf.base * trace(world, &r, s, depth_left - 1, weight, model, stats);
                 }
             }
@@ -126,7 +126,7 @@ fn trace(
                 if fr * weight >= MIN_BRANCH_WEIGHT {
                     let wr = reflect(wo, ns);
                     if wr.dot(ng) > 0.0 {
-                        let r = Ray::spawn(hit.p, hit.p_error, ng, wr);
+                        let r = Ray::spawn(hit.p, hit.p_error, ng, wr).with_time(hit.time);
                         l += fr * trace(world, &r, s, depth_left - 1, weight * fr, model, stats);
                     }
                 }
@@ -135,7 +135,7 @@ fn trace(
                     && let Some(wt) = refract(wo, ns, eta).map(|(wt, _)| wt.normalize())
                     && wt.dot(ng) < 0.0
                 {
-                    let r = Ray::spawn(hit.p, hit.p_error, ng, wt);
+                    let r = Ray::spawn(hit.p, hit.p_error, ng, wt).with_time(hit.time);
                     let li = trace(world, &r, s, depth_left - 1, weight * ft, model, stats);
                     l += surf.base * li * (ft / (eta * eta));
                 }

@@ -461,6 +461,7 @@ mod tests {
             material: 0,
             light: crate::geometry::primitive::NO_LIGHT,
             prim: PrimRef::new(PrimitiveKind::Quad, 0),
+            time: 0.0,
         }
     }
 

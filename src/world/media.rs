@@ -99,6 +99,7 @@ impl World {
             o: shadow.o,
             d,
             t_max: shadow.t_max * len,
+            time: shadow.time,
         };
         let (mut t_ray, mut r_l, mut r_u) = (Vec3::ONE, Vec3::ONE, Vec3::ONE);
         for _ in 0..MAX_CROSSINGS {
@@ -162,7 +163,7 @@ impl World {
                 return Some((t_ray, r_l, r_u));
             };
             medium = self.medium_after(h.material, d, h.ng, medium);
-            let next = Ray::spawn(h.p, h.p_error, h.ng, d);
+            let next = Ray::spawn(h.p, h.p_error, h.ng, d).with_time(h.time);
             let t_max = match end {
                 Some(e) => (e - next.o).dot(d),
                 None => f32::INFINITY,

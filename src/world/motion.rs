@@ -12,13 +12,22 @@
 //!   the rotation by slerp. A pbrt camera's two-key motion is reproduced exactly (its path
 //!   between keys is itself such an interpolation); a glTF camera node's is followed between
 //!   the poses.
-//! - moving objects, lights and deforming meshes are posed and compiled at the middle of each
-//!   of [`TimeOptions::steps`] equal parts of the shutter, each world with its own exact BVH,
-//!   and a sample traces the world of the part holding its time: a stratified estimate of the
+//! - moving meshes (rigid, skinned, morphing) and spheres move continuously too: the world is
+//!   compiled once, posed at the shutter's middle, and keeps the moving primitives' vertices at
+//!   [`TimeOptions::steps`] + 1 times ([`motion_keys`], `geometry::motion`); the camera ray
+//!   carries the sample's time ([`crate::geometry::Ray::time`]), every ray spawned along its
+//!   path inherits it, and a moving primitive is intersected where it is at that time, in a BVH
+//!   of its own bounded over the shutter (`accel::Accel`).
+//! - motion that is not interpolated so (a moving light or emitter, medium boundary, box, quad,
+//!   curve or instance) falls back to posing and compiling the scene at the middle of each of
+//!   [`TimeOptions::steps`] equal parts of the shutter, each world with its own exact BVH, a
+//!   sample tracing the world of the part holding its time: a stratified estimate of the
 //!   shutter's average that converges to it as the steps grow. A scene whose only motion is
 //!   its camera's is compiled once.
 use super::{World, WorldOptions};
-use crate::math::{Mat3, Mat4, Vec3};
+use crate::geometry::motion::{MotionStore, MovingMesh, STILL};
+use crate::geometry::sphere::Sphere;
+use crate::math::{Mat3, Mat4, Vec3, Vec4, transform_normal};
 use crate::scene::animation::{Animation, decompose};
 use crate::scene::{Scene, SceneError};
 use glam::Quat;
@@ -26,9 +35,9 @@ use glam::Quat;
 /// Frames per second when neither `--fps` nor the file gives one (film's rate, and Blender's
 /// default).
 pub const DEFAULT_FPS: f64 = 24.0;
-/// Worlds a shutter is cut into unless `--shutter-steps` says.
+/// Key intervals over the shutter (worlds, for the fallback) unless `--shutter-steps` says.
 pub const DEFAULT_SHUTTER_STEPS: u32 = 16;
-/// The most `--shutter-steps` accepts (each step is a whole world in memory).
+/// The most `--shutter-steps` accepts (with the fallback each step is a whole world in memory).
 pub const MAX_SHUTTER_STEPS: u32 = 256;
 
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -42,8 +51,9 @@ pub struct TimeOptions {
     /// `--shutter OPEN,CLOSE` in seconds: relative to the moment when `time` or `frame` is
     /// given, else scene time.
     pub shutter: Option<[f64; 2]>,
-    /// `--shutter-steps`: worlds the shutter is cut into for moving objects, and the intervals
-    /// between the camera's poses (0: [`DEFAULT_SHUTTER_STEPS`]).
+    /// `--shutter-steps`: the intervals between the keys of moving primitives and of the
+    /// camera, or the worlds the shutter is cut into where motion falls back to them
+    /// (0: [`DEFAULT_SHUTTER_STEPS`]).
     pub steps: u32,
 }
 
@@ -129,9 +139,10 @@ pub fn step_of(u: f32, steps: usize) -> usize {
 
 impl World {
     /// [`World::build`] at the moment and with the motion blur `options.time` asks for: the
-    /// scene posed at the moment, or one world per shutter step (the first is this world, the
-    /// others in [`World::motion`]). A scene in which nothing moves is built once, as a still
-    /// (a warning says a shutter was ignored).
+    /// scene posed at the moment, or posed at the shutter's middle with its moving primitives'
+    /// keys ([`motion_keys`]), or, for motion the keys do not cover, one world per shutter step
+    /// (the first is this world, the others in [`World::motion`]). A scene in which nothing
+    /// moves is built once, as a still (a warning says a shutter was ignored).
     pub fn build_posed(mut scene: Scene, options: &WorldOptions) -> Result<World, SceneError> {
         let label = scene
             .source
@@ -168,6 +179,7 @@ impl World {
                 None => (!scene.cameras.is_empty()).then_some(0),
             }
         };
+        let mut discrete_reason: Option<String> = None;
         let camera_keys = camera_index
             .zip(anim.as_deref())
             .filter(|_| close > open)
@@ -179,6 +191,26 @@ impl World {
                 keys.filter(|k| k.iter().any(|m| *m != k[0]))
             });
         let objects_move = anim.as_ref().is_some_and(|a| a.moves_beyond_cameras());
+        if close > open && objects_move {
+            match motion_keys(&mut scene, options, open, close, opts.steps() as usize + 1) {
+                Ok((mid, store)) => {
+                    // Keys only for what moves within the shutter.
+                    let moving = !(store.meshes.is_empty() && store.spheres.is_empty());
+                    let mut w = World::build_with_motion(mid, options, moving.then_some(store))?;
+                    w.camera_motion = camera_keys.map(|k| CameraMotion::new(&k));
+                    if w.is_still() {
+                        w.warnings.push(
+                            "motion blur: nothing the render shows moves during the shutter".into(),
+                        );
+                    }
+                    return Ok(w);
+                }
+                Err(reason) => {
+                    // The discrete scheme below covers it, a world per step.
+                    discrete_reason = Some(reason);
+                }
+            }
+        }
         let steps = if close > open && objects_move {
             opts.steps()
         } else {
@@ -187,6 +219,12 @@ impl World {
         let mut first = scene.clone();
         first.pose(Some(step_time(open, close, 0, steps)));
         let mut w = World::build(first, options)?;
+        if let Some(reason) = discrete_reason {
+            w.warnings.push(format!(
+                "motion blur: {reason}, so the shutter is cut into {steps} steps (a world each, \
+                 --shutter-steps) instead of moving continuously"
+            ));
+        }
         w.camera_motion = camera_keys.map(|k| CameraMotion::new(&k));
         if steps == 1 {
             if w.camera_motion.is_none() && close > open {
@@ -226,9 +264,9 @@ impl World {
         Ok(w)
     }
 
-    /// True for a still: no step worlds and no moving camera.
+    /// True for a still: no moving primitives, step worlds or moving camera.
     pub fn is_still(&self) -> bool {
-        self.motion.is_empty() && self.camera_motion.is_none()
+        self.motion.is_empty() && self.camera_motion.is_none() && self.geometry.motion.is_none()
     }
 
     /// Worlds a camera sample chooses from by its time: 1 for a still.
@@ -289,4 +327,177 @@ impl CameraMotion {
         let s = s0 * (1.0 - f) + s1 * f;
         Mat4::from_translation(t0.lerp(t1, f)) * Mat4::from_quat(r) * Mat4::from_mat3(s)
     }
+}
+
+/// The keys of continuous motion blur: the scene posed at `keys` evenly spaced times over
+/// [open, close], the objects that move between them found, and their flattened meshes'
+/// vertices (positions, normals, tangents, transformed as `compile_geometry` transforms them)
+/// and spheres kept per key. Returns the scene posed at the shutter's middle (the world's pose
+/// for everything that does not read a time) and the keys; `Err` names what continuous motion
+/// does not cover (the caller falls back to a world per step): a moving emitter (area lights
+/// are sampled on the still pose), a moving light, a moving medium boundary, a moving instance
+/// or a moving shape other than a mesh or sphere, or a transform that mirrors part of the time.
+fn motion_keys(
+    scene: &mut Scene,
+    options: &WorldOptions,
+    open: f64,
+    close: f64,
+    keys: usize,
+) -> Result<(Scene, MotionStore), String> {
+    use crate::scene::Shape;
+    // The textures do not move: leave them out of the posed copies.
+    let textures = std::mem::take(&mut scene.textures);
+    let time = |k: usize| open + (close - open) * k as f64 / (keys - 1) as f64;
+    // Per key: every object's transform, and the meshes a pose deformed (skins, morphs).
+    let mut transforms: Vec<Vec<Mat4>> = Vec::with_capacity(keys);
+    let mut deformed: Vec<Vec<Option<crate::scene::Mesh>>> = Vec::with_capacity(keys);
+    let mut lights_move = false;
+    let mut first_lights = String::new();
+    for k in 0..keys {
+        let mut s = scene.clone();
+        s.pose(Some(time(k)));
+        transforms.push(s.objects.iter().map(|o| o.transform).collect());
+        deformed.push(
+            s.meshes
+                .into_iter()
+                .zip(&scene.meshes)
+                .map(|(posed, rest)| {
+                    let same = posed.positions == rest.positions
+                        && posed.normals == rest.normals
+                        && posed.tangents == rest.tangents;
+                    (!same).then_some(posed)
+                })
+                .collect(),
+        );
+        let lights = format!("{:?}", s.lights);
+        if k == 0 {
+            first_lights = lights;
+        } else if lights != first_lights {
+            lights_move = true;
+        }
+    }
+    let mut mid = scene.clone();
+    scene.textures = textures;
+    mid.textures = scene.textures.clone();
+    mid.pose(Some(0.5 * (open + close)));
+    if lights_move {
+        return Err("a light moves".into());
+    }
+    let instanced = super::instanced_objects(&mid, options.instancing);
+    let mut store = MotionStore {
+        keys,
+        ..Default::default()
+    };
+    for (o, obj) in scene.objects.iter().enumerate() {
+        let mesh_id = match obj.shape {
+            Shape::Mesh(id) => Some(id),
+            _ => None,
+        };
+        let moves = (1..keys).any(|k| transforms[k][o] != transforms[0][o])
+            || mesh_id.is_some_and(|id| {
+                (1..keys).any(|k| {
+                    let (a, b) = (&deformed[k][id], &deformed[0][id]);
+                    match (a, b) {
+                        (Some(a), Some(b)) => {
+                            a.positions != b.positions
+                                || a.normals != b.normals
+                                || a.tangents != b.tangents
+                        }
+                        (None, None) => false,
+                        _ => true,
+                    }
+                })
+            });
+        let slot = if moves {
+            store.meshes.len() as u32
+        } else {
+            STILL
+        };
+        match (&obj.shape, instanced[o]) {
+            (Shape::Mesh(_), true) if moves => {
+                return Err(format!("the instanced object '{}' moves", obj.name));
+            }
+            (Shape::Mesh(_), true) => continue,
+            (Shape::Mesh(_), false) => store.mesh_slot.push(slot),
+            (Shape::Sphere { .. }, _) => store.sphere_slot.push(if moves {
+                (store.spheres.len() / keys) as u32
+            } else {
+                STILL
+            }),
+            _ if moves => {
+                return Err(format!(
+                    "the object '{}' moves and is not a mesh or a sphere",
+                    obj.name
+                ));
+            }
+            _ => continue,
+        }
+        if !moves {
+            continue;
+        }
+        if scene.materials[obj.material].is_emissive() {
+            return Err(format!("the emitter '{}' moves", obj.name));
+        }
+        if obj.medium.is_some() {
+            return Err(format!("the medium boundary '{}' moves", obj.name));
+        }
+        let flip = |m: &Mat4| Mat3::from_mat4(*m).determinant() < 0.0;
+        if (1..keys).any(|k| flip(&transforms[k][o]) != flip(&transforms[0][o])) {
+            return Err(format!(
+                "the object '{}' is mirrored part of the time",
+                obj.name
+            ));
+        }
+        match obj.shape {
+            Shape::Mesh(id) => {
+                let rest = &scene.meshes[id];
+                let mut mm = MovingMesh {
+                    verts: rest.positions.len(),
+                    positions: Vec::with_capacity(rest.positions.len() * keys),
+                    normals: rest.normals.as_ref().map(|_| Vec::new()),
+                    tangents: rest.tangents.as_ref().map(|_| Vec::new()),
+                };
+                for k in 0..keys {
+                    let m = transforms[k][o];
+                    let mesh = deformed[k][id].as_ref().unwrap_or(rest);
+                    // As compile_geometry flattens a mesh.
+                    let inv = m.inverse();
+                    let mirrored = flip(&m);
+                    mm.positions
+                        .extend(mesh.positions.iter().map(|&p| m.transform_point3(p)));
+                    if let (Some(out), Some(ns)) = (mm.normals.as_mut(), mesh.normals.as_ref()) {
+                        out.extend(
+                            ns.iter()
+                                .map(|&n| transform_normal(&inv, n).normalize_or_zero()),
+                        );
+                    }
+                    if let (Some(out), Some(ts)) = (mm.tangents.as_mut(), mesh.tangents.as_ref()) {
+                        out.extend(ts.iter().map(|t| {
+                            let v = m.transform_vector3(t.truncate()).normalize_or_zero();
+                            Vec4::new(v.x, v.y, v.z, if mirrored { -t.w } else { t.w })
+                        }));
+                    }
+                }
+                let n = mm.verts * keys;
+                if mm.positions.len() != n
+                    || mm.normals.as_ref().is_some_and(|v| v.len() != n)
+                    || mm.tangents.as_ref().is_some_and(|v| v.len() != n)
+                {
+                    return Err(format!("the mesh of '{}' changes its size", obj.name));
+                }
+                store.meshes.push(mm);
+            }
+            Shape::Sphere { center, radius } => {
+                for key in &transforms {
+                    let m = key[o];
+                    store.spheres.push(Sphere {
+                        center: m.transform_point3(center),
+                        radius: radius * Mat3::from_mat4(m).x_axis.length(),
+                    });
+                }
+            }
+            _ => unreachable!("only meshes and spheres get here"),
+        }
+    }
+    Ok((mid, store))
 }

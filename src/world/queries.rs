@@ -178,8 +178,12 @@ impl World {
         u: Vec2,
         env: EnvPdf,
     ) -> Option<LightSample> {
-        self.lights
-            .sample(&self.light_scene(), hit, n_offset, u_light, u, env)
+        let mut ls = self
+            .lights
+            .sample(&self.light_scene(), hit, n_offset, u_light, u, env)?;
+        // The shadow ray sees the scene at the hit's moment.
+        ls.shadow.time = hit.time;
+        Some(ls)
     }
 
     /// [`World::sample_light`] with one 2D number for both the choice and the point (sample
@@ -198,7 +202,7 @@ impl World {
         env: EnvPdf,
         uniform_n: Vec3,
     ) -> Option<LightSample> {
-        self.lights.sample_reuse(
+        let mut ls = self.lights.sample_reuse(
             &self.light_scene(),
             hit,
             n_offset,
@@ -206,7 +210,9 @@ impl World {
             u_spare,
             env,
             uniform_n,
-        )
+        )?;
+        ls.shadow.time = hit.time;
+        Some(ls)
     }
 
     /// Solid-angle pdf with which [`World::sample_light`] from `p` with `n_offset` = `n` would

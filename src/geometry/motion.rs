@@ -1,0 +1,175 @@
+//! Moving primitives of a motion-blurred world (docs/DESIGN.md, "Motion blur"): the world holds
+//! every primitive once, posed at the shutter's middle, and for those that move during the
+//! shutter their shape at `keys` evenly spaced times over it (key k at u = k / (keys − 1)). A
+//! ray at time u ([`Ray::time`]) meets a moving primitive interpolated linearly between the two
+//! keys around u: a triangle's vertices (and its vertex normals and tangents, which the hit
+//! renormalises), a sphere's centre and radius. This is the per-vertex motion of Embree's and
+//! Cycles' motion-blurred meshes (a deforming mesh's vertices at time steps, linear between);
+//! rigid motion is sampled the same way, so a translation is exact with two keys and a rotation
+//! follows its arc by chords. Only the moving primitives are stored per key; the static ones,
+//! and their BVH, are the still world's.
+
+use super::bounds::Bounds3;
+use super::sphere::Sphere;
+use super::triangle::TriangleVerts;
+use crate::math::{Vec3, Vec4};
+
+/// Marks a mesh or sphere that does not move.
+pub const STILL: u32 = u32::MAX;
+
+/// One flattened mesh's vertices at every key, in world space (the indices are the mesh's
+/// [`super::mesh::MeshAttributes::indices`]).
+#[derive(Clone, Debug, Default)]
+pub struct MovingMesh {
+    /// Vertices per key.
+    pub verts: usize,
+    /// Key k's vertex v at `k * verts + v`.
+    pub positions: Vec<Vec3>,
+    pub normals: Option<Vec<Vec3>>,
+    pub tangents: Option<Vec<Vec4>>,
+}
+
+impl MovingMesh {
+    #[inline(always)]
+    fn at<T>(&self, v: &[T], (k, f): (usize, f32), i: usize) -> T
+    where
+        T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+    {
+        let a = v[k * self.verts + i];
+        if f == 0.0 {
+            return a;
+        }
+        a * (1.0 - f) + v[(k + 1) * self.verts + i] * f
+    }
+
+    /// Vertex `i`'s position at key segment `seg` ([`MotionStore::segment`]).
+    #[inline]
+    pub fn position(&self, seg: (usize, f32), i: usize) -> Vec3 {
+        self.at(&self.positions, seg, i)
+    }
+
+    /// Vertex `i`'s normal (not renormalised) at `seg`, if the mesh has normals.
+    #[inline]
+    pub fn normal(&self, seg: (usize, f32), i: usize) -> Vec3 {
+        self.normals
+            .as_ref()
+            .map_or(Vec3::Z, |n| self.at(n, seg, i))
+    }
+
+    /// Vertex `i`'s tangent at `seg` (the handedness of the earlier key).
+    #[inline]
+    pub fn tangent(&self, seg: (usize, f32), i: usize) -> Vec4 {
+        let Some(t) = self.tangents.as_ref() else {
+            return Vec4::X;
+        };
+        let v = self.at(t, seg, i);
+        Vec4::new(v.x, v.y, v.z, t[seg.0 * self.verts + i].w)
+    }
+
+    /// Bytes held, for reports.
+    pub fn heap_bytes(&self) -> usize {
+        self.positions.len() * 12
+            + self.normals.as_ref().map_or(0, |v| v.len() * 12)
+            + self.tangents.as_ref().map_or(0, |v| v.len() * 16)
+    }
+}
+
+/// The moving primitives of a world and their keys.
+#[derive(Clone, Debug, Default)]
+pub struct MotionStore {
+    /// Keys over the shutter (at least 2).
+    pub keys: usize,
+    /// Per flattened mesh (`GeometryStore::meshes`): its index in `meshes`, or [`STILL`].
+    pub mesh_slot: Vec<u32>,
+    pub meshes: Vec<MovingMesh>,
+    /// Per sphere (`GeometryStore::spheres`): its index in `spheres` / keys, or [`STILL`].
+    pub sphere_slot: Vec<u32>,
+    /// Moving sphere s's key k at `s * keys + k`.
+    pub spheres: Vec<Sphere>,
+}
+
+impl MotionStore {
+    /// The key segment holding shutter time `u` and the fraction into it: keys `k` and `k + 1`
+    /// weighted `1 − f` and `f`.
+    #[inline]
+    pub fn segment(&self, u: f32) -> (usize, f32) {
+        let n = self.keys - 1;
+        let x = u.clamp(0.0, 1.0) * n as f32;
+        let k = (x as usize).min(n - 1);
+        (k, x - k as f32)
+    }
+
+    /// The moving mesh of flattened mesh `mesh`, if it moves.
+    #[inline]
+    pub fn mesh(&self, mesh: u32) -> Option<&MovingMesh> {
+        match self.mesh_slot.get(mesh as usize) {
+            Some(&s) if s != STILL => Some(&self.meshes[s as usize]),
+            _ => None,
+        }
+    }
+
+    /// Sphere `i` at shutter time `u`, if it moves.
+    #[inline]
+    pub fn sphere(&self, i: usize, u: f32) -> Option<Sphere> {
+        let s = *self.sphere_slot.get(i)?;
+        if s == STILL {
+            return None;
+        }
+        let (k, f) = self.segment(u);
+        let a = self.spheres[s as usize * self.keys + k];
+        if f == 0.0 {
+            return Some(a);
+        }
+        let b = self.spheres[s as usize * self.keys + k + 1];
+        Some(Sphere {
+            center: a.center * (1.0 - f) + b.center * f,
+            radius: a.radius * (1.0 - f) + b.radius * f,
+        })
+    }
+
+    /// A moving triangle with vertex indices `idx` of `mesh` at time `u`.
+    #[inline]
+    pub fn triangle(mesh: &MovingMesh, idx: [usize; 3], seg: (usize, f32)) -> TriangleVerts {
+        TriangleVerts {
+            p0: mesh.position(seg, idx[0]),
+            p1: mesh.position(seg, idx[1]),
+            p2: mesh.position(seg, idx[2]),
+        }
+    }
+
+    /// The box of a moving triangle (vertices `vs` of moving mesh `mesh`) over key segment
+    /// `seg` (between keys `seg` and `seg + 1`): the union of its boxes at the two keys, which
+    /// holds it at every time between (a point moving linearly between two keys stays in the
+    /// box of its two ends).
+    pub fn triangle_sweep(&self, mesh: &MovingMesh, vs: [usize; 3], seg: usize) -> Bounds3 {
+        let mut b = Bounds3::EMPTY;
+        for k in seg..seg + 2 {
+            for v in vs {
+                b = b.union_point(mesh.positions[k * mesh.verts + v]);
+            }
+        }
+        b
+    }
+
+    /// The box of moving sphere `i` over key segment `seg`, as [`Self::triangle_sweep`].
+    pub fn sphere_sweep(&self, i: usize, seg: usize) -> Bounds3 {
+        let s = self.sphere_slot[i] as usize * self.keys + seg;
+        let mut b = Bounds3::EMPTY;
+        for sp in &self.spheres[s..s + 2] {
+            b = b
+                .union_point(sp.center - Vec3::splat(sp.radius))
+                .union_point(sp.center + Vec3::splat(sp.radius));
+        }
+        b
+    }
+
+    /// Bytes held by the keys, for reports and measurements.
+    pub fn heap_bytes(&self) -> usize {
+        self.meshes
+            .iter()
+            .map(MovingMesh::heap_bytes)
+            .sum::<usize>()
+            + self.spheres.len() * std::mem::size_of::<Sphere>()
+            + (self.mesh_slot.len() + self.sphere_slot.len()) * 4
+    }
+}
