@@ -595,10 +595,13 @@ impl RenderArgs {
         }
         if self.spectral
             && let Some(k) = self.integrator
-            && k != IntegratorKind::Path
+            && !matches!(
+                k,
+                IntegratorKind::Path | IntegratorKind::LightTracer | IntegratorKind::Bdpt
+            )
         {
             bail!(
-                "invalid setting: --spectral needs --integrator path (got {})",
+                "invalid setting: --spectral needs --integrator path, lighttracer or bdpt (got {})",
                 k.name()
             );
         }
