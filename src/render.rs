@@ -706,13 +706,19 @@ fn check_integrator_settings(
             integrator.name()
         )));
     }
-    // Spectral transport is built into the path tracers (surface and volumetric) only; the
-    // others would silently render RGB (docs/DESIGN.md "Spectral rendering").
-    if settings.path.spectral && !matches!(integrator, Integrator::Path | Integrator::VolPath) {
+    // Spectral transport is built into the path tracers (surface and volumetric), and the light
+    // tracer and BDPT without media (`light::check`); the others would silently render RGB
+    // (docs/DESIGN.md "Spectral rendering").
+    if settings.path.spectral
+        && !matches!(
+            integrator,
+            Integrator::Path | Integrator::VolPath | Integrator::LightTracer | Integrator::Bdpt
+        )
+    {
         return Err(RenderError::InvalidSetting(format!(
-            "spectral rendering is not available with the {} yet (only the path tracer carries \
-             wavelengths; the light-path integrators' splats and photons are RGB): render it \
-             without --spectral or use --integrator path",
+            "spectral rendering is not available with the {} yet (the path tracers, the light \
+             tracer and BDPT carry wavelengths; this integrator's splats and photons are RGB): \
+             render it without --spectral or use --integrator path",
             integrator.name()
         )));
     }

@@ -169,6 +169,24 @@ impl World {
             g.motion = Some(Box::new(m));
         }
         let (mut lights, footprint_means) = area_lights(&mut g, &scene.materials, &scene.textures);
+        // Each light's emission spectrum, when it was given one: area lights their material's,
+        // the scene's lights theirs (`Scene::light_spectra`), the lights added below none.
+        let mut spectra: Vec<Option<crate::spectrum::Illuminant>> = lights
+            .iter()
+            .map(|l| match l {
+                Light::Area(a) => scene.materials[a.material as usize]
+                    .emission_spectrum
+                    .clone(),
+                _ => None,
+            })
+            .collect();
+        let first_scene_light = spectra.len();
+        spectra.resize(first_scene_light + scene.lights.len(), None);
+        for (i, s) in &scene.light_spectra {
+            if let Some(slot) = spectra.get_mut(first_scene_light + i) {
+                *slot = Some(s.clone());
+            }
+        }
         lights.extend(scene_lights(&scene, &label)?);
         let studio = add_option_lights(&mut lights, &scene, &g, options, &mut warnings)?;
         let bounds = g.scene_bounds();
@@ -209,7 +227,7 @@ impl World {
                 t.tile();
             });
         }
-        let lights = LightSet::new(
+        let mut lights = LightSet::new(
             lights,
             &g,
             &materials,
@@ -218,6 +236,7 @@ impl World {
             &footprint_means,
             options.light_sampler,
         );
+        lights.set_spectra(&spectra);
         let cutout: Vec<bool> = materials
             .iter()
             .map(|m| m.alpha_mode != AlphaMode::Opaque)

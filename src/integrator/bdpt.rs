@@ -402,6 +402,10 @@ impl Context<'_> {
 #[derive(Default)]
 pub struct MediaState {
     rng: Option<Pcg32>,
+    /// Spectral mode: a subpath met a dispersive surface, so the whole sample keeps its hero
+    /// wavelength alone, weighted by the number of wavelengths (pbrt-v4's `TerminateSecondary`
+    /// acts on the sample's wavelengths, shared by both subpaths and every strategy).
+    hero_only: bool,
 }
 
 impl MediaState {
@@ -409,7 +413,10 @@ impl MediaState {
     /// stream when the scene has media, none otherwise (media-free images keep their streams).
     pub fn new(world: &World, s: &mut impl UniformSource, salt: Vec3) -> MediaState {
         if !world.has_media() {
-            return MediaState { rng: None };
+            return MediaState {
+                rng: None,
+                hero_only: false,
+            };
         }
         let u = s.next_1d();
         let rng = Pcg32::new(
@@ -420,7 +427,10 @@ impl MediaState {
             ]),
             0x6264_7074,
         );
-        MediaState { rng: Some(rng) }
+        MediaState {
+            rng: Some(rng),
+            hero_only: false,
+        }
     }
 }
 
@@ -655,6 +665,11 @@ fn walk(
         let mut v = PathVertex::new(Kind::Surface, hit.p, hit.ng, beta_v);
         v.v.hit = hit;
         v.v.shade(world, -d);
+        // Spectral mode: the BSDF at the sample's wavelengths (as the path tracer's vertices).
+        if let Some(w) = &set.wavelengths {
+            media.hero_only |= v.v.bsdf.disperses();
+            v.v.bsdf = v.v.bsdf.to_spectral(w.lambda);
+        }
         v.medium = medium;
         let prev_p = path[path.len() - 1].p;
         v.pdf_fwd = if path[path.len() - 1].is_infinite_light() {
@@ -752,6 +767,17 @@ pub fn trace(
     out: &mut impl super::lighttracer::Splat,
     strategies: &mut impl StrategySink,
 ) -> Vec3 {
+    // Spectral mode: the sample's wavelengths, drawn first, ride on a copy of the settings that
+    // both subpaths and every connection read; each strategy reaches the film through the CIE
+    // curves (docs/DESIGN.md "Spectral rendering").
+    let spectral_set = ctx.set.for_sample(s);
+    let spectral_ctx = spectral_set.as_ref().map(|set| Context {
+        world: ctx.world,
+        camera: ctx.camera,
+        set,
+    });
+    let ctx = spectral_ctx.as_ref().unwrap_or(ctx);
+    let set = ctx.set;
     let world = ctx.world;
     let max_depth = ctx.set.max_depth as usize;
     let Scratch {
@@ -788,15 +814,20 @@ pub fn trace(
                 ctx, light, camera, sl, t, s, stats, fwd, rev, delta, strategies, &mut media,
             );
             if let Some((l, raster)) = c {
+                let l = if media.hero_only {
+                    Vec3::new(3.0 * l.x, 0.0, 0.0)
+                } else {
+                    l
+                };
                 if t == 1 {
-                    out.splat(raster, l * scale);
+                    out.splat(raster, set.to_film(l * scale));
                 } else {
                     l_pixel += l;
                 }
             }
         }
     }
-    l_pixel
+    set.to_film(l_pixel)
 }
 
 /// The camera subpath (pbrt-v4 `GenerateCameraSubpath`) into `camera` (emptied first): the
@@ -854,6 +885,10 @@ pub(crate) fn light_subpath(
     };
     let les = em.le;
     let infinite = world.lights()[em.index].is_infinite();
+    // The light's emission as the path carries it (at the sample's wavelengths when spectral).
+    let le = ctx
+        .set
+        .light_emission(&world.lights, em.index as u32, les.le);
     let mut l0 = PathVertex::new(
         Kind::Light {
             light: em.index as u32,
@@ -861,7 +896,7 @@ pub(crate) fn light_subpath(
         },
         les.ray.o,
         les.n,
-        les.le,
+        le,
     );
     if let Some(lp) = &em.point {
         l0.p = lp.p;
@@ -880,7 +915,7 @@ pub(crate) fn light_subpath(
     }
     let start_medium = l0.medium_toward(world, les.ray.d);
     light.push(l0);
-    let beta = les.le * (les.cos() / (em.pmf * les.pdf_pos * les.pdf_dir));
+    let beta = le * (les.cos() / (em.pmf * les.pdf_pos * les.pdf_dir));
     let n_before = light.len();
     walk(
         ctx,
@@ -1033,10 +1068,11 @@ fn connect(
     let l: Vec3 = if s == 0 {
         // The camera subpath reached an emitter.
         match pt.kind {
-            Kind::Light { infinite: true, .. } => pt.beta * world.escaped(pt.dir),
+            Kind::Light { infinite: true, .. } => pt.beta * ctx.set.escaped(world, pt.dir),
             Kind::Surface if pt.v.hit.light != NO_LIGHT => {
                 let wo = (camera[t - 2].p - pt.p).normalize_or_zero();
-                pt.beta * world.emitted(&pt.v.hit, wo)
+                let le = world.emitted(&pt.v.hit, wo);
+                pt.beta * ctx.set.light_emission(&world.lights, pt.v.hit.light, le)
             }
             _ => return None,
         }
@@ -1086,6 +1122,7 @@ fn connect(
             if !(pos > 0.0) || le == Vec3::ZERO {
                 return None;
             }
+            let le = ctx.set.light_emission(&world.lights, li as u32, le);
             let mut v = PathVertex::new(
                 Kind::Light {
                     light: li as u32,
@@ -1129,7 +1166,8 @@ fn connect(
             } else {
                 (p - pt.p).length_squared()
             };
-            v.beta = ls.li * (g_undo / (pmf * ls.pdf));
+            v.beta =
+                ctx.set.light_emission(&world.lights, li as u32, ls.li) * (g_undo / (pmf * ls.pdf));
             v
         };
         let mut lv = lv;

@@ -105,11 +105,14 @@ pub fn sample_ld_mix(
     {
         *out = Some((
             ls.wi,
-            crate::math::luminance(set.emission(ls.li)) * weight,
+            crate::math::luminance(set.light_emission(&world.lights, ls.light, ls.li)) * weight,
             ls.pmf * ls.pdf,
         ));
     }
-    beta * f * wi_local.z.abs() * set.emission(ls.li) * (weight / (ls.pmf * ls.pdf))
+    beta * f
+        * wi_local.z.abs()
+        * set.light_emission(&world.lights, ls.light, ls.li)
+        * (weight / (ls.pmf * ls.pdf))
 }
 
 /// Local shading at `hit` seen from `wo` (unit, away from the surface): ambient plus direct light

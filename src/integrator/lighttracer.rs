@@ -17,6 +17,12 @@
 //!
 //! Depth counts bounces as the path tracer does: the light seen directly is depth 0, a vertex
 //! joined to the camera after k scatterings (counting the one joined) is depth k.
+//!
+//! Spectral mode (docs/DESIGN.md "Spectral rendering"): a light path carries the three
+//! wavelengths of its sample, drawn before the light's numbers as the path tracer draws them
+//! before the camera's; the light's emission is taken at them (its own spectrum when it has one),
+//! each vertex's BSDF too, and every splat is projected to RGB through the CIE curves as a camera
+//! sample is.
 
 use super::RayStats;
 use super::settings::PathSettings;
@@ -95,11 +101,14 @@ pub fn trace(
     stats: &mut RayStats,
     out: &mut impl Splat,
 ) {
+    let spectral = set.for_sample(s);
+    let set = spectral.as_ref().unwrap_or(set);
     let Some(em) = sample_emission(world, s) else {
         return;
     };
     let scene = world.light_scene();
     let light = &world.lights()[em.index];
+    let light_index = em.index as u32;
     // The light seen directly (s = 1): only an area light has a point the lens can see.
     let u_cam = s.next_2d();
     if let (Some(area), Some(lp)) = (light.as_area(), &em.point)
@@ -108,19 +117,21 @@ pub fn trace(
     {
         let le = light.l(&scene, lp, cs.wi);
         if le != Vec3::ZERO {
+            let le = set.light_emission(&world.lights, light_index, le);
             stats.shadow_rays += 1;
             let shadow = Ray::spawn_to(lp.p, lp.p_error, lp.ng, cs.p_lens, Vec3::ZERO, Vec3::ZERO);
             if !world.occluded(&shadow) {
                 let pdf = em.pmf * em.le.pdf_pos * cs.pdf;
                 let v = le * (lp.ng.dot(cs.wi).abs() * cs.we / pdf);
-                out.splat(cs.raster, v * scale);
+                out.splat(cs.raster, set.to_film(v * scale));
             }
         }
     }
     if set.max_depth == 0 {
         return;
     }
-    let beta0 = em.le.le * (em.le.cos() / (em.pmf * em.le.pdf_pos * em.le.pdf_dir));
+    let beta0 = set.light_emission(&world.lights, light_index, em.le.le)
+        * (em.le.cos() / (em.pmf * em.le.pdf_pos * em.le.pdf_dir));
     let mut beta = beta0;
     // Russian roulette judges the throughput relative to what left the light: β itself is in
     // the light's power units (its 1 / pdf_pos can be large or small), which pbrt-v4's max β
@@ -129,6 +140,8 @@ pub fn trace(
     let mut ray = em.le.ray;
     let mut v = Vertex::unshaded(SurfaceHit::EMPTY);
     let mut depth = 0u32;
+    // Spectral: set once a dispersive surface has kept the hero wavelength alone.
+    let mut hero_only = false;
     loop {
         stats.rays += 1;
         if !world.intersect_filtered_into(&ray, &set.footprint, &mut v.hit) {
@@ -137,6 +150,16 @@ pub fn trace(
         let wo = -ray.d.normalize();
         v.shade(world, wo);
         depth += 1;
+        // As in the path tracer: the BSDF at the path's wavelengths; a dispersive one keeps the
+        // hero wavelength alone, weighted by the number of wavelengths (pbrt-v4
+        // `TerminateSecondary`).
+        if let Some(w) = &set.wavelengths {
+            if !hero_only && v.bsdf.disperses() {
+                hero_only = true;
+                beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
+            }
+            v.bsdf = v.bsdf.to_spectral(w.lambda);
+        }
         // Join this vertex to the camera (t = 1): two numbers, always drawn.
         let u_cam = s.next_2d();
         if !v.bsdf.is_specular()
@@ -166,7 +189,7 @@ pub fn trace(
                         Vec3::ZERO,
                     );
                     if !world.occluded(&shadow) {
-                        out.splat(cs.raster, c * scale);
+                        out.splat(cs.raster, set.to_film(c * scale));
                     }
                 }
             }

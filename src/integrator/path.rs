@@ -114,7 +114,7 @@ fn background(world: &World, ray: &Ray, set: &PathSettings) -> Vec3 {
     if set.transparent {
         Vec3::ZERO
     } else {
-        set.clamp(set.emission(world.escaped(ray.d.normalize())), 0)
+        set.clamp(set.escaped(world, ray.d.normalize()), 0)
     }
 }
 
@@ -166,7 +166,10 @@ fn radiance_rgb(
         return background(world, ray, set);
     }
     let wo = -ray.d.normalize();
-    let mut l = set.clamp(set.emission(world.emitted(&v.hit, wo)), 0);
+    let mut l = set.clamp(
+        set.light_emission(&world.lights, v.hit.light, world.emitted(&v.hit, wo)),
+        0,
+    );
     if set.max_depth == 0 {
         if let Some(a) = aov {
             // No scattering vertex is built for the radiance: build one for the AOVs.
@@ -381,16 +384,19 @@ fn continue_path(
         let uniform_n = v.uniform_env_normal(set.env_pdf());
         if !world.intersect_filtered_into(&ray, &set.footprint, &mut v.hit) {
             // Each light at infinity weighed against its own NEE density.
-            let escaped = world.escaped_mis(wi, set.env_pdf(), uniform_n, |le, pdf_light| {
-                let weight = if bs.specular || !set.nee {
-                    1.0
-                } else if !set.mis {
-                    0.0
-                } else {
-                    power_heuristic(bs.pdf, pdf_light)
-                };
-                beta * set.emission(le) * weight
-            });
+            let escaped =
+                world
+                    .lights
+                    .escaped_mis_each(wi, set.env_pdf(), uniform_n, |i, le, pdf_light| {
+                        let weight = if bs.specular || !set.nee {
+                            1.0
+                        } else if !set.mis {
+                            0.0
+                        } else {
+                            power_heuristic(bs.pdf, pdf_light)
+                        };
+                        beta * set.light_emission(&world.lights, i, le) * weight
+                    });
             let escaped = set.clamp(escaped, depth);
             l += escaped;
             if recorded
@@ -403,7 +409,7 @@ fn continue_path(
         }
         let next = &v.hit;
         let wo_next = -wi;
-        let le = set.emission(world.emitted(next, wo_next));
+        let le = set.light_emission(&world.lights, next.light, world.emitted(next, wo_next));
         if le != Vec3::ZERO {
             let weight = if bs.specular || !set.nee || next.light == NO_LIGHT {
                 1.0

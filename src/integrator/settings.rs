@@ -94,11 +94,37 @@ impl PathSettings {
         }
     }
 
+    /// Light `light`'s emission `rgb` (a light index of the world's [`crate::light::LightSet`],
+    /// a hit's `light`, `u32::MAX` for none) as the path carries it: unchanged in RGB mode; in
+    /// spectral mode at the sample's wavelengths, from the light's own spectrum when the scene
+    /// gave one (a blackbody, a named or sampled illuminant), else upsampled as [`Self::emission`].
+    #[inline(always)]
+    pub fn light_emission(&self, lights: &crate::light::LightSet, light: u32, rgb: Vec3) -> Vec3 {
+        match &self.wavelengths {
+            None => rgb,
+            Some(w) => lights.emission_at(light, rgb, w),
+        }
+    }
+
+    /// The lights at infinity along a camera ray's unit direction `d` as the path carries them
+    /// ([`crate::world::World::escaped`] in RGB mode, each light at the sample's wavelengths in
+    /// spectral mode).
+    #[inline(always)]
+    pub fn escaped(&self, world: &crate::world::World, d: Vec3) -> Vec3 {
+        match &self.wavelengths {
+            None => world.escaped(d),
+            Some(w) => world.lights.escaped_at(d, w),
+        }
+    }
+
     /// The settings for one camera sample: in spectral mode, a copy carrying the wavelengths
     /// drawn from `s` (one extra sampler dimension, taken before the path's); in RGB mode `None`
     /// and nothing is drawn.
     #[inline(always)]
-    pub fn for_sample(&self, s: &mut crate::sampling::SampleStream) -> Option<PathSettings> {
+    pub fn for_sample(
+        &self,
+        s: &mut impl crate::sampling::mlt::UniformSource,
+    ) -> Option<PathSettings> {
         self.spectral.then(|| PathSettings {
             wavelengths: Some(crate::spectrum::Wavelengths::sample(s.next_1d())),
             ..*self

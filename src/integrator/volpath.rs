@@ -379,23 +379,28 @@ fn trace(
             if set.transparent && depth == 0 {
                 return l;
             }
-            let escaped = world.escaped_mis(ray.d, set.env_pdf(), Vec3::ZERO, |le, pdf_light| {
-                emitter_contribution(
-                    &st,
-                    set.emission(le),
-                    pdf_light,
-                    depth,
-                    specular_bounce,
-                    set,
-                )
-            });
+            let escaped = world.lights.escaped_mis_each(
+                ray.d,
+                set.env_pdf(),
+                Vec3::ZERO,
+                |i, le, pdf_light| {
+                    emitter_contribution(
+                        &st,
+                        set.light_emission(&world.lights, i, le),
+                        pdf_light,
+                        depth,
+                        specular_bounce,
+                        set,
+                    )
+                },
+            );
             l += set.clamp(escaped, depth);
             return l;
         };
 
         // --- The surface.
         let wo = -ray.d;
-        let le = set.emission(world.emitted(&hit, wo));
+        let le = set.light_emission(&world.lights, hit.light, world.emitted(&hit, wo));
         if le != Vec3::ZERO {
             let pdf_light = world.emitter_pdf(prev_p, prev_n, &hit);
             l += set.clamp(
@@ -672,5 +677,5 @@ fn sample_ld(
     if !(denom > 0.0) {
         return Vec3::ZERO;
     }
-    st.beta * f * t_ray * set.emission(ls.li) / denom
+    st.beta * f * t_ray * set.light_emission(&world.lights, ls.light, ls.li) / denom
 }

@@ -321,6 +321,7 @@ fn sample_flat(
         pmf: 1.0,
         delta: false,
         shadow: Ray::spawn_to(hit.p, hit.p_error, n_offset, lp, lp_error, flat.normal),
+        light: u32::MAX,
     })
 }
 
@@ -359,6 +360,7 @@ fn sample_area_general(
         pmf: 1.0,
         delta: false,
         shadow: Ray::spawn_to(hit.p, hit.p_error, n_offset, lp.p, lp.p_error, lp.ng),
+        light: u32::MAX,
     })
 }
 
@@ -402,6 +404,7 @@ fn sample_sphere_light(
         pmf: 1.0,
         delta: false,
         shadow: Ray::spawn_to(hit.p, hit.p_error, n_offset, lp.p, lp.p_error, lp.ng),
+        light: u32::MAX,
     }))
 }
 

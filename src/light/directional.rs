@@ -27,6 +27,7 @@ impl DirectionalLight {
             pmf: 1.0,
             delta: true,
             shadow,
+            light: u32::MAX,
         })
     }
 

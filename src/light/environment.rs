@@ -36,6 +36,7 @@ impl EnvironmentLight {
             pmf: 1.0,
             delta: false,
             shadow,
+            light: u32::MAX,
         })
     }
 

@@ -74,6 +74,9 @@ pub struct LightSample {
     pub delta: bool,
     /// Shadow ray from the shading point to the light point (or to infinity).
     pub shadow: Ray,
+    /// Index of the light in its [`LightSet`], set by the set's sampling (`u32::MAX` from a
+    /// light sampled on its own): what [`LightSet::emission_at`] finds the light's spectrum by.
+    pub light: u32,
 }
 
 /// A ray leaving a light (pbrt-v4 `LightLeSample`): what light tracing, bidirectional methods

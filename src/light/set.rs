@@ -10,6 +10,7 @@ use crate::geometry::{Bounds3, GeometryStore};
 use crate::material::{Material, Texture};
 use crate::math::{Vec2, Vec3};
 use crate::sampling::Distribution1D;
+use crate::spectrum::{Illuminant, Wavelengths};
 
 /// How next-event estimation chooses a light (`--light-sampler`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -80,6 +81,10 @@ pub struct LightSet {
     /// Each light's selection power, the weights of `distribution` and `tree` (kept so that
     /// [`LightSet::replace`] can choose again after one light changed).
     powers: Vec<f32>,
+    /// The emission spectra of lights given as spectra ([`LightSet::set_spectra`]), and per light
+    /// 1 + its index there, 0 for an RGB light; empty when every light is RGB.
+    spectra: Vec<Illuminant>,
+    spectrum_of: Vec<u16>,
 }
 
 /// Light selection with the light BVH (pbrt-v4's `BVHLightSampler`): a light at infinity with
@@ -163,7 +168,64 @@ impl LightSet {
             scene_center,
             scene_radius,
             powers,
+            spectra: Vec::new(),
+            spectrum_of: Vec::new(),
         }
+    }
+
+    /// Gives light `i` the emission spectrum `spectra[i]` (`None`: RGB). Spectral rendering then
+    /// evaluates that spectrum at its wavelengths ([`LightSet::emission_at`]); RGB rendering does
+    /// not read it.
+    pub fn set_spectra(&mut self, spectra: &[Option<Illuminant>]) {
+        self.spectra.clear();
+        self.spectrum_of.clear();
+        if spectra.iter().all(Option::is_none) {
+            return;
+        }
+        for s in spectra {
+            let tag = match s {
+                None => 0,
+                Some(s) => match self.spectra.iter().position(|t| t == s) {
+                    Some(k) => k + 1,
+                    None => {
+                        self.spectra.push(s.clone());
+                        self.spectra.len()
+                    }
+                },
+            };
+            self.spectrum_of.push(u16::try_from(tag).unwrap_or(0));
+        }
+    }
+
+    /// The emission spectrum of light `light`, if it was given one.
+    #[inline]
+    pub fn spectrum(&self, light: u32) -> Option<&Illuminant> {
+        let tag = *self.spectrum_of.get(light as usize)?;
+        tag.checked_sub(1).map(|k| &self.spectra[k as usize])
+    }
+
+    /// Light `light`'s emission `rgb` at the wavelengths `w`: its spectrum scaled to `rgb`'s
+    /// luminance when it has one ([`Illuminant::at`]), else `rgb` upsampled as an RGB illuminant
+    /// (pbrt-v4 `RGBIlluminantSpectrum`).
+    #[inline]
+    pub fn emission_at(&self, light: u32, rgb: Vec3, w: &Wavelengths) -> Vec3 {
+        match self.spectrum(light) {
+            Some(s) => s.at(rgb, w.lambda),
+            None => crate::spectrum::rgb2spec::illuminant(rgb, w.lambda),
+        }
+    }
+
+    /// [`LightSet::escaped`] at the wavelengths `w`: each light at infinity's radiance taken
+    /// through [`LightSet::emission_at`].
+    #[inline]
+    pub fn escaped_at(&self, d: Vec3, w: &Wavelengths) -> Vec3 {
+        let mut l = Vec3::ZERO;
+        for &i in &self.infinite {
+            if let Some(le) = self.lights[i as usize].le(d) {
+                l += self.emission_at(i, le, w);
+            }
+        }
+        l
     }
 
     /// Replaces light `i`, a point, spot, directional or ambient light, by `light` (the same
@@ -180,6 +242,10 @@ impl LightSet {
         debug_assert!(!matches!(light, Light::Area(_)), "area lights are geometry");
         // Only area lights read texture averages and footprints.
         self.powers[i] = light.selection_power(materials, &[], None, self.scene_radius);
+        // The new light's RGB is all there is of it now.
+        if let Some(tag) = self.spectrum_of.get_mut(i) {
+            *tag = 0;
+        }
         self.lights[i] = light;
         self.distribution = Distribution1D::new(&self.powers);
         if let Some(t) = &self.tree {
@@ -333,7 +399,11 @@ impl LightSet {
         uniform_n: Vec3,
     ) -> Option<LightSample> {
         let ls = self.lights[index].sample_li(scene, hit, n_offset, u, env, uniform_n)?;
-        Some(LightSample { pmf, ..ls })
+        Some(LightSample {
+            pmf,
+            light: index as u32,
+            ..ls
+        })
     }
 
     /// Solid-angle pdf with which NEE would have sampled the point `light_hit` on area light
@@ -376,6 +446,19 @@ impl LightSet {
         uniform_n: Vec3,
         mut contribution: impl FnMut(Vec3, f32) -> Vec3,
     ) -> Vec3 {
+        self.escaped_mis_each(d, env, uniform_n, |_, le, pdf| contribution(le, pdf))
+    }
+
+    /// [`LightSet::escaped_mis`] with the index of each light passed to `contribution(light, le,
+    /// pdf)` as well (spectral rendering looks its spectrum up, [`LightSet::emission_at`]).
+    #[inline]
+    pub fn escaped_mis_each(
+        &self,
+        d: Vec3,
+        env: EnvPdf,
+        uniform_n: Vec3,
+        mut contribution: impl FnMut(u32, Vec3, f32) -> Vec3,
+    ) -> Vec3 {
         let mut l = Vec3::ZERO;
         for &i in &self.infinite {
             let Some((le, pdf)) = self.lights[i as usize].le_pdf(d, env, uniform_n) else {
@@ -383,7 +466,7 @@ impl LightSet {
             };
             let pdf = self.pmf_infinite(i) * pdf;
             if le != Vec3::ZERO {
-                l += contribution(le, pdf);
+                l += contribution(i, le, pdf);
             }
         }
         l

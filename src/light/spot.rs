@@ -47,6 +47,7 @@ impl SpotLight {
             pmf: 1.0,
             delta: true,
             shadow: Ray::spawn_to(p, p_error, n_offset, self.position, Vec3::ZERO, wi),
+            light: u32::MAX,
         })
     }
 

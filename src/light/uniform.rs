@@ -32,6 +32,7 @@ impl UniformLight {
             pmf: 1.0,
             delta: false,
             shadow,
+            light: u32::MAX,
         })
     }
 

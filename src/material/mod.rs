@@ -94,6 +94,10 @@ pub struct Material {
     /// the shading normal of any model (pbrt-v4 `BumpMap`, see [`eval::bump`]).
     pub displacement: Option<TextureRef>,
     pub displacement_scale: f32,
+    /// The spectrum of `emissive` when the scene gave one (a pbrt-v4 `blackbody`, named or
+    /// sampled `L`), which spectral rendering evaluates per wavelength; `emissive` is its RGB
+    /// projection, what RGB mode uses. `None`: an RGB emission, upsampled in spectral mode.
+    pub emission_spectrum: Option<crate::spectrum::Illuminant>,
 }
 
 impl Default for Material {
@@ -131,6 +135,7 @@ impl Default for Material {
             alpha_texture: None,
             displacement: None,
             displacement_scale: 1.0,
+            emission_spectrum: None,
         }
     }
 }

@@ -60,6 +60,9 @@ pub struct Medium {
     /// Emission varying over the grid, added to `le` (pbrt-v4 `uniformgrid` `Lescale` and
     /// `temperature`).
     pub grid_le: Option<GridLe>,
+    /// σa and σs as spectra, already × the scene's `scale` (`MediumDesc::sigma_spectra`): what
+    /// [`Medium::coefficients`] takes at a path's wavelengths instead of upsampling the RGB.
+    pub sigma_spectra: [Option<(crate::spectrum::SpectrumTable, f32)>; 2],
 }
 
 /// Compiled grid emission: Le(p) = scale(p) × (an RGB radiance, or a blackbody at T(p)), the
@@ -211,6 +214,7 @@ impl Medium {
             grid: None,
             le: Vec3::ZERO,
             grid_le: None,
+            sigma_spectra: [None, None],
         }
     }
 
@@ -223,6 +227,10 @@ impl Medium {
             desc.g,
         );
         m.le = desc.le;
+        m.sigma_spectra = desc
+            .sigma_spectra
+            .clone()
+            .map(|t| t.map(|t| (t, desc.scale)));
         if let crate::scene::MediumKind::Grid {
             nx,
             ny,
@@ -287,8 +295,14 @@ impl Medium {
                 lambda: None,
             },
             Some(l) => Coefficients {
-                sigma_a: unbounded(self.sigma_a, l),
-                sigma_s: unbounded(self.sigma_s, l),
+                sigma_a: match &self.sigma_spectra[0] {
+                    Some((t, scale)) => t.eval3(l) * *scale,
+                    None => unbounded(self.sigma_a, l),
+                },
+                sigma_s: match &self.sigma_spectra[1] {
+                    Some((t, scale)) => t.eval3(l) * *scale,
+                    None => unbounded(self.sigma_s, l),
+                },
                 le: illuminant(self.le, l),
                 lambda: Some(l),
             },

@@ -47,6 +47,12 @@ pub fn check(
              either end of a path): use --integrator path"
         ));
     }
+    if settings.path.spectral && world.has_media() {
+        return bad(format!(
+            "spectral rendering is not available with the {name} in scenes with media yet (its \
+             volumetric paths are RGB): render it without --spectral or use --integrator path"
+        ));
+    }
     if settings.noise_threshold.is_some() {
         return bad(format!(
             "adaptive sampling (--noise-threshold) does not apply to the {name}: its paths land \
@@ -254,6 +260,13 @@ pub fn check_strategies(
     let Some(first) = kinds.iter().find(|k| k.is_strategy()) else {
         return Ok(());
     };
+    if settings.path.spectral {
+        return Err(RenderError::InvalidSetting(format!(
+            "--aov {}: the strategy layers are not available in spectral mode yet (a strategy's \
+             contribution is not projected to RGB on its own): render it without --spectral",
+            first.name()
+        )));
+    }
     if Integrator::for_world(settings.integrator, world) != Integrator::Bdpt {
         return Err(RenderError::InvalidSetting(format!(
             "--aov {}: the strategy layers are the bidirectional path tracer's: render with \

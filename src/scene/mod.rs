@@ -49,6 +49,10 @@ pub struct MediumDesc {
     pub g: f32,
     pub le: Vec3,
     pub kind: MediumKind,
+    /// σa and σs as the spectra the scene gave (a sampled list), which spectral rendering takes
+    /// per wavelength (× `scale`); `sigma_a`/`sigma_s` are their RGB projections, what RGB mode
+    /// uses. `None`: upsampled from the RGB.
+    pub sigma_spectra: [Option<crate::spectrum::SpectrumTable>; 2],
 }
 
 /// How the coefficients vary in space.
@@ -406,6 +410,10 @@ pub struct Scene {
     /// What moves, kept so [`Scene::pose`] can pose the scene at any time
     /// ([`animation`]); `None` for a static file.
     pub animation: Option<animation::AnimationRef>,
+    /// The emission spectra of lights in [`Scene::lights`] that were given as spectra (a pbrt-v4
+    /// `blackbody`, named or sampled `I`/`L`), by index: their `LightDesc` holds the RGB
+    /// projection, which RGB mode uses; spectral rendering evaluates the spectrum.
+    pub light_spectra: Vec<(usize, crate::spectrum::Illuminant)>,
 }
 
 /// One object's materials under `KHR_materials_variants`: the default (the primitive's own
@@ -457,6 +465,7 @@ impl MediumDesc {
             g,
             le: Vec3::ZERO,
             kind: MediumKind::Homogeneous,
+            sigma_spectra: [None, None],
         }
     }
 

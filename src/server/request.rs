@@ -676,9 +676,18 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
     let mut aovs = check_aovs(b.aovs.as_ref(), &mut errors);
     // As `--transparent`: the coverage is the alpha AOV, the path tracer leaves the
     // background out (docs/DESIGN.md §5, "Transparent film").
-    // As `--spectral`: the path tracers carry wavelengths, the other integrators refuse them.
-    if o.spectral && o.integrator != IntegratorKind::Path {
-        errors.insert("spectral".into(), "needs the path integrator".into());
+    // As `--spectral`: the path tracers, the light tracer and BDPT carry wavelengths (the last
+    // two without media, which the render refuses by name), the other integrators refuse them.
+    if o.spectral
+        && !matches!(
+            o.integrator,
+            IntegratorKind::Path | IntegratorKind::LightTracer | IntegratorKind::Bdpt
+        )
+    {
+        errors.insert(
+            "spectral".into(),
+            "needs the path integrator, the light tracer or BDPT".into(),
+        );
     }
     if o.transparent {
         if o.integrator != IntegratorKind::Path {

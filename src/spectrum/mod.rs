@@ -157,6 +157,178 @@ pub fn blackbody_peak_spectral(lambda: Vec3, t: f32) -> Vec3 {
     ) * rgb2spec::CIE_Y_INTEGRAL
 }
 
+/// A light's emission spectrum, kept so that spectral rendering evaluates it per wavelength
+/// instead of upsampling its RGB projection (pbrt-v4 keeps a light's `L`/`I` spectrum and takes
+/// it at the sampled wavelengths: `DiffuseAreaLight::L`, `PointLight::SampleLi`, …). Tabulated
+/// at 1 nm over 360–830 nm and normalised to luminance Y = 1, the normalisation every pbrt-v4
+/// light applies (`scale /= SpectrumToPhotometric(L)`): the emitter's RGB projection then has
+/// luminance equal to its scale, which [`Illuminant::at`] reads back, so that whatever scaled the
+/// RGB (`scale`, `power`, a scene-wide factor) scales the spectrum the same way.
+#[derive(Clone)]
+pub struct Illuminant {
+    /// What it is, for messages and cache keys (`blackbody 2700 K`, `stdillum-A`, …).
+    name: std::sync::Arc<str>,
+    /// S(λ)/Y(S) at 360, 361, …, 830 nm.
+    table: std::sync::Arc<[f32]>,
+}
+
+impl std::fmt::Debug for Illuminant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Illuminant({})", self.name)
+    }
+}
+
+impl PartialEq for Illuminant {
+    fn eq(&self, other: &Self) -> bool {
+        self.table == other.table
+    }
+}
+
+impl Illuminant {
+    /// The spectrum `s` (any scale) named `name`; None when it has no luminance.
+    pub fn new(name: &str, s: impl Fn(f32) -> f32) -> Option<Illuminant> {
+        let y = spectrum_to_xyz(&s).y;
+        if !(y > 0.0 && y.is_finite()) {
+            return None;
+        }
+        let table: Vec<f32> = (360..=830).map(|l| s(l as f32) / y).collect();
+        table.iter().all(|v| v.is_finite()).then(|| Illuminant {
+            name: name.into(),
+            table: table.into(),
+        })
+    }
+
+    /// pbrt-v4's `blackbody` spectrum at `kelvin` (Planck's law; the peak normalisation cancels).
+    pub fn blackbody(kelvin: f32) -> Option<Illuminant> {
+        if !(kelvin.is_finite() && kelvin > 0.0) {
+            return None;
+        }
+        Illuminant::new(&format!("blackbody {kelvin} K"), |l| blackbody(l, kelvin))
+    }
+
+    /// pbrt-v4's named light spectra that Trayecto has: `stdillum-D65` and `stdillum-A` (CIE
+    /// illuminant A is by definition a Planckian radiator at 2856 K, with today's c₂).
+    pub fn named(name: &str) -> Option<Illuminant> {
+        match name {
+            "stdillum-D65" => Illuminant::new(name, d65),
+            "stdillum-A" => Illuminant::new(name, |l| blackbody(l, 2856.0)),
+            _ => None,
+        }
+    }
+
+    /// A sampled spectrum, (λ nm, value) pairs in increasing λ, piecewise linear and zero outside
+    /// its range (pbrt-v4 `PiecewiseLinearSpectrum`).
+    pub fn sampled(samples: &[(f32, f32)]) -> Option<Illuminant> {
+        if samples.windows(2).any(|w| !(w[1].0 > w[0].0)) {
+            return None;
+        }
+        let mut h = std::hash::DefaultHasher::new();
+        for &(l, v) in samples {
+            std::hash::Hash::hash(&(l.to_bits(), v.to_bits()), &mut h);
+        }
+        let name = format!(
+            "sampled, {} points, {:016x}",
+            samples.len(),
+            std::hash::Hasher::finish(&h)
+        );
+        Illuminant::new(&name, |l| table(samples, l))
+    }
+
+    /// The same spectrum under another name (a spectrum file's).
+    pub fn renamed(self, name: &str) -> Illuminant {
+        Illuminant {
+            name: name.into(),
+            ..self
+        }
+    }
+
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The linear-sRGB projection of the spectrum (luminance 1), what RGB mode renders.
+    pub fn rgb(&self) -> Vec3 {
+        xyz_to_linear_srgb(spectrum_to_xyz(|l| self.value(l)))
+    }
+
+    /// S(λ)/Y(S) at `lambda` nm, linear between the 1 nm samples, 0 outside 360–830 nm.
+    #[inline]
+    pub fn value(&self, lambda: f32) -> f32 {
+        at_1nm(&self.table, lambda)
+    }
+
+    /// The emission at the wavelengths `lambda` of an emitter whose RGB projection is `rgb`: the
+    /// spectrum scaled by the luminance of `rgb` (the CIE Y row of sRGB → XYZ).
+    #[inline]
+    pub fn at(&self, rgb: Vec3, lambda: Vec3) -> Vec3 {
+        let y = 0.212_672_9 * rgb.x + 0.715_152_2 * rgb.y + 0.072_175 * rgb.z;
+        Vec3::new(
+            self.value(lambda.x),
+            self.value(lambda.y),
+            self.value(lambda.z),
+        ) * y
+    }
+}
+
+/// A table of values at 360, 361, …, 830 nm at `lambda`: linear between the samples, 0 outside.
+#[inline]
+fn at_1nm(table: &[f32], lambda: f32) -> f32 {
+    if !(LAMBDA_MIN..=LAMBDA_MAX).contains(&lambda) || table.len() < 2 {
+        return 0.0;
+    }
+    let x = lambda - LAMBDA_MIN;
+    let i = (x as usize).min(table.len() - 2);
+    let t = x - i as f32;
+    table[i] * (1.0 - t) + table[i + 1] * t
+}
+
+/// A spectrum given by a scene as a sampled list (pbrt's `"spectrum sigma_a" [λ v …]` or a
+/// spectrum file), kept as it is for spectral rendering where its RGB projection is what RGB
+/// mode uses: a medium's σa and σs. Tabulated at 1 nm over 360–830 nm, piecewise linear between
+/// the given samples and zero outside them (pbrt-v4 `PiecewiseLinearSpectrum`).
+#[derive(Clone)]
+pub struct SpectrumTable {
+    table: std::sync::Arc<[f32]>,
+}
+
+impl std::fmt::Debug for SpectrumTable {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "SpectrumTable({} nm..)", LAMBDA_MIN)
+    }
+}
+
+impl PartialEq for SpectrumTable {
+    fn eq(&self, other: &Self) -> bool {
+        self.table == other.table
+    }
+}
+
+impl SpectrumTable {
+    /// (λ nm, value) pairs in increasing λ; None if λ does not increase or a value is not finite.
+    pub fn sampled(samples: &[(f32, f32)]) -> Option<SpectrumTable> {
+        if samples.is_empty()
+            || samples.windows(2).any(|w| !(w[1].0 > w[0].0))
+            || samples.iter().any(|p| !p.1.is_finite())
+        {
+            return None;
+        }
+        let table: Vec<f32> = (360..=830).map(|l| table(samples, l as f32)).collect();
+        Some(SpectrumTable {
+            table: table.into(),
+        })
+    }
+
+    /// The values at the three wavelengths `lambda`.
+    #[inline]
+    pub fn eval3(&self, lambda: Vec3) -> Vec3 {
+        Vec3::new(
+            at_1nm(&self.table, lambda.x),
+            at_1nm(&self.table, lambda.y),
+            at_1nm(&self.table, lambda.z),
+        )
+    }
+}
+
 /// A piecewise-linear tabulated spectrum; 0 outside its range (pbrt-v4 `PiecewiseLinearSpectrum`).
 fn table(tab: &[(f32, f32)], lambda: f32) -> f32 {
     let (Some(first), Some(last)) = (tab.first(), tab.last()) else {

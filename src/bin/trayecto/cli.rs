@@ -401,9 +401,11 @@ pub struct RenderArgs {
     /// Render spectrally: each sample carries three wavelengths, accumulated through CIE 1931.
     ///
     /// RGB colours are upsampled to smooth spectra where they enter a path (Jakob & Hanika 2019;
-    /// illuminants × D65) and dispersive glass (KHR_materials_dispersion) splits white light.
-    /// The path tracers only (media included): the light-path integrators, raycast and Whitted
-    /// are refused. Off: linear-sRGB rendering, as pbrt files and every other format use by default.
+    /// illuminants × D65), lights given as spectra (blackbody, named, sampled) are exact per
+    /// wavelength and dispersive glass (KHR_materials_dispersion) splits white light. The path
+    /// tracers (media included), the light tracer and BDPT (without media); SPPM, VCM, MLT,
+    /// raycast and Whitted are refused. Off: linear-sRGB rendering, as pbrt files and every
+    /// other format use by default.
     #[arg(long, help_heading = HEADING_EXPERT, hide_short_help = true)]
     pub spectral: bool,
 }
@@ -595,10 +597,13 @@ impl RenderArgs {
         }
         if self.spectral
             && let Some(k) = self.integrator
-            && k != IntegratorKind::Path
+            && !matches!(
+                k,
+                IntegratorKind::Path | IntegratorKind::LightTracer | IntegratorKind::Bdpt
+            )
         {
             bail!(
-                "invalid setting: --spectral needs --integrator path (got {})",
+                "invalid setting: --spectral needs --integrator path, lighttracer or bdpt (got {})",
                 k.name()
             );
         }

@@ -137,6 +137,8 @@ enum Active {
 #[derive(Clone, Debug, PartialEq)]
 struct AreaLight {
     radiance: Vec3,
+    /// The spectrum `radiance` projects, when `L` was not RGB ([`Loader::light_spectrum`]).
+    spectrum: Option<crate::spectrum::Illuminant>,
     two_sided: bool,
     /// pbrt-v4's `power` (W): radiance L·scale·power / (π · sides · area of each light's shape).
     power: Option<f32>,
@@ -455,6 +457,7 @@ impl Loader {
         match ty {
             "point" => {
                 let i = spectrum(self, "I", Vec3::ONE);
+                self.note_light_spectrum(&list, "I");
                 let from = list.point3("from", Vec3::ZERO);
                 let mut s = scale;
                 let power = list.float("power", -1.0);
@@ -469,6 +472,7 @@ impl Loader {
             }
             "spot" => {
                 let i = spectrum(self, "I", Vec3::ONE);
+                self.note_light_spectrum(&list, "I");
                 let from = list.point3("from", Vec3::ZERO);
                 let to = list.point3("to", Vec3::new(0.0, 0.0, 1.0));
                 let cone = list.float("coneangle", 30.0).clamp(0.0, 90.0);
@@ -496,6 +500,7 @@ impl Loader {
             }
             "distant" => {
                 let l = spectrum(self, "L", Vec3::ONE);
+                self.note_light_spectrum(&list, "L");
                 let from = list.point3("from", Vec3::ZERO);
                 let to = list.point3("to", Vec3::new(0.0, 0.0, 1.0));
                 let mut s = scale;
@@ -568,6 +573,7 @@ impl Loader {
                         Some(v) => self.illuminant_rgb(&v, at, "L").unwrap_or(Vec3::ONE),
                         None => Vec3::ONE,
                     };
+                    self.note_light_spectrum(&list, "L");
                     if e > 0.0 {
                         // Uniform radiance L gives illuminance π·L on an upward surface.
                         s *= e / std::f32::consts::PI;
@@ -618,11 +624,43 @@ impl Loader {
             ));
         }
         self.note_unused(&list, "AreaLightSource \"diffuse\"", at);
+        let spectrum = self.light_spectrum(&list, "L");
         self.gs.area_light = Some(AreaLight {
             radiance: l * scale,
+            spectrum,
             two_sided,
             power,
         });
+    }
+
+    /// The spectrum of a light's `key` (`L`, `I`) when it is not RGB: a `blackbody`, a named
+    /// illuminant or file, a sampled list, kept for spectral rendering ([`crate::spectrum::Illuminant`]).
+    /// None for RGB (upsampled as pbrt-v4's `RGBIlluminantSpectrum`) and for what
+    /// [`Loader::illuminant_rgb`] could not read (it warns).
+    fn light_spectrum(
+        &mut self,
+        list: &ParamList,
+        key: &str,
+    ) -> Option<crate::spectrum::Illuminant> {
+        use crate::spectrum::Illuminant;
+        match list.spectrum(key)? {
+            SpectrumValue::Rgb(_) => None,
+            SpectrumValue::Blackbody(t) => Illuminant::blackbody(t),
+            SpectrumValue::Named(n) => Illuminant::named(&n).or_else(|| {
+                let v = self.spectrum_file_quiet(&n)?;
+                Illuminant::sampled(&v).map(|s| s.renamed(&n))
+            }),
+            SpectrumValue::Sampled(v) => Illuminant::sampled(&v),
+        }
+    }
+
+    /// [`Loader::light_spectrum`] of the light about to be pushed to `scene.lights`, recorded in
+    /// `scene.light_spectra`.
+    fn note_light_spectrum(&mut self, list: &ParamList, key: &str) {
+        if let Some(s) = self.light_spectrum(list, key) {
+            let i = self.scene.lights.len();
+            self.scene.light_spectra.push((i, s));
+        }
     }
 
     /// RGB of a light spectrum (see [`spectra`]); None (with a warning) when it cannot be made.
@@ -681,6 +719,15 @@ impl Loader {
         }
     }
 
+    /// [`Loader::spectrum_file`] without its warning (the RGB conversion of the same spectrum
+    /// has given it).
+    fn spectrum_file_quiet(&mut self, name: &str) -> Option<Vec<(f32, f32)>> {
+        let n = self.scene.warnings.len();
+        let v = self.spectrum_file(name, "");
+        self.scene.warnings.truncate(n);
+        v
+    }
+
     /// The Trayecto material for the current graphics state (material plus area light).
     fn current_material(&mut self, at: &str) -> MaterialId {
         let (key, spec) = match self.gs.material.clone() {
@@ -707,6 +754,7 @@ impl Loader {
         };
         if let Some(l) = &light {
             m.emissive = l.radiance;
+            m.emission_spectrum = l.spectrum.clone();
             m.double_sided = l.two_sided;
         }
         let id = self.scene.add_material(m);
@@ -768,6 +816,7 @@ impl Loader {
                     let mut m = self.convert_material(&spec, 0);
                     if let Some(l) = &light {
                         m.emissive = l.radiance;
+                        m.emission_spectrum = l.spectrum.clone();
                         m.double_sided = l.two_sided;
                     }
                     self.scene.materials[id] = m;
@@ -918,6 +967,17 @@ impl Loader {
         };
         let sigma_a = coef(self, "sigma_a");
         let sigma_s = coef(self, "sigma_s");
+        // Sampled σa/σs (inline or a file) stay spectra for spectral rendering.
+        let mut sigma_spectra = [None, None];
+        for (slot, key) in sigma_spectra.iter_mut().zip(["sigma_a", "sigma_s"]) {
+            *slot = match p.spectrum(key) {
+                Some(SpectrumValue::Sampled(v)) => crate::spectrum::SpectrumTable::sampled(&v),
+                Some(SpectrumValue::Named(n)) => self
+                    .spectrum_file_quiet(&n)
+                    .and_then(|v| crate::spectrum::SpectrumTable::sampled(&v)),
+                _ => None,
+            };
+        }
         let scale = p.float("scale", 1.0);
         let g = p.float("g", 0.0);
         // Emission (pbrt-v4 `Le`, an illuminant spectrum, times `Lescale`; σa·Le per unit
@@ -975,6 +1035,7 @@ impl Loader {
             g,
             le,
             kind,
+            sigma_spectra,
         };
         desc.validate()
             .map_err(|e| SceneError::invalid(at, format!("{what}: {e}")))?;
