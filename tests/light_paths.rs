@@ -524,31 +524,34 @@ fn light_paths_render_participating_media() {
     }
 }
 
-/// BDPT (and MLT on the glTF model) where the path tracer converges on files of the other
-/// formats: pbrt-v4's
+/// BDPT, the light tracer and MLT where the path tracer converges, on files of the other
+/// formats and in fog: pbrt-v4's
 /// `veach-mis` (four glossy plates reflecting four spheres of different sizes, with the file's
 /// filter and depth) and a glTF model (Khronos' MetalRoughSpheresNoTextures, a grid of metallic
 /// and dielectric GGX spheres of every roughness, lit by the default studio environment that a
-/// model without lights gets).
+/// model without lights gets), BDPT and the light tracer on the first, BDPT and MLT on the second
+/// (whose background is the environment seen directly, which paths from the lights never reach
+/// the lens through, in pbrt-v4's light tracer as in Trayecto's), and MLT on the fog Cornell box (BDPT and the light tracer are held to Mitsuba there, in
+/// `light_paths_render_participating_media`).
 /// The reference is Trayecto's path tracer at many samples (held to pbrt-v4 and Mitsuba 3
 /// elsewhere), the lamps seen directly left out of both (`without_lamps_seen_directly`: at
 /// 48 × 27 the smallest of veach-mis' spheres is a fraction of a pixel); each BDPT image's mean is within 3 % and its 8 × 8 block error falls as noise
-/// does over 8 times the samples and ends below 8 %; MLT's mean is its bootstrap's b, within
+/// does over 8 times the samples and ends below 8 % (15 % for the light tracer and MLT, at four
+/// times BDPT's samples); MLT's mean is its bootstrap's b, within
 /// 3 standard errors of b plus 1 %, and its shape is compared with the mean scaled, as in the
 /// Cornell test.
 #[test]
-fn light_paths_agree_with_the_path_tracer_on_veach_mis_and_a_gltf_model() {
+fn light_paths_agree_with_the_path_tracer_on_veach_mis_gltf_and_fog() {
     let veach = shared_scene("pbrt/veach-mis/scene-v4.pbrt");
     let gltf = shared_scene(
         "gltf/MetalRoughSpheresNoTextures/glTF-Binary/MetalRoughSpheresNoTextures.glb",
     );
-    let (bdpt, mlt_too) = (
-        &[IntegratorKind::Bdpt][..],
-        &[IntegratorKind::Bdpt, IntegratorKind::Mlt][..],
-    );
+    let fog = repo_dir().join("scenes/media/fog_cornell.toml");
+    use IntegratorKind::{Bdpt, LightTracer, Mlt};
     for (file, (w, h), ref_spp, bdpt_spp, integrators) in [
-        (veach, (48, 27), 1024, 32, bdpt),
-        (gltf, (32, 32), 256, 16, mlt_too),
+        (veach, (48, 27), 1024, 32, &[Bdpt, LightTracer][..]),
+        (gltf, (32, 32), 256, 16, &[Bdpt, Mlt][..]),
+        (fog, (24, 24), 512, 32, &[Mlt][..]),
     ] {
         let scene = trayecto::scene::load(file.to_str().unwrap()).unwrap();
         let base = |integrator, spp| RenderSettings {
@@ -567,10 +570,10 @@ fn light_paths_agree_with_the_path_tracer_on_veach_mis_and_a_gltf_model() {
                 },
                 _ => base(integrator, spp),
             };
-            let spp = if integrator == IntegratorKind::Mlt {
-                4 * bdpt_spp
-            } else {
+            let spp = if integrator == Bdpt {
                 bdpt_spp
+            } else {
+                4 * bdpt_spp
             };
             let (low, high) = (
                 render_scene(&scene, &settings(spp / 8)),
@@ -621,8 +624,11 @@ fn light_paths_agree_with_the_path_tracer_on_veach_mis_and_a_gltf_model() {
                 off.abs() < bound,
                 "{what}: mean off by {off} (bound {bound})"
             );
+            // The light tracer and MLT are noisier per sample than BDPT on these scenes: their
+            // block error ends higher, but must fall as noise does all the same.
+            let end = if integrator == Bdpt { 0.08 } else { 0.15 };
             assert!(
-                e_high < 0.08 && e_high < e_low / 1.8,
+                e_high < end && e_high < e_low / 1.8,
                 "{what}: block error {e_low} at {} spp, {e_high} at {spp} spp",
                 spp / 8
             );
