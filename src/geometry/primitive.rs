@@ -70,6 +70,30 @@ pub struct Intersection {
     pub v: f32,
 }
 
+impl Intersection {
+    /// A triangle's hit, its barycentrics kept.
+    #[inline]
+    fn triangle(prim: PrimRef, h: super::triangle::TriangleHit) -> Intersection {
+        Intersection {
+            t: h.t,
+            prim,
+            u: h.b1,
+            v: h.b2,
+        }
+    }
+
+    /// A hit at distance `t` of a shape that keeps no parameters (a sphere).
+    #[inline]
+    fn at(prim: PrimRef, t: f32) -> Intersection {
+        Intersection {
+            t,
+            prim,
+            u: 0.0,
+            v: 0.0,
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct AnalyticPrim<S> {
     pub shape: S,
@@ -219,23 +243,12 @@ impl GeometryStore {
                 let (mesh, idx) = self.moving_triangle(prim.index())?;
                 MotionStore::triangle(mesh, idx, m.segment(ray.time))
                     .intersect(ray, t_max)
-                    .map(|h| Intersection {
-                        t: h.t,
-                        prim,
-                        u: h.b1,
-                        v: h.b2,
-                    })
+                    .map(|h| Intersection::triangle(prim, h))
             }
-            PrimitiveKind::Sphere => {
-                m.sphere(prim.index(), ray.time)?
-                    .intersect(ray, t_max)
-                    .map(|t| Intersection {
-                        t,
-                        prim,
-                        u: 0.0,
-                        v: 0.0,
-                    })
-            }
+            PrimitiveKind::Sphere => m
+                .sphere(prim.index(), ray.time)?
+                .intersect(ray, t_max)
+                .map(|t| Intersection::at(prim, t)),
             _ => None,
         }
     }
@@ -298,27 +311,13 @@ impl GeometryStore {
     pub fn intersect(&self, prim: PrimRef, ray: &Ray, t_max: f32) -> Option<Intersection> {
         let i = prim.index();
         match prim.kind() {
-            PrimitiveKind::Triangle => {
-                self.triangles[i]
-                    .intersect(ray, t_max)
-                    .map(|h| Intersection {
-                        t: h.t,
-                        prim,
-                        u: h.b1,
-                        v: h.b2,
-                    })
-            }
-            PrimitiveKind::Sphere => {
-                self.spheres[i]
-                    .shape
-                    .intersect(ray, t_max)
-                    .map(|t| Intersection {
-                        t,
-                        prim,
-                        u: 0.0,
-                        v: 0.0,
-                    })
-            }
+            PrimitiveKind::Triangle => self.triangles[i]
+                .intersect(ray, t_max)
+                .map(|h| Intersection::triangle(prim, h)),
+            PrimitiveKind::Sphere => self.spheres[i]
+                .shape
+                .intersect(ray, t_max)
+                .map(|t| Intersection::at(prim, t)),
             PrimitiveKind::Cuboid => {
                 self.cuboids[i]
                     .shape
