@@ -262,7 +262,7 @@ pub enum PipelineError {
     Cancelled,
     /// Cancelled after some passes: what of them was kept (a checkpoint to resume from, the
     /// images of the completed passes), said in the message.
-    #[error("{}", interrupted_message(*.done, *.spp, .checkpoint.as_deref(), *.checkpoint_fresh, .written))]
+    #[error("{}", interrupted_message(*.done, *.spp, .checkpoint.as_deref(), *.checkpoint_fresh, .written, *.resumable))]
     Interrupted {
         /// Samples per pixel completed, of the frame's `spp`.
         done: u32,
@@ -274,6 +274,9 @@ pub enum PipelineError {
         checkpoint_fresh: bool,
         /// The outputs written from the completed passes.
         written: Vec<PathBuf>,
+        /// Whether a render of these settings can be continued from a checkpoint (not MLT's
+        /// chains, which run over the whole frame).
+        resumable: bool,
     },
     /// Writing an output failed; the film was saved as a partial film instead, which
     /// `trayecto merge` turns into the image.
@@ -300,6 +303,7 @@ fn interrupted_message(
     checkpoint: Option<&std::path::Path>,
     fresh: bool,
     written: &[PathBuf],
+    resumable: bool,
 ) -> String {
     let mut m = format!("interrupted after {done} of {spp} samples per pixel");
     if !written.is_empty() {
@@ -323,7 +327,8 @@ fn interrupted_message(
                 c.display()
             )
         }
-        (None, _) => m += " (give --checkpoint FILE to be able to resume a render)",
+        (None, _) if resumable => m += " (give --checkpoint FILE to be able to resume a render)",
+        (None, _) => {}
     }
     m
 }
@@ -1099,7 +1104,10 @@ impl Run<'_> {
             self.cancel,
         ) {
             Ok(Ok(t)) => t,
-            Ok(Err(split)) => return Err(self.interrupted(*split)),
+            Ok(Err(split)) => {
+                let resumable = frame.settings.integrator != crate::integrator::IntegratorKind::Mlt;
+                return Err(self.interrupted(*split, resumable));
+            }
             // The checkpoint's folder failed mid-render: the completed passes go where a failed
             // output's film goes.
             Err(PipelineError::Split(crate::split::SplitError::Checkpoint { error, part })) => {
@@ -1164,7 +1172,7 @@ impl Run<'_> {
     /// What an interrupted render keeps: the checkpoint (written at the interruption, or an
     /// earlier one), else, when the front end asks for it, the outputs written from the
     /// completed passes. Nothing kept is [`PipelineError::Cancelled`].
-    fn interrupted(&mut self, split: crate::split::SplitOutcome) -> PipelineError {
+    fn interrupted(&mut self, split: crate::split::SplitOutcome, resumable: bool) -> PipelineError {
         let job = self.job;
         let (start, spp, done) = (split.header.samples[0], split.header.spp, split.render.done);
         let fresh = split.checkpoint_written.is_some();
@@ -1191,6 +1199,7 @@ impl Run<'_> {
             checkpoint,
             checkpoint_fresh: fresh,
             written,
+            resumable,
         }
     }
 
@@ -1587,4 +1596,22 @@ pub fn write_denoised(
         written.push(path);
     }
     Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::interrupted_message;
+    use std::path::PathBuf;
+
+    /// An interrupted render without a checkpoint suggests one only where a checkpoint could be
+    /// resumed: not for Metropolis light transport, whose chains run over the whole frame.
+    #[test]
+    fn the_checkpoint_hint_is_given_only_where_a_render_can_be_resumed() {
+        let written = [PathBuf::from("out.png")];
+        let path = interrupted_message(3, 16, None, false, &written, true);
+        let mlt = interrupted_message(3, 16, None, false, &written, false);
+        assert!(path.contains("--checkpoint"), "{path}");
+        assert!(!mlt.contains("--checkpoint"), "{mlt}");
+        assert!(mlt.contains("out.png"), "{mlt}");
+    }
 }
