@@ -188,7 +188,8 @@ fn emission_is_one_sided_unless_double_sided() {
 /// Spectral mode (docs/DESIGN.md "Spectral rendering") changes how colour is carried, not the
 /// expectation of a grey scene: a grey albedo is the constant spectrum, an RGB-white emitter is
 /// D65, and the film's CIE projection of D65 is white, so the furnace still reads le / (1 − a)
-/// in every channel (within the D65 → sRGB white's 0.2 %). The light-path integrators refuse it.
+/// in every channel (within the D65 → sRGB white's 0.2 %). The integrators without a spectral
+/// path (the photon maps here) refuse it by name.
 #[test]
 fn spectral_furnace_renders_the_rgb_closed_form() {
     let scene = emissive_sphere_furnace(0.5, 1.0);
@@ -196,11 +197,11 @@ fn spectral_furnace_renders_the_rgb_closed_form() {
     let img = render_scene(&scene, &spectral(base(24, 32)));
     assert_uniform(&img, 2.0, 0.02, "spectral");
     let world = trayecto::world::World::build(scene, &Default::default()).unwrap();
-    let lt = RenderSettings {
-        integrator: trayecto::integrator::IntegratorKind::LightTracer,
+    let sppm = RenderSettings {
+        integrator: trayecto::integrator::IntegratorKind::Sppm,
         ..spectral(base(8, 1))
     };
-    let e = trayecto::render::check_media_settings(&world, &lt).unwrap_err();
+    let e = trayecto::render::check_media_settings(&world, &sppm).unwrap_err();
     assert!(e.to_string().contains("spectral"), "{e}");
 }
 
