@@ -566,8 +566,16 @@ impl GeometryStore {
             return None;
         }
         let inv = 1.0 / det;
-        let dpdu = (dp02 * duv12.y - dp12 * duv02.y) * inv;
-        let dpdv = (dp12 * duv02.x - dp02 * duv12.x) * inv;
+        // The derivatives along u and v of a quantity given at the vertices by its differences
+        // d02 = x0 − x2, d12 = x1 − x2 (PBRT eq. 3.33 for p; pbrt-v4 `Triangle` does the same
+        // for the normals).
+        let solve = |d02: Vec3, d12: Vec3| {
+            (
+                (d02 * duv12.y - d12 * duv02.y) * inv,
+                (d12 * duv02.x - d02 * duv12.x) * inv,
+            )
+        };
+        let (dpdu, dpdv) = solve(dp02, dp12);
         if !(dpdu.is_finite() && dpdv.is_finite()) {
             return None;
         }
@@ -596,9 +604,7 @@ impl GeometryStore {
                 x.normal(normals[i2]),
             ]
         };
-        let (dn02, dn12) = (n0 - n2, n1 - n2);
-        let mut dndu = (dn02 * duv12.y - dn12 * duv02.y) * inv;
-        let mut dndv = (dn12 * duv02.x - dn02 * duv12.x) * inv;
+        let (mut dndu, mut dndv) = solve(n0 - n2, n1 - n2);
         if !(dndu.is_finite() && dndv.is_finite()) {
             (dndu, dndv) = (Vec3::ZERO, Vec3::ZERO);
         }
