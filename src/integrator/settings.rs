@@ -84,20 +84,11 @@ impl PathSettings {
         if m > max { c * (max / m) } else { c }
     }
 
-    /// A light's RGB emission as the path carries it: unchanged in RGB mode, at the sample's
-    /// wavelengths in spectral mode (an RGB illuminant spectrum, [`crate::spectrum::rgb2spec`]).
-    #[inline(always)]
-    pub fn emission(&self, rgb: Vec3) -> Vec3 {
-        match &self.wavelengths {
-            None => rgb,
-            Some(w) => crate::spectrum::rgb2spec::illuminant(rgb, w.lambda),
-        }
-    }
-
     /// Light `light`'s emission `rgb` (a light index of the world's [`crate::light::LightSet`],
     /// a hit's `light`, `u32::MAX` for none) as the path carries it: unchanged in RGB mode; in
     /// spectral mode at the sample's wavelengths, from the light's own spectrum when the scene
-    /// gave one (a blackbody, a named or sampled illuminant), else upsampled as [`Self::emission`].
+    /// gave one (a blackbody, a named or sampled illuminant), else upsampled as an RGB illuminant
+    /// ([`crate::light::LightSet::emission_at`]).
     #[inline(always)]
     pub fn light_emission(&self, lights: &crate::light::LightSet, light: u32, rgb: Vec3) -> Vec3 {
         match &self.wavelengths {
