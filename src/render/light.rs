@@ -13,6 +13,7 @@
 //! cancelling behave as in the tiled driver (a cancelled pass adds nothing).
 
 use crate::camera::Camera;
+use crate::camera::CameraImportance;
 use crate::film::Film;
 use crate::film::aov::{AovKind, Layer, Strategy};
 use crate::film::filter::FilterSampler;
@@ -22,6 +23,7 @@ use crate::math::{Vec2, Vec3};
 use crate::render::{FilmRender, RangeStart, RenderError, RenderObserver, RenderSettings};
 use crate::sampling::SamplerSetup;
 use crate::world::World;
+use crate::world::motion::step_of;
 use rayon::prelude::*;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -29,7 +31,8 @@ use std::time::{Duration, Instant};
 
 /// Why `integrator` cannot render `world` with `settings`, if it cannot: a camera without an
 /// importance function, emissive media (neither subpath samples their emission), adaptive
-/// sampling (a pixel's error is not its own samples' any more).
+/// sampling (a pixel's error is not its own samples' any more), motion blur for vertex
+/// connection and merging.
 pub fn check(
     world: &World,
     integrator: Integrator,
@@ -72,10 +75,11 @@ pub fn check(
             .validate()
             .map_err(RenderError::InvalidSetting)?;
     }
-    if !world.is_still() {
+    if !world.is_still() && integrator == Integrator::Vcm {
         return bad(format!(
-            "the {name} does not render motion blur (--shutter) yet: use --integrator path, or \
-             render a still with --time"
+            "{name} does not render motion blur (--shutter): its merges join a camera path to \
+             the light paths of other samples, traced at other moments of the shutter; use \
+             --integrator bdpt, or render a still with --time"
         ));
     }
     if settings.guiding {
@@ -142,7 +146,9 @@ pub(crate) fn render(
         world,
         camera: &importance,
         set: &path,
+        time: 0.0,
     };
+    let moving = !world.is_still();
     let mut stats = RayStats::default();
     let mut done = from;
     let mut cancelled = false;
@@ -176,23 +182,32 @@ pub(crate) fn render(
                     for s in s0..s1 {
                         let mut stream = sampler.stream(key, s);
                         match integrator {
-                            Integrator::LightTracer if world.has_media() => {
-                                bdpt::trace_light(&ctx, &mut stream, scratch, st, scale, buf)
+                            Integrator::LightTracer => {
+                                // A motion-blurred light path draws its time first.
+                                let time = if moving { stream.next_1d() } else { 0.0 };
+                                let posed = posed_importance(world, &importance, time);
+                                let ctx = at_time(&ctx, &posed, time);
+                                if world.has_media() {
+                                    bdpt::trace_light(&ctx, &mut stream, scratch, st, scale, buf)
+                                } else {
+                                    lighttracer::trace(
+                                        ctx.world,
+                                        ctx.camera,
+                                        &mut stream,
+                                        &path,
+                                        time,
+                                        scale,
+                                        st,
+                                        buf,
+                                    )
+                                }
                             }
-                            Integrator::LightTracer => lighttracer::trace(
-                                world,
-                                &importance,
-                                &mut stream,
-                                &path,
-                                scale,
-                                st,
-                                buf,
-                            ),
                             Integrator::Bdpt => {
                                 let (ray, weight) =
-                                    super::camera_ray(&camera, &filter, &mut stream, x, y);
+                                    sample_camera_ray(world, &camera, &filter, &mut stream, x, y);
+                                let posed = posed_importance(world, &importance, ray.time);
                                 let l = bdpt::trace(
-                                    &ctx,
+                                    &at_time(&ctx, &posed, ray.time),
                                     &ray,
                                     weight,
                                     &mut stream,
@@ -369,6 +384,7 @@ pub fn render_strategies(
         world,
         camera: &importance,
         set: &path,
+        time: 0.0,
     };
     let run = || {
         let threads = rayon::current_num_threads().max(1);
@@ -390,7 +406,9 @@ pub fn render_strategies(
                     let key = sampler.pixel_key((x, y));
                     for s in 0..samples {
                         let mut stream = sampler.stream(key, s);
-                        let (ray, weight) = super::camera_ray(&camera, &filter, &mut stream, x, y);
+                        let (ray, weight) =
+                            sample_camera_ray(world, &camera, &filter, &mut stream, x, y);
+                        let posed = posed_importance(world, &importance, ray.time);
                         let mut sink = StrategyFilms {
                             slots: &slots,
                             bufs: &mut bufs,
@@ -399,7 +417,7 @@ pub fn render_strategies(
                         };
                         // The beauty's own sums are not kept: its film is the render's.
                         bdpt::trace(
-                            &ctx,
+                            &at_time(&ctx, &posed, ray.time),
                             &ray,
                             weight,
                             &mut stream,
@@ -439,6 +457,58 @@ pub fn render_strategies(
             Layer::new(AovKind::Strategy(st), fw, fh, data)
         })
         .collect())
+}
+
+/// A camera sample's ray: as the tiled driver draws it ([`super::camera_ray`]), and in a
+/// motion-blurred frame with its time drawn after the lens numbers and the camera placed there
+/// ([`super::moving_camera_ray`]), so BDPT's camera subpaths are the path tracer's.
+#[inline]
+fn sample_camera_ray(
+    world: &World,
+    camera: &crate::camera::Camera,
+    filter: &FilterSampler,
+    stream: &mut crate::sampling::SampleStream,
+    x: u32,
+    y: u32,
+) -> (crate::geometry::Ray, f32) {
+    if world.is_still() {
+        super::camera_ray(camera, filter, stream, x, y)
+    } else {
+        super::moving_camera_ray(world, camera, filter, stream, x, y)
+    }
+}
+
+/// The camera's importance at shutter time `time`: placed where [`World::camera_motion`] has
+/// the camera then (pbrt-v4's `We`, `PDF_We` and `SampleWi` use the camera transform at the
+/// ray's or the interaction's time), else unchanged.
+#[inline]
+pub(crate) fn posed_importance(
+    world: &World,
+    importance: &CameraImportance,
+    time: f32,
+) -> CameraImportance {
+    match &world.camera_motion {
+        Some(m) => importance.at(m.at(time)),
+        None => *importance,
+    }
+}
+
+/// A bidirectional sample's context at shutter time `time`: the world of the step holding it
+/// ([`World::at_step`]; the one world when motion is continuous or there is none), the camera's
+/// importance `posed` there, and the time both subpaths and every connection see. A still
+/// (time 0, one step) gets `ctx` itself.
+#[inline]
+pub(crate) fn at_time<'a>(
+    ctx: &bdpt::Context<'a>,
+    posed: &'a CameraImportance,
+    time: f32,
+) -> bdpt::Context<'a> {
+    bdpt::Context {
+        world: ctx.world.at_step(step_of(time, ctx.world.time_steps())),
+        camera: posed,
+        set: ctx.set,
+        time,
+    }
 }
 
 /// Splats dropped: the strategy pass keeps only the strategies' own sums.
