@@ -1631,6 +1631,41 @@ pub(crate) fn moving_camera_ray(
     (ray.with_time(u), weight)
 }
 
+/// The camera's importance at shutter time `time`: placed where [`World::camera_motion`] has
+/// the camera then (pbrt-v4's `We`, `PDF_We` and `SampleWi` use the camera transform at the
+/// ray's or the interaction's time), else unchanged.
+#[inline]
+pub(crate) fn posed_importance(
+    world: &World,
+    importance: &crate::camera::CameraImportance,
+    time: f32,
+) -> crate::camera::CameraImportance {
+    match &world.camera_motion {
+        Some(m) => importance.at(m.at(time)),
+        None => *importance,
+    }
+}
+
+/// A bidirectional sample's context at shutter time `time`: the world of the step holding it
+/// ([`World::at_step`]; the one world when motion is continuous or there is none), the camera's
+/// importance `posed` there, and the time both subpaths and every connection see. A still
+/// (time 0, one step) gets a copy of `ctx`.
+#[inline]
+pub(crate) fn at_time<'a>(
+    ctx: &crate::integrator::bdpt::Context<'a>,
+    posed: &'a crate::camera::CameraImportance,
+    time: f32,
+) -> crate::integrator::bdpt::Context<'a> {
+    crate::integrator::bdpt::Context {
+        world: ctx
+            .world
+            .at_step(crate::world::motion::step_of(time, ctx.world.time_steps())),
+        camera: posed,
+        set: ctx.set,
+        time,
+    }
+}
+
 /// Traces the AOV layers `kinds` ([`crate::integrator::aov`]; only the traced ones,
 /// [`AovKind::is_traced`]: samples and variance come from the film) over sample indices
 /// `0..settings.spp` of every pixel of the film window (the crop, else the image), with the

@@ -13,7 +13,6 @@
 //! cancelling behave as in the tiled driver (a cancelled pass adds nothing).
 
 use crate::camera::Camera;
-use crate::camera::CameraImportance;
 use crate::film::Film;
 use crate::film::aov::{AovKind, Layer, Strategy};
 use crate::film::filter::FilterSampler;
@@ -23,7 +22,6 @@ use crate::math::{Vec2, Vec3};
 use crate::render::{FilmRender, RangeStart, RenderError, RenderObserver, RenderSettings};
 use crate::sampling::SamplerSetup;
 use crate::world::World;
-use crate::world::motion::step_of;
 use rayon::prelude::*;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -185,8 +183,8 @@ pub(crate) fn render(
                             Integrator::LightTracer => {
                                 // A motion-blurred light path draws its time first.
                                 let time = if moving { stream.next_1d() } else { 0.0 };
-                                let posed = posed_importance(world, &importance, time);
-                                let ctx = at_time(&ctx, &posed, time);
+                                let posed = super::posed_importance(world, &importance, time);
+                                let ctx = super::at_time(&ctx, &posed, time);
                                 if world.has_media() {
                                     bdpt::trace_light(&ctx, &mut stream, scratch, st, scale, buf)
                                 } else {
@@ -205,9 +203,9 @@ pub(crate) fn render(
                             Integrator::Bdpt => {
                                 let (ray, weight) =
                                     sample_camera_ray(world, &camera, &filter, &mut stream, x, y);
-                                let posed = posed_importance(world, &importance, ray.time);
+                                let posed = super::posed_importance(world, &importance, ray.time);
                                 let l = bdpt::trace(
-                                    &at_time(&ctx, &posed, ray.time),
+                                    &super::at_time(&ctx, &posed, ray.time),
                                     &ray,
                                     weight,
                                     &mut stream,
@@ -408,7 +406,7 @@ pub fn render_strategies(
                         let mut stream = sampler.stream(key, s);
                         let (ray, weight) =
                             sample_camera_ray(world, &camera, &filter, &mut stream, x, y);
-                        let posed = posed_importance(world, &importance, ray.time);
+                        let posed = super::posed_importance(world, &importance, ray.time);
                         let mut sink = StrategyFilms {
                             slots: &slots,
                             bufs: &mut bufs,
@@ -417,7 +415,7 @@ pub fn render_strategies(
                         };
                         // The beauty's own sums are not kept: its film is the render's.
                         bdpt::trace(
-                            &at_time(&ctx, &posed, ray.time),
+                            &super::at_time(&ctx, &posed, ray.time),
                             &ray,
                             weight,
                             &mut stream,
@@ -475,39 +473,6 @@ fn sample_camera_ray(
         super::camera_ray(camera, filter, stream, x, y)
     } else {
         super::moving_camera_ray(world, camera, filter, stream, x, y)
-    }
-}
-
-/// The camera's importance at shutter time `time`: placed where [`World::camera_motion`] has
-/// the camera then (pbrt-v4's `We`, `PDF_We` and `SampleWi` use the camera transform at the
-/// ray's or the interaction's time), else unchanged.
-#[inline]
-pub(crate) fn posed_importance(
-    world: &World,
-    importance: &CameraImportance,
-    time: f32,
-) -> CameraImportance {
-    match &world.camera_motion {
-        Some(m) => importance.at(m.at(time)),
-        None => *importance,
-    }
-}
-
-/// A bidirectional sample's context at shutter time `time`: the world of the step holding it
-/// ([`World::at_step`]; the one world when motion is continuous or there is none), the camera's
-/// importance `posed` there, and the time both subpaths and every connection see. A still
-/// (time 0, one step) gets `ctx` itself.
-#[inline]
-pub(crate) fn at_time<'a>(
-    ctx: &bdpt::Context<'a>,
-    posed: &'a CameraImportance,
-    time: f32,
-) -> bdpt::Context<'a> {
-    bdpt::Context {
-        world: ctx.world.at_step(step_of(time, ctx.world.time_steps())),
-        camera: posed,
-        set: ctx.set,
-        time,
     }
 }
 

@@ -103,8 +103,8 @@ fn contribution(
         ray = camera.generate_ray(film, lens);
     }
     let ray = ray.with_time(time);
-    let posed = super::light::posed_importance(world, f.ctx.camera, time);
-    let ctx = &super::light::at_time(&f.ctx, &posed, time);
+    let posed = super::posed_importance(world, f.ctx.camera, time);
+    let ctx = &super::at_time(&f.ctx, &posed, time);
     let mut media = MediaState::new(ctx.world, u, ray.d);
     bdpt::camera_subpath(
         ctx,
