@@ -435,38 +435,51 @@ pub struct CameraImportance {
 
 impl CameraImportance {
     fn new(cam: &Camera) -> CameraImportance {
-        let m = cam.camera_to_world;
-        let lens_radius = cam.aperture_radius.max(0.0);
         let half_w = cam.half_h * cam.aspect;
-        let world_to_camera = m.inverse();
-        let lens_area = if lens_radius > 0.0 {
-            let stretch = m
-                .transform_vector3(Vec3::X)
-                .cross(m.transform_vector3(Vec3::Y))
-                .length();
-            crate::math::PI * lens_radius * lens_radius * stretch
-        } else {
-            1.0
-        };
         CameraImportance {
-            camera_to_world: m,
-            world_to_camera,
+            camera_to_world: Mat4::IDENTITY,
+            world_to_camera: Mat4::IDENTITY,
             width: cam.width as f32,
             height: cam.height as f32,
             half_w,
             half_h: cam.half_h,
-            lens_radius,
+            lens_radius: cam.aperture_radius.max(0.0),
             focus_distance: cam.focus_distance,
             film_area: 4.0 * half_w * cam.half_h,
-            lens_area,
-            det: crate::math::Mat3::from_mat4(m).determinant().abs(),
-            // Normals transform by the inverse transpose.
-            n_lens: world_to_camera
-                .transpose()
-                .transform_vector3(-Vec3::Z)
-                .normalize(),
+            lens_area: 1.0,
+            det: 1.0,
+            n_lens: -Vec3::Z,
             margin: Vec2::ZERO,
         }
+        .at(cam.camera_to_world)
+    }
+
+    /// The same camera placed by `camera_to_world`: a moving camera's importance at a light
+    /// path's time (pbrt-v4's cameras evaluate `We`, `PDF_We` and `SampleWi` with their
+    /// `CameraTransform` interpolated at the ray's or interaction's time). Everything that
+    /// depends on the placement (the inverse, the lens's world area and normal, the solid-angle
+    /// scale) is recomputed; the film and the lens are unchanged.
+    pub fn at(mut self, camera_to_world: Mat4) -> CameraImportance {
+        let m = camera_to_world;
+        let world_to_camera = m.inverse();
+        self.lens_area = if self.lens_radius > 0.0 {
+            let stretch = m
+                .transform_vector3(Vec3::X)
+                .cross(m.transform_vector3(Vec3::Y))
+                .length();
+            crate::math::PI * self.lens_radius * self.lens_radius * stretch
+        } else {
+            1.0
+        };
+        self.camera_to_world = m;
+        self.world_to_camera = world_to_camera;
+        self.det = crate::math::Mat3::from_mat4(m).determinant().abs();
+        // Normals transform by the inverse transpose.
+        self.n_lens = world_to_camera
+            .transpose()
+            .transform_vector3(-Vec3::Z)
+            .normalize();
+        self
     }
 
     /// The same importance over the image widened by `margin` pixels on every side (per axis),

@@ -1252,22 +1252,8 @@ impl TileWork<'_> {
         y: u32,
         stats: &mut RayStats,
     ) -> crate::math::Vec3 {
-        let jitter = stream.next_2d();
-        let lens = if self.camera.uses_lens() {
-            stream.next_2d()
-        } else {
-            stream.skip(2);
-            crate::math::Vec2::ZERO
-        };
-        let u = stream.next_1d();
-        let k = crate::world::motion::step_of(u, self.world.time_steps());
-        let mut camera = self.camera.clone();
-        if let Some(m) = &self.world.camera_motion {
-            camera.camera_to_world = m.at(u);
-        }
-        let (film, weight) = self.filter.film_point(x, y, jitter);
-        // The ray, and every ray of its path, sees moving primitives at time u.
-        let ray = camera.generate_ray(film, lens).with_time(u);
+        let (ray, weight) = moving_camera_ray(self.world, &self.camera, &self.filter, stream, x, y);
+        let k = crate::world::motion::step_of(ray.time, self.world.time_steps());
         let l = self.integrator.radiance(
             self.world.at_step(k),
             &ray,
@@ -1609,6 +1595,75 @@ fn camera_ray(
     };
     let (film, weight) = filter.film_point(x, y, jitter);
     (camera.generate_ray(film, lens), weight)
+}
+
+/// One motion-blurred camera sample of pixel (x, y): the film and lens numbers as
+/// [`camera_ray`] draws them, then the time u ∈ [0, 1) (one more dimension; docs/DESIGN.md
+/// "Motion blur"), the fraction of the shutter the sample sees. The camera is placed where
+/// [`World::camera_motion`] has it at u, and the ray carries u ([`crate::geometry::Ray::time`]),
+/// which every ray of its path inherits; the world to trace is [`World::at_step`] of the step
+/// holding u.
+pub(crate) fn moving_camera_ray(
+    world: &World,
+    camera: &crate::camera::Camera,
+    filter: &FilterSampler,
+    stream: &mut SampleStream,
+    x: u32,
+    y: u32,
+) -> (crate::geometry::Ray, f32) {
+    let jitter = stream.next_2d();
+    let lens = if camera.uses_lens() {
+        stream.next_2d()
+    } else {
+        stream.skip(2);
+        crate::math::Vec2::ZERO
+    };
+    let u = stream.next_1d();
+    let (film, weight) = filter.film_point(x, y, jitter);
+    let ray = match &world.camera_motion {
+        Some(m) => {
+            let mut camera = camera.clone();
+            camera.camera_to_world = m.at(u);
+            camera.generate_ray(film, lens)
+        }
+        None => camera.generate_ray(film, lens),
+    };
+    (ray.with_time(u), weight)
+}
+
+/// The camera's importance at shutter time `time`: placed where [`World::camera_motion`] has
+/// the camera then (pbrt-v4's `We`, `PDF_We` and `SampleWi` use the camera transform at the
+/// ray's or the interaction's time), else unchanged.
+#[inline]
+pub(crate) fn posed_importance(
+    world: &World,
+    importance: &crate::camera::CameraImportance,
+    time: f32,
+) -> crate::camera::CameraImportance {
+    match &world.camera_motion {
+        Some(m) => importance.at(m.at(time)),
+        None => *importance,
+    }
+}
+
+/// A bidirectional sample's context at shutter time `time`: the world of the step holding it
+/// ([`World::at_step`]; the one world when motion is continuous or there is none), the camera's
+/// importance `posed` there, and the time both subpaths and every connection see. A still
+/// (time 0, one step) gets a copy of `ctx`.
+#[inline]
+pub(crate) fn at_time<'a>(
+    ctx: &crate::integrator::bdpt::Context<'a>,
+    posed: &'a crate::camera::CameraImportance,
+    time: f32,
+) -> crate::integrator::bdpt::Context<'a> {
+    crate::integrator::bdpt::Context {
+        world: ctx
+            .world
+            .at_step(crate::world::motion::step_of(time, ctx.world.time_steps())),
+        camera: posed,
+        set: ctx.set,
+        time,
+    }
 }
 
 /// Traces the AOV layers `kinds` ([`crate::integrator::aov`]; only the traced ones,

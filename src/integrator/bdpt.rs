@@ -227,9 +227,16 @@ fn convert_density(pdf: f32, from: Vec3, to: &PathVertex) -> f32 {
 
 /// What a bidirectional sample needs from the frame.
 pub struct Context<'a> {
+    /// The world of the sample's time (a shutter step's, [`World::at_step`], where motion falls
+    /// back to worlds per step).
     pub world: &'a World,
+    /// The camera's importance, placed where the camera is at the sample's time.
     pub camera: &'a CameraImportance,
     pub set: &'a PathSettings,
+    /// The sample's shutter time ([`Ray::time`]; 0 for a still): both subpaths and every
+    /// connection see the scene at this one moment, so BDPT can join them (pbrt-v4 gives a
+    /// light subpath its camera sample's time).
+    pub time: f32,
 }
 
 impl Context<'_> {
@@ -345,13 +352,15 @@ impl Context<'_> {
         };
         if b.is_infinite_light() {
             let (p, e, n) = a.spawn_toward(a.p + b.dir);
-            let mut ray = Ray::spawn(p, e, n, b.dir);
+            let mut ray = Ray::spawn(p, e, n, b.dir).with_time(self.time);
             ray.t_max = f32::INFINITY;
             return !self.world.occluded(&ray);
         }
         let (pa, ea, na) = a.spawn_toward(b.p);
         let (pb, eb, nb) = b.spawn_toward(a.p);
-        !self.world.occluded(&Ray::spawn_to(pa, ea, na, pb, eb, nb))
+        !self
+            .world
+            .occluded(&Ray::spawn_to(pa, ea, na, pb, eb, nb).with_time(self.time))
     }
 
     /// The connection factor between `from` (a vertex whose medium is known: a scattering
@@ -384,6 +393,7 @@ impl Context<'_> {
             let r = Ray::spawn_to(pa, ea, na, pb, eb, nb);
             (r, (to.p - from.p).normalize_or_zero())
         };
+        let shadow = shadow.with_time(self.time);
         let channel = hero_channel(rng);
         let start = from.medium_toward(self.world, d);
         match self
@@ -444,7 +454,7 @@ fn hero_channel(rng: &mut Pcg32) -> usize {
 /// medium) to just short of `p` through every surface, each switching the medium as its
 /// interface says (surfaces without one leave it: pbrt-v4's rule). Lights carry no medium of
 /// their own in a scene, and this is where their light starts travelling.
-pub fn medium_at(world: &World, lens: Vec3, p: Vec3) -> Option<usize> {
+pub fn medium_at(world: &World, lens: Vec3, p: Vec3, time: f32) -> Option<usize> {
     let mut medium = world.camera_medium();
     let mut o = lens;
     for _ in 0..MAX_CROSSINGS {
@@ -458,7 +468,7 @@ pub fn medium_at(world: &World, lens: Vec3, p: Vec3) -> Option<usize> {
             o,
             d: dir,
             t_max: len * (1.0 - crate::geometry::SHADOW_EPSILON),
-            time: 0.0,
+            time,
         };
         let Some(h) = world.intersect(&ray) else {
             break;
@@ -524,6 +534,9 @@ fn walk(
         if path.len() - start >= max_vertices {
             return;
         }
+        // Every ray of the walk, from the lens or the light and after each vertex, is at the
+        // sample's time (0 for a still: the rays are unchanged).
+        ray.time = ctx.time;
         stats.rays += 1;
         let mut hit = SurfaceHit::EMPTY;
         let d = ray.d.normalize();
@@ -775,6 +788,7 @@ pub fn trace(
         world: ctx.world,
         camera: ctx.camera,
         set,
+        time: ctx.time,
     });
     let ctx = spectral_ctx.as_ref().unwrap_or(ctx);
     let set = ctx.set;
@@ -911,7 +925,7 @@ pub(crate) fn light_subpath(
         l0.pdf_fwd = em.pmf * les.pdf_pos;
     }
     if media.rng.is_some() {
-        l0.medium = medium_at(world, lens, les.ray.o);
+        l0.medium = medium_at(world, lens, les.ray.o, ctx.time);
     }
     let start_medium = l0.medium_toward(world, les.ray.d);
     light.push(l0);
@@ -1492,6 +1506,7 @@ mod tests {
             world: &world,
             camera: &importance,
             set: &set,
+            time: 0.0,
         };
         let floor = Node::Diffuse(Vec3::new(-0.3, -1.0, 0.2), Vec3::Y);
         let back = Node::Diffuse(Vec3::new(0.2, 0.1, -1.0), Vec3::Z);

@@ -91,12 +91,16 @@ pub fn sample_emission(world: &World, s: &mut impl UniformSource) -> Option<Emis
 }
 
 /// Traces one light path from `s` and splats every contribution it makes to the film into
-/// `out`, each multiplied by `scale`.
+/// `out`, each multiplied by `scale`. `time` is the path's shutter time (0 for a still): every
+/// ray of the path and every join to the lens is at that moment, `world` and `camera` being the
+/// scene and the camera there (a motion-blurred frame's step world and posed importance).
+#[allow(clippy::too_many_arguments)]
 pub fn trace(
     world: &World,
     camera: &CameraImportance,
     s: &mut SampleStream,
     set: &PathSettings,
+    time: f32,
     scale: f32,
     stats: &mut RayStats,
     out: &mut impl Splat,
@@ -119,7 +123,8 @@ pub fn trace(
         if le != Vec3::ZERO {
             let le = set.light_emission(&world.lights, light_index, le);
             stats.shadow_rays += 1;
-            let shadow = Ray::spawn_to(lp.p, lp.p_error, lp.ng, cs.p_lens, Vec3::ZERO, Vec3::ZERO);
+            let shadow = Ray::spawn_to(lp.p, lp.p_error, lp.ng, cs.p_lens, Vec3::ZERO, Vec3::ZERO)
+                .with_time(time);
             if !world.occluded(&shadow) {
                 let pdf = em.pmf * em.le.pdf_pos * cs.pdf;
                 let v = le * (lp.ng.dot(cs.wi).abs() * cs.we / pdf);
@@ -143,6 +148,8 @@ pub fn trace(
     // Spectral: set once a dispersive surface has kept the hero wavelength alone.
     let mut hero_only = false;
     loop {
+        // The light ray and every ray spawned after it: the path's moment.
+        ray.time = time;
         stats.rays += 1;
         if !world.intersect_filtered_into(&ray, &set.footprint, &mut v.hit) {
             break;
@@ -187,7 +194,8 @@ pub fn trace(
                         cs.p_lens,
                         Vec3::ZERO,
                         Vec3::ZERO,
-                    );
+                    )
+                    .with_time(time);
                     if !world.occluded(&shadow) {
                         out.splat(cs.raster, set.to_film(c * scale));
                     }

@@ -29,7 +29,8 @@ use std::time::{Duration, Instant};
 
 /// Why `integrator` cannot render `world` with `settings`, if it cannot: a camera without an
 /// importance function, emissive media (neither subpath samples their emission), adaptive
-/// sampling (a pixel's error is not its own samples' any more).
+/// sampling (a pixel's error is not its own samples' any more), motion blur for vertex
+/// connection and merging.
 pub fn check(
     world: &World,
     integrator: Integrator,
@@ -72,10 +73,11 @@ pub fn check(
             .validate()
             .map_err(RenderError::InvalidSetting)?;
     }
-    if !world.is_still() {
+    if !world.is_still() && integrator == Integrator::Vcm {
         return bad(format!(
-            "the {name} does not render motion blur (--shutter) yet: use --integrator path, or \
-             render a still with --time"
+            "{name} does not render motion blur (--shutter): its merges join a camera path to \
+             the light paths of other samples, traced at other moments of the shutter; use \
+             --integrator bdpt, or render a still with --time"
         ));
     }
     if settings.guiding {
@@ -142,7 +144,9 @@ pub(crate) fn render(
         world,
         camera: &importance,
         set: &path,
+        time: 0.0,
     };
+    let moving = !world.is_still();
     let mut stats = RayStats::default();
     let mut done = from;
     let mut cancelled = false;
@@ -176,23 +180,32 @@ pub(crate) fn render(
                     for s in s0..s1 {
                         let mut stream = sampler.stream(key, s);
                         match integrator {
-                            Integrator::LightTracer if world.has_media() => {
-                                bdpt::trace_light(&ctx, &mut stream, scratch, st, scale, buf)
+                            Integrator::LightTracer => {
+                                // A motion-blurred light path draws its time first.
+                                let time = if moving { stream.next_1d() } else { 0.0 };
+                                let posed = super::posed_importance(world, &importance, time);
+                                let ctx = super::at_time(&ctx, &posed, time);
+                                if world.has_media() {
+                                    bdpt::trace_light(&ctx, &mut stream, scratch, st, scale, buf)
+                                } else {
+                                    lighttracer::trace(
+                                        ctx.world,
+                                        ctx.camera,
+                                        &mut stream,
+                                        &path,
+                                        time,
+                                        scale,
+                                        st,
+                                        buf,
+                                    )
+                                }
                             }
-                            Integrator::LightTracer => lighttracer::trace(
-                                world,
-                                &importance,
-                                &mut stream,
-                                &path,
-                                scale,
-                                st,
-                                buf,
-                            ),
                             Integrator::Bdpt => {
                                 let (ray, weight) =
-                                    super::camera_ray(&camera, &filter, &mut stream, x, y);
+                                    sample_camera_ray(world, &camera, &filter, &mut stream, x, y);
+                                let posed = super::posed_importance(world, &importance, ray.time);
                                 let l = bdpt::trace(
-                                    &ctx,
+                                    &super::at_time(&ctx, &posed, ray.time),
                                     &ray,
                                     weight,
                                     &mut stream,
@@ -369,6 +382,7 @@ pub fn render_strategies(
         world,
         camera: &importance,
         set: &path,
+        time: 0.0,
     };
     let run = || {
         let threads = rayon::current_num_threads().max(1);
@@ -390,7 +404,9 @@ pub fn render_strategies(
                     let key = sampler.pixel_key((x, y));
                     for s in 0..samples {
                         let mut stream = sampler.stream(key, s);
-                        let (ray, weight) = super::camera_ray(&camera, &filter, &mut stream, x, y);
+                        let (ray, weight) =
+                            sample_camera_ray(world, &camera, &filter, &mut stream, x, y);
+                        let posed = super::posed_importance(world, &importance, ray.time);
                         let mut sink = StrategyFilms {
                             slots: &slots,
                             bufs: &mut bufs,
@@ -399,7 +415,7 @@ pub fn render_strategies(
                         };
                         // The beauty's own sums are not kept: its film is the render's.
                         bdpt::trace(
-                            &ctx,
+                            &super::at_time(&ctx, &posed, ray.time),
                             &ray,
                             weight,
                             &mut stream,
@@ -439,6 +455,25 @@ pub fn render_strategies(
             Layer::new(AovKind::Strategy(st), fw, fh, data)
         })
         .collect())
+}
+
+/// A camera sample's ray: as the tiled driver draws it ([`super::camera_ray`]), and in a
+/// motion-blurred frame with its time drawn after the lens numbers and the camera placed there
+/// ([`super::moving_camera_ray`]), so BDPT's camera subpaths are the path tracer's.
+#[inline]
+fn sample_camera_ray(
+    world: &World,
+    camera: &crate::camera::Camera,
+    filter: &FilterSampler,
+    stream: &mut crate::sampling::SampleStream,
+    x: u32,
+    y: u32,
+) -> (crate::geometry::Ray, f32) {
+    if world.is_still() {
+        super::camera_ray(camera, filter, stream, x, y)
+    } else {
+        super::moving_camera_ray(world, camera, filter, stream, x, y)
+    }
 }
 
 /// Splats dropped: the strategy pass keeps only the strategies' own sums.

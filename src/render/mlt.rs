@@ -92,8 +92,19 @@ fn contribution(
         f.film_min.y + uf.y * f.film_size.y,
     );
     let lens = u.next_2d();
-    let ray = f.camera.generate_ray(film, lens);
-    let ctx = &f.ctx;
+    let mut ray = f.camera.generate_ray(film, lens);
+    // Motion blur: the state's time is one more number of its camera stream (a still draws
+    // none); the camera, both subpaths and the connection are at that moment.
+    let world = f.ctx.world;
+    let time = if world.is_still() { 0.0 } else { u.next_1d() };
+    if let Some(m) = &world.camera_motion {
+        let mut camera = f.camera.clone();
+        camera.camera_to_world = m.at(time);
+        ray = camera.generate_ray(film, lens);
+    }
+    let ray = ray.with_time(time);
+    let posed = super::posed_importance(world, f.ctx.camera, time);
+    let ctx = &super::at_time(&f.ctx, &posed, time);
     let mut media = MediaState::new(ctx.world, u, ray.d);
     bdpt::camera_subpath(
         ctx,
@@ -326,6 +337,7 @@ fn with_frame<T>(
             world,
             camera: &importance,
             set: &path,
+            time: 0.0,
         },
         camera: &camera,
         window: win,
