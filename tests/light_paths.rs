@@ -548,8 +548,18 @@ fn light_paths_agree_with_the_path_tracer_on_veach_mis_gltf_and_fog() {
     );
     let fog = repo_dir().join("scenes/media/fog_cornell.toml");
     use IntegratorKind::{Bdpt, LightTracer, Mlt};
+    // MLT on veach-mis: the lamps seen directly and their glossy reflections are a few pixels
+    // holding most of the image's light, and b's per-depth shares of them are the bootstrap's
+    // estimate, off by ±12 % (100 000 states per depth, 48 × 27) to ±5 % (400 000) from seed to
+    // seed whatever the mutations; with pbrt-v4's 1000 chains the 8 × 8 block error falls from
+    // 0.12–0.15 at 128 mutations per pixel to 0.07–0.10 at 1024 (four seeds, BENCHMARKS.md).
+    let veach_mlt = trayecto::sampling::mlt::MltSettings {
+        bootstrap_samples: Some(400_000),
+        chains: Some(1000),
+        ..Default::default()
+    };
     for (file, (w, h), ref_spp, bdpt_spp, integrators) in [
-        (veach, (48, 27), 1024, 32, &[Bdpt, LightTracer][..]),
+        (veach, (48, 27), 1024, 32, &[Bdpt, LightTracer, Mlt][..]),
         (gltf, (32, 32), 256, 16, &[Bdpt, Mlt][..]),
         (fog, (24, 24), 512, 32, &[Mlt][..]),
     ] {
@@ -560,10 +570,16 @@ fn light_paths_agree_with_the_path_tracer_on_veach_mis_gltf_and_fog() {
             ..lt(w, h, spp, scene.hints.max_depth.unwrap_or(8))
         };
         let name = file.file_stem().unwrap().to_string_lossy().into_owned();
+        let is_veach = file.to_string_lossy().contains("veach-mis");
         let reference = render_scene(&scene, &base(IntegratorKind::Path, ref_spp));
         let lum = |i: &Image| trayecto::film::luminance(i.mean()) as f64;
         for &integrator in integrators {
             let settings = |spp| match integrator {
+                IntegratorKind::Mlt if is_veach => RenderSettings {
+                    filter: scene.hints.filter.unwrap_or_default(),
+                    mlt: veach_mlt,
+                    ..mlt(w, h, spp, scene.hints.max_depth.unwrap_or(8))
+                },
                 IntegratorKind::Mlt => RenderSettings {
                     filter: scene.hints.filter.unwrap_or_default(),
                     ..mlt(w, h, spp, scene.hints.max_depth.unwrap_or(8))
@@ -572,6 +588,8 @@ fn light_paths_agree_with_the_path_tracer_on_veach_mis_gltf_and_fog() {
             };
             let spp = if integrator == Bdpt {
                 bdpt_spp
+            } else if integrator == Mlt && is_veach {
+                1024
             } else {
                 4 * bdpt_spp
             };
@@ -625,10 +643,12 @@ fn light_paths_agree_with_the_path_tracer_on_veach_mis_gltf_and_fog() {
                 "{what}: mean off by {off} (bound {bound})"
             );
             // The light tracer and MLT are noisier per sample than BDPT on these scenes: their
-            // block error ends higher, but must fall as noise does all the same.
+            // block error ends higher, but must fall as noise does all the same (MLT on
+            // veach-mis down to the floor its bootstrap's per-depth error leaves).
             let end = if integrator == Bdpt { 0.08 } else { 0.15 };
+            let fall = if integrator == Mlt && is_veach { 1.3 } else { 1.8 };
             assert!(
-                e_high < end && e_high < e_low / 1.8,
+                e_high < end && e_high < e_low / fall,
                 "{what}: block error {e_low} at {} spp, {e_high} at {spp} spp",
                 spp / 8
             );
@@ -640,9 +660,12 @@ fn light_paths_agree_with_the_path_tracer_on_veach_mis_gltf_and_fog() {
 /// small emissive sphere (an area light seen directly), an image environment (textured, lighting
 /// metal and diffuse spheres), and smooth and rough glass spheres under a quad light and a sky
 /// (caustics on the wall behind them: specular chains). BDPT on all of them and the light tracer
-/// where no light at infinity or point light is seen directly, against the Mitsuba 3 references
-/// the path tracer is held to (tests/mitsuba_materials.rs): channel means within 3 % and 8 × 8
-/// block error below 8 %, falling as noise does over 8 times the samples.
+/// where no point light is seen directly, against the Mitsuba 3 references the path tracer is
+/// held to (tests/mitsuba_materials.rs): channel means within 3 % and 8 × 8 block error below
+/// 8 %, falling as noise does over 8 times the samples. The light tracer on the environment-lit
+/// spheres is compared on the pixels wholly covered by them (`coverage`, 4 × 4 rays a pixel):
+/// the environment seen directly is light no path from the lights reaches the lens with (as in
+/// pbrt-v4's light tracer), the spheres' reflections of it are.
 #[test]
 fn light_paths_agree_with_mitsuba_for_every_light_type() {
     use trayecto::math::Mat4;
@@ -655,6 +678,7 @@ fn light_paths_agree_with_mitsuba_for_every_light_type() {
         ("directional", IntegratorKind::Bdpt, 16),
         ("directional", IntegratorKind::LightTracer, 128),
         ("envmap", IntegratorKind::Bdpt, 32),
+        ("envmap", IntegratorKind::LightTracer, 1024),
         ("glass", IntegratorKind::Bdpt, 32),
     ] {
         let path = repo_dir().join(format!("scenes/mitsuba/{name}.toml"));
@@ -679,6 +703,23 @@ fn light_paths_agree_with_mitsuba_for_every_light_type() {
         let low = render_scene(&scene, &settings(spp / 8));
         let high = render_scene(&scene, &settings(spp));
         let what = format!("{name} {integrator:?}");
+        let (low, high, reference) = if integrator == IntegratorKind::LightTracer
+            && scene.lights.iter().any(|l| matches!(l, LightDesc::Environment { .. }))
+        {
+            let world = World::build(scene.clone(), &Default::default()).unwrap();
+            let covered = coverage(&world, w, h, &settings(1));
+            let kept = covered.iter().filter(|&&c| c >= 1.0).count();
+            assert!(kept > 500, "{what}: {kept} pixels wholly covered");
+            let masked = |i: &Image| Image {
+                data: (i.data.iter().zip(&covered))
+                    .map(|(&p, &c)| if c >= 1.0 { p } else { Vec3::ZERO })
+                    .collect(),
+                ..i.clone()
+            };
+            (masked(&low), masked(&high), masked(&reference))
+        } else {
+            (low, high, reference)
+        };
         assert_means_close(&high, &reference, 0.03, &what);
         let (e_low, e_high) = (
             block_error(&low, &reference),
