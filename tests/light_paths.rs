@@ -529,7 +529,7 @@ fn light_paths_render_participating_media() {
 /// `veach-mis` (four glossy plates reflecting four spheres of different sizes, with the file's
 /// filter and depth) and a glTF model (Khronos' MetalRoughSpheresNoTextures, a grid of metallic
 /// and dielectric GGX spheres of every roughness, lit by the default studio environment that a
-/// model without lights gets), BDPT and the light tracer on the first, BDPT and MLT on the second
+/// model without lights gets), BDPT, the light tracer and MLT on the first, BDPT and MLT on the second
 /// (whose background is the environment seen directly, which paths from the lights never reach
 /// the lens through, in pbrt-v4's light tracer as in Trayecto's), and MLT on the fog Cornell box (BDPT and the light tracer are held to Mitsuba there, in
 /// `light_paths_render_participating_media`).
@@ -537,7 +537,10 @@ fn light_paths_render_participating_media() {
 /// elsewhere), the lamps seen directly left out of both (`without_lamps_seen_directly`: at
 /// 48 × 27 the smallest of veach-mis' spheres is a fraction of a pixel); each BDPT image's mean is within 3 % and its 8 × 8 block error falls as noise
 /// does over 8 times the samples and ends below 8 % (15 % for the light tracer and MLT, at four
-/// times BDPT's samples); MLT's mean is its bootstrap's b, within
+/// times BDPT's samples; MLT on veach-mis at 1024 mutations per pixel, its fall over 8 times the
+/// mutations held to 1.3, not 1.8: it fell 1.46–1.65× over four other seeds, to 0.07–0.10, the
+/// chains being correlated and the bootstrap's per-depth shares of b fixed whatever the
+/// mutations; BENCHMARKS.md); MLT's mean is its bootstrap's b, within
 /// 3 standard errors of b plus 1 %, and its shape is compared with the mean scaled, as in the
 /// Cornell test.
 #[test]
@@ -638,15 +641,20 @@ fn light_paths_agree_with_the_path_tracer_on_veach_mis_gltf_and_fog() {
                 }
                 _ => 0.03,
             };
+            println!("{what}: mean bound {:.2} %", bound * 100.0);
             assert!(
                 off.abs() < bound,
                 "{what}: mean off by {off} (bound {bound})"
             );
             // The light tracer and MLT are noisier per sample than BDPT on these scenes: their
             // block error ends higher, but must fall as noise does all the same (MLT on
-            // veach-mis down to the floor its bootstrap's per-depth error leaves).
+            // veach-mis more slowly: see above).
             let end = if integrator == Bdpt { 0.08 } else { 0.15 };
-            let fall = if integrator == Mlt && is_veach { 1.3 } else { 1.8 };
+            let fall = if integrator == Mlt && is_veach {
+                1.3
+            } else {
+                1.8
+            };
             assert!(
                 e_high < end && e_high < e_low / fall,
                 "{what}: block error {e_low} at {} spp, {e_high} at {spp} spp",
@@ -704,7 +712,10 @@ fn light_paths_agree_with_mitsuba_for_every_light_type() {
         let high = render_scene(&scene, &settings(spp));
         let what = format!("{name} {integrator:?}");
         let (low, high, reference) = if integrator == IntegratorKind::LightTracer
-            && scene.lights.iter().any(|l| matches!(l, LightDesc::Environment { .. }))
+            && scene
+                .lights
+                .iter()
+                .any(|l| matches!(l, LightDesc::Environment { .. }))
         {
             let world = World::build(scene.clone(), &Default::default()).unwrap();
             let covered = coverage(&world, w, h, &settings(1));
