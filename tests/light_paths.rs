@@ -845,6 +845,89 @@ fn mlt_matches_the_path_tracer_on_the_cornell_box() {
     }
 }
 
+/// MLT on veach-mis' lamps seen directly (maxdepth 0: the lamps alone, each a third of the light,
+/// the smallest a fraction of a pixel at 48 × 27) against the path tracer: each lamp's columns
+/// within 15 % and the image mean within 3 of b's standard errors plus 1 %. A lamp's share of b is
+/// the bootstrap's count of hits on it, and the chains seldom move between lamps, so a bias or a
+/// start-up error at a sub-pixel lamp stays in the image whatever the mutations; with 4·10⁶
+/// bootstrap states the lamps read +1.5 / +1.2 / +0.9 % (standard deviations 3.1 / 4.7 / 4.8 %)
+/// over seeds 1–6 (`bench/mlt_veach_mis.py --res 48 27 --mutations 64 --bootstrap 4000000`),
+/// and at pbrt-v4's default 10⁵ the smallest lamp's spread is 27 % (BENCHMARKS.md, "MLT on
+/// veach-mis").
+#[test]
+fn mlt_renders_veach_mis_lamps_seen_directly() {
+    let scene = trayecto::scene::load(
+        shared_scene("pbrt/veach-mis/scene-v4.pbrt")
+            .to_str()
+            .unwrap(),
+    )
+    .unwrap();
+    let (w, h) = (48, 27);
+    let filter = scene.hints.filter.unwrap_or_default();
+    let reference = render_scene(
+        &scene,
+        &RenderSettings {
+            integrator: IntegratorKind::Path,
+            filter,
+            ..lt(w, h, 1024, 0)
+        },
+    );
+    let settings = RenderSettings {
+        filter,
+        mlt: trayecto::sampling::mlt::MltSettings {
+            bootstrap_samples: Some(4_000_000),
+            chains: Some(1000),
+            ..Default::default()
+        },
+        ..mlt(w, h, 64, 0)
+    };
+    let image = render_scene(&scene, &settings);
+    let column = |i: &Image, x: u32| -> f64 {
+        (0..h)
+            .map(|y| trayecto::film::luminance(i.get(x, y)) as f64)
+            .sum()
+    };
+    // The lamps: runs of columns the reference's lamps (with their filter footprint) light.
+    let mut lamps: Vec<(u32, u32)> = Vec::new();
+    for x in 0..w {
+        if column(&reference, x) > 0.0 {
+            match lamps.last_mut() {
+                Some((_, end)) if *end + 1 == x => *end = x,
+                _ => lamps.push((x, x)),
+            }
+        }
+    }
+    assert_eq!(lamps.len(), 3, "lamps seen directly: {lamps:?}");
+    for &(x0, x1) in &lamps {
+        let sum = |i: &Image| (x0..=x1).map(|x| column(i, x)).sum::<f64>();
+        let off = sum(&image) / sum(&reference) - 1.0;
+        println!(
+            "lamp at columns {x0}..={x1}: MLT off by {:.2} %",
+            off * 100.0
+        );
+        assert!(
+            off.abs() < 0.15,
+            "lamp at columns {x0}..={x1}: MLT off by {off}"
+        );
+    }
+    let lum = |i: &Image| trayecto::film::luminance(i.mean()) as f64;
+    let off = lum(&image) / lum(&reference) - 1.0;
+    let (_, err) = trayecto::render::mlt::normalisation(
+        &World::build(scene.clone(), &Default::default()).unwrap(),
+        &settings,
+    )
+    .unwrap();
+    println!(
+        "image mean off by {:.2} %, b's error {:.2} %",
+        off * 100.0,
+        err * 100.0
+    );
+    assert!(
+        off.abs() < 3.0 * err + 0.01,
+        "image mean off by {off}, b's error {err}"
+    );
+}
+
 /// Metropolis light transport's film is a function of the seed and settings: 1 and 2 threads
 /// give the same film bit for bit (the chains are independent, each with its own generators,
 /// and splat into exact sums), through a Gaussian filter; and a sample range is refused with
