@@ -86,6 +86,17 @@ fn contribution(
         let s = ((u.next_1d() * n as f32) as usize).min(n - 1);
         (s, n - s, n)
     };
+    // Spectral mode: the state's wavelengths (one more number of its camera stream, none in RGB
+    // mode) ride on a copy of the settings as in BDPT's `trace`; the contribution reaches the
+    // film, and the target, as RGB through the CIE curves (pbrt-v4 `MLTIntegrator::L` samples
+    // its wavelengths from the state and takes the luminance of the film's RGB).
+    let spectral_set = f.ctx.set.for_sample(u);
+    let spectral_ctx = spectral_set.as_ref().map(|set| Context {
+        world: f.ctx.world,
+        camera: f.ctx.camera,
+        set,
+    });
+    let ctx = spectral_ctx.as_ref().unwrap_or(&f.ctx);
     let uf = u.next_2d();
     let film = Vec2::new(
         f.film_min.x + uf.x * f.film_size.x,
@@ -93,7 +104,6 @@ fn contribution(
     );
     let lens = u.next_2d();
     let ray = f.camera.generate_ray(film, lens);
-    let ctx = &f.ctx;
     let mut media = MediaState::new(ctx.world, u, ray.d);
     bdpt::camera_subpath(
         ctx,
@@ -122,7 +132,13 @@ fn contribution(
     let Some((l, raster)) = bdpt::connect_strategy(ctx, scratch, s, t, u, stats, &mut media) else {
         return none;
     };
-    let l = l * strategies as f32;
+    // A dispersive vertex kept the hero wavelength alone (as BDPT's `trace`).
+    let l = if media.hero_only {
+        Vec3::new(3.0 * l.x, 0.0, 0.0)
+    } else {
+        l
+    };
+    let l = ctx.set.to_film(l) * strategies as f32;
     if t == 1 {
         (l * f.scale, raster)
     } else {
