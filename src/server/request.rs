@@ -1262,6 +1262,34 @@ mod tests {
         }
     }
 
+    /// `spectral` is three-way: absent or null leaves the scene file's default (pbrt files
+    /// spectral), true and false force it; anything else, or true with an integrator without a
+    /// spectral path, is refused by name.
+    #[test]
+    fn spectral_is_true_false_or_the_files_default() {
+        let parse = |b: &str| parse_request(b.as_bytes(), &policy()).unwrap();
+        for (body, given, spectral) in [
+            (r#"{"scene":"cornell"}"#, false, false),
+            (r#"{"scene":"cornell","spectral":null}"#, false, false),
+            (r#"{"scene":"cornell","spectral":true}"#, true, true),
+            (r#"{"scene":"cornell","spectral":false}"#, true, false),
+        ] {
+            let r = parse(body);
+            assert_eq!(
+                (r.spectral_given, r.settings.path.spectral),
+                (given, spectral)
+            );
+        }
+        assert!(fields(r#"{"scene":"cornell","spectral":"yes"}"#).contains_key("spectral"));
+        assert!(
+            fields(r#"{"scene":"cornell","spectral":true,"integrator":"sppm"}"#)
+                .contains_key("spectral")
+        );
+        assert!(
+            parse(r#"{"scene":"cornell","spectral":false,"integrator":"sppm"}"#).spectral_given
+        );
+    }
+
     /// The #19 fields reach the settings, and absurd values are refused by name.
     #[test]
     fn filter_adaptive_time_limit_and_crop_fields() {

@@ -1316,6 +1316,7 @@ fn render(
         denoised,
         names: names.map(|(k, v)| (k, v.to_string())).to_vec(),
         size: (settings.width, settings.height, settings.spp),
+        spectral: settings.path.spectral,
     })
 }
 
@@ -1342,6 +1343,9 @@ struct Image {
     names: Vec<(&'static str, String)>,
     /// Width, height and samples per pixel of the frame (after the scene file's own).
     size: (u32, u32, u32),
+    /// Rendered spectrally (the keyword's, else the scene file's default where the integrator
+    /// has a spectral path).
+    spectral: bool,
 }
 
 /// numpy's view of memory an [`Image`] owns (`__array_interface__`, version 3): the array keeps
@@ -1494,6 +1498,7 @@ impl Image {
         d.set_item("width", self.size.0)?;
         d.set_item("height", self.size.1)?;
         d.set_item("spp", self.size.2)?;
+        d.set_item("spectral", self.spectral)?;
         Ok(d)
     }
 
