@@ -1913,6 +1913,10 @@ fn coated_conductor_fresnel_is_relative_to_the_coat_like_pbrt_v4() {
                 {
                     c.conductor.eta *= c.coat.eta;
                     c.conductor.k *= c.coat.eta;
+                    // Spectrally, the named copper's η(λ), k(λ) are divided at the lobe.
+                    if let Some(sp) = &mut c.conductor.spectra {
+                        sp.outside_ior /= c.coat.eta;
+                    }
                 }
             }
         },
