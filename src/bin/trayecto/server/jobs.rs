@@ -882,6 +882,7 @@ mod tests {
             default_light: None,
             denoise: false,
             filter_given: false,
+            spectral_given: false,
             crop: None,
             variant: None,
             environment: None,
