@@ -696,11 +696,12 @@ pub fn check_media_settings(world: &World, settings: &RenderSettings) -> Result<
 
 /// Whether the integrator `settings` resolve to in `world` carries wavelengths
 /// (docs/DESIGN.md "Spectral rendering"): the path tracers, and the light tracer and BDPT
-/// without media, and MLT on BDPT's paths. The others refuse `--spectral`
+/// without media, MLT on BDPT's paths, and SPPM. The others refuse `--spectral`
 /// ([`check_media_settings`]).
 pub fn has_spectral_path(world: &World, settings: &RenderSettings) -> bool {
     match Integrator::for_world(settings.integrator, world) {
-        Integrator::Path | Integrator::VolPath => true,
+        // SPPM refuses media itself (`photon::check`).
+        Integrator::Path | Integrator::VolPath | Integrator::Sppm => true,
         Integrator::LightTracer | Integrator::Bdpt | Integrator::Mlt => !world.has_media(),
         _ => false,
     }
@@ -719,7 +720,8 @@ fn check_integrator_settings(
         )));
     }
     // Spectral transport is built into the path tracers (surface and volumetric), and the light
-    // tracer, BDPT and MLT without media (`light::check`); the others would silently render RGB
+    // tracer, BDPT and MLT without media (`light::check`), and SPPM; the others would silently
+    // render RGB
     // (docs/DESIGN.md "Spectral rendering").
     if settings.path.spectral
         && !matches!(
@@ -729,11 +731,12 @@ fn check_integrator_settings(
                 | Integrator::LightTracer
                 | Integrator::Bdpt
                 | Integrator::Mlt
+                | Integrator::Sppm
         )
     {
         return Err(RenderError::InvalidSetting(format!(
             "spectral rendering is not available with the {} yet (the path tracers, the light \
-             tracer, BDPT and MLT carry wavelengths; this integrator's photons are RGB): \
+             tracer, BDPT, MLT and SPPM carry wavelengths; this integrator's are RGB): \
              render it with --rgb or use --integrator path",
             integrator.name()
         )));

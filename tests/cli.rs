@@ -301,14 +301,12 @@ fn pbrt_files_render_spectrally_by_default_and_the_log_says_why() {
     let read = |f: &str| std::fs::read(dir.join(f)).unwrap();
     assert_eq!(read("default.exr"), read("spectral.exr"));
     assert_ne!(read("default.exr"), read("rgb.exr"));
-    let log = ok(run(metals, "sppm.exr", &["--integrator", "sppm"]));
+    let log = ok(run(metals, "vcm.exr", &["--integrator", "vcm"]));
     assert!(
-        log.contains(
-            "the stochastic progressive photon mapper has no spectral path yet: rendering RGB"
-        ),
+        log.contains("the vertex connection and merging has no spectral path yet: rendering RGB"),
         "{log}"
     );
-    let o = run(metals, "x.exr", &["--spectral", "--integrator", "sppm"]);
+    let o = run(metals, "x.exr", &["--spectral", "--integrator", "vcm"]);
     assert!(
         !o.status.success() && stderr(&o).contains("--spectral"),
         "{}",

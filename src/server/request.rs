@@ -683,9 +683,9 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
     let mut aovs = check_aovs(b.aovs.as_ref(), &mut errors);
     // As `--transparent`: the coverage is the alpha AOV, the path tracer leaves the
     // background out (docs/DESIGN.md §5, "Transparent film").
-    // As `--spectral`: the path tracers, the light tracer, BDPT and MLT carry wavelengths (the
-    // last three without media, which the render refuses by name), the other integrators refuse
-    // them.
+    // As `--spectral`: the path tracers, the light tracer, BDPT, MLT (the last three without
+    // media, which the render refuses by name) and SPPM carry wavelengths, the other
+    // integrators refuse them.
     if o.spectral == Some(true)
         && !matches!(
             o.integrator,
@@ -693,11 +693,12 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
                 | IntegratorKind::LightTracer
                 | IntegratorKind::Bdpt
                 | IntegratorKind::Mlt
+                | IntegratorKind::Sppm
         )
     {
         errors.insert(
             "spectral".into(),
-            "needs the path integrator, the light tracer, BDPT or MLT".into(),
+            "needs the path integrator, the light tracer, BDPT, MLT or SPPM".into(),
         );
     }
     if o.transparent {
@@ -1282,12 +1283,10 @@ mod tests {
         }
         assert!(fields(r#"{"scene":"cornell","spectral":"yes"}"#).contains_key("spectral"));
         assert!(
-            fields(r#"{"scene":"cornell","spectral":true,"integrator":"sppm"}"#)
+            fields(r#"{"scene":"cornell","spectral":true,"integrator":"vcm"}"#)
                 .contains_key("spectral")
         );
-        assert!(
-            parse(r#"{"scene":"cornell","spectral":false,"integrator":"sppm"}"#).spectral_given
-        );
+        assert!(parse(r#"{"scene":"cornell","spectral":false,"integrator":"vcm"}"#).spectral_given);
     }
 
     /// The #19 fields reach the settings, and absurd values are refused by name.

@@ -403,7 +403,7 @@ pub struct RenderArgs {
     /// RGB colours are upsampled to smooth spectra where they enter a path (Jakob & Hanika 2019;
     /// illuminants × D65), lights given as spectra (blackbody, named, sampled) are exact per
     /// wavelength and dispersive glass (KHR_materials_dispersion) splits white light. The path
-    /// tracers (media included), the light tracer, BDPT and MLT (without media); SPPM, VCM,
+    /// tracers (media included), the light tracer, BDPT and MLT (without media) and SPPM; VCM,
     /// raycast and Whitted are refused. pbrt files render spectrally without it, as pbrt-v4
     /// does (RGB where the integrator has no spectral path); other formats in linear sRGB.
     #[arg(long, help_heading = HEADING_EXPERT, hide_short_help = true, conflicts_with = "rgb")]
@@ -606,10 +606,11 @@ impl RenderArgs {
                     | IntegratorKind::LightTracer
                     | IntegratorKind::Bdpt
                     | IntegratorKind::Mlt
+                    | IntegratorKind::Sppm
             )
         {
             bail!(
-                "invalid setting: --spectral needs --integrator path, lighttracer, bdpt or mlt (got {})",
+                "invalid setting: --spectral needs --integrator path, lighttracer, bdpt, mlt or sppm (got {})",
                 k.name()
             );
         }
