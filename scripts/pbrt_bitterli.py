@@ -87,6 +87,8 @@ def main():
     ap.add_argument("--keep", metavar="DIR",
                     help="keep both renders as DIR/NAME-trayecto.exr and DIR/NAME-pbrt.exr; a kept "
                          "pbrt-v4 render of the same size is reused instead of rendering it again")
+    ap.add_argument("--rgb", action="store_true",
+                    help="render in RGB (trayecto --rgb; pbrt files render spectrally by default)")
     ap.add_argument("scenes", nargs="*")
     a = ap.parse_args()
     names = a.scenes or (sorted(d for d in os.listdir(a.corpus)
@@ -107,6 +109,8 @@ def main():
             out = os.path.join(d, "out.exr")
             cmd = [a.trayecto, "render", scene, "-o", out,
                    "--width", str(w), "--height", str(h), "--spp", str(a.spp), "-q"]
+            if a.rgb:
+                cmd.append("--rgb")
             try:
                 subprocess.run(cmd, check=True, stderr=subprocess.DEVNULL)
             except subprocess.CalledProcessError:

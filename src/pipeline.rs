@@ -187,6 +187,10 @@ pub struct GivenSettings {
     pub filter: bool,
     /// The integrator (else the scene file's, e.g. pbrt's `Integrator "lighttracer"`).
     pub integrator: bool,
+    /// Spectral or RGB (`--spectral`/`--rgb`: `settings.path.spectral`); else the scene
+    /// format's default ([`crate::scene::RenderHints::spectral`]: pbrt files spectral), RGB
+    /// where the integrator has no spectral path ([`rgb_fallback`]).
+    pub spectral: bool,
 }
 
 impl GivenSettings {
@@ -198,7 +202,53 @@ impl GivenSettings {
         max_depth: true,
         filter: true,
         integrator: true,
+        spectral: true,
     };
+}
+
+/// Falls back to RGB when spectral rendering came only from the scene file's default
+/// ([`GivenSettings::spectral`] false) and the integrator `settings` resolve to in `world` has no
+/// spectral path ([`crate::render::has_spectral_path`]), or `aovs` asks for BDPT's strategy
+/// layers (RGB only); the line to log says why. An explicit `--spectral` is left for the render
+/// to refuse by name.
+pub fn rgb_fallback(
+    given: &GivenSettings,
+    world: &World,
+    settings: &mut RenderSettings,
+    aovs: &[AovKind],
+) -> Option<String> {
+    if given.spectral || !settings.path.spectral {
+        return None;
+    }
+    let why = if !crate::render::has_spectral_path(world, settings) {
+        let integrator = crate::integrator::Integrator::for_world(settings.integrator, world);
+        let media = if world.has_media() {
+            " in scenes with media"
+        } else {
+            ""
+        };
+        format!("the {} has no spectral path{media} yet", integrator.name())
+    } else if let Some(k) = aovs.iter().find(|k| k.is_strategy()) {
+        format!("the strategy layer --aov {} is RGB only", k.name())
+    } else {
+        return None;
+    };
+    settings.path.spectral = false;
+    Some(format!(
+        "the scene file renders spectrally by default, but {why}: rendering RGB"
+    ))
+}
+
+/// The log's words for the colour mode and why it was chosen: `spectral` is the resolved
+/// setting, `prefers` the scene file's default ([`crate::scene::RenderHints::spectral`]).
+pub fn colour_mode(given: &GivenSettings, prefers: bool, spectral: bool) -> &'static str {
+    match (spectral, given.spectral, prefers) {
+        (true, false, _) => "spectral (3 wavelengths per sample; pbrt file; --rgb for RGB)",
+        (true, true, _) => "spectral (3 wavelengths per sample)",
+        (false, false, true) => "RGB (the file's spectral default does not apply: see above)",
+        (false, true, true) => "RGB (--rgb)",
+        (false, _, false) => "RGB",
+    }
 }
 
 /// The stages of a render, in order.
@@ -570,6 +620,9 @@ impl RenderJob {
         {
             s.integrator = k;
         }
+        if !self.given.spectral {
+            s.path.spectral = h.spectral;
+        }
         // The photon settings the job was not given, from the file.
         s.photon.photons_per_iteration = s.photon.photons_per_iteration.or(h.photons_per_iteration);
         s.photon.radius = s.photon.radius.or(h.photon_radius);
@@ -871,6 +924,8 @@ struct Built {
     world: World,
     frame: FrameId,
     settings: RenderSettings,
+    /// The colour mode and why, for the plan's line ([`colour_mode`]).
+    colour: &'static str,
     /// The AOVs to write: the job's, else the scene file's ([`RenderJob::aovs_for`]).
     aovs: Vec<AovKind>,
     scene_name: String,
@@ -982,10 +1037,11 @@ impl Run<'_> {
         let job = self.job;
         let Loaded {
             scene,
-            settings,
+            mut settings,
             digest,
             time: load_time,
         } = loaded;
+        let prefers_spectral = scene.hints.spectral;
         let scene_name = scene.name.clone();
         let camera_count = scene.cameras.len();
         let aovs = job.aovs_for(&scene.hints);
@@ -1003,6 +1059,11 @@ impl Run<'_> {
         let time = t.elapsed();
         self.observer.stage_finished(Stage::Build, time);
         world.warnings.iter().for_each(|w| self.warn(w.clone()));
+        // Before the frame's identity: partial films record the mode that renders.
+        if let Some(line) = rgb_fallback(&job.given, &world, &mut settings, &aovs) {
+            self.info(line);
+        }
+        let colour = colour_mode(&job.given, prefers_spectral, settings.path.spectral);
         // After the build: partial films record the light sampler `auto` resolved to.
         let frame = FrameId {
             scene: job.scene.clone(),
@@ -1015,6 +1076,7 @@ impl Run<'_> {
             world,
             frame,
             settings,
+            colour,
             aovs,
             scene_name,
             camera_count,
@@ -1049,12 +1111,9 @@ impl Run<'_> {
         if let Some(t) = settings.time_limit {
             extras += &format!(", time limit {t} s");
         }
-        // Which colour representation renders (docs/DESIGN.md "Spectral rendering").
-        extras += if settings.path.spectral {
-            ", spectral (3 wavelengths per sample)"
-        } else {
-            ", RGB"
-        };
+        // Which colour representation renders and why (docs/DESIGN.md "Spectral rendering").
+        extras += ", ";
+        extras += built.colour;
         self.info(format!(
             "rendering {}x{} at {} spp, {} secondary, max depth {}, {} integrator, {} threads{extras}",
             settings.width,

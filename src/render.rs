@@ -694,6 +694,19 @@ pub fn check_media_settings(world: &World, settings: &RenderSettings) -> Result<
     Ok(())
 }
 
+/// Whether the integrator `settings` resolve to in `world` carries wavelengths
+/// (docs/DESIGN.md "Spectral rendering"): the path tracers, and the light tracer and BDPT
+/// without media, MLT on BDPT's paths, and SPPM. The others refuse `--spectral`
+/// ([`check_media_settings`]).
+pub fn has_spectral_path(world: &World, settings: &RenderSettings) -> bool {
+    match Integrator::for_world(settings.integrator, world) {
+        // SPPM refuses media itself (`photon::check`).
+        Integrator::Path | Integrator::VolPath | Integrator::Sppm => true,
+        Integrator::LightTracer | Integrator::Bdpt | Integrator::Mlt => !world.has_media(),
+        _ => false,
+    }
+}
+
 /// [`check_media_settings`] for the resolved integrator.
 fn check_integrator_settings(
     integrator: Integrator,
@@ -707,18 +720,24 @@ fn check_integrator_settings(
         )));
     }
     // Spectral transport is built into the path tracers (surface and volumetric), and the light
-    // tracer and BDPT without media (`light::check`); the others would silently render RGB
+    // tracer, BDPT and MLT without media (`light::check`), and SPPM; the others would silently
+    // render RGB
     // (docs/DESIGN.md "Spectral rendering").
     if settings.path.spectral
         && !matches!(
             integrator,
-            Integrator::Path | Integrator::VolPath | Integrator::LightTracer | Integrator::Bdpt
+            Integrator::Path
+                | Integrator::VolPath
+                | Integrator::LightTracer
+                | Integrator::Bdpt
+                | Integrator::Mlt
+                | Integrator::Sppm
         )
     {
         return Err(RenderError::InvalidSetting(format!(
             "spectral rendering is not available with the {} yet (the path tracers, the light \
-             tracer and BDPT carry wavelengths; this integrator's splats and photons are RGB): \
-             render it without --spectral or use --integrator path",
+             tracer, BDPT, MLT and SPPM carry wavelengths; this integrator's are RGB): \
+             render it with --rgb or use --integrator path",
             integrator.name()
         )));
     }

@@ -270,3 +270,50 @@ material = "white"
     }
     assert!(close(centre, sky * 0.8, 0.03), "sphere {centre}");
 }
+
+/// pbrt files render spectrally by default, as pbrt-v4 renders every file, and the plan's log
+/// line says so and why; `--rgb` opts out, other formats stay RGB, and an integrator without a
+/// spectral path falls back to RGB with a line saying so, where an explicit `--spectral` is
+/// refused. The default is `--spectral`'s image byte for byte, and `--rgb` another image.
+#[test]
+fn pbrt_files_render_spectrally_by_default_and_the_log_says_why() {
+    let dir = temp_dir("colour-mode");
+    let metals = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/pbrt/metals.pbrt");
+    let run = |scene: &str, out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "render", scene, "-o", out, "--width", "16", "--height", "4", "--spp", "2",
+        ];
+        args.extend_from_slice(extra);
+        trayecto(&args, &dir)
+    };
+    let ok = |o: Output| {
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o) + &String::from_utf8_lossy(&o.stdout)
+    };
+    let log = ok(run(metals, "default.exr", &[]));
+    assert!(
+        log.contains("spectral (3 wavelengths per sample; pbrt file; --rgb for RGB)"),
+        "{log}"
+    );
+    ok(run(metals, "spectral.exr", &["--spectral"]));
+    let log = ok(run(metals, "rgb.exr", &["--rgb"]));
+    assert!(log.contains(", RGB (--rgb)"), "{log}");
+    let read = |f: &str| std::fs::read(dir.join(f)).unwrap();
+    assert_eq!(read("default.exr"), read("spectral.exr"));
+    assert_ne!(read("default.exr"), read("rgb.exr"));
+    let log = ok(run(metals, "vcm.exr", &["--integrator", "vcm"]));
+    assert!(
+        log.contains("the vertex connection and merging has no spectral path yet: rendering RGB"),
+        "{log}"
+    );
+    let o = run(metals, "x.exr", &["--spectral", "--integrator", "vcm"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("--spectral"),
+        "{}",
+        stderr(&o)
+    );
+    let o = run(metals, "x.exr", &["--spectral", "--rgb"]);
+    assert!(!o.status.success(), "{}", stderr(&o));
+    let log = ok(run("cornell", "cornell.exr", &[]));
+    assert!(log.contains("threads, RGB\n"), "{log}");
+}

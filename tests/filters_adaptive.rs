@@ -584,6 +584,7 @@ Shape "sphere" "float radius" 1
             max_depth: false,
             filter: false,
             integrator: false,
+            spectral: false,
         },
         outputs: vec![],
         split: Default::default(),
@@ -593,6 +594,8 @@ Shape "sphere" "float radius" 1
     };
     let s = job.settings_for(&with);
     assert_eq!(s.filter, f);
+    // pbrt files render spectrally unless the job says (`--rgb`), as pbrt-v4 does.
+    assert!(s.path.spectral);
     assert_eq!(
         s.crop,
         Some(Crop {
@@ -606,6 +609,7 @@ Shape "sphere" "float radius" 1
     let cli = RenderJob {
         given: GivenSettings {
             filter: true,
+            spectral: true,
             ..job.given
         },
         crop: Some(CropSpec::Pixels([0, 20, 0, 10])),
@@ -613,6 +617,10 @@ Shape "sphere" "float radius" 1
     };
     let s = cli.settings_for(&with);
     assert_eq!(s.filter, Filter::default());
+    assert!(
+        !s.path.spectral,
+        "an explicit RGB wins over the file's spectral default"
+    );
     assert_eq!(s.crop, None, "a crop of the whole image is no crop");
     // An unsupported filter is a warning naming it.
     let sinc = trayecto::scene::pbrt::load_from_str(

@@ -27,6 +27,7 @@ fn job(width: Option<u32>, height: Option<u32>) -> RenderJob {
             max_depth: false,
             filter: false,
             integrator: false,
+            spectral: false,
         },
         split: Default::default(),
         aovs: Vec::new(),

@@ -20,10 +20,20 @@ fn load(p: &Path) -> Scene {
     scene::load(p.to_str().unwrap()).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
-/// Renders at the file's own resolution, maximum depth, pixel filter and `spp` samples, as
-/// `trayecto render FILE.pbrt` does (pbrt-v4's default filter is a Gaussian of radius 1.5, which
-/// spreads a bright edge into its dark neighbours: a box filter leaves them black).
+/// Renders at the file's own resolution, maximum depth, pixel filter and `spp` samples, and
+/// spectrally, as `trayecto render FILE.pbrt` does (pbrt-v4's default filter is a Gaussian of
+/// radius 1.5, which spreads a bright edge into its dark neighbours: a box filter leaves them
+/// black; pbrt-v4 renders every file spectrally).
 fn render(scene: &Scene, spp: u32) -> Image {
+    assert!(
+        scene.hints.spectral,
+        "the pbrt loader asks for spectral rendering"
+    );
+    render_spectral(scene, spp)
+}
+
+/// [`render`] in RGB (`--rgb`), for the tests that measure what RGB rendering misses.
+fn render_rgb(scene: &Scene, spp: u32) -> Image {
     let mut s = RenderSettings {
         width: scene.hints.width.unwrap(),
         height: scene.hints.height.unwrap(),
@@ -241,7 +251,7 @@ fn blackbody_and_named_spectra_match_pbrt_v4() {
     assert!(block_err < 0.1, "worst block {block_err}");
 }
 
-/// [`render`] in spectral mode (`--spectral`).
+/// [`render_rgb`] in spectral mode (`--spectral`, a pbrt file's default).
 fn render_spectral(scene: &Scene, spp: u32) -> Image {
     let mut s = RenderSettings {
         width: scene.hints.width.unwrap(),
@@ -384,7 +394,7 @@ fn bk7_prism_splits_white_light_by_snells_law() {
     let (pbrt, pbrt_total) = centroids(&reference);
     let spectral = column_xyz(&render_spectral(&scene, 128));
     let (spec, spec_total) = centroids(&spectral);
-    let rgb_cols = column_xyz(&render(&scene, 16));
+    let rgb_cols = column_xyz(&render_rgb(&scene, 16));
     let (rgb, rgb_total) = centroids(&rgb_cols);
     // The L1 difference of Y profiles (each column's share of the image's Y) from pbrt-v4's.
     let profile = |cols: &[[f64; 3]], total: f64| {
@@ -481,7 +491,7 @@ fn spectral_mode_agrees_with_pbrt_v4_where_rgb_differs() {
         }
         (w, m)
     };
-    let (rgb, rgb_m) = worst(&render(&scene, 16));
+    let (rgb, rgb_m) = worst(&render_rgb(&scene, 16));
     let (spectral, spectral_m) = worst(&render_spectral(&scene, 16));
     let msg = format!(
         "metals (Cu, Au, Ag, Al): worst channel of a sphere against pbrt-v4: RGB {rgb:.4}, \
@@ -498,7 +508,7 @@ fn spectral_mode_agrees_with_pbrt_v4_where_rgb_differs() {
         [m.x / r.x, m.y / r.y, m.z / r.z]
     };
     let (rgb, spectral) = (
-        ratios(&render(&scene, 16)),
+        ratios(&render_rgb(&scene, 16)),
         ratios(&render_spectral(&scene, 16)),
     );
     let msg = format!("red wall: channel means / pbrt-v4: RGB {rgb:.4?}, spectral {spectral:.4?}");
@@ -547,7 +557,7 @@ fn light_spectra_are_exact_per_wavelength_in_spectral_mode() {
         e
     };
     let (rgb, spectral) = (
-        worst(&render(&scene, 64)),
+        worst(&render_rgb(&scene, 64)),
         worst(&render_spectral(&scene, 64)),
     );
     // The light tracer in spectral mode: the same wavelengths from the lights' end.
@@ -565,14 +575,26 @@ fn light_spectra_are_exact_per_wavelength_in_spectral_mode() {
     s.integrator = trayecto::integrator::IntegratorKind::Bdpt;
     s.spp = 32;
     let bdpt = worst(&common::render_scene(&scene, &s));
+    // MLT on BDPT's spectral paths: each state carries its wavelengths, the target is the
+    // luminance of their RGB (chains correlate: 512 mutations per pixel, 0.029–0.039 over two
+    // seeds, 0.046–0.076 at 64; the brightness comes from the bootstrap).
+    s.integrator = trayecto::integrator::IntegratorKind::Mlt;
+    s.spp = 512;
+    let mlt = worst(&common::render_scene(&scene, &s));
+    // SPPM: one set of wavelengths per iteration (256 of them: 0.014–0.021 over two seeds;
+    // 0.076 at 64).
+    s.integrator = trayecto::integrator::IntegratorKind::Sppm;
+    s.spp = 256;
+    let sppm = worst(&common::render_scene(&scene, &s));
     let msg = format!(
         "light spectra: worst channel error of a third against pbrt-v4: RGB {rgb:.4}, \
-         spectral {spectral:.4}, spectral light tracer {light_tracer:.4}, spectral BDPT {bdpt:.4}"
+         spectral {spectral:.4}, spectral light tracer {light_tracer:.4}, spectral BDPT \
+         {bdpt:.4}, spectral MLT {mlt:.4}, spectral SPPM {sppm:.4}"
     );
     eprintln!("{msg}");
     assert!(rgb > 0.2, "{msg}");
     assert!(
-        spectral < 0.02 && light_tracer < 0.03 && bdpt < 0.02,
+        spectral < 0.02 && light_tracer < 0.03 && bdpt < 0.02 && mlt < 0.06 && sppm < 0.04,
         "{msg}"
     );
 }
@@ -1479,6 +1501,9 @@ fn pbrt_scene_and_its_toml_twin_render_alike() {
         ..Default::default()
     };
     s.path.max_depth = 5;
+    // In the mode the pbrt file renders in by default (spectral): the twins differ in format
+    // only.
+    s.path.spectral = true;
     let ib = common::render_scene(&b, &s);
     // Not a pair of black images: lit, with the red wall on the left (Trayecto's right-handed
     // view, which the pbrt twin reproduces with `Scale -1 1 1`).
@@ -1893,6 +1918,10 @@ fn coated_conductor_fresnel_is_relative_to_the_coat_like_pbrt_v4() {
                 {
                     c.conductor.eta *= c.coat.eta;
                     c.conductor.k *= c.coat.eta;
+                    // Spectrally, the named copper's η(λ), k(λ) are divided at the lobe.
+                    if let Some(sp) = &mut c.conductor.spectra {
+                        sp.outside_ior /= c.coat.eta;
+                    }
                 }
             }
         },

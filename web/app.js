@@ -77,7 +77,8 @@ function readForm() {
   body.default_light = $("default_light").value || null;
   body.denoise = $("denoise").checked;
   body.transparent = $("transparent").checked;
-  body.spectral = $("spectral").checked;
+  // "" = the scene file's default (pbrt files spectral, as pbrt-v4; other formats RGB).
+  body.spectral = { "": null, spectral: true, rgb: false }[$("spectral").value];
   body.environment = $("environment").value || null;
   // "" = the file's default materials (KHR_materials_variants); the list is the scene's own.
   body.variant = $("variant").value || null;

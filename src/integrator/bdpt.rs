@@ -415,7 +415,7 @@ pub struct MediaState {
     /// Spectral mode: a subpath met a dispersive surface, so the whole sample keeps its hero
     /// wavelength alone, weighted by the number of wavelengths (pbrt-v4's `TerminateSecondary`
     /// acts on the sample's wavelengths, shared by both subpaths and every strategy).
-    hero_only: bool,
+    pub(crate) hero_only: bool,
 }
 
 impl MediaState {

@@ -66,6 +66,9 @@ pub struct VisiblePoint {
     pub v: Vertex,
     pub beta: Vec3,
     pub bounces: u32,
+    /// Spectral mode: the camera path met a dispersive surface and kept its hero wavelength
+    /// alone (lane 0, × 3 in `beta`).
+    pub hero_only: bool,
 }
 
 impl Default for VisiblePoint {
@@ -74,6 +77,7 @@ impl Default for VisiblePoint {
             v: Vertex::unshaded(SurfaceHit::EMPTY),
             beta: Vec3::ZERO,
             bounces: 0,
+            hero_only: false,
         }
     }
 }
@@ -85,6 +89,8 @@ pub struct Photon {
     pub wi: Vec3,
     pub beta: Vec3,
     pub bounces: u32,
+    /// Spectral mode: the photon path met a dispersive surface (lane 0 alone, × 3 in `beta`).
+    pub hero_only: bool,
 }
 
 /// Traces the camera ray `ray` (filter weight `weight`) to its visible point, filling `vp`, and
@@ -109,6 +115,7 @@ pub fn visible_point(
     vp: &mut VisiblePoint,
 ) -> Vec3 {
     vp.beta = Vec3::ZERO;
+    vp.hero_only = false;
     let direct = PathSettings {
         nee: true,
         mis: false,
@@ -132,8 +139,17 @@ pub fn visible_point(
         if !world.intersect_filtered_into(&ray, &set.footprint, &mut vp.v.hit) {
             let d = ray.d.normalize();
             match prev {
-                None if depth > 0 || !set.transparent => l += beta * world.escaped(d),
+                None if depth > 0 || !set.transparent => l += beta * set.escaped(world, d),
                 None => {}
+                // Spectral mode: each light at infinity at the iteration's wavelengths.
+                Some((p_b, _, _, uniform_n)) if set.wavelengths.is_some() => {
+                    l += world
+                        .lights
+                        .escaped_mis_each(d, env, uniform_n, |i, le, p_l| {
+                            beta * set.light_emission(&world.lights, i, le)
+                                * power_heuristic(p_b, p_l)
+                        });
+                }
                 Some((p_b, _, _, uniform_n)) => {
                     l += world.escaped_mis(d, env, uniform_n, |le, p_l| {
                         beta * le * power_heuristic(p_b, p_l)
@@ -145,6 +161,7 @@ pub fn visible_point(
         let wo = -ray.d.normalize();
         let le = world.emitted(&vp.v.hit, wo);
         if le != Vec3::ZERO {
+            let le = set.light_emission(&world.lights, vp.v.hit.light, le);
             let w = match prev {
                 Some((p_b, p, ng, _)) if vp.v.hit.light != NO_LIGHT => {
                     power_heuristic(p_b, world.emitter_pdf(p, ng, &vp.v.hit))
@@ -157,6 +174,15 @@ pub fn visible_point(
             return l;
         }
         vp.v.shade(world, wo);
+        // Spectral mode: the BSDF at the iteration's wavelengths; a dispersive one keeps the hero
+        // wavelength alone, weighted by the number of wavelengths (as the path tracer).
+        if let Some(w) = &set.wavelengths {
+            if !vp.hero_only && vp.v.bsdf.disperses() {
+                vp.hero_only = true;
+                beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
+            }
+            vp.v.bsdf = vp.v.bsdf.to_spectral(w.lambda);
+        }
         let specular = vp.v.bsdf.is_specular();
         if !specular {
             if vp.v.bsdf.has_diffuse_lobe() || depth + 1 >= set.max_depth {
@@ -212,7 +238,9 @@ pub fn trace_photon(
     let Some(em) = sample_emission(world, s) else {
         return;
     };
-    let beta0 = em.le.le * (em.le.cos() / (em.pmf * em.le.pdf_pos * em.le.pdf_dir));
+    // The light's emission at the iteration's wavelengths in spectral mode.
+    let le = set.light_emission(&world.lights, em.index as u32, em.le.le);
+    let beta0 = le * (em.le.cos() / (em.pmf * em.le.pdf_pos * em.le.pdf_dir));
     if !(beta0.max_element() > 0.0) || !beta0.is_finite() {
         return;
     }
@@ -221,6 +249,7 @@ pub fn trace_photon(
     let inv_beta0 = 1.0 / beta0.max_element();
     let mut ray = em.le.ray;
     let mut bounces = 0u32;
+    let mut hero_only = false;
     loop {
         stats.rays += 1;
         if !world.intersect_filtered_into(&ray, &set.footprint, &mut v.hit) {
@@ -228,12 +257,20 @@ pub fn trace_photon(
         }
         let wo = -ray.d.normalize();
         v.shade(world, wo);
+        if let Some(w) = &set.wavelengths {
+            if !hero_only && v.bsdf.disperses() {
+                hero_only = true;
+                beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
+            }
+            v.bsdf = v.bsdf.to_spectral(w.lambda);
+        }
         if bounces >= 1 && !v.bsdf.is_specular() {
             points.push(v.hit.p);
             photons.push(Photon {
                 wi: wo,
                 beta,
                 bounces,
+                hero_only,
             });
         }
         // The next hit would have bounced once more, and be scattered once more at a pixel.
@@ -346,7 +383,12 @@ pub fn gather(
         if !v.bsdf.side_consistent(wi_local, ph.wi.dot(v.ng)) {
             return;
         }
-        let f = v.bsdf.eval(v.wo_local, wi_local) * ph.beta;
+        let mut f = v.bsdf.eval(v.wo_local, wi_local) * ph.beta;
+        // Both ends kept the hero alone: its weight of 3 counts once (pbrt-v4 terminates the
+        // one set of wavelengths they share).
+        if vp.hero_only && ph.hero_only {
+            f /= 3.0;
+        }
         if f.is_finite() {
             phi[0] += f.x as f64;
             phi[1] += f.y as f64;

@@ -51,7 +51,7 @@ pub fn check(
     if settings.path.spectral && world.has_media() {
         return bad(format!(
             "spectral rendering is not available with the {name} in scenes with media yet (its \
-             volumetric paths are RGB): render it without --spectral or use --integrator path"
+             volumetric paths are RGB): render it with --rgb or use --integrator path"
         ));
     }
     if settings.noise_threshold.is_some() {
@@ -276,7 +276,7 @@ pub fn check_strategies(
     if settings.path.spectral {
         return Err(RenderError::InvalidSetting(format!(
             "--aov {}: the strategy layers are not available in spectral mode yet (a strategy's \
-             contribution is not projected to RGB on its own): render it without --spectral",
+             contribution is not projected to RGB on its own): render it with --rgb",
             first.name()
         )));
     }

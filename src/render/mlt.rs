@@ -86,6 +86,18 @@ fn contribution(
         let s = ((u.next_1d() * n as f32) as usize).min(n - 1);
         (s, n - s, n)
     };
+    // Spectral mode: the state's wavelengths (one more number of its camera stream, none in RGB
+    // mode) ride on a copy of the settings as in BDPT's `trace`; the contribution reaches the
+    // film, and the target, as RGB through the CIE curves (pbrt-v4 `MLTIntegrator::L` samples
+    // its wavelengths from the state and takes the luminance of the film's RGB).
+    let spectral_set = f.ctx.set.for_sample(u);
+    let spectral_ctx = spectral_set.as_ref().map(|set| Context {
+        world: f.ctx.world,
+        camera: f.ctx.camera,
+        set,
+        time: f.ctx.time,
+    });
+    let ctx = spectral_ctx.as_ref().unwrap_or(&f.ctx);
     let uf = u.next_2d();
     let film = Vec2::new(
         f.film_min.x + uf.x * f.film_size.x,
@@ -95,7 +107,7 @@ fn contribution(
     let mut ray = f.camera.generate_ray(film, lens);
     // Motion blur: the state's time is one more number of its camera stream (a still draws
     // none); the camera, both subpaths and the connection are at that moment.
-    let world = f.ctx.world;
+    let world = ctx.world;
     let time = if world.is_still() { 0.0 } else { u.next_1d() };
     if let Some(m) = &world.camera_motion {
         let mut camera = f.camera.clone();
@@ -103,8 +115,8 @@ fn contribution(
         ray = camera.generate_ray(film, lens);
     }
     let ray = ray.with_time(time);
-    let posed = super::posed_importance(world, f.ctx.camera, time);
-    let ctx = &super::at_time(&f.ctx, &posed, time);
+    let posed = super::posed_importance(world, ctx.camera, time);
+    let ctx = &super::at_time(ctx, &posed, time);
     let mut media = MediaState::new(ctx.world, u, ray.d);
     bdpt::camera_subpath(
         ctx,
@@ -133,7 +145,13 @@ fn contribution(
     let Some((l, raster)) = bdpt::connect_strategy(ctx, scratch, s, t, u, stats, &mut media) else {
         return none;
     };
-    let l = l * strategies as f32;
+    // A dispersive vertex kept the hero wavelength alone (as BDPT's `trace`).
+    let l = if media.hero_only {
+        Vec3::new(3.0 * l.x, 0.0, 0.0)
+    } else {
+        l
+    };
+    let l = ctx.set.to_film(l) * strategies as f32;
     if t == 1 {
         (l * f.scale, raster)
     } else {

@@ -152,6 +152,15 @@ pub(crate) fn render(
             stopped_early = true;
             break;
         }
+        // Spectral mode: the iteration's wavelengths, shared by its camera paths and photons.
+        let path = if path.spectral {
+            crate::integrator::PathSettings {
+                wavelengths: Some(iteration_wavelengths(settings.seed, it)),
+                ..path
+            }
+        } else {
+            path
+        };
         // Camera pass: each row's pixels write only their own visible points and sums.
         let cam_stats = vps
             .par_chunks_mut(fw as usize)
@@ -169,6 +178,7 @@ pub(crate) fn render(
                     let (ray, weight) = super::camera_ray(&camera, &filter, &mut stream, x, y);
                     let l =
                         sppm::visible_point(world, &ray, weight, &mut stream, &path, &mut st, vp);
+                    let l = path.to_film(l);
                     if l.is_finite() {
                         px.ld[0] += l.x as f64;
                         px.ld[1] += l.y as f64;
@@ -238,7 +248,17 @@ pub(crate) fn render(
                     }
                     let (m, phi) =
                         sppm::gather(vp, px.radius as f32, max_depth, &grid, &points, &photons);
-                    px.update(m, phi, vp.beta);
+                    match &path.wavelengths {
+                        None => px.update(m, phi, vp.beta),
+                        // The point's throughput times the photons' flux, per wavelength,
+                        // projected to RGB (pbrt-v4 `ToOutputRGB(vp.beta * Phi, lambda)`).
+                        Some(w) => {
+                            let lanes = Vec3::new(phi[0] as f32, phi[1] as f32, phi[2] as f32);
+                            let rgb = w.to_rgb(vp.beta * lanes);
+                            let rgb = [rgb.x as f64, rgb.y as f64, rgb.z as f64];
+                            px.update(m, rgb, Vec3::ONE);
+                        }
+                    }
                 });
         }
         done = it + 1;
@@ -264,6 +284,23 @@ pub(crate) fn render(
         render_time: t0.elapsed(),
         aovs: None,
     })
+}
+
+/// The wavelengths of SPPM iteration `it` in spectral mode: one set for all its camera paths and
+/// photons, since each visible point gathers photons of the same iteration (pbrt-v4
+/// `SPPMIntegrator::Render` draws them per iteration by the base-3 radical inverse), here
+/// shifted by a number of the seed so that seeds differ in their wavelengths too.
+fn iteration_wavelengths(seed: u64, it: u32) -> crate::spectrum::Wavelengths {
+    let (mut x, mut f, mut n) = (0.0f64, 1.0 / 3.0, it);
+    while n > 0 {
+        x += (n % 3) as f64 * f;
+        n /= 3;
+        f /= 3.0;
+    }
+    let shift = (crate::sampling::rng::hash_words(&[seed, 0x7370_706d_6c61_6d62]) >> 11) as f64
+        / (1u64 << 53) as f64;
+    let u = ((x + shift).fract() as f32).min(1.0 - f32::EPSILON / 2.0);
+    crate::spectrum::Wavelengths::sample(u)
 }
 
 fn sum_stats(mut a: RayStats, b: RayStats) -> RayStats {

@@ -452,6 +452,9 @@ pub struct RenderHints {
     /// render's samples per pixel).
     pub mlt: Option<crate::sampling::mlt::MltSettings>,
     pub mlt_mutations: Option<u32>,
+    /// The format renders spectrally by default (pbrt-v4 files: pbrt-v4 always does); the
+    /// user's `--spectral`/`--rgb` wins ([`crate::pipeline::GivenSettings::spectral`]).
+    pub spectral: bool,
 }
 
 impl MediumDesc {

@@ -126,6 +126,10 @@ pub struct RenderRequest {
     pub denoise: bool,
     /// Whether the request named a filter (else the scene file's, e.g. a pbrt PixelFilter).
     pub filter_given: bool,
+    /// Whether the request said spectral or RGB (`spectral` true or false, `settings.path`);
+    /// absent or null: the scene file's default (pbrt files spectral, as `--spectral`/`--rgb`
+    /// left out on the command line).
+    pub spectral_given: bool,
     /// `crop`: fractions [x0, x1, y0, y1] of the image (pbrt's cropwindow).
     pub crop: Option<crate::pipeline::CropSpec>,
     /// glTF material variant (`KHR_materials_variants`); `None`: the file's default materials.
@@ -421,6 +425,7 @@ fn resolved_settings(
             max_depth: false,
             filter: false,
             integrator: false,
+            spectral: false,
         },
         split: Default::default(),
         aovs: Vec::new(),
@@ -574,7 +579,8 @@ pub struct RequestBody {
     pub guiding: Option<Value>,
     /// A transparent background (`--transparent`): true or false.
     pub transparent: Option<Value>,
-    /// Spectral rendering (`--spectral`): true or false.
+    /// Spectral rendering: true (`--spectral`), false (`--rgb`) or null/absent (the scene
+    /// file's default: pbrt files spectral).
     pub spectral: Option<Value>,
     /// The moment of an animated scene (`--time`): seconds.
     pub time: Option<Value>,
@@ -636,7 +642,8 @@ struct Options {
     denoise: bool,
     guiding: bool,
     transparent: bool,
-    spectral: bool,
+    /// `None`: the scene file's default.
+    spectral: Option<bool>,
 }
 
 /// Parses and checks a JSON render request ([`RequestBody`]). Every wrong field is reported, not
@@ -676,17 +683,22 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
     let mut aovs = check_aovs(b.aovs.as_ref(), &mut errors);
     // As `--transparent`: the coverage is the alpha AOV, the path tracer leaves the
     // background out (docs/DESIGN.md §5, "Transparent film").
-    // As `--spectral`: the path tracers, the light tracer and BDPT carry wavelengths (the last
-    // two without media, which the render refuses by name), the other integrators refuse them.
-    if o.spectral
+    // As `--spectral`: the path tracers, the light tracer, BDPT, MLT (the last three without
+    // media, which the render refuses by name) and SPPM carry wavelengths, the other
+    // integrators refuse them.
+    if o.spectral == Some(true)
         && !matches!(
             o.integrator,
-            IntegratorKind::Path | IntegratorKind::LightTracer | IntegratorKind::Bdpt
+            IntegratorKind::Path
+                | IntegratorKind::LightTracer
+                | IntegratorKind::Bdpt
+                | IntegratorKind::Mlt
+                | IntegratorKind::Sppm
         )
     {
         errors.insert(
             "spectral".into(),
-            "needs the path integrator, the light tracer or BDPT".into(),
+            "needs the path integrator, the light tracer, BDPT, MLT or SPPM".into(),
         );
     }
     if o.transparent {
@@ -753,7 +765,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             max_depth: n.max_depth,
             secondary: n.secondary,
             transparent: o.transparent,
-            spectral: o.spectral,
+            spectral: o.spectral.unwrap_or(false),
             ..PathSettings::default()
         },
         filter: o.filter.unwrap_or_default(),
@@ -784,6 +796,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             tonemap: o.tonemap,
             default_light: o.default_light,
             filter_given: o.filter.is_some(),
+            spectral_given: o.spectral.is_some(),
             crop: o.crop,
             denoise: o.denoise,
             variant: o.variant,
@@ -1072,7 +1085,10 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
     let denoise = bool_field(b.denoise.as_ref(), "denoise", errors);
     let guiding = bool_field(b.guiding.as_ref(), "guiding", errors);
     let transparent = bool_field(b.transparent.as_ref(), "transparent", errors);
-    let spectral = bool_field(b.spectral.as_ref(), "spectral", errors);
+    let spectral = match b.spectral.as_ref() {
+        None | Some(Value::Null) => None,
+        v => Some(bool_field(v, "spectral", errors)),
+    };
     Options {
         exposure,
         integrator,
@@ -1245,6 +1261,32 @@ mod tests {
             Err(RequestError::Fields(f)) => f,
             other => panic!("expected field errors, got {other:?}"),
         }
+    }
+
+    /// `spectral` is three-way: absent or null leaves the scene file's default (pbrt files
+    /// spectral), true and false force it; anything else, or true with an integrator without a
+    /// spectral path, is refused by name.
+    #[test]
+    fn spectral_is_true_false_or_the_files_default() {
+        let parse = |b: &str| parse_request(b.as_bytes(), &policy()).unwrap();
+        for (body, given, spectral) in [
+            (r#"{"scene":"cornell"}"#, false, false),
+            (r#"{"scene":"cornell","spectral":null}"#, false, false),
+            (r#"{"scene":"cornell","spectral":true}"#, true, true),
+            (r#"{"scene":"cornell","spectral":false}"#, true, false),
+        ] {
+            let r = parse(body);
+            assert_eq!(
+                (r.spectral_given, r.settings.path.spectral),
+                (given, spectral)
+            );
+        }
+        assert!(fields(r#"{"scene":"cornell","spectral":"yes"}"#).contains_key("spectral"));
+        assert!(
+            fields(r#"{"scene":"cornell","spectral":true,"integrator":"vcm"}"#)
+                .contains_key("spectral")
+        );
+        assert!(parse(r#"{"scene":"cornell","spectral":false,"integrator":"vcm"}"#).spectral_given);
     }
 
     /// The #19 fields reach the settings, and absurd values are refused by name.

@@ -140,7 +140,10 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("clamp_direct", &none)?;
     d.set_item("clamp_indirect", &none)?;
     d.set_item("transparent", p.transparent)?;
-    d.set_item("spectral", p.spectral)?;
+    // None: the scene file's default (pbrt files spectral, as pbrt-v4); True/False: forced.
+    d.set_item("spectral", &none)?;
+    // The command line's `--rgb`: spectral=False.
+    d.set_item("rgb", false)?;
     // Animation and motion blur (`WorldOptions::time`): the file's rest pose, no blur.
     d.set_item("time", &none)?;
     d.set_item("frame", &none)?;
@@ -340,7 +343,18 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
         }
     }
     p.transparent = opt(d, "transparent")?.unwrap_or(p.transparent);
-    p.spectral = opt(d, "spectral")?.unwrap_or(p.spectral);
+    // `--spectral`/`--rgb`: None leaves the scene file's default (GivenSettings::spectral).
+    let spectral_given: Option<bool> = opt(d, "spectral")?;
+    let spectral_given = match (spectral_given, opt::<bool>(d, "rgb")?.unwrap_or(false)) {
+        (Some(true), true) => {
+            return Err(bad(
+                "invalid setting: give spectral=True or rgb=True, not both",
+            ));
+        }
+        (_, true) => Some(false),
+        (s, false) => s,
+    };
+    p.spectral = spectral_given.unwrap_or(false);
     // AOV names; with the raycast integrator a single view name picks what the image shows.
     let aov_names: Vec<String> = match d.get_item("aovs")?.filter(|v| !v.is_none()) {
         Some(v) if v.is_instance_of::<PyString>() => vec![v.extract()?],
@@ -469,6 +483,7 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
             max_depth: max_depth.is_some(),
             filter: filter_kind.is_some(),
             integrator: integrator_given.is_some(),
+            spectral: spectral_given.is_some(),
         },
         crop,
         aovs,
@@ -1126,7 +1141,7 @@ fn render(
         crop: o.crop,
     };
     job.check().map_err(pipeline_err)?;
-    let (settings, _) = job.resolve(&sc.scene);
+    let (mut settings, _) = job.resolve(&sc.scene);
     settings
         .validate()
         .map_err(|e| pipeline_err(PipelineError::Render(e)))?;
@@ -1151,6 +1166,9 @@ fn render(
         String::new()
     };
     let world = sc.world(&world_opts)?;
+    // As the command line: a file's spectral default gives way to RGB for an integrator
+    // without a spectral path (the reason is in the command line's log).
+    let _ = trayecto::pipeline::rgb_fallback(&o.given, world, &mut settings, &o.aovs);
     let frame = FrameId {
         scene: job.scene.clone(),
         digest,
@@ -1298,6 +1316,7 @@ fn render(
         denoised,
         names: names.map(|(k, v)| (k, v.to_string())).to_vec(),
         size: (settings.width, settings.height, settings.spp),
+        spectral: settings.path.spectral,
     })
 }
 
@@ -1324,6 +1343,9 @@ struct Image {
     names: Vec<(&'static str, String)>,
     /// Width, height and samples per pixel of the frame (after the scene file's own).
     size: (u32, u32, u32),
+    /// Rendered spectrally (the keyword's, else the scene file's default where the integrator
+    /// has a spectral path).
+    spectral: bool,
 }
 
 /// numpy's view of memory an [`Image`] owns (`__array_interface__`, version 3): the array keeps
@@ -1476,6 +1498,7 @@ impl Image {
         d.set_item("width", self.size.0)?;
         d.set_item("height", self.size.1)?;
         d.set_item("spp", self.size.2)?;
+        d.set_item("spectral", self.spectral)?;
         Ok(d)
     }
 

@@ -665,3 +665,28 @@ def test_type_stubs_name_every_keyword():
     typed = set(re.findall(r"^\s+(\w+):", render, re.M))
     assert set(trayecto.defaults()) <= typed, set(trayecto.defaults()) - typed
     assert typed - {"scene", "progress"} <= set(trayecto.defaults())
+
+
+def test_pbrt_files_render_spectrally_unless_told(tmp_path):
+    # As `trayecto render FILE.pbrt`: spectral by default (pbrt-v4 renders every file so), RGB
+    # with rgb=True or spectral=False, RGB for an integrator without a spectral path; other
+    # formats RGB unless spectral=True. The same bytes as the command line's.
+    scene = trayecto.load_file(str(SCENES / "pbrt" / "metals.pbrt"))
+    small = dict(width=16, height=4, spp=2)
+    img = trayecto.render(scene, **small)
+    assert img.settings["spectral"] is True
+    img.write(tmp_path / "py.exr")
+    r = cli("render", SCENES / "pbrt" / "metals.pbrt", "--width", 16, "--height", 4, "--spp", 2,
+            "--quiet", "-o", tmp_path / "cli.exr")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "py.exr").read_bytes() == (tmp_path / "cli.exr").read_bytes()
+    assert trayecto.render(scene, rgb=True, **small).settings["spectral"] is False
+    assert trayecto.render(scene, spectral=False, **small).settings["spectral"] is False
+    assert trayecto.render(scene, integrator="vcm", **small).settings["spectral"] is False
+    with pytest.raises(ValueError, match="not both"):
+        trayecto.render(scene, spectral=True, rgb=True, **small)
+    with pytest.raises(Exception, match="spectral rendering is not available"):
+        trayecto.render(scene, spectral=True, integrator="vcm", **small)
+    cornell = trayecto.load_file("cornell")
+    assert trayecto.render(cornell, **TINY).settings["spectral"] is False
+    assert trayecto.render(cornell, spectral=True, **TINY).settings["spectral"] is True

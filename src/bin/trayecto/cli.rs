@@ -403,11 +403,14 @@ pub struct RenderArgs {
     /// RGB colours are upsampled to smooth spectra where they enter a path (Jakob & Hanika 2019;
     /// illuminants × D65), lights given as spectra (blackbody, named, sampled) are exact per
     /// wavelength and dispersive glass (KHR_materials_dispersion) splits white light. The path
-    /// tracers (media included), the light tracer and BDPT (without media); SPPM, VCM, MLT,
-    /// raycast and Whitted are refused. Off: linear-sRGB rendering, as pbrt files and every
-    /// other format use by default.
-    #[arg(long, help_heading = HEADING_EXPERT, hide_short_help = true)]
+    /// tracers (media included), the light tracer, BDPT and MLT (without media) and SPPM; VCM,
+    /// raycast and Whitted are refused. pbrt files render spectrally without it, as pbrt-v4
+    /// does (RGB where the integrator has no spectral path); other formats in linear sRGB.
+    #[arg(long, help_heading = HEADING_EXPERT, hide_short_help = true, conflicts_with = "rgb")]
     pub spectral: bool,
+    /// Render in linear sRGB, also a pbrt file (which renders spectrally by default).
+    #[arg(long, help_heading = HEADING_EXPERT, hide_short_help = true)]
+    pub rgb: bool,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -599,11 +602,15 @@ impl RenderArgs {
             && let Some(k) = self.integrator
             && !matches!(
                 k,
-                IntegratorKind::Path | IntegratorKind::LightTracer | IntegratorKind::Bdpt
+                IntegratorKind::Path
+                    | IntegratorKind::LightTracer
+                    | IntegratorKind::Bdpt
+                    | IntegratorKind::Mlt
+                    | IntegratorKind::Sppm
             )
         {
             bail!(
-                "invalid setting: --spectral needs --integrator path, lighttracer or bdpt (got {})",
+                "invalid setting: --spectral needs --integrator path, lighttracer, bdpt, mlt or sppm (got {})",
                 k.name()
             );
         }
@@ -636,6 +643,7 @@ impl RenderArgs {
                 max_depth: self.max_depth.is_some(),
                 filter: self.filter.is_some(),
                 integrator: self.integrator.is_some(),
+                spectral: self.spectral || self.rgb,
             },
             outputs: vec![OutputSpec {
                 path: self.output.clone(),
@@ -940,7 +948,7 @@ fn info(args: &InfoArgs) -> Result<()> {
     if hints != trayecto::scene::RenderHints::default() {
         let show = |v: Option<u32>| v.map_or("-".to_string(), |v| v.to_string());
         println!(
-            "file asks   {}x{} pixels, {} spp, max depth {}{}{}{}",
+            "file asks   {}x{} pixels, {} spp, max depth {}{}{}{}{}",
             show(hints.width),
             show(hints.height),
             show(hints.spp),
@@ -953,7 +961,12 @@ fn info(args: &InfoArgs) -> Result<()> {
                 .map_or(String::new(), |c| format!(", crop window {c:?}")),
             hints
                 .pixel_bounds
-                .map_or(String::new(), |c| format!(", pixel bounds {c:?}"))
+                .map_or(String::new(), |c| format!(", pixel bounds {c:?}")),
+            if hints.spectral {
+                ", spectral (--rgb for RGB)"
+            } else {
+                ""
+            }
         );
     }
     println!(

@@ -285,7 +285,14 @@ impl Loader {
     fn new(root_dir: Option<PathBuf>) -> Loader {
         Loader {
             root_dir,
-            scene: Scene::default(),
+            // pbrt-v4 renders every file spectrally: so does Trayecto unless told `--rgb`.
+            scene: Scene {
+                hints: crate::scene::RenderHints {
+                    spectral: true,
+                    ..Default::default()
+                },
+                ..Scene::default()
+            },
             gs: GraphicsState::default(),
             stack: Vec::new(),
             named_coord: HashMap::new(),

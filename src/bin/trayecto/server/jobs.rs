@@ -794,8 +794,10 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
         settings: r.settings.clone(),
         // The web UI always sends its size, samples and depth; the filter only when asked
         // (else the scene file's, e.g. a pbrt PixelFilter).
+        // Spectral or RGB when asked, else the file's default (pbrt files spectral).
         given: GivenSettings {
             filter: r.filter_given,
+            spectral: r.spectral_given,
             ..GivenSettings::ALL
         },
         outputs: vec![output(&png), output(&exr)],
@@ -880,6 +882,7 @@ mod tests {
             default_light: None,
             denoise: false,
             filter_given: false,
+            spectral_given: false,
             crop: None,
             variant: None,
             environment: None,

@@ -112,6 +112,8 @@ struct Built {
     own_camera: CameraDesc,
     /// The file's pixel filter (pbrt `PixelFilter`), used unless the request names one.
     filter: Option<trayecto::film::filter::Filter>,
+    /// The file renders spectrally by default (pbrt), used unless the request says.
+    prefers_spectral: bool,
     /// The memory budget the world was loaded under: what it charged stays counted against the
     /// server's total while the world lives.
     _budget: Arc<trayecto::limits::LoadContext>,
@@ -396,6 +398,7 @@ fn render_view(
                 return Ok(None);
             }
             let filter = scene.hints.filter;
+            let prefers_spectral = scene.hints.spectral;
             let options = WorldOptions {
                 default_light: r.default_light,
                 variant: r.variant.clone(),
@@ -405,9 +408,9 @@ fn render_view(
                 ..WorldOptions::default()
             };
             let w = World::build_posed(scene, &options).map_err(|e| name_it(e.to_string()))?;
-            Ok(Some((w, filter)))
+            Ok(Some((w, filter, prefers_spectral)))
         });
-        let (w, filter) = match loaded {
+        let (w, filter, prefers_spectral) = match loaded {
             Ok(Some(built)) => built,
             // A newer request replaced this one while it loaded (its load was cancelled).
             Ok(None) => return Ok(()),
@@ -424,6 +427,7 @@ fn render_view(
             own_camera: w.camera.clone(),
             world: w,
             filter,
+            prefers_spectral,
             _budget: ctx,
         });
     }
@@ -431,6 +435,7 @@ fn render_view(
         world,
         own_camera,
         filter,
+        prefers_spectral,
         ..
     } = cache.as_mut().expect("built above");
     // Without a camera the scene's own camera is rendered as the command line renders it: its
@@ -446,7 +451,7 @@ fn render_view(
     lock(&session.status).state = "rendering";
     // The scene file's pixel filter unless the request names one, as the final render's
     // `RenderJob::resolve` does, so the viewport refines to the final render's image.
-    let full = RenderSettings {
+    let mut full = RenderSettings {
         time_limit: None,
         filter: match filter {
             Some(f) if !r.filter_given => *f,
@@ -454,6 +459,16 @@ fn render_view(
         },
         ..r.settings.clone()
     };
+    // Spectral or RGB as the final render resolves it: the request's, else the file's default,
+    // RGB where the integrator has no spectral path.
+    let given = trayecto::pipeline::GivenSettings {
+        spectral: r.spectral_given,
+        ..trayecto::pipeline::GivenSettings::ALL
+    };
+    if !r.spectral_given {
+        full.path.spectral = *prefers_spectral;
+    }
+    let _ = trayecto::pipeline::rgb_fallback(&given, world, &mut full, &[]);
     // The quick first look: a quarter of the size, one sample per pixel.
     let quick = RenderSettings {
         width: full.width.div_ceil(4).max(1),
