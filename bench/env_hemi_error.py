@@ -16,7 +16,7 @@ as the median and range over the rounds' paired ratios.
 
 Usage (bench/out/venv has numpy and Mitsuba, whose EXR reader compare.py uses):
 
-    nice bench/out/venv/bin/python bench/env_hemi_error.py --bins /work/wt/start-bin \
+    nice bench/out/venv/bin/python bench/env_hemi_error.py --bins BASE \
         target/release/trayecto --rounds 5
 """
 import argparse
@@ -53,10 +53,12 @@ def main():
     ap.add_argument("--res", type=int, default=128)
     ap.add_argument("--spps", default="16,64")
     ap.add_argument("--rounds", type=int, default=5)
-    ap.add_argument("--ref-bin", default="/work/wt/start-bin")
+    ap.add_argument("--ref-bin", default=None,
+                    help="binary of the references (default: the first of --bins)")
     ap.add_argument("--ref-spp", type=int, default=2048)
     ap.add_argument("--threads", type=int, default=2)
     args = ap.parse_args()
+    args.ref_bin = args.ref_bin or args.bins[0]
     import numpy as np
     os.makedirs(OUT, exist_ok=True)
     bins = [os.path.abspath(b) for b in args.bins]

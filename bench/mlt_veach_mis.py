@@ -1,7 +1,7 @@
 """MLT on veach-mis against the path tracer, per lamp seen directly and over seeds: is MLT's
 deficit beside the small bright lamps a bias or the bootstrap's and the chains' noise?
 
-    /work/mi-venv/bin/python bench/mlt_veach_mis.py TRAYECTO [--pbrt PBRT] [--seeds 8]
+    python3 bench/mlt_veach_mis.py TRAYECTO [--pbrt PBRT] [--seeds 8]
         [--bootstrap 100000 1000000] [--depth 0] [--res 96 54] [--mutations 256]
 
 Renders ../shared/scenes/pbrt/veach-mis at --res with Trayecto's path tracer (4096 spp, the
