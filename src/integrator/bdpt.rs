@@ -276,7 +276,11 @@ impl Context<'_> {
         }
         let w = d / d2.sqrt();
         let scene = self.world.light_scene();
-        let (_, pdf_dir) = self.world.lights.posed(li, self.time).pdf_le(&scene, v.ng, w);
+        let (_, pdf_dir) = self
+            .world
+            .lights
+            .posed(li, self.time)
+            .pdf_le(&scene, v.ng, w);
         let mut pdf = pdf_dir / d2;
         if next.on_surface() {
             pdf *= next.ng.dot(w).abs();
@@ -295,7 +299,11 @@ impl Context<'_> {
         }
         let w = (next.p - v.p).normalize_or_zero();
         let scene = self.world.light_scene();
-        let (pos, _) = self.world.lights.posed(li, self.time).pdf_le(&scene, v.ng, w);
+        let (pos, _) = self
+            .world
+            .lights
+            .posed(li, self.time)
+            .pdf_le(&scene, v.ng, w);
         self.world.lights.distribution.discrete_pdf(li) * pos
     }
 

@@ -160,7 +160,11 @@ pub fn shade_local(
             l += f * e_perp * ns.dot(wi);
         }
     }
-    if world.lights().first().is_some_and(|l| l.as_area().is_some()) {
+    if world
+        .lights()
+        .first()
+        .is_some_and(|l| l.as_area().is_some())
+    {
         let mut sum = Vec3::ZERO;
         for _ in 0..AREA_SAMPLES {
             let u_light = s.next_1d();

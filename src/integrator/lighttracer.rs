@@ -61,11 +61,7 @@ pub struct Emission {
 /// leaving it, a moving light where it is at shutter time `time` (0 for a still): one 1D and
 /// two 2D numbers, always drawn.
 #[inline]
-pub fn sample_emission(
-    world: &World,
-    s: &mut impl UniformSource,
-    time: f32,
-) -> Option<Emission> {
+pub fn sample_emission(world: &World, s: &mut impl UniformSource, time: f32) -> Option<Emission> {
     let u_light = s.next_1d();
     let u1 = s.next_2d();
     let u2 = s.next_2d();

@@ -148,10 +148,7 @@ fn place(light: &Light, (p, d): (Vec3, Vec3)) -> Light {
             direction: d,
             ..*l
         }),
-        Light::Directional(l) => Light::Directional(super::DirectionalLight {
-            direction: d,
-            ..*l
-        }),
+        Light::Directional(l) => Light::Directional(super::DirectionalLight { direction: d, ..*l }),
         other => other.clone(),
     }
 }
@@ -228,7 +225,9 @@ impl LightSet {
             LightSamplerKind::Bvh | LightSamplerKind::Power => TreeWidth::Four,
         };
         let tree = use_tree.then(|| {
-            TreeSelection::over(&lights, &powers, &infinite, geometry, materials, width, None)
+            TreeSelection::over(
+                &lights, &powers, &infinite, geometry, materials, width, None,
+            )
         });
         LightSet {
             distribution: Distribution1D::new(&powers),
@@ -612,7 +611,10 @@ impl TreeSelection {
                     let kb = m.key(l, i, k)?.bounds(geometry, materials, phi)?;
                     all = Some(match all {
                         None => kb,
-                        Some(a) => LightBounds { phi, ..a.union(&kb) },
+                        Some(a) => LightBounds {
+                            phi,
+                            ..a.union(&kb)
+                        },
                     });
                 }
                 all.map(|a| (i as u32, a))

@@ -560,3 +560,51 @@ fn light_keys(key_lights: &[Vec<crate::scene::LightDesc>]) -> Result<LightKeys, 
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::LightDesc;
+
+    fn point(x: f32, intensity: f32) -> LightDesc {
+        LightDesc::Point {
+            name: "bulb".into(),
+            position: Vec3::new(x, 1.0, 0.0),
+            intensity: Vec3::splat(intensity),
+        }
+    }
+
+    /// A light that only moves is keyed (its position at every key); one whose power changes,
+    /// or a moving light of a kind that has no pose, is named for the fallback.
+    #[test]
+    fn light_keys_take_poses_and_name_other_changes() {
+        let still = LightDesc::Ambient {
+            name: "sky".into(),
+            radiance: Vec3::ONE,
+        };
+        let keys: Vec<Vec<LightDesc>> = (0..3)
+            .map(|k| vec![still.clone(), point(k as f32, 1.0)])
+            .collect();
+        let got = light_keys(&keys).unwrap();
+        assert_eq!(got.len(), 1);
+        assert_eq!(got[0].0, 1);
+        let xs: Vec<f32> = got[0].1.iter().map(|(p, _)| p.x).collect();
+        assert_eq!(xs, [0.0, 1.0, 2.0]);
+        let brighter: Vec<Vec<LightDesc>> =
+            (0..3).map(|k| vec![point(k as f32, k as f32)]).collect();
+        let e = light_keys(&brighter).unwrap_err();
+        assert!(
+            e.contains("'bulb'") && e.contains("more than its position"),
+            "{e}"
+        );
+        let sky: Vec<Vec<LightDesc>> = (0..2)
+            .map(|k| {
+                vec![LightDesc::Ambient {
+                    name: "sky".into(),
+                    radiance: Vec3::splat(k as f32),
+                }]
+            })
+            .collect();
+        assert!(light_keys(&sky).unwrap_err().contains("'sky'"));
+    }
+}
