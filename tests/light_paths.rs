@@ -1281,7 +1281,8 @@ fn light_paths_follow_a_moving_emitter_through_the_shutter_steps() {
 /// is at their sample's time (emission, BDPT's light densities and its light samples for camera
 /// vertices) and agree with the motion-blurred path tracer, whose NEE places it at the
 /// receiver's time, in 8 × 8-pixel blocks within noise (0.012 measured, two path-tracer seeds
-/// 0.015 apart), while the still at the shutter's opening is 0.86 away.
+/// 0.015 apart), as does the path tracer choosing lights by the light BVH (bounded over the
+/// keys), while the still at the shutter's opening is 0.86 away.
 #[test]
 fn light_paths_follow_moving_lights_in_one_world() {
     use trayecto::world::WorldOptions;
@@ -1335,11 +1336,36 @@ fn light_paths_follow_moving_lights_in_one_world() {
         "moving lights: path tracer seeds {:.4} apart, the still at the opening {far:.4}",
         block_error(&other, &reference)
     );
-    for (what, settings, bound) in [
-        ("light tracer", with(IntegratorKind::LightTracer, 256), 0.03),
-        ("bdpt", with(IntegratorKind::Bdpt, 256), 0.03),
+    // NEE choosing by the light BVH, which bounds each moving light over its keys.
+    let bvh_world = World::build_posed(
+        scene.clone(),
+        &WorldOptions {
+            time: TimeOptions {
+                shutter: Some([0.0, 1.0]),
+                steps: 4,
+                ..Default::default()
+            },
+            light_sampler: trayecto::light::LightSamplerKind::Bvh,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    for (what, w, settings, bound) in [
+        (
+            "light tracer",
+            &world,
+            with(IntegratorKind::LightTracer, 256),
+            0.03,
+        ),
+        ("bdpt", &world, with(IntegratorKind::Bdpt, 256), 0.03),
+        (
+            "path, light BVH",
+            &bvh_world,
+            with(IntegratorKind::Path, 256),
+            0.03,
+        ),
     ] {
-        let img = render_world(&world, &settings);
+        let img = render_world(w, &settings);
         let e = block_error(&img, &reference);
         println!("{what}, moving lights: block error {e:.4}");
         assert_means_close(&img, &reference, 0.03, &format!("{what}, moving lights"));
