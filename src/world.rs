@@ -127,16 +127,19 @@ impl World {
     /// built in code is checked with `Scene::validate` before it comes here. Debug builds check
     /// again, so a test that builds an invalid scene by hand fails here rather than deeper.
     pub fn build(scene: Scene, options: &WorldOptions) -> Result<World, SceneError> {
-        Self::build_with_motion(scene, options, None)
+        Self::build_with_motion(scene, options, None, Vec::new())
     }
 
     /// [`World::build`] with the keys of the primitives that move during the shutter
     /// ([`motion`]): its mesh and sphere slots follow the order [`compile_geometry`] gives the
-    /// flattened meshes and spheres; the moving primitives go to their own BVH.
+    /// flattened meshes and spheres; the moving primitives go to their own BVH. `light_motion`
+    /// holds the scene's moving lights (index in `Scene::lights`, position and direction per key,
+    /// [`crate::light::set::LightMotion`]).
     fn build_with_motion(
         mut scene: Scene,
         options: &WorldOptions,
         motion: Option<crate::geometry::motion::MotionStore>,
+        light_motion: Vec<(usize, Vec<(Vec3, Vec3)>)>,
     ) -> Result<World, SceneError> {
         debug_assert!(
             scene.validate().is_ok(),
@@ -237,6 +240,20 @@ impl World {
             options.light_sampler,
         );
         lights.set_spectra(&spectra);
+        if let Some(keys) = light_motion.first().map(|(_, k)| k.len()) {
+            // The scene's lights follow the area lights (`first_scene_light`) in the set.
+            let mut m = crate::light::set::LightMotion {
+                keys,
+                slot: vec![u32::MAX; lights.lights.len()],
+                poses: Vec::with_capacity(keys * light_motion.len()),
+            };
+            for (i, poses) in &light_motion {
+                debug_assert_eq!(poses.len(), keys);
+                m.slot[first_scene_light + i] = (m.poses.len() / keys) as u32;
+                m.poses.extend_from_slice(poses);
+            }
+            lights.set_motion(m, &g, &materials);
+        }
         let cutout: Vec<bool> = materials
             .iter()
             .map(|m| m.alpha_mode != AlphaMode::Opaque)

@@ -298,6 +298,49 @@ fn motion_blur_is_continuous_between_keys() {
     blur_is_the_average_of(&scene, [0.0, 1.0], 2, 32, "a card crossing the box");
 }
 
+/// A point light crossing the Cornell box and a spot light moving and turning
+/// (`common::cornell_with_moving_lights`) are blurred in the one world, keyed at three times
+/// (`--shutter-steps 2`): the light set places them at each sample's time, the bulb's path is
+/// linear so its keys are exact, and the blurred render is the average of 32 `--time` renders
+/// across the shutter. A world per step (the lights at two moments) fails it: two sharp sets of
+/// shadows and pools of light instead of a smear. The render does not depend on the thread
+/// count.
+#[test]
+fn motion_blur_of_moving_lights_in_one_world() {
+    let scene = common::cornell_with_moving_lights();
+    let time = TimeOptions {
+        shutter: Some([0.0, 1.0]),
+        steps: 2,
+        ..Default::default()
+    };
+    let world = World::build_posed(
+        scene.clone(),
+        &WorldOptions {
+            time: time.clone(),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(world.motion.is_empty() && world.geometry.motion.is_none());
+    assert!(world.lights.moves() && !world.is_still());
+    assert!(
+        world.warnings.iter().all(|w| !w.contains("motion blur")),
+        "{:?}",
+        world.warnings
+    );
+    let one = render_with(
+        &scene,
+        time.clone(),
+        &RenderSettings {
+            threads: Some(1),
+            ..small(5, 8)
+        },
+    );
+    let two = render_with(&scene, time, &small(5, 8));
+    assert_eq!(one.data, two.data, "1 and 2 threads");
+    blur_is_the_average_of(&scene, [0.0, 1.0], 2, 32, "moving point and spot lights");
+}
+
 #[test]
 fn motion_blur_of_a_skinned_mesh() {
     let scene =

@@ -1275,3 +1275,104 @@ fn light_paths_follow_a_moving_emitter_through_the_shutter_steps() {
         );
     }
 }
+
+/// Moving point and spot lights (`common::cornell_with_moving_lights`) in the one
+/// motion-blurred world (no world per step): the light tracer and BDPT place the light where it
+/// is at their sample's time (emission, BDPT's light densities and its light samples for camera
+/// vertices) and agree with the motion-blurred path tracer, whose NEE places it at the
+/// receiver's time, in 8 × 8-pixel blocks within noise (0.012 measured, two path-tracer seeds
+/// 0.015 apart), as does the path tracer choosing lights by the light BVH (bounded over the
+/// keys), while the still at the shutter's opening is 0.86 away.
+#[test]
+fn light_paths_follow_moving_lights_in_one_world() {
+    use trayecto::world::WorldOptions;
+    use trayecto::world::motion::TimeOptions;
+    let scene = cornell_with_moving_lights();
+    let build = |time| {
+        World::build_posed(
+            scene.clone(),
+            &WorldOptions {
+                time,
+                ..Default::default()
+            },
+        )
+        .unwrap()
+    };
+    let world = build(TimeOptions {
+        shutter: Some([0.0, 1.0]),
+        steps: 4,
+        ..Default::default()
+    });
+    assert_eq!(world.time_steps(), 1, "one world");
+    assert!(world.lights.moves());
+    let (w, h, depth) = (32, 32, 4);
+    let with = |integrator, spp| RenderSettings {
+        integrator,
+        ..lt(w, h, spp, depth)
+    };
+    let reference = render_world(
+        &world,
+        &RenderSettings {
+            seed: 11,
+            ..with(IntegratorKind::Path, 256)
+        },
+    );
+    let other = render_world(
+        &world,
+        &RenderSettings {
+            seed: 6,
+            ..with(IntegratorKind::Path, 256)
+        },
+    );
+    let still = render_world(
+        &build(TimeOptions {
+            time: Some(0.0),
+            ..Default::default()
+        }),
+        &with(IntegratorKind::Path, 256),
+    );
+    let far = block_error(&still, &reference);
+    println!(
+        "moving lights: path tracer seeds {:.4} apart, the still at the opening {far:.4}",
+        block_error(&other, &reference)
+    );
+    // NEE choosing by the light BVH, which bounds each moving light over its keys.
+    let bvh_world = World::build_posed(
+        scene.clone(),
+        &WorldOptions {
+            time: TimeOptions {
+                shutter: Some([0.0, 1.0]),
+                steps: 4,
+                ..Default::default()
+            },
+            light_sampler: trayecto::light::LightSamplerKind::Bvh,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    for (what, w, settings, bound) in [
+        (
+            "light tracer",
+            &world,
+            with(IntegratorKind::LightTracer, 256),
+            0.03,
+        ),
+        ("bdpt", &world, with(IntegratorKind::Bdpt, 256), 0.03),
+        (
+            "path, light BVH",
+            &bvh_world,
+            with(IntegratorKind::Path, 256),
+            0.03,
+        ),
+    ] {
+        let img = render_world(w, &settings);
+        let e = block_error(&img, &reference);
+        println!("{what}, moving lights: block error {e:.4}");
+        assert_means_close(&img, &reference, 0.03, &format!("{what}, moving lights"));
+        assert!(e < bound, "{what}: block error {e} (bound {bound})");
+        assert!(
+            far > 2.0 * bound,
+            "the still is {far} from the blur: the test cannot tell"
+        );
+    }
+}

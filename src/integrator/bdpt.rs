@@ -276,7 +276,11 @@ impl Context<'_> {
         }
         let w = d / d2.sqrt();
         let scene = self.world.light_scene();
-        let (_, pdf_dir) = self.world.lights()[li].pdf_le(&scene, v.ng, w);
+        let (_, pdf_dir) = self
+            .world
+            .lights
+            .posed(li, self.time)
+            .pdf_le(&scene, v.ng, w);
         let mut pdf = pdf_dir / d2;
         if next.on_surface() {
             pdf *= next.ng.dot(w).abs();
@@ -295,7 +299,11 @@ impl Context<'_> {
         }
         let w = (next.p - v.p).normalize_or_zero();
         let scene = self.world.light_scene();
-        let (pos, _) = self.world.lights()[li].pdf_le(&scene, v.ng, w);
+        let (pos, _) = self
+            .world
+            .lights
+            .posed(li, self.time)
+            .pdf_le(&scene, v.ng, w);
         self.world.lights.distribution.discrete_pdf(li) * pos
     }
 
@@ -894,7 +902,7 @@ pub(crate) fn light_subpath(
     max_vertices: usize,
 ) {
     let world = ctx.world;
-    let Some(em) = super::lighttracer::sample_emission(world, s) else {
+    let Some(em) = super::lighttracer::sample_emission(world, s, ctx.time) else {
         return;
     };
     let les = em.le;
@@ -995,7 +1003,7 @@ pub fn trace_light(
         let l = if area_light {
             let li = qs.light_index().unwrap_or(0);
             let scene = world.light_scene();
-            let light_ref = &world.lights()[li];
+            let light_ref = world.lights.posed(li, ctx.time);
             if !(light_ref.pdf_le(&scene, qs.ng, cs.wi).1 > 0.0) {
                 continue;
             }
@@ -1125,7 +1133,8 @@ fn connect(
         if !(pmf > 0.0) {
             return None;
         }
-        let light_ref = &world.lights()[li];
+        // A moving light where it is at the sample's moment.
+        let light_ref = world.lights.posed(li, ctx.time);
         let scene = world.light_scene();
         let lv = if let Some(area) = light_ref.as_area() {
             // A point uniform by area, so that its density is the light subpaths' origin one.

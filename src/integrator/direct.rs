@@ -134,9 +134,10 @@ pub fn shade_local(
         (hit.ng, hit.ns)
     };
     let mut l = Vec3::ZERO;
-    let lights = world.lights();
     // World::build puts area lights first, so the analytic lights are the tail of the list.
-    for light in lights.iter().rev() {
+    for i in (0..world.light_count()).rev() {
+        // A moving light where it is at the hit's moment.
+        let light = world.lights.posed(i, hit.time);
         let (wi, e_perp, shadow) = match light.local_shading(hit, ng, ns) {
             LocalLight::Sampled => break,
             LocalLight::Ambient(radiance) => {
@@ -159,7 +160,11 @@ pub fn shade_local(
             l += f * e_perp * ns.dot(wi);
         }
     }
-    if lights.first().is_some_and(|l| l.as_area().is_some()) {
+    if world
+        .lights()
+        .first()
+        .is_some_and(|l| l.as_area().is_some())
+    {
         let mut sum = Vec3::ZERO;
         for _ in 0..AREA_SAMPLES {
             let u_light = s.next_1d();

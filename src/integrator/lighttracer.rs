@@ -58,9 +58,10 @@ pub struct Emission {
 }
 
 /// Chooses a light by power (a light path has no receiver to choose for) and samples a ray
-/// leaving it: one 1D and two 2D numbers, always drawn.
+/// leaving it, a moving light where it is at shutter time `time` (0 for a still): one 1D and
+/// two 2D numbers, always drawn.
 #[inline]
-pub fn sample_emission(world: &World, s: &mut impl UniformSource) -> Option<Emission> {
+pub fn sample_emission(world: &World, s: &mut impl UniformSource, time: f32) -> Option<Emission> {
     let u_light = s.next_1d();
     let u1 = s.next_2d();
     let u2 = s.next_2d();
@@ -71,7 +72,7 @@ pub fn sample_emission(world: &World, s: &mut impl UniformSource) -> Option<Emis
     if !(pmf > 0.0) {
         return None;
     }
-    let light = &world.lights()[index];
+    let light = world.lights.posed(index, time);
     let scene = world.light_scene();
     let le = light.sample_le(&scene, u1, u2)?;
     if !(le.pdf_pos > 0.0 && le.pdf_dir > 0.0) || le.le == Vec3::ZERO {
@@ -107,11 +108,11 @@ pub fn trace(
 ) {
     let spectral = set.for_sample(s);
     let set = spectral.as_ref().unwrap_or(set);
-    let Some(em) = sample_emission(world, s) else {
+    let Some(em) = sample_emission(world, s, time) else {
         return;
     };
     let scene = world.light_scene();
-    let light = &world.lights()[em.index];
+    let light = world.lights.posed(em.index, time);
     let light_index = em.index as u32;
     // The light seen directly (s = 1): only an area light has a point the lens can see.
     let u_cam = s.next_2d();

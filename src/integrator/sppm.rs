@@ -235,7 +235,7 @@ pub fn trace_photon(
     if set.max_depth < 2 {
         return;
     }
-    let Some(em) = sample_emission(world, s) else {
+    let Some(em) = sample_emission(world, s, 0.0) else {
         return;
     };
     // The light's emission at the iteration's wavelengths in spectral mode.

@@ -137,7 +137,7 @@ impl<'a> Vcm<'a> {
         film: &mut impl Splat,
     ) {
         let world = self.world;
-        let Some(em) = sample_emission(world, s) else {
+        let Some(em) = sample_emission(world, s, 0.0) else {
             return;
         };
         let light = &world.lights()[em.index];

@@ -85,6 +85,72 @@ pub struct LightSet {
     /// 1 + its index there, 0 for an RGB light; empty when every light is RGB.
     spectra: Vec<Illuminant>,
     spectrum_of: Vec<u16>,
+    /// The moving point, spot and directional lights of a motion-blurred world
+    /// ([`LightSet::set_motion`]); `None` for a still.
+    motion: Option<Box<LightMotion>>,
+}
+
+/// Point, spot and directional lights that move during the shutter: each one's position and
+/// direction at `keys` evenly spaced times over it (key k at u = k / (keys − 1)), interpolated
+/// linearly between the two keys around a sample's time, as a moving mesh's vertices are
+/// (`geometry::motion`); a direction is renormalised (it follows a rotation's arc by chords).
+/// A light is placed at the time of the ray that samples it ([`LightSet::posed`]); everything
+/// else about it (intensity, cone, power) does not move, so choosing by power is unchanged and
+/// the light BVH bounds a moving light by the union of its keys' bounds.
+#[derive(Clone, Debug, Default)]
+pub struct LightMotion {
+    /// Keys over the shutter (at least 2).
+    pub keys: usize,
+    /// Per light of the set: its index into `poses` / `keys`, or `u32::MAX` if it does not move.
+    pub slot: Vec<u32>,
+    /// Moving light m's key k at `m * keys + k`: (position, unit direction); the direction of a
+    /// point light and the position of a directional one are not read.
+    pub poses: Vec<(Vec3, Vec3)>,
+}
+
+impl LightMotion {
+    /// Light `index`'s position and direction at shutter time `u`, if it moves.
+    #[inline]
+    fn at(&self, index: usize, u: f32) -> Option<(Vec3, Vec3)> {
+        let s = *self.slot.get(index)?;
+        if s == u32::MAX {
+            return None;
+        }
+        // The key segment holding u, as `MotionStore::segment`.
+        let n = self.keys - 1;
+        let x = u.clamp(0.0, 1.0) * n as f32;
+        let k = (x as usize).min(n - 1);
+        let f = x - k as f32;
+        let a = self.poses[s as usize * self.keys + k];
+        if f == 0.0 {
+            return Some(a);
+        }
+        let b = self.poses[s as usize * self.keys + k + 1];
+        let d = (a.1 * (1.0 - f) + b.1 * f).normalize_or(a.1);
+        Some((a.0 * (1.0 - f) + b.0 * f, d))
+    }
+
+    /// `light` placed at key `k`'s pose (the light BVH's bounds take every key's).
+    fn key(&self, light: &Light, index: usize, k: usize) -> Option<Light> {
+        let s = *self.slot.get(index)?;
+        (s != u32::MAX).then(|| place(light, self.poses[s as usize * self.keys + k]))
+    }
+}
+
+/// `light` at position `p` facing `d` (points and spots at `p`, spots and directional lights
+/// along `d`); other lights unchanged.
+#[inline]
+fn place(light: &Light, (p, d): (Vec3, Vec3)) -> Light {
+    match light {
+        Light::Point(l) => Light::Point(super::PointLight { position: p, ..*l }),
+        Light::Spot(l) => Light::Spot(super::SpotLight {
+            position: p,
+            direction: d,
+            ..*l
+        }),
+        Light::Directional(l) => Light::Directional(super::DirectionalLight { direction: d, ..*l }),
+        other => other.clone(),
+    }
 }
 
 /// Light selection with the light BVH (pbrt-v4's `BVHLightSampler`): a light at infinity with
@@ -158,8 +224,11 @@ impl LightSet {
             LightSamplerKind::Bvh8 | LightSamplerKind::Auto => TreeWidth::Eight,
             LightSamplerKind::Bvh | LightSamplerKind::Power => TreeWidth::Four,
         };
-        let tree = use_tree
-            .then(|| TreeSelection::over(&lights, &powers, &infinite, geometry, materials, width));
+        let tree = use_tree.then(|| {
+            TreeSelection::over(
+                &lights, &powers, &infinite, geometry, materials, width, None,
+            )
+        });
         LightSet {
             distribution: Distribution1D::new(&powers),
             tree,
@@ -170,6 +239,54 @@ impl LightSet {
             powers,
             spectra: Vec::new(),
             spectrum_of: Vec::new(),
+            motion: None,
+        }
+    }
+
+    /// Makes the lights `motion.slot` marks move over the shutter ([`LightMotion`]): they are
+    /// placed at each sample's time, and the light BVH (if any) is rebuilt over the union of
+    /// each moving light's bounds at its keys.
+    pub fn set_motion(
+        &mut self,
+        motion: LightMotion,
+        geometry: &GeometryStore,
+        materials: &[Material],
+    ) {
+        debug_assert!(motion.keys >= 2 && motion.slot.len() == self.lights.len());
+        self.motion = Some(Box::new(motion));
+        self.rebuild_tree(geometry, materials);
+    }
+
+    /// True when a light moves during the shutter ([`LightSet::set_motion`]).
+    #[inline]
+    pub fn moves(&self) -> bool {
+        self.motion.is_some()
+    }
+
+    /// Light `index` where it is at shutter time `time` (itself unless it moves): every light
+    /// sample, emitted ray and density of a motion-blurred sample takes its light from here, at
+    /// the time its rays carry.
+    #[inline]
+    pub fn posed(&self, index: usize, time: f32) -> std::borrow::Cow<'_, Light> {
+        let light = &self.lights[index];
+        match self.motion.as_ref().and_then(|m| m.at(index, time)) {
+            Some(pose) => std::borrow::Cow::Owned(place(light, pose)),
+            None => std::borrow::Cow::Borrowed(light),
+        }
+    }
+
+    fn rebuild_tree(&mut self, geometry: &GeometryStore, materials: &[Material]) {
+        if let Some(t) = &self.tree {
+            let width = t.bvh.width();
+            self.tree = Some(TreeSelection::over(
+                &self.lights,
+                &self.powers,
+                &self.infinite,
+                geometry,
+                materials,
+                width,
+                self.motion.as_deref(),
+            ));
         }
     }
 
@@ -248,17 +365,7 @@ impl LightSet {
         }
         self.lights[i] = light;
         self.distribution = Distribution1D::new(&self.powers);
-        if let Some(t) = &self.tree {
-            let width = t.bvh.width();
-            self.tree = Some(TreeSelection::over(
-                &self.lights,
-                &self.powers,
-                &self.infinite,
-                geometry,
-                materials,
-                width,
-            ));
-        }
+        self.rebuild_tree(geometry, materials);
     }
 
     /// What the lights need from the scene to sample and evaluate themselves.
@@ -398,7 +505,10 @@ impl LightSet {
         env: EnvPdf,
         uniform_n: Vec3,
     ) -> Option<LightSample> {
-        let ls = self.lights[index].sample_li(scene, hit, n_offset, u, env, uniform_n)?;
+        // A moving light where it is at the receiver's moment.
+        let ls = self
+            .posed(index, hit.time)
+            .sample_li(scene, hit, n_offset, u, env, uniform_n)?;
         Some(LightSample {
             pmf,
             light: index as u32,
@@ -474,7 +584,9 @@ impl LightSet {
 }
 
 impl TreeSelection {
-    /// The light BVH over the bounded `lights` weighted by `powers`, and the lights at infinity.
+    /// The light BVH over the bounded `lights` weighted by `powers`, and the lights at infinity;
+    /// a light that moves (`motion`) bounded over all its keys (the union of their boxes and
+    /// cones, its power counted once).
     fn over(
         lights: &[Light],
         powers: &[f32],
@@ -482,12 +594,31 @@ impl TreeSelection {
         geometry: &GeometryStore,
         materials: &[Material],
         width: TreeWidth,
+        motion: Option<&LightMotion>,
     ) -> TreeSelection {
         let lb: Vec<(u32, LightBounds)> = lights
             .iter()
             .enumerate()
             .zip(powers)
-            .filter_map(|((i, l), &phi)| l.bounds(geometry, materials, phi).map(|b| (i as u32, b)))
+            .filter_map(|((i, l), &phi)| {
+                let b = l.bounds(geometry, materials, phi)?;
+                let Some(m) = motion.filter(|m| m.slot.get(i).is_some_and(|&s| s != u32::MAX))
+                else {
+                    return Some((i as u32, b));
+                };
+                let mut all: Option<LightBounds> = None;
+                for k in 0..m.keys {
+                    let kb = m.key(l, i, k)?.bounds(geometry, materials, phi)?;
+                    all = Some(match all {
+                        None => kb,
+                        Some(a) => LightBounds {
+                            phi,
+                            ..a.union(&kb)
+                        },
+                    });
+                }
+                all.map(|a| (i as u32, a))
+            })
             .collect();
         TreeSelection::new(
             LightBvh::with_width(&lb, lights.len(), width),

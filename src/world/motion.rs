@@ -18,8 +18,11 @@
 //!   carries the sample's time ([`crate::geometry::Ray::time`]), every ray spawned along its
 //!   path inherits it, and a moving primitive is intersected where it is at that time, in a BVH
 //!   of its own bounded over the shutter (`accel::Accel`).
-//! - motion that is not interpolated so (a moving light or emitter, medium boundary, box, quad,
-//!   curve or instance) falls back to posing and compiling the scene at the middle of each of
+//! - moving point, spot and directional lights too: the world's light set keeps their
+//!   positions and directions at the same keys (`light::set::LightMotion`) and places each at
+//!   the time of the ray that samples it or of the light path it starts.
+//! - motion that is not interpolated so (a moving emitter, a light whose power or cone changes,
+//!   a moving medium boundary, box, quad, curve or instance) falls back to posing and compiling the scene at the middle of each of
 //!   [`TimeOptions::steps`] equal parts of the shutter, each world with its own exact BVH, a
 //!   sample tracing the world of the part holding its time: a stratified estimate of the
 //!   shutter's average that converges to it as the steps grow. A scene whose only motion is
@@ -193,10 +196,15 @@ impl World {
         let objects_move = anim.as_ref().is_some_and(|a| a.moves_beyond_cameras());
         if close > open && objects_move {
             match motion_keys(&mut scene, options, open, close, opts.steps() as usize + 1) {
-                Ok((mid, store)) => {
+                Ok((mid, store, light_motion)) => {
                     // Keys only for what moves within the shutter.
                     let moving = !(store.meshes.is_empty() && store.spheres.is_empty());
-                    let mut w = World::build_with_motion(mid, options, moving.then_some(store))?;
+                    let mut w = World::build_with_motion(
+                        mid,
+                        options,
+                        moving.then_some(store),
+                        light_motion,
+                    )?;
                     w.camera_motion = camera_keys.map(|k| CameraMotion::new(&k));
                     if w.is_still() {
                         w.warnings.push(
@@ -266,7 +274,10 @@ impl World {
 
     /// True for a still: no moving primitives, step worlds or moving camera.
     pub fn is_still(&self) -> bool {
-        self.motion.is_empty() && self.camera_motion.is_none() && self.geometry.motion.is_none()
+        self.motion.is_empty()
+            && self.camera_motion.is_none()
+            && self.geometry.motion.is_none()
+            && !self.lights.moves()
     }
 
     /// Worlds a camera sample chooses from by its time: 1 for a still.
@@ -335,15 +346,20 @@ impl CameraMotion {
 /// and spheres kept per key. Returns the scene posed at the shutter's middle (the world's pose
 /// for everything that does not read a time) and the keys; `Err` names what continuous motion
 /// does not cover (the caller falls back to a world per step): a moving emitter (area lights
-/// are sampled on the still pose), a moving light, a moving medium boundary, a moving instance
-/// or a moving shape other than a mesh or sphere, or a transform that mirrors part of the time.
+/// are sampled on the still pose), a light that changes more than its position and direction
+/// ([`light_keys`]), a moving medium boundary, a moving instance or a moving shape other than a
+/// mesh or sphere, or a transform that mirrors part of the time. Also returns the moving
+/// lights' keys.
+/// The scene's moving lights: index in `Scene::lights`, (position, direction) per key.
+type LightKeys = Vec<(usize, Vec<(Vec3, Vec3)>)>;
+
 fn motion_keys(
     scene: &mut Scene,
     options: &WorldOptions,
     open: f64,
     close: f64,
     keys: usize,
-) -> Result<(Scene, MotionStore), String> {
+) -> Result<(Scene, MotionStore, LightKeys), String> {
     use crate::scene::Shape;
     // The textures do not move: leave them out of the posed copies.
     let textures = std::mem::take(&mut scene.textures);
@@ -351,8 +367,8 @@ fn motion_keys(
     // Per key: every object's transform, and the meshes a pose deformed (skins, morphs).
     let mut transforms: Vec<Vec<Mat4>> = Vec::with_capacity(keys);
     let mut deformed: Vec<Vec<Option<crate::scene::Mesh>>> = Vec::with_capacity(keys);
-    let mut lights_move = false;
-    let mut first_lights = String::new();
+    // Per key: the scene's lights, posed.
+    let mut key_lights: Vec<Vec<crate::scene::LightDesc>> = Vec::with_capacity(keys);
     for k in 0..keys {
         let mut s = scene.clone();
         s.pose(Some(time(k)));
@@ -369,20 +385,13 @@ fn motion_keys(
                 })
                 .collect(),
         );
-        let lights = format!("{:?}", s.lights);
-        if k == 0 {
-            first_lights = lights;
-        } else if lights != first_lights {
-            lights_move = true;
-        }
+        key_lights.push(s.lights);
     }
     let mut mid = scene.clone();
     scene.textures = textures;
     mid.textures = scene.textures.clone();
     mid.pose(Some(0.5 * (open + close)));
-    if lights_move {
-        return Err("a light moves".into());
-    }
+    let light_motion = light_keys(&key_lights)?;
     let instanced = super::instanced_objects(&mid, options.instancing);
     let mut store = MotionStore {
         keys,
@@ -499,5 +508,103 @@ fn motion_keys(
             _ => unreachable!("only meshes and spheres get here"),
         }
     }
-    Ok((mid, store))
+    Ok((mid, store, light_motion))
+}
+
+/// The scene's lights that move over the keys `key_lights` (the scene's lights posed at each
+/// key): per moving light its index and its (position, unit direction) at every key. Points,
+/// spots and directional lights may move and turn; `Err` names a light that changes in any
+/// other way (its power, colour or cone), or a light of another kind that moves.
+fn light_keys(key_lights: &[Vec<crate::scene::LightDesc>]) -> Result<LightKeys, String> {
+    use crate::scene::LightDesc;
+    // A light's pose, and the light with its pose taken out (what must not change).
+    fn pose(l: &LightDesc) -> Option<((Vec3, Vec3), LightDesc)> {
+        let mut still = l.clone();
+        let pose = match &mut still {
+            LightDesc::Point { position, .. } => (std::mem::take(position), Vec3::ZERO),
+            LightDesc::Spot {
+                position,
+                direction,
+                ..
+            } => (std::mem::take(position), std::mem::take(direction)),
+            LightDesc::Directional { direction, .. } => (Vec3::ZERO, std::mem::take(direction)),
+            _ => return None,
+        };
+        Some(((pose.0, pose.1.normalize_or_zero()), still))
+    }
+    let Some(first) = key_lights.first() else {
+        return Ok(Vec::new());
+    };
+    let mut out = Vec::new();
+    for (i, l0) in first.iter().enumerate() {
+        let same = |k: &Vec<LightDesc>| format!("{:?}", k[i]) == format!("{l0:?}");
+        if key_lights.iter().all(same) {
+            continue;
+        }
+        let Some((_, still0)) = pose(l0) else {
+            return Err(format!("the light '{}' moves", l0.name()));
+        };
+        let mut poses = Vec::with_capacity(key_lights.len());
+        for k in key_lights {
+            match pose(&k[i]) {
+                Some((p, still)) if format!("{still:?}") == format!("{still0:?}") => poses.push(p),
+                _ => {
+                    return Err(format!(
+                        "the light '{}' changes more than its position and direction",
+                        l0.name()
+                    ));
+                }
+            }
+        }
+        out.push((i, poses));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::LightDesc;
+
+    fn point(x: f32, intensity: f32) -> LightDesc {
+        LightDesc::Point {
+            name: "bulb".into(),
+            position: Vec3::new(x, 1.0, 0.0),
+            intensity: Vec3::splat(intensity),
+        }
+    }
+
+    /// A light that only moves is keyed (its position at every key); one whose power changes,
+    /// or a moving light of a kind that has no pose, is named for the fallback.
+    #[test]
+    fn light_keys_take_poses_and_name_other_changes() {
+        let still = LightDesc::Ambient {
+            name: "sky".into(),
+            radiance: Vec3::ONE,
+        };
+        let keys: Vec<Vec<LightDesc>> = (0..3)
+            .map(|k| vec![still.clone(), point(k as f32, 1.0)])
+            .collect();
+        let got = light_keys(&keys).unwrap();
+        assert_eq!(got.len(), 1);
+        assert_eq!(got[0].0, 1);
+        let xs: Vec<f32> = got[0].1.iter().map(|(p, _)| p.x).collect();
+        assert_eq!(xs, [0.0, 1.0, 2.0]);
+        let brighter: Vec<Vec<LightDesc>> =
+            (0..3).map(|k| vec![point(k as f32, k as f32)]).collect();
+        let e = light_keys(&brighter).unwrap_err();
+        assert!(
+            e.contains("'bulb'") && e.contains("more than its position"),
+            "{e}"
+        );
+        let sky: Vec<Vec<LightDesc>> = (0..2)
+            .map(|k| {
+                vec![LightDesc::Ambient {
+                    name: "sky".into(),
+                    radiance: Vec3::splat(k as f32),
+                }]
+            })
+            .collect();
+        assert!(light_keys(&sky).unwrap_err().contains("'sky'"));
+    }
 }

@@ -200,3 +200,84 @@ pub fn block_error(img: &Image, reference: &Image) -> f64 {
     let m = reference.mean();
     (s / a.len() as f64).sqrt() / ((m.x + m.y + m.z) / 3.0) as f64
 }
+
+/// The Cornell box lit by a moving point light and a moving, turning spot light instead of its
+/// ceiling emitter, animated as a glTF file's lights are (a rig of light nodes, linear channels
+/// over [0, 1] s): the bulb crosses the box below the ceiling (x from −0.6 to 0.6) and the spot,
+/// moving toward the back, turns from straight down to 30° toward the back wall. Motion blur
+/// over [0, 1] keys both in the one world (`light::set::LightMotion`).
+pub fn cornell_with_moving_lights() -> Scene {
+    use glam::Quat;
+    use std::sync::Arc;
+    use trayecto::scene::LightDesc;
+    use trayecto::scene::animation::{
+        Animation, Channel, ChannelPath, Interpolation, Placed, Rig, RigNode,
+    };
+    let mut s = trayecto::scene::builtin::cornell();
+    let light = s.objects.iter().find(|o| o.name == "light").unwrap();
+    s.materials[light.material].emissive = Vec3::ZERO;
+    let first = s.lights.len();
+    s.lights.push(LightDesc::Point {
+        name: "bulb".into(),
+        position: Vec3::ZERO,
+        intensity: Vec3::new(0.9, 0.8, 0.7),
+    });
+    s.lights.push(LightDesc::Spot {
+        name: "spot".into(),
+        position: Vec3::ZERO,
+        direction: Vec3::NEG_Z,
+        intensity: Vec3::new(2.0, 2.5, 3.0),
+        inner_angle: 15f32.to_radians(),
+        outer_angle: 25f32.to_radians(),
+        falloff: trayecto::scene::SpotFalloff::default(),
+    });
+    let node = |translation: Vec3| RigNode {
+        parent: None,
+        matrix: None,
+        translation,
+        rotation: Quat::IDENTITY,
+        scale: Vec3::ONE,
+        weights: Vec::new(),
+    };
+    // A rotation of θ about x as glTF's (x, y, z, w): −90° turns the light's −z straight down,
+    // −60° tilts it 30° toward −z.
+    let about_x = |deg: f64| {
+        let h = deg.to_radians() / 2.0;
+        [h.sin(), 0.0, 0.0, h.cos()]
+    };
+    let (r0, r1) = (about_x(-90.0), about_x(-60.0));
+    s.animation = Some(Arc::new(Animation {
+        rig: Some(Rig {
+            nodes: vec![node(Vec3::ZERO), node(Vec3::ZERO)],
+            order: vec![0, 1],
+            channels: vec![
+                Channel {
+                    node: 0,
+                    path: ChannelPath::Translation,
+                    interpolation: Interpolation::Linear,
+                    times: vec![0.0, 1.0],
+                    values: vec![-0.6, 0.8, 0.2, 0.6, 0.8, 0.2],
+                },
+                Channel {
+                    node: 1,
+                    path: ChannelPath::Translation,
+                    interpolation: Interpolation::Linear,
+                    times: vec![0.0, 1.0],
+                    values: vec![0.3, 0.9, 0.4, 0.3, 0.9, -0.2],
+                },
+                Channel {
+                    node: 1,
+                    path: ChannelPath::Rotation,
+                    interpolation: Interpolation::Linear,
+                    times: vec![0.0, 1.0],
+                    values: [r0, r1].concat(),
+                },
+            ],
+            skins: Vec::new(),
+            placed: vec![(0, Placed::Light(first)), (1, Placed::Light(first + 1))],
+            deformed: Vec::new(),
+        }),
+        ..Default::default()
+    }));
+    s
+}
