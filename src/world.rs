@@ -285,7 +285,8 @@ impl World {
     /// the world [`World::build`] would make of the changed scene without building it again.
     /// Only the light selection (over lights, not triangles) is redone. Returns `false`, the
     /// world unchanged, when the light cannot be changed this way: an environment map (its
-    /// sampling densities come from the texels and the scale) or a change of kind.
+    /// sampling densities come from the texels and the scale), a change of kind, or a light
+    /// that moves during the shutter (its keys were posed from the animation, not from `desc`).
     pub fn set_scene_light(&mut self, index: usize, desc: &LightDesc) -> bool {
         if matches!(desc, LightDesc::Environment { .. }) {
             return false;
@@ -300,6 +301,9 @@ impl World {
         let Ok(light) = scene_light(desc, "") else {
             return false;
         };
+        if self.lights.light_moves(area + index) {
+            return false;
+        }
         let same_kind = self
             .lights
             .lights

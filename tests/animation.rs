@@ -313,7 +313,7 @@ fn motion_blur_of_moving_lights_in_one_world() {
         steps: 2,
         ..Default::default()
     };
-    let world = World::build_posed(
+    let mut world = World::build_posed(
         scene.clone(),
         &WorldOptions {
             time: time.clone(),
@@ -328,6 +328,14 @@ fn motion_blur_of_moving_lights_in_one_world() {
         "{:?}",
         world.warnings
     );
+    // A moving light is not changed in place (a front end then rebuilds the world): its keys
+    // were posed from the animation, and the new description's position would be ignored.
+    let bulb = scene.lights.len() - 2;
+    let mut brighter = scene.lights[bulb].clone();
+    if let trayecto::scene::LightDesc::Point { intensity, .. } = &mut brighter {
+        *intensity *= 2.0;
+    }
+    assert!(!world.set_scene_light(bulb, &brighter));
     let one = render_with(
         &scene,
         time.clone(),

@@ -263,6 +263,14 @@ impl LightSet {
         self.motion.is_some()
     }
 
+    /// True when light `index` moves during the shutter (it has keys of its own).
+    #[inline]
+    pub fn light_moves(&self, index: usize) -> bool {
+        self.motion
+            .as_ref()
+            .is_some_and(|m| m.slot.get(index).is_some_and(|&s| s != u32::MAX))
+    }
+
     /// Light `index` where it is at shutter time `time` (itself unless it moves): every light
     /// sample, emitted ray and density of a motion-blurred sample takes its light from here, at
     /// the time its rays carry.
