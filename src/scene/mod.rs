@@ -53,6 +53,12 @@ pub struct MediumDesc {
     /// per wavelength (× `scale`); `sigma_a`/`sigma_s` are their RGB projections, what RGB mode
     /// uses. `None`: upsampled from the RGB.
     pub sigma_spectra: [Option<crate::spectrum::SpectrumTable>; 2],
+    /// The emission `Le` as the spectrum the scene gave (a pbrt `blackbody`, a named or sampled
+    /// spectrum), of `le` and of a grid's `GridEmission::Radiance`, which carry its RGB
+    /// projection (luminance `Lescale`) for RGB mode; spectral rendering takes the spectrum
+    /// per wavelength, scaled by that luminance ([`crate::spectrum::Illuminant::at`]). `None`:
+    /// upsampled from the RGB.
+    pub le_spectrum: Option<crate::spectrum::Illuminant>,
 }
 
 /// How the coefficients vary in space.
@@ -473,6 +479,7 @@ impl MediumDesc {
             le: Vec3::ZERO,
             kind: MediumKind::Homogeneous,
             sigma_spectra: [None, None],
+            le_spectrum: None,
         }
     }
 
