@@ -1377,7 +1377,11 @@ impl Loader {
         if v.iter().any(|s| s.1 != v[0].1) {
             self.warn_once(
                 &format!("disp sampled {key}"),
-                format!("{at}: {what}: spectrally varying \"{key}\" is rendered with its index at 587.6 nm ({e}) in RGB"),
+                if key == "eta" {
+                    format!("{at}: {what}: spectrally varying \"{key}\" is rendered with its index at 587.6 nm ({e}) in RGB; --spectral disperses it")
+                } else {
+                    format!("{at}: {what}: spectrally varying \"{key}\" is rendered with its index at 587.6 nm ({e}), without dispersion")
+                },
             );
         }
         e
