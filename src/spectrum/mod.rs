@@ -737,6 +737,49 @@ mod tests {
         assert!(named_conductor_rgb("metal-CuZn").is_none());
     }
 
+    /// Every id of the BSDF spectra names the spectrum it stands for: the metals' tables, the
+    /// glasses' Sellmeier laws, then the scene's tables; an id past them is 0, not a panic.
+    #[test]
+    fn bsdf_spectra_ids_name_their_spectra() {
+        let table = SpectrumTable::sampled(&[(400.0, 1.0), (700.0, 2.0)]).unwrap();
+        let s = BsdfSpectra {
+            tables: vec![table].into(),
+        };
+        for l in [380.0f32, 455.5, 550.0, 701.0, 829.0] {
+            for m in METALS {
+                for part in ["eta", "k"] {
+                    let name = format!("{m}-{part}");
+                    let id = tabulated_id(&name).unwrap();
+                    assert!(id < GLASS_BASE);
+                    assert_eq!(s.value(id, l), named_spectrum(&name, l).unwrap(), "{name}");
+                }
+            }
+            for (g, _) in GLASSES {
+                let id = glass_id(g).unwrap();
+                assert!((GLASS_BASE..TABLE_BASE).contains(&id));
+                assert_eq!(s.value(id, l), glass_eta(g, l).unwrap(), "{g}");
+            }
+            let want = if (400.0..=700.0).contains(&l) {
+                1.0 + (l - 400.0) / 300.0
+            } else {
+                0.0
+            };
+            assert!((s.value(TABLE_BASE, l) - want).abs() < 1e-3, "{l}");
+            assert_eq!(s.value(TABLE_BASE + 1, l), 0.0);
+        }
+        // One named and one RGB part: the RGB part is upsampled, the named one exact.
+        let c = ConductorSpectra {
+            eta: tabulated_id("metal-Au-eta"),
+            k: None,
+            outside_ior: 1.0,
+        };
+        let lambda = Vec3::new(450.0, 550.0, 650.0);
+        let k = Vec3::new(2.0, 3.0, 4.0);
+        let (e, kk) = c.eta_k(lambda, &s, Vec3::ONE, k);
+        assert_eq!(e, s.eval3(tabulated_id("metal-Au-eta").unwrap(), lambda));
+        assert_eq!(kk, rgb2spec::unbounded(k, lambda));
+    }
+
     #[test]
     fn conductor_conversion_error_is_bounded() {
         for m in METALS {
