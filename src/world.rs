@@ -88,6 +88,9 @@ pub struct World {
     pub accel_build_time: std::time::Duration,
     /// Participating media and the medium interfaces of surfaces.
     pub media: crate::medium::world::WorldMedia,
+    /// The spectra BSDFs name by id for spectral rendering (sampled η and k; the named metals and
+    /// glasses are built in): [`crate::material::Bsdf::to_spectral`].
+    pub bsdf_spectra: crate::spectrum::BsdfSpectra,
     /// Per material: true if its alpha mode is MASK or BLEND, so a hit on it may be a hole.
     cutout: Vec<bool>,
     /// True if any material is a cutout; opaque scenes skip the alpha test entirely.
@@ -267,6 +270,9 @@ impl World {
             textures,
             lights,
             media,
+            bsdf_spectra: crate::spectrum::BsdfSpectra {
+                tables: scene.bsdf_spectra.clone().into(),
+            },
             camera,
             bounds,
             warnings,

@@ -249,6 +249,53 @@ fn sampled_absorption_spectrum_is_exact_in_spectral_mode() {
     assert!((spectral - Vec3::ONE).abs().max_element() < 0.03, "{msg}");
 }
 
+/// Media whose emission `Le` is a spectrum (scenes/pbrt/media/emission-spectra.pbrt: four purely
+/// absorbing boxes, a 2000 K blackbody `Le` over a green σa band, a two-band sampled `Le` over a
+/// blue-passing σa, `stdillum-A` over an RGB σa, a `uniformgrid` with the sampled `Le` over a
+/// red σa edge): spectral mode takes Le(λ) at the path's wavelengths, so Le(λ)·(1 − e^{−σa(λ)d})
+/// is integrated as pbrt-v4 does; RGB multiplies per channel. Per box and channel, the error
+/// against pbrt-v4 relative to the box's brightest channel. Measured at 16 spp: spectral
+/// 1.5 %, RGB 90 % (the blackbody box's red); upsampling the `Le` projections in spectral
+/// mode (before `le_spectrum`) 4.5 % at 64 spp.
+#[test]
+fn emission_spectra_are_exact_in_spectral_mode() {
+    let path = repo_dir().join("scenes/pbrt/media/emission-spectra.pbrt");
+    let scene = trayecto::scene::load(path.to_str().unwrap()).expect("scene loads");
+    let reference = read_exr(&repo_dir().join("tests/references/pbrt/media/emission-spectra.exr"))
+        .expect("reference EXR");
+    let boxes = |img: &Image| -> Vec<Vec3> {
+        let w = img.width as usize / 4;
+        (0..4)
+            .map(|k| {
+                let mut sum = Vec3::ZERO;
+                for y in 0..img.height as usize {
+                    for x in k * w..(k + 1) * w {
+                        sum += img.data[y * img.width as usize + x];
+                    }
+                }
+                sum / (w * img.height as usize) as f32
+            })
+            .collect()
+    };
+    let r = boxes(&reference);
+    let worst = |img: &Image| {
+        let mut e = 0.0f32;
+        for (a, b) in boxes(img).iter().zip(&r) {
+            e = e.max((*a - *b).abs().max_element() / b.max_element());
+        }
+        e
+    };
+    let mut s = settings(reference.width, reference.height, 16);
+    s.path.max_depth = 5;
+    let rgb = worst(&render_scene(&scene, &s));
+    s.path.spectral = true;
+    let spectral = worst(&render_scene(&scene, &s));
+    let msg = format!("emission spectra against pbrt-v4: RGB {rgb:.4}, spectral {spectral:.4}");
+    println!("{msg}");
+    assert!(rgb > 0.3, "{msg}");
+    assert!(spectral < 0.025, "{msg}");
+}
+
 #[test]
 fn heterogeneous_cloud_matches_pbrt_v4() {
     check_against_pbrt("cloud", 0.02, 0.06);
@@ -529,6 +576,7 @@ fn volumetric_white_furnace_returns_the_emission() {
                 emission: None,
             },
             sigma_spectra: [None, None],
+            le_spectrum: None,
         },
     );
 }

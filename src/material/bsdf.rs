@@ -39,12 +39,14 @@ impl Bsdf {
     /// lane (docs/DESIGN.md "Spectral rendering"): reflectance-like colours (albedos, tints,
     /// F0s, sheen) become their bounded Jakob–Hanika spectra, unbounded ones (a conductor's
     /// η and k, hair's σₐ, the layered medium's albedo) pbrt-v4's unbounded spectra, or a
-    /// conductor's named η/k spectra their exact values. A dispersive dielectric
-    /// ([`Bsdf::disperses`]) takes the IOR of the hero wavelength `lambda.x` alone — a named
-    /// glass's Sellmeier η(λ), or the Cauchy law n(λ) = A + B/λ² through KHR_materials_dispersion's
-    /// per-channel IORs — and the path has dropped the other two wavelengths before it gets
-    /// here. Thin-film iridescence keeps its RGB evaluation.
-    pub fn to_spectral(&self, lambda: Vec3) -> Bsdf {
+    /// conductor's η/k spectra (named or sampled, ids into `spectra`, the world's
+    /// [`crate::spectrum::BsdfSpectra`]) their exact values. A dispersive dielectric
+    /// ([`Bsdf::disperses`]) takes the IOR of the hero wavelength `lambda.x` alone — its η
+    /// spectrum (a named glass's Sellmeier law or a sampled η(λ)), or the Cauchy law
+    /// n(λ) = A + B/λ² through KHR_materials_dispersion's per-channel IORs — and the path has
+    /// dropped the other two wavelengths before it gets here. Thin-film iridescence keeps its
+    /// RGB evaluation.
+    pub fn to_spectral(&self, lambda: Vec3, spectra: &crate::spectrum::BsdfSpectra) -> Bsdf {
         use crate::spectrum::rgb2spec::{reflectance as refl, unbounded};
         let mut b = *self;
         match &mut b {
@@ -60,8 +62,11 @@ impl Bsdf {
             Bsdf::Mirror(m) => m.color = refl(m.color, lambda),
             Bsdf::Dielectric(d) => {
                 d.tint = refl(d.tint, lambda);
-                if let Some(g) = d.glass {
-                    d.eta = crate::spectrum::glass_eta_by_id(g, lambda.x);
+                if let Some(id) = d.eta_spectrum {
+                    // pbrt-v4 `DielectricMaterial::GetBxDF`: a sampled η is 0 beyond its
+                    // wavelengths, where the interface counts as index-matched (η = 1).
+                    let e = spectra.value(id, lambda.x);
+                    d.eta = if e == 0.0 { 1.0 } else { e };
                     d.dispersion = None;
                 } else if let Some(e) = d.dispersion {
                     d.eta = cauchy_at(e, lambda.x);
@@ -69,7 +74,7 @@ impl Bsdf {
                 }
             }
             Bsdf::ThinDielectric(d) => d.tint = refl(d.tint, lambda),
-            Bsdf::Conductor(c) => conductor_at(c, lambda),
+            Bsdf::Conductor(c) => conductor_at(c, lambda, spectra),
             Bsdf::DiffuseTransmission(d) => {
                 d.reflectance = refl(d.reflectance, lambda);
                 d.transmittance = refl(d.transmittance, lambda);
@@ -80,7 +85,7 @@ impl Bsdf {
                     super::bxdf::layered::Base::Diffuse { reflectance } => {
                         *reflectance = refl(*reflectance, lambda)
                     }
-                    super::bxdf::layered::Base::Conductor(c) => conductor_at(c, lambda),
+                    super::bxdf::layered::Base::Conductor(c) => conductor_at(c, lambda, spectra),
                 }
             }
             Bsdf::GltfTransmission(t) => {
@@ -98,15 +103,15 @@ impl Bsdf {
         b
     }
 
-    /// True if where the BSDF sends light depends on the wavelength: a dielectric of a named glass
-    /// or with KHR_materials_dispersion. A spectral path meeting one keeps only its hero
+    /// True if where the BSDF sends light depends on the wavelength: a dielectric with an η
+    /// spectrum (a named glass, a sampled η that varies with λ) or with KHR_materials_dispersion. A spectral path meeting one keeps only its hero
     /// wavelength, with thrice its weight (pbrt-v4 `SampledWavelengths::TerminateSecondary`: the
     /// hero alone is an unbiased estimate of the three, and one direction cannot serve three
     /// IORs); RGB rendering samples its per-channel mixture instead ([`Dielectric`]).
     #[inline]
     pub fn disperses(&self) -> bool {
         match self {
-            Bsdf::Dielectric(d) => d.glass.is_some() || d.dispersion.is_some(),
+            Bsdf::Dielectric(d) => d.eta_spectrum.is_some() || d.dispersion.is_some(),
             Bsdf::GltfTransmission(t) => t.dispersion.is_some(),
             _ => false,
         }
@@ -387,10 +392,14 @@ fn cauchy_at(rgb: Vec3, lambda: f32) -> f32 {
 /// A conductor at three wavelengths: its named η/k spectra where it has them, else its RGB η and
 /// k upsampled as unbounded spectra (pbrt-v4 `RGBUnboundedSpectrum`).
 #[inline]
-fn conductor_at(c: &mut super::bxdf::Conductor, lambda: Vec3) {
+fn conductor_at(
+    c: &mut super::bxdf::Conductor,
+    lambda: Vec3,
+    spectra: &crate::spectrum::BsdfSpectra,
+) {
     use crate::spectrum::rgb2spec::unbounded;
     (c.eta, c.k) = match c.spectra {
-        Some(s) => s.eta_k(lambda),
+        Some(s) => s.eta_k(lambda, spectra, c.eta, c.k),
         None => (unbounded(c.eta, lambda), unbounded(c.k, lambda)),
     };
 }

@@ -63,6 +63,9 @@ pub struct Medium {
     /// σa and σs as spectra, already × the scene's `scale` (`MediumDesc::sigma_spectra`): what
     /// [`Medium::coefficients`] takes at a path's wavelengths instead of upsampling the RGB.
     pub sigma_spectra: [Option<(crate::spectrum::SpectrumTable, f32)>; 2],
+    /// `Le` as a spectrum (`MediumDesc::le_spectrum`): spectral rendering takes it at the
+    /// path's wavelengths, scaled by the luminance of `le` ([`crate::spectrum::Illuminant::at`]).
+    pub le_spectrum: Option<crate::spectrum::Illuminant>,
 }
 
 /// Compiled grid emission: Le(p) = scale(p) × (an RGB radiance, or a blackbody at T(p)), the
@@ -72,6 +75,8 @@ pub struct Medium {
 pub struct GridLe {
     scale: crate::scene::VoxelGrid,
     source: LeSource,
+    /// The spectrum of an RGB `Le` given as one (`MediumDesc::le_spectrum`).
+    spectrum: Option<crate::spectrum::Illuminant>,
 }
 
 #[derive(Clone, Debug)]
@@ -126,12 +131,13 @@ impl BlackbodyTable {
 }
 
 impl GridLe {
-    fn new(e: &crate::scene::GridEmission) -> Self {
+    fn new(e: &crate::scene::GridEmission, spectrum: Option<crate::spectrum::Illuminant>) -> Self {
         use crate::scene::GridEmission;
         match e {
             GridEmission::Radiance { le, scale } => GridLe {
                 scale: scale.clone(),
                 source: LeSource::Rgb(*le),
+                spectrum,
             },
             GridEmission::Blackbody {
                 temperature,
@@ -155,6 +161,7 @@ impl GridLe {
                         offset: *offset,
                         table: BlackbodyTable::new(t_hi),
                     },
+                    spectrum: None,
                 }
             }
         }
@@ -173,7 +180,10 @@ impl GridLe {
         }
         match (&self.source, lambda) {
             (LeSource::Rgb(le), None) => *le * s,
-            (LeSource::Rgb(le), Some(l)) => crate::spectrum::rgb2spec::illuminant(*le, l) * s,
+            (LeSource::Rgb(le), Some(l)) => match &self.spectrum {
+                Some(sp) => sp.at(*le, l) * s,
+                None => crate::spectrum::rgb2spec::illuminant(*le, l) * s,
+            },
             (
                 LeSource::Blackbody {
                     temperature,
@@ -215,6 +225,7 @@ impl Medium {
             le: Vec3::ZERO,
             grid_le: None,
             sigma_spectra: [None, None],
+            le_spectrum: None,
         }
     }
 
@@ -231,6 +242,7 @@ impl Medium {
             .sigma_spectra
             .clone()
             .map(|t| t.map(|t| (t, desc.scale)));
+        m.le_spectrum = desc.le_spectrum.clone();
         if let crate::scene::MediumKind::Grid {
             nx,
             ny,
@@ -253,7 +265,9 @@ impl Medium {
                 )?
                 .with_edge(*edge),
             );
-            m.grid_le = emission.as_ref().map(GridLe::new);
+            m.grid_le = emission
+                .as_ref()
+                .map(|e| GridLe::new(e, desc.le_spectrum.clone()));
         }
         Ok(m)
     }
@@ -282,7 +296,8 @@ impl Medium {
     /// The coefficients a path carries through this medium: the RGB ones (`lambda` `None`), or
     /// at the wavelengths `lambda`: σa and σs as pbrt-v4's unbounded spectra of their RGB
     /// (`RGBUnboundedSpectrum`; the scale is linear, so upsampling the scaled RGB is the same),
-    /// `Le` as an illuminant spectrum (`RGBIlluminantSpectrum`). A zero RGB stays zero, so an
+    /// `Le` as an illuminant spectrum (`RGBIlluminantSpectrum`) or the spectrum it was given as
+    /// (`le_spectrum`; σa, σs likewise, `sigma_spectra`). A zero RGB stays zero, so an
     /// absorbing-only medium stays one.
     #[inline]
     pub fn coefficients(&self, lambda: Option<Vec3>) -> Coefficients {
@@ -303,7 +318,10 @@ impl Medium {
                     Some((t, scale)) => t.eval3(l) * *scale,
                     None => unbounded(self.sigma_s, l),
                 },
-                le: illuminant(self.le, l),
+                le: match &self.le_spectrum {
+                    Some(s) => s.at(self.le, l),
+                    None => illuminant(self.le, l),
+                },
                 lambda: Some(l),
             },
         }

@@ -53,6 +53,12 @@ pub struct MediumDesc {
     /// per wavelength (× `scale`); `sigma_a`/`sigma_s` are their RGB projections, what RGB mode
     /// uses. `None`: upsampled from the RGB.
     pub sigma_spectra: [Option<crate::spectrum::SpectrumTable>; 2],
+    /// The emission `Le` as the spectrum the scene gave (a pbrt `blackbody`, a named or sampled
+    /// spectrum), of `le` and of a grid's `GridEmission::Radiance`, which carry its RGB
+    /// projection (luminance `Lescale`) for RGB mode; spectral rendering takes the spectrum
+    /// per wavelength, scaled by that luminance ([`crate::spectrum::Illuminant::at`]). `None`:
+    /// upsampled from the RGB.
+    pub le_spectrum: Option<crate::spectrum::Illuminant>,
 }
 
 /// How the coefficients vary in space.
@@ -414,6 +420,10 @@ pub struct Scene {
     /// `blackbody`, named or sampled `I`/`L`), by index: their `LightDesc` holds the RGB
     /// projection, which RGB mode uses; spectral rendering evaluates the spectrum.
     pub light_spectra: Vec<(usize, crate::spectrum::Illuminant)>,
+    /// Sampled spectra of BSDF parameters (a conductor's η or k, a dielectric's η given as
+    /// `[λ v …]` or a file), which materials name by id ([`Scene::add_bsdf_spectrum`]);
+    /// the world holds them as [`crate::spectrum::BsdfSpectra::tables`].
+    pub bsdf_spectra: Vec<crate::spectrum::SpectrumTable>,
 }
 
 /// One object's materials under `KHR_materials_variants`: the default (the primitive's own
@@ -469,6 +479,7 @@ impl MediumDesc {
             le: Vec3::ZERO,
             kind: MediumKind::Homogeneous,
             sigma_spectra: [None, None],
+            le_spectrum: None,
         }
     }
 
@@ -593,6 +604,22 @@ impl SceneError {
 }
 
 impl Scene {
+    /// Keeps `table` for spectral rendering and returns its id in
+    /// [`crate::spectrum::BsdfSpectra`] (the same id for an equal table); `None` when the id
+    /// space is full.
+    pub fn add_bsdf_spectrum(&mut self, table: crate::spectrum::SpectrumTable) -> Option<u16> {
+        let i = match self.bsdf_spectra.iter().position(|t| *t == table) {
+            Some(i) => i,
+            None => {
+                self.bsdf_spectra.push(table);
+                self.bsdf_spectra.len() - 1
+            }
+        };
+        u16::try_from(i)
+            .ok()?
+            .checked_add(crate::spectrum::TABLE_BASE)
+    }
+
     pub fn add_material(&mut self, m: Material) -> MaterialId {
         self.materials.push(m);
         self.materials.len() - 1

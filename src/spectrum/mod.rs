@@ -318,6 +318,12 @@ impl SpectrumTable {
         })
     }
 
+    /// The value at `lambda` nm.
+    #[inline]
+    pub fn value(&self, lambda: f32) -> f32 {
+        at_1nm(&self.table, lambda)
+    }
+
     /// The values at the three wavelengths `lambda`.
     #[inline]
     pub fn eval3(&self, lambda: Vec3) -> Vec3 {
@@ -484,9 +490,9 @@ fn metal_tables(metal: &str) -> Option<(Table, Table)> {
     Some(METAL_TABLES[i])
 }
 
-/// The id of a named metal spectrum (`metal-Au-eta`, `metal-Au-k`, …) for [`tabulated`]:
-/// 2 · the metal's index in [`METALS`], + 1 for k. A `u8` so that a BSDF can carry it.
-pub fn tabulated_id(name: &str) -> Option<u8> {
+/// The id of a named metal spectrum (`metal-Au-eta`, `metal-Au-k`, …) in the id space of
+/// [`BsdfSpectra`]: 2 · the metal's index in [`METALS`], + 1 for k.
+pub fn tabulated_id(name: &str) -> Option<u16> {
     let (metal, part) = name.rsplit_once('-')?;
     let i = METALS.iter().position(|&m| m == metal)?;
     let k = match part {
@@ -494,28 +500,73 @@ pub fn tabulated_id(name: &str) -> Option<u8> {
         "k" => 1,
         _ => return None,
     };
-    Some((2 * i + k) as u8)
+    Some((2 * i + k) as u16)
 }
 
-/// The value at `lambda` nm of the named spectrum with id `id` ([`tabulated_id`]); 0 for an
-/// unknown id.
+/// The value at `lambda` nm of the named metal spectrum with id `id` ([`tabulated_id`]); 0 for
+/// another id.
 #[inline]
-pub fn tabulated(id: u8, lambda: f32) -> f32 {
+pub fn tabulated(id: u16, lambda: f32) -> f32 {
     match METAL_TABLES.get(id as usize / 2) {
         Some(&(eta, k)) => table(if id.is_multiple_of(2) { eta } else { k }, lambda),
         None => 0.0,
     }
 }
 
-/// A conductor's η and k as named spectra, which spectral rendering evaluates per wavelength
+/// First id of the named glasses in [`BsdfSpectra`]'s id space (after the metals' η and k).
+const GLASS_BASE: u16 = 2 * METALS.len() as u16;
+/// First id of the spectra a scene gives ([`BsdfSpectra::tables`]).
+pub const TABLE_BASE: u16 = GLASS_BASE + GLASSES.len() as u16;
+
+/// The spectra that BSDFs evaluate per wavelength in spectral rendering (a conductor's η and k,
+/// a dielectric's η), each named by a `u16` id a `Copy` BSDF can carry: the built-in named
+/// spectra first — the metals' η and k ([`tabulated_id`]), then the glasses ([`glass_id`],
+/// their Sellmeier laws) — and from [`TABLE_BASE`] on the sampled spectra the scene gave
+/// (pbrt's `"spectrum eta" [λ v …]`, a spectrum file), held by the world
+/// ([`crate::world::World::bsdf_spectra`]) and added by the loader with
+/// [`crate::scene::Scene::add_bsdf_spectrum`]. RGB rendering never reads it: the BSDFs carry
+/// the RGB projections beside the ids.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BsdfSpectra {
+    pub tables: std::sync::Arc<[SpectrumTable]>,
+}
+
+impl BsdfSpectra {
+    /// The value of spectrum `id` at `lambda` nm; 0 for an id it does not hold.
+    #[inline]
+    pub fn value(&self, id: u16, lambda: f32) -> f32 {
+        if id < GLASS_BASE {
+            tabulated(id, lambda)
+        } else if id < TABLE_BASE {
+            sellmeier(&GLASSES[(id - GLASS_BASE) as usize].1, lambda)
+        } else {
+            self.tables
+                .get((id - TABLE_BASE) as usize)
+                .map_or(0.0, |t| at_1nm(&t.table, lambda))
+        }
+    }
+
+    /// The values of spectrum `id` at the three wavelengths `lambda`.
+    #[inline]
+    pub fn eval3(&self, id: u16, lambda: Vec3) -> Vec3 {
+        Vec3::new(
+            self.value(id, lambda.x),
+            self.value(id, lambda.y),
+            self.value(id, lambda.z),
+        )
+    }
+}
+
+/// A conductor's η and k as spectra, which spectral rendering evaluates per wavelength
 /// (pbrt-v4's conductor takes its `eta`/`k` spectra at the sampled wavelengths; the RGB path uses
-/// their projections, [`named_conductor_rgb`]). `outside_ior` divides both, as under a coat
-/// (pbrt-v4 `CoatedConductorMaterial`).
+/// their projections, [`named_conductor_rgb`]): each an id of [`BsdfSpectra`] (a named metal
+/// spectrum or a sampled one), or `None` for one given as RGB, which is then upsampled from the
+/// conductor's RGB value as pbrt-v4's `RGBUnboundedSpectrum`. `outside_ior` divides the
+/// spectra, as under a coat (pbrt-v4 `CoatedConductorMaterial`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ConductorSpectra {
-    /// [`tabulated_id`]s of η and k.
-    pub eta: u8,
-    pub k: u8,
+    pub eta: Option<u16>,
+    pub k: Option<u16>,
     pub outside_ior: f32,
 }
 
@@ -523,37 +574,37 @@ impl ConductorSpectra {
     /// The spectra of `eta_name` and `k_name`, both named metal spectra, over air.
     pub fn named(eta_name: &str, k_name: &str) -> Option<ConductorSpectra> {
         Some(ConductorSpectra {
-            eta: tabulated_id(eta_name)?,
-            k: tabulated_id(k_name)?,
+            eta: Some(tabulated_id(eta_name)?),
+            k: Some(tabulated_id(k_name)?),
             outside_ior: 1.0,
         })
     }
 
-    /// η and k at the three wavelengths `lambda`, relative to the outside medium.
+    /// η and k at the three wavelengths `lambda`, relative to the outside medium; `rgb_eta` and
+    /// `rgb_k` are the conductor's RGB values (already relative), upsampled for a part without
+    /// a spectrum.
     #[inline]
-    pub fn eta_k(&self, lambda: Vec3) -> (Vec3, Vec3) {
-        let at = |id: u8| {
-            Vec3::new(
-                tabulated(id, lambda.x),
-                tabulated(id, lambda.y),
-                tabulated(id, lambda.z),
-            ) / self.outside_ior
+    pub fn eta_k(
+        &self,
+        lambda: Vec3,
+        spectra: &BsdfSpectra,
+        rgb_eta: Vec3,
+        rgb_k: Vec3,
+    ) -> (Vec3, Vec3) {
+        let at = |id: Option<u16>, rgb: Vec3| match id {
+            Some(id) => spectra.eval3(id, lambda) / self.outside_ior,
+            None => rgb2spec::unbounded(rgb, lambda),
         };
-        (at(self.eta), at(self.k))
+        (at(self.eta, rgb_eta), at(self.k, rgb_k))
     }
 }
 
-/// The id of a named glass (`glass-BK7`, …) for [`glass_eta_by_id`].
-pub fn glass_id(name: &str) -> Option<u8> {
-    GLASSES.iter().position(|g| g.0 == name).map(|i| i as u8)
-}
-
-/// η(λ) of the named glass with id `id` ([`glass_id`]): its Sellmeier law; 1 for an unknown id.
-#[inline]
-pub fn glass_eta_by_id(id: u8, lambda: f32) -> f32 {
+/// The id of a named glass (`glass-BK7`, …) in [`BsdfSpectra`]'s id space.
+pub fn glass_id(name: &str) -> Option<u16> {
     GLASSES
-        .get(id as usize)
-        .map_or(1.0, |g| sellmeier(&g.1, lambda))
+        .iter()
+        .position(|g| g.0 == name)
+        .map(|i| GLASS_BASE + i as u16)
 }
 
 /// Value at `lambda` of a pbrt-v4 named spectrum: `metal-X-eta`, `metal-X-k`, `glass-*`,
@@ -684,6 +735,49 @@ mod tests {
         let f0 = crate::material::microfacet::fresnel_conductor(1.0, e, k);
         assert!(f0.min_element() > 0.85, "{f0:?}");
         assert!(named_conductor_rgb("metal-CuZn").is_none());
+    }
+
+    /// Every id of the BSDF spectra names the spectrum it stands for: the metals' tables, the
+    /// glasses' Sellmeier laws, then the scene's tables; an id past them is 0, not a panic.
+    #[test]
+    fn bsdf_spectra_ids_name_their_spectra() {
+        let table = SpectrumTable::sampled(&[(400.0, 1.0), (700.0, 2.0)]).unwrap();
+        let s = BsdfSpectra {
+            tables: vec![table].into(),
+        };
+        for l in [380.0f32, 455.5, 550.0, 701.0, 829.0] {
+            for m in METALS {
+                for part in ["eta", "k"] {
+                    let name = format!("{m}-{part}");
+                    let id = tabulated_id(&name).unwrap();
+                    assert!(id < GLASS_BASE);
+                    assert_eq!(s.value(id, l), named_spectrum(&name, l).unwrap(), "{name}");
+                }
+            }
+            for (g, _) in GLASSES {
+                let id = glass_id(g).unwrap();
+                assert!((GLASS_BASE..TABLE_BASE).contains(&id));
+                assert_eq!(s.value(id, l), glass_eta(g, l).unwrap(), "{g}");
+            }
+            let want = if (400.0..=700.0).contains(&l) {
+                1.0 + (l - 400.0) / 300.0
+            } else {
+                0.0
+            };
+            assert!((s.value(TABLE_BASE, l) - want).abs() < 1e-3, "{l}");
+            assert_eq!(s.value(TABLE_BASE + 1, l), 0.0);
+        }
+        // One named and one RGB part: the RGB part is upsampled, the named one exact.
+        let c = ConductorSpectra {
+            eta: tabulated_id("metal-Au-eta"),
+            k: None,
+            outside_ior: 1.0,
+        };
+        let lambda = Vec3::new(450.0, 550.0, 650.0);
+        let k = Vec3::new(2.0, 3.0, 4.0);
+        let (e, kk) = c.eta_k(lambda, &s, Vec3::ONE, k);
+        assert_eq!(e, s.eval3(tabulated_id("metal-Au-eta").unwrap(), lambda));
+        assert_eq!(kk, rgb2spec::unbounded(k, lambda));
     }
 
     #[test]

@@ -29,9 +29,10 @@ pub struct Dielectric {
     pub tint: Vec3,
     /// Per-channel IORs (KHR_materials_dispersion); `None` = `eta` for all channels.
     pub dispersion: Option<Vec3>,
-    /// A named glass ([`crate::spectrum::glass_id`]) whose η(λ) spectral rendering follows
+    /// The id of an η spectrum varying with λ ([`crate::spectrum::BsdfSpectra`]: a named
+    /// glass or a sampled η) that spectral rendering follows
     /// ([`crate::material::Bsdf::to_spectral`]); RGB rendering ignores it (`eta` is its index).
-    pub glass: Option<u8>,
+    pub eta_spectrum: Option<u16>,
 }
 
 /// Representative wavelengths (nm) of the linear-sRGB channels: the dominant wavelengths of the
@@ -71,7 +72,7 @@ impl Dielectric {
             },
             tint,
             dispersion: None,
-            glass: None,
+            eta_spectrum: None,
         }
     }
 

@@ -14,9 +14,10 @@ pub struct Dielectric {
     /// the raycast/Whitted local shading uses).
     pub alpha: Vec2,
     pub roughness: RoughnessTextures,
-    /// The named glass (`glass-BK7`, …, [`crate::spectrum::glass_id`]) the material's IOR was
-    /// taken from: spectral rendering follows its η(λ) (dispersion); RGB uses the IOR.
-    pub glass: Option<u8>,
+    /// The η spectrum varying with λ (a named glass `glass-BK7`, …, or a sampled η; an id of
+    /// [`crate::spectrum::BsdfSpectra`]) the material's IOR was taken from: spectral rendering
+    /// follows its η(λ) (dispersion); RGB uses the IOR.
+    pub eta_spectrum: Option<u16>,
 }
 
 impl Dielectric {
@@ -37,7 +38,7 @@ impl Dielectric {
     #[inline]
     fn with_glass(&self, mut b: Bsdf) -> Bsdf {
         if let Bsdf::Dielectric(d) = &mut b {
-            d.glass = self.glass;
+            d.eta_spectrum = self.eta_spectrum;
         }
         b
     }

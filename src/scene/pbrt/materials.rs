@@ -943,19 +943,17 @@ impl Loader {
                 self.conductor_spectrum(p, &format!("{pre}eta"), "metal-Cu-eta", at);
             (c.k, c.k_texture) = self.conductor_spectrum(p, &format!("{pre}k"), "metal-Cu-k", at);
             c.reflectance = false;
-            // Named η and k (or pbrt-v4's copper default) stay spectra for spectral rendering.
-            let name = |key: String, default: &str| match p.spectrum_tex(&key) {
-                Some(TexOr::Value(SpectrumValue::Named(n))) => Some(n),
-                None if !p.has(&key) => Some(default.to_string()),
-                _ => None,
-            };
-            c.spectra = match (
-                name(format!("{pre}eta"), "metal-Cu-eta"),
-                name(format!("{pre}k"), "metal-Cu-k"),
-            ) {
-                (Some(e), Some(k)) => crate::spectrum::ConductorSpectra::named(&e, &k),
-                _ => None,
-            };
+            // η and k given as spectra (named metals, pbrt-v4's copper default, sampled lists,
+            // spectrum files) stay spectra for spectral rendering; one given as RGB is
+            // upsampled there from its value.
+            let eta = self.bsdf_spectrum(p, &format!("{pre}eta"), Some("metal-Cu-eta"));
+            let k = self.bsdf_spectrum(p, &format!("{pre}k"), Some("metal-Cu-k"));
+            c.spectra =
+                (eta.is_some() || k.is_some()).then_some(crate::spectrum::ConductorSpectra {
+                    eta,
+                    k,
+                    outside_ior: 1.0,
+                });
             let e = c.eta;
             let k = c.k;
             if !(e.is_finite() && k.is_finite()) || e.min_element() < 0.0 || k.min_element() < 0.0 {
@@ -963,9 +961,37 @@ impl Loader {
                 let d = Conductor::default();
                 c.eta = d.eta;
                 c.k = d.k;
+                c.spectra = crate::spectrum::ConductorSpectra::named("metal-Cu-eta", "metal-Cu-k");
             }
         }
         c
+    }
+
+    /// The id in [`crate::spectrum::BsdfSpectra`] of the spectrum parameter `key` when it is
+    /// given as a spectrum spectral rendering can follow: a named metal or glass, a sampled
+    /// `[λ v …]` list or a spectrum file (kept in [`crate::scene::Scene::bsdf_spectra`]);
+    /// `default`'s when the parameter is absent. `None` for RGB, a texture or a bad spectrum
+    /// (whose RGB value, already warned about, is then upsampled).
+    fn bsdf_spectrum(&mut self, p: &ParamList, key: &str, default: Option<&str>) -> Option<u16> {
+        let samples = match p.spectrum_tex(key) {
+            Some(TexOr::Value(SpectrumValue::Named(n))) => {
+                if let Some(id) =
+                    crate::spectrum::tabulated_id(&n).or_else(|| crate::spectrum::glass_id(&n))
+                {
+                    return Some(id);
+                }
+                self.spectrum_file_quiet(&n)?
+            }
+            Some(TexOr::Value(SpectrumValue::Sampled(v))) => v,
+            None if !p.has(key) => {
+                return default.and_then(|d| {
+                    crate::spectrum::tabulated_id(d).or_else(|| crate::spectrum::glass_id(d))
+                });
+            }
+            _ => return None,
+        };
+        let table = crate::spectrum::SpectrumTable::sampled(&samples)?;
+        self.scene.add_bsdf_spectrum(table)
     }
 
     /// η or k of a conductor: named spectra through [`crate::spectrum`] (the conversion measured
@@ -1084,10 +1110,11 @@ impl Loader {
                 } else {
                     (0.0, Dielectric::default())
                 };
-                // A named glass disperses in spectral rendering (pbrt-v4 follows its η(λ)).
-                if let Some(SpectrumValue::Named(n)) = p.spectrum("eta") {
-                    dielectric.glass = crate::spectrum::glass_id(&n);
-                }
+                // An η spectrum varying with λ (a named glass, a sampled η) disperses in spectral
+                // rendering (pbrt-v4 follows η(λ)); a constant one is the IOR.
+                dielectric.eta_spectrum = self
+                    .bsdf_spectrum(p, "eta", None)
+                    .filter(|&id| !self.constant_eta(id));
                 m.ior = eta;
                 m.base_color = Vec3::ONE;
                 m.roughness = rough;
@@ -1306,14 +1333,18 @@ impl Loader {
                         );
                         e
                     }
-                    None => {
-                        self.warn(format!(
-                            "{at}: {what}: eta spectrum \"{n}\" is not known; 1.5 is used"
-                        ));
-                        1.5
-                    }
+                    None => match self.spectrum_file(&n, at) {
+                        Some(v) => self.sampled_eta(&v, &key, at, what),
+                        None => {
+                            self.warn(format!(
+                                "{at}: {what}: eta spectrum \"{n}\" is not known; 1.5 is used"
+                            ));
+                            1.5
+                        }
+                    },
                 },
                 Some(SpectrumValue::Rgb(c)) => (c.x + c.y + c.z) / 3.0,
+                Some(SpectrumValue::Sampled(v)) => self.sampled_eta(&v, &key, at, what),
                 Some(other) => {
                     self.warn(format!(
                         "{at}: {what}: eta {other:?} is not supported; 1.5 is used"
@@ -1330,6 +1361,45 @@ impl Loader {
             return 1.5;
         }
         e
+    }
+
+    /// The IOR RGB rendering gives a sampled η(λ) (a list or a spectrum file): its value at the
+    /// helium d line, 587.56 nm, as for a named glass (pbrt-v4 follows η(λ), and so does
+    /// spectral rendering where the material disperses: [`Self::bsdf_spectrum`]).
+    fn sampled_eta(&mut self, v: &[(f32, f32)], key: &str, at: &str, what: &str) -> f32 {
+        let Some(t) = crate::spectrum::SpectrumTable::sampled(v) else {
+            self.warn(format!(
+                "{at}: {what}: \"{key}\": bad sampled spectrum; 1.5 is used"
+            ));
+            return 1.5;
+        };
+        let e = t.value(587.56);
+        if v.iter().any(|s| s.1 != v[0].1) {
+            self.warn_once(
+                &format!("disp sampled {key}"),
+                if key == "eta" {
+                    format!("{at}: {what}: spectrally varying \"{key}\" is rendered with its index at 587.6 nm ({e}) in RGB; --spectral disperses it")
+                } else {
+                    format!("{at}: {what}: spectrally varying \"{key}\" is rendered with its index at 587.6 nm ({e}), without dispersion")
+                },
+            );
+        }
+        e
+    }
+
+    /// True if the η spectrum `id` is one value wherever spectral rendering samples it
+    /// (360–830 nm, 0 beyond a sampled η's wavelengths counting as 1, as pbrt-v4's dielectric
+    /// takes it): such a dielectric does not disperse.
+    fn constant_eta(&self, id: u16) -> bool {
+        let spectra = crate::spectrum::BsdfSpectra {
+            tables: self.scene.bsdf_spectra.clone().into(),
+        };
+        let eta = |l: u32| {
+            let e = spectra.value(id, l as f32);
+            if e == 0.0 { 1.0 } else { e }
+        };
+        let first = eta(360);
+        (361..=830).all(|l| eta(l) == first)
     }
 
     /// A constant spectrum parameter with a named default (η and k of conductors).

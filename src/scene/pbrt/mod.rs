@@ -1034,6 +1034,12 @@ impl Loader {
             MediumKind::Homogeneous
         };
         let _ = p.string("type");
+        // An `Le` given as a spectrum (not RGB) stays one for spectral rendering.
+        let le_spectrum = if p.has("Le") && (ty == "homogeneous" || ty == "uniformgrid") {
+            self.light_spectrum(p, "Le")
+        } else {
+            None
+        };
         let desc = MediumDesc {
             name: name.to_string(),
             sigma_a,
@@ -1043,6 +1049,7 @@ impl Loader {
             le,
             kind,
             sigma_spectra,
+            le_spectrum,
         };
         desc.validate()
             .map_err(|e| SceneError::invalid(at, format!("{what}: {e}")))?;
