@@ -249,6 +249,47 @@ fn sampled_absorption_spectrum_is_exact_in_spectral_mode() {
     assert!((spectral - Vec3::ONE).abs().max_element() < 0.03, "{msg}");
 }
 
+/// The light tracer, BDPT and MLT in a scene with media carry wavelengths as the volumetric path
+/// tracer does (docs/DESIGN.md "Spectral rendering": the media's coefficients per wavelength, a
+/// majorant per wavelength, distances in the hero's, spectral MIS): a fog whose σs is three
+/// narrow bands (scenes/pbrt/media/fog_bands.pbrt, whose smooth RGB projection scatters other
+/// colours) against pbrt-v4's spectral `volpath`, channel means over the image. RGB rendering
+/// is far off (checked, so the scene tells the modes apart).
+#[test]
+fn light_paths_in_media_are_spectral() {
+    use trayecto::integrator::IntegratorKind;
+    let path = repo_dir().join("scenes/pbrt/media/fog_bands.pbrt");
+    let scene = trayecto::scene::load(path.to_str().unwrap()).expect("scene loads");
+    for w in &scene.warnings {
+        assert!(w.contains("Sampler"), "unexpected warning {w}");
+    }
+    let reference = read_exr(&repo_dir().join("tests/references/pbrt/media/fog_bands.exr"))
+        .expect("reference EXR");
+    let run = |integrator: IntegratorKind, spp: u32, spectral: bool| {
+        let mut s = settings(reference.width, reference.height, spp);
+        s.integrator = integrator;
+        s.path.max_depth = scene.hints.max_depth.unwrap();
+        s.path.spectral = spectral;
+        mean(&render_scene(&scene, &s)) / mean(&reference)
+    };
+    let off = |r: Vec3| (r - Vec3::ONE).abs().max_element();
+    let rgb = run(IntegratorKind::Path, 16, false);
+    let volpath = run(IntegratorKind::Path, 16, true);
+    let light_tracer = run(IntegratorKind::LightTracer, 16, true);
+    let bdpt = run(IntegratorKind::Bdpt, 16, true);
+    let mlt = run(IntegratorKind::Mlt, 64, true);
+    let msg = format!(
+        "fog with banded σs, channel means / pbrt-v4: RGB volpath {rgb:?}, spectral volpath \
+         {volpath:?}, light tracer {light_tracer:?}, BDPT {bdpt:?}, MLT {mlt:?}"
+    );
+    println!("{msg}");
+    assert!(off(rgb) > 0.1, "{msg}");
+    assert!(
+        off(volpath) < 0.03 && off(light_tracer) < 0.03 && off(bdpt) < 0.03 && off(mlt) < 0.06,
+        "{msg}"
+    );
+}
+
 #[test]
 fn heterogeneous_cloud_matches_pbrt_v4() {
     check_against_pbrt("cloud", 0.02, 0.06);
