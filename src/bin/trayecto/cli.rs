@@ -607,10 +607,11 @@ impl RenderArgs {
                     | IntegratorKind::Bdpt
                     | IntegratorKind::Mlt
                     | IntegratorKind::Sppm
+                    | IntegratorKind::Vcm
             )
         {
             bail!(
-                "invalid setting: --spectral needs --integrator path, lighttracer, bdpt, mlt or sppm (got {})",
+                "invalid setting: --spectral needs --integrator path, lighttracer, bdpt, mlt, sppm or vcm (got {})",
                 k.name()
             );
         }
