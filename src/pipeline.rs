@@ -222,12 +222,7 @@ pub fn rgb_fallback(
     }
     let why = if !crate::render::has_spectral_path(world, settings) {
         let integrator = crate::integrator::Integrator::for_world(settings.integrator, world);
-        let media = if world.has_media() {
-            " in scenes with media"
-        } else {
-            ""
-        };
-        format!("the {} has no spectral path{media} yet", integrator.name())
+        format!("the {} has no spectral path yet", integrator.name())
     } else if let Some(k) = aovs.iter().find(|k| k.is_strategy()) {
         format!("the strategy layer --aov {} is RGB only", k.name())
     } else {

@@ -695,15 +695,20 @@ pub fn check_media_settings(world: &World, settings: &RenderSettings) -> Result<
 }
 
 /// Whether the integrator `settings` resolve to in `world` carries wavelengths
-/// (docs/DESIGN.md "Spectral rendering"): the path tracers, and the light tracer and BDPT
-/// without media, MLT on BDPT's paths, and SPPM. The others refuse `--spectral`
+/// (docs/DESIGN.md "Spectral rendering"): the path tracers, the light tracer and BDPT (media
+/// included), MLT on BDPT's paths, SPPM and VCM. The others refuse `--spectral`
 /// ([`check_media_settings`]).
 pub fn has_spectral_path(world: &World, settings: &RenderSettings) -> bool {
     match Integrator::for_world(settings.integrator, world) {
-        // SPPM refuses media itself (`photon::check`).
-        Integrator::Path | Integrator::VolPath | Integrator::Sppm => true,
-        Integrator::LightTracer | Integrator::Bdpt | Integrator::Mlt => !world.has_media(),
-        _ => false,
+        // SPPM and VCM refuse media themselves (`photon::check`, `photon::check_vcm`).
+        Integrator::Path
+        | Integrator::VolPath
+        | Integrator::LightTracer
+        | Integrator::Bdpt
+        | Integrator::Mlt
+        | Integrator::Sppm
+        | Integrator::Vcm => true,
+        Integrator::Raycast { .. } | Integrator::Whitted { .. } => false,
     }
 }
 
@@ -720,9 +725,8 @@ fn check_integrator_settings(
         )));
     }
     // Spectral transport is built into the path tracers (surface and volumetric), and the light
-    // tracer, BDPT and MLT without media (`light::check`), and SPPM; the others would silently
-    // render RGB
-    // (docs/DESIGN.md "Spectral rendering").
+    // tracer, BDPT and MLT (media included), SPPM and VCM; the others (raycast,
+    // Whitted) would silently render RGB (docs/DESIGN.md "Spectral rendering").
     if settings.path.spectral
         && !matches!(
             integrator,
@@ -732,12 +736,13 @@ fn check_integrator_settings(
                 | Integrator::Bdpt
                 | Integrator::Mlt
                 | Integrator::Sppm
+                | Integrator::Vcm
         )
     {
         return Err(RenderError::InvalidSetting(format!(
             "spectral rendering is not available with the {} yet (the path tracers, the light \
-             tracer, BDPT, MLT and SPPM carry wavelengths; this integrator's are RGB): \
-             render it with --rgb or use --integrator path",
+             tracer, BDPT, MLT, SPPM and VCM carry wavelengths; this integrator's local shading \
+             is RGB): render it with --rgb or use --integrator path",
             integrator.name()
         )));
     }

@@ -301,12 +301,12 @@ fn pbrt_files_render_spectrally_by_default_and_the_log_says_why() {
     let read = |f: &str| std::fs::read(dir.join(f)).unwrap();
     assert_eq!(read("default.exr"), read("spectral.exr"));
     assert_ne!(read("default.exr"), read("rgb.exr"));
-    let log = ok(run(metals, "vcm.exr", &["--integrator", "vcm"]));
+    let log = ok(run(metals, "whitted.exr", &["--integrator", "whitted"]));
     assert!(
-        log.contains("the vertex connection and merging has no spectral path yet: rendering RGB"),
+        log.contains("the whitted has no spectral path yet: rendering RGB"),
         "{log}"
     );
-    let o = run(metals, "x.exr", &["--spectral", "--integrator", "vcm"]);
+    let o = run(metals, "x.exr", &["--spectral", "--integrator", "whitted"]);
     assert!(
         !o.status.success() && stderr(&o).contains("--spectral"),
         "{}",

@@ -451,6 +451,23 @@ fn bk7_prism_splits_white_light_by_snells_law() {
         assert!((bdpt[k] - pred[k]).abs() < 0.25, "{msg}");
     }
     assert!((bdpt_total[1] / pbrt_total[1] - 1.0).abs() < 0.06, "{msg}");
+
+    // VCM in spectral mode: every camera subpath of an iteration carries the iteration's
+    // wavelengths, so each iteration sees the stripe at one hero wavelength through the prism;
+    // the 128 iterations stratify the wavelength dimension.
+    s.integrator = trayecto::integrator::IntegratorKind::Vcm;
+    let vcm_cols = column_xyz(&common::render_scene(&scene, &s));
+    let (vcm, vcm_total) = centroids(&vcm_cols);
+    let msg = format!(
+        "VCM spectral: X/Y/Z centroid columns {vcm:.2?} (Snell {pred:.2?}), Y total / pbrt-v4 \
+         {:.3}",
+        vcm_total[1] / pbrt_total[1],
+    );
+    eprintln!("{msg}");
+    for k in 0..3 {
+        assert!((vcm[k] - pred[k]).abs() < 0.25, "{msg}");
+    }
+    assert!((vcm_total[1] / pbrt_total[1] - 1.0).abs() < 0.06, "{msg}");
 }
 
 /// Per-channel means of `img` over `n` equal column strips.
@@ -685,15 +702,26 @@ fn light_spectra_are_exact_per_wavelength_in_spectral_mode() {
     s.integrator = trayecto::integrator::IntegratorKind::Sppm;
     s.spp = 256;
     let sppm = worst(&common::render_scene(&scene, &s));
+    // VCM: one set of wavelengths per iteration too (its camera vertices merge with every
+    // pixel's light vertices); at depth 1 every strategy but the connections takes part (the
+    // emitter hit, the light sample, the merge and the light vertex joined to the camera).
+    s.integrator = trayecto::integrator::IntegratorKind::Vcm;
+    s.spp = 256;
+    let vcm = worst(&common::render_scene(&scene, &s));
     let msg = format!(
         "light spectra: worst channel error of a third against pbrt-v4: RGB {rgb:.4}, \
          spectral {spectral:.4}, spectral light tracer {light_tracer:.4}, spectral BDPT \
-         {bdpt:.4}, spectral MLT {mlt:.4}, spectral SPPM {sppm:.4}"
+         {bdpt:.4}, spectral MLT {mlt:.4}, spectral SPPM {sppm:.4}, spectral VCM {vcm:.4}"
     );
     eprintln!("{msg}");
     assert!(rgb > 0.2, "{msg}");
     assert!(
-        spectral < 0.02 && light_tracer < 0.03 && bdpt < 0.02 && mlt < 0.06 && sppm < 0.04,
+        spectral < 0.02
+            && light_tracer < 0.03
+            && bdpt < 0.02
+            && mlt < 0.06
+            && sppm < 0.04
+            && vcm < 0.04,
         "{msg}"
     );
 }

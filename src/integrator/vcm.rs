@@ -32,6 +32,15 @@
 //! as a light of its own. A thin lens needs nothing more: the lens point has the same density
 //! (uniform over the lens) whether the camera subpath or a join to the camera (t = 1) chose
 //! it, so only the direction densities enter the weights, as for a pinhole.
+//!
+//! Spectral mode: a camera vertex merges with light vertices of other pixels' light subpaths, so
+//! every subpath of an iteration carries the same wavelengths (the driver puts the iteration's on
+//! `set`, as SPPM's; pbrt-v4's `SPPMIntegrator` shares one set per iteration the same way).
+//! Emission, BSDFs, connections and merges are per wavelength in the lanes of the `Vec3`s; the
+//! MIS densities are those of the hero wavelength's BSDFs, which are the RGB ones but for a
+//! dispersive surface. A dispersive vertex keeps lane 0 alone, × 3, on the subpath that met it;
+//! a join of two such subpaths counts the 3 once. Splats and pixel values reach the film
+//! through `PathSettings::to_film`.
 
 use super::RayStats;
 use super::lighttracer::{Splat, sample_emission};
@@ -57,6 +66,14 @@ fn mis(x: f32) -> f32 {
     x * x
 }
 
+/// The factor a join of a camera and a light subpath takes in spectral mode: 1/3 when both kept
+/// their hero wavelength alone, each × 3, since the 3 of the one set of wavelengths they share
+/// counts once (pbrt-v4 terminates the secondary wavelengths of that set); else 1.
+#[inline]
+fn hero_once(camera: bool, light: bool) -> f32 {
+    if camera && light { 1.0 / 3.0 } else { 1.0 }
+}
+
 /// The merge radius of iteration `index` (0-based): r_0 · (index + 1)^((α−1)/2).
 pub fn radius(r0: f32, index: u32) -> f32 {
     r0 * ((index as f64 + 1.0).powf((ALPHA as f64 - 1.0) / 2.0)) as f32
@@ -78,7 +95,12 @@ pub struct LightVertex {
     pub wo_local: Vec3,
     pub bsdf: Bsdf,
     pub beta: Vec3,
-    pub len: u32,
+    /// Segments from the light (a light subpath is cut at `u16::MAX`, far beyond any
+    /// `max_depth` that renders).
+    pub len: u16,
+    /// Spectral mode: the light subpath met a dispersive surface and kept its hero wavelength
+    /// alone (lane 0, × 3 in `beta`).
+    pub hero_only: bool,
     pub d_vcm: f32,
     pub d_vc: f32,
     pub d_vm: f32,
@@ -153,7 +175,11 @@ impl<'a> Vcm<'a> {
             em.pmf * em.le.pdf_pos
         };
         let cos_light = em.le.cos();
-        let mut beta = em.le.le * (cos_light / emission_pdf_w);
+        // The light's emission at the iteration's wavelengths in spectral mode.
+        let le = self
+            .set
+            .light_emission(&world.lights, em.index as u32, em.le.le);
+        let mut beta = le * (cos_light / emission_pdf_w);
         if !(beta.max_element() > 0.0) || !beta.is_finite() {
             return;
         }
@@ -168,6 +194,8 @@ impl<'a> Vcm<'a> {
         let mut ray = em.le.ray;
         let mut v = Vertex::unshaded(SurfaceHit::EMPTY);
         let mut len = 0u32;
+        let max_len = self.set.max_depth.min(u16::MAX as u32);
+        let mut hero_only = false;
         loop {
             stats.rays += 1;
             if !world.intersect_filtered_into(&ray, &self.set.footprint, &mut v.hit) {
@@ -176,6 +204,15 @@ impl<'a> Vcm<'a> {
             len += 1;
             let wo = -ray.d.normalize();
             v.shade(world, wo);
+            // Spectral mode: the BSDF at the iteration's wavelengths; a dispersive one keeps the
+            // hero wavelength alone, weighted by the number of wavelengths (as the path tracer).
+            if let Some(w) = &self.set.wavelengths {
+                if !hero_only && v.bsdf.disperses() {
+                    hero_only = true;
+                    beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
+                }
+                v.bsdf = v.bsdf.to_spectral(w.lambda);
+            }
             let cos_in = mis(v.ng.dot(wo).abs());
             let g = if infinite && len == 1 {
                 1.0
@@ -195,7 +232,8 @@ impl<'a> Vcm<'a> {
                     wo_local: v.wo_local,
                     bsdf: v.bsdf,
                     beta,
-                    len,
+                    len: len as u16,
+                    hero_only,
                     d_vcm,
                     d_vc,
                     d_vm,
@@ -203,7 +241,7 @@ impl<'a> Vcm<'a> {
                 points.push(v.hit.p);
                 self.to_camera(out.last().expect("just pushed"), u_cam, stats, film);
             }
-            if len >= self.set.max_depth {
+            if len >= max_len {
                 return;
             }
             let u_lobe = s.next_1d();
@@ -297,6 +335,7 @@ impl<'a> Vcm<'a> {
             if le == Vec3::ZERO {
                 continue;
             }
+            let le = self.set.light_emission(&world.lights, i as u32, le);
             let pmf = world.lights.distribution.discrete_pdf(i);
             let (pos, dir) = light.pdf_le(&scene, Vec3::ZERO, -d);
             let w_camera =
@@ -315,7 +354,7 @@ impl<'a> Vcm<'a> {
         film: &mut impl Splat,
     ) {
         let v = lv;
-        if lv.len > self.set.max_depth {
+        if lv.len as u32 > self.set.max_depth {
             return;
         }
         let Some(cs) = self.camera.sample_wi(v.p, u_cam) else {
@@ -346,13 +385,14 @@ impl<'a> Vcm<'a> {
         stats.shadow_rays += 1;
         let shadow = Ray::spawn_to(v.p, v.p_error, v.ng, cs.p_lens, Vec3::ZERO, Vec3::ZERO);
         if !self.world.occluded(&shadow) {
-            film.splat(cs.raster, c * (self.scale * weight));
+            film.splat(cs.raster, self.set.to_film(c * (self.scale * weight)));
         }
     }
 
     /// Traces the camera subpath of `ray` (filter weight `weight`) and returns what it gathers
     /// for its pixel: emitters hit, light samples, connections to `paired` (its pixel's light
-    /// subpath) and merges with the vertices in `grid` (over `all`, positions `points`).
+    /// subpath) and merges with the vertices in `grid` (over `all`, positions `points`): RGB, or
+    /// in spectral mode the lanes of `self.set`'s wavelengths (for `PathSettings::to_film`).
     #[allow(clippy::too_many_arguments)]
     pub fn camera_path(
         &self,
@@ -378,6 +418,7 @@ impl<'a> Vcm<'a> {
         let mut ray = *ray;
         let mut v = Vertex::unshaded(SurfaceHit::EMPTY);
         let mut len = 0u32;
+        let mut hero_only = false;
         let scene = world.light_scene();
         loop {
             stats.rays += 1;
@@ -387,7 +428,7 @@ impl<'a> Vcm<'a> {
                     if len > 0 {
                         l += beta * self.escaped(d, d_vcm, d_vc);
                     } else if !set.transparent {
-                        l += beta * world.escaped(d);
+                        l += beta * set.escaped(world, d);
                     }
                 }
                 return l;
@@ -402,6 +443,7 @@ impl<'a> Vcm<'a> {
             // An emitter hit (s = 0).
             let le = world.emitted(&v.hit, wo);
             if le != Vec3::ZERO {
+                let le = set.light_emission(&world.lights, v.hit.light, le);
                 let w = if len == 1 || v.hit.light == NO_LIGHT {
                     1.0
                 } else {
@@ -417,19 +459,26 @@ impl<'a> Vcm<'a> {
                 return l;
             }
             v.shade(world, wo);
+            if let Some(w) = &set.wavelengths {
+                if !hero_only && v.bsdf.disperses() {
+                    hero_only = true;
+                    beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
+                }
+                v.bsdf = v.bsdf.to_spectral(w.lambda);
+            }
             let u_light = s.next_1d();
             let u_point = s.next_2d();
             if !v.bsdf.is_specular() && !v.bsdf.is_black() {
                 let d = (d_vcm, d_vc, d_vm);
                 l += beta * self.light_sample(&v, d, u_light, u_point, stats);
                 for lv in paired {
-                    if len + lv.len > set.max_depth {
+                    if len + lv.len as u32 > set.max_depth {
                         break;
                     }
-                    l += beta * self.connect(&v, d, lv, stats);
+                    l += beta * self.connect(&v, d, lv, hero_only, stats);
                 }
                 if self.merge {
-                    l += beta * self.merge_at(&v, len, d, grid, all, points);
+                    l += beta * self.merge_at(&v, len, hero_only, d, grid, all, points);
                 }
             }
             let u_lobe = s.next_1d();
@@ -492,6 +541,8 @@ impl<'a> Vcm<'a> {
         }
         let light = &world.lights()[li];
         let scene = world.light_scene();
+        // The light's emission at the iteration's wavelengths in spectral mode.
+        let emission = |rgb: Vec3| self.set.light_emission(&world.lights, li as u32, rgb);
         // (direction, radiance or intensity / d², solid-angle density with the choice, the
         // emission density with the choice, |cos| at the light, shadow ray, delta)
         let (wi, li_val, direct_pdf_w, emission_pdf_w, cos_light, shadow, delta) =
@@ -512,7 +563,7 @@ impl<'a> Vcm<'a> {
                 let shadow = Ray::spawn_to(v.hit.p, v.hit.p_error, v.ng, lp.p, lp.p_error, lp.ng);
                 (
                     wi,
-                    le,
+                    emission(le),
                     pmf * pos * dist2 / cos_light,
                     pmf * pos * dir,
                     cos_light,
@@ -533,7 +584,7 @@ impl<'a> Vcm<'a> {
                 let dir = if ls.delta { 1.0 } else { dir };
                 (
                     ls.wi,
-                    ls.li,
+                    emission(ls.li),
                     pmf * ls.pdf,
                     pmf * pos * dir,
                     1.0,
@@ -554,7 +605,7 @@ impl<'a> Vcm<'a> {
                 // A point's area density is a delta of weight 1: per solid angle, d².
                 (
                     ls.wi,
-                    ls.li * dist2,
+                    emission(ls.li) * dist2,
                     pmf * dist2,
                     pmf * dir,
                     1.0,
@@ -588,12 +639,14 @@ impl<'a> Vcm<'a> {
         f * li_val * (wi_local.z.abs() * weight / direct_pdf_w)
     }
 
-    /// Joins the camera vertex `v` to the light vertex `lv` (s ≥ 2), weighted.
+    /// Joins the camera vertex `v` to the light vertex `lv` (s ≥ 2), weighted. `hero_only`:
+    /// the camera subpath kept its hero wavelength alone (spectral mode).
     fn connect(
         &self,
         v: &Vertex,
         (d_vcm, d_vc, _): (f32, f32, f32),
         lv: &LightVertex,
+        hero_only: bool,
         stats: &mut RayStats,
     ) -> Vec3 {
         let q = lv;
@@ -633,15 +686,17 @@ impl<'a> Vcm<'a> {
         if self.world.occluded(&shadow) {
             return Vec3::ZERO;
         }
-        f * lv.beta * weight
+        f * lv.beta * (weight * hero_once(hero_only, lv.hero_only))
     }
 
     /// Merges the camera vertex `v` (`len` segments from the camera) with every stored light
-    /// vertex within the radius, weighted, over N π r².
+    /// vertex within the radius, weighted, over N π r². `hero_only` as [`Vcm::connect`]'s.
+    #[allow(clippy::too_many_arguments)]
     fn merge_at(
         &self,
         v: &Vertex,
         len: u32,
+        hero_only: bool,
         (d_vcm, _, d_vm): (f32, f32, f32),
         grid: &PointGrid,
         all: &[LightVertex],
@@ -651,7 +706,7 @@ impl<'a> Vcm<'a> {
         let max_depth = self.set.max_depth;
         grid.for_each_within(points, v.hit.p, self.radius, |i| {
             let lv = &all[i];
-            if len + lv.len > max_depth + 1 {
+            if len + lv.len as u32 > max_depth + 1 {
                 return;
             }
             let wi = lv.frame.to_world(lv.wo_local);
@@ -667,7 +722,7 @@ impl<'a> Vcm<'a> {
             let pdf_rev = v.bsdf.pdf(wl, v.wo_local);
             let w_light = lv.d_vcm * self.vc_weight + lv.d_vm * mis(pdf_dir);
             let w_camera = d_vcm * self.vc_weight + d_vm * mis(pdf_rev);
-            let c = f * lv.beta / (w_light + 1.0 + w_camera);
+            let c = f * lv.beta * hero_once(hero_only, lv.hero_only) / (w_light + 1.0 + w_camera);
             if c.is_finite() {
                 sum += c;
             }

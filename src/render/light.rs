@@ -48,12 +48,6 @@ pub fn check(
              either end of a path): use --integrator path"
         ));
     }
-    if settings.path.spectral && world.has_media() {
-        return bad(format!(
-            "spectral rendering is not available with the {name} in scenes with media yet (its \
-             volumetric paths are RGB): render it with --rgb or use --integrator path"
-        ));
-    }
     if settings.noise_threshold.is_some() {
         return bad(format!(
             "adaptive sampling (--noise-threshold) does not apply to the {name}: its paths land \

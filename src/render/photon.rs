@@ -286,8 +286,9 @@ pub(crate) fn render(
     })
 }
 
-/// The wavelengths of SPPM iteration `it` in spectral mode: one set for all its camera paths and
-/// photons, since each visible point gathers photons of the same iteration (pbrt-v4
+/// The wavelengths of SPPM or VCM iteration `it` in spectral mode: one set for all its camera
+/// paths and photons (light subpaths), since each visible point (camera vertex) gathers photons
+/// of the same iteration (pbrt-v4
 /// `SPPMIntegrator::Render` draws them per iteration by the base-3 radical inverse), here
 /// shifted by a number of the seed so that seeds differ in their wavelengths too.
 fn iteration_wavelengths(seed: u64, it: u32) -> crate::spectrum::Wavelengths {
@@ -426,6 +427,16 @@ pub(crate) fn render_vcm(
             b.lock().unwrap_or_else(|e| e.into_inner()).clear();
         }
         for it in s0..s1 {
+            // Spectral mode: the iteration's wavelengths, shared by its light and camera
+            // subpaths since a camera vertex merges with other pixels' light vertices (as SPPM).
+            let path = if path.spectral {
+                crate::integrator::PathSettings {
+                    wavelengths: Some(iteration_wavelengths(settings.seed, it)),
+                    ..path
+                }
+            } else {
+                path
+            };
             let vcm = Vcm::new(
                 world,
                 &importance,
@@ -503,7 +514,7 @@ pub(crate) fn render_vcm(
                             &all,
                             &points,
                         );
-                        values.push(l);
+                        values.push(path.to_film(l));
                     }
                     let mut buf = buffer();
                     for (fx, l) in values.into_iter().enumerate() {

@@ -683,9 +683,8 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
     let mut aovs = check_aovs(b.aovs.as_ref(), &mut errors);
     // As `--transparent`: the coverage is the alpha AOV, the path tracer leaves the
     // background out (docs/DESIGN.md §5, "Transparent film").
-    // As `--spectral`: the path tracers, the light tracer, BDPT, MLT (the last three without
-    // media, which the render refuses by name) and SPPM carry wavelengths, the other
-    // integrators refuse them.
+    // As `--spectral`: the path tracers, the light tracer, BDPT, MLT, SPPM and VCM carry
+    // wavelengths, the other integrators (raycast, Whitted) refuse them.
     if o.spectral == Some(true)
         && !matches!(
             o.integrator,
@@ -694,6 +693,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
                 | IntegratorKind::Bdpt
                 | IntegratorKind::Mlt
                 | IntegratorKind::Sppm
+                | IntegratorKind::Vcm
         )
     {
         errors.insert(
@@ -1283,10 +1283,13 @@ mod tests {
         }
         assert!(fields(r#"{"scene":"cornell","spectral":"yes"}"#).contains_key("spectral"));
         assert!(
-            fields(r#"{"scene":"cornell","spectral":true,"integrator":"vcm"}"#)
+            fields(r#"{"scene":"cornell","spectral":true,"integrator":"whitted"}"#)
                 .contains_key("spectral")
         );
-        assert!(parse(r#"{"scene":"cornell","spectral":false,"integrator":"vcm"}"#).spectral_given);
+        assert!(parse(r#"{"scene":"cornell","spectral":true,"integrator":"vcm"}"#).spectral_given);
+        assert!(
+            parse(r#"{"scene":"cornell","spectral":false,"integrator":"whitted"}"#).spectral_given
+        );
     }
 
     /// The #19 fields reach the settings, and absurd values are refused by name.

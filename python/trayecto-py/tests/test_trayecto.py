@@ -682,11 +682,11 @@ def test_pbrt_files_render_spectrally_unless_told(tmp_path):
     assert (tmp_path / "py.exr").read_bytes() == (tmp_path / "cli.exr").read_bytes()
     assert trayecto.render(scene, rgb=True, **small).settings["spectral"] is False
     assert trayecto.render(scene, spectral=False, **small).settings["spectral"] is False
-    assert trayecto.render(scene, integrator="vcm", **small).settings["spectral"] is False
+    assert trayecto.render(scene, integrator="whitted", **small).settings["spectral"] is False
     with pytest.raises(ValueError, match="not both"):
         trayecto.render(scene, spectral=True, rgb=True, **small)
     with pytest.raises(Exception, match="spectral rendering is not available"):
-        trayecto.render(scene, spectral=True, integrator="vcm", **small)
+        trayecto.render(scene, spectral=True, integrator="whitted", **small)
     cornell = trayecto.load_file("cornell")
     assert trayecto.render(cornell, **TINY).settings["spectral"] is False
     assert trayecto.render(cornell, spectral=True, **TINY).settings["spectral"] is True

@@ -403,8 +403,8 @@ pub struct RenderArgs {
     /// RGB colours are upsampled to smooth spectra where they enter a path (Jakob & Hanika 2019;
     /// illuminants × D65), lights given as spectra (blackbody, named, sampled) are exact per
     /// wavelength and dispersive glass (KHR_materials_dispersion) splits white light. The path
-    /// tracers (media included), the light tracer, BDPT and MLT (without media) and SPPM; VCM,
-    /// raycast and Whitted are refused. pbrt files render spectrally without it, as pbrt-v4
+    /// tracers, the light tracer, BDPT and MLT (media included), SPPM and VCM; raycast and
+    /// Whitted are refused. pbrt files render spectrally without it, as pbrt-v4
     /// does (RGB where the integrator has no spectral path); other formats in linear sRGB.
     #[arg(long, help_heading = HEADING_EXPERT, hide_short_help = true, conflicts_with = "rgb")]
     pub spectral: bool,
@@ -607,10 +607,11 @@ impl RenderArgs {
                     | IntegratorKind::Bdpt
                     | IntegratorKind::Mlt
                     | IntegratorKind::Sppm
+                    | IntegratorKind::Vcm
             )
         {
             bail!(
-                "invalid setting: --spectral needs --integrator path, lighttracer, bdpt, mlt or sppm (got {})",
+                "invalid setting: --spectral needs --integrator path, lighttracer, bdpt, mlt, sppm or vcm (got {})",
                 k.name()
             );
         }
