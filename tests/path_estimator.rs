@@ -222,11 +222,15 @@ fn spectral_furnace_renders_the_rgb_closed_form() {
         "spectral SPPM furnace: channel means {mean:?}, RGB SPPM's {rgb:?}"
     );
     let world = trayecto::world::World::build(scene, &Default::default()).unwrap();
-    let vcm = RenderSettings {
-        integrator: trayecto::integrator::IntegratorKind::Vcm,
+    // An integrator without a spectral path (the thesis's Whitted: its local shading models are
+    // RGB) is refused by name rather than rendered in RGB.
+    let whitted = RenderSettings {
+        integrator: trayecto::integrator::IntegratorKind::Whitted {
+            shading: Default::default(),
+        },
         ..spectral(base(8, 1))
     };
-    let e = trayecto::render::check_media_settings(&world, &vcm).unwrap_err();
+    let e = trayecto::render::check_media_settings(&world, &whitted).unwrap_err();
     assert!(e.to_string().contains("spectral"), "{e}");
 }
 
