@@ -1607,6 +1607,20 @@ fn camera_ray(
     x: u32,
     y: u32,
 ) -> (crate::geometry::Ray, f32) {
+    let (film, lens, weight) = film_and_lens(camera, filter, stream, x, y);
+    (camera.generate_ray(film, lens), weight)
+}
+
+/// [`camera_ray`]'s film point, lens point and filter weight, from the stream's first four
+/// numbers.
+#[inline]
+fn film_and_lens(
+    camera: &crate::camera::Camera,
+    filter: &FilterSampler,
+    stream: &mut SampleStream,
+    x: u32,
+    y: u32,
+) -> (crate::math::Vec2, crate::math::Vec2, f32) {
     let jitter = stream.next_2d();
     // A pinhole camera ignores the lens numbers: skipping them keeps every later dimension where
     // it was (the image is bit-identical) without the cost of a 2D sample (callgrind, Cornell
@@ -1618,7 +1632,7 @@ fn camera_ray(
         crate::math::Vec2::ZERO
     };
     let (film, weight) = filter.film_point(x, y, jitter);
-    (camera.generate_ray(film, lens), weight)
+    (film, lens, weight)
 }
 
 /// One motion-blurred camera sample of pixel (x, y): the film and lens numbers as
@@ -1635,15 +1649,8 @@ pub(crate) fn moving_camera_ray(
     x: u32,
     y: u32,
 ) -> (crate::geometry::Ray, f32) {
-    let jitter = stream.next_2d();
-    let lens = if camera.uses_lens() {
-        stream.next_2d()
-    } else {
-        stream.skip(2);
-        crate::math::Vec2::ZERO
-    };
+    let (film, lens, weight) = film_and_lens(camera, filter, stream, x, y);
     let u = stream.next_1d();
-    let (film, weight) = filter.film_point(x, y, jitter);
     let ray = match &world.camera_motion {
         Some(m) => {
             let mut camera = camera.clone();

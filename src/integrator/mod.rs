@@ -60,6 +60,16 @@ pub enum IntegratorKind {
 }
 
 impl IntegratorKind {
+    /// Whether the integrator carries sampled wavelengths (`--spectral`): every one but the
+    /// thesis's raycast and Whitted modes, whose local shading models are RGB
+    /// (docs/DESIGN.md "Spectral rendering"; `render::has_spectral_path` for the resolved one).
+    pub fn carries_wavelengths(self) -> bool {
+        !matches!(
+            self,
+            IntegratorKind::Raycast { .. } | IntegratorKind::Whitted { .. }
+        )
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             IntegratorKind::Path => "path",

@@ -153,14 +153,7 @@ pub(crate) fn render(
             break;
         }
         // Spectral mode: the iteration's wavelengths, shared by its camera paths and photons.
-        let path = if path.spectral {
-            crate::integrator::PathSettings {
-                wavelengths: Some(iteration_wavelengths(settings.seed, it)),
-                ..path
-            }
-        } else {
-            path
-        };
+        let path = for_iteration(path, settings.seed, it);
         // Camera pass: each row's pixels write only their own visible points and sums.
         let cam_stats = vps
             .par_chunks_mut(fw as usize)
@@ -284,6 +277,23 @@ pub(crate) fn render(
         render_time: t0.elapsed(),
         aovs: None,
     })
+}
+
+/// The settings of SPPM or VCM iteration `it`: in spectral mode `path` carrying
+/// [`iteration_wavelengths`], else `path` as it is.
+fn for_iteration(
+    path: crate::integrator::PathSettings,
+    seed: u64,
+    it: u32,
+) -> crate::integrator::PathSettings {
+    if path.spectral {
+        crate::integrator::PathSettings {
+            wavelengths: Some(iteration_wavelengths(seed, it)),
+            ..path
+        }
+    } else {
+        path
+    }
 }
 
 /// The wavelengths of SPPM or VCM iteration `it` in spectral mode: one set for all its camera
@@ -429,14 +439,7 @@ pub(crate) fn render_vcm(
         for it in s0..s1 {
             // Spectral mode: the iteration's wavelengths, shared by its light and camera
             // subpaths since a camera vertex merges with other pixels' light vertices (as SPPM).
-            let path = if path.spectral {
-                crate::integrator::PathSettings {
-                    wavelengths: Some(iteration_wavelengths(settings.seed, it)),
-                    ..path
-                }
-            } else {
-                path
-            };
+            let path = for_iteration(path, settings.seed, it);
             let vcm = Vcm::new(
                 world,
                 &importance,

@@ -685,17 +685,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
     // background out (docs/DESIGN.md §5, "Transparent film").
     // As `--spectral`: the path tracers, the light tracer, BDPT, MLT, SPPM and VCM carry
     // wavelengths, the other integrators (raycast, Whitted) refuse them.
-    if o.spectral == Some(true)
-        && !matches!(
-            o.integrator,
-            IntegratorKind::Path
-                | IntegratorKind::LightTracer
-                | IntegratorKind::Bdpt
-                | IntegratorKind::Mlt
-                | IntegratorKind::Sppm
-                | IntegratorKind::Vcm
-        )
-    {
+    if o.spectral == Some(true) && !o.integrator.carries_wavelengths() {
         errors.insert(
             "spectral".into(),
             "needs the path integrator, the light tracer, BDPT, MLT or SPPM".into(),

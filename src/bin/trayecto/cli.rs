@@ -600,15 +600,7 @@ impl RenderArgs {
         }
         if self.spectral
             && let Some(k) = self.integrator
-            && !matches!(
-                k,
-                IntegratorKind::Path
-                    | IntegratorKind::LightTracer
-                    | IntegratorKind::Bdpt
-                    | IntegratorKind::Mlt
-                    | IntegratorKind::Sppm
-                    | IntegratorKind::Vcm
-            )
+            && !k.carries_wavelengths()
         {
             bail!(
                 "invalid setting: --spectral needs --integrator path, lighttracer, bdpt, mlt, sppm or vcm (got {})",
