@@ -239,7 +239,21 @@ pub struct Context<'a> {
     pub time: f32,
 }
 
-impl Context<'_> {
+impl<'a> Context<'a> {
+    /// This context with the settings `set` (a spectral sample's copy carrying its wavelengths,
+    /// [`PathSettings::for_sample`]).
+    pub fn with_set<'b>(&self, set: &'b PathSettings) -> Context<'b>
+    where
+        'a: 'b,
+    {
+        Context {
+            world: self.world,
+            camera: self.camera,
+            set,
+            time: self.time,
+        }
+    }
+
     /// The density (per solid angle) with which the lights at infinity emit along `-d` into
     /// the scene, over choosing them: Σ pmf · pdf (pbrt-v4 `InfiniteLightDensity`).
     fn infinite_density(&self, d: Vec3) -> f32 {
@@ -806,12 +820,7 @@ pub fn trace(
     // both subpaths and every connection read; each strategy reaches the film through the CIE
     // curves (docs/DESIGN.md "Spectral rendering").
     let spectral_set = ctx.set.for_sample(s);
-    let spectral_ctx = spectral_set.as_ref().map(|set| Context {
-        world: ctx.world,
-        camera: ctx.camera,
-        set,
-        time: ctx.time,
-    });
+    let spectral_ctx = spectral_set.as_ref().map(|set| ctx.with_set(set));
     let ctx = spectral_ctx.as_ref().unwrap_or(ctx);
     let set = ctx.set;
     let world = ctx.world;
@@ -992,12 +1001,7 @@ pub fn trace_light(
     // Spectral mode: the sample's wavelengths, drawn first as `lighttracer::trace` draws them,
     // on a copy of the settings the subpath and its joins read.
     let spectral_set = ctx.set.for_sample(s);
-    let spectral_ctx = spectral_set.as_ref().map(|set| Context {
-        world: ctx.world,
-        camera: ctx.camera,
-        set,
-        time: ctx.time,
-    });
+    let spectral_ctx = spectral_set.as_ref().map(|set| ctx.with_set(set));
     let ctx = spectral_ctx.as_ref().unwrap_or(ctx);
     let world = ctx.world;
     let light = &mut scratch.light;

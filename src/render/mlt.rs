@@ -91,12 +91,7 @@ fn contribution(
     // film, and the target, as RGB through the CIE curves (pbrt-v4 `MLTIntegrator::L` samples
     // its wavelengths from the state and takes the luminance of the film's RGB).
     let spectral_set = f.ctx.set.for_sample(u);
-    let spectral_ctx = spectral_set.as_ref().map(|set| Context {
-        world: f.ctx.world,
-        camera: f.ctx.camera,
-        set,
-        time: f.ctx.time,
-    });
+    let spectral_ctx = spectral_set.as_ref().map(|set| f.ctx.with_set(set));
     let ctx = spectral_ctx.as_ref().unwrap_or(&f.ctx);
     let uf = u.next_2d();
     let film = Vec2::new(
