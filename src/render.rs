@@ -699,17 +699,8 @@ pub fn check_media_settings(world: &World, settings: &RenderSettings) -> Result<
 /// included), MLT on BDPT's paths, SPPM and VCM. The others refuse `--spectral`
 /// ([`check_media_settings`]).
 pub fn has_spectral_path(world: &World, settings: &RenderSettings) -> bool {
-    match Integrator::for_world(settings.integrator, world) {
-        // SPPM and VCM refuse media themselves (`photon::check`, `photon::check_vcm`).
-        Integrator::Path
-        | Integrator::VolPath
-        | Integrator::LightTracer
-        | Integrator::Bdpt
-        | Integrator::Mlt
-        | Integrator::Sppm
-        | Integrator::Vcm => true,
-        Integrator::Raycast { .. } | Integrator::Whitted { .. } => false,
-    }
+    // SPPM and VCM refuse media themselves (`photon::check`, `photon::check_vcm`).
+    Integrator::for_world(settings.integrator, world).carries_wavelengths()
 }
 
 /// [`check_media_settings`] for the resolved integrator.
@@ -727,18 +718,7 @@ fn check_integrator_settings(
     // Spectral transport is built into the path tracers (surface and volumetric), and the light
     // tracer, BDPT and MLT (media included), SPPM and VCM; the others (raycast,
     // Whitted) would silently render RGB (docs/DESIGN.md "Spectral rendering").
-    if settings.path.spectral
-        && !matches!(
-            integrator,
-            Integrator::Path
-                | Integrator::VolPath
-                | Integrator::LightTracer
-                | Integrator::Bdpt
-                | Integrator::Mlt
-                | Integrator::Sppm
-                | Integrator::Vcm
-        )
-    {
+    if settings.path.spectral && !integrator.carries_wavelengths() {
         return Err(RenderError::InvalidSetting(format!(
             "spectral rendering is not available with the {} yet (the path tracers, the light \
              tracer, BDPT, MLT, SPPM and VCM carry wavelengths; this integrator's local shading \

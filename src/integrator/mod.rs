@@ -64,10 +64,8 @@ impl IntegratorKind {
     /// thesis's raycast and Whitted modes, whose local shading models are RGB
     /// (docs/DESIGN.md "Spectral rendering"; `render::has_spectral_path` for the resolved one).
     pub fn carries_wavelengths(self) -> bool {
-        !matches!(
-            self,
-            IntegratorKind::Raycast { .. } | IntegratorKind::Whitted { .. }
-        )
+        // Media or not, the resolved integrator carries wavelengths or not alike.
+        select::Integrator::resolve(self, false).carries_wavelengths()
     }
 
     pub fn name(self) -> &'static str {

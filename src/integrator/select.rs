@@ -80,6 +80,15 @@ impl Integrator {
         Integrator::resolve(kind, world.has_media())
     }
 
+    /// Whether this integrator carries sampled wavelengths (docs/DESIGN.md "Spectral
+    /// rendering"): every one but raycast and Whitted, whose local shading is RGB.
+    pub fn carries_wavelengths(self) -> bool {
+        !matches!(
+            self,
+            Integrator::Raycast { .. } | Integrator::Whitted { .. }
+        )
+    }
+
     pub fn capabilities(self) -> Capabilities {
         match self {
             Integrator::Path => Capabilities {
