@@ -594,8 +594,9 @@ impl RenderJob {
     /// deriving the other from the file's aspect ratio; the selected camera's aspect ratio (glTF
     /// `aspectRatio`, FBX film aspect): [`DEFAULT_HEIGHT`] pixels high, or one given side
     /// deriving the other; else the job's defaults (square). When the final size disagrees with
-    /// the camera's aspect ratio the view is fitted as Blender's sensor fit `AUTO` does
-    /// ([`crate::scene::CameraDesc::fitted_tan_half_v`]) and the line says so.
+    /// the camera's aspect ratio the view is fitted by the camera's
+    /// [`crate::scene::SensorFit`] (Blender's sensor fit `AUTO`; pbrt files: the shorter side,
+    /// as pbrt-v4; [`crate::scene::CameraDesc::fitted_tan_half_v`]) and the line says so.
     pub fn resolve(&self, scene: &Scene) -> (RenderSettings, Option<String>) {
         let mut s = self.settings.clone();
         let h = &scene.hints;
@@ -699,15 +700,31 @@ impl RenderJob {
         if let (Some(c), Some(a)) = (camera, cam_aspect)
             && (s.width as f64 - s.height as f64 * a as f64).abs() > 1.0
         {
-            let larger = if s.width >= s.height {
-                "width"
+            let (larger, shorter) = if s.width >= s.height {
+                ("width", "height")
             } else {
-                "height"
+                ("height", "width")
+            };
+            let how = match c.fit {
+                crate::scene::SensorFit::Auto => format!(
+                    "the view is fitted as Blender does (sensor fit auto), the camera's wider \
+                     field of view spans the image's {larger}"
+                ),
+                crate::scene::SensorFit::Shorter => format!(
+                    "as in pbrt-v4, the field of view spans the image's shorter side ({shorter})"
+                ),
+                crate::scene::SensorFit::Width => {
+                    "as in Mitsuba (fov_axis x), the horizontal field of view is kept".into()
+                }
+                crate::scene::SensorFit::Height => {
+                    "as in Mitsuba (fov_axis y), the vertical field of view is kept".into()
+                }
+                crate::scene::SensorFit::Diagonal => {
+                    "as in Mitsuba (fov_axis diagonal), the diagonal field of view is kept".into()
+                }
             };
             note = Some(format!(
-                "camera '{}' has aspect ratio {a:.3} but the image is {}x{} ({:.3}): the view is \
-                 fitted as Blender does (sensor fit auto), the camera's wider field of view spans \
-                 the image's {larger}",
+                "camera '{}' has aspect ratio {a:.3} but the image is {}x{} ({:.3}): {how}",
                 c.name,
                 s.width,
                 s.height,

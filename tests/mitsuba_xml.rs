@@ -289,6 +289,60 @@ fn hostile_files_are_clean_errors() {
     );
 }
 
+/// Mitsuba keeps the field of view across `fov_axis` (default `x`) whatever the film's shape:
+/// a render at another aspect ratio than the file's film frames what Mitsuba would with that
+/// film.
+#[test]
+fn sensor_fov_axis_is_kept_at_other_resolutions() {
+    let xml = |axis: &str| {
+        format!(
+            r#"<scene version="3.0.0"><sensor type="perspective"><float name="fov" value="60"/>{axis}
+ <film type="hdrfilm"><integer name="width" value="200"/><integer name="height" value="100"/></film></sensor>
+<shape type="sphere"><bsdf type="diffuse"/></shape></scene>"#
+        )
+    };
+    let d = scratch(
+        "fov_axis",
+        &[
+            ("x.xml", &xml("")),
+            ("y.xml", &xml(r#"<string name="fov_axis" value="y"/>"#)),
+            (
+                "d.xml",
+                &xml(r#"<string name="fov_axis" value="diagonal"/>"#),
+            ),
+            (
+                "s.xml",
+                &xml(r#"<string name="fov_axis" value="smaller"/>"#),
+            ),
+        ],
+    );
+    let t = 30f32.to_radians().tan();
+    let load = |f: &str| {
+        let s = trayecto::scene::load(d.join(f).to_str().unwrap()).unwrap();
+        s.cameras[0].clone()
+    };
+    // For each file: the half-height tangent at the film's own 2:1 and at a square image.
+    let cases = [
+        ("x.xml", t / 2.0, t),
+        ("y.xml", t, t),
+        // The diagonal's half is the half height times √(1 + aspect²).
+        ("d.xml", t / 5f32.sqrt(), t / 2f32.sqrt()),
+        ("s.xml", t, t),
+    ];
+    for (f, at_film, at_square) in cases {
+        let c = load(f);
+        let (a, b) = (c.fitted_tan_half_v(2.0), c.fitted_tan_half_v(1.0));
+        assert!(
+            (a - at_film).abs() < 1e-5,
+            "{f} at 2:1: {a} against {at_film}"
+        );
+        assert!(
+            (b - at_square).abs() < 1e-5,
+            "{f} at 1:1: {b} against {at_square}"
+        );
+    }
+}
+
 #[test]
 fn defaults_defines_and_old_versions() {
     let d = scratch(

@@ -132,6 +132,51 @@ fn blender_sensor_fit() {
     assert!((c.fitted_tan_half_v(0.5) - 1.0).abs() < 1e-6);
 }
 
+/// pbrt-v4's `fov` spans the shorter side of whatever film it renders: a pbrt file rendered at
+/// another aspect ratio than its `Film` frames what pbrt-v4 would with a `Film` of that size
+/// (`PerspectiveCamera`'s screen window), not Blender's fit.
+#[test]
+fn pbrt_fov_spans_the_shorter_side_at_any_resolution() {
+    let text = |extra: &str| {
+        format!(
+            "Film \"rgb\" \"integer xresolution\" [ 160 ] \"integer yresolution\" [ 90 ]\n\
+             Camera \"perspective\" \"float fov\" [ 40 ] {extra}\n\
+             WorldBegin\n\
+             Shape \"sphere\" \"float radius\" [ 1 ]\n"
+        )
+    };
+    let s = trayecto::scene::pbrt::load_from_str(&text(""), "t.pbrt").unwrap();
+    let c = &s.cameras[0];
+    assert_eq!(c.fit, trayecto::scene::SensorFit::Shorter);
+    let t = 20f32.to_radians().tan();
+    for (aspect, want) in [
+        (16.0 / 9.0, t),
+        (4.0 / 3.0, t),
+        (1.0, t),
+        (0.75, t / 0.75),
+        (0.5, t / 0.5),
+    ] {
+        let got = c.fitted_tan_half_v(aspect);
+        assert!(
+            (got - want).abs() < 1e-5 * want,
+            "aspect {aspect}: {got} against {want}"
+        );
+    }
+    // The console says which fit it used.
+    let note = size(&job(Some(96), Some(72)), &s).2.unwrap();
+    assert!(
+        note.ends_with("as in pbrt-v4, the field of view spans the image's shorter side (height)"),
+        "{note}"
+    );
+    // An explicit screen window is tied to the file's film: fitted as any camera.
+    let s = trayecto::scene::pbrt::load_from_str(
+        &text("\"float screenwindow\" [ -1 1 -0.5 0.5 ]"),
+        "t.pbrt",
+    )
+    .unwrap();
+    assert_eq!(s.cameras[0].fit, trayecto::scene::SensorFit::Auto);
+}
+
 fn trayecto(args: &[&str]) -> (bool, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_trayecto"))
         .args(args)

@@ -249,11 +249,33 @@ pub struct CameraDesc {
     pub vfov_deg: f32,
     /// Aspect ratio the file asks for, if any (the render's width/height wins).
     pub aspect: Option<f32>,
+    /// How the view is fitted to an image whose aspect ratio differs from `aspect`.
+    pub fit: SensorFit,
     /// Lens radius; 0 is a pinhole.
     pub aperture_radius: f32,
     pub focus_distance: f32,
     /// How film points become rays (pinhole/thin lens by default).
     pub projection: Projection,
+}
+
+/// How a camera's field of view is fitted to an image of another aspect ratio than its own.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SensorFit {
+    /// As Blender's sensor fit `AUTO` (glTF, FBX, TOML and the built-in scenes): the field of
+    /// view across the larger side of the camera's own frame spans the larger side of the image.
+    #[default]
+    Auto,
+    /// As pbrt-v4 (`PerspectiveCamera`'s screen window, a film of any shape) and Mitsuba's
+    /// `fov_axis` `smaller`: the field of view spans the image's shorter side, so a pbrt file
+    /// rendered at another resolution frames what pbrt-v4 would with that `Film`.
+    Shorter,
+    /// Mitsuba's `fov_axis` `x` (its default) and its orthographic window: the horizontal field
+    /// of view is kept.
+    Width,
+    /// Mitsuba's `fov_axis` `y`: the vertical field of view is kept.
+    Height,
+    /// Mitsuba's `fov_axis` `diagonal` (and a `focal_length`): the diagonal field is kept.
+    Diagonal,
 }
 
 /// A camera's projection (PBRT §5.2–5.4). The camera-to-world matrix and the lens are shared.
@@ -280,10 +302,13 @@ pub enum SphericalMapping {
 }
 
 impl CameraDesc {
-    /// tan(vfov/2) for an image of aspect ratio `image_aspect` (width / height), fitted as
-    /// Blender's sensor fit `AUTO`: the camera's field of view across the larger side of its
-    /// own frame (vertical `vfov_deg` × `aspect` when the frame is wide) spans the larger side of
-    /// the image. Equal aspect ratios, or a camera without one, keep `vfov_deg`.
+    /// tan(vfov/2) for an image of aspect ratio `image_aspect` (width / height), fitted by
+    /// the camera's [`SensorFit`]: `Auto`, as Blender's sensor fit `AUTO`, keeps the field of
+    /// view across the larger side of the camera's own frame (vertical `vfov_deg` × `aspect`
+    /// when the frame is wide) on the larger side of the image; `Shorter`, as pbrt-v4, keeps
+    /// the field of view across the shorter side; `Width`, `Height` and `Diagonal` (Mitsuba's
+    /// `fov_axis`) keep that one. Equal aspect ratios, or a camera without one, keep
+    /// `vfov_deg`.
     pub fn fitted_tan_half_v(&self, image_aspect: f32) -> f32 {
         (self.vfov_deg.to_radians() * 0.5).tan() * self.fit_scale(image_aspect)
     }
@@ -292,9 +317,16 @@ impl CameraDesc {
     /// `image_aspect` ([`CameraDesc::fitted_tan_half_v`]; the orthographic window fits the same).
     pub fn fit_scale(&self, image_aspect: f32) -> f32 {
         match self.aspect.filter(|a| a.is_finite() && *a > 0.0) {
-            Some(a) if image_aspect.is_finite() && image_aspect > 0.0 => {
-                a.max(1.0) / image_aspect.max(1.0)
-            }
+            Some(a) if image_aspect.is_finite() && image_aspect > 0.0 => match self.fit {
+                SensorFit::Auto => a.max(1.0) / image_aspect.max(1.0),
+                // The window's half height is t over the shorter side's share: t for wide
+                // frames, t / aspect for tall ones (pbrt-v4 `PerspectiveCamera`).
+                SensorFit::Shorter => a.min(1.0) / image_aspect.min(1.0),
+                // tan(hfov/2) = tan(vfov/2)·aspect is kept.
+                SensorFit::Width => a / image_aspect,
+                SensorFit::Height => 1.0,
+                SensorFit::Diagonal => ((1.0 + a * a) / (1.0 + image_aspect * image_aspect)).sqrt(),
+            },
             _ => 1.0,
         }
     }
@@ -313,6 +345,7 @@ impl CameraDesc {
             camera_to_world: view.inverse(),
             vfov_deg,
             aspect: None,
+            fit: SensorFit::Auto,
             aperture_radius: 0.0,
             focus_distance: (target - eye).length().max(1e-6),
             projection: Projection::Perspective,

@@ -194,6 +194,7 @@ impl Loader<'_> {
                     camera_to_world: rigid(world),
                     vfov_deg: p.yfov().to_degrees(),
                     aspect: p.aspect_ratio(),
+                    fit: crate::scene::SensorFit::Auto,
                     aperture_radius: 0.0,
                     focus_distance: 1.0,
                     projection: crate::scene::Projection::Perspective,
@@ -219,6 +220,7 @@ impl Loader<'_> {
                     // distance, for front ends that show a perspective view of it.
                     vfov_deg: (2.0 * ymag.atan().to_degrees()).clamp(1.0, 170.0),
                     aspect: Some(xmag / ymag),
+                    fit: crate::scene::SensorFit::Auto,
                     aperture_radius: 0.0,
                     focus_distance: 1.0,
                     projection: crate::scene::Projection::Orthographic { half_height: ymag },

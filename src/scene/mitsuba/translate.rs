@@ -824,6 +824,9 @@ impl<'a> Tx<'a> {
         };
         let aspect = w as f32 / h as f32;
         let mut params = String::new();
+        // How the view follows a film of another shape (a render at another --width/--height):
+        // Mitsuba keeps the field of view across `fov_axis`, the orthographic window's width.
+        let mut fit = crate::scene::SensorFit::Width;
         let proj = match ty {
             "perspective" | "thinlens" => {
                 let mut axis = self.string(e, "fov_axis").unwrap_or_else(|| "x".into());
@@ -866,6 +869,13 @@ impl<'a> Tx<'a> {
                         ));
                     }
                 };
+                fit = match axis.as_str() {
+                    "y" => crate::scene::SensorFit::Height,
+                    "diagonal" => crate::scene::SensorFit::Diagonal,
+                    "smaller" => crate::scene::SensorFit::Shorter,
+                    "larger" => crate::scene::SensorFit::Auto,
+                    _ => crate::scene::SensorFit::Width,
+                };
                 let t_short = if wf < hf { t_x } else { t_x * hf / wf };
                 params.push_str(&format!(
                     " \"float fov\" [ {} ]",
@@ -899,6 +909,7 @@ impl<'a> Tx<'a> {
                     &format!("sensor '{other}' is not supported; a perspective camera is used"),
                 );
                 params.push_str(" \"float fov\" [ 45 ]");
+                fit = crate::scene::SensorFit::Shorter;
                 "perspective"
             }
         };
@@ -922,7 +933,9 @@ impl<'a> Tx<'a> {
             nums(&cam_from_world.to_cols_array())
         ));
         self.unused(e);
-        self.run(e, &text)
+        self.run(e, &text)?;
+        self.b.set_camera_fit(fit);
+        Ok(())
     }
 
     fn filter(&mut self, f: &'a Elem) -> Result<(), SceneError> {

@@ -49,6 +49,12 @@ impl Builder {
         Ok(())
     }
 
+    /// How the camera is fitted to an image of another shape than its film (the translator's
+    /// sensor convention, where it is not pbrt-v4's); the camera is made with the film, later.
+    pub(crate) fn set_camera_fit(&mut self, fit: crate::scene::SensorFit) {
+        self.l.camera_fit = Some(fit);
+    }
+
     /// A `trianglemesh` shape from decoded arrays (pbrt's uv convention: v up).
     pub(crate) fn triangle_mesh(
         &mut self,

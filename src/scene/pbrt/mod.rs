@@ -274,6 +274,9 @@ pub(crate) struct Loader {
     camera_end: Option<Mat4>,
     /// The camera's `shutteropen`/`shutterclose`.
     shutter: Option<(f64, f64)>,
+    /// How the camera follows an image of another shape, when a translator (the Mitsuba
+    /// loader) says so instead of pbrt-v4's rule.
+    pub(crate) camera_fit: Option<crate::scene::SensorFit>,
 }
 
 /// `file:line` of a token.
@@ -320,6 +323,7 @@ impl Loader {
             motion: Vec::new(),
             camera_end: None,
             shutter: None,
+            camera_fit: None,
         }
     }
 
@@ -1490,6 +1494,16 @@ impl Loader {
             },
             vfov_deg: vfov,
             aspect: Some(aspect),
+            // pbrt-v4's default window follows the film: at another resolution the field of
+            // view still spans the shorter side. An explicit `screenwindow` or
+            // `frameaspectratio` is fixed to the file's film instead, and fitted as any camera.
+            fit: if let Some(fit) = self.camera_fit {
+                fit
+            } else if window.is_none() {
+                crate::scene::SensorFit::Shorter
+            } else {
+                crate::scene::SensorFit::Auto
+            },
             aperture_radius: if matches!(projection, Projection::Spherical(_)) {
                 0.0
             } else {
