@@ -210,7 +210,6 @@ mod tests {
                     ior: 1.8,
                     thickness: d,
                     wavelengths: None,
-                    wavelengths: None,
                 }
                 .fresnel(cos, Vec3::new(0.9, 0.6, 0.3));
                 assert!(f.min_element() >= 0.0 && f.max_element() <= 1.0);
@@ -304,7 +303,9 @@ mod tests {
     /// lit by white light converges to) against the RGB evaluation (Belcour & Barla's
     /// Fourier-space integration, which treats the m = 0 term as white and integrates the rest
     /// against Gaussian fits of the colour matching functions): close for thin films, which is
-    /// what the extension's RGB evaluation is for. Measured: printed.
+    /// what the extension's RGB evaluation is for. Measured 0.0015 (1.33 / 300 nm), 0.0085
+    /// (2.0 / 200 nm), 0.0044 (1.8 / 450 nm) in the worst channel; a phase off by π or an optical
+    /// path off by its factor 2 moves a film by more than 0.04.
     #[test]
     fn spectral_film_under_white_light_approaches_the_rgb_evaluation() {
         for (ior, d) in [(1.33f32, 300.0f32), (2.0, 200.0), (1.8, 450.0)] {
@@ -322,7 +323,7 @@ mod tests {
             eprintln!(
                 "film {ior} / {d} nm: RGB evaluation {rgb:?}, spectral under D65 {spectral:?}, gap {gap}"
             );
-            assert!(gap < 0.03, "film {ior} / {d} nm: {rgb:?} vs {spectral:?}");
+            assert!(gap < 0.015, "film {ior} / {d} nm: {rgb:?} vs {spectral:?}");
         }
     }
 }
