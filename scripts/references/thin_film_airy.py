@@ -61,5 +61,5 @@ for n2, fb, d, c, lams in CASES:
         assert all(abs(v - extension_model(n2, fb, d, 1.0, l)) < 1e-12 for v, l in zip(vals, lams))
     else:
         vals = [extension_model(n2, fb, d, c, l) for l in lams]
-    print(f"    ({n2!r}, {fb:.9f}, {d!r}, {c!r}, [{', '.join(f'{l!r}' for l in lams)}], "
+    print(f"    ({n2!r}, {round(fb, 9)!r}, {d!r}, {c!r}, [{', '.join(f'{l!r}' for l in lams)}], "
           f"[{', '.join(f'{v:.7f}' for v in vals)}]),")
