@@ -23,6 +23,7 @@ fn coated_diffuse(r: f32, eta: f32, alpha: f32, thickness: f32, albedo: f32) -> 
         coat: Coat {
             eta,
             dist: Ggx::anisotropic(alpha, alpha),
+            eta_spectrum: None,
         },
         base: Base::Diffuse {
             reflectance: Vec3::splat(r),

@@ -673,3 +673,109 @@ fn sample_li_pdf_is_pdf_li() {
         }
     }
 }
+
+/// An emissive texture in spectral mode is an illuminant spectrum per texel (pbrt-v4
+/// `DiffuseAreaLight::L` with an image: the texel RGB at the hit becomes an
+/// `RGBIlluminantSpectrum`): a quad of the 2 × 2 [`TEXELS`] (nearest filtering) filling the
+/// frame, seen head-on and lit by nothing else, renders spectrally as its RGB render does, per
+/// quadrant (the central 2 × 2 pixels of each, away from the texel edges), within the
+/// upsampling table's round trip (RGB → spectrum × D65 → RGB: 1.2 % of the largest channel,
+/// docs/DESIGN.md) plus 4 standard errors of the colour noise; measured at most 0.0027 off.
+/// Each quadrant shows its own texel (the texture is not replaced by a constant).
+#[test]
+fn emissive_textures_are_illuminant_spectra_per_texel_in_spectral_mode() {
+    use trayecto::material::texture::{FilterMode, Texture, TextureRef, WrapMode};
+    use trayecto::render::RenderSettings;
+    use trayecto::scene::CameraDesc;
+    let mut scene = Scene {
+        default_light: Some(trayecto::scene::DefaultLight::Off),
+        ..Default::default()
+    };
+    scene.textures.clear();
+    scene.textures.push(Texture {
+        name: "emission".into(),
+        width: 2,
+        height: 2,
+        texels: TEXELS
+            .map(|t| trayecto::math::Vec4::new(t[0], t[1], t[2], 1.0))
+            .to_vec()
+            .into(),
+        wrap_s: WrapMode::Repeat,
+        wrap_t: WrapMode::Repeat,
+        filter: FilterMode::Nearest,
+        mipmap: false,
+        mips: Vec::new(),
+        procedural: None,
+        layout: Default::default(),
+    });
+    let mut m = Material::diffuse("textured emitter", Vec3::ZERO);
+    m.emissive = Vec3::ONE;
+    m.emissive_texture = Some(TextureRef::new(0));
+    let id = scene.add_material(m);
+    scene.add_object(
+        "quad",
+        Shape::Quad {
+            corner: Vec3::new(-1.0, -1.0, 0.0),
+            e1: Vec3::new(2.0, 0.0, 0.0),
+            e2: Vec3::new(0.0, 2.0, 0.0),
+        },
+        Mat4::IDENTITY,
+        id,
+    );
+    scene.cameras.push(CameraDesc::look_at(
+        "c",
+        Vec3::new(0.0, 0.0, 3.0),
+        Vec3::ZERO,
+        Vec3::Y,
+        30.0,
+    ));
+    let world = World::build(scene, &WorldOptions::default()).unwrap();
+    let render = |spectral: bool, spp: u32| {
+        let mut s = RenderSettings {
+            width: 8,
+            height: 8,
+            spp,
+            ..Default::default()
+        };
+        s.path.spectral = spectral;
+        common::render_world(&world, &s).data
+    };
+    // Mean and standard error of the central 2 × 2 pixels of each 4 × 4 quadrant.
+    let quadrants = |px: &[Vec3]| -> Vec<(Vec3, Vec3)> {
+        [(0, 0), (4, 0), (0, 4), (4, 4)]
+            .iter()
+            .map(|&(x0, y0)| {
+                let v: Vec<Vec3> = (1..3)
+                    .flat_map(|y| (1..3).map(move |x| px[(y0 + y) * 8 + x0 + x]))
+                    .collect();
+                let m = v.iter().copied().sum::<Vec3>() / 4.0;
+                let var = v.iter().map(|p| (*p - m) * (*p - m)).sum::<Vec3>() / 3.0;
+                (m, (var / 4.0).powf(0.5))
+            })
+            .collect()
+    };
+    let rgb = quadrants(&render(false, 4));
+    let spectral = quadrants(&render(true, 256));
+    let mut seen = Vec::new();
+    for (k, ((r, _), (s, se))) in rgb.iter().zip(&spectral).enumerate() {
+        let texel = TEXELS
+            .iter()
+            .map(|t| Vec3::from_array(*t))
+            .min_by(|a, b| (*a - *r).length().total_cmp(&(*b - *r).length()))
+            .unwrap();
+        assert!(
+            (texel - *r).abs().max_element() < 1e-4,
+            "quadrant {k}: RGB {r:?} is not a texel"
+        );
+        seen.push(texel.to_array());
+        let tol = *se * 4.0 + Vec3::splat(0.012 * r.max_element());
+        eprintln!("quadrant {k}: RGB {r:?}, spectral {s:?} (tolerance {tol:?})");
+        assert!(
+            (*s - *r).abs().cmple(tol).all(),
+            "quadrant {k}: spectral {s:?} vs RGB {r:?} (tolerance {tol:?})"
+        );
+    }
+    seen.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    seen.dedup();
+    assert_eq!(seen.len(), 4, "{seen:?}");
+}

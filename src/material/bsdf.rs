@@ -44,8 +44,8 @@ impl Bsdf {
     /// ([`Bsdf::disperses`]) takes the IOR of the hero wavelength `lambda.x` alone — its η
     /// spectrum (a named glass's Sellmeier law or a sampled η(λ)), or the Cauchy law
     /// n(λ) = A + B/λ² through KHR_materials_dispersion's per-channel IORs — and the path has
-    /// dropped the other two wavelengths before it gets here. Thin-film iridescence keeps its
-    /// RGB evaluation.
+    /// dropped the other two wavelengths before it gets here. Thin-film iridescence takes the
+    /// Airy reflectance at each wavelength ([`super::iridescence::Iridescence::wavelengths`]).
     pub fn to_spectral(&self, lambda: Vec3, spectra: &crate::spectrum::BsdfSpectra) -> Bsdf {
         use crate::spectrum::rgb2spec::{reflectance as refl, unbounded};
         let mut b = *self;
@@ -58,22 +58,27 @@ impl Bsdf {
                     sh.color = refl(sh.color, lambda);
                 }
                 m.ext.diffuse_transmission_color = refl(m.ext.diffuse_transmission_color, lambda);
+                if let Some(ir) = m.ext.iridescence.as_mut() {
+                    ir.wavelengths = Some(lambda);
+                }
             }
             Bsdf::Mirror(m) => m.color = refl(m.color, lambda),
             Bsdf::Dielectric(d) => {
                 d.tint = refl(d.tint, lambda);
                 if let Some(id) = d.eta_spectrum {
-                    // pbrt-v4 `DielectricMaterial::GetBxDF`: a sampled η is 0 beyond its
-                    // wavelengths, where the interface counts as index-matched (η = 1).
-                    let e = spectra.value(id, lambda.x);
-                    d.eta = if e == 0.0 { 1.0 } else { e };
+                    d.eta = hero_eta(spectra, id, lambda);
                     d.dispersion = None;
                 } else if let Some(e) = d.dispersion {
                     d.eta = cauchy_at(e, lambda.x);
                     d.dispersion = None;
                 }
             }
-            Bsdf::ThinDielectric(d) => d.tint = refl(d.tint, lambda),
+            Bsdf::ThinDielectric(d) => {
+                d.tint = refl(d.tint, lambda);
+                if let Some(id) = d.eta_spectrum {
+                    d.eta = hero_eta(spectra, id, lambda);
+                }
+            }
             Bsdf::Conductor(c) => conductor_at(c, lambda, spectra),
             Bsdf::DiffuseTransmission(d) => {
                 d.reflectance = refl(d.reflectance, lambda);
@@ -81,11 +86,29 @@ impl Bsdf {
             }
             Bsdf::Layered(l) => {
                 l.albedo = refl(l.albedo, lambda);
+                // A dispersive coat (pbrt-v4 `CoatedDiffuseMaterial`/`CoatedConductorMaterial`
+                // with a non-constant η): the interface takes η(λ₀) for the whole BSDF, the path
+                // keeps λ₀ alone, and a conductor base is relative to that η as pbrt-v4 divides
+                // its η and k by `interfaceEta(lambda[0])`.
+                let rgb_coat_eta = l.coat.eta;
+                if let Some(id) = l.coat.eta_spectrum {
+                    l.coat.eta = hero_eta(spectra, id, lambda);
+                }
                 match &mut l.base {
                     super::bxdf::layered::Base::Diffuse { reflectance } => {
                         *reflectance = refl(*reflectance, lambda)
                     }
-                    super::bxdf::layered::Base::Conductor(c) => conductor_at(c, lambda, spectra),
+                    super::bxdf::layered::Base::Conductor(c) => {
+                        conductor_at(c, lambda, spectra);
+                        if l.coat.eta_spectrum.is_some() {
+                            // conductor_at gave η/η_rgb, k/η_rgb (both linear in the
+                            // divisor: a spectrum's values, or the unbounded upsampling of
+                            // the relative RGB, whose scale is linear).
+                            let to_hero = rgb_coat_eta / l.coat.eta;
+                            c.eta *= to_hero;
+                            c.k *= to_hero;
+                        }
+                    }
                 }
             }
             Bsdf::GltfTransmission(t) => {
@@ -97,14 +120,18 @@ impl Bsdf {
                 if let Some(sh) = t.sheen.as_mut() {
                     sh.color = refl(sh.color, lambda);
                 }
+                if let Some(ir) = t.iridescence.as_mut() {
+                    ir.wavelengths = Some(lambda);
+                }
             }
             Bsdf::Hair(h) => h.sigma_a = unbounded(h.sigma_a, lambda),
         }
         b
     }
 
-    /// True if where the BSDF sends light depends on the wavelength: a dielectric with an η
-    /// spectrum (a named glass, a sampled η that varies with λ) or with KHR_materials_dispersion. A spectral path meeting one keeps only its hero
+    /// True if where the BSDF sends light depends on the wavelength: a dielectric, a thin
+    /// dielectric or a layered coat with an η spectrum (a named glass, a sampled η that varies
+    /// with λ) or a dielectric with KHR_materials_dispersion. A spectral path meeting one keeps only its hero
     /// wavelength, with thrice its weight (pbrt-v4 `SampledWavelengths::TerminateSecondary`: the
     /// hero alone is an unbiased estimate of the three, and one direction cannot serve three
     /// IORs); RGB rendering samples its per-channel mixture instead ([`Dielectric`]).
@@ -112,6 +139,8 @@ impl Bsdf {
     pub fn disperses(&self) -> bool {
         match self {
             Bsdf::Dielectric(d) => d.eta_spectrum.is_some() || d.dispersion.is_some(),
+            Bsdf::ThinDielectric(d) => d.eta_spectrum.is_some(),
+            Bsdf::Layered(l) => l.coat.eta_spectrum.is_some(),
             Bsdf::GltfTransmission(t) => t.dispersion.is_some(),
             _ => false,
         }
@@ -387,6 +416,15 @@ fn cauchy_at(rgb: Vec3, lambda: f32) -> f32 {
     let b = (rgb.z - rgb.x) / (ib - ir);
     let a = rgb.x - b * ir;
     (a + b / (lambda * lambda)).max(1.0)
+}
+
+/// η of the spectrum `id` at the hero wavelength `lambda.x`; pbrt-v4's dielectric, thin
+/// dielectric and coated materials take a sampled η that is 0 beyond its wavelengths as an
+/// index-matched interface (η = 1).
+#[inline]
+fn hero_eta(spectra: &crate::spectrum::BsdfSpectra, id: u16, lambda: Vec3) -> f32 {
+    let e = spectra.value(id, lambda.x);
+    if e == 0.0 { 1.0 } else { e }
 }
 
 /// A conductor at three wavelengths: its named η/k spectra where it has them, else its RGB η and

@@ -439,6 +439,18 @@ fn sellmeier(c: &[f64; 6], lambda_nm: f32) -> f32 {
     n2.sqrt() as f32
 }
 
+/// pbrt-v4's name of a glass the pbrt importer also accepts under Schott's name (`glass-SF5` is
+/// pbrt-v4's `glass-F5`, …) for a dielectric's η, which spectral rendering disperses
+/// ([`glass_id`]; RGB takes `scene::pbrt`'s index at 587.56 nm for either name).
+fn glass_alias(name: &str) -> &str {
+    match name {
+        "glass-SF5" => "glass-F5",
+        "glass-SF10" => "glass-F10",
+        "glass-SF11" => "glass-F11",
+        n => n,
+    }
+}
+
 /// η(λ) of a named glass (`glass-BK7`, `glass-BAF10`, `glass-FK51A`, `glass-LASF9`, `glass-F5`,
 /// `glass-F10`, `glass-F11`).
 pub fn glass_eta(name: &str, lambda: f32) -> Option<f32> {
@@ -599,8 +611,11 @@ impl ConductorSpectra {
     }
 }
 
-/// The id of a named glass (`glass-BK7`, …) in [`BsdfSpectra`]'s id space.
+/// The id of a named glass (`glass-BK7`, …) in [`BsdfSpectra`]'s id space. pbrt-v4's
+/// `glass-F5`/`-F10`/`-F11` are Schott's dense flints SF5, SF10, SF11, so the SF names
+/// (which the pbrt importer accepts as well) are the same glasses.
 pub fn glass_id(name: &str) -> Option<u16> {
+    let name = glass_alias(name);
     GLASSES
         .iter()
         .position(|g| g.0 == name)
@@ -753,6 +768,13 @@ mod tests {
                     assert!(id < GLASS_BASE);
                     assert_eq!(s.value(id, l), named_spectrum(&name, l).unwrap(), "{name}");
                 }
+            }
+            for (sf, f) in [
+                ("glass-SF5", "glass-F5"),
+                ("glass-SF10", "glass-F10"),
+                ("glass-SF11", "glass-F11"),
+            ] {
+                assert_eq!(glass_id(sf), glass_id(f), "{sf}");
             }
             for (g, _) in GLASSES {
                 let id = glass_id(g).unwrap();

@@ -31,6 +31,11 @@ use crate::sampling::warp;
 pub struct Coat {
     pub eta: f32,
     pub dist: Ggx,
+    /// The id of an η spectrum varying with λ ([`crate::spectrum::BsdfSpectra`]: a named glass
+    /// or a sampled η) that spectral rendering follows at the hero wavelength
+    /// ([`crate::material::Bsdf::to_spectral`], pbrt-v4's coated materials); RGB rendering
+    /// ignores it (`eta` is its index at 587.56 nm).
+    pub eta_spectrum: Option<u16>,
 }
 
 /// The layer under the coat.
@@ -706,6 +711,7 @@ mod tests {
             coat: Coat {
                 eta: 1.5,
                 dist: Ggx::anisotropic(alpha, alpha),
+                eta_spectrum: None,
             },
             base: Base::Diffuse {
                 reflectance: Vec3::splat(0.8),

@@ -14,6 +14,11 @@ pub struct ThinDielectric {
     pub eta: f32,
     pub tint: Vec3,
     pub ggx: Option<Ggx>,
+    /// The id of an η spectrum varying with λ ([`crate::spectrum::BsdfSpectra`]; pbrt's
+    /// `thindielectric` with a named glass or a sampled η) that spectral rendering follows at
+    /// the hero wavelength ([`crate::material::Bsdf::to_spectral`], as pbrt-v4's
+    /// `ThinDielectricMaterial`); RGB rendering ignores it (`eta` is its index at 587.56 nm).
+    pub eta_spectrum: Option<u16>,
 }
 
 impl ThinDielectric {
@@ -24,6 +29,7 @@ impl ThinDielectric {
             eta,
             tint,
             ggx: (alpha >= MIN_ALPHA).then(|| Ggx::new(alpha)),
+            eta_spectrum: None,
         }
     }
 

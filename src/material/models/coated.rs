@@ -17,6 +17,10 @@ pub struct Coat {
     pub eta: f32,
     pub alpha: Vec2,
     pub roughness: RoughnessTextures,
+    /// η given as a spectrum varying with λ (pbrt's named glasses, sampled η): its
+    /// [`crate::spectrum::BsdfSpectra`] id, which spectral rendering follows (`eta` is its
+    /// index at 587.56 nm, for RGB).
+    pub eta_spectrum: Option<u16>,
 }
 
 impl Default for Coat {
@@ -25,6 +29,7 @@ impl Default for Coat {
             eta: 1.5,
             alpha: Vec2::ZERO,
             roughness: RoughnessTextures::default(),
+            eta_spectrum: None,
         }
     }
 }
@@ -96,6 +101,7 @@ fn layered_bsdf(coat: &Coat, slab: &Slab, base: Base, tx: &HitTextures) -> Bsdf 
         coat: layered::Coat {
             eta: coat.eta,
             dist: Ggx::anisotropic(alpha.x, alpha.y),
+            eta_spectrum: coat.eta_spectrum,
         },
         base,
         thickness: slab.thickness,

@@ -5,7 +5,7 @@
 use crate::geometry::SurfaceHit;
 use crate::material::bxdf::dielectric::dispersive_iors;
 use crate::material::bxdf::metallic_roughness::{Anisotropy, Extensions};
-use crate::material::bxdf::{self, Dielectric, Diffuse, GltfTransmission};
+use crate::material::bxdf::{self, Dielectric, Diffuse, GltfTransmission, ThinDielectric};
 use crate::material::clearcoat::Clearcoat;
 use crate::material::eval::{HitTextures, base_color_in, roughness_metallic_in};
 use crate::material::iridescence::Iridescence;
@@ -54,6 +54,11 @@ pub struct MetallicRoughness {
     pub diffuse_transmission_texture: Option<TextureRef>,
     pub diffuse_transmission_color: Vec3,
     pub diffuse_transmission_color_texture: Option<TextureRef>,
+    /// The η spectrum (a [`crate::spectrum::BsdfSpectra`] id) of a thin-walled transmissive
+    /// sheet whose η varies with λ (pbrt's `thindielectric` with a named glass or a sampled η):
+    /// spectral rendering follows it ([`crate::material::bxdf::ThinDielectric::eta_spectrum`]);
+    /// RGB rendering takes the material's IOR.
+    pub eta_spectrum: Option<u16>,
 }
 
 impl MetallicRoughness {
@@ -84,6 +89,7 @@ impl MetallicRoughness {
         diffuse_transmission_texture: None,
         diffuse_transmission_color: Vec3::ONE,
         diffuse_transmission_color_texture: None,
+        eta_spectrum: None,
     };
 
     /// The extensions' texture slots (set or not).
@@ -192,7 +198,9 @@ pub(super) fn bsdf(material: &Material, x: &MetallicRoughness, tx: &HitTextures,
             }
             if material.thin_walled {
                 // KHR_materials_dispersion: no effect on thin-walled materials.
-                return Bsdf::thin_dielectric(eta, roughness, base);
+                let mut sheet = ThinDielectric::new(eta, roughness, base);
+                sheet.eta_spectrum = x.eta_spectrum;
+                return Bsdf::ThinDielectric(sheet);
             }
             if x.dispersion > 0.0 {
                 let iors = dispersive_iors(eta, x.dispersion);
@@ -355,6 +363,7 @@ fn extensions(material: &MetallicRoughness, tx: &HitTextures, roughness: f32) ->
                 factor: factor.clamp(0.0, 1.0),
                 ior: material.iridescence_ior,
                 thickness: thickness.max(0.0),
+                wavelengths: None,
             });
         }
     }

@@ -1082,6 +1082,7 @@ impl Loader {
                 let mut coat = Coat::default();
                 (coat.alpha, coat.roughness) = self.alpha_pair(p, "", at);
                 coat.eta = self.eta(p, at, &what);
+                coat.eta_spectrum = self.dispersive_eta(p, "eta");
                 let slab = self.layer_params(p, at, &what);
                 m.model = MaterialModel::CoatedDiffuse(CoatedDiffuse { coat, slab });
             }
@@ -1096,6 +1097,7 @@ impl Loader {
                 let mut coat = Coat::default();
                 (coat.alpha, coat.roughness) = self.alpha_pair(p, "interface.", at);
                 coat.eta = self.prefixed_eta(p, "interface.", at, &what);
+                coat.eta_spectrum = self.dispersive_eta(p, "interface.eta");
                 let slab = self.layer_params(p, at, &what);
                 m.model = MaterialModel::CoatedConductor(CoatedConductor {
                     coat,
@@ -1112,9 +1114,8 @@ impl Loader {
                 };
                 // An η spectrum varying with λ (a named glass, a sampled η) disperses in spectral
                 // rendering (pbrt-v4 follows η(λ)); a constant one is the IOR.
-                dielectric.eta_spectrum = self
-                    .bsdf_spectrum(p, "eta", None)
-                    .filter(|&id| !self.constant_eta(id));
+                let eta_spectrum = self.dispersive_eta(p, "eta");
+                dielectric.eta_spectrum = eta_spectrum;
                 m.ior = eta;
                 m.base_color = Vec3::ONE;
                 m.roughness = rough;
@@ -1122,6 +1123,9 @@ impl Loader {
                     m.model = MaterialModel::Dielectric(dielectric);
                 } else {
                     m.model = MaterialModel::metallic_roughness();
+                    if let Some(x) = m.metallic_roughness_mut() {
+                        x.eta_spectrum = eta_spectrum;
+                    }
                     m.metallic = 0.0;
                     m.transmission = 1.0;
                     m.thin_walled = true;
@@ -1377,14 +1381,20 @@ impl Loader {
         if v.iter().any(|s| s.1 != v[0].1) {
             self.warn_once(
                 &format!("disp sampled {key}"),
-                if key == "eta" {
-                    format!("{at}: {what}: spectrally varying \"{key}\" is rendered with its index at 587.6 nm ({e}) in RGB; --spectral disperses it")
-                } else {
-                    format!("{at}: {what}: spectrally varying \"{key}\" is rendered with its index at 587.6 nm ({e}), without dispersion")
-                },
+                format!("{at}: {what}: spectrally varying \"{key}\" is rendered with its index at 587.6 nm ({e}) in RGB; --spectral disperses it"),
             );
         }
         e
+    }
+
+    /// The [`crate::spectrum::BsdfSpectra`] id of the η parameter `key` when it is a spectrum
+    /// that varies over 360–830 nm (a named glass, a sampled list or file): spectral rendering
+    /// disperses it at the hero wavelength, as pbrt-v4's dielectric, thin dielectric and coated
+    /// materials do (they terminate the secondary wavelengths for any non-constant η). `None`
+    /// for a float, RGB or constant η.
+    fn dispersive_eta(&mut self, p: &ParamList, key: &str) -> Option<u16> {
+        self.bsdf_spectrum(p, key, None)
+            .filter(|&id| !self.constant_eta(id))
     }
 
     /// True if the η spectrum `id` is one value wherever spectral rendering samples it

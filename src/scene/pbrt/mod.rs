@@ -989,6 +989,34 @@ impl Loader {
                 _ => None,
             };
         }
+        // A kept σ spectrum is what spectral rendering takes; RGB takes its projection, which a
+        // narrow band (its projection a spectral colour outside the sRGB gamut) makes negative in
+        // a channel: RGB clamps that channel, with a warning, instead of refusing the medium.
+        // The spectrum itself must be non-negative.
+        let mut sigma = [sigma_a, sigma_s];
+        for ((rgb, table), key) in sigma
+            .iter_mut()
+            .zip(&sigma_spectra)
+            .zip(["sigma_a", "sigma_s"])
+        {
+            let Some(t) = table else { continue };
+            if let Some(l) = (360..=830).find(|&l| !(t.value(l as f32) >= 0.0)) {
+                return Err(SceneError::invalid(
+                    at,
+                    format!("{what}: \"{key}\" is negative at {l} nm"),
+                ));
+            }
+            if rgb.min_element() < 0.0 {
+                let c = rgb.max(Vec3::ZERO);
+                self.warn(format!(
+                    "{at}: {what}: the RGB projection {:?} of the spectrum \"{key}\" is outside the sRGB gamut; RGB rendering uses {:?}, --spectral the spectrum itself",
+                    rgb.to_array(),
+                    c.to_array()
+                ));
+                *rgb = c;
+            }
+        }
+        let [sigma_a, sigma_s] = sigma;
         let scale = p.float("scale", 1.0);
         let g = p.float("g", 0.0);
         // Emission (pbrt-v4 `Le`, an illuminant spectrum, times `Lescale`; σa·Le per unit
@@ -1005,7 +1033,7 @@ impl Loader {
         } else if ty == "homogeneous" && p.has("Lescale") {
             let _ = p.float("Lescale", 1.0);
         }
-        let kind = if ty == "uniformgrid" {
+        let mut kind = if ty == "uniformgrid" {
             let nx = p.int("nx", 1);
             let ny = p.int("ny", 1);
             let nz = p.int("nz", 1);
@@ -1044,6 +1072,16 @@ impl Loader {
         } else {
             None
         };
+        if le_spectrum.is_some() {
+            le = self.emission_in_gamut(le, at, &what);
+            if let MediumKind::Grid {
+                emission: Some(crate::scene::GridEmission::Radiance { le, .. }),
+                ..
+            } = &mut kind
+            {
+                *le = self.emission_in_gamut(*le, at, &what);
+            }
+        }
         let desc = MediumDesc {
             name: name.to_string(),
             sigma_a,
@@ -1061,6 +1099,30 @@ impl Loader {
         let id = self.scene.add_medium(desc);
         self.media.insert(name.to_string(), Some(id));
         Ok(())
+    }
+
+    /// The RGB emission of a medium whose `Le` is a spectrum, for RGB rendering: a narrow band
+    /// projects outside the sRGB gamut (a negative channel), which RGB cannot render; its
+    /// negative channels are clamped and the result scaled back to the projection's luminance,
+    /// which spectral rendering scales the spectrum by ([`crate::spectrum::Illuminant::at`]), so
+    /// that spectral rendering stays exact. Warns when it clamps.
+    fn emission_in_gamut(&mut self, rgb: Vec3, at: &str, what: &str) -> Vec3 {
+        if !(rgb.min_element() < 0.0) {
+            return rgb;
+        }
+        let y = |c: Vec3| 0.212_672_9 * c.x + 0.715_152_2 * c.y + 0.072_175 * c.z;
+        let clamped = rgb.max(Vec3::ZERO);
+        let c = if y(clamped) > 0.0 {
+            clamped * (y(rgb) / y(clamped))
+        } else {
+            clamped
+        };
+        self.warn(format!(
+            "{at}: {what}: the RGB projection {:?} of the spectrum \"Le\" is outside the sRGB gamut; RGB rendering uses {:?} (its luminance), --spectral the spectrum itself",
+            rgb.to_array(),
+            c.to_array()
+        ));
+        c
     }
 
     /// A `uniformgrid`'s emission as pbrt-v4's `GridMedium::Create` reads it (media.cpp): `Le`
