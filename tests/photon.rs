@@ -325,6 +325,28 @@ fn vcm_film_is_a_function_of_seed_and_settings() {
     let mut split = range(&base, 0..2);
     split.add_film(&range(&base, 2..5)).unwrap();
     assert_eq!(one, split);
+    // Spectral too: each iteration draws its wavelengths from its index, so ranges and threads
+    // leave the film unchanged, and it is not the RGB film.
+    let spectral = RenderSettings {
+        path: PathSettings {
+            spectral: true,
+            ..base.path
+        },
+        ..base.clone()
+    };
+    let one_s = range(&spectral, 0..5);
+    assert_ne!(one, one_s);
+    let two_s = range(
+        &RenderSettings {
+            threads: Some(2),
+            ..spectral.clone()
+        },
+        0..5,
+    );
+    assert_eq!(one_s, two_s);
+    let mut split_s = range(&spectral, 0..3);
+    split_s.add_film(&range(&spectral, 3..5)).unwrap();
+    assert_eq!(one_s, split_s);
     // A medium is refused with the reason, not ignored (its paths join surfaces only).
     let fog = trayecto::scene::load(
         repo_dir()
