@@ -10,6 +10,7 @@ use crate::film::filter::{Filter, FilterSampler};
 use crate::film::{Film, FilmBlock, Image};
 use crate::integrator::aov::{self, AovPath, PixelAovs};
 use crate::integrator::guiding::{Guide, Guiding, Learner, Record};
+use crate::integrator::wavefront::{self, Wavefront};
 use crate::integrator::{Integrator, IntegratorKind, PathSettings, RayStats, path};
 use crate::sampling::{SampleStream, SamplerKind, SamplerSetup};
 use crate::world::World;
@@ -1173,7 +1174,7 @@ impl TileWork<'_> {
         let batched = self.integrator.capabilities().batched_first_hits && !moving;
         // In-loop AOVs are only recorded by batching integrators (`aovs_in_loop`).
         debug_assert!(batched || !self.record_aovs);
-        let mut batch = Batch::new(batched);
+        let mut batch = Batch::new(batched, wavefront::enabled());
         let mut records = Vec::new();
         // A training pass records every `stride`-th sample of each pixel, within the budget.
         let stride = (self.pixels * (s1 - s0) as u64 * 4)
@@ -1792,9 +1793,25 @@ struct Primary {
     record: bool,
 }
 
-/// The samples of one tile waiting for their first hits; allocated once per tile job (never per
-/// sample), empty when the integrator traces sample by sample.
-struct Batch(Vec<Primary>);
+/// The samples of one tile waiting for their first hits, and the wavefront path loop's state
+/// (`integrator::wavefront`, when it runs the batch's paths); allocated once per tile job (never
+/// per sample), empty when the integrator traces sample by sample.
+struct Batch(Vec<Primary>, Option<Wavefront>);
+
+impl crate::integrator::wavefront::PathStart for Primary {
+    #[inline]
+    fn ray(&self) -> &crate::geometry::Ray {
+        &self.ray
+    }
+    #[inline]
+    fn first(&self) -> Option<crate::geometry::primitive::Intersection> {
+        self.first
+    }
+    #[inline]
+    fn stream(&mut self) -> &mut SampleStream {
+        &mut self.stream
+    }
+}
 
 /// Where a batch's radiances go: the tile's film block, its ray counts, its AOV block (when the
 /// render records AOVs in the path loop).
@@ -1836,8 +1853,12 @@ fn with_records<T>(g: &mut Guiding, record: bool, trace: impl FnOnce(&mut Guidin
 }
 
 impl Batch {
-    fn new(batched: bool) -> Batch {
-        Batch(Vec::with_capacity(if batched { BATCH } else { 0 }))
+    /// `wavefront`: run the paths' bounces in wavefront form where the settings allow it.
+    fn new(batched: bool, wavefront: bool) -> Batch {
+        Batch(
+            Vec::with_capacity(if batched { BATCH } else { 0 }),
+            (batched && wavefront).then(|| Wavefront::new(BATCH)),
+        )
     }
 
     /// Appends a sample whose camera ray is still to be drawn from `stream`, and returns it.
@@ -1867,6 +1888,21 @@ impl Batch {
     fn trace(&mut self, world: &World, set: &PathSettings, out: &mut BatchOut) {
         for p in &mut self.0 {
             p.first = world.candidate(&p.ray);
+        }
+        // The wavefront loop covers unguided RGB paths without in-loop AOVs; its radiances are
+        // bit for bit `path::radiance_from`'s, added to the film in the same order.
+        if let Some(wf) = self.1.as_mut()
+            && out.guiding.is_none()
+            && out.aovs.is_none()
+            && wavefront::supports(set)
+        {
+            wf.trace(world, set, &mut self.0, out.stats);
+            for (i, p) in self.0.iter().enumerate() {
+                let covered = out.coverage && aov::covers(world, &p.ray);
+                out.add(p.fx, p.fy, wf.radiance(i) * p.weight, covered);
+            }
+            self.0.clear();
+            return;
         }
         for p in &mut self.0 {
             // The first hit found above may be a medium interface or a cut-out: coverage asks
