@@ -110,9 +110,11 @@ def scene_args(scene):
     """The scene argument and extra flags of a Trayecto render of `scene` (bench/out's export)."""
     if scene == "cornell":
         return "cornell", []
-    if os.path.isfile(scene):
-        # A scene file given by path (when bench/out's exports are not at hand).
-        return scene, []
+    target, *flags = scene.split()
+    if os.path.isfile(target):
+        # A scene file given by path, with its own flags ("FILE --rgb"), when bench/out's
+        # exports are not at hand.
+        return target, flags
     glb = os.path.join(OUT, scene, f"{scene}.glb")
     if not os.path.exists(glb):
         sys.exit(f"{glb} is missing: run bench/compare.py --scenes {scene} once to export it")

@@ -2056,6 +2056,95 @@ mod tests {
         }
     }
 
+    /// The wavefront loop (`integrator::wavefront`) gives every sample of a batch the radiance
+    /// `path::radiance_from` gives it, bit for bit, leaves each sample's stream where the scalar
+    /// loop leaves it and counts the same rays: with the default settings, at depth 1, and with
+    /// roulette from the first bounce; a batch of 37 samples (not a multiple of anything) from a
+    /// camera that also sees past the box, so some camera rays miss.
+    #[test]
+    fn the_wavefront_loop_traces_each_sample_as_the_scalar_loop_does() {
+        let scene = crate::scene::builtin::load("cornell").unwrap();
+        let mut world = World::build(scene, &Default::default()).unwrap();
+        // Widen the view so the box's open front and outside show.
+        world.camera.vfov_deg = (world.camera.vfov_deg * 2.5).min(150.0);
+        let (w, h) = (7u32, 6u32);
+        let camera = crate::camera::Camera::new(&world.camera, w, h);
+        let sampler = SamplerSetup::new(SamplerKind::default(), 3, 4).for_image(w, h);
+        let filter = FilterSampler::new(&Filter::default());
+        let base = PathSettings::default();
+        let shallow = PathSettings {
+            max_depth: 1,
+            ..base
+        };
+        let roulette = PathSettings {
+            rr_depth: 0,
+            max_depth: 40,
+            ..base
+        };
+        let mut wf = Wavefront::new(8);
+        let mut misses = 0;
+        for set in [base, shallow, roulette] {
+            let mut batch = Vec::new();
+            for k in 0..37u32 {
+                let (x, y, s) = (k % w, (k / w) % h, k / (w * h));
+                let mut stream = sampler.stream(sampler.pixel_key((x, y)), s);
+                let (ray, weight) = camera_ray(&camera, &filter, &mut stream, x, y);
+                let first = world.candidate(&ray);
+                misses += first.is_none() as u32;
+                batch.push(Primary {
+                    fx: x,
+                    fy: y,
+                    slot: 0,
+                    stream,
+                    ray,
+                    weight,
+                    first,
+                    record: false,
+                });
+            }
+            let mut scalar_stats = RayStats::default();
+            let scalar: Vec<_> = batch
+                .iter()
+                .map(|p| {
+                    let mut s = p.stream.clone();
+                    let l = path::radiance_from(
+                        &world,
+                        &p.ray,
+                        p.first,
+                        &mut s,
+                        &set,
+                        &mut scalar_stats,
+                    );
+                    (l, s.next_1d())
+                })
+                .collect();
+            let mut stats = RayStats::default();
+            wf.trace(&world, &set, &mut batch, &mut stats);
+            for (i, (l, after)) in scalar.iter().enumerate() {
+                let got = wf.radiance(i);
+                assert_eq!(
+                    got.to_array().map(f32::to_bits),
+                    l.to_array().map(f32::to_bits),
+                    "sample {i}: {got} against {l}"
+                );
+                assert_eq!(
+                    batch[i].stream.next_1d().to_bits(),
+                    after.to_bits(),
+                    "sample {i}"
+                );
+            }
+            assert_eq!(
+                (stats.rays, stats.shadow_rays),
+                (scalar_stats.rays, scalar_stats.shadow_rays)
+            );
+            assert!(stats.rays > 37 && stats.shadow_rays > 0);
+        }
+        assert!(
+            misses > 0,
+            "no camera ray missed: the escape path is untested"
+        );
+    }
+
     /// The batched first hits (`Batch`) render exactly what tracing each sample on its own does:
     /// every pixel's film value, the rays counted and the in-loop AOVs (float sums, so their
     /// order counts) equal a reference that traces sample by sample with `path::radiance_aov`.
