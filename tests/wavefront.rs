@@ -1,4 +1,4 @@
-//! The wavefront path loop (`integrator::wavefront`, docs/DESIGN.md "Wavefront path tracing")
+//! The wavefront path loop (`integrator::wavefront`, docs/DESIGN.md §6, "Wavefront path loop")
 //! renders bit for bit what the scalar path tracer renders, on scenes that exercise its stages:
 //! textures and normal maps, MIS between light and BSDF samples with several lights, many
 //! emitters, an environment map, delta lights, transmission and specular chains, the depth

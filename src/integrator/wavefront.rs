@@ -1,5 +1,5 @@
-//! The wavefront (stream) form of the surface path tracer's bounce loop (docs/DESIGN.md,
-//! "Wavefront path tracing"): a batch of camera samples' paths advanced together, stage by
+//! The wavefront (stream) form of the surface path tracer's bounce loop (docs/DESIGN.md §6,
+//! "Wavefront path loop"): a batch of camera samples' paths advanced together, stage by
 //! stage — shade and draw the light sample, trace the batch's shadow rays, finish NEE and sample
 //! the BSDF, find the batch's closest hits, add emission and play Russian roulette — each stage a
 //! loop over the live paths, compacted after every stage that ends paths (Laine, Karras and
