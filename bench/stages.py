@@ -13,7 +13,7 @@ bench/out/, or with bench/out/venv's Python, which has bpy, numpy and mitsuba):
     bench/out/venv/bin/python bench/stages.py callgrind --bin A --bin B   # before / after
 
 callgrind: one render per scene at --cg-res² and --cg-spp on one thread, instructions counted only
-inside the render passes (`--toggle-collect` on the pass closure: scene loading, BVH build and
+inside the render passes (`--toggle-collect` on the tile jobs, `TileWork::render`: scene loading, BVH build and
 image output are left out). Every instruction is charged to a stage by the source file it comes
 from (callgrind keeps the file of inlined code) or, for std/glam/core_arch lines, by the function
 it was inlined into. The stages:
@@ -110,6 +110,11 @@ def scene_args(scene):
     """The scene argument and extra flags of a Trayecto render of `scene` (bench/out's export)."""
     if scene == "cornell":
         return "cornell", []
+    target, *flags = scene.split()
+    if os.path.isfile(target):
+        # A scene file given by path, with its own flags ("FILE --rgb"), when bench/out's
+        # exports are not at hand.
+        return target, flags
     glb = os.path.join(OUT, scene, f"{scene}.glb")
     if not os.path.exists(glb):
         sys.exit(f"{glb} is missing: run bench/compare.py --scenes {scene} once to export it")
@@ -131,7 +136,7 @@ def callgrind_stages(exe, scene, res, spp):
     with tempfile.TemporaryDirectory() as tmp:
         cg = os.path.join(tmp, "cg.out")
         cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={cg}",
-               "--toggle-collect=trayecto::render::PassSchedule::run*",
+               "--toggle-collect=trayecto::render::TileWork::render*",
                exe, "render", target, "-o", os.path.join(tmp, "x.exr"), "--width", str(res),
                "--height", str(res), "--spp", str(spp), "--threads", "1", "--quiet", *extra]
         subprocess.run(cmd, check=True, capture_output=True)

@@ -7,7 +7,7 @@ use super::guiding::{Mix, mixture_pdf};
 use super::settings::PathSettings;
 use super::vertex::Vertex;
 use crate::geometry::primitive::SurfaceHit;
-use crate::light::{EnvPdf, LocalLight};
+use crate::light::{EnvPdf, LightSample, LocalLight};
 use crate::material::local_shading::{ShadingModel, brdf};
 use crate::math::Vec3;
 use crate::sampling::SampleStream;
@@ -57,12 +57,45 @@ pub fn sample_ld_mix(
     mix: Option<&Mix>,
     seen: Option<&mut Option<NeeSeen>>,
 ) -> Vec3 {
+    let Some(pending) = sample_ld_begin(world, v, s, set) else {
+        return Vec3::ZERO;
+    };
+    stats.shadow_rays += 1;
+    if world.occluded(&pending.ls.shadow) {
+        return Vec3::ZERO;
+    }
+    sample_ld_finish(world, v, beta, set, &pending, mix, seen)
+}
+
+/// A light sample of [`sample_ld_begin`] whose contribution is not zero unless its shadow ray
+/// (`ls.shadow`) is blocked: what [`sample_ld_finish`] needs once the ray has been traced.
+#[derive(Clone, Copy)]
+pub struct PendingLd {
+    pub ls: LightSample,
+    /// `ls.wi` in the vertex's shading frame.
+    pub wi_local: Vec3,
+    /// The BSDF's value for the sample (not zero).
+    pub f: Vec3,
+}
+
+/// The first half of [`sample_ld_mix`], before the shadow ray: draws the light sample's three
+/// numbers from `s` and evaluates the BSDF. `None` when the estimate is zero whatever the
+/// shadow ray would find (no shadow ray is then traced). The wavefront path tracer
+/// (`wavefront.rs`) runs it for a batch of vertices, traces their shadow rays together, then
+/// finishes them: the same arithmetic as [`sample_ld_mix`], in stages.
+#[inline(always)]
+pub fn sample_ld_begin(
+    world: &World,
+    v: &Vertex,
+    s: &mut SampleStream,
+    set: &PathSettings,
+) -> Option<PendingLd> {
     // A specular vertex takes no light sample, and a black BSDF would make `f` zero below: their
     // three numbers are skipped, not computed, so the later dimensions keep their meaning (the
     // estimate, the rays traced and the image are the same).
     if v.bsdf.is_specular() || v.bsdf.is_black() {
         s.skip(3);
-        return Vec3::ZERO;
+        return None;
     }
     let u_spare = if world.light_count() > 1 {
         s.next_1d()
@@ -73,11 +106,9 @@ pub fn sample_ld_mix(
     let u_light = s.next_2d();
     let env = set.env_pdf();
     let uniform_n = v.uniform_env_normal(env);
-    let Some(ls) = world.sample_light_reuse(&v.hit, v.ng, u_light, u_spare, env, uniform_n) else {
-        return Vec3::ZERO;
-    };
+    let ls = world.sample_light_reuse(&v.hit, v.ng, u_light, u_spare, env, uniform_n)?;
     if !(set.nee || ls.delta) {
-        return Vec3::ZERO;
+        return None;
     }
     let wi_local = v.frame.to_local(ls.wi);
     // Shading and geometric normals must agree on the side of `wi`, or light would leak
@@ -85,12 +116,24 @@ pub fn sample_ld_mix(
     let consistent = v.bsdf.side_consistent(wi_local, ls.wi.dot(v.ng));
     let f = v.bsdf.eval(v.wo_local, wi_local);
     if !consistent || f == Vec3::ZERO {
-        return Vec3::ZERO;
+        return None;
     }
-    stats.shadow_rays += 1;
-    if world.occluded(&ls.shadow) {
-        return Vec3::ZERO;
-    }
+    Some(PendingLd { ls, wi_local, f })
+}
+
+/// The second half of [`sample_ld_mix`], for a light sample whose shadow ray was not blocked:
+/// `beta` × the estimate, MIS-weighted against `mix` (or the BSDF), reporting it to `seen`.
+#[inline(always)]
+pub fn sample_ld_finish(
+    world: &World,
+    v: &Vertex,
+    beta: Vec3,
+    set: &PathSettings,
+    p: &PendingLd,
+    mix: Option<&Mix>,
+    seen: Option<&mut Option<NeeSeen>>,
+) -> Vec3 {
+    let (ls, wi_local, f) = (&p.ls, p.wi_local, p.f);
     let weight = if ls.delta || !set.mis {
         1.0
     } else {

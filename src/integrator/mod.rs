@@ -15,6 +15,7 @@ pub mod sppm;
 pub mod vcm;
 pub mod vertex;
 pub mod volpath;
+pub mod wavefront;
 pub mod whitted;
 
 pub use raycast::Aov;

@@ -110,7 +110,7 @@ pub fn radiance_guided_from(
 /// What a camera ray that hits nothing sees: the lights at infinity, or nothing on a
 /// transparent film.
 #[inline]
-fn background(world: &World, ray: &Ray, set: &PathSettings) -> Vec3 {
+pub(crate) fn background(world: &World, ray: &Ray, set: &PathSettings) -> Vec3 {
     if set.transparent {
         Vec3::ZERO
     } else {
