@@ -249,20 +249,22 @@ fn sampled_absorption_spectrum_is_exact_in_spectral_mode() {
     assert!((spectral - Vec3::ONE).abs().max_element() < 0.03, "{msg}");
 }
 
-/// Media whose emission `Le` is a spectrum (scenes/pbrt/media/emission-spectra.pbrt: four purely
-/// absorbing boxes, a 2000 K blackbody `Le` over a green σa band, a two-band sampled `Le` over a
-/// blue-passing σa, `stdillum-A` over an RGB σa, a `uniformgrid` with the sampled `Le` over a
-/// red σa edge): spectral mode takes Le(λ) at the path's wavelengths, so Le(λ)·(1 − e^{−σa(λ)d})
-/// is integrated as pbrt-v4 does; RGB multiplies per channel. Per box and channel, the error
-/// against pbrt-v4 relative to the box's brightest channel. Measured at 16 spp: spectral
-/// 1.5 %, RGB 90 % (the blackbody box's red); upsampling the `Le` projections in spectral
-/// mode (before `le_spectrum`) 4.5 % at 64 spp.
-#[test]
-fn emission_spectra_are_exact_in_spectral_mode() {
-    let path = repo_dir().join("scenes/pbrt/media/emission-spectra.pbrt");
-    let scene = trayecto::scene::load(path.to_str().unwrap()).expect("scene loads");
-    let reference = read_exr(&repo_dir().join("tests/references/pbrt/media/emission-spectra.exr"))
-        .expect("reference EXR");
+/// The worst error, per box and channel, of `scene` rendered in RGB and in spectral mode at
+/// `spp` samples and depth `max_depth` against the pbrt-v4 reference
+/// `tests/references/pbrt/media/{reference}`: the scenes of four boxes side by side, each
+/// box's mean against the reference's, relative to the reference box's brightest channel.
+fn rgb_and_spectral_box_errors(
+    scene: &Scene,
+    reference: &str,
+    spp: u32,
+    max_depth: u32,
+) -> (f32, f32) {
+    let reference = read_exr(
+        &repo_dir()
+            .join("tests/references/pbrt/media")
+            .join(reference),
+    )
+    .expect("reference EXR");
     let boxes = |img: &Image| -> Vec<Vec3> {
         let w = img.width as usize / 4;
         (0..4)
@@ -285,11 +287,26 @@ fn emission_spectra_are_exact_in_spectral_mode() {
         }
         e
     };
-    let mut s = settings(reference.width, reference.height, 16);
-    s.path.max_depth = 5;
-    let rgb = worst(&render_scene(&scene, &s));
+    let mut s = settings(reference.width, reference.height, spp);
+    s.path.max_depth = max_depth;
+    let rgb = worst(&render_scene(scene, &s));
     s.path.spectral = true;
-    let spectral = worst(&render_scene(&scene, &s));
+    (rgb, worst(&render_scene(scene, &s)))
+}
+
+/// Media whose emission `Le` is a spectrum (scenes/pbrt/media/emission-spectra.pbrt: four purely
+/// absorbing boxes, a 2000 K blackbody `Le` over a green σa band, a two-band sampled `Le` over a
+/// blue-passing σa, `stdillum-A` over an RGB σa, a `uniformgrid` with the sampled `Le` over a
+/// red σa edge): spectral mode takes Le(λ) at the path's wavelengths, so Le(λ)·(1 − e^{−σa(λ)d})
+/// is integrated as pbrt-v4 does; RGB multiplies per channel. Per box and channel, the error
+/// against pbrt-v4 relative to the box's brightest channel. Measured at 16 spp: spectral
+/// 1.5 %, RGB 90 % (the blackbody box's red); upsampling the `Le` projections in spectral
+/// mode (before `le_spectrum`) 4.5 % at 64 spp.
+#[test]
+fn emission_spectra_are_exact_in_spectral_mode() {
+    let path = repo_dir().join("scenes/pbrt/media/emission-spectra.pbrt");
+    let scene = trayecto::scene::load(path.to_str().unwrap()).expect("scene loads");
+    let (rgb, spectral) = rgb_and_spectral_box_errors(&scene, "emission-spectra.exr", 16, 5);
     let msg = format!("emission spectra against pbrt-v4: RGB {rgb:.4}, spectral {spectral:.4}");
     println!("{msg}");
     assert!(rgb > 0.3, "{msg}");
@@ -321,35 +338,7 @@ fn narrow_band_media_are_kept_and_exact_in_spectral_mode() {
     assert!(scene.media.iter().all(|m| m.sigma_a.min_element() >= 0.0
         && m.sigma_s.min_element() >= 0.0
         && m.le.min_element() >= 0.0));
-    let reference = read_exr(&repo_dir().join("tests/references/pbrt/media/narrow-bands.exr"))
-        .expect("reference EXR");
-    let boxes = |img: &Image| -> Vec<Vec3> {
-        let w = img.width as usize / 4;
-        (0..4)
-            .map(|k| {
-                let mut sum = Vec3::ZERO;
-                for y in 0..img.height as usize {
-                    for x in k * w..(k + 1) * w {
-                        sum += img.data[y * img.width as usize + x];
-                    }
-                }
-                sum / (w * img.height as usize) as f32
-            })
-            .collect()
-    };
-    let r = boxes(&reference);
-    let worst = |img: &Image| {
-        let mut e = 0.0f32;
-        for (a, b) in boxes(img).iter().zip(&r) {
-            e = e.max((*a - *b).abs().max_element() / b.max_element());
-        }
-        e
-    };
-    let mut s = settings(reference.width, reference.height, 64);
-    s.path.max_depth = 8;
-    let rgb = worst(&render_scene(&scene, &s));
-    s.path.spectral = true;
-    let spectral = worst(&render_scene(&scene, &s));
+    let (rgb, spectral) = rgb_and_spectral_box_errors(&scene, "narrow-bands.exr", 64, 8);
     let msg = format!("narrow-band media against pbrt-v4: RGB {rgb:.4}, spectral {spectral:.4}");
     println!("{msg}");
     assert!(rgb > 0.3, "{msg}");

@@ -15,7 +15,7 @@ use super::RayStats;
 use super::aov::AovPath;
 use super::direct::sample_ld_mix;
 use super::guiding::{self, Guiding, Pending, Record};
-use super::vertex::Vertex;
+use super::vertex::{Vertex, sample_bsdf};
 use crate::geometry::Ray;
 use crate::geometry::primitive::{Intersection, NO_LIGHT, SurfaceHit};
 use crate::math::{Vec3, luminance};
@@ -316,14 +316,7 @@ fn continue_path(
             mix_densities = (!ms.bs.specular).then_some((ms.pdf_bsdf, ms.pdf_guide, m.alpha));
             (ms.bs, ms.wi, Some((ms.pdf_bsdf, ms.pdf_guide, m.alpha)))
         } else {
-            let u_lobe = if v.bsdf.has_one_lobe() {
-                s.skip(1);
-                0.0
-            } else {
-                s.next_1d()
-            };
-            let u_dir = s.next_2d();
-            let Some(bs) = v.bsdf.sample(v.wo_local, u_lobe, u_dir) else {
+            let Some(bs) = sample_bsdf(&v.bsdf, v.wo_local, s) else {
                 break;
             };
             let wi = v.frame.to_world(bs.wi);

@@ -7,7 +7,24 @@ use crate::light::EnvPdf;
 use crate::material::Bsdf;
 use crate::material::bxdf::{BsdfSample, Diffuse, TransportMode};
 use crate::math::{Frame, Vec2, Vec3};
+use crate::sampling::SampleStream;
 use crate::world::World;
+
+/// A direction sampled from `bsdf` at `wo_local` with the next numbers of the path's stream: one
+/// for the lobe (drawn and skipped when the BSDF has one lobe, so that every bounce takes the
+/// same three numbers) and two for the direction. The path tracers' unguided bounce: the surface
+/// loop, its wavefront form and the volumetric loop draw identically through it.
+#[inline]
+pub fn sample_bsdf(bsdf: &Bsdf, wo_local: Vec3, s: &mut SampleStream) -> Option<BsdfSample> {
+    let u_lobe = if bsdf.has_one_lobe() {
+        s.skip(1);
+        0.0
+    } else {
+        s.next_1d()
+    };
+    let u_dir = s.next_2d();
+    bsdf.sample(wo_local, u_lobe, u_dir)
+}
 
 /// A scattering vertex of a path: the hit (normal-mapped), its BSDF, the normals oriented for
 /// scattering and the local shading frame with the outgoing direction in it. NEE and BSDF

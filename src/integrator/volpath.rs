@@ -41,7 +41,7 @@
 use super::RayStats;
 use super::guiding::{self, Guiding, Mix, Pending, Record};
 use super::settings::PathSettings;
-use super::vertex::Vertex;
+use super::vertex::{Vertex, sample_bsdf};
 use crate::geometry::Ray;
 use crate::geometry::primitive::SurfaceHit;
 use crate::material::Bsdf;
@@ -478,14 +478,7 @@ fn trace(
             };
             (ms.bs, ms.wi, Some((ms.pdf_bsdf, ms.pdf_guide, m.alpha)))
         } else {
-            let u_lobe = if bsdf.has_one_lobe() {
-                s.skip(1);
-                0.0
-            } else {
-                s.next_1d()
-            };
-            let u_dir = s.next_2d();
-            let Some(bs) = bsdf.sample(wo_local, u_lobe, u_dir) else {
+            let Some(bs) = sample_bsdf(bsdf, wo_local, s) else {
                 return l;
             };
             let wi = frame.to_world(bs.wi);

@@ -22,7 +22,7 @@ use super::RayStats;
 use super::direct::{PendingLd, sample_ld_begin, sample_ld_finish};
 use super::path::background;
 use super::settings::PathSettings;
-use super::vertex::Vertex;
+use super::vertex::{Vertex, sample_bsdf};
 use crate::geometry::Ray;
 use crate::geometry::primitive::{Intersection, NO_LIGHT, SurfaceHit};
 use crate::math::Vec3;
@@ -289,14 +289,7 @@ fn bounce(
         _ => Vec3::ZERO,
     };
     lane.l += set.clamp(ld, lane.depth + 1);
-    let u_lobe = if v.bsdf.has_one_lobe() {
-        s.skip(1);
-        0.0
-    } else {
-        s.next_1d()
-    };
-    let u_dir = s.next_2d();
-    let Some(bs) = v.bsdf.sample(v.wo_local, u_lobe, u_dir) else {
+    let Some(bs) = sample_bsdf(&v.bsdf, v.wo_local, s) else {
         return false;
     };
     let wi = v.frame.to_world(bs.wi);
