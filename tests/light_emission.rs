@@ -638,7 +638,7 @@ fn sample_li_pdf_is_pdf_li() {
                 if found.prim != light.as_area().unwrap().prim {
                     continue;
                 }
-                let pdf = light.pdf_li(p, &found, || 1.0);
+                let pdf = light.pdf_li(&world.geometry, p, &found, || 1.0);
                 assert!(
                     (pdf - ls.pdf).abs() <= 2e-3 * ls.pdf,
                     "pdf_li {pdf}, sample_li {} from {p}",

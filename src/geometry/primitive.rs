@@ -209,7 +209,7 @@ impl GeometryStore {
 
     /// The moving mesh of flat triangle `i` and the triangle's vertex indices in it, if it moves.
     #[inline]
-    fn moving_triangle(&self, i: usize) -> Option<(&MovingMesh, [usize; 3])> {
+    pub(super) fn moving_triangle(&self, i: usize) -> Option<(&MovingMesh, [usize; 3])> {
         let m = self.motion.as_ref()?;
         let &(mesh_i, local) = self.tri_mesh.get(i)?;
         let moving = m.mesh(mesh_i)?;

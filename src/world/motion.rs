@@ -21,7 +21,9 @@
 //! - moving point, spot and directional lights too: the world's light set keeps their
 //!   positions and directions at the same keys (`light::set::LightMotion`) and places each at
 //!   the time of the ray that samples it or of the light path it starts.
-//! - motion that is not interpolated so (a moving emitter, a light whose power or cone changes,
+//! - emitters on moving meshes and spheres too: their area lights sample, and take densities
+//!   on, the primitive where it is at the sample's time (`light::AreaLight::at`).
+//! - motion that is not interpolated so (a light whose power, colour or cone changes,
 //!   a moving medium boundary, box, quad, curve or instance) falls back to posing and compiling the scene at the middle of each of
 //!   [`TimeOptions::steps`] equal parts of the shutter, each world with its own exact BVH, a
 //!   sample tracing the world of the part holding its time: a stratified estimate of the
@@ -343,10 +345,11 @@ impl CameraMotion {
 /// The keys of continuous motion blur: the scene posed at `keys` evenly spaced times over
 /// [open, close], the objects that move between them found, and their flattened meshes'
 /// vertices (positions, normals, tangents, transformed as `compile_geometry` transforms them)
-/// and spheres kept per key. Returns the scene posed at the shutter's middle (the world's pose
-/// for everything that does not read a time) and the keys; `Err` names what continuous motion
-/// does not cover (the caller falls back to a world per step): a moving emitter (area lights
-/// are sampled on the still pose), a light that changes more than its position and direction
+/// and spheres kept per key (an emissive one too: its area light is sampled where it is at each
+/// sample's time, `light::AreaLight::at`). Returns the scene posed at the shutter's middle (the
+/// world's pose for everything that does not read a time) and the keys; `Err` names what
+/// continuous motion does not cover (the caller falls back to a world per step): a light that
+/// changes more than its position and direction
 /// ([`light_keys`]), a moving medium boundary, a moving instance or a moving shape other than a
 /// mesh or sphere, or a transform that mirrors part of the time. Also returns the moving
 /// lights' keys.
@@ -443,9 +446,6 @@ fn motion_keys(
         }
         if !moves {
             continue;
-        }
-        if scene.materials[obj.material].is_emissive() {
-            return Err(format!("the emitter '{}' moves", obj.name));
         }
         if obj.medium.is_some() {
             return Err(format!("the medium boundary '{}' moves", obj.name));
