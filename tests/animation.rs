@@ -349,6 +349,56 @@ fn motion_blur_of_moving_lights_in_one_world() {
     blur_is_the_average_of(&scene, [0.0, 1.0], 2, 32, "moving point and spot lights");
 }
 
+/// Emitters that move (`common::cornell_with_moving_emitters`: a mesh panel sliding and turning
+/// below the ceiling, a sphere crossing the box as its radius grows) are blurred in the one
+/// world, keyed at five times (`--shutter-steps 4`): next-event estimation samples each where it
+/// is at the receiver's time, a BSDF-sampled hit weighs it by its density then, and the blurred
+/// render is the average of 32 `--time` renders across the shutter. A world per step (the
+/// emitters at a few moments) would show them as sharp copies. The render does not depend on
+/// the thread count.
+#[test]
+fn motion_blur_of_moving_emitters_in_one_world() {
+    let scene = common::cornell_with_moving_emitters();
+    let time = TimeOptions {
+        shutter: Some([0.0, 1.0]),
+        steps: 4,
+        ..Default::default()
+    };
+    let world = World::build_posed(
+        scene.clone(),
+        &WorldOptions {
+            time: time.clone(),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let motion = world.geometry.motion.as_ref().expect("continuous motion");
+    // The panel's two triangles and the ball move; both are area lights.
+    assert!(world.motion.is_empty() && motion.keys == 5 && world.geometry.moving_prims.len() == 3);
+    let moving_lights = world
+        .lights()
+        .iter()
+        .filter(|l| l.as_area().is_some_and(|a| a.moves()))
+        .count();
+    assert_eq!(moving_lights, 3);
+    assert!(
+        world.warnings.iter().all(|w| !w.contains("motion blur")),
+        "{:?}",
+        world.warnings
+    );
+    let one = render_with(
+        &scene,
+        time.clone(),
+        &RenderSettings {
+            threads: Some(1),
+            ..small(5, 8)
+        },
+    );
+    let two = render_with(&scene, time, &small(5, 8));
+    assert_eq!(one.data, two.data, "1 and 2 threads");
+    blur_is_the_average_of(&scene, [0.0, 1.0], 4, 32, "moving emitters");
+}
+
 #[test]
 fn motion_blur_of_a_skinned_mesh() {
     let scene =
