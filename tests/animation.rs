@@ -349,8 +349,8 @@ fn motion_blur_of_moving_lights_in_one_world() {
     blur_is_the_average_of(&scene, [0.0, 1.0], 2, 32, "moving point and spot lights");
 }
 
-/// Emitters that move (`common::cornell_with_moving_emitters`: a mesh panel sliding and turning
-/// below the ceiling, a sphere crossing the box as its radius grows) are blurred in the one
+/// Emitters that move (`common::cornell_with_moving_emitters`: the ceiling light's quad sliding,
+/// a mesh panel sliding and turning below it, a sphere crossing the box as its radius grows) are blurred in the one
 /// world, keyed at five times (`--shutter-steps 4`): next-event estimation samples each where it
 /// is at the receiver's time, a BSDF-sampled hit weighs it by its density then, and the blurred
 /// render is the average of 32 `--time` renders across the shutter. A world per step (the
@@ -373,14 +373,14 @@ fn motion_blur_of_moving_emitters_in_one_world() {
     )
     .unwrap();
     let motion = world.geometry.motion.as_ref().expect("continuous motion");
-    // The panel's two triangles and the ball move; both are area lights.
-    assert!(world.motion.is_empty() && motion.keys == 5 && world.geometry.moving_prims.len() == 3);
+    // The ceiling light's quad, the panel's two triangles and the ball move; all are area lights.
+    assert!(world.motion.is_empty() && motion.keys == 5 && world.geometry.moving_prims.len() == 4);
     let moving_lights = world
         .lights()
         .iter()
         .filter(|l| l.as_area().is_some_and(|a| a.moves()))
         .count();
-    assert_eq!(moving_lights, 3);
+    assert_eq!(moving_lights, 4);
     assert!(
         world.warnings.iter().all(|w| !w.contains("motion blur")),
         "{:?}",

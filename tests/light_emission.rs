@@ -674,8 +674,8 @@ fn sample_li_pdf_is_pdf_li() {
     }
 }
 
-/// Emitters on moving primitives (`common::cornell_with_moving_emitters`, keyed in the one
-/// world) are sampled where they are at the receiver's time: a light sample's direction, traced
+/// Emitters on moving primitives (`common::cornell_with_moving_emitters`: a quad, a mesh and a
+/// sphere, keyed in the one world) are sampled where they are at the receiver's time: a light sample's direction, traced
 /// at that time, meets the light, and the density pdf_li gives that hit (at the hit's time)
 /// is the sample's. A light path starts on the sphere where it is at its time: its origin on the
 /// sphere of that time's centre and radius, its position density one over that sphere's area.
@@ -703,10 +703,14 @@ fn moving_emitters_are_sampled_at_the_time() {
     let moving: Vec<usize> = (0..world.lights().len())
         .filter(|&i| world.lights()[i].as_area().is_some_and(|a| a.moves()))
         .collect();
-    assert_eq!(moving.len(), 3, "the panel's two triangles and the ball");
+    assert_eq!(
+        moving.len(),
+        4,
+        "the panel's two triangles, the ball and the ceiling light"
+    );
     for t in [0.05f32, 0.37, 0.5, 0.93] {
         hit.time = t;
-        let mut checked = 0;
+        let (mut sampled, mut met, mut checked) = (0, 0, 0);
         // Points in the open, clear of the boxes.
         for p in [Vec3::new(0.0, -0.2, 0.5), Vec3::new(0.6, 0.2, -0.5)] {
             hit.p = p;
@@ -719,12 +723,17 @@ fn moving_emitters_are_sampled_at_the_time() {
                     else {
                         continue;
                     };
-                    // The first surface along the sample's direction at time t, if it is this
-                    // light's (the other emitter may be in the way; sampled where it is not at
-                    // t, the light would be missed most of the time: counted below).
+                    // The first surface along the sample's direction at time t: an emitter
+                    // (this light, or another in front of it); sampled where it is not at t,
+                    // the light would be missed most of the time, for the walls.
                     let Some(found) = world.intersect(&Ray::new(p, ls.wi).with_time(t)) else {
                         continue;
                     };
+                    sampled += 1;
+                    if found.light == trayecto::geometry::primitive::NO_LIGHT {
+                        continue;
+                    }
+                    met += 1;
                     if found.prim != light.as_area().unwrap().prim {
                         continue;
                     }
@@ -738,10 +747,20 @@ fn moving_emitters_are_sampled_at_the_time() {
                 }
             }
         }
-        assert!(checked > 2500, "time {t}: {checked} of 3000 samples met their light");
+        assert!(
+            sampled > 3900 && met as f64 >= 0.99 * sampled as f64 && checked > 2000,
+            "time {t}: of {sampled} samples toward the lights {met} met an emitter, {checked} \
+             their own"
+        );
         // The ball: centre (0.25, 0.35, −0.3 + 0.6 t), radius 0.06 (1 + t/2); linear in t, so
         // its keys' interpolation is exact.
-        let ball = *moving.last().unwrap();
+        let ball = *moving
+            .iter()
+            .find(|&&i| {
+                world.lights()[i].as_area().unwrap().prim.kind()
+                    == trayecto::geometry::PrimitiveKind::Sphere
+            })
+            .unwrap();
         let (c, r) = (
             Vec3::new(0.25, 0.35, -0.3 + 0.6 * t),
             0.06 * (1.0 + 0.5 * t),

@@ -92,15 +92,7 @@ impl GeometryStore {
             PrimitiveKind::Triangle => {
                 self.triangle_point(&self.triangles[i], i, b1, b2, hit);
             }
-            PrimitiveKind::Quad => {
-                let q = &self.quads[i].shape;
-                let (p, err) = q.point(b1, b2);
-                hit.p = p;
-                hit.p_error = err;
-                hit.ng = q.normal();
-                hit.ns = hit.ng;
-                hit.uv = [Vec2::new(b1, b2); 2];
-            }
+            PrimitiveKind::Quad => quad_point(&self.quads[i].shape, b1, b2, hit),
             // Spheres and boxes are sampled by `sample_point` directly.
             PrimitiveKind::Sphere | PrimitiveKind::Cuboid | PrimitiveKind::Curve => {}
         }
@@ -108,7 +100,14 @@ impl GeometryStore {
     /// [`GeometryStore::emitter_point`] on flat triangle `i` with its vertices at `tri` (the
     /// stored ones, or a moving triangle's at a time): the texture coordinates are the mesh's.
     #[inline(always)]
-    fn triangle_point(&self, tri: &TriangleVerts, i: usize, b1: f32, b2: f32, hit: &mut SurfaceHit) {
+    fn triangle_point(
+        &self,
+        tri: &TriangleVerts,
+        i: usize,
+        b1: f32,
+        b2: f32,
+        hit: &mut SurfaceHit,
+    ) {
         let (p, err) = tri.point(b1, b2);
         hit.p = p;
         hit.p_error = err;
@@ -128,7 +127,7 @@ impl GeometryStore {
     }
 
     /// True when `prim` moves during the shutter (it has keys in [`GeometryStore::motion`]):
-    /// a moving triangle of a flattened mesh or a moving sphere.
+    /// a moving triangle of a flattened mesh, a moving sphere or a moving quad.
     pub fn moves(&self, prim: PrimRef) -> bool {
         let Some(m) = &self.motion else {
             return false;
@@ -137,6 +136,10 @@ impl GeometryStore {
             PrimitiveKind::Triangle => self.moving_triangle(prim.index()).is_some(),
             PrimitiveKind::Sphere => m
                 .sphere_slot
+                .get(prim.index())
+                .is_some_and(|&s| s != super::motion::STILL),
+            PrimitiveKind::Quad => m
+                .quad_slot
                 .get(prim.index())
                 .is_some_and(|&s| s != super::motion::STILL),
             _ => false,
@@ -166,6 +169,11 @@ impl GeometryStore {
         let moved = match prim.kind() {
             PrimitiveKind::Triangle => self.triangle_at(prim.index(), time).map(|t| t.area()),
             PrimitiveKind::Sphere => self.sphere_at(prim.index(), time).map(|s| s.area()),
+            PrimitiveKind::Quad => self
+                .motion
+                .as_ref()
+                .and_then(|m| m.quad(prim.index(), time))
+                .map(|q| q.area()),
             _ => None,
         };
         moved.unwrap_or_else(|| self.area(prim))
@@ -194,11 +202,30 @@ impl GeometryStore {
                 }
                 None => self.sample_point(prim, u),
             },
+            PrimitiveKind::Quad => match self.motion.as_ref().and_then(|m| m.quad(i, time)) {
+                Some(q) => {
+                    let mut hit = self.blank_hit(prim, 0.0);
+                    quad_point(&q, u.x, u.y, &mut hit);
+                    hit
+                }
+                None => self.sample_point(prim, u),
+            },
             _ => self.sample_point(prim, u),
         };
         hit.time = time;
         hit
     }
+}
+
+/// The point of quad `q` at (u, v), with its normal and texture coordinates.
+#[inline(always)]
+fn quad_point(q: &super::quad::Quad, u: f32, v: f32, hit: &mut SurfaceHit) {
+    let (p, err) = q.point(u, v);
+    hit.p = p;
+    hit.p_error = err;
+    hit.ng = q.normal();
+    hit.ns = hit.ng;
+    hit.uv = [Vec2::new(u, v); 2];
 }
 
 /// A point of sphere `s` uniform by area from `u`, with its normal and texture coordinates.

@@ -697,8 +697,8 @@ impl<'a> Vcm<'a> {
         let w_camera = mis(light_dir_a) * (self.vm_weight + d_vcm + d_vc * mis(cam_rev));
         let weight = 1.0 / (w_light + 1.0 + w_camera);
         stats.shadow_rays += 1;
-        let shadow = Ray::spawn_to(v.hit.p, v.hit.p_error, v.ng, q.p, q.p_error, q.ng)
-            .with_time(self.time);
+        let shadow =
+            Ray::spawn_to(v.hit.p, v.hit.p_error, v.ng, q.p, q.p_error, q.ng).with_time(self.time);
         if self.world.occluded(&shadow) {
             return Vec3::ZERO;
         }

@@ -187,8 +187,7 @@ impl AreaLight {
             Some(flat) => sample_flat(geometry, prim, area, flat, hit, n_offset, u),
             None if prim.kind() == PrimitiveKind::Sphere => {
                 let s = &geometry.spheres[prim.index()].shape;
-                match sample_sphere_light(geometry, prim, s, material, textures, hit, n_offset, u)
-                {
+                match sample_sphere_light(geometry, prim, s, material, textures, hit, n_offset, u) {
                     Some(sample) => sample,
                     // From inside the sphere: by area.
                     None => sample_area_general(
@@ -217,7 +216,10 @@ impl AreaLight {
         let (sphere, area) = if self.moving {
             let t = light_hit.time;
             let s = geometry.sphere_at(self.prim.index(), t);
-            (s.map(|s| (s.center, s.radius)), geometry.area_at(self.prim, t))
+            (
+                s.map(|s| (s.center, s.radius)),
+                geometry.area_at(self.prim, t),
+            )
         } else {
             (self.sphere, self.area)
         };
@@ -621,8 +623,17 @@ mod tests {
                         ((k * 104_729) % 997) as f32 / 997.0,
                     );
                     let fast = sample_flat(&g, prim, info.area, &flat, &hit, -dir, u);
-                    let general =
-                        sample_area_general(&g, prim, info.area, &material, &[], &hit, -dir, u, 0.0);
+                    let general = sample_area_general(
+                        &g,
+                        prim,
+                        info.area,
+                        &material,
+                        &[],
+                        &hit,
+                        -dir,
+                        u,
+                        0.0,
+                    );
                     assert!(
                         same(fast, general),
                         "{prim:?} k={k}: {fast:?} vs {general:?}"

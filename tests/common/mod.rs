@@ -282,10 +282,11 @@ pub fn cornell_with_moving_lights() -> Scene {
     s
 }
 
-/// The Cornell box lit by moving emitters instead of its ceiling light: a square emissive panel
-/// (a two-triangle mesh, one-sided, facing down) sliding across below the ceiling (x from −0.4
-/// to 0.4) while turning 40° about the vertical, and a small emissive sphere crossing the box
-/// from back to front while its radius grows by half (so its area changes over the shutter).
+/// The Cornell box lit by moving emitters: its ceiling light (a quad) at half its radiance
+/// sliding from front to back (z from +0.3 to −0.3 of where it was), a square emissive panel (a
+/// two-triangle mesh, one-sided, facing down) sliding across below the ceiling (x from −0.4 to
+/// 0.4) while turning 40° about the vertical, and a small emissive sphere crossing the box from
+/// back to front while its radius grows by half (so its area changes over the shutter).
 /// Both move over [0, 1] s as a pbrt file's transform times move objects; motion blur over
 /// [0, 1] keys them in the one world (`geometry::motion`), their area lights sampled where they
 /// are at each sample's time.
@@ -293,8 +294,9 @@ pub fn cornell_with_moving_emitters() -> Scene {
     use std::sync::Arc;
     use trayecto::scene::animation::{Animation, MovingTransform, RigidMotion};
     let mut s = trayecto::scene::builtin::cornell();
-    let light = s.objects.iter().find(|o| o.name == "light").unwrap();
-    s.materials[light.material].emissive = Vec3::ZERO;
+    let light_object = s.objects.iter().position(|o| o.name == "light").unwrap();
+    let light = &s.objects[light_object];
+    s.materials[light.material].emissive *= 0.5;
     let mut panel_mat = Material::diffuse("panel", Vec3::splat(0.5));
     panel_mat.emissive = Vec3::new(24.0, 19.0, 10.0);
     let panel_mat = s.add_material(panel_mat);
@@ -332,6 +334,14 @@ pub fn cornell_with_moving_emitters() -> Scene {
     );
     s.animation = Some(Arc::new(Animation {
         rigid: vec![
+            RigidMotion::Object {
+                object: light_object,
+                motion: MovingTransform {
+                    times: [0.0, 1.0],
+                    start: Mat4::from_translation(Vec3::new(0.0, 0.0, 0.3)),
+                    end: Mat4::from_translation(Vec3::new(0.0, 0.0, -0.3)),
+                },
+            },
             RigidMotion::Object {
                 object: panel_object,
                 motion: MovingTransform {
