@@ -161,8 +161,14 @@ fn blur_is_the_average_over_the_shutter(scene: &Scene, shutter: [f64; 2], what: 
 }
 
 /// [`blur_is_the_average_over_the_shutter`] with `steps` key intervals and `times` `--time`
-/// renders.
-fn blur_is_the_average_of(scene: &Scene, shutter: [f64; 2], steps: u32, times: u32, what: &str) {
+/// renders. Returns the first blurred render and the average.
+fn blur_is_the_average_of(
+    scene: &Scene,
+    shutter: [f64; 2],
+    steps: u32,
+    times: u32,
+    what: &str,
+) -> (Image, Image) {
     let blur = |seed| {
         render_with(
             scene,
@@ -220,6 +226,7 @@ fn blur_is_the_average_of(scene: &Scene, shutter: [f64; 2], steps: u32, times: u
         to_still > 3.0 * noise,
         "{what}: the blurred render is as close to the still ({to_still:.3e}) as to another blurred one ({noise:.3e}): nothing moved"
     );
+    (a, average)
 }
 
 #[test]
@@ -396,7 +403,15 @@ fn motion_blur_of_moving_emitters_in_one_world() {
     );
     let two = render_with(&scene, time, &small(5, 8));
     assert_eq!(one.data, two.data, "1 and 2 threads");
-    blur_is_the_average_of(&scene, [0.0, 1.0], 4, 32, "moving emitters");
+    let (blur, average) = blur_is_the_average_of(&scene, [0.0, 1.0], 4, 32, "moving emitters");
+    // The image means too: a bias confined to one emitter's light (its samples taken on another
+    // emitter measured +13 % red) hides in the per-pixel noise of 24 × 24 pixels at 256 samples.
+    common::assert_means_close(
+        &blur,
+        &average,
+        0.02,
+        "moving emitters: blurred against the average",
+    );
 }
 
 #[test]

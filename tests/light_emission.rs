@@ -735,6 +735,13 @@ fn moving_emitters_are_sampled_at_the_time() {
                     }
                     met += 1;
                     if found.prim != light.as_area().unwrap().prim {
+                        // Another emitter in front of the sampled point, not the sampled point
+                        // on another surface.
+                        let dist = (ls.shadow.o + ls.shadow.d - p).length();
+                        assert!(
+                            found.t < 0.99 * dist,
+                            "time {t}: the sample toward light {i} lies on another emitter"
+                        );
                         continue;
                     }
                     let pdf = light.pdf_li(&world.geometry, p, &found, || 1.0);

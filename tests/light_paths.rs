@@ -1271,14 +1271,18 @@ fn light_paths_follow_a_moving_emitter_in_one_world_and_through_the_shutter_step
             &with(IntegratorKind::Path, 256),
         );
         let far = block_error(&still, &reference);
+        let apart = block_error(&other, &reference);
         println!(
-            "moving {what_light} emitter: path tracer seeds {:.4} apart, the still at the \
-             opening {far:.4}",
-            block_error(&other, &reference)
+            "moving {what_light} emitter: path tracer seeds {apart:.4} apart, the still at the \
+             opening {far:.4}"
         );
-        for (what, settings, bound) in [
-            ("light tracer", with(IntegratorKind::LightTracer, 256), 0.04),
-            ("bdpt", with(IntegratorKind::Bdpt, 256), 0.04),
+        // Within the reference's own noise: a light moving continuously smears across the
+        // pixels that see it, and its blocks are noisier than a few sharp steps' (two path
+        // tracer seeds 0.05 apart with the quad in one world, 0.015–0.025 with 4 steps).
+        let bound = (1.6 * apart).max(0.04);
+        for (what, settings) in [
+            ("light tracer", with(IntegratorKind::LightTracer, 256)),
+            ("bdpt", with(IntegratorKind::Bdpt, 256)),
         ] {
             let img = render_world(&world, &settings);
             let e = block_error(&img, &reference);
@@ -1461,24 +1465,25 @@ fn light_paths_follow_moving_emitters_in_one_world() {
         &with(IntegratorKind::Path, 256),
     );
     let far = block_error(&still, &reference);
+    let apart = block_error(&other, &reference);
     println!(
-        "moving emitters: path tracer seeds {:.4} apart, the still at the opening {far:.4}",
-        block_error(&other, &reference)
+        "moving emitters: path tracer seeds {apart:.4} apart, the still at the opening {far:.4}"
     );
+    // Within the reference's own noise (the moving emitters seen directly smear over the
+    // pixels: two path tracer seeds 0.05 apart).
+    let bound = (1.6 * apart).max(0.04);
     let bvh_world = build(blur(), trayecto::light::LightSamplerKind::Bvh);
-    for (what, w, settings, bound) in [
+    for (what, w, settings) in [
         (
             "light tracer",
             &world,
             with(IntegratorKind::LightTracer, 256),
-            0.04,
         ),
-        ("bdpt", &world, with(IntegratorKind::Bdpt, 256), 0.04),
+        ("bdpt", &world, with(IntegratorKind::Bdpt, 256)),
         (
             "path, light BVH",
             &bvh_world,
             with(IntegratorKind::Path, 256),
-            0.04,
         ),
     ] {
         let img = render_world(w, &settings);

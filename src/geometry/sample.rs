@@ -155,10 +155,14 @@ impl GeometryStore {
         Some(MotionStore::triangle(mesh, idx, m.segment(time)))
     }
 
-    /// Sphere `i` where it is at shutter time `time`, if it moves.
+    /// The sphere `prim` where it is at shutter time `time`, if it is a moving sphere (`None`
+    /// for a primitive of another kind: its index is not a sphere's).
     #[inline]
-    pub fn sphere_at(&self, i: usize, time: f32) -> Option<Sphere> {
-        self.motion.as_ref()?.sphere(i, time)
+    pub fn sphere_at(&self, prim: PrimRef, time: f32) -> Option<Sphere> {
+        if prim.kind() != PrimitiveKind::Sphere {
+            return None;
+        }
+        self.motion.as_ref()?.sphere(prim.index(), time)
     }
 
     /// The area of `prim` at shutter time `time`: a moving triangle's changes as its vertices
@@ -168,7 +172,7 @@ impl GeometryStore {
     pub fn area_at(&self, prim: PrimRef, time: f32) -> f32 {
         let moved = match prim.kind() {
             PrimitiveKind::Triangle => self.triangle_at(prim.index(), time).map(|t| t.area()),
-            PrimitiveKind::Sphere => self.sphere_at(prim.index(), time).map(|s| s.area()),
+            PrimitiveKind::Sphere => self.sphere_at(prim, time).map(|s| s.area()),
             PrimitiveKind::Quad => self
                 .motion
                 .as_ref()
@@ -194,7 +198,7 @@ impl GeometryStore {
                 }
                 None => self.sample_point(prim, u),
             },
-            PrimitiveKind::Sphere => match self.sphere_at(i, time) {
+            PrimitiveKind::Sphere => match self.sphere_at(prim, time) {
                 Some(s) => {
                     let mut hit = self.blank_hit(prim, 0.0);
                     sphere_point(&s, u, &mut hit);

@@ -173,7 +173,7 @@ impl AreaLight {
             // Where the primitive is at the receiver's moment: the shadow ray carries it.
             let t = hit.time;
             let area = geometry.area_at(prim, t);
-            if let Some(s) = geometry.sphere_at(prim.index(), t)
+            if let Some(s) = geometry.sphere_at(prim, t)
                 && let Some(sample) =
                     sample_sphere_light(geometry, prim, &s, material, textures, hit, n_offset, u)
             {
@@ -215,7 +215,7 @@ impl AreaLight {
     ) -> f32 {
         let (sphere, area) = if self.moving {
             let t = light_hit.time;
-            let s = geometry.sphere_at(self.prim.index(), t);
+            let s = geometry.sphere_at(self.prim, t);
             (
                 s.map(|s| (s.center, s.radius)),
                 geometry.area_at(self.prim, t),

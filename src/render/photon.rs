@@ -607,3 +607,32 @@ struct LightRow {
     ends: Vec<u32>,
     stats: RayStats,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::iteration_time;
+
+    /// The first 2^k iterations' times meet each 2^-k of the shutter once, for every k and seed
+    /// (the stratification the convergence of a blurred SPPM or VCM render rests on), and the
+    /// times lie in [0, 1) and differ between seeds.
+    #[test]
+    fn iteration_times_stratify_the_shutter() {
+        for seed in [0u64, 1, 7, 0x5eed_5eed] {
+            for k in 0..=9u32 {
+                let n = 1u32 << k;
+                let mut hit = vec![false; n as usize];
+                for it in 0..n {
+                    let t = iteration_time(seed, it);
+                    assert!((0.0..1.0).contains(&t), "{t}");
+                    let cell = ((t as f64 * n as f64) as usize).min(n as usize - 1);
+                    assert!(
+                        !hit[cell],
+                        "seed {seed}, {n} iterations: stratum {cell} twice"
+                    );
+                    hit[cell] = true;
+                }
+            }
+        }
+        assert_ne!(iteration_time(1, 0), iteration_time(2, 0));
+    }
+}
