@@ -724,8 +724,9 @@ fn photon_methods_agree_with_references_on_glossy_lens_and_infinite_lights() {
 /// (`common::cornell_with_moving_emitters`, keyed in the one world), 256 iterations of each
 /// agree with the average of 16 path-traced `--time` renders across the shutter about as well
 /// as the same method's still at the shutter's middle agrees with the path-traced still there
-/// (its own noise and radius bias at this budget), while the still at the shutter's opening is
-/// far from the average.
+/// (its own noise and radius bias at this budget): measured 0.021 (SPPM; its still 0.024) and
+/// 0.015 (VCM; its still 0.006, the rest the shutter sampled by 256 moments) in 8 × 8-pixel
+/// blocks, while the still at the shutter's opening is 0.81 away.
 #[test]
 fn photon_methods_render_motion_blur_as_the_average_over_the_shutter() {
     use trayecto::world::WorldOptions;
@@ -779,8 +780,8 @@ fn photon_methods_render_motion_blur_as_the_average_over_the_shutter() {
     let mid_reference = render_world(&middle, &path(2048, 7));
     let far = block_error(&render_world(&at(0.0), &path(256, 8)), &average);
     for (what, settings, bound) in [
-        ("sppm", sppm(w, h, 256, depth), 0.05),
-        ("vcm", vcm(w, h, 256, depth, true), 0.05),
+        ("sppm", sppm(w, h, 256, depth), 0.04),
+        ("vcm", vcm(w, h, 256, depth, true), 0.04),
     ] {
         let blur = render_world(&blurred, &settings);
         let e_blur = block_error(&blur, &average);
