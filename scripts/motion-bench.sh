@@ -1,6 +1,7 @@
 #!/bin/sh
 # Motion blur's cost: peak resident set and render time of blurred scenes (a skinned mesh, a
-# moving object, the pbrt scene) and of a still, for two binaries, runs interleaved
+# moving object, the pbrt scene, a pbrt scene with a moving emitter) and of a still, for two
+# binaries, runs interleaved
 # (docs/DESIGN.md "Motion blur", BENCHMARKS.md "Continuous motion blur").
 #   scripts/motion-bench.sh OLD_BINARY NEW_BINARY [ROUNDS]
 # Prints one line per run: binary, case, world compiled ms, rendered ms, peak RSS kB.
@@ -32,6 +33,7 @@ cases() {
     run "$bin" moving-box "$shared/gltf-anim/BoxAnimated/glTF-Binary/BoxAnimated.glb" \
         --shutter 0.6,1.6 --spp 64
     run "$bin" pbrt "$here/scenes/pbrt/motion-blur.pbrt" --spp 64
+    run "$bin" pbrt-emitter "$here/scenes/pbrt/motion-blur-emitter.pbrt" --spp 64
     run "$bin" still "$shared/gltf-anim/CesiumMan/glTF-Binary/CesiumMan.glb" --time 0.5 \
         --spp 64
 }

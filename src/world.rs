@@ -163,6 +163,7 @@ impl World {
         if let Some(m) = motion {
             debug_assert_eq!(m.mesh_slot.len(), g.meshes.len());
             debug_assert_eq!(m.sphere_slot.len(), g.spheres.len());
+            debug_assert_eq!(m.quad_slot.len(), g.quads.len());
             g.moving_prims = (0..g.triangles.len())
                 .filter(|&i| m.mesh(g.tri_mesh[i].0).is_some())
                 .map(|i| PrimRef::new(PrimitiveKind::Triangle, i as u32))
@@ -170,6 +171,12 @@ impl World {
                     (0..g.spheres.len())
                         .filter(|&i| m.sphere_slot[i] != crate::geometry::motion::STILL)
                         .map(|i| PrimRef::new(PrimitiveKind::Sphere, i as u32)),
+                )
+                // After the spheres: `static_prims` needs them in `PrimRef` order.
+                .chain(
+                    (0..g.quads.len())
+                        .filter(|&i| m.quad_slot[i] != crate::geometry::motion::STILL)
+                        .map(|i| PrimRef::new(PrimitiveKind::Quad, i as u32)),
                 )
                 .collect();
             g.motion = Some(Box::new(m));

@@ -638,7 +638,7 @@ fn sample_li_pdf_is_pdf_li() {
                 if found.prim != light.as_area().unwrap().prim {
                     continue;
                 }
-                let pdf = light.pdf_li(p, &found, || 1.0);
+                let pdf = light.pdf_li(&world.geometry, p, &found, || 1.0);
                 assert!(
                     (pdf - ls.pdf).abs() <= 2e-3 * ls.pdf,
                     "pdf_li {pdf}, sample_li {} from {p}",
@@ -778,4 +778,117 @@ fn emissive_textures_are_illuminant_spectra_per_texel_in_spectral_mode() {
     seen.sort_by(|a, b| a.partial_cmp(b).unwrap());
     seen.dedup();
     assert_eq!(seen.len(), 4, "{seen:?}");
+}
+
+/// Emitters on moving primitives (`common::cornell_with_moving_emitters`: a quad, a mesh and a
+/// sphere, keyed in the one world) are sampled where they are at the receiver's time: a light sample's direction, traced
+/// at that time, meets the light, and the density pdf_li gives that hit (at the hit's time)
+/// is the sample's. A light path starts on the sphere where it is at its time: its origin on the
+/// sphere of that time's centre and radius, its position density one over that sphere's area.
+#[test]
+fn moving_emitters_are_sampled_at_the_time() {
+    use trayecto::world::motion::TimeOptions;
+    let world = World::build_posed(
+        common::cornell_with_moving_emitters(),
+        &WorldOptions {
+            time: TimeOptions {
+                shutter: Some([0.0, 1.0]),
+                steps: 4,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let scene = world.light_scene();
+    let mut rng = Pcg32::new(9, 2);
+    let mut hit = trayecto::geometry::SurfaceHit {
+        t: 1.0,
+        ..trayecto::geometry::SurfaceHit::EMPTY
+    };
+    let moving: Vec<usize> = (0..world.lights().len())
+        .filter(|&i| world.lights()[i].as_area().is_some_and(|a| a.moves()))
+        .collect();
+    assert_eq!(
+        moving.len(),
+        4,
+        "the panel's two triangles, the ball and the ceiling light"
+    );
+    for t in [0.05f32, 0.37, 0.5, 0.93] {
+        hit.time = t;
+        let (mut sampled, mut met, mut checked) = (0, 0, 0);
+        // Points in the open, clear of the boxes.
+        for p in [Vec3::new(0.0, -0.2, 0.5), Vec3::new(0.6, 0.2, -0.5)] {
+            hit.p = p;
+            for &i in &moving {
+                let light = &world.lights()[i];
+                for _ in 0..500 {
+                    let u = Vec2::new(rng.next_f32(), rng.next_f32());
+                    let Some(ls) =
+                        light.sample_li(&scene, &hit, Vec3::ZERO, u, EnvPdf::Full, Vec3::ZERO)
+                    else {
+                        continue;
+                    };
+                    // The first surface along the sample's direction at time t: an emitter
+                    // (this light, or another in front of it); sampled where it is not at t,
+                    // the light would be missed most of the time, for the walls.
+                    let Some(found) = world.intersect(&Ray::new(p, ls.wi).with_time(t)) else {
+                        continue;
+                    };
+                    sampled += 1;
+                    if found.light == trayecto::geometry::primitive::NO_LIGHT {
+                        continue;
+                    }
+                    met += 1;
+                    if found.prim != light.as_area().unwrap().prim {
+                        // Another emitter in front of the sampled point, not the sampled point
+                        // on another surface.
+                        let dist = (ls.shadow.o + ls.shadow.d - p).length();
+                        assert!(
+                            found.t < 0.99 * dist,
+                            "time {t}: the sample toward light {i} lies on another emitter"
+                        );
+                        continue;
+                    }
+                    let pdf = light.pdf_li(&world.geometry, p, &found, || 1.0);
+                    assert!(
+                        (pdf - ls.pdf).abs() <= 2e-3 * ls.pdf,
+                        "time {t}: pdf_li {pdf}, sample_li {}",
+                        ls.pdf
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(
+            sampled > 3900 && met as f64 >= 0.99 * sampled as f64 && checked > 2000,
+            "time {t}: of {sampled} samples toward the lights {met} met an emitter, {checked} \
+             their own"
+        );
+        // The ball: centre (0.25, 0.35, −0.3 + 0.6 t), radius 0.06 (1 + t/2); linear in t, so
+        // its keys' interpolation is exact.
+        let ball = *moving
+            .iter()
+            .find(|&&i| {
+                world.lights()[i].as_area().unwrap().prim.kind()
+                    == trayecto::geometry::PrimitiveKind::Sphere
+            })
+            .unwrap();
+        let (c, r) = (
+            Vec3::new(0.25, 0.35, -0.3 + 0.6 * t),
+            0.06 * (1.0 + 0.5 * t),
+        );
+        let posed = world.lights.posed(ball, t);
+        for _ in 0..200 {
+            let u1 = Vec2::new(rng.next_f32(), rng.next_f32());
+            let u2 = Vec2::new(rng.next_f32(), rng.next_f32());
+            let le = posed.sample_le(&scene, u1, u2).unwrap();
+            assert!(((le.ray.o - c).length() - r).abs() < 1e-4, "time {t}");
+            assert_eq!(le.ray.time, t);
+            let area = 4.0 * PI * r * r;
+            assert!((le.pdf_pos * area - 1.0).abs() < 1e-3, "time {t}");
+            let (pos, _) = posed.pdf_le(&scene, le.n, le.ray.d);
+            assert_eq!(pos, le.pdf_pos);
+        }
+    }
 }

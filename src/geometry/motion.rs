@@ -3,13 +3,15 @@
 //! shutter their shape at `keys` evenly spaced times over it (key k at u = k / (keys − 1)). A
 //! ray at time u ([`Ray::time`]) meets a moving primitive interpolated linearly between the two
 //! keys around u: a triangle's vertices (and its vertex normals and tangents, which the hit
-//! renormalises), a sphere's centre and radius. This is the per-vertex motion of Embree's and
-//! Cycles' motion-blurred meshes (a deforming mesh's vertices at time steps, linear between);
+//! renormalises), a sphere's centre and radius, a quad's corner and edges. This is the
+//! per-vertex motion of Embree's and Cycles' motion-blurred meshes (a deforming mesh's vertices
+//! at time steps, linear between);
 //! rigid motion is sampled the same way, so a translation is exact with two keys and a rotation
 //! follows its arc by chords. Only the moving primitives are stored per key; the static ones,
 //! and their BVH, are the still world's.
 
 use super::bounds::Bounds3;
+use super::quad::Quad;
 use super::sphere::Sphere;
 use super::triangle::TriangleVerts;
 use crate::math::{Vec3, Vec4};
@@ -86,6 +88,11 @@ pub struct MotionStore {
     pub sphere_slot: Vec<u32>,
     /// Moving sphere s's key k at `s * keys + k`.
     pub spheres: Vec<Sphere>,
+    /// Per quad (`GeometryStore::quads`): its index in `quads` / keys, or [`STILL`].
+    pub quad_slot: Vec<u32>,
+    /// Moving quad q's key k at `q * keys + k`: its corner and edges, interpolated linearly
+    /// (so its corners are, and it stays a parallelogram).
+    pub quads: Vec<Quad>,
 }
 
 impl MotionStore {
@@ -125,6 +132,46 @@ impl MotionStore {
             center: a.center * (1.0 - f) + b.center * f,
             radius: a.radius * (1.0 - f) + b.radius * f,
         })
+    }
+
+    /// Quad `i` at shutter time `u`, if it moves: its corner and edges interpolated between the
+    /// two keys around u.
+    #[inline]
+    pub fn quad(&self, i: usize, u: f32) -> Option<Quad> {
+        let s = *self.quad_slot.get(i)?;
+        if s == STILL {
+            return None;
+        }
+        let (k, f) = self.segment(u);
+        let a = &self.quads[s as usize * self.keys + k];
+        if f == 0.0 {
+            return Some(*a);
+        }
+        let b = &self.quads[s as usize * self.keys + k + 1];
+        let lerp = |x: Vec3, y: Vec3| x * (1.0 - f) + y * f;
+        Some(Quad::new(
+            lerp(a.corner, b.corner),
+            lerp(a.e1, b.e1),
+            lerp(a.e2, b.e2),
+        ))
+    }
+
+    /// The box of moving quad `i` over key segment `seg`: its corners at the segment's two keys
+    /// (each corner moves linearly between them).
+    pub fn quad_sweep(&self, i: usize, seg: usize) -> Bounds3 {
+        let s = self.quad_slot[i] as usize * self.keys + seg;
+        let mut b = Bounds3::EMPTY;
+        for q in &self.quads[s..s + 2] {
+            for p in [
+                q.corner,
+                q.corner + q.e1,
+                q.corner + q.e2,
+                q.corner + q.e1 + q.e2,
+            ] {
+                b = b.union_point(p);
+            }
+        }
+        b
     }
 
     /// A moving triangle with vertex indices `idx` of `mesh` at time `u`.
@@ -170,6 +217,7 @@ impl MotionStore {
             .map(MovingMesh::heap_bytes)
             .sum::<usize>()
             + self.spheres.len() * std::mem::size_of::<Sphere>()
-            + (self.mesh_slot.len() + self.sphere_slot.len()) * 4
+            + self.quads.len() * std::mem::size_of::<Quad>()
+            + (self.mesh_slot.len() + self.sphere_slot.len() + self.quad_slot.len()) * 4
     }
 }

@@ -209,7 +209,7 @@ impl GeometryStore {
 
     /// The moving mesh of flat triangle `i` and the triangle's vertex indices in it, if it moves.
     #[inline]
-    fn moving_triangle(&self, i: usize) -> Option<(&MovingMesh, [usize; 3])> {
+    pub(super) fn moving_triangle(&self, i: usize) -> Option<(&MovingMesh, [usize; 3])> {
         let m = self.motion.as_ref()?;
         let &(mesh_i, local) = self.tri_mesh.get(i)?;
         let moving = m.mesh(mesh_i)?;
@@ -230,6 +230,13 @@ impl GeometryStore {
             PrimitiveKind::Sphere if m.sphere_slot[prim.index()] != super::motion::STILL => {
                 m.sphere_sweep(prim.index(), seg)
             }
+            PrimitiveKind::Quad
+                if m.quad_slot
+                    .get(prim.index())
+                    .is_some_and(|&s| s != super::motion::STILL) =>
+            {
+                m.quad_sweep(prim.index(), seg)
+            }
             _ => self.bounds(prim),
         }
     }
@@ -249,6 +256,10 @@ impl GeometryStore {
                 .sphere(prim.index(), ray.time)?
                 .intersect(ray, t_max)
                 .map(|t| Intersection::at(prim, t)),
+            PrimitiveKind::Quad => m
+                .quad(prim.index(), ray.time)?
+                .intersect(ray, t_max)
+                .map(|(t, u, v)| Intersection { t, prim, u, v }),
             _ => None,
         }
     }
@@ -494,7 +505,8 @@ impl GeometryStore {
                 hit.uv = [Vec2::new(u, v); 2];
             }
             PrimitiveKind::Quad => {
-                let q = &self.quads[i].shape;
+                let moved = self.motion.as_ref().and_then(|m| m.quad(i, ray.time));
+                let q = moved.as_ref().unwrap_or(&self.quads[i].shape);
                 let (p, err) = q.point(isect.u, isect.v);
                 let n = q.normal();
                 hit.p = p;

@@ -4,7 +4,10 @@
 //! sphere light seen from outside is sampled over its cone instead ([`sample_sphere_cone`], below).
 //! A box picks a face in proportion to area.
 
+use super::motion::MotionStore;
 use super::primitive::{GeometryStore, PrimRef, PrimitiveKind, SurfaceHit};
+use super::sphere::Sphere;
+use super::triangle::TriangleVerts;
 use crate::math::{PI, Vec2, Vec3};
 use crate::sampling::warp;
 
@@ -22,18 +25,7 @@ impl GeometryStore {
                 self.emitter_point(prim, b1, b2, &mut hit);
             }
             PrimitiveKind::Quad => self.emitter_point(prim, u.x, u.y, &mut hit),
-            PrimitiveKind::Sphere => {
-                let s = &self.spheres[i].shape;
-                let n = warp::uniform_sphere(u);
-                let local = n * s.radius;
-                hit.p = s.center + local;
-                hit.p_error =
-                    local.abs() * crate::math::gamma(5) + s.center.abs() * crate::math::gamma(1);
-                hit.ng = n;
-                hit.ns = n;
-                let (su, sv) = s.uv(n);
-                hit.uv = [Vec2::new(su, sv); 2];
-            }
+            PrimitiveKind::Sphere => sphere_point(&self.spheres[i].shape, u, &mut hit),
             PrimitiveKind::Cuboid => {
                 // Pick a face in proportion to area, reusing u.x rescaled.
                 let faces = self.cuboids[i].shape.faces();
@@ -98,37 +90,159 @@ impl GeometryStore {
         let i = prim.index();
         match prim.kind() {
             PrimitiveKind::Triangle => {
-                let tri = &self.triangles[i];
-                let (p, err) = tri.point(b1, b2);
-                hit.p = p;
-                hit.p_error = err;
-                hit.ng = tri.unit_normal();
-                hit.ns = hit.ng;
-                let (mesh_i, local) = self.tri_mesh[i];
-                let mesh = &self.meshes[mesh_i as usize];
-                if mesh.uv0.is_some() || mesh.uv1.is_some() {
-                    let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
-                    let b0 = 1.0 - b1 - b2;
-                    let lerp2 = |uv: &[Vec2]| uv[i0] * b0 + uv[i1] * b1 + uv[i2] * b2;
-                    if let Some(uv) = &mesh.uv0 {
-                        hit.uv[0] = lerp2(uv);
-                    }
-                    hit.uv[1] = mesh.uv1.as_deref().map_or(hit.uv[0], lerp2);
-                }
+                self.triangle_point(&self.triangles[i], i, b1, b2, hit);
             }
-            PrimitiveKind::Quad => {
-                let q = &self.quads[i].shape;
-                let (p, err) = q.point(b1, b2);
-                hit.p = p;
-                hit.p_error = err;
-                hit.ng = q.normal();
-                hit.ns = hit.ng;
-                hit.uv = [Vec2::new(b1, b2); 2];
-            }
+            PrimitiveKind::Quad => quad_point(&self.quads[i].shape, b1, b2, hit),
             // Spheres and boxes are sampled by `sample_point` directly.
             PrimitiveKind::Sphere | PrimitiveKind::Cuboid | PrimitiveKind::Curve => {}
         }
     }
+    /// [`GeometryStore::emitter_point`] on flat triangle `i` with its vertices at `tri` (the
+    /// stored ones, or a moving triangle's at a time): the texture coordinates are the mesh's.
+    #[inline(always)]
+    fn triangle_point(
+        &self,
+        tri: &TriangleVerts,
+        i: usize,
+        b1: f32,
+        b2: f32,
+        hit: &mut SurfaceHit,
+    ) {
+        let (p, err) = tri.point(b1, b2);
+        hit.p = p;
+        hit.p_error = err;
+        hit.ng = tri.unit_normal();
+        hit.ns = hit.ng;
+        let (mesh_i, local) = self.tri_mesh[i];
+        let mesh = &self.meshes[mesh_i as usize];
+        if mesh.uv0.is_some() || mesh.uv1.is_some() {
+            let [i0, i1, i2] = mesh.indices[local as usize].map(|x| x as usize);
+            let b0 = 1.0 - b1 - b2;
+            let lerp2 = |uv: &[Vec2]| uv[i0] * b0 + uv[i1] * b1 + uv[i2] * b2;
+            if let Some(uv) = &mesh.uv0 {
+                hit.uv[0] = lerp2(uv);
+            }
+            hit.uv[1] = mesh.uv1.as_deref().map_or(hit.uv[0], lerp2);
+        }
+    }
+
+    /// True when `prim` moves during the shutter (it has keys in [`GeometryStore::motion`]):
+    /// a moving triangle of a flattened mesh, a moving sphere or a moving quad.
+    pub fn moves(&self, prim: PrimRef) -> bool {
+        let Some(m) = &self.motion else {
+            return false;
+        };
+        match prim.kind() {
+            PrimitiveKind::Triangle => self.moving_triangle(prim.index()).is_some(),
+            PrimitiveKind::Sphere => m
+                .sphere_slot
+                .get(prim.index())
+                .is_some_and(|&s| s != super::motion::STILL),
+            PrimitiveKind::Quad => m
+                .quad_slot
+                .get(prim.index())
+                .is_some_and(|&s| s != super::motion::STILL),
+            _ => false,
+        }
+    }
+
+    /// Flat triangle `i` where it is at shutter time `time`, if it moves (the vertices a ray at
+    /// that time meets, `GeometryStore::intersect_moving`).
+    #[inline]
+    pub fn triangle_at(&self, i: usize, time: f32) -> Option<TriangleVerts> {
+        let m = self.motion.as_ref()?;
+        let (mesh, idx) = self.moving_triangle(i)?;
+        Some(MotionStore::triangle(mesh, idx, m.segment(time)))
+    }
+
+    /// The sphere `prim` where it is at shutter time `time`, if it is a moving sphere (`None`
+    /// for a primitive of another kind: its index is not a sphere's).
+    #[inline]
+    pub fn sphere_at(&self, prim: PrimRef, time: f32) -> Option<Sphere> {
+        if prim.kind() != PrimitiveKind::Sphere {
+            return None;
+        }
+        self.motion.as_ref()?.sphere(prim.index(), time)
+    }
+
+    /// The area of `prim` at shutter time `time`: a moving triangle's changes as its vertices
+    /// move independently (a deforming mesh; a rotation followed by chords), a moving sphere's
+    /// with its radius; the stored area otherwise.
+    #[inline]
+    pub fn area_at(&self, prim: PrimRef, time: f32) -> f32 {
+        let moved = match prim.kind() {
+            PrimitiveKind::Triangle => self.triangle_at(prim.index(), time).map(|t| t.area()),
+            PrimitiveKind::Sphere => self.sphere_at(prim, time).map(|s| s.area()),
+            PrimitiveKind::Quad => self
+                .motion
+                .as_ref()
+                .and_then(|m| m.quad(prim.index(), time))
+                .map(|q| q.area()),
+            _ => None,
+        };
+        moved.unwrap_or_else(|| self.area(prim))
+    }
+
+    /// [`GeometryStore::sample_point`] at shutter time `time`: on a moving primitive, a point
+    /// uniform by area on its shape at that time (area pdf `1 / area_at(prim, time)`); the hit
+    /// carries `time`. A primitive that does not move is sampled as a still's.
+    pub fn sample_point_at(&self, prim: PrimRef, u: Vec2, time: f32) -> SurfaceHit {
+        let i = prim.index();
+        let mut hit = match prim.kind() {
+            PrimitiveKind::Triangle => match self.triangle_at(i, time) {
+                Some(tri) => {
+                    let mut hit = self.blank_hit(prim, 0.0);
+                    let (b1, b2) = warp::uniform_triangle(u);
+                    self.triangle_point(&tri, i, b1, b2, &mut hit);
+                    hit
+                }
+                None => self.sample_point(prim, u),
+            },
+            PrimitiveKind::Sphere => match self.sphere_at(prim, time) {
+                Some(s) => {
+                    let mut hit = self.blank_hit(prim, 0.0);
+                    sphere_point(&s, u, &mut hit);
+                    hit
+                }
+                None => self.sample_point(prim, u),
+            },
+            PrimitiveKind::Quad => match self.motion.as_ref().and_then(|m| m.quad(i, time)) {
+                Some(q) => {
+                    let mut hit = self.blank_hit(prim, 0.0);
+                    quad_point(&q, u.x, u.y, &mut hit);
+                    hit
+                }
+                None => self.sample_point(prim, u),
+            },
+            _ => self.sample_point(prim, u),
+        };
+        hit.time = time;
+        hit
+    }
+}
+
+/// The point of quad `q` at (u, v), with its normal and texture coordinates.
+#[inline(always)]
+fn quad_point(q: &super::quad::Quad, u: f32, v: f32, hit: &mut SurfaceHit) {
+    let (p, err) = q.point(u, v);
+    hit.p = p;
+    hit.p_error = err;
+    hit.ng = q.normal();
+    hit.ns = hit.ng;
+    hit.uv = [Vec2::new(u, v); 2];
+}
+
+/// A point of sphere `s` uniform by area from `u`, with its normal and texture coordinates.
+#[inline]
+fn sphere_point(s: &Sphere, u: Vec2, hit: &mut SurfaceHit) {
+    let n = warp::uniform_sphere(u);
+    let local = n * s.radius;
+    hit.p = s.center + local;
+    hit.p_error = local.abs() * crate::math::gamma(5) + s.center.abs() * crate::math::gamma(1);
+    hit.ng = n;
+    hit.ns = n;
+    let (su, sv) = s.uv(n);
+    hit.uv = [Vec2::new(su, sv); 2];
 }
 
 /// Below this sin²θmax the cone of a sphere is so narrow that 1 − cos θmax loses its digits in f32:

@@ -1175,7 +1175,7 @@ fn connect(
         let scene = world.light_scene();
         let lv = if let Some(area) = light_ref.as_area() {
             // A point uniform by area, so that its density is the light subpaths' origin one.
-            let lp = world.geometry.sample_point(area.prim, u);
+            let lp = area.sample_point(&world.geometry, u);
             let w = (pt.p - lp.p).normalize_or_zero();
             let (pos, _) = light_ref.pdf_le(&scene, lp.ng, w);
             let le = light_ref.l(&scene, &lp, w);

@@ -80,9 +80,7 @@ pub fn sample_emission(world: &World, s: &mut impl UniformSource, time: f32) -> 
     }
     // The same point `sample_le` placed with `u1`, as a full hit (its error bounds and
     // texture coordinates), for joining it to the camera.
-    let point = light
-        .as_area()
-        .map(|a| world.geometry.sample_point(a.prim, u1));
+    let point = light.as_area().map(|a| a.sample_point(&world.geometry, u1));
     Some(Emission {
         index,
         pmf,

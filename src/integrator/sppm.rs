@@ -215,17 +215,23 @@ pub fn visible_point(
             Some((bs.pdf, v.hit.p, v.ng, v.uniform_env_normal(env)))
         };
         depth += 1;
-        ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
+        // The camera ray's time (an iteration's, under motion blur) carries on.
+        ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi).with_time(v.hit.time);
     }
 }
 
 /// Traces one photon path from the lights (the light tracer's emission sampling and adjoint
 /// BSDF sampling, `lighttracer.rs`), pushing every photon it leaves on a non-specular surface
-/// after its first bounce onto `points` and `photons`. `v` is vertex storage.
+/// after its first bounce onto `points` and `photons`. `v` is vertex storage. `time` is the
+/// shutter time of the iteration (0 for a still): the photon leaves its light where the light
+/// is then, and every ray of its path is at that moment, the one its iteration's visible
+/// points see.
+#[allow(clippy::too_many_arguments)]
 pub fn trace_photon(
     world: &World,
     s: &mut SampleStream,
     set: &PathSettings,
+    time: f32,
     stats: &mut RayStats,
     v: &mut Vertex,
     points: &mut Vec<Vec3>,
@@ -235,7 +241,7 @@ pub fn trace_photon(
     if set.max_depth < 2 {
         return;
     }
-    let Some(em) = sample_emission(world, s, 0.0) else {
+    let Some(em) = sample_emission(world, s, time) else {
         return;
     };
     // The light's emission at the iteration's wavelengths in spectral mode.
@@ -247,7 +253,7 @@ pub fn trace_photon(
     let mut beta = beta0;
     // Russian roulette relative to what left the light, as the light tracer's.
     let inv_beta0 = 1.0 / beta0.max_element();
-    let mut ray = em.le.ray;
+    let mut ray = em.le.ray.with_time(time);
     let mut bounces = 0u32;
     let mut hero_only = false;
     loop {
@@ -298,7 +304,7 @@ pub fn trace_photon(
                 beta /= q;
             }
         }
-        ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
+        ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi).with_time(time);
     }
 }
 

@@ -121,10 +121,17 @@ pub struct Vcm<'a> {
     /// mis(1 / η).
     vc_weight: f32,
     merge: bool,
+    /// The iteration's shutter time (0 for a still): every subpath of the iteration, light and
+    /// camera, and every join is at this moment, so merges join vertices of one scene
+    /// (docs/DESIGN.md, "Vertex connection and merging" and motion blur).
+    pub time: f32,
 }
 
 impl<'a> Vcm<'a> {
-    /// The constants of an iteration of radius `radius` with `light_paths` light subpaths.
+    /// The constants of an iteration of radius `radius` with `light_paths` light subpaths, at
+    /// shutter time `time` (0 for a still; `world` and `camera` are the scene and the camera's
+    /// importance at that time).
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         world: &'a World,
         camera: &'a CameraImportance,
@@ -133,6 +140,7 @@ impl<'a> Vcm<'a> {
         radius: f32,
         light_paths: u64,
         merge: bool,
+        time: f32,
     ) -> Vcm<'a> {
         let eta = light_paths as f32 * PI * radius * radius;
         Vcm {
@@ -145,6 +153,7 @@ impl<'a> Vcm<'a> {
             vm_weight: if merge { mis(eta) } else { 0.0 },
             vc_weight: mis(1.0 / eta),
             merge,
+            time,
         }
     }
 
@@ -159,10 +168,11 @@ impl<'a> Vcm<'a> {
         film: &mut impl Splat,
     ) {
         let world = self.world;
-        let Some(em) = sample_emission(world, s, 0.0) else {
+        let Some(em) = sample_emission(world, s, self.time) else {
             return;
         };
-        let light = &world.lights()[em.index];
+        // A moving light where it is at the iteration's time.
+        let light = world.lights.posed(em.index, self.time);
         // A light at infinity: its "position" is the direction it shines from, which next-event
         // estimation samples per solid angle; its origin on the scene's disk is no vertex of
         // the path, so the first segment's length takes no part in the densities (the
@@ -191,7 +201,7 @@ impl<'a> Vcm<'a> {
             mis(cos_light / emission_pdf_w)
         };
         let mut d_vm = d_vc * self.vc_weight;
-        let mut ray = em.le.ray;
+        let mut ray = em.le.ray.with_time(self.time);
         let mut v = Vertex::unshaded(SurfaceHit::EMPTY);
         let mut len = 0u32;
         let max_len = self.set.max_depth.min(u16::MAX as u32);
@@ -276,7 +286,7 @@ impl<'a> Vcm<'a> {
                     beta /= q;
                 }
             }
-            ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
+            ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi).with_time(self.time);
         }
     }
 
@@ -308,7 +318,7 @@ impl<'a> Vcm<'a> {
     /// direction `d` (towards the light) from the light at infinity `index`, its choice not
     /// included: 1 for a direction's delta.
     fn infinite_direct_pdf(&self, index: usize, d: Vec3) -> f32 {
-        let light = &self.world.lights()[index];
+        let light = self.world.lights.posed(index, self.time);
         if light.is_delta() {
             1.0
         } else {
@@ -328,7 +338,7 @@ impl<'a> Vcm<'a> {
         let mut l = Vec3::ZERO;
         for &i in &world.lights.infinite {
             let i = i as usize;
-            let light = &world.lights()[i];
+            let light = world.lights.posed(i, self.time);
             let Some(le) = light.le(d) else {
                 continue;
             };
@@ -383,7 +393,8 @@ impl<'a> Vcm<'a> {
         let w_light = mis(camera_pdf_a) * (self.vm_weight + lv.d_vcm + lv.d_vc * mis(rev));
         let weight = 1.0 / (1.0 + w_light);
         stats.shadow_rays += 1;
-        let shadow = Ray::spawn_to(v.p, v.p_error, v.ng, cs.p_lens, Vec3::ZERO, Vec3::ZERO);
+        let shadow = Ray::spawn_to(v.p, v.p_error, v.ng, cs.p_lens, Vec3::ZERO, Vec3::ZERO)
+            .with_time(self.time);
         if !self.world.occluded(&shadow) {
             film.splat(cs.raster, self.set.to_film(c * (self.scale * weight)));
         }
@@ -449,7 +460,10 @@ impl<'a> Vcm<'a> {
                 } else {
                     let li = v.hit.light as usize;
                     let pmf = world.lights.distribution.discrete_pdf(li);
-                    let (pos, dir) = world.lights()[li].pdf_le(&scene, v.hit.ng, wo);
+                    let (pos, dir) = world
+                        .lights
+                        .posed(li, self.time)
+                        .pdf_le(&scene, v.hit.ng, wo);
                     let w_camera = mis(pmf * pos) * d_vcm + mis(pmf * pos * dir) * d_vc;
                     1.0 / (1.0 + w_camera)
                 };
@@ -516,7 +530,7 @@ impl<'a> Vcm<'a> {
                     beta /= q;
                 }
             }
-            ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi);
+            ray = Ray::spawn(v.hit.p, v.hit.p_error, v.ng, wi).with_time(self.time);
         }
     }
 
@@ -539,7 +553,8 @@ impl<'a> Vcm<'a> {
         if !(pmf > 0.0) {
             return Vec3::ZERO;
         }
-        let light = &world.lights()[li];
+        // A moving light where it is at the iteration's time.
+        let light = world.lights.posed(li, self.time);
         let scene = world.light_scene();
         // The light's emission at the iteration's wavelengths in spectral mode.
         let emission = |rgb: Vec3| self.set.light_emission(&world.lights, li as u32, rgb);
@@ -547,7 +562,7 @@ impl<'a> Vcm<'a> {
         // emission density with the choice, |cos| at the light, shadow ray, delta)
         let (wi, li_val, direct_pdf_w, emission_pdf_w, cos_light, shadow, delta) =
             if let Some(area) = light.as_area() {
-                let lp = world.geometry.sample_point(area.prim, u);
+                let lp = area.sample_point(&world.geometry, u);
                 let to = lp.p - v.hit.p;
                 let dist2 = to.length_squared();
                 if !(dist2 > 0.0) {
@@ -633,7 +648,7 @@ impl<'a> Vcm<'a> {
             * (self.vm_weight + d_vcm + d_vc * mis(pdf_rev));
         let weight = 1.0 / (w_light + 1.0 + w_camera);
         stats.shadow_rays += 1;
-        if world.occluded(&shadow) {
+        if world.occluded(&shadow.with_time(self.time)) {
             return Vec3::ZERO;
         }
         f * li_val * (wi_local.z.abs() * weight / direct_pdf_w)
@@ -682,7 +697,8 @@ impl<'a> Vcm<'a> {
         let w_camera = mis(light_dir_a) * (self.vm_weight + d_vcm + d_vc * mis(cam_rev));
         let weight = 1.0 / (w_light + 1.0 + w_camera);
         stats.shadow_rays += 1;
-        let shadow = Ray::spawn_to(v.hit.p, v.hit.p_error, v.ng, q.p, q.p_error, q.ng);
+        let shadow =
+            Ray::spawn_to(v.hit.p, v.hit.p_error, v.ng, q.p, q.p_error, q.ng).with_time(self.time);
         if self.world.occluded(&shadow) {
             return Vec3::ZERO;
         }

@@ -32,6 +32,13 @@ pub struct AreaLight {
     /// A sphere's (centre, radius): sampled over the cone it subtends from outside, and
     /// [`AreaLight::pdf_li`] must give that pdf.
     sphere: Option<(Vec3, f32)>,
+    /// True when the primitive moves during the shutter (continuous motion blur,
+    /// `geometry::motion`): then nothing of its shape is precomputed, and every sample and
+    /// density takes the primitive where it is at `time` ([`AreaLight::at`]; the light set's
+    /// `posed`), or, for a density of a hit on it, at the hit's time.
+    moving: bool,
+    /// The shutter time this light is placed at ([`AreaLight::at`]); read only when `moving`.
+    time: f32,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -73,6 +80,42 @@ impl AreaLight {
             area: 0.0,
             flat: None,
             sphere: None,
+            moving: false,
+            time: 0.0,
+        }
+    }
+
+    /// True when the light's primitive moves during the shutter.
+    #[inline]
+    pub fn moves(&self) -> bool {
+        self.moving
+    }
+
+    /// This light placed at shutter time `time` (what [`AreaLight::sample_le`],
+    /// [`AreaLight::pdf_le`] and [`AreaLight::sample_point`] of a moving light read).
+    #[inline]
+    pub fn at(&self, time: f32) -> AreaLight {
+        AreaLight { time, ..*self }
+    }
+
+    /// A point uniform by area on the light from `u` (where it is at its time, if it moves):
+    /// the point [`AreaLight::sample_le`] places with the same `u`, as a full hit.
+    #[inline]
+    pub fn sample_point(&self, geometry: &GeometryStore, u: Vec2) -> SurfaceHit {
+        if self.moving {
+            geometry.sample_point_at(self.prim, u, self.time)
+        } else {
+            geometry.sample_point(self.prim, u)
+        }
+    }
+
+    /// The light's area at its time (the precomputed one for a light that does not move).
+    #[inline]
+    fn area_now(&self, geometry: &GeometryStore) -> f32 {
+        if self.moving {
+            geometry.area_at(self.prim, self.time)
+        } else {
+            self.area
         }
     }
 
@@ -80,6 +123,14 @@ impl AreaLight {
     pub fn prepare(&mut self, geometry: &GeometryStore, materials: &[Material]) {
         let prim = self.prim;
         let emission = emission_of(&materials[self.material as usize]);
+        self.moving = geometry.moves(prim);
+        self.area = geometry.area(prim);
+        if self.moving {
+            // Its shape depends on the time: nothing to precompute.
+            self.flat = None;
+            self.sphere = None;
+            return;
+        }
         let normal = match prim.kind() {
             PrimitiveKind::Quad => Some(geometry.quads[prim.index()].shape.normal()),
             // The same normal `GeometryStore::sample_point` gives the light point.
@@ -98,7 +149,6 @@ impl AreaLight {
             let s = &geometry.spheres[prim.index()].shape;
             (s.center, s.radius)
         });
-        self.area = geometry.area(prim);
     }
 
     /// Surface area (after [`AreaLight::prepare`]).
@@ -119,28 +169,61 @@ impl AreaLight {
         let (geometry, prim, area) = (scene.geometry, self.prim, self.area);
         let material = &scene.materials[self.material as usize];
         let textures = scene.textures;
+        if self.moving {
+            // Where the primitive is at the receiver's moment: the shadow ray carries it.
+            let t = hit.time;
+            let area = geometry.area_at(prim, t);
+            if let Some(s) = geometry.sphere_at(prim, t)
+                && let Some(sample) =
+                    sample_sphere_light(geometry, prim, &s, material, textures, hit, n_offset, u)
+            {
+                return sample;
+            }
+            return sample_area_general(
+                geometry, prim, area, material, textures, hit, n_offset, u, t,
+            );
+        }
         match &self.flat {
             Some(flat) => sample_flat(geometry, prim, area, flat, hit, n_offset, u),
             None if prim.kind() == PrimitiveKind::Sphere => {
-                match sample_sphere_light(geometry, prim, material, textures, hit, n_offset, u) {
+                let s = &geometry.spheres[prim.index()].shape;
+                match sample_sphere_light(geometry, prim, s, material, textures, hit, n_offset, u) {
                     Some(sample) => sample,
                     // From inside the sphere: by area.
                     None => sample_area_general(
-                        geometry, prim, area, material, textures, hit, n_offset, u,
+                        geometry, prim, area, material, textures, hit, n_offset, u, hit.time,
                     ),
                 }
             }
-            None => sample_area_general(geometry, prim, area, material, textures, hit, n_offset, u),
+            None => sample_area_general(
+                geometry, prim, area, material, textures, hit, n_offset, u, hit.time,
+            ),
         }
     }
 
     /// Solid-angle pdf with which [`AreaLight::sample_li`] from `p` gives the point `light_hit`
     /// (pbrt-v4 `PDF_Li`), times the probability `pmf()` of having chosen the light. The choice
     /// is folded in here, and asked for only when needed, so that the product is rounded as the
-    /// light set always rounded it.
+    /// light set always rounded it. A moving light is taken where it is at the hit's time.
     #[inline]
-    pub fn pdf_li(&self, p: Vec3, light_hit: &SurfaceHit, pmf: impl FnOnce() -> f32) -> f32 {
-        if let Some((center, radius)) = self.sphere
+    pub fn pdf_li(
+        &self,
+        geometry: &GeometryStore,
+        p: Vec3,
+        light_hit: &SurfaceHit,
+        pmf: impl FnOnce() -> f32,
+    ) -> f32 {
+        let (sphere, area) = if self.moving {
+            let t = light_hit.time;
+            let s = geometry.sphere_at(self.prim, t);
+            (
+                s.map(|s| (s.center, s.radius)),
+                geometry.area_at(self.prim, t),
+            )
+        } else {
+            (self.sphere, self.area)
+        };
+        if let Some((center, radius)) = sphere
             && let Some((_, one_minus)) = sphere_cone(center, radius, p)
         {
             // Seen from outside, a sphere is sampled over its cone (`sample_sphere_cone`).
@@ -151,7 +234,6 @@ impl AreaLight {
                 0.0
             };
         }
-        let area = self.area;
         let to = light_hit.p - p;
         let d2 = to.length_squared();
         let cos_l = light_hit.ng.dot(to).abs() / d2.sqrt();
@@ -178,10 +260,13 @@ impl AreaLight {
 
     /// Emission sampling (pbrt-v4 `DiffuseAreaLight::SampleLe`): a point uniform by area with
     /// `u1` (pdf 1/A) and a cosine-weighted direction about the normal with `u2` (pdf cos θ/π);
-    /// a two-sided emitter first picks its side with `u2.x` (each with probability ½).
+    /// a two-sided emitter first picks its side with `u2.x` (each with probability ½). A moving
+    /// light is sampled where it is at its time ([`AreaLight::at`]), and its ray carries that
+    /// time.
     pub fn sample_le(&self, scene: &LightScene, u1: Vec2, u2: Vec2) -> Option<LeSample> {
         let material = &scene.materials[self.material as usize];
-        let lp = scene.geometry.sample_point(self.prim, u1);
+        let lp = self.sample_point(scene.geometry, u1);
+        let area = self.area_now(scene.geometry);
         let (n, u2, side) = if emission_of(material).double_sided {
             if u2.x < 0.5 {
                 (lp.ng, Vec2::new(remap_half(2.0 * u2.x), u2.y), 0.5)
@@ -193,21 +278,21 @@ impl AreaLight {
         };
         let local = warp::cosine_hemisphere(u2);
         let pdf_dir = warp::cosine_hemisphere_pdf(local.z) * side;
-        if !(pdf_dir > 0.0 && self.area > 0.0) {
+        if !(pdf_dir > 0.0 && area > 0.0) {
             return None;
         }
         let w = Frame::from_normal(n).to_world(local);
         Some(LeSample {
-            ray: Ray::spawn(lp.p, lp.p_error, n, w),
+            ray: Ray::spawn(lp.p, lp.p_error, n, w).with_time(lp.time),
             le: emitted(material, scene.textures, &lp, w),
             n: lp.ng,
-            pdf_pos: 1.0 / self.area,
+            pdf_pos: 1.0 / area,
             pdf_dir,
         })
     }
 
     /// Position and direction pdfs of [`AreaLight::sample_le`] for a ray leaving a point of
-    /// normal `n` in direction `w` (pbrt-v4 `PDF_Le`).
+    /// normal `n` in direction `w` (pbrt-v4 `PDF_Le`); a moving light's area at its time.
     pub fn pdf_le(&self, scene: &LightScene, n: Vec3, w: Vec3) -> (f32, f32) {
         let cos = n.dot(w);
         let pdf_dir = if emission_of(&scene.materials[self.material as usize]).double_sided {
@@ -215,7 +300,7 @@ impl AreaLight {
         } else {
             warp::cosine_hemisphere_pdf(cos)
         };
-        (1.0 / self.area, pdf_dir)
+        (1.0 / self.area_now(scene.geometry), pdf_dir)
     }
 
     /// Emitted power (pbrt-v4 `Phi`): π · A · L (× 2 for two sides), with a textured emitter's
@@ -253,7 +338,11 @@ impl AreaLight {
     }
 
     /// The light BVH's bounds of this light of power `phi`: the normal cone of a flat emitter,
-    /// all around for spheres and boxes (Lambertian emission reaches 90° from the normal).
+    /// all around for spheres and boxes (Lambertian emission reaches 90° from the normal). A
+    /// moving light is boxed over the whole shutter (the union of its key segments' boxes,
+    /// which hold it at every time) and emits all around: the normal of a triangle whose
+    /// vertices move linearly between two keys is quadratic in the time and need not lie in the
+    /// cone of the keys' normals, so a cone from the keys could exclude a receiver it lights.
     pub fn bounds(
         &self,
         geometry: &GeometryStore,
@@ -261,6 +350,13 @@ impl AreaLight {
         phi: f32,
     ) -> LightBounds {
         let prim = self.prim;
+        if self.moving {
+            let segments = geometry.motion.as_ref().map_or(1, |m| m.keys.max(2) - 1);
+            let swept = (0..segments).fold(crate::geometry::Bounds3::EMPTY, |b, seg| {
+                b.union(&geometry.sweep_bounds(prim, seg))
+            });
+            return LightBounds::all_around(swept, phi);
+        }
         let bounds = geometry.bounds(prim);
         let normal = match prim.kind() {
             PrimitiveKind::Quad => Some(geometry.quads[prim.index()].shape.normal()),
@@ -337,8 +433,10 @@ fn sample_area_general(
     hit: &SurfaceHit,
     n_offset: Vec3,
     u: Vec2,
+    time: f32,
 ) -> Option<LightSample> {
-    let lp = geometry.sample_point(prim, u);
+    // A still primitive's point is `sample_point`'s whatever the time.
+    let lp = geometry.sample_point_at(prim, u, time);
     let to = lp.p - hit.p;
     let d2 = to.length_squared();
     if !(d2 > 0.0) {
@@ -371,13 +469,13 @@ fn sample_area_general(
 fn sample_sphere_light(
     geometry: &GeometryStore,
     prim: PrimRef,
+    s: &crate::geometry::sphere::Sphere,
     material: &Material,
     textures: &[Texture],
     hit: &SurfaceHit,
     n_offset: Vec3,
     u: Vec2,
 ) -> Option<Option<LightSample>> {
-    let s = &geometry.spheres[prim.index()].shape;
     let (point, n, pdf) = sample_sphere_cone(s.center, s.radius, hit.p, u)?;
     let mut lp = geometry.blank_hit(prim, 0.0);
     let local = n * s.radius;
@@ -525,8 +623,17 @@ mod tests {
                         ((k * 104_729) % 997) as f32 / 997.0,
                     );
                     let fast = sample_flat(&g, prim, info.area, &flat, &hit, -dir, u);
-                    let general =
-                        sample_area_general(&g, prim, info.area, &material, &[], &hit, -dir, u);
+                    let general = sample_area_general(
+                        &g,
+                        prim,
+                        info.area,
+                        &material,
+                        &[],
+                        &hit,
+                        -dir,
+                        u,
+                        0.0,
+                    );
                     assert!(
                         same(fast, general),
                         "{prim:?} k={k}: {fast:?} vs {general:?}"

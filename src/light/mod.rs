@@ -184,11 +184,18 @@ impl Light {
 
     /// The solid-angle pdf with which [`Light::sample_li`] from `p` gives the point `light_hit`
     /// on this light, times the probability `pmf()` of having chosen it (asked only when
-    /// needed); 0 for lights that are not surfaces.
+    /// needed); 0 for lights that are not surfaces. A moving area light is taken where it is
+    /// at `light_hit`'s time.
     #[inline]
-    pub fn pdf_li(&self, p: Vec3, light_hit: &SurfaceHit, pmf: impl FnOnce() -> f32) -> f32 {
+    pub fn pdf_li(
+        &self,
+        geometry: &GeometryStore,
+        p: Vec3,
+        light_hit: &SurfaceHit,
+        pmf: impl FnOnce() -> f32,
+    ) -> f32 {
         match self {
-            Light::Area(a) => a.pdf_li(p, light_hit, pmf),
+            Light::Area(a) => a.pdf_li(geometry, p, light_hit, pmf),
             _ => 0.0,
         }
     }

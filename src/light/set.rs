@@ -257,7 +257,8 @@ impl LightSet {
         self.rebuild_tree(geometry, materials);
     }
 
-    /// True when a light moves during the shutter ([`LightSet::set_motion`]).
+    /// True when a point, spot or directional light moves during the shutter
+    /// ([`LightSet::set_motion`]; emitters on moving primitives move with the geometry).
     #[inline]
     pub fn moves(&self) -> bool {
         self.motion.is_some()
@@ -273,10 +274,18 @@ impl LightSet {
 
     /// Light `index` where it is at shutter time `time` (itself unless it moves): every light
     /// sample, emitted ray and density of a motion-blurred sample takes its light from here, at
-    /// the time its rays carry.
+    /// the time its rays carry. An emitter on a moving primitive is the area light placed at
+    /// `time` ([`super::AreaLight::at`]: its point, area and emitted rays are its shape's then).
     #[inline]
     pub fn posed(&self, index: usize, time: f32) -> std::borrow::Cow<'_, Light> {
         let light = &self.lights[index];
+        if let Light::Area(a) = light {
+            return if a.moves() {
+                std::borrow::Cow::Owned(Light::Area(a.at(time)))
+            } else {
+                std::borrow::Cow::Borrowed(light)
+            };
+        }
         match self.motion.as_ref().and_then(|m| m.at(index, time)) {
             Some(pose) => std::borrow::Cow::Owned(place(light, pose)),
             None => std::borrow::Cow::Borrowed(light),
@@ -527,9 +536,17 @@ impl LightSet {
     /// Solid-angle pdf with which NEE would have sampled the point `light_hit` on area light
     /// `index` from `p` with normal `n` (the `n_offset` given to [`LightSet::sample`]), selection
     /// probability included, for MIS of BSDF-sampled hits.
+    /// A moving emitter is taken where it is at `light_hit`'s time.
     #[inline]
-    pub fn pdf_area(&self, index: u32, p: Vec3, n: Vec3, light_hit: &SurfaceHit) -> f32 {
-        self.lights[index as usize].pdf_li(p, light_hit, || self.pmf(index, p, n))
+    pub fn pdf_area(
+        &self,
+        geometry: &GeometryStore,
+        index: u32,
+        p: Vec3,
+        n: Vec3,
+        light_hit: &SurfaceHit,
+    ) -> f32 {
+        self.lights[index as usize].pdf_li(geometry, p, light_hit, || self.pmf(index, p, n))
     }
 
     /// Radiance from the lights at infinity along an escaping ray direction `d` (unit), unweighted

@@ -29,8 +29,8 @@ use std::time::{Duration, Instant};
 
 /// Why `integrator` cannot render `world` with `settings`, if it cannot: a camera without an
 /// importance function, emissive media (neither subpath samples their emission), adaptive
-/// sampling (a pixel's error is not its own samples' any more), motion blur for vertex
-/// connection and merging.
+/// sampling (a pixel's error is not its own samples' any more), and the settings of Metropolis
+/// light transport and guiding that do not apply.
 pub fn check(
     world: &World,
     integrator: Integrator,
@@ -66,13 +66,6 @@ pub fn check(
             .mlt
             .validate()
             .map_err(RenderError::InvalidSetting)?;
-    }
-    if !world.is_still() && integrator == Integrator::Vcm {
-        return bad(format!(
-            "{name} does not render motion blur (--shutter): its merges join a camera path to \
-             the light paths of other samples, traced at other moments of the shutter; use \
-             --integrator bdpt, or render a still with --time"
-        ));
     }
     if settings.guiding {
         return bad(format!(

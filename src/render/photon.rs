@@ -56,12 +56,6 @@ pub fn check(world: &World, settings: &RenderSettings) -> Result<(), RenderError
              part in every iteration's photon pass",
         );
     }
-    if !world.is_still() {
-        return bad(
-            "SPPM does not render motion blur (--shutter): its photons have no time; render a \
-             still with --time",
-        );
-    }
     if settings.guiding {
         return bad("path guiding (--guiding) guides the path tracer, not SPPM");
     }
@@ -154,6 +148,9 @@ pub(crate) fn render(
         }
         // Spectral mode: the iteration's wavelengths, shared by its camera paths and photons.
         let path = for_iteration(path, settings.seed, it);
+        // Motion blur: the iteration's moment, shared by its camera paths and photons.
+        let (time, step, posed) = iteration_moment(world, &camera, settings.seed, it);
+        let cam = posed.as_ref().unwrap_or(&camera);
         // Camera pass: each row's pixels write only their own visible points and sums.
         let cam_stats = vps
             .par_chunks_mut(fw as usize)
@@ -168,9 +165,10 @@ pub(crate) fn render(
                 for (fx, (vp, px)) in vrow.iter_mut().zip(prow.iter_mut()).enumerate() {
                     let x = fx as u32 + win.x0;
                     let mut stream = sampler.stream(sampler.pixel_key((x, y)), it);
-                    let (ray, weight) = super::camera_ray(&camera, &filter, &mut stream, x, y);
+                    let (ray, weight) = super::camera_ray(cam, &filter, &mut stream, x, y);
+                    let ray = ray.with_time(time);
                     let l =
-                        sppm::visible_point(world, &ray, weight, &mut stream, &path, &mut st, vp);
+                        sppm::visible_point(step, &ray, weight, &mut stream, &path, &mut st, vp);
                     let l = path.to_film(l);
                     if l.is_finite() {
                         px.ld[0] += l.x as f64;
@@ -198,9 +196,10 @@ pub(crate) fn render(
                     let key = key ^ (j >> 32).wrapping_mul(0x9e37_79b9_7f4a_7c15);
                     let mut s = photon_sampler.stream(key, 0);
                     sppm::trace_photon(
-                        world,
+                        step,
                         &mut s,
                         &path,
+                        time,
                         &mut st,
                         &mut v,
                         &mut points,
@@ -314,6 +313,46 @@ fn iteration_wavelengths(seed: u64, it: u32) -> crate::spectrum::Wavelengths {
     crate::spectrum::Wavelengths::sample(u)
 }
 
+/// The shutter time of SPPM or VCM iteration `it` of a motion-blurred frame, shared by all its
+/// camera paths and photons (light subpaths): the base-2 radical inverse of `it` (van der
+/// Corput), shifted by a number of the seed (a Cranley–Patterson rotation), so the first 2^k
+/// iterations meet each 2^-k of the shutter once. One moment per iteration, not per path:
+/// a visible point (camera vertex) gathers, and merges with, the photons of its iteration, and
+/// photons traced at other moments would land where the surfaces were then (a density estimate
+/// joining two times is not the scene at either). Each iteration is then an SPPM or VCM
+/// iteration of the still at its time, consistent as the radius shrinks, and the image, their
+/// average, converges to the shutter's average as the iterations sample the shutter: a
+/// stratified estimate of a time integral, whose error for a few iterations is temporal
+/// aliasing (the frame at a few moments), gone by a few hundred (docs/DESIGN.md).
+fn iteration_time(seed: u64, it: u32) -> f32 {
+    let x = it.reverse_bits() as f64 / 4_294_967_296.0;
+    let shift = (crate::sampling::rng::hash_words(&[seed, 0x6d6f_7469_6f6e_7469]) >> 11) as f64
+        / (1u64 << 53) as f64;
+    ((x + shift).fract() as f32).min(1.0 - f32::EPSILON / 2.0)
+}
+
+/// The moment of SPPM or VCM iteration `it` ([`iteration_time`]): its time, the world to trace
+/// then (a shutter step's where motion falls back to worlds per step, [`World::at_step`]) and
+/// the camera placed where it is then (`None`: `camera` as it is). A still: time 0, `world`.
+fn iteration_moment<'a>(
+    world: &'a World,
+    camera: &Camera,
+    seed: u64,
+    it: u32,
+) -> (f32, &'a World, Option<Camera>) {
+    if world.is_still() {
+        return (0.0, world, None);
+    }
+    let t = iteration_time(seed, it);
+    let step = world.at_step(crate::world::motion::step_of(t, world.time_steps()));
+    let posed = world.camera_motion.as_ref().map(|m| {
+        let mut c = camera.clone();
+        c.camera_to_world = m.at(t);
+        c
+    });
+    (t, step, posed)
+}
+
 fn sum_stats(mut a: RayStats, b: RayStats) -> RayStats {
     a += b;
     a
@@ -341,7 +380,7 @@ fn to_film(pixels: &[PixelState], fw: u32, fh: u32, iterations: u32, photons: u6
 
 /// Why vertex connection and merging cannot render `world` with `settings`, if it cannot: the
 /// light tracer's reasons (`render/light.rs`: a camera without importance, media, adaptive
-/// sampling, motion blur, guiding) and its own settings'.
+/// sampling, guiding) and its own settings'.
 pub fn check_vcm(world: &World, settings: &RenderSettings) -> Result<(), RenderError> {
     super::light::check(world, Integrator::Vcm, settings)?;
     let bad = |m: &str| Err(RenderError::InvalidSetting(m.to_string()));
@@ -440,14 +479,20 @@ pub(crate) fn render_vcm(
             // Spectral mode: the iteration's wavelengths, shared by its light and camera
             // subpaths since a camera vertex merges with other pixels' light vertices (as SPPM).
             let path = for_iteration(path, settings.seed, it);
+            // Motion blur: the iteration's moment, shared by its light and camera subpaths
+            // since a camera vertex merges with other pixels' light vertices (as SPPM).
+            let (time, step, posed) = iteration_moment(world, &camera, settings.seed, it);
+            let cam = posed.as_ref().unwrap_or(&camera);
+            let importance = super::posed_importance(world, &importance, time);
             let vcm = Vcm::new(
-                world,
+                step,
                 &importance,
                 &path,
                 scale,
                 vcm::radius(r0, it),
                 n_pix as u64,
                 !settings.photon.no_merge,
+                time,
             );
             // Light subpaths, one per pixel, stored row by row in pixel order.
             let mut rows: Vec<LightRow> = (0..fh)
@@ -506,7 +551,8 @@ pub(crate) fn render_vcm(
                         let a = base + if fx == 0 { 0 } else { ends[fx - 1] as usize };
                         let b = base + ends[fx] as usize;
                         let mut s = sampler.stream(sampler.pixel_key((x, y)), it);
-                        let (ray, weight) = super::camera_ray(&camera, &filter, &mut s, x, y);
+                        let (ray, weight) = super::camera_ray(cam, &filter, &mut s, x, y);
+                        let ray = ray.with_time(time);
                         let l = vcm.camera_path(
                             &ray,
                             weight,
@@ -560,4 +606,33 @@ struct LightRow {
     points: Vec<Vec3>,
     ends: Vec<u32>,
     stats: RayStats,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::iteration_time;
+
+    /// The first 2^k iterations' times meet each 2^-k of the shutter once, for every k and seed
+    /// (the stratification the convergence of a blurred SPPM or VCM render rests on), and the
+    /// times lie in [0, 1) and differ between seeds.
+    #[test]
+    fn iteration_times_stratify_the_shutter() {
+        for seed in [0u64, 1, 7, 0x5eed_5eed] {
+            for k in 0..=9u32 {
+                let n = 1u32 << k;
+                let mut hit = vec![false; n as usize];
+                for it in 0..n {
+                    let t = iteration_time(seed, it);
+                    assert!((0.0..1.0).contains(&t), "{t}");
+                    let cell = ((t as f64 * n as f64) as usize).min(n as usize - 1);
+                    assert!(
+                        !hit[cell],
+                        "seed {seed}, {n} iterations: stratum {cell} twice"
+                    );
+                    hit[cell] = true;
+                }
+            }
+        }
+        assert_ne!(iteration_time(1, 0), iteration_time(2, 0));
+    }
 }

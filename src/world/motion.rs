@@ -12,7 +12,7 @@
 //!   the rotation by slerp. A pbrt camera's two-key motion is reproduced exactly (its path
 //!   between keys is itself such an interpolation); a glTF camera node's is followed between
 //!   the poses.
-//! - moving meshes (rigid, skinned, morphing) and spheres move continuously too: the world is
+//! - moving meshes (rigid, skinned, morphing), spheres and quads move continuously too: the world is
 //!   compiled once, posed at the shutter's middle, and keeps the moving primitives' vertices at
 //!   [`TimeOptions::steps`] + 1 times ([`motion_keys`], `geometry::motion`); the camera ray
 //!   carries the sample's time ([`crate::geometry::Ray::time`]), every ray spawned along its
@@ -21,8 +21,10 @@
 //! - moving point, spot and directional lights too: the world's light set keeps their
 //!   positions and directions at the same keys (`light::set::LightMotion`) and places each at
 //!   the time of the ray that samples it or of the light path it starts.
-//! - motion that is not interpolated so (a moving emitter, a light whose power or cone changes,
-//!   a moving medium boundary, box, quad, curve or instance) falls back to posing and compiling the scene at the middle of each of
+//! - emitters on moving meshes and spheres too: their area lights sample, and take densities
+//!   on, the primitive where it is at the sample's time (`light::AreaLight::at`).
+//! - motion that is not interpolated so (a light whose power, colour or cone changes,
+//!   a moving medium boundary, box, curve or instance) falls back to posing and compiling the scene at the middle of each of
 //!   [`TimeOptions::steps`] equal parts of the shutter, each world with its own exact BVH, a
 //!   sample tracing the world of the part holding its time: a stratified estimate of the
 //!   shutter's average that converges to it as the steps grow. A scene whose only motion is
@@ -198,7 +200,9 @@ impl World {
             match motion_keys(&mut scene, options, open, close, opts.steps() as usize + 1) {
                 Ok((mid, store, light_motion)) => {
                     // Keys only for what moves within the shutter.
-                    let moving = !(store.meshes.is_empty() && store.spheres.is_empty());
+                    let moving = !(store.meshes.is_empty()
+                        && store.spheres.is_empty()
+                        && store.quads.is_empty());
                     let mut w = World::build_with_motion(
                         mid,
                         options,
@@ -342,13 +346,14 @@ impl CameraMotion {
 
 /// The keys of continuous motion blur: the scene posed at `keys` evenly spaced times over
 /// [open, close], the objects that move between them found, and their flattened meshes'
-/// vertices (positions, normals, tangents, transformed as `compile_geometry` transforms them)
-/// and spheres kept per key. Returns the scene posed at the shutter's middle (the world's pose
-/// for everything that does not read a time) and the keys; `Err` names what continuous motion
-/// does not cover (the caller falls back to a world per step): a moving emitter (area lights
-/// are sampled on the still pose), a light that changes more than its position and direction
+/// vertices (positions, normals, tangents, transformed as `compile_geometry` transforms them),
+/// spheres and quads kept per key (an emissive one too: its area light is sampled where it is at each
+/// sample's time, `light::AreaLight::at`). Returns the scene posed at the shutter's middle (the
+/// world's pose for everything that does not read a time) and the keys; `Err` names what
+/// continuous motion does not cover (the caller falls back to a world per step): a light that
+/// changes more than its position and direction
 /// ([`light_keys`]), a moving medium boundary, a moving instance or a moving shape other than a
-/// mesh or sphere, or a transform that mirrors part of the time. Also returns the moving
+/// mesh, sphere or quad, or a transform that mirrors part of the time. Also returns the moving
 /// lights' keys.
 /// The scene's moving lights: index in `Scene::lights`, (position, direction) per key.
 type LightKeys = Vec<(usize, Vec<(Vec3, Vec3)>)>;
@@ -433,9 +438,14 @@ fn motion_keys(
             } else {
                 STILL
             }),
+            (Shape::Quad { .. }, _) => store.quad_slot.push(if moves {
+                (store.quads.len() / keys) as u32
+            } else {
+                STILL
+            }),
             _ if moves => {
                 return Err(format!(
-                    "the object '{}' moves and is not a mesh or a sphere",
+                    "the object '{}' moves and is not a mesh, a sphere or a quad",
                     obj.name
                 ));
             }
@@ -443,9 +453,6 @@ fn motion_keys(
         }
         if !moves {
             continue;
-        }
-        if scene.materials[obj.material].is_emissive() {
-            return Err(format!("the emitter '{}' moves", obj.name));
         }
         if obj.medium.is_some() {
             return Err(format!("the medium boundary '{}' moves", obj.name));
@@ -505,7 +512,20 @@ fn motion_keys(
                     });
                 }
             }
-            _ => unreachable!("only meshes and spheres get here"),
+            Shape::Quad { corner, e1, e2 } => {
+                // As compile_geometry places a quad (its edges swapped under a mirroring
+                // transform, which holds at every key or at none).
+                for key in &transforms {
+                    let m = key[o];
+                    let c = m.transform_point3(corner);
+                    let (mut a, mut b) = (m.transform_vector3(e1), m.transform_vector3(e2));
+                    if flip(&m) {
+                        std::mem::swap(&mut a, &mut b);
+                    }
+                    store.quads.push(crate::geometry::quad::Quad::new(c, a, b));
+                }
+            }
+            _ => unreachable!("only meshes, spheres and quads get here"),
         }
     }
     Ok((mid, store, light_motion))

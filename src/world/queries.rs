@@ -225,7 +225,8 @@ impl World {
         if emitter.light == NO_LIGHT {
             return 0.0;
         }
-        self.lights.pdf_area(emitter.light, p, n, emitter)
+        self.lights
+            .pdf_area(&self.geometry, emitter.light, p, n, emitter)
     }
 
     /// Number of lights [`World::sample_light`] chooses from.

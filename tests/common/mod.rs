@@ -281,3 +281,87 @@ pub fn cornell_with_moving_lights() -> Scene {
     }));
     s
 }
+
+/// The Cornell box lit by moving emitters: its ceiling light (a quad) at half its radiance
+/// sliding from front to back (z from +0.3 to −0.3 of where it was), a square emissive panel (a
+/// two-triangle mesh, one-sided, facing down) sliding across below the ceiling (x from −0.4 to
+/// 0.4) while turning 40° about the vertical, and a small emissive sphere crossing the box from
+/// back to front while its radius grows by half (so its area changes over the shutter).
+/// Both move over [0, 1] s as a pbrt file's transform times move objects; motion blur over
+/// [0, 1] keys them in the one world (`geometry::motion`), their area lights sampled where they
+/// are at each sample's time.
+pub fn cornell_with_moving_emitters() -> Scene {
+    use std::sync::Arc;
+    use trayecto::scene::animation::{Animation, MovingTransform, RigidMotion};
+    let mut s = trayecto::scene::builtin::cornell();
+    let light_object = s.objects.iter().position(|o| o.name == "light").unwrap();
+    let light = &s.objects[light_object];
+    s.materials[light.material].emissive *= 0.5;
+    let mut panel_mat = Material::diffuse("panel", Vec3::splat(0.5));
+    panel_mat.emissive = Vec3::new(24.0, 19.0, 10.0);
+    let panel_mat = s.add_material(panel_mat);
+    let mut ball_mat = Material::diffuse("ball", Vec3::splat(0.5));
+    ball_mat.emissive = Vec3::new(5.0, 7.0, 9.0);
+    let ball_mat = s.add_material(ball_mat);
+    let a = 0.15;
+    // Wound so that the front (e1 × e2) faces −y.
+    let panel = s.add_mesh(trayecto::scene::Mesh {
+        name: "panel".into(),
+        positions: vec![
+            Vec3::new(-a, 0.0, -a),
+            Vec3::new(a, 0.0, -a),
+            Vec3::new(a, 0.0, a),
+            Vec3::new(-a, 0.0, a),
+        ],
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        normals: None,
+        tangents: None,
+        uv0: None,
+        uv1: None,
+        colors: None,
+    });
+    let panel_object = s.objects.len();
+    s.add_object("panel", Shape::Mesh(panel), Mat4::IDENTITY, panel_mat);
+    let ball_object = s.objects.len();
+    s.add_object(
+        "ball",
+        Shape::Sphere {
+            center: Vec3::ZERO,
+            radius: 0.06,
+        },
+        Mat4::IDENTITY,
+        ball_mat,
+    );
+    s.animation = Some(Arc::new(Animation {
+        rigid: vec![
+            RigidMotion::Object {
+                object: light_object,
+                motion: MovingTransform {
+                    times: [0.0, 1.0],
+                    start: Mat4::from_translation(Vec3::new(0.0, 0.0, 0.3)),
+                    end: Mat4::from_translation(Vec3::new(0.0, 0.0, -0.3)),
+                },
+            },
+            RigidMotion::Object {
+                object: panel_object,
+                motion: MovingTransform {
+                    times: [0.0, 1.0],
+                    start: Mat4::from_translation(Vec3::new(-0.4, 0.95, 0.0)),
+                    end: Mat4::from_translation(Vec3::new(0.4, 0.95, 0.0))
+                        * Mat4::from_rotation_y(40f32.to_radians()),
+                },
+            },
+            RigidMotion::Object {
+                object: ball_object,
+                motion: MovingTransform {
+                    times: [0.0, 1.0],
+                    start: Mat4::from_translation(Vec3::new(0.25, 0.35, -0.3)),
+                    end: Mat4::from_translation(Vec3::new(0.25, 0.35, 0.3))
+                        * Mat4::from_scale(Vec3::splat(1.5)),
+                },
+            },
+        ],
+        ..Default::default()
+    }));
+    s
+}
