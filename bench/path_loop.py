@@ -3,7 +3,7 @@
 and the wavefront loop (integrator/wavefront.rs), selected by TRAYECTO_PATH_LOOP, optionally with
 a baseline binary, in interleaved rounds; the render phase only (the "rendered" line of the log).
 
-    python3 bench/path_loop.py --bin target/release/trayecto [--base /work/bin/trayecto-base12] \
+    python3 bench/path_loop.py --bin target/release/trayecto [--base BASE] \
         [--rounds 5] [--res 96] [--spp 32] [--threads 1] [--scenes cornell,FILE,...]
 
 Prints per scene the median render time of each configuration (lowest–highest round) and the

@@ -5,7 +5,7 @@ Usage (from the repository root):
 
     pip install mitsuba numpy            # mitsuba 3.9.1, drjit 1.5.0 were used
     python3 scripts/references/make_material_references.py \
-        --envmap /work/shared/scenes/hdr/studio_small_03_1k.hdr
+        --envmap ../shared/scenes/hdr/studio_small_03_1k.hdr
     python3 scripts/references/make_material_references.py --only metals --spp 4096
 
 It reads each Trayecto scene file scenes/mitsuba/NAME.toml and translates it into a Mitsuba scene

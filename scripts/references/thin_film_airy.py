@@ -13,7 +13,7 @@ Two computations, neither sharing code with the renderer:
   r = r12 + T121 r23 e^{iδ} / (1 − r21 r23 e^{iδ}) with Schlick interface reflectances,
   phase shifts 0 or π, δ = 2π · 2 n2 d cos θ2 / λ, the base IOR from its F0.
 
-Run: /work/mi-venv/bin/python scripts/references/thin_film_airy.py  (numpy; prints the Rust table).
+Run: python3 scripts/references/thin_film_airy.py  (a Python with numpy; prints the Rust table).
 """
 import numpy as np
 
