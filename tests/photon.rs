@@ -504,7 +504,8 @@ fn sppm_update_shrinks_the_radius_and_rescales_the_flux() {
 }
 
 /// VCM's radius r_i = r_0 · i^((α−1)/2) (i from 1): r_0 first, then shrinking; a stored light
-/// vertex takes at most 320 bytes.
+/// vertex takes at most 332 bytes (320 until the thin film's BSDF kept its spectral path's
+/// wavelengths: 12 more).
 #[test]
 fn vcm_radius_shrinks_with_the_iteration_index() {
     assert_eq!(vcm_radius(0.5, 0), 0.5);
@@ -515,7 +516,7 @@ fn vcm_radius_shrinks_with_the_iteration_index() {
     // shading: hit, BSDF, frame), so that growing it is a decision, not an accident.
     let size = std::mem::size_of::<trayecto::integrator::vcm::LightVertex>();
     eprintln!("light vertex: {size} bytes");
-    assert!(size <= 320);
+    assert!(size <= 332);
 }
 
 /// The time-to-equal-error comparison of BENCHMARKS.md ("Caustics seen through glass"): VCM,
