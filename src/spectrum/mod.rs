@@ -343,6 +343,10 @@ fn table(tab: &[(f32, f32)], lambda: f32) -> f32 {
     if lambda < first.0 || lambda > last.0 {
         return 0.0;
     }
+    if tab.len() == 1 {
+        // One sample: the spectrum is that value at that wavelength alone.
+        return first.1;
+    }
     let i = tab
         .partition_point(|p| p.0 <= lambda)
         .clamp(1, tab.len() - 1)
@@ -688,6 +692,17 @@ pub fn conductor_rgb_error(metal: &str) -> Option<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A tabulated spectrum of one sample is that value at its wavelength and 0 elsewhere (as
+    /// pbrt-v4's `PiecewiseLinearSpectrum`, which warns of it), not a panic.
+    #[test]
+    fn one_sample_table_is_nonzero_at_its_wavelength_only() {
+        let t = [(360.0, 0.4)];
+        assert_eq!(table(&t, 360.0), 0.4);
+        assert_eq!(table(&t, 361.0), 0.0);
+        assert_eq!(table(&t, 359.0), 0.0);
+        assert_eq!(table(&[], 500.0), 0.0);
+    }
 
     #[test]
     fn white_maps_to_white() {
