@@ -181,28 +181,16 @@ fn blur_is_the_average_of(
         )
     };
     let (a, b) = (blur(1), blur(2));
-    let mut average: Option<Image> = None;
-    for k in 0..times {
-        let t = step_time(shutter[0], shutter[1], k, times);
-        let img = render_with(
+    let average = common::mean_image((0..times).map(|k| {
+        render_with(
             scene,
             TimeOptions {
-                time: Some(t),
+                time: Some(step_time(shutter[0], shutter[1], k, times)),
                 ..Default::default()
             },
             &small(10 + k as u64, 1024 / times),
-        );
-        match average.as_mut() {
-            None => average = Some(img),
-            Some(acc) => acc
-                .data
-                .iter_mut()
-                .zip(&img.data)
-                .for_each(|(x, y)| *x += *y),
-        }
-    }
-    let mut average = average.unwrap();
-    average.data.iter_mut().for_each(|p| *p /= times as f32);
+        )
+    }));
     let still = render_with(
         scene,
         TimeOptions {

@@ -1011,6 +1011,30 @@ fn mlt_film_is_a_function_of_seed_and_settings() {
     }
 }
 
+/// The path tracer's renders a motion-blur test measures light paths against, at `path`'s
+/// settings: the motion-blurred `world` at seed 11 (a seed of its own: BDPT's camera subpaths
+/// at the same seed would be its rays), the same at seed 6 (how far the reference's own noise
+/// reaches) and the still `still` (which the blur must be far from, or the test cannot tell).
+fn blur_references(world: &World, still: &World, path: RenderSettings) -> [Image; 3] {
+    [
+        render_world(
+            world,
+            &RenderSettings {
+                seed: 11,
+                ..path.clone()
+            },
+        ),
+        render_world(
+            world,
+            &RenderSettings {
+                seed: 6,
+                ..path.clone()
+            },
+        ),
+        render_world(still, &path),
+    ]
+}
+
 /// Relative RMS difference of the `b` × `b`-pixel block means of `img` and `reference` (over the
 /// reference's mean luminance): [`block_error`] at a finer grid, where a blur's shape shows.
 fn block_error_at(img: &Image, reference: &Image, b: u32) -> f64 {
@@ -1041,7 +1065,6 @@ fn light_paths_render_motion_blur_as_the_path_tracer() {
     use trayecto::math::Mat4;
     use trayecto::scene::Shape;
     use trayecto::scene::animation::{Animation, MovingTransform, RigidMotion};
-    use trayecto::world::WorldOptions;
     use trayecto::world::motion::TimeOptions;
     let mut scene = cornell_wide_light();
     let blue = scene.add_material(trayecto::material::Material::diffuse(
@@ -1089,16 +1112,7 @@ fn light_paths_render_motion_blur_as_the_path_tracer() {
         ],
         ..Default::default()
     }));
-    let build = |time| {
-        World::build_posed(
-            scene.clone(),
-            &WorldOptions {
-                time,
-                ..Default::default()
-            },
-        )
-        .unwrap()
-    };
+    let build = |time| posed_world(&scene, time);
     let world = build(TimeOptions {
         shutter: Some([0.0, 1.0]),
         steps: 2,
@@ -1112,27 +1126,13 @@ fn light_paths_render_motion_blur_as_the_path_tracer() {
         integrator,
         ..lt(w, h, spp, depth)
     };
-    // A seed of its own: BDPT's camera subpaths at the same seed would be the reference's rays.
-    let reference = render_world(
+    let [reference, other, still] = blur_references(
         &world,
-        &RenderSettings {
-            seed: 11,
-            ..with(IntegratorKind::Path, 256)
-        },
-    );
-    let other = render_world(
-        &world,
-        &RenderSettings {
-            seed: 6,
-            ..with(IntegratorKind::Path, 256)
-        },
-    );
-    let still = render_world(
         &build(TimeOptions {
             time: Some(0.5),
             ..Default::default()
         }),
-        &with(IntegratorKind::Path, 256),
+        with(IntegratorKind::Path, 256),
     );
     println!(
         "motion blur: path tracer seeds {:.4} apart, the middle still {:.4} (4 x 4 blocks), {:.4} (8 x 8)",
@@ -1197,7 +1197,6 @@ fn light_paths_follow_a_moving_emitter_in_one_world_and_through_the_shutter_step
     use trayecto::math::Mat4;
     use trayecto::scene::Shape;
     use trayecto::scene::animation::{Animation, MovingTransform, RigidMotion};
-    use trayecto::world::WorldOptions;
     use trayecto::world::motion::TimeOptions;
     let quad = builtin::cornell();
     let mut thin_box = quad.clone();
@@ -1227,16 +1226,7 @@ fn light_paths_follow_a_moving_emitter_in_one_world_and_through_the_shutter_step
             }],
             ..Default::default()
         }));
-        let build = |time| {
-            World::build_posed(
-                scene.clone(),
-                &WorldOptions {
-                    time,
-                    ..Default::default()
-                },
-            )
-            .unwrap()
-        };
+        let build = |time| posed_world(&scene, time);
         let world = build(TimeOptions {
             shutter: Some([0.0, 1.0]),
             steps: 4,
@@ -1248,28 +1238,13 @@ fn light_paths_follow_a_moving_emitter_in_one_world_and_through_the_shutter_step
             integrator,
             ..lt(w, h, spp, depth)
         };
-        // A seed of its own: BDPT's camera subpaths at the same seed would be the reference's
-        // rays.
-        let reference = render_world(
+        let [reference, other, still] = blur_references(
             &world,
-            &RenderSettings {
-                seed: 11,
-                ..with(IntegratorKind::Path, 256)
-            },
-        );
-        let other = render_world(
-            &world,
-            &RenderSettings {
-                seed: 6,
-                ..with(IntegratorKind::Path, 256)
-            },
-        );
-        let still = render_world(
             &build(TimeOptions {
                 time: Some(0.0),
                 ..Default::default()
             }),
-            &with(IntegratorKind::Path, 256),
+            with(IntegratorKind::Path, 256),
         );
         let far = block_error(&still, &reference);
         let apart = block_error(&other, &reference);
@@ -1315,16 +1290,7 @@ fn light_paths_follow_moving_lights_in_one_world() {
     use trayecto::world::WorldOptions;
     use trayecto::world::motion::TimeOptions;
     let scene = cornell_with_moving_lights();
-    let build = |time| {
-        World::build_posed(
-            scene.clone(),
-            &WorldOptions {
-                time,
-                ..Default::default()
-            },
-        )
-        .unwrap()
-    };
+    let build = |time| posed_world(&scene, time);
     let world = build(TimeOptions {
         shutter: Some([0.0, 1.0]),
         steps: 4,
@@ -1337,26 +1303,13 @@ fn light_paths_follow_moving_lights_in_one_world() {
         integrator,
         ..lt(w, h, spp, depth)
     };
-    let reference = render_world(
+    let [reference, other, still] = blur_references(
         &world,
-        &RenderSettings {
-            seed: 11,
-            ..with(IntegratorKind::Path, 256)
-        },
-    );
-    let other = render_world(
-        &world,
-        &RenderSettings {
-            seed: 6,
-            ..with(IntegratorKind::Path, 256)
-        },
-    );
-    let still = render_world(
         &build(TimeOptions {
             time: Some(0.0),
             ..Default::default()
         }),
-        &with(IntegratorKind::Path, 256),
+        with(IntegratorKind::Path, 256),
     );
     let far = block_error(&still, &reference);
     println!(
@@ -1442,21 +1395,8 @@ fn light_paths_follow_moving_emitters_in_one_world() {
         integrator,
         ..lt(w, h, spp, depth)
     };
-    let reference = render_world(
+    let [reference, other, still] = blur_references(
         &world,
-        &RenderSettings {
-            seed: 11,
-            ..with(IntegratorKind::Path, 256)
-        },
-    );
-    let other = render_world(
-        &world,
-        &RenderSettings {
-            seed: 6,
-            ..with(IntegratorKind::Path, 256)
-        },
-    );
-    let still = render_world(
         &build(
             TimeOptions {
                 time: Some(0.0),
@@ -1464,7 +1404,7 @@ fn light_paths_follow_moving_emitters_in_one_world() {
             },
             Default::default(),
         ),
-        &with(IntegratorKind::Path, 256),
+        with(IntegratorKind::Path, 256),
     );
     let far = block_error(&still, &reference);
     let apart = block_error(&other, &reference);

@@ -752,19 +752,9 @@ fn photon_methods_agree_with_references_on_glossy_lens_and_infinite_lights() {
 /// blocks, while the still at the shutter's opening is 0.81 away.
 #[test]
 fn photon_methods_render_motion_blur_as_the_average_over_the_shutter() {
-    use trayecto::world::WorldOptions;
     use trayecto::world::motion::TimeOptions;
     let scene = cornell_with_moving_emitters();
-    let build = |time| {
-        World::build_posed(
-            scene.clone(),
-            &WorldOptions {
-                time,
-                ..Default::default()
-            },
-        )
-        .unwrap()
-    };
+    let build = |time| posed_world(&scene, time);
     let at = |t: f64| {
         build(TimeOptions {
             time: Some(t),
@@ -784,21 +774,12 @@ fn photon_methods_render_motion_blur_as_the_average_over_the_shutter() {
         ..sppm(w, h, spp, depth)
     };
     let times = 16u32;
-    let mut average: Option<Image> = None;
-    for k in 0..times {
-        let t = (k as f64 + 0.5) / times as f64;
-        let img = render_world(&at(t), &path(128, 20 + k as u64));
-        match average.as_mut() {
-            None => average = Some(img),
-            Some(acc) => acc
-                .data
-                .iter_mut()
-                .zip(&img.data)
-                .for_each(|(x, y)| *x += *y),
-        }
-    }
-    let mut average = average.unwrap();
-    average.data.iter_mut().for_each(|p| *p /= times as f32);
+    let average = mean_image((0..times).map(|k| {
+        render_world(
+            &at((k as f64 + 0.5) / times as f64),
+            &path(128, 20 + k as u64),
+        )
+    }));
     let middle = at(0.5);
     let mid_reference = render_world(&middle, &path(2048, 7));
     let far = block_error(&render_world(&at(0.0), &path(256, 8)), &average);

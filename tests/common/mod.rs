@@ -191,6 +191,39 @@ pub fn block_rgb_means(img: &Image, b: u32) -> Vec<Vec3> {
 
 /// Relative RMS difference of the 8 × 8-pixel block means of `img` and `reference` (over the
 /// reference's mean luminance).
+/// The pixel-wise mean of `images` (all of one size, at least one): the average of renders at
+/// several moments of a shutter, which a motion-blurred render must converge to.
+pub fn mean_image(images: impl IntoIterator<Item = Image>) -> Image {
+    let mut n = 0u32;
+    let mut sum: Option<Image> = None;
+    for img in images {
+        n += 1;
+        match sum.as_mut() {
+            None => sum = Some(img),
+            Some(acc) => acc
+                .data
+                .iter_mut()
+                .zip(&img.data)
+                .for_each(|(x, y)| *x += *y),
+        }
+    }
+    let mut mean = sum.expect("at least one image");
+    mean.data.iter_mut().for_each(|p| *p /= n as f32);
+    mean
+}
+
+/// `scene` compiled at `time` (an instant or a shutter), every other world option default.
+pub fn posed_world(scene: &Scene, time: trayecto::world::motion::TimeOptions) -> World {
+    World::build_posed(
+        scene.clone(),
+        &WorldOptions {
+            time,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
 pub fn block_error(img: &Image, reference: &Image) -> f64 {
     let (a, r) = (block_rgb_means(img, 8), block_rgb_means(reference, 8));
     let mut s = 0.0f64;
