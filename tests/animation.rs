@@ -160,6 +160,21 @@ fn blur_is_the_average_over_the_shutter(scene: &Scene, shutter: [f64; 2], what: 
     blur_is_the_average_of(scene, shutter, 16, 16, what);
 }
 
+/// A motion-blurred render of `scene` over `time` is the same on one thread as on the default
+/// count.
+fn assert_threads_agree(scene: &Scene, time: TimeOptions) {
+    let one = render_with(
+        scene,
+        time.clone(),
+        &RenderSettings {
+            threads: Some(1),
+            ..small(5, 8)
+        },
+    );
+    let two = render_with(scene, time, &small(5, 8));
+    assert_eq!(one.data, two.data, "1 and 2 threads");
+}
+
 /// [`blur_is_the_average_over_the_shutter`] with `steps` key intervals and `times` `--time`
 /// renders. Returns the first blurred render and the average.
 fn blur_is_the_average_of(
@@ -270,26 +285,10 @@ fn motion_blur_is_continuous_between_keys() {
         steps: 2,
         ..Default::default()
     };
-    let world = World::build_posed(
-        scene.clone(),
-        &WorldOptions {
-            time: time.clone(),
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let world = common::posed_world(&scene, time.clone());
     let motion = world.geometry.motion.as_ref().expect("continuous motion");
     assert!(world.motion.is_empty() && motion.keys == 3 && world.geometry.moving_prims.len() == 2);
-    let one = render_with(
-        &scene,
-        time.clone(),
-        &RenderSettings {
-            threads: Some(1),
-            ..small(5, 8)
-        },
-    );
-    let two = render_with(&scene, time, &small(5, 8));
-    assert_eq!(one.data, two.data, "1 and 2 threads");
+    assert_threads_agree(&scene, time);
     blur_is_the_average_of(&scene, [0.0, 1.0], 2, 32, "a card crossing the box");
 }
 
@@ -308,14 +307,7 @@ fn motion_blur_of_moving_lights_in_one_world() {
         steps: 2,
         ..Default::default()
     };
-    let mut world = World::build_posed(
-        scene.clone(),
-        &WorldOptions {
-            time: time.clone(),
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let mut world = common::posed_world(&scene, time.clone());
     assert!(world.motion.is_empty() && world.geometry.motion.is_none());
     assert!(world.lights.moves() && !world.is_still());
     assert!(
@@ -331,16 +323,7 @@ fn motion_blur_of_moving_lights_in_one_world() {
         *intensity *= 2.0;
     }
     assert!(!world.set_scene_light(bulb, &brighter));
-    let one = render_with(
-        &scene,
-        time.clone(),
-        &RenderSettings {
-            threads: Some(1),
-            ..small(5, 8)
-        },
-    );
-    let two = render_with(&scene, time, &small(5, 8));
-    assert_eq!(one.data, two.data, "1 and 2 threads");
+    assert_threads_agree(&scene, time);
     blur_is_the_average_of(&scene, [0.0, 1.0], 2, 32, "moving point and spot lights");
 }
 
@@ -359,14 +342,7 @@ fn motion_blur_of_moving_emitters_in_one_world() {
         steps: 4,
         ..Default::default()
     };
-    let world = World::build_posed(
-        scene.clone(),
-        &WorldOptions {
-            time: time.clone(),
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let world = common::posed_world(&scene, time.clone());
     let motion = world.geometry.motion.as_ref().expect("continuous motion");
     // The ceiling light's quad, the panel's two triangles and the ball move; all are area lights.
     assert!(world.motion.is_empty() && motion.keys == 5 && world.geometry.moving_prims.len() == 4);
@@ -381,16 +357,7 @@ fn motion_blur_of_moving_emitters_in_one_world() {
         "{:?}",
         world.warnings
     );
-    let one = render_with(
-        &scene,
-        time.clone(),
-        &RenderSettings {
-            threads: Some(1),
-            ..small(5, 8)
-        },
-    );
-    let two = render_with(&scene, time, &small(5, 8));
-    assert_eq!(one.data, two.data, "1 and 2 threads");
+    assert_threads_agree(&scene, time);
     let (blur, average) = blur_is_the_average_of(&scene, [0.0, 1.0], 4, 32, "moving emitters");
     // The image means too: a bias confined to one emitter's light (its samples taken on another
     // emitter measured +13 % red) hides in the per-pixel noise of 24 × 24 pixels at 256 samples.
