@@ -831,6 +831,43 @@ fn normal_map_matches_pbrt_v4() {
     assert_matches_pbrt_v4(&img, "normalmap", 0.03, 0.1);
 }
 
+/// A sampled spectrum is (λ, value) pairs with λ increasing, as pbrt-v4's parameter reader
+/// requires: an odd count or a wavelength that does not increase stops the load with the
+/// parameter named (reading on would drop a number or misplace the table), and a single pair,
+/// which pbrt-v4 accepts with a warning, loads with that warning naming the wavelength.
+#[test]
+fn sampled_spectra_are_checked_as_pbrt_v4_checks_them() {
+    let scene_with = |eta: &str| {
+        format!(
+            "Camera \"perspective\"\nWorldBegin\nMaterial \"conductor\" \"spectrum eta\" [ {eta} ]\nShape \"sphere\"\n"
+        )
+    };
+    let odd = trayecto::scene::pbrt::load_from_str(&scene_with("400 1.5 500"), "odd.pbrt")
+        .expect_err("an odd count of numbers loaded");
+    assert!(
+        odd.to_string().contains("spectrum eta") && odd.to_string().contains("3 values"),
+        "{odd}"
+    );
+    let down = trayecto::scene::pbrt::load_from_str(&scene_with("500 1.5 400 1.6"), "down.pbrt")
+        .expect_err("decreasing wavelengths loaded");
+    assert!(down.to_string().contains("do not increase"), "{down}");
+    let one = trayecto::scene::pbrt::load_from_str(&scene_with("360 0.4"), "one.pbrt")
+        .expect("a single pair must load, as in pbrt-v4");
+    let w = warnings_about(&one, "single wavelength");
+    assert!(
+        w.len() == 1 && w[0].contains("360 nm") && w[0].contains("one.pbrt:3"),
+        "{:?}",
+        one.warnings
+    );
+    let two =
+        trayecto::scene::pbrt::load_from_str(&scene_with("360 0.4 830 0.4"), "two.pbrt").unwrap();
+    assert!(
+        warnings_about(&two, "single wavelength").is_empty(),
+        "{:?}",
+        two.warnings
+    );
+}
+
 /// The scene's warnings that mention `needle` after its location (the file name may hold it).
 fn warnings_about(scene: &Scene, needle: &str) -> Vec<String> {
     scene

@@ -35,6 +35,7 @@ impl Builder {
             tokens: &tokens,
             pos: 0,
             file,
+            warnings: Vec::new(),
         };
         while let Some(tok) = p.next() {
             let tokenizer::TokenKind::Word(name) = &tok.kind else {
@@ -45,6 +46,7 @@ impl Builder {
             };
             let name = name.clone();
             self.l.directive(&name, &mut p, &at, 0)?;
+            self.l.scene.warnings.append(&mut p.warnings);
         }
         Ok(())
     }

@@ -371,6 +371,7 @@ impl Loader {
             tokens: &tokens,
             pos: 0,
             file,
+            warnings: Vec::new(),
         };
         while let Some(tok) = p.next() {
             let line = tok.line;
@@ -382,6 +383,7 @@ impl Loader {
                 ));
             };
             self.directive(name, &mut p, &at, depth)?;
+            self.scene.warnings.append(&mut p.warnings);
         }
         Ok(())
     }
@@ -1687,6 +1689,8 @@ struct Cursor<'a> {
     tokens: &'a [Token],
     pos: usize,
     file: &'a str,
+    /// Warnings about parameter values, moved to the scene's after each directive.
+    warnings: Vec<String>,
 }
 
 impl<'a> Cursor<'a> {
@@ -1811,6 +1815,9 @@ impl<'a> Cursor<'a> {
             let here = loc(self.file, *line);
             let values = self.values(&here)?;
             let p = Param::new(decl, values).map_err(|m| SceneError::invalid(&here, m))?;
+            if let Some(w) = p.doubt() {
+                self.warnings.push(format!("{here}: {w}"));
+            }
             list.push(p).map_err(|m| SceneError::invalid(&here, m))?;
         }
         let _ = at;

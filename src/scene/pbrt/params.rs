@@ -148,6 +148,24 @@ impl Param {
             if let Some(bad) = v.iter().find(|x| !x.is_finite()) {
                 return Err(format!("parameter '{ty} {name}' has the value {bad}"));
             }
+            // A sampled spectrum is (λ, value) pairs with λ increasing; pbrt-v4 stops on
+            // either fault (paramdict.cpp), where reading on would drop a number or sort the
+            // table silently.
+            if ty == "spectrum" {
+                if v.len() % 2 != 0 {
+                    return Err(format!(
+                        "parameter 'spectrum {name}' has {} values: a sampled spectrum is (wavelength, value) pairs",
+                        v.len()
+                    ));
+                }
+                if let Some(i) = (2..v.len()).step_by(2).find(|&i| v[i] <= v[i - 2]) {
+                    return Err(format!(
+                        "parameter 'spectrum {name}': the wavelengths do not increase ({} then {})",
+                        v[i - 2],
+                        v[i]
+                    ));
+                }
+            }
         }
         Ok(Param {
             ty: ty.to_string(),
@@ -155,6 +173,20 @@ impl Param {
             values,
             used: Cell::new(false),
         })
+    }
+}
+
+impl Param {
+    /// What pbrt-v4 warns about in a parameter that is otherwise valid: a sampled spectrum of a
+    /// single (λ, value) pair is non-zero at that one wavelength, which is probably unintended.
+    pub fn doubt(&self) -> Option<String> {
+        match (&self.ty[..], &self.values) {
+            ("spectrum", Values::Nums(v)) if v.len() == 2 => Some(format!(
+                "\"spectrum {}\" is non-zero only at {} nm (a single wavelength, value pair): probably unintended",
+                self.name, v[0]
+            )),
+            _ => None,
+        }
     }
 }
 
