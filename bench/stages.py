@@ -18,13 +18,15 @@ image output are left out). Every instruction is charged to a stage by the sourc
 from (callgrind keeps the file of inlined code) or, for std/glam/core_arch lines, by the function
 it was inlined into. The stages:
 
-  camera        camera ray generation (src/camera*, render::camera_ray)
-  traversal     BVH traversal for closest hits and shadow rays (src/accel/, World::occluded)
+  camera        camera ray generation (src/camera*, render::camera_ray, render::film_and_lens)
+  traversal     BVH traversal for closest hits and shadow rays (src/accel/, World::occluded,
+                World::candidate)
   intersection  primitive tests and hit attributes (src/geometry/, World::complete_*)
   shading/BSDF  textures, normal maps, BSDF set-up, eval and sample (src/material/, src/texture*,
-                integrator/vertex.rs, world/queries.rs, sampling/warp.rs under Bsdf)
+                integrator/vertex.rs, world/queries.rs and what is inlined into it, sampling/warp.rs
+                under Bsdf)
   lights        light choice, light sampling and MIS (src/light/, integrator/direct.rs, the
-                discrete and 2D distributions of sampling/distribution.rs)
+                discrete and 2D distributions of sampling/distribution.rs, std code inlined there)
   sampler       the sample stream (src/sampling/sampler.rs, rng.rs, sobol*.rs)
   film          accumulating samples into pixels (src/film/)
   path logic    the rest of the integrator's loop (integrator/path.rs, settings.rs, math.rs)
@@ -80,15 +82,19 @@ FILE_RULES = [
 # project's shared files (world.rs, math.rs, warp.rs), the function they were inlined into.
 FUNC_RULES = [
     ("render::camera_ray", "camera"),
+    ("render::film_and_lens", "camera"),
     ("camera::", "camera"),
     ("World::occluded", "traversal"),
+    ("World::candidate", "traversal"),
     ("accel::", "traversal"),
     ("World::complete", "intersection"),
     ("geometry::", "intersection"),
     ("Vertex::shade", "shading/BSDF"),
+    ("world::queries", "shading/BSDF"),
     ("material::", "shading/BSDF"),
     ("texture::", "shading/BSDF"),
     ("light::", "lights"),
+    ("sampling::distribution", "lights"),
     ("sampling::sampler", "sampler"),
     ("film::", "film"),
     ("integrator::", "path logic"),

@@ -212,19 +212,154 @@ pub fn mat4_is_finite(m: &Mat4) -> bool {
     m.to_cols_array().iter().all(|v| v.is_finite())
 }
 
-/// Whether the running CPU has AVX2 (false off x86-64), asked once when a structure with an
-/// AVX2-compiled copy of its hot loop is built (the geometry BVH's traversal, the light BVH's
-/// descent). `TRAYECTO_NO_AVX2=1` forces the portable code everywhere, to compare the two on one
-/// machine.
+/// The instruction sets the renderer's run-time dispatch chooses between. Two structures have a
+/// second copy of their hot loop compiled with AVX2 enabled, chosen when they are built: the
+/// geometry BVH's traversal (`accel::bvh`, with AVX's eight-lane triangle pair test) and the light
+/// BVH's descent (`light::bvh`). Everything else is compiled for the target's baseline (SSE2 on
+/// x86-64, where a few SSE2 intrinsics are used without detection because every x86-64 CPU has
+/// them). There is no SSE4 or AVX-512 copy of anything: the eight-wide BVH's slab test is one
+/// 256-bit operation per plane already. Both copies compute every float with the same IEEE
+/// operations (no FMA: it is not enabled, and Rust never contracts `a * b + c`), so the image does
+/// not depend on the level (tests/simd.rs renders each level and compares the bits).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SimdLevel {
+    /// The baseline code only.
+    Portable,
+    /// The AVX2 copies of the BVH traversal and the light BVH descent.
+    Avx2,
+}
+
+/// How the `TRAYECTO_SIMD` setting can be wrong.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum SimdError {
+    /// A name that is not one of [`SimdLevel::ALL`].
+    #[error(
+        "TRAYECTO_SIMD={name:?} is not a SIMD level of this renderer (portable, avx2){hint}",
+        name = .0,
+        hint = simd_hint(.0)
+    )]
+    Unknown(String),
+    /// A level the running CPU does not have.
+    #[error("TRAYECTO_SIMD={level} asks for code this CPU does not have", level = .0.name())]
+    Unsupported(SimdLevel),
+    /// `TRAYECTO_NO_AVX2` (the older switch, an alias of `TRAYECTO_SIMD=portable`) set beside a
+    /// `TRAYECTO_SIMD` that is not `portable`.
+    #[error("TRAYECTO_NO_AVX2 is set (portable code) but TRAYECTO_SIMD={0}: set one of them")]
+    Conflict(String),
+}
+
+fn simd_hint(name: &str) -> &'static str {
+    match name.to_ascii_lowercase().as_str() {
+        "avx512" | "avx-512" | "avx512f" => ": there is no AVX-512 code, avx2 is the widest",
+        "sse" | "sse2" | "sse4" | "sse4.1" | "sse4.2" => {
+            ": `portable` is the SSE2 baseline on x86-64, and there is no SSE4 code"
+        }
+        _ => "",
+    }
+}
+
+impl SimdLevel {
+    /// Every level the code has, narrowest first.
+    pub const ALL: [SimdLevel; 2] = [SimdLevel::Portable, SimdLevel::Avx2];
+
+    /// The name `TRAYECTO_SIMD` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            SimdLevel::Portable => "portable",
+            SimdLevel::Avx2 => "avx2",
+        }
+    }
+
+    /// The level called `name` (exactly one of [`Self::name`]'s).
+    pub fn parse(name: &str) -> Result<SimdLevel, SimdError> {
+        SimdLevel::ALL
+            .into_iter()
+            .find(|l| l.name() == name)
+            .ok_or_else(|| SimdError::Unknown(name.to_string()))
+    }
+
+    /// Whether the running CPU can run this level's code.
+    pub fn available(self) -> bool {
+        match self {
+            SimdLevel::Portable => true,
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => std::is_x86_feature_detected!("avx2"),
+            #[cfg(not(target_arch = "x86_64"))]
+            SimdLevel::Avx2 => false,
+        }
+    }
+
+    /// The widest level the running CPU has.
+    pub fn best() -> SimdLevel {
+        SimdLevel::ALL
+            .into_iter()
+            .rev()
+            .find(|l| l.available())
+            .unwrap_or(SimdLevel::Portable)
+    }
+
+    /// The level the settings `simd` (`TRAYECTO_SIMD`) and `no_avx2` (whether `TRAYECTO_NO_AVX2`
+    /// is set) ask for: the named level if the CPU has it, [`Self::best`] when neither is set.
+    pub fn from_settings(simd: Option<&str>, no_avx2: bool) -> Result<SimdLevel, SimdError> {
+        let level = match (simd, no_avx2) {
+            (None, false) => return Ok(SimdLevel::best()),
+            (None, true) => SimdLevel::Portable,
+            (Some(name), no_avx2) => {
+                let level = SimdLevel::parse(name)?;
+                if no_avx2 && level != SimdLevel::Portable {
+                    return Err(SimdError::Conflict(name.to_string()));
+                }
+                level
+            }
+        };
+        if level.available() {
+            Ok(level)
+        } else {
+            Err(SimdError::Unsupported(level))
+        }
+    }
+}
+
+impl std::fmt::Display for SimdLevel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The SIMD level this process was asked for: `TRAYECTO_SIMD` (`portable` or `avx2`), or
+/// `TRAYECTO_NO_AVX2` set (= `portable`), or else the widest the CPU has. Read once per process.
+/// An unknown name or a level the CPU lacks is an error ([`SimdError`]); the render pipeline
+/// refuses to start with it (`pipeline::RenderJob::check`).
+pub fn simd_setting() -> Result<SimdLevel, SimdError> {
+    static SETTING: std::sync::OnceLock<Result<SimdLevel, SimdError>> = std::sync::OnceLock::new();
+    SETTING
+        .get_or_init(|| {
+            let simd = std::env::var("TRAYECTO_SIMD").ok();
+            let no_avx2 = std::env::var_os("TRAYECTO_NO_AVX2").is_some();
+            SimdLevel::from_settings(simd.as_deref(), no_avx2)
+        })
+        .clone()
+}
+
+/// The level every run-time dispatch site uses ([`simd_setting`]). A structure built outside the
+/// pipeline (a library caller that skipped its check) with a bad setting gets the portable code,
+/// the one level every CPU has, and a warning on stderr naming the setting, once per process.
+pub fn simd_level() -> SimdLevel {
+    match simd_setting() {
+        Ok(level) => level,
+        Err(e) => {
+            static WARNED: std::sync::Once = std::sync::Once::new();
+            WARNED.call_once(|| eprintln!("warning: {e}; using the portable code"));
+            SimdLevel::Portable
+        }
+    }
+}
+
+/// Whether the structures with an AVX2-compiled copy of their hot loop (the geometry BVH's
+/// traversal, the light BVH's descent) use it: [`simd_level`] is [`SimdLevel::Avx2`], which
+/// implies the running CPU has AVX2 (false off x86-64). Asked once when such a structure is built.
 pub fn detect_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2") && std::env::var_os("TRAYECTO_NO_AVX2").is_none()
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    simd_level() == SimdLevel::Avx2
 }
 
 /// ⌊x⌋ as an integer and as a float, bit for bit `(x.floor() as i64, x.floor())`. The target's
@@ -255,6 +390,41 @@ pub fn floor_i64(x: f32) -> (i64, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `TRAYECTO_SIMD` and its alias: each level by its name (or an error naming what the CPU
+    /// lacks), unknown names and AVX-512 refused with the name in the message, the alias alone is
+    /// the portable code, and the alias beside another level is refused rather than either won.
+    #[test]
+    fn simd_setting_names_levels_and_refuses_the_rest() {
+        assert_eq!(SimdLevel::from_settings(None, false), Ok(SimdLevel::best()));
+        assert_eq!(
+            SimdLevel::from_settings(None, true),
+            Ok(SimdLevel::Portable)
+        );
+        for level in SimdLevel::ALL {
+            let got = SimdLevel::from_settings(Some(level.name()), false);
+            if level.available() {
+                assert_eq!(got, Ok(level));
+            } else {
+                assert_eq!(got, Err(SimdError::Unsupported(level)));
+            }
+        }
+        assert_eq!(
+            SimdLevel::from_settings(Some("portable"), true),
+            Ok(SimdLevel::Portable)
+        );
+        assert_eq!(
+            SimdLevel::from_settings(Some("avx2"), true),
+            Err(SimdError::Conflict("avx2".into()))
+        );
+        for bad in ["avx512", "sse2", "AVX2", "", "fast"] {
+            let e = SimdLevel::from_settings(Some(bad), false).unwrap_err();
+            assert_eq!(e, SimdError::Unknown(bad.into()));
+            assert!(e.to_string().contains(&format!("{bad:?}")), "{e}");
+        }
+        let e = SimdError::Unknown("avx512".into()).to_string();
+        assert!(e.contains("no AVX-512 code"), "{e}");
+    }
 
     /// `floor_i64` is bit for bit `floor` (value, sign of zero, integer) on a sweep of ordinary
     /// values and on the edges: ±0, halves, integers and their neighbours, 2²³ ± 1 ulp, huge,

@@ -432,6 +432,11 @@ impl RenderJob {
     pub fn check(&self) -> Result<(), PipelineError> {
         self.settings.validate()?;
         let bad = |m: String| Err(PipelineError::InvalidSetting(m));
+        // The instruction set the BVHs will be built for: a name this build lacks, or a level
+        // the CPU lacks, stops the render here rather than running other code than asked.
+        if let Err(e) = crate::math::simd_setting() {
+            return bad(e.to_string());
+        }
         if let Some(c) = &self.world.camera_override {
             if let Err(e) = c.validate() {
                 return bad(e);
@@ -1382,6 +1387,10 @@ impl Run<'_> {
         }
         phases.phase("image written", write_time);
         phases.note(format!("acceleration    {}", r.accel_description));
+        phases.note(format!(
+            "SIMD            {} (TRAYECTO_SIMD; the image is the same at every level)",
+            crate::math::simd_level()
+        ));
         phases.note(format!(
             "rays            {} ({} camera/bounce/reflection/refraction, {} shadow), {:.2} Mrays/s",
             out.stats.rays + out.stats.shadow_rays,

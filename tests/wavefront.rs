@@ -3,8 +3,9 @@
 //! textures and normal maps, MIS between light and BSDF samples with several lights, many
 //! emitters, an environment map, delta lights, transmission and specular chains, the depth
 //! limit and clamping. Each scene is rendered with the loop forced each way
-//! (`TRAYECTO_PATH_LOOP`) and with the portable and the AVX2 traversal (`TRAYECTO_NO_AVX2`), and
-//! every float of the four images must be the same bits.
+//! (`TRAYECTO_PATH_LOOP`) and with the portable and the widest SIMD code this CPU has
+//! (`TRAYECTO_SIMD`; tests/simd.rs covers each level by name), and every float of the four images
+//! must be the same bits.
 
 mod common;
 
@@ -25,10 +26,11 @@ fn render(
         .args(extra)
         .current_dir(common::repo_dir())
         .env("TRAYECTO_PATH_LOOP", path_loop);
+    cmd.env_remove("TRAYECTO_NO_AVX2");
     if avx2 {
-        cmd.env_remove("TRAYECTO_NO_AVX2");
+        cmd.env_remove("TRAYECTO_SIMD");
     } else {
-        cmd.env("TRAYECTO_NO_AVX2", "1");
+        cmd.env("TRAYECTO_SIMD", "portable");
     }
     let o = cmd.output().expect("binary runs");
     assert!(
