@@ -160,6 +160,25 @@ impl World {
         let media = crate::medium::world::assign(&mut scene)
             .map_err(|e| SceneError::invalid(&label, format!("medium grid: {e}")))?;
         let mut g = compile_geometry(&scene, &label, options.instancing, &mut warnings)?;
+        // Moving instances keep their transform's keys with the instances (the two-level
+        // hierarchy places each at a ray's time, `accel::instance`); the per-segment BVHs are
+        // for moving meshes, spheres and quads.
+        let motion = motion
+            .map(|mut m| {
+                let keys = std::mem::take(&mut m.instance_motion);
+                if keys.iter().any(Option::is_some) {
+                    debug_assert_eq!(keys.len(), g.instances.instances.len());
+                    let store = &mut g.instances;
+                    for (inst, keys) in store.instances.iter_mut().zip(keys) {
+                        if let Some(keys) = keys {
+                            inst.motion = store.motion.len() as u32;
+                            store.motion.push(keys);
+                        }
+                    }
+                }
+                m
+            })
+            .filter(|m| m.prims_move());
         if let Some(m) = motion {
             debug_assert_eq!(m.mesh_slot.len(), g.meshes.len());
             debug_assert_eq!(m.sphere_slot.len(), g.spheres.len());
