@@ -580,7 +580,9 @@ fn a_moving_instances_boxes_hold_it() {
 /// render of it (tests/references/pbrt/motion-instance.exr, scripts/pbrt_references.sh 1024
 /// motion-instance), the blade instanced and keyed at only three times (`--shutter-steps 2`,
 /// 75° apart: its transform interpolated at each ray's time follows the arc pbrt-v4's
-/// `AnimatedTransform` does); the still at the shutter's opening does not agree.
+/// `AnimatedTransform` does; worst 8 × 8 block measured 0.009). The blade flattened instead
+/// (`Instancing::Never`), its vertices interpolated linearly between the same keys, cuts the
+/// arcs by chords (worst block 0.10), and the still at the shutter's opening is far (0.42).
 #[test]
 fn pbrt_object_instance_motion_agrees_with_pbrt_v4() {
     let path = format!(
@@ -638,12 +640,25 @@ fn pbrt_object_instance_motion_agrees_with_pbrt_v4() {
         &settings,
         Instancing::Always,
     );
-    let (err, still_err) = (
+    let chords = render_instanced(
+        &scene,
+        TimeOptions {
+            steps: 2,
+            ..Default::default()
+        },
+        &settings,
+        Instancing::Never,
+    );
+    let (err, still_err, chords_err) = (
         worst_block(&blurred, &reference),
         worst_block(&still, &reference),
+        worst_block(&chords, &reference),
     );
-    eprintln!("motion-instance.pbrt: worst block {err:.4}, the still's {still_err:.4}");
-    assert!(err < 0.08, "worst block {err}");
+    eprintln!(
+        "motion-instance.pbrt: worst block {err:.4}, the still's {still_err:.4}, chords' {chords_err:.4}"
+    );
+    assert!(err < 0.04, "worst block {err}");
+    assert!(chords_err > 0.06, "the chords are as close ({chords_err})");
     assert!(still_err > 3.0 * err, "the still is as close ({still_err})");
 }
 
@@ -754,11 +769,16 @@ fn a_still_at_a_time_is_the_posed_scene() {
     assert_eq!(via_options.data, direct.data);
 }
 
-/// Worst relative error of the 8 × 4 blocks (blocks darker than 2 % of the mean against it).
+/// Worst relative error of the 8 × 8 blocks (blocks darker than 2 % of the mean against it).
 fn worst_block(img: &Image, reference: &Image) -> f64 {
+    worst_of_blocks(img, reference, 8)
+}
+
+/// [`worst_block`] over an `n` × `n` grid of blocks.
+fn worst_of_blocks(img: &Image, reference: &Image, n: u32) -> f64 {
     let (a, b) = (
-        common::block_means(img, 8),
-        common::block_means(reference, 8),
+        common::block_means(img, n),
+        common::block_means(reference, n),
     );
     let mean = b.iter().sum::<f64>() / b.len() as f64;
     a.iter()
@@ -834,9 +854,10 @@ fn pbrt_transform_times_agree_with_pbrt_v4() {
 /// between TransformTimes 0 and 1, over pbrt's default shutter) is blurred in the one world,
 /// the medium boundary a moving mesh like any other, and agrees with pbrt-v4's render of it
 /// (tests/references/pbrt/media/fog-moving.exr, scripts/pbrt_references.sh 1024
-/// media/fog-moving); the still at the shutter's opening does not. The cube comes first in the
-/// file and the world compiles interface surfaces last: the keys must follow that order (keyed
-/// in file order, the floor's slot went to the cube).
+/// media/fog-moving): means within 3 % and 4 × 4 blocks within 8 % (worst block measured
+/// 2.7 % at 32 samples); the still at the shutter's opening is off by 12 % in its worst block. The
+/// cube comes first in the file and the world compiles interface surfaces last: the keys must
+/// follow that order (keyed in file order, another mesh's slot went to the cube).
 #[test]
 fn a_moving_medium_boundary_agrees_with_pbrt_v4() {
     let path = format!(
@@ -865,7 +886,7 @@ fn a_moving_medium_boundary_agrees_with_pbrt_v4() {
     let mut settings = RenderSettings {
         width: reference.width,
         height: reference.height,
-        spp: 64,
+        spp: 32,
         seed: 5,
         threads: Some(2),
         ..Default::default()
@@ -883,13 +904,16 @@ fn a_moving_medium_boundary_agrees_with_pbrt_v4() {
         &settings,
     );
     let (err, still_err) = (
-        common::block_error(&blurred, &reference),
-        common::block_error(&still, &reference),
+        worst_of_blocks(&blurred, &reference, 4),
+        worst_of_blocks(&still, &reference, 4),
     );
-    eprintln!("fog-moving.pbrt: 8x8 blocks {err:.4} off, the still's {still_err:.4}");
+    eprintln!("fog-moving.pbrt: worst 4x4 block {err:.4}, the still's {still_err:.4}");
     common::assert_means_close(&blurred, &reference, 0.03, "fog-moving");
-    assert!(err < 0.05, "blocks {err} off");
-    assert!(still_err > 2.5 * err, "the still is as close ({still_err})");
+    assert!(err < 0.08, "worst block {err}");
+    assert!(
+        still_err > 0.1 && still_err > 2.0 * err,
+        "the still is as close ({still_err})"
+    );
 }
 
 /// `--frames A..B` writes one numbered image per frame, each bit-identical to the `--frame N`
