@@ -183,6 +183,7 @@ impl World {
             debug_assert_eq!(m.mesh_slot.len(), g.meshes.len());
             debug_assert_eq!(m.sphere_slot.len(), g.spheres.len());
             debug_assert_eq!(m.quad_slot.len(), g.quads.len());
+            debug_assert_eq!(m.cuboid_slot.len(), g.cuboids.len());
             g.moving_prims = (0..g.triangles.len())
                 .filter(|&i| m.mesh(g.tri_mesh[i].0).is_some())
                 .map(|i| PrimRef::new(PrimitiveKind::Triangle, i as u32))
@@ -191,7 +192,12 @@ impl World {
                         .filter(|&i| m.sphere_slot[i] != crate::geometry::motion::STILL)
                         .map(|i| PrimRef::new(PrimitiveKind::Sphere, i as u32)),
                 )
-                // After the spheres: `static_prims` needs them in `PrimRef` order.
+                .chain(
+                    (0..g.cuboids.len())
+                        .filter(|&i| m.cuboid_slot[i] != crate::geometry::motion::STILL)
+                        .map(|i| PrimRef::new(PrimitiveKind::Cuboid, i as u32)),
+                )
+                // In `PrimRef` order (spheres, boxes, quads): `static_prims` needs it.
                 .chain(
                     (0..g.quads.len())
                         .filter(|&i| m.quad_slot[i] != crate::geometry::motion::STILL)

@@ -514,6 +514,77 @@ fn motion_blur_of_a_moving_instance_in_one_world() {
     );
 }
 
+/// A box of the Cornell box (an analytic box under a transform) sliding, rising and turning
+/// 1.4 rad about its vertical axis is blurred in the one world, keyed at three times
+/// (`--shutter-steps 2`): a ray meets it placed by its transform interpolated at the ray's time
+/// (a ray down onto its top face near a corner meets it there, one just past its edge passes
+/// it), and the blurred render is the average of 32 `--time` renders, which a world per step
+/// fails (two sharp copies). The render does not depend on the thread count.
+#[test]
+fn motion_blur_of_a_moving_box_in_one_world() {
+    let mut scene = trayecto::scene::builtin::load("cornell").unwrap();
+    let object = scene
+        .objects
+        .iter()
+        .position(|o| o.name == "small-box")
+        .unwrap();
+    let start = scene.objects[object].transform;
+    let motion = MovingTransform {
+        times: [0.0, 1.0],
+        start,
+        end: Mat4::from_translation(Vec3::new(-0.2, 0.25, 0.1))
+            * start
+            * Mat4::from_rotation_y(1.4),
+    };
+    scene.animation = Some(Arc::new(Animation {
+        rigid: vec![RigidMotion::Object { object, motion }],
+        ..Default::default()
+    }));
+    let time = TimeOptions {
+        shutter: Some([0.0, 1.0]),
+        steps: 2,
+        ..Default::default()
+    };
+    let world = common::posed_world(&scene, time.clone());
+    assert!(world.motion.is_empty());
+    assert_eq!(
+        world.geometry.moving_prims,
+        [trayecto::geometry::PrimRef::new(
+            trayecto::geometry::PrimitiveKind::Cuboid,
+            0
+        )]
+    );
+    assert!(
+        world.warnings.iter().all(|w| !w.contains("motion blur")),
+        "{:?}",
+        world.warnings
+    );
+    for k in 0..=40 {
+        let u = k as f32 / 40.0;
+        let m = motion.at(u as f64);
+        // On the top face (object y = 1) near its corners, and just past its edges.
+        for (p, on) in [
+            (Vec3::new(0.9, 1.0, 0.9), true),
+            (Vec3::new(-0.92, 1.0, -0.85), true),
+            (Vec3::new(1.1, 1.0, 0.5), false),
+            (Vec3::new(-0.3, 1.0, -1.1), false),
+        ] {
+            let target = m.transform_point3(p);
+            let o = target + Vec3::new(0.02, 0.3, 0.01);
+            let ray = trayecto::geometry::Ray::new(o, (target - o).normalize()).with_time(u);
+            let dist = (target - o).length();
+            let hit = world.intersect(&ray);
+            let met = hit.as_ref().is_some_and(|h| {
+                h.prim.kind() == trayecto::geometry::PrimitiveKind::Cuboid
+                    && (h.t - dist).abs() < 1e-4 * dist
+            });
+            assert_eq!(met, on, "u = {u}, point {p}: {:?}", hit.map(|h| h.t));
+        }
+    }
+    assert_threads_agree(&scene, time);
+    blur_is_the_average_of(&scene, [0.0, 1.0], 2, 32, "a turning box");
+}
+
 /// The boxes of a moving instance over each key segment hold it at every time of the segment:
 /// a blade turning 150° (with a slide and a stretch) keyed at 2, 3 and 5 times, its corners
 /// and points inside placed at 64 times per segment. The box of the keys alone would not (the

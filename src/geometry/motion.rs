@@ -11,6 +11,7 @@
 //! and their BVH, are the still world's.
 
 use super::bounds::Bounds3;
+use super::cuboid::Cuboid;
 use super::quad::Quad;
 use super::sphere::Sphere;
 use super::triangle::TriangleVerts;
@@ -94,15 +95,44 @@ pub struct MotionStore {
     /// Moving quad q's key k at `q * keys + k`: its corner and edges, interpolated linearly
     /// (so its corners are, and it stays a parallelogram).
     pub quads: Vec<Quad>,
+    /// Per box (`GeometryStore::cuboids`): its index in `cuboids`, or [`STILL`].
+    pub cuboid_slot: Vec<u32>,
+    /// Moving box b's object-to-world transform over the shutter (its object-space box is the
+    /// world's `Cuboid::local`): a ray meets the box placed by the transform at its time, as
+    /// a moving instance.
+    pub cuboids: Vec<KeyedTransform>,
     /// Per instance (`InstanceStore::instances`, in order): its world-from-object transform
     /// over the shutter if it moves. The world moves these into `InstanceStore::motion`.
     pub instance_motion: Vec<Option<KeyedTransform>>,
 }
 
 impl MotionStore {
-    /// True if a mesh, sphere or quad moves (what the per-segment BVHs are built over).
+    /// True if a mesh, sphere, box or quad moves (what the per-segment BVHs are built over).
     pub fn prims_move(&self) -> bool {
-        !(self.meshes.is_empty() && self.spheres.is_empty() && self.quads.is_empty())
+        !(self.meshes.is_empty()
+            && self.spheres.is_empty()
+            && self.quads.is_empty()
+            && self.cuboids.is_empty())
+    }
+
+    /// The transform of box `i` over the shutter, if it moves.
+    #[inline]
+    fn cuboid_motion(&self, i: usize) -> Option<&KeyedTransform> {
+        match self.cuboid_slot.get(i) {
+            Some(&s) if s != STILL => Some(&self.cuboids[s as usize]),
+            _ => None,
+        }
+    }
+
+    /// Box `i` (its object-space box `local`) where it is at shutter time `u`, if it moves.
+    #[inline]
+    pub fn cuboid(&self, i: usize, local: &Bounds3, u: f32) -> Option<Cuboid> {
+        Some(Cuboid::new(*local, self.cuboid_motion(i)?.at(u)))
+    }
+
+    /// The box of moving box `i` (object-space box `local`) over key segment `seg`.
+    pub fn cuboid_sweep(&self, i: usize, local: &Bounds3, seg: usize) -> Option<Bounds3> {
+        Some(self.cuboid_motion(i)?.segment_bounds(local, seg))
     }
 }
 
@@ -229,7 +259,16 @@ impl MotionStore {
             .sum::<usize>()
             + self.spheres.len() * std::mem::size_of::<Sphere>()
             + self.quads.len() * std::mem::size_of::<Quad>()
-            + (self.mesh_slot.len() + self.sphere_slot.len() + self.quad_slot.len()) * 4
+            + self
+                .cuboids
+                .iter()
+                .map(KeyedTransform::heap_bytes)
+                .sum::<usize>()
+            + (self.mesh_slot.len()
+                + self.sphere_slot.len()
+                + self.quad_slot.len()
+                + self.cuboid_slot.len())
+                * 4
     }
 }
 

@@ -237,6 +237,9 @@ impl GeometryStore {
             {
                 m.quad_sweep(prim.index(), seg)
             }
+            PrimitiveKind::Cuboid => m
+                .cuboid_sweep(prim.index(), &self.cuboids[prim.index()].shape.local, seg)
+                .unwrap_or_else(|| self.bounds(prim)),
             _ => self.bounds(prim),
         }
     }
@@ -260,6 +263,19 @@ impl GeometryStore {
                 .quad(prim.index(), ray.time)?
                 .intersect(ray, t_max)
                 .map(|(t, u, v)| Intersection { t, prim, u, v }),
+            PrimitiveKind::Cuboid => m
+                .cuboid(
+                    prim.index(),
+                    &self.cuboids[prim.index()].shape.local,
+                    ray.time,
+                )?
+                .intersect_t(ray, t_max)
+                .map(|t| Intersection {
+                    t,
+                    prim,
+                    u: 0.0,
+                    v: 0.0,
+                }),
             _ => None,
         }
     }
@@ -496,7 +512,11 @@ impl GeometryStore {
                 // The face is found at the accelerator's distance, not by a second slab test:
                 // the accelerator's `intersect_t` gave `isect.t` for this very ray, and the slab
                 // test's distance does not depend on `t_max` once it is below it.
-                let c = &self.cuboids[i].shape;
+                let moved = self
+                    .motion
+                    .as_ref()
+                    .and_then(|m| m.cuboid(i, &self.cuboids[i].shape.local, ray.time));
+                let c = moved.as_ref().unwrap_or(&self.cuboids[i].shape);
                 let h = c.hit_at(ray, isect.t);
                 let (p, err, n) = c.surface_point(&h);
                 let (u, v) = c.uv(&h);

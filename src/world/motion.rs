@@ -29,8 +29,10 @@
 //!   (`accel::instance`).
 //! - a moving medium boundary is a moving surface like any other: a ray crossing it at its time
 //!   changes medium there (the media themselves do not move, in either scheme, as in pbrt-v4).
+//! - moving boxes too, placed by their transform interpolated as an instance's (an emissive
+//!   one falls back).
 //! - motion that is not interpolated so (a light whose power, colour or cone changes,
-//!   a moving box or curve) falls back to posing and compiling the scene at the middle of each of
+//!   a moving curve or emissive box) falls back to posing and compiling the scene at the middle of each of
 //!   [`TimeOptions::steps`] equal parts of the shutter, each world with its own exact BVH, a
 //!   sample tracing the world of the part holding its time: a stratified estimate of the
 //!   shutter's average that converges to it as the steps grow. A scene whose only motion is
@@ -314,7 +316,8 @@ pub use crate::geometry::motion::KeyedTransform as CameraMotion;
 /// world's pose for everything that does not read a time) and the keys; `Err` names what
 /// continuous motion does not cover (the caller falls back to a world per step): a light that
 /// changes more than its position and direction
-/// ([`light_keys`]), a moving shape other than a mesh, sphere or quad, an instanced mesh that deforms, or a transform that mirrors part of the time (or, for
+/// ([`light_keys`]), a moving shape other than a mesh, sphere, box or quad, an emissive moving
+/// box, an instanced mesh that deforms, or a transform that mirrors part of the time (or, for
 /// an instance, is singular part of it). Moving instances get their world-from-object
 /// transform per key (`MotionStore::instance_motion`). Also returns the moving lights' keys.
 /// The scene's moving lights: index in `Scene::lights`, (position, direction) per key.
@@ -442,9 +445,46 @@ fn motion_keys(
             } else {
                 STILL
             }),
+            (Shape::Cuboid { .. }, _) => {
+                // As compile_geometry: a box singular at the middle pose is left out.
+                if Mat3::from_mat4(mid.objects[o].transform).determinant() == 0.0 {
+                    continue;
+                }
+                if !moves {
+                    store.cuboid_slot.push(STILL);
+                    continue;
+                }
+                // A moving box keeps its object-to-world transform per key, placed at a ray's
+                // time by their decomposed interpolation (`MotionStore::cuboid`).
+                if scene.materials[obj.material].is_emissive() {
+                    return Err(format!("the emissive box '{}' moves", obj.name));
+                }
+                let keyed: Vec<Mat4> = transforms.iter().map(|k| k[o]).collect();
+                let det = |m: &Mat4| Mat3::from_mat4(*m).determinant();
+                if !keyed.iter().all(|m| det(m).is_normal()) {
+                    return Err(format!(
+                        "the box '{}' has a singular transform part of the time",
+                        obj.name
+                    ));
+                }
+                if keyed
+                    .iter()
+                    .any(|m| (det(m) < 0.0) != (det(&keyed[0]) < 0.0))
+                {
+                    return Err(format!(
+                        "the object '{}' is mirrored part of the time",
+                        obj.name
+                    ));
+                }
+                store.cuboid_slot.push(store.cuboids.len() as u32);
+                store
+                    .cuboids
+                    .push(crate::geometry::motion::KeyedTransform::new(&keyed));
+                continue;
+            }
             _ if moves => {
                 return Err(format!(
-                    "the object '{}' moves and is not a mesh, a sphere or a quad",
+                    "the object '{}' moves and is not a mesh, a sphere, a box or a quad",
                     obj.name
                 ));
             }
