@@ -45,6 +45,7 @@ cases() {
     run "$bin" pbrt "$here/scenes/pbrt/motion-blur.pbrt" --spp 64
     run "$bin" pbrt-emitter "$here/scenes/pbrt/motion-blur-emitter.pbrt" --spp 64
     run "$bin" instances "$out/instances.gltf" --shutter 0,1 --spp 64
+    run "$bin" instances-still "$out/instances.gltf" --time 0.5 --spp 64
     run "$bin" still "$shared/gltf-anim/CesiumMan/glTF-Binary/CesiumMan.glb" --time 0.5 \
         --spp 64
 }
