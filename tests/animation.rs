@@ -585,6 +585,86 @@ fn motion_blur_of_a_moving_box_in_one_world() {
     blur_is_the_average_of(&scene, [0.0, 1.0], 2, 32, "a turning box");
 }
 
+/// Bump mapping's ∂p/∂u, ∂p/∂v and filtered textures' uv derivatives at a hit on a moving
+/// triangle are taken where the triangle is at the hit's time: for the turning card of
+/// `cornell_with_turning_instance` (given uvs), instanced and flattened (its vertices keyed at
+/// 65 times), a ray at a time gives the derivatives of the scene posed at that time, to 2e-3
+/// (the flattened card's chords). At the middle pose they would be turned by up to 1.2 rad.
+#[test]
+fn shading_derivatives_of_moving_triangles_are_taken_at_the_hit_time() {
+    let (mut scene, motion) = cornell_with_turning_instance();
+    let card = scene.meshes.len() - 1;
+    scene.meshes[card].uv0 = Some(vec![
+        glam::Vec2::new(0.0, 1.0),
+        glam::Vec2::new(1.0, 1.0),
+        glam::Vec2::new(1.0, 0.0),
+        glam::Vec2::new(0.0, 0.0),
+    ]);
+    let world_at = |time: TimeOptions, instancing| {
+        World::build_posed(
+            scene.clone(),
+            &WorldOptions {
+                time,
+                instancing,
+                ..Default::default()
+            },
+        )
+        .unwrap()
+    };
+    let close = |a: Vec3, b: Vec3| (a - b).length() <= 2e-3 * b.length() + 1e-6;
+    for instancing in [Instancing::Always, Instancing::Never] {
+        let blurred = world_at(
+            TimeOptions {
+                shutter: Some([0.0, 1.0]),
+                steps: 64,
+                ..Default::default()
+            },
+            instancing,
+        );
+        assert!(blurred.motion.is_empty() && !blurred.is_still());
+        let mut turned = 0.0f32;
+        for u in [0.0f32, 0.2, 0.7, 1.0] {
+            let posed = world_at(
+                TimeOptions {
+                    time: Some(u as f64),
+                    ..Default::default()
+                },
+                instancing,
+            );
+            let target = motion
+                .at(u as f64)
+                .transform_point3(Vec3::new(0.05, 0.08, 0.0));
+            let o = target + Vec3::new(0.05, 0.1, 1.2);
+            let ray = trayecto::geometry::Ray::new(o, (target - o).normalize());
+            let (a, b) = (
+                blurred.intersect(&ray.with_time(u)).unwrap(),
+                posed.intersect(&ray).unwrap(),
+            );
+            let (da, db) = (
+                blurred.geometry.pbrt_shading_derivatives(&a).unwrap(),
+                posed.geometry.pbrt_shading_derivatives(&b).unwrap(),
+            );
+            assert!(
+                close(da.dpdu, db.dpdu) && close(da.dpdv, db.dpdv),
+                "{instancing:?}, u = {u}: {:?} against {:?}",
+                (da.dpdu, da.dpdv),
+                (db.dpdu, db.dpdv)
+            );
+            let (dx, dy) = (Vec3::new(0.01, 0.002, 0.0), Vec3::new(-0.001, 0.01, 0.0));
+            let (ua, ub) = (
+                blurred.geometry.uv_derivatives(&a, dx, dy)[0],
+                posed.geometry.uv_derivatives(&b, dx, dy)[0],
+            );
+            assert!(
+                (ua - ub).length() <= 2e-3 * ub.length(),
+                "{instancing:?}, u = {u}: uv derivatives {ua} against {ub}"
+            );
+            turned = turned.max(da.dpdu.normalize().dot(db.dpdu.normalize()).acos());
+        }
+        assert!(turned < 1e-2);
+    }
+}
+
 /// The boxes of a moving instance over each key segment hold it at every time of the segment:
 /// a blade turning 150° (with a slide and a stretch) keyed at 2, 3 and 5 times, its corners
 /// and points inside placed at 64 times per segment. The box of the keys alone would not (the
