@@ -387,6 +387,32 @@ pub fn floor_i64(x: f32) -> (i64, f32) {
     (i as i64, f)
 }
 
+/// M = T·R·S with S symmetric (pbrt-v4 `AnimatedTransform::Decompose`: the polar decomposition of
+/// the upper 3×3 by iterating R ← (R + R⁻ᵀ)/2, then S = R⁻¹M).
+pub fn decompose(m: Mat4) -> (Mat3, glam::Quat, Vec3) {
+    let t = m.w_axis.truncate();
+    let a = Mat3::from_mat4(m);
+    let mut r = a;
+    for _ in 0..100 {
+        let next = (r + r.inverse().transpose()) * 0.5;
+        let diff = (next - r)
+            .to_cols_array()
+            .iter()
+            .map(|d| d.abs())
+            .sum::<f32>();
+        r = next;
+        if diff < 1e-6 {
+            break;
+        }
+    }
+    if r.determinant() < 0.0 {
+        r *= -1.0;
+    }
+    let q = glam::Quat::from_mat3(&r).normalize();
+    let s = r.inverse() * a;
+    (s, q, t)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

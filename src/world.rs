@@ -160,10 +160,30 @@ impl World {
         let media = crate::medium::world::assign(&mut scene)
             .map_err(|e| SceneError::invalid(&label, format!("medium grid: {e}")))?;
         let mut g = compile_geometry(&scene, &label, options.instancing, &mut warnings)?;
+        // Moving instances keep their transform's keys with the instances (the two-level
+        // hierarchy places each at a ray's time, `accel::instance`); the per-segment BVHs are
+        // for moving meshes, spheres and quads.
+        let motion = motion
+            .map(|mut m| {
+                let keys = std::mem::take(&mut m.instance_motion);
+                if keys.iter().any(Option::is_some) {
+                    debug_assert_eq!(keys.len(), g.instances.instances.len());
+                    let store = &mut g.instances;
+                    for (inst, keys) in store.instances.iter_mut().zip(keys) {
+                        if let Some(keys) = keys {
+                            inst.motion = store.motion.len() as u32;
+                            store.motion.push(keys);
+                        }
+                    }
+                }
+                m
+            })
+            .filter(|m| m.prims_move());
         if let Some(m) = motion {
             debug_assert_eq!(m.mesh_slot.len(), g.meshes.len());
             debug_assert_eq!(m.sphere_slot.len(), g.spheres.len());
             debug_assert_eq!(m.quad_slot.len(), g.quads.len());
+            debug_assert_eq!(m.cuboid_slot.len(), g.cuboids.len());
             g.moving_prims = (0..g.triangles.len())
                 .filter(|&i| m.mesh(g.tri_mesh[i].0).is_some())
                 .map(|i| PrimRef::new(PrimitiveKind::Triangle, i as u32))
@@ -172,7 +192,12 @@ impl World {
                         .filter(|&i| m.sphere_slot[i] != crate::geometry::motion::STILL)
                         .map(|i| PrimRef::new(PrimitiveKind::Sphere, i as u32)),
                 )
-                // After the spheres: `static_prims` needs them in `PrimRef` order.
+                .chain(
+                    (0..g.cuboids.len())
+                        .filter(|&i| m.cuboid_slot[i] != crate::geometry::motion::STILL)
+                        .map(|i| PrimRef::new(PrimitiveKind::Cuboid, i as u32)),
+                )
+                // In `PrimRef` order (spheres, boxes, quads): `static_prims` needs it.
                 .chain(
                     (0..g.quads.len())
                         .filter(|&i| m.quad_slot[i] != crate::geometry::motion::STILL)

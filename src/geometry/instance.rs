@@ -18,7 +18,10 @@
 //! index: the instance's `base` plus the triangle's index in the mesh), so hits, materials and
 //! reports keep the one `PrimRef` form.
 
+use std::borrow::Cow;
+
 use super::mesh::MeshAttributes;
+use super::motion::{KeyedTransform, STILL};
 use super::triangle::TriangleVerts;
 use super::{Bounds3, Ray};
 use crate::math::{Mat3, Mat4, Vec3, Vec4, transform_normal};
@@ -37,6 +40,9 @@ pub struct SharedMesh {
     pub attrs: MeshAttributes,
     /// The padding of the boxes of its triangles in the bottom-level BVH.
     pub pad: f32,
+    /// The box of its vertices (unpadded), which a moving instance's boxes hold over the
+    /// shutter ([`KeyedTransform::segment_bounds`]).
+    pub extent: Bounds3,
 }
 
 impl SharedMesh {
@@ -57,6 +63,7 @@ impl SharedMesh {
             positions,
             attrs,
             pad,
+            extent,
         }
     }
 
@@ -98,6 +105,9 @@ pub struct Instance {
     pub base: u32,
     /// World box: the union of the transformed vertices' boxes.
     pub bounds: Bounds3,
+    /// Motion blur: its index in [`InstanceStore::motion`] if it moves during the shutter (the
+    /// transforms above are then its pose at the shutter's middle), else [`STILL`].
+    pub motion: u32,
 }
 
 impl Instance {
@@ -116,6 +126,20 @@ impl Instance {
             material,
             base: 0,
             bounds,
+            motion: STILL,
+        }
+    }
+
+    /// This instance placed by `m` instead (a moving instance at a ray's time): the inverse and
+    /// the mirroring taken as [`Instance::new`] takes them; the box is left as it was (the
+    /// traversal does not read it).
+    #[inline]
+    pub fn placed(&self, m: Mat4) -> Instance {
+        Instance {
+            world_from_object: m,
+            object_from_world: m.inverse(),
+            flip: Mat3::from_mat4(m).determinant() < 0.0,
+            ..*self
         }
     }
 
@@ -145,6 +169,9 @@ pub struct InstanceStore {
     pub instances: Vec<Instance>,
     /// The first virtual index (the number of flat triangles).
     pub first: u32,
+    /// Motion blur: the world-from-object transform over the shutter of every instance that
+    /// moves ([`Instance::motion`]), all with the same keys. Empty for a still.
+    pub motion: Vec<KeyedTransform>,
 }
 
 impl InstanceStore {
@@ -178,6 +205,47 @@ impl InstanceStore {
             .map(SharedMesh::heap_bytes)
             .sum::<usize>()
             + self.instances.len() * std::mem::size_of::<Instance>()
+            + self
+                .motion
+                .iter()
+                .map(KeyedTransform::heap_bytes)
+                .sum::<usize>()
+    }
+
+    /// Key segments of the instances' motion over the shutter: 0 when none moves.
+    pub fn segments(&self) -> usize {
+        self.motion.first().map_or(0, |m| m.keys() - 1)
+    }
+
+    /// The key segment holding shutter time `u` (as `MotionStore::segment`); 0 when no
+    /// instance moves.
+    #[inline]
+    pub fn segment(&self, u: f32) -> usize {
+        let n = self.segments();
+        if n == 0 {
+            return 0;
+        }
+        ((u.clamp(0.0, 1.0) * n as f32) as usize).min(n - 1)
+    }
+
+    /// `inst` where it is at shutter time `u`: itself if it does not move, else placed by its
+    /// world-from-object transform interpolated at `u` (pbrt-v4 transforms a ray into an
+    /// animated instance's space by the instance's transform at the ray's time).
+    #[inline]
+    pub fn at<'a>(&self, inst: &'a Instance, u: f32) -> Cow<'a, Instance> {
+        match self.motion.get(inst.motion as usize) {
+            None => Cow::Borrowed(inst),
+            Some(m) => Cow::Owned(inst.placed(m.at(u))),
+        }
+    }
+
+    /// The box of instance `k` over key segment `seg` (its world box if it does not move).
+    pub fn segment_bounds(&self, k: usize, seg: usize) -> Bounds3 {
+        let inst = &self.instances[k];
+        match self.motion.get(inst.motion as usize) {
+            None => inst.bounds,
+            Some(m) => m.segment_bounds(&self.meshes[inst.mesh as usize].extent, seg),
+        }
     }
 
     /// The instance and mesh-local triangle of virtual index `v`.

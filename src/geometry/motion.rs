@@ -11,10 +11,12 @@
 //! and their BVH, are the still world's.
 
 use super::bounds::Bounds3;
+use super::cuboid::Cuboid;
 use super::quad::Quad;
 use super::sphere::Sphere;
 use super::triangle::TriangleVerts;
-use crate::math::{Vec3, Vec4};
+use crate::math::{Mat3, Mat4, Vec3, Vec4, decompose};
+use glam::Quat;
 
 /// Marks a mesh or sphere that does not move.
 pub const STILL: u32 = u32::MAX;
@@ -93,6 +95,45 @@ pub struct MotionStore {
     /// Moving quad q's key k at `q * keys + k`: its corner and edges, interpolated linearly
     /// (so its corners are, and it stays a parallelogram).
     pub quads: Vec<Quad>,
+    /// Per box (`GeometryStore::cuboids`): its index in `cuboids`, or [`STILL`].
+    pub cuboid_slot: Vec<u32>,
+    /// Moving box b's object-to-world transform over the shutter (its object-space box is the
+    /// world's `Cuboid::local`): a ray meets the box placed by the transform at its time, as
+    /// a moving instance.
+    pub cuboids: Vec<KeyedTransform>,
+    /// Per instance (`InstanceStore::instances`, in order): its world-from-object transform
+    /// over the shutter if it moves. The world moves these into `InstanceStore::motion`.
+    pub instance_motion: Vec<Option<KeyedTransform>>,
+}
+
+impl MotionStore {
+    /// True if a mesh, sphere, box or quad moves (what the per-segment BVHs are built over).
+    pub fn prims_move(&self) -> bool {
+        !(self.meshes.is_empty()
+            && self.spheres.is_empty()
+            && self.quads.is_empty()
+            && self.cuboids.is_empty())
+    }
+
+    /// The transform of box `i` over the shutter, if it moves.
+    #[inline]
+    fn cuboid_motion(&self, i: usize) -> Option<&KeyedTransform> {
+        match self.cuboid_slot.get(i) {
+            Some(&s) if s != STILL => Some(&self.cuboids[s as usize]),
+            _ => None,
+        }
+    }
+
+    /// Box `i` (its object-space box `local`) where it is at shutter time `u`, if it moves.
+    #[inline]
+    pub fn cuboid(&self, i: usize, local: &Bounds3, u: f32) -> Option<Cuboid> {
+        Some(Cuboid::new(*local, self.cuboid_motion(i)?.at(u)))
+    }
+
+    /// The box of moving box `i` (object-space box `local`) over key segment `seg`.
+    pub fn cuboid_sweep(&self, i: usize, local: &Bounds3, seg: usize) -> Option<Bounds3> {
+        Some(self.cuboid_motion(i)?.segment_bounds(local, seg))
+    }
 }
 
 impl MotionStore {
@@ -218,6 +259,121 @@ impl MotionStore {
             .sum::<usize>()
             + self.spheres.len() * std::mem::size_of::<Sphere>()
             + self.quads.len() * std::mem::size_of::<Quad>()
-            + (self.mesh_slot.len() + self.sphere_slot.len() + self.quad_slot.len()) * 4
+            + self
+                .cuboids
+                .iter()
+                .map(KeyedTransform::heap_bytes)
+                .sum::<usize>()
+            + (self.mesh_slot.len()
+                + self.sphere_slot.len()
+                + self.quad_slot.len()
+                + self.cuboid_slot.len())
+                * 4
+    }
+}
+
+/// A transform moving over the shutter: its matrices at `n + 1` evenly spaced times, each
+/// decomposed into translation, rotation and scale, interpolated piecewise (pbrt-v4
+/// `AnimatedTransform::Interpolate`: translation and scale linearly, the rotation by slerp), so
+/// a turn at a steady rate about a fixed axis is followed on its arc, not by chords. The moving
+/// camera's transform and a moving instance's world-from-object transform.
+#[derive(Clone, Debug)]
+pub struct KeyedTransform {
+    keys: Vec<(Vec3, Quat, Mat3)>,
+}
+
+/// Sub-times per key segment at which [`KeyedTransform::segment_bounds`] places the box.
+const BOUND_SUBSTEPS: usize = 8;
+
+impl KeyedTransform {
+    /// From the transforms at the shutter's opening, `keys.len() − 2` times between and its
+    /// closing (at least two).
+    pub fn new(keys: &[Mat4]) -> KeyedTransform {
+        assert!(keys.len() >= 2, "a moving transform needs two keys");
+        let mut out: Vec<(Vec3, Quat, Mat3)> = Vec::with_capacity(keys.len());
+        for &m in keys {
+            let (s, mut r, t) = decompose(m);
+            // q and −q are one rotation: keep each key on the previous one's side, so every
+            // interval turns the short way.
+            if let Some(prev) = out.last()
+                && prev.1.dot(r) < 0.0
+            {
+                r = -r;
+            }
+            out.push((t, r, s));
+        }
+        KeyedTransform { keys: out }
+    }
+
+    /// Keys over the shutter.
+    #[inline]
+    pub fn keys(&self) -> usize {
+        self.keys.len()
+    }
+
+    /// The transform at fraction `u` in [0, 1] of the shutter.
+    #[inline]
+    pub fn at(&self, u: f32) -> Mat4 {
+        let n = self.keys.len() - 1;
+        let x = u.clamp(0.0, 1.0) * n as f32;
+        let i = (x as usize).min(n - 1);
+        self.interpolate(i, x - i as f32)
+    }
+
+    /// The transform at fraction `f` of key segment `i` (between keys `i` and `i + 1`).
+    #[inline]
+    fn interpolate(&self, i: usize, f: f32) -> Mat4 {
+        let (t0, r0, s0) = self.keys[i];
+        let (t1, r1, s1) = self.keys[i + 1];
+        let r = if f == 0.0 {
+            r0
+        } else {
+            r0.slerp(r1, f).normalize()
+        };
+        let s = s0 * (1.0 - f) + s1 * f;
+        Mat4::from_translation(t0.lerp(t1, f)) * Mat4::from_quat(r) * Mat4::from_mat3(s)
+    }
+
+    /// A box holding `object` (an object-space box) under the transform at every time of key
+    /// segment `seg`. The box is placed at [`BOUND_SUBSTEPS`] + 1 times across the segment (an
+    /// affine image of a box lies in the box of its corners' images) and grown by how far any
+    /// of its points can move between two of those times: a point x moves as
+    /// T(f) + R(f)·S(f)·x, at a speed (in f) of at most |ΔT| + θ·|S|·|x| + |ΔS|·|x|, θ the
+    /// segment's rotation angle (slerp turns at a steady rate), |S| the larger key's Frobenius
+    /// norm (a bound of the spectral norm, convex along the lerp), so within half a sub-step
+    /// of one of the times. Rotation makes the points leave the box of the two keys, which
+    /// holds only straight-line motion (pbrt-v4 `AnimatedTransform::MotionBounds` solves for
+    /// the extrema instead).
+    pub fn segment_bounds(&self, object: &Bounds3, seg: usize) -> Bounds3 {
+        if object.is_empty() {
+            return *object;
+        }
+        let (t0, r0, s0) = self.keys[seg];
+        let (t1, r1, s1) = self.keys[seg + 1];
+        let reach = (0..8)
+            .map(|c| object.corner(c).length())
+            .fold(0.0f32, f32::max);
+        let frob = |m: Mat3| {
+            (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared())
+                .sqrt()
+        };
+        let theta = 2.0 * r0.dot(r1).abs().min(1.0).acos();
+        let speed =
+            (t1 - t0).length() + theta * frob(s0).max(frob(s1)) * reach + frob(s1 - s0) * reach;
+        // A margin for the rounding of the interpolation and of slerp's near-parallel lerp.
+        let pad = speed * 0.5 / BOUND_SUBSTEPS as f32 * 1.01 + 1e-6 * (reach + t0.length());
+        let mut b = Bounds3::EMPTY;
+        for i in 0..=BOUND_SUBSTEPS {
+            let m = self.interpolate(seg, i as f32 / BOUND_SUBSTEPS as f32);
+            for c in 0..8 {
+                b = b.union_point(m.transform_point3(object.corner(c)));
+            }
+        }
+        Bounds3::new(b.min - Vec3::splat(pad), b.max + Vec3::splat(pad))
+    }
+
+    /// Bytes held, for reports.
+    pub fn heap_bytes(&self) -> usize {
+        self.keys.len() * std::mem::size_of::<(Vec3, Quat, Mat3)>()
     }
 }

@@ -237,6 +237,9 @@ impl GeometryStore {
             {
                 m.quad_sweep(prim.index(), seg)
             }
+            PrimitiveKind::Cuboid => m
+                .cuboid_sweep(prim.index(), &self.cuboids[prim.index()].shape.local, seg)
+                .unwrap_or_else(|| self.bounds(prim)),
             _ => self.bounds(prim),
         }
     }
@@ -260,6 +263,19 @@ impl GeometryStore {
                 .quad(prim.index(), ray.time)?
                 .intersect(ray, t_max)
                 .map(|(t, u, v)| Intersection { t, prim, u, v }),
+            PrimitiveKind::Cuboid => m
+                .cuboid(
+                    prim.index(),
+                    &self.cuboids[prim.index()].shape.local,
+                    ray.time,
+                )?
+                .intersect_t(ray, t_max)
+                .map(|t| Intersection {
+                    t,
+                    prim,
+                    u: 0.0,
+                    v: 0.0,
+                }),
             _ => None,
         }
     }
@@ -464,6 +480,9 @@ impl GeometryStore {
                 }
                 None => {
                     let (inst, j) = self.instances.locate(i);
+                    // A moving instance where it is at the ray's time.
+                    let inst = self.instances.at(inst, ray.time);
+                    let inst = &*inst;
                     let (tri, idx) = self.instances.world_triangle(inst, j);
                     let mesh = &self.instances.meshes[inst.mesh as usize].attrs;
                     let idx = idx.map(|x| x as usize);
@@ -493,7 +512,11 @@ impl GeometryStore {
                 // The face is found at the accelerator's distance, not by a second slab test:
                 // the accelerator's `intersect_t` gave `isect.t` for this very ray, and the slab
                 // test's distance does not depend on `t_max` once it is below it.
-                let c = &self.cuboids[i].shape;
+                let moved = self
+                    .motion
+                    .as_ref()
+                    .and_then(|m| m.cuboid(i, &self.cuboids[i].shape.local, ray.time));
+                let c = moved.as_ref().unwrap_or(&self.cuboids[i].shape);
                 let h = c.hit_at(ray, isect.t);
                 let (p, err, n) = c.surface_point(&h);
                 let (u, v) = c.uv(&h);
@@ -566,7 +589,7 @@ impl GeometryStore {
         if hit.prim.kind() != PrimitiveKind::Triangle {
             return None;
         }
-        let (tri, mesh, [i0, i1, i2]) = self.tri_parts(hit.prim.index());
+        let (tri, mesh, [i0, i1, i2]) = self.tri_parts_at(hit.prim.index(), hit.time);
         let uv = mesh.uv0.as_ref()?;
         let flip = |t: Vec2| Vec2::new(t.x, -t.y);
         let duv02 = flip(uv[i0] - uv[i2]);
@@ -604,12 +627,23 @@ impl GeometryStore {
         if !(ts.length_squared() > 0.0) {
             return None;
         }
-        // The vertex normals as the hit interpolated them (an instance's taken to the world).
+        // The vertex normals as the hit interpolated them (an instance's taken to the world, a
+        // moving triangle's at the hit's time).
         let i = hit.prim.index();
         let [n0, n1, n2] = if i < self.triangles.len() {
-            [normals[i0], normals[i1], normals[i2]]
+            match self.moving_triangle(i) {
+                None => [normals[i0], normals[i1], normals[i2]],
+                Some((moving, _)) => {
+                    let seg = self
+                        .motion
+                        .as_ref()
+                        .map_or((0, 0.0), |m| m.segment(hit.time));
+                    [i0, i1, i2].map(|v| moving.normal(seg, v))
+                }
+            }
         } else {
             let x = self.instances.locate(i).0;
+            let x = self.instances.at(x, hit.time);
             [
                 x.normal(normals[i0]),
                 x.normal(normals[i1]),
@@ -644,7 +678,7 @@ impl GeometryStore {
         if hit.prim.kind() != PrimitiveKind::Triangle {
             return out;
         }
-        let (tri, mesh, [i0, i1, i2]) = self.tri_parts(hit.prim.index());
+        let (tri, mesh, [i0, i1, i2]) = self.tri_parts_at(hit.prim.index(), hit.time);
         let set = |uv: &[Vec2]| -> Vec4 {
             let (duv02, duv12) = (uv[i0] - uv[i2], uv[i1] - uv[i2]);
             let (dp02, dp12) = (tri.p0 - tri.p2, tri.p1 - tri.p2);
@@ -680,6 +714,33 @@ impl GeometryStore {
             None => out[0],
         };
         out
+    }
+
+    /// [`GeometryStore::tri_parts`] at shutter time `u`: a moving triangle's vertices
+    /// interpolated there, a moving instance's placed there (the same as `tri_parts` for a
+    /// still).
+    #[inline]
+    pub fn tri_parts_at(&self, i: usize, u: f32) -> (TriangleVerts, &MeshAttributes, [usize; 3]) {
+        match self.triangles.get(i) {
+            Some(_) => {
+                let parts = self.tri_parts(i);
+                match (self.moving_triangle(i), self.motion.as_ref()) {
+                    (Some((moving, idx)), Some(m)) => (
+                        MotionStore::triangle(moving, idx, m.segment(u)),
+                        parts.1,
+                        parts.2,
+                    ),
+                    _ => parts,
+                }
+            }
+            None => {
+                let (inst, j) = self.instances.locate(i);
+                let inst = self.instances.at(inst, u);
+                let (tri, idx) = self.instances.world_triangle(&inst, j);
+                let mesh = &self.instances.meshes[inst.mesh as usize].attrs;
+                (tri, mesh, idx.map(|x| x as usize))
+            }
+        }
     }
 
     /// Triangle `i` (flat or instanced) in world space, the attributes of its mesh and its

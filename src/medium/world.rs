@@ -49,6 +49,25 @@ impl WorldMedia {
     }
 }
 
+/// The order [`assign`] gives the scene's objects, as indices into `scene.objects`: those whose
+/// material only separates media (`interface`) after all the others, each group in its own
+/// order; `None` when there are none (the order is kept). Motion blur's keys follow it, as the
+/// compiled world's meshes, spheres, quads and instances do.
+pub fn object_order(scene: &Scene) -> Option<Vec<usize>> {
+    let pass =
+        |i: &usize| scene.materials[scene.objects[*i].material].model == MaterialModel::Interface;
+    let n = scene.objects.len();
+    if !(0..n).any(|i| pass(&i)) {
+        return None;
+    }
+    Some(
+        (0..n)
+            .filter(|i| !pass(i))
+            .chain((0..n).filter(|i| pass(i)))
+            .collect(),
+    )
+}
+
 /// Gives every object with a medium interface its own material index (a copy of its material,
 /// appended to `scene.materials`; the object is pointed at it) and compiles the media. Scenes
 /// without interfaces are not changed.

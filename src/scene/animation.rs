@@ -264,31 +264,7 @@ impl MovingTransform {
     }
 }
 
-/// M = T·R·S with S symmetric (pbrt-v4 `AnimatedTransform::Decompose`: the polar decomposition of
-/// the upper 3×3 by iterating R ← (R + R⁻ᵀ)/2, then S = R⁻¹M).
-pub(crate) fn decompose(m: Mat4) -> (Mat3, Quat, Vec3) {
-    let t = m.w_axis.truncate();
-    let a = Mat3::from_mat4(m);
-    let mut r = a;
-    for _ in 0..100 {
-        let next = (r + r.inverse().transpose()) * 0.5;
-        let diff = (next - r)
-            .to_cols_array()
-            .iter()
-            .map(|d| d.abs())
-            .sum::<f32>();
-        r = next;
-        if diff < 1e-6 {
-            break;
-        }
-    }
-    if r.determinant() < 0.0 {
-        r *= -1.0;
-    }
-    let q = Quat::from_mat3(&r).normalize();
-    let s = r.inverse() * a;
-    (s, q, t)
-}
+pub(crate) use crate::math::decompose;
 
 /// Rigid motion from a pbrt file: an object's or the camera's transform at two times.
 #[derive(Clone, Copy, Debug)]
@@ -300,6 +276,14 @@ pub enum RigidMotion {
     Camera {
         camera: usize,
         motion: MovingTransform,
+    },
+    /// A shape of a pbrt `ObjectInstance` under a moving transform: the object's transform is
+    /// the instance's, interpolated, times `part`, the shape's transform inside `ObjectBegin`
+    /// (pbrt-v4 interpolates the instance's transform and applies the definition's after it).
+    Instance {
+        object: usize,
+        motion: MovingTransform,
+        part: Mat4,
     },
 }
 
@@ -334,7 +318,9 @@ impl Animation {
             }
         }
         for m in &self.rigid {
-            let (RigidMotion::Object { motion, .. } | RigidMotion::Camera { motion, .. }) = m;
+            let (RigidMotion::Object { motion, .. }
+            | RigidMotion::Camera { motion, .. }
+            | RigidMotion::Instance { motion, .. }) = m;
             add(motion.times[0], motion.times[1]);
         }
         range
@@ -352,7 +338,7 @@ impl Animation {
         if self
             .rigid
             .iter()
-            .any(|m| matches!(m, RigidMotion::Object { .. }))
+            .any(|m| matches!(m, RigidMotion::Object { .. } | RigidMotion::Instance { .. }))
         {
             return true;
         }
@@ -496,6 +482,15 @@ impl Scene {
                 RigidMotion::Camera { camera, motion } => {
                     if let Some(c) = self.cameras.get_mut(camera) {
                         c.camera_to_world = motion.at(time);
+                    }
+                }
+                RigidMotion::Instance {
+                    object,
+                    motion,
+                    part,
+                } => {
+                    if let Some(o) = self.objects.get_mut(object) {
+                        o.transform = motion.at(time) * part;
                     }
                 }
             }

@@ -23,8 +23,16 @@
 //!   the time of the ray that samples it or of the light path it starts.
 //! - emitters on moving meshes and spheres too: their area lights sample, and take densities
 //!   on, the primitive where it is at the sample's time (`light::AreaLight::at`).
+//! - moving instances of a shared mesh too: each keeps its world-from-object transform at the
+//!   same keys, decomposed (`geometry::motion::KeyedTransform`), and a ray meets it placed by
+//!   the interpolation at the ray's time, boxed per key segment in the instances' top-level BVH
+//!   (`accel::instance`).
+//! - a moving medium boundary is a moving surface like any other: a ray crossing it at its time
+//!   changes medium there (the media themselves do not move, in either scheme, as in pbrt-v4).
+//! - moving boxes too, placed by their transform interpolated as an instance's (an emissive
+//!   one falls back).
 //! - motion that is not interpolated so (a light whose power, colour or cone changes,
-//!   a moving medium boundary, box, curve or instance) falls back to posing and compiling the scene at the middle of each of
+//!   a moving curve or emissive box) falls back to posing and compiling the scene at the middle of each of
 //!   [`TimeOptions::steps`] equal parts of the shutter, each world with its own exact BVH, a
 //!   sample tracing the world of the part holding its time: a stratified estimate of the
 //!   shutter's average that converges to it as the steps grow. A scene whose only motion is
@@ -33,9 +41,8 @@ use super::{World, WorldOptions};
 use crate::geometry::motion::{MotionStore, MovingMesh, STILL};
 use crate::geometry::sphere::Sphere;
 use crate::math::{Mat3, Mat4, Vec3, Vec4, transform_normal};
-use crate::scene::animation::{Animation, decompose};
+use crate::scene::animation::Animation;
 use crate::scene::{Scene, SceneError};
-use glam::Quat;
 
 /// Frames per second when neither `--fps` nor the file gives one (film's rate, and Blender's
 /// default).
@@ -200,9 +207,8 @@ impl World {
             match motion_keys(&mut scene, options, open, close, opts.steps() as usize + 1) {
                 Ok((mid, store, light_motion)) => {
                     // Keys only for what moves within the shutter.
-                    let moving = !(store.meshes.is_empty()
-                        && store.spheres.is_empty()
-                        && store.quads.is_empty());
+                    let moving =
+                        store.prims_move() || store.instance_motion.iter().any(Option::is_some);
                     let mut w = World::build_with_motion(
                         mid,
                         options,
@@ -281,6 +287,7 @@ impl World {
         self.motion.is_empty()
             && self.camera_motion.is_none()
             && self.geometry.motion.is_none()
+            && self.geometry.instances.motion.is_empty()
             && !self.lights.moves()
     }
 
@@ -298,51 +305,8 @@ impl World {
 }
 
 /// A camera's motion over the shutter: its world-from-camera transform at `n + 1` evenly spaced
-/// times, decomposed into translation, rotation and scale, interpolated piecewise (pbrt-v4
-/// `AnimatedTransform::Interpolate`: translation and scale linearly, the rotation by slerp).
-#[derive(Clone, Debug)]
-pub struct CameraMotion {
-    keys: Vec<(Vec3, Quat, Mat3)>,
-}
-
-impl CameraMotion {
-    /// From the transforms at the shutter's opening, `keys.len() − 2` times between and its
-    /// closing (at least two).
-    pub fn new(keys: &[Mat4]) -> CameraMotion {
-        assert!(keys.len() >= 2, "a camera motion needs two poses");
-        let mut out: Vec<(Vec3, Quat, Mat3)> = Vec::with_capacity(keys.len());
-        for &m in keys {
-            let (s, mut r, t) = decompose(m);
-            // q and −q are one rotation: keep each key on the previous one's side, so every
-            // interval turns the short way.
-            if let Some(prev) = out.last()
-                && prev.1.dot(r) < 0.0
-            {
-                r = -r;
-            }
-            out.push((t, r, s));
-        }
-        CameraMotion { keys: out }
-    }
-
-    /// The world-from-camera transform at fraction `u` in [0, 1] of the shutter.
-    #[inline]
-    pub fn at(&self, u: f32) -> Mat4 {
-        let n = self.keys.len() - 1;
-        let x = u.clamp(0.0, 1.0) * n as f32;
-        let i = (x as usize).min(n - 1);
-        let f = x - i as f32;
-        let (t0, r0, s0) = self.keys[i];
-        let (t1, r1, s1) = self.keys[i + 1];
-        let r = if f == 0.0 {
-            r0
-        } else {
-            r0.slerp(r1, f).normalize()
-        };
-        let s = s0 * (1.0 - f) + s1 * f;
-        Mat4::from_translation(t0.lerp(t1, f)) * Mat4::from_quat(r) * Mat4::from_mat3(s)
-    }
-}
+/// times, decomposed and interpolated piecewise (pbrt-v4 `AnimatedTransform::Interpolate`).
+pub use crate::geometry::motion::KeyedTransform as CameraMotion;
 
 /// The keys of continuous motion blur: the scene posed at `keys` evenly spaced times over
 /// [open, close], the objects that move between them found, and their flattened meshes'
@@ -352,9 +316,10 @@ impl CameraMotion {
 /// world's pose for everything that does not read a time) and the keys; `Err` names what
 /// continuous motion does not cover (the caller falls back to a world per step): a light that
 /// changes more than its position and direction
-/// ([`light_keys`]), a moving medium boundary, a moving instance or a moving shape other than a
-/// mesh, sphere or quad, or a transform that mirrors part of the time. Also returns the moving
-/// lights' keys.
+/// ([`light_keys`]), a moving shape other than a mesh, sphere, box or quad, an emissive moving
+/// box, an instanced mesh that deforms, or a transform that mirrors part of the time (or, for
+/// an instance, is singular part of it). Moving instances get their world-from-object
+/// transform per key (`MotionStore::instance_motion`). Also returns the moving lights' keys.
 /// The scene's moving lights: index in `Scene::lights`, (position, direction) per key.
 type LightKeys = Vec<(usize, Vec<(Vec3, Vec3)>)>;
 
@@ -402,26 +367,32 @@ fn motion_keys(
         keys,
         ..Default::default()
     };
-    for (o, obj) in scene.objects.iter().enumerate() {
+    // The world compiles the objects in the order media give them (interface surfaces last,
+    // `medium::world::assign`): the slots follow it.
+    let order = crate::medium::world::object_order(scene)
+        .unwrap_or_else(|| (0..scene.objects.len()).collect());
+    for o in order {
+        let obj = &scene.objects[o];
         let mesh_id = match obj.shape {
             Shape::Mesh(id) => Some(id),
             _ => None,
         };
-        let moves = (1..keys).any(|k| transforms[k][o] != transforms[0][o])
-            || mesh_id.is_some_and(|id| {
-                (1..keys).any(|k| {
-                    let (a, b) = (&deformed[k][id], &deformed[0][id]);
-                    match (a, b) {
-                        (Some(a), Some(b)) => {
-                            a.positions != b.positions
-                                || a.normals != b.normals
-                                || a.tangents != b.tangents
-                        }
-                        (None, None) => false,
-                        _ => true,
+        let turns = (1..keys).any(|k| transforms[k][o] != transforms[0][o]);
+        let deforms = mesh_id.is_some_and(|id| {
+            (1..keys).any(|k| {
+                let (a, b) = (&deformed[k][id], &deformed[0][id]);
+                match (a, b) {
+                    (Some(a), Some(b)) => {
+                        a.positions != b.positions
+                            || a.normals != b.normals
+                            || a.tangents != b.tangents
                     }
-                })
-            });
+                    (None, None) => false,
+                    _ => true,
+                }
+            })
+        });
+        let moves = turns || deforms;
         let slot = if moves {
             store.meshes.len() as u32
         } else {
@@ -429,9 +400,40 @@ fn motion_keys(
         };
         match (&obj.shape, instanced[o]) {
             (Shape::Mesh(_), true) if moves => {
-                return Err(format!("the instanced object '{}' moves", obj.name));
+                // A moving instance keeps its world-from-object transform per key, placed at a
+                // ray's time by their decomposed interpolation (`geometry::instance`).
+                if deforms {
+                    return Err(format!(
+                        "the mesh of the instanced object '{}' deforms",
+                        obj.name
+                    ));
+                }
+                let keyed: Vec<Mat4> = transforms.iter().map(|k| k[o]).collect();
+                let det = |m: &Mat4| Mat3::from_mat4(*m).determinant();
+                if !keyed.iter().all(|m| det(m).is_normal()) {
+                    return Err(format!(
+                        "the instanced object '{}' has a singular transform part of the time",
+                        obj.name
+                    ));
+                }
+                if keyed
+                    .iter()
+                    .any(|m| (det(m) < 0.0) != (det(&keyed[0]) < 0.0))
+                {
+                    return Err(format!(
+                        "the object '{}' is mirrored part of the time",
+                        obj.name
+                    ));
+                }
+                store
+                    .instance_motion
+                    .push(Some(crate::geometry::motion::KeyedTransform::new(&keyed)));
+                continue;
             }
-            (Shape::Mesh(_), true) => continue,
+            (Shape::Mesh(_), true) => {
+                store.instance_motion.push(None);
+                continue;
+            }
             (Shape::Mesh(_), false) => store.mesh_slot.push(slot),
             (Shape::Sphere { .. }, _) => store.sphere_slot.push(if moves {
                 (store.spheres.len() / keys) as u32
@@ -443,9 +445,46 @@ fn motion_keys(
             } else {
                 STILL
             }),
+            (Shape::Cuboid { .. }, _) => {
+                // As compile_geometry: a box singular at the middle pose is left out.
+                if Mat3::from_mat4(mid.objects[o].transform).determinant() == 0.0 {
+                    continue;
+                }
+                if !moves {
+                    store.cuboid_slot.push(STILL);
+                    continue;
+                }
+                // A moving box keeps its object-to-world transform per key, placed at a ray's
+                // time by their decomposed interpolation (`MotionStore::cuboid`).
+                if scene.materials[obj.material].is_emissive() {
+                    return Err(format!("the emissive box '{}' moves", obj.name));
+                }
+                let keyed: Vec<Mat4> = transforms.iter().map(|k| k[o]).collect();
+                let det = |m: &Mat4| Mat3::from_mat4(*m).determinant();
+                if !keyed.iter().all(|m| det(m).is_normal()) {
+                    return Err(format!(
+                        "the box '{}' has a singular transform part of the time",
+                        obj.name
+                    ));
+                }
+                if keyed
+                    .iter()
+                    .any(|m| (det(m) < 0.0) != (det(&keyed[0]) < 0.0))
+                {
+                    return Err(format!(
+                        "the object '{}' is mirrored part of the time",
+                        obj.name
+                    ));
+                }
+                store.cuboid_slot.push(store.cuboids.len() as u32);
+                store
+                    .cuboids
+                    .push(crate::geometry::motion::KeyedTransform::new(&keyed));
+                continue;
+            }
             _ if moves => {
                 return Err(format!(
-                    "the object '{}' moves and is not a mesh, a sphere or a quad",
+                    "the object '{}' moves and is not a mesh, a sphere, a box or a quad",
                     obj.name
                 ));
             }
@@ -453,9 +492,6 @@ fn motion_keys(
         }
         if !moves {
             continue;
-        }
-        if obj.medium.is_some() {
-            return Err(format!("the medium boundary '{}' moves", obj.name));
         }
         let flip = |m: &Mat4| Mat3::from_mat4(*m).determinant() < 0.0;
         if (1..keys).any(|k| flip(&transforms[k][o]) != flip(&transforms[0][o])) {

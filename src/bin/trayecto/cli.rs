@@ -281,10 +281,11 @@ pub struct RenderArgs {
     /// time when given, else scene time). Default: none (pbrt files: their camera's shutter).
     #[arg(long, value_name = "OPEN,CLOSE", allow_hyphen_values = true)]
     pub shutter: Option<String>,
-    /// Motion blur: moving meshes and spheres (rigid, skinned, morphing) and a moving camera
-    /// are keyed at this many + 1 times across the shutter and interpolated between them at
-    /// each sample's time. Motion that is not (a moving light or emitter, medium boundary, box,
-    /// quad or curve) is posed at this many times instead, a compiled world each. Default 16.
+    /// Motion blur: moving meshes, spheres, quads, boxes and instances (rigid, skinned, morphing;
+    /// emitters and medium boundaries too), moving lights and a moving camera are keyed at this
+    /// many + 1 times across the shutter and interpolated between them at each sample's time.
+    /// Motion that is not (a moving curve or emissive box) is posed at this many times instead,
+    /// a compiled world each. Default 16.
     #[arg(long, value_name = "N", hide_short_help = true)]
     pub shutter_steps: Option<u32>,
     /// How next-event estimation chooses a light: auto (bvh8 above 16 emitters, points and

@@ -58,6 +58,9 @@ impl Loader {
                     ));
                 };
                 let ctm = self.gs.ctm;
+                // pbrt-v4 animates an instance whose transform differs between the two
+                // TransformTimes (an `AnimatedTransform` of render-from-instance).
+                let moving = self.gs.ctm != self.gs.ctm_end;
                 let parts = parts.clone();
                 for part in parts {
                     self.scene.add_object(
@@ -68,6 +71,18 @@ impl Loader {
                     );
                     if let Some(o) = self.scene.objects.last_mut() {
                         o.medium = part.medium;
+                    }
+                    if moving {
+                        self.motion
+                            .push(crate::scene::animation::RigidMotion::Instance {
+                                object: self.scene.objects.len() - 1,
+                                motion: crate::scene::animation::MovingTransform {
+                                    times: self.transform_times,
+                                    start: ctm,
+                                    end: self.gs.ctm_end,
+                                },
+                                part: part.transform,
+                            });
                     }
                 }
             }

@@ -16,6 +16,13 @@ impl Loader {
                 let ty = p.string(at)?;
                 let list = p.params(at)?;
                 let list = self.with_attributes(list, "light");
+                if self.gs.ctm != self.gs.ctm_end {
+                    // pbrt-v4 warns the same and uses the start transform.
+                    self.warn_once(
+                        "animated light",
+                        format!("{at}: LightSource \"{ty}\" under an animated transform is placed at its start time (pbrt-v4 does not animate lights either)"),
+                    );
+                }
                 self.light_source(&ty, list, at)?;
             }
             "AreaLightSource" => {
