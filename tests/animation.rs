@@ -275,25 +275,7 @@ fn motion_blur_of_a_moving_object() {
 #[test]
 fn motion_blur_is_continuous_between_keys() {
     let mut scene = trayecto::scene::builtin::load("cornell").unwrap();
-    let blue = scene.add_material(trayecto::material::Material::diffuse(
-        "blue",
-        Vec3::new(0.1, 0.2, 0.9),
-    ));
-    let card = scene.add_mesh(trayecto::scene::Mesh {
-        name: "card".into(),
-        positions: vec![
-            Vec3::new(-0.2, -0.3, 0.0),
-            Vec3::new(0.2, -0.3, 0.0),
-            Vec3::new(0.2, 0.3, 0.0),
-            Vec3::new(-0.2, 0.3, 0.0),
-        ],
-        indices: vec![[0, 1, 2], [0, 2, 3]],
-        normals: None,
-        tangents: None,
-        uv0: None,
-        uv1: None,
-        colors: None,
-    });
+    let (card, blue) = common::add_blue_card(&mut scene);
     let object = scene.objects.len();
     scene.add_object("card", Shape::Mesh(card), Mat4::IDENTITY, blue);
     scene.animation = Some(Arc::new(Animation {
@@ -401,25 +383,7 @@ fn motion_blur_of_moving_emitters_in_one_world() {
 /// 2.4 rad about the view axis through its centre, and the card's transform over [0, 1] s.
 fn cornell_with_turning_instance() -> (Scene, MovingTransform) {
     let mut scene = trayecto::scene::builtin::load("cornell").unwrap();
-    let blue = scene.add_material(trayecto::material::Material::diffuse(
-        "blue",
-        Vec3::new(0.1, 0.2, 0.9),
-    ));
-    let card = scene.add_mesh(trayecto::scene::Mesh {
-        name: "card".into(),
-        positions: vec![
-            Vec3::new(-0.2, -0.3, 0.0),
-            Vec3::new(0.2, -0.3, 0.0),
-            Vec3::new(0.2, 0.3, 0.0),
-            Vec3::new(-0.2, 0.3, 0.0),
-        ],
-        indices: vec![[0, 1, 2], [0, 2, 3]],
-        normals: None,
-        tangents: None,
-        uv0: None,
-        uv1: None,
-        colors: None,
-    });
+    let (card, blue) = common::add_blue_card(&mut scene);
     let still = Mat4::from_translation(Vec3::new(0.5, -0.45, 0.0)) * Mat4::from_rotation_z(0.3);
     scene.add_object("still card", Shape::Mesh(card), still, blue);
     let object = scene.objects.len();

@@ -1067,25 +1067,7 @@ fn light_paths_render_motion_blur_as_the_path_tracer() {
     use trayecto::scene::animation::{Animation, MovingTransform, RigidMotion};
     use trayecto::world::motion::TimeOptions;
     let mut scene = cornell_wide_light();
-    let blue = scene.add_material(trayecto::material::Material::diffuse(
-        "blue",
-        Vec3::new(0.1, 0.2, 0.9),
-    ));
-    let card = scene.add_mesh(trayecto::scene::Mesh {
-        name: "card".into(),
-        positions: vec![
-            Vec3::new(-0.2, -0.3, 0.0),
-            Vec3::new(0.2, -0.3, 0.0),
-            Vec3::new(0.2, 0.3, 0.0),
-            Vec3::new(-0.2, 0.3, 0.0),
-        ],
-        indices: vec![[0, 1, 2], [0, 2, 3]],
-        normals: None,
-        tangents: None,
-        uv0: None,
-        uv1: None,
-        colors: None,
-    });
+    let (card, blue) = common::add_blue_card(&mut scene);
     let object = scene.objects.len();
     scene.add_object("card", Shape::Mesh(card), Mat4::IDENTITY, blue);
     let start = scene.cameras[0].camera_to_world;

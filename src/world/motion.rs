@@ -408,26 +408,8 @@ fn motion_keys(
                         obj.name
                     ));
                 }
-                let keyed: Vec<Mat4> = transforms.iter().map(|k| k[o]).collect();
-                let det = |m: &Mat4| Mat3::from_mat4(*m).determinant();
-                if !keyed.iter().all(|m| det(m).is_normal()) {
-                    return Err(format!(
-                        "the instanced object '{}' has a singular transform part of the time",
-                        obj.name
-                    ));
-                }
-                if keyed
-                    .iter()
-                    .any(|m| (det(m) < 0.0) != (det(&keyed[0]) < 0.0))
-                {
-                    return Err(format!(
-                        "the object '{}' is mirrored part of the time",
-                        obj.name
-                    ));
-                }
-                store
-                    .instance_motion
-                    .push(Some(crate::geometry::motion::KeyedTransform::new(&keyed)));
+                let keyed = keyed_transform(&transforms, o, "instanced object", &obj.name)?;
+                store.instance_motion.push(Some(keyed));
                 continue;
             }
             (Shape::Mesh(_), true) => {
@@ -459,27 +441,9 @@ fn motion_keys(
                 if scene.materials[obj.material].is_emissive() {
                     return Err(format!("the emissive box '{}' moves", obj.name));
                 }
-                let keyed: Vec<Mat4> = transforms.iter().map(|k| k[o]).collect();
-                let det = |m: &Mat4| Mat3::from_mat4(*m).determinant();
-                if !keyed.iter().all(|m| det(m).is_normal()) {
-                    return Err(format!(
-                        "the box '{}' has a singular transform part of the time",
-                        obj.name
-                    ));
-                }
-                if keyed
-                    .iter()
-                    .any(|m| (det(m) < 0.0) != (det(&keyed[0]) < 0.0))
-                {
-                    return Err(format!(
-                        "the object '{}' is mirrored part of the time",
-                        obj.name
-                    ));
-                }
+                let keyed = keyed_transform(&transforms, o, "box", &obj.name)?;
                 store.cuboid_slot.push(store.cuboids.len() as u32);
-                store
-                    .cuboids
-                    .push(crate::geometry::motion::KeyedTransform::new(&keyed));
+                store.cuboids.push(keyed);
                 continue;
             }
             _ if moves => {
@@ -565,6 +529,33 @@ fn motion_keys(
         }
     }
     Ok((mid, store, light_motion))
+}
+
+/// Object `o`'s world-from-object transforms at the keys (`transforms[k][o]`) as a transform
+/// placed at a ray's time by their decomposed interpolation, for a moving instance or box
+/// (`what` names the kind in the messages). Refused: a transform singular at some key (it has
+/// no decomposition) and one whose handedness changes over the shutter (a mirror part of the
+/// time, which the decomposition into a rotation cannot follow).
+fn keyed_transform(
+    transforms: &[Vec<Mat4>],
+    o: usize,
+    what: &str,
+    name: &str,
+) -> Result<crate::geometry::motion::KeyedTransform, String> {
+    let keyed: Vec<Mat4> = transforms.iter().map(|k| k[o]).collect();
+    let det = |m: &Mat4| Mat3::from_mat4(*m).determinant();
+    if !keyed.iter().all(|m| det(m).is_normal()) {
+        return Err(format!(
+            "the {what} '{name}' has a singular transform part of the time"
+        ));
+    }
+    if keyed
+        .iter()
+        .any(|m| (det(m) < 0.0) != (det(&keyed[0]) < 0.0))
+    {
+        return Err(format!("the object '{name}' is mirrored part of the time"));
+    }
+    Ok(crate::geometry::motion::KeyedTransform::new(&keyed))
 }
 
 /// The scene's lights that move over the keys `key_lights` (the scene's lights posed at each

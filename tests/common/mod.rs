@@ -28,6 +28,28 @@ pub fn add_floor(s: &mut Scene, half: f32, albedo: f32) {
     );
 }
 
+/// Adds the motion-blur tests' card to `s`: a 0.4 × 0.6 quad in the z = 0 plane centred on the
+/// origin (two triangles, no normals or uvs) and a blue diffuse material; returns (mesh, material).
+pub fn add_blue_card(s: &mut Scene) -> (trayecto::scene::MeshId, trayecto::scene::MaterialId) {
+    let blue = s.add_material(Material::diffuse("blue", Vec3::new(0.1, 0.2, 0.9)));
+    let card = s.add_mesh(trayecto::scene::Mesh {
+        name: "card".into(),
+        positions: vec![
+            Vec3::new(-0.2, -0.3, 0.0),
+            Vec3::new(0.2, -0.3, 0.0),
+            Vec3::new(0.2, 0.3, 0.0),
+            Vec3::new(-0.2, 0.3, 0.0),
+        ],
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        normals: None,
+        tangents: None,
+        uv0: None,
+        uv1: None,
+        colors: None,
+    });
+    (card, blue)
+}
+
 /// Renders `scene` in-process and returns the linear image.
 pub fn render_scene(scene: &Scene, settings: &RenderSettings) -> Image {
     let world = World::build(
