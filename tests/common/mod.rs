@@ -117,6 +117,21 @@ pub fn scene_file(rel: &str) -> PathBuf {
     shared_scene(rel)
 }
 
+/// The float bits of every pixel of the EXR `out` (R, G, B in turn), to compare renders bit for
+/// bit; a black image is refused, since two black images agreeing proves nothing (`what` names
+/// the render in the message).
+pub fn exr_bits(out: &std::path::Path, what: &str) -> Vec<u32> {
+    let img = trayecto::film::output::read_exr(out).unwrap();
+    assert!(
+        img.data.iter().any(|p| p.max_element() > 0.0),
+        "{what}: a black image proves nothing"
+    );
+    img.data
+        .iter()
+        .flat_map(|p| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+        .collect()
+}
+
 /// Root-mean-square difference over all channels.
 pub fn rmse(a: &Image, b: &Image) -> f64 {
     assert_eq!((a.width, a.height), (b.width, b.height));
