@@ -1110,7 +1110,7 @@ impl TileWork<'_> {
                 for s in s0..s1 {
                     let kept = keep.0 <= s && s < keep.1;
                     // Only a guided training pass traces samples it does not keep.
-                    if !kept && !(train && self.guided) {
+                    if !(kept || train && self.guided) {
                         continue;
                     }
                     if batched {
@@ -2075,6 +2075,7 @@ mod tests {
                     weight,
                     first,
                     record: false,
+                    keep: true,
                 });
             }
             let mut scalar_stats = RayStats::default();

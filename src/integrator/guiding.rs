@@ -476,7 +476,7 @@ impl Guide {
         let value = r.radiance / r.pdf;
         if diag_on() && r.bin < 6 && value > 0.0 && value.is_finite() {
             let mut n = Vec3::ZERO;
-            n[(r.bin / 2) as usize] = if r.bin % 2 == 0 { 1.0 } else { -1.0 };
+            n[(r.bin / 2) as usize] = if r.bin.is_multiple_of(2) { 1.0 } else { -1.0 };
             let k = if r.wi.dot(n) > 0.0 { 2 } else { 3 };
             DIAG[k].fetch_add(value as u64 + 1, std::sync::atomic::Ordering::Relaxed);
         }
