@@ -14,13 +14,15 @@
 //! Guiding in Production", §10.2), clamped to [`ALPHA_MIN`, `ALPHA_MAX`] so that the BSDF always
 //! keeps some probability (the mixture then covers every direction the BSDF does: unbiased).
 //!
-//! Learning is iterative: the render's passes of 1, 1, 2, 4, … samples are the training
-//! iterations. After an iteration, its records (a path vertex's position, the direction it
-//! continued in and the radiance that came back along it) are splatted into a tree whose
-//! structure was refined from the previous iteration's; that tree becomes the guide the next
-//! iteration samples with, and its refinement the tree the next records go into. The records are
-//! merged in a fixed order (passes in order, tiles in order, samples in order), so the guide is a
-//! function of the seed and the settings, never of the thread count.
+//! Learning is iterative: the render's first passes, of 1, 2, 4, … samples per pixel, are the
+//! training iterations, and their samples stay in the image (`render::guide_training_passes`).
+//! After an iteration, its records (a path vertex's position, the direction it continued in and
+//! the radiance that came back along it) are splatted into a tree whose structure was refined
+//! from the previous iteration's; that tree becomes the guide the next iteration samples with,
+//! and its refinement the tree the next records go into. The records are merged in a fixed
+//! order (passes in order, tiles in order, samples in order; each leaf's in that order when the
+//! leaves learn in parallel), so the guide is a function of the seed and the settings, never of
+//! the thread count.
 
 use crate::material::Bsdf;
 use crate::material::bxdf::BsdfSample;
