@@ -884,7 +884,8 @@ fn render_in_pool(
     // The samples of each pass that enter the film (empty: traced to learn only).
     let mut keep: Vec<(u32, u32)> = Vec::new();
     let mut trained_until = 0;
-    if guided {
+    // (A resumed film that already holds every sample needs no guide.)
+    if guided && from < end {
         for (a, b) in guide_training_passes(settings.spp, fw as u64 * fh as u64) {
             if a >= end {
                 break;
