@@ -63,10 +63,10 @@ pub struct RenderSettings {
     /// ([`RenderSettings::counts_coverage`]). The image is the same either way.
     pub track_coverage: bool,
     /// Path guiding (docs/DESIGN.md, "Path guiding"): the surface and volumetric path tracers
-    /// learn the incident radiance in a training phase of their own ([`guide_training_passes`]) and
-    /// sample directions from a BSDF– (or phase-function–) guide mixture. The expectation is
-    /// unchanged; experimental: as measured so far it does not pay at equal time
-    /// (BENCHMARKS.md, "Path guiding").
+    /// learn the incident radiance in the render's first samples of each pixel
+    /// ([`guide_training_passes`], kept in the image) and sample directions from a BSDF– (or
+    /// phase-function–) guide mixture. The expectation is unchanged; whether it pays:
+    /// BENCHMARKS.md, "Path guiding".
     pub guiding: bool,
     /// The photon integrators' photons per iteration and initial radius (`--integrator sppm`;
     /// [`crate::integrator::sppm::PhotonSettings`]); the other integrators ignore them.
@@ -576,26 +576,14 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
     passes
 }
 
-/// With `TRAYECTO_GUIDING_TRAIN=0` (the scheme before the training phase, kept to measure
-/// against): the samples per pixel a guided render of `spp` trains on: its first passes, of 1,
-/// 1, 2, 4, … samples (each a training iteration), up to the largest power of two at most a quarter of
-/// `spp`, and at most 128 (the pass schedule's doubling ends there). 0 below 4 samples: no
-/// training, no guiding. Samples after it use the last guide.
-pub fn guide_training_samples(spp: u32) -> u32 {
-    let q = spp / 4;
-    if q == 0 {
-        0
-    } else {
-        (1u32 << (31 - q.leading_zeros())).min(128)
-    }
-}
-
-/// The training iterations of a guided render, as sample ranges of the training sampler
-/// ([`guide_training_seed`]): 1, 2, 4, … samples per pixel (the last one takes the rest) up to
+/// The training iterations of a guided render, as sample ranges of every pixel's own sample
+/// stream: the render's first samples, 1, 2, 4, … per pixel (the last one takes the rest) up to
 /// [`GUIDE_TRAINING_SAMPLES`] camera samples in all, whatever the resolution (a small image
 /// trains on more samples per pixel: the guide needs records per cell, not per pixel), but at
-/// most `spp`/4 per pixel (at least 1), so training costs at most a fifth of the render. Empty
-/// when training is left to the render's own first passes (`TRAYECTO_GUIDING_TRAIN=0`).
+/// most `spp`/4 per pixel (at least 1). Iteration k samples with the guide learned from the
+/// iterations before it; every sample enters the image with the same weight, so the image is
+/// the mean of `spp` unbiased samples. `TRAYECTO_GUIDING_TRAIN=n` trains on n samples per pixel
+/// instead (a benchmarking knob; 0: no training, no guide).
 pub fn guide_training_passes(spp: u32, pixels: u64) -> Vec<(u32, u32)> {
     let per_pixel = match guide_training_knob() {
         Some(n) => n,
@@ -621,7 +609,7 @@ pub fn guide_training_passes(spp: u32, pixels: u64) -> Vec<(u32, u32)> {
 pub const GUIDE_TRAINING_SAMPLES: u64 = 1 << 17;
 
 /// `TRAYECTO_GUIDING_TRAIN`: training samples per pixel instead of the budget (a benchmarking
-/// knob; 0 trains on the render's own first passes, as before the training phase).
+/// knob).
 fn guide_training_knob() -> Option<u32> {
     static K: std::sync::OnceLock<Option<u32>> = std::sync::OnceLock::new();
     *K.get_or_init(|| {
@@ -629,49 +617,6 @@ fn guide_training_knob() -> Option<u32> {
             .ok()
             .and_then(|v| v.parse().ok())
     })
-}
-
-/// The training sampler's seed: a function of the render's, with streams of their own.
-fn guide_training_seed(seed: u64) -> u64 {
-    crate::sampling::rng::hash_words(&[seed, 0x6775_6964_696e_6721])
-}
-
-/// Runs the training iterations `passes` with `trainer` (whose sampler is the training one) and
-/// returns the guide learned. Each iteration's tiles render in parallel; their records are
-/// learned in tile order, so the guide is the same for any thread count.
-fn train_guide(
-    trainer: &TileWork,
-    passes: &[(u32, u32)],
-    tiles: &[TileRect],
-    world: &World,
-) -> Arc<Guide> {
-    let b = world.bounds;
-    let mut learner = Learner::new(b.min, b.max);
-    let mut guide: Option<Arc<Guide>> = None;
-    let log = std::env::var_os("TRAYECTO_GUIDING_LOG").is_some();
-    for &(s0, s1) in passes {
-        let t0 = Instant::now();
-        let blocks: Vec<Tile> = tiles
-            .par_iter()
-            .map(|&t| trainer.render(s0, s1, t, None, guide.as_deref(), true))
-            .collect();
-        let stride = (trainer.pixels * (s1 - s0) as u64 * 4)
-            .div_ceil(GUIDE_RECORD_BUDGET)
-            .max(1);
-        let spp = ((s1 - s0) as u64).div_ceil(stride) as u32;
-        let t1 = Instant::now();
-        learner.learn(blocks.iter().flat_map(|b| b.3.iter()), spp);
-        guide = learner.guide();
-        if log {
-            // Where the training time goes (`bench/guiding.py`).
-            eprintln!(
-                "guiding: training samples {s0}..{s1}: tracing {:.3} s, learning {:.3} s",
-                (t1 - t0).as_secs_f64(),
-                t1.elapsed().as_secs_f64()
-            );
-        }
-    }
-    guide.unwrap_or_else(|| Arc::new(Guide::new(b.min, b.max)))
 }
 
 /// Records a training pass keeps at most (48 bytes each): a pass of more samples records every
@@ -832,21 +777,6 @@ pub fn render_range_aovs(
             )));
         }
     }
-    // A guide trained in the render's own first passes (`TRAYECTO_GUIDING_TRAIN=0`) depends
-    // on them; one trained in the training phase does not.
-    let fwin = settings.film_window();
-    if settings.guiding
-        && guide_training_passes(settings.spp, fwin.width() as u64 * fwin.height() as u64)
-            .is_empty()
-        && (range.start > 0 || start.resume.is_some())
-    {
-        return Err(RenderError::InvalidSetting(
-            "a guided render trained on its own first samples (TRAYECTO_GUIDING_TRAIN=0) \
-             cannot render a sample range that does not start at 0, nor resume from a \
-             checkpoint"
-                .into(),
-        ));
-    }
     let aovs = aovs_in_loop(world, settings, &start) && aovs;
     let run = || {
         // Photon mapping's iterations share state between pixels: its own driver.
@@ -942,12 +872,41 @@ fn render_in_pool(
                 .into(),
         ));
     }
+    // Guiding: the surface and the volumetric path tracers are guided. The training
+    // iterations are the first passes of every pixel's own samples (`guide_training_passes`);
+    // each learns from the records of its samples and publishes the guide the next samples
+    // use. A render of a sample range (or resumed) that does not own all of them still traces
+    // them, to learn the same guide, and keeps only its own samples' radiance: the guide, and
+    // so every sample, is the same whatever the range, the split or the thread count.
+    let guided = settings.guiding && matches!(integrator, Integrator::Path | Integrator::VolPath);
+    let end = range_start.samples.end;
+    let mut passes: Vec<(u32, u32)> = Vec::new();
+    // The samples of each pass that enter the film (empty: traced to learn only).
+    let mut keep: Vec<(u32, u32)> = Vec::new();
+    let mut trained_until = 0;
+    // (A resumed film that already holds every sample needs no guide.)
+    if guided && from < end {
+        for (a, b) in guide_training_passes(settings.spp, fw as u64 * fh as u64) {
+            if a >= end {
+                break;
+            }
+            let b = b.min(end);
+            passes.push((a, b));
+            let lo = a.max(from);
+            keep.push(if lo < b { (lo, b) } else { (b, b) });
+            trained_until = b;
+        }
+    }
+    let n_train = passes.len();
     // Passes over the samples still to do. The film's sums are exact (see `film`), so how the
     // samples are grouped into passes does not change the image.
-    let passes: Vec<(u32, u32)> = pass_schedule(range_start.samples.end - from)
-        .into_iter()
-        .map(|(a, b)| (a + from, b + from))
-        .collect();
+    let rest = from.max(trained_until);
+    if rest < end {
+        for (a, b) in pass_schedule(end - rest) {
+            passes.push((a + rest, b + rest));
+            keep.push((a + rest, b + rest));
+        }
+    }
     // Adaptive sampling: which pixels the next pass renders (decided between passes).
     let adaptive = settings.noise_threshold.is_some();
     let pixels = (fw * fh) as usize;
@@ -960,9 +919,11 @@ fn render_in_pool(
     } else {
         (Vec::new(), Vec::new())
     };
-    // A resumed film may already be clean everywhere: then no pass runs.
+    // A resumed film may already be clean everywhere: then no pass runs (unless training
+    // passes are still to come: the adaptive mask is decided after them, as in the whole render).
     if let Some(t) = settings.noise_threshold
         && !passes.is_empty()
+        && from >= trained_until
         && from >= ADAPTIVE_MIN_SAMPLES
         && adaptive_mask(&film, t, &mut active, &mut scratch) == 0
     {
@@ -977,55 +938,11 @@ fn render_in_pool(
             aovs: aov_film,
         });
     }
-    // Guiding: the surface and the volumetric path tracers are guided; training passes are the
-    // schedule's first ones, which start at 0 (guided renders are never resumed) and double up
-    // to `guide_training_samples`.
-    let guided = settings.guiding && matches!(integrator, Integrator::Path | Integrator::VolPath);
-    let train_until = if guided {
-        guide_training_samples(settings.spp)
-    } else {
-        0
-    };
-    // A training phase of its own (`guide_training_passes`): samples drawn from a sampler of
-    // their own, discarded from the image, so the guide depends on the seed and the settings,
-    // never on the sample range; the render's passes then all sample the trained guide.
-    let pretrain = if guided {
-        guide_training_passes(settings.spp, fw as u64 * fh as u64)
-    } else {
-        Vec::new()
-    };
-    let n_train = if pretrain.is_empty() {
-        passes.iter().take_while(|p| p.1 <= train_until).count()
-    } else {
-        0
-    };
     let learner = (n_train > 0).then(|| {
         let b = world.bounds;
         Learner::new(b.min, b.max)
     });
-    let pretrained = (!pretrain.is_empty()).then(|| {
-        let trainer = TileWork {
-            world,
-            integrator,
-            settings,
-            camera: camera.clone(),
-            filter: FilterSampler::new(&settings.filter),
-            sampler: SamplerSetup::new(
-                settings.sampler,
-                guide_training_seed(settings.seed),
-                pretrain.last().map_or(1, |p| p.1),
-            )
-            .for_image(w, h),
-            win,
-            track: false,
-            coverage: false,
-            record_aovs: false,
-            guided: true,
-            pixels: fw as u64 * fh as u64,
-        };
-        train_guide(&trainer, &pretrain, &tiles, world)
-    });
-    let guide: RwLock<Option<Arc<Guide>>> = RwLock::new(pretrained);
+    let guide: RwLock<Option<Arc<Guide>>> = RwLock::new(None);
     let work = TileWork {
         world,
         integrator,
@@ -1038,12 +955,14 @@ fn render_in_pool(
         track: settings.tracks_variance(),
         coverage: settings.counts_coverage(),
         record_aovs,
-        guided: n_train > 0 || !pretrain.is_empty(),
-        pixels: if adaptive { 0 } else { fw as u64 * fh as u64 },
+        guided: n_train > 0,
+        // Training passes render every pixel, adaptive sampling or not.
+        pixels: fw as u64 * fh as u64,
     };
     let schedule = PassSchedule {
         settings,
         passes: &passes,
+        keep: &keep,
         tiles: &tiles,
         film_width: fw,
         deadline: settings
@@ -1064,12 +983,15 @@ fn render_in_pool(
     };
     let c = schedule.run(state, active, observer, cancel, |q, s0, s1, tile, mask| {
         // Pass q samples with the guide of the training passes before it (the schedule holds
-        // it back until they are committed).
+        // it back until they are committed). Training passes render every pixel: the adaptive
+        // mask is decided after them.
         let g = work
             .guided
             .then(|| guide.read().unwrap_or_else(|e| e.into_inner()).clone())
             .flatten();
-        work.render(s0, s1, tile, mask, g.as_deref(), q < n_train)
+        let train = q < n_train;
+        let mask = if train { None } else { mask };
+        work.render(s0, s1, keep[q], tile, mask, g.as_deref(), train)
     });
     let complete = c.committed == passes.len();
     // An incomplete render with the flag set was cancelled (whichever check saw it first: a
@@ -1121,12 +1043,16 @@ struct TileWork<'a> {
 }
 
 impl TileWork<'_> {
-    /// Samples `s0..s1` of every pixel of `tile` (those `mask` keeps, with adaptive sampling).
-    /// With guiding, `guide` is the guide to sample with, and `train` says the pass records.
+    /// Samples `s0..s1` of every pixel of `tile` (those `mask` keeps, with adaptive sampling),
+    /// of which those in `keep` enter the film (a guided training pass outside the render's
+    /// range is traced for its records alone). With guiding, `guide` is the guide to sample
+    /// with, and `train` says the pass records.
+    #[allow(clippy::too_many_arguments)]
     fn render(
         &self,
         s0: u32,
         s1: u32,
+        keep: (u32, u32),
         (x0, y0, tw, th): TileRect,
         mask: Option<&[bool]>,
         guide: Option<&Guide>,
@@ -1183,10 +1109,16 @@ impl TileWork<'_> {
                 let pixel_key = self.sampler.pixel_key((x, y));
                 let slot = ((fy - y0) * tw + (fx - x0)) as usize;
                 for s in s0..s1 {
+                    let kept = keep.0 <= s && s < keep.1;
+                    // Only a guided training pass traces samples it does not keep.
+                    if !(kept || train && self.guided) {
+                        continue;
+                    }
                     if batched {
                         // The sample's stream draws its camera numbers where the batch keeps it.
                         let p = batch.push(fx, fy, slot, self.sampler.stream(pixel_key, s));
-                        p.record = records_sample(fx, fy, fw, s, stride);
+                        p.record = train && records_sample(fx, fy, fw, s, stride);
+                        p.keep = kept;
                         (p.ray, p.weight) =
                             camera_ray(&self.camera, &self.filter, &mut p.stream, x, y);
                         if batch.is_full() {
@@ -1198,14 +1130,17 @@ impl TileWork<'_> {
                     // The camera ray the sample will draw, intersected on its own: these
                     // integrators do not report whether their first ray hit. A motion-blurred
                     // sample is judged at the shutter's opening.
-                    let covered = self.coverage && {
+                    let covered = kept && self.coverage && {
                         let (ray, _) =
                             camera_ray(&self.camera, &self.filter, &mut stream.clone(), x, y);
                         aov::covers(world, &ray)
                     };
                     if moving {
-                        let l = self.sample_moving(&mut stream, x, y, out.stats);
-                        out.add(fx, fy, l, covered);
+                        // Never recorded (moving scenes are not guided): kept samples only.
+                        if kept {
+                            let l = self.sample_moving(&mut stream, x, y, out.stats);
+                            out.add(fx, fy, l, covered);
+                        }
                         continue;
                     }
                     if self.integrator == Integrator::VolPath
@@ -1213,7 +1148,7 @@ impl TileWork<'_> {
                     {
                         let (ray, weight) =
                             camera_ray(&self.camera, &self.filter, &mut stream, x, y);
-                        let record = records_sample(fx, fy, fw, s, stride);
+                        let record = train && records_sample(fx, fy, fw, s, stride);
                         let l = with_records(g, record, |g| {
                             crate::integrator::volpath::radiance_guided(
                                 world,
@@ -1224,7 +1159,12 @@ impl TileWork<'_> {
                                 g,
                             )
                         });
-                        out.add(fx, fy, l * weight, covered);
+                        if kept {
+                            out.add(fx, fy, l * weight, covered);
+                        }
+                        continue;
+                    }
+                    if !kept {
                         continue;
                     }
                     let l = sample_pixel(
@@ -1288,6 +1228,9 @@ struct PassSchedule<'a> {
     settings: &'a RenderSettings,
     /// Sample ranges, in order.
     passes: &'a [(u32, u32)],
+    /// The samples of each pass that enter the film: the whole pass, but for guided training
+    /// passes outside the render's range (traced to learn the guide; empty when none).
+    keep: &'a [(u32, u32)],
     tiles: &'a [TileRect],
     film_width: u32,
     deadline: Option<Instant>,
@@ -1403,21 +1346,38 @@ impl PassSchedule<'_> {
                         }
                     }
                 }
-                if train && let Some(learner) = c.learner.as_mut() {
+                if train
+                    && p + 1 < passes.len()
+                    && let Some(learner) = c.learner.as_mut()
+                {
                     let (s0, s1) = passes[p];
                     // The spatial split threshold counts the samples the pass recorded.
                     let stride = (self.record_pixels * (s1 - s0) as u64 * 4)
                         .div_ceil(GUIDE_RECORD_BUDGET)
                         .max(1);
                     let spp = ((s1 - s0) as u64).div_ceil(stride) as u32;
+                    let t0 = Instant::now();
                     learner.learn(records.iter().flatten(), spp);
                     *self.guide.write().unwrap_or_else(|e| e.into_inner()) = learner.guide();
+                    if std::env::var_os("TRAYECTO_GUIDING_LOG").is_some() {
+                        // Where the training time goes (`bench/guiding.py`): the pass ended
+                        // at `t0` (render time so far), its learning took the rest.
+                        eprintln!(
+                            "guiding: training samples {s0}..{s1}: ended at {:.3} s, learning {:.3} s",
+                            (t0 - started).as_secs_f64(),
+                            t0.elapsed().as_secs_f64()
+                        );
+                    }
                     if p + 1 == n_train {
                         c.learner = None;
                     }
                 }
                 drop(records);
-                c.done = passes[p].1;
+                let kept = self.keep[p];
+                let changed = kept.0 < kept.1;
+                if changed {
+                    c.done = kept.1;
+                }
                 {
                     let mut cw = lock(&committed_work);
                     *cw = Some(PassTimes::after(
@@ -1428,10 +1388,14 @@ impl PassSchedule<'_> {
                         passes.len() - (p + 1),
                     ));
                 }
-                observer.pass_done(&c.film, c.done, settings.spp);
+                if changed {
+                    observer.pass_done(&c.film, c.done, settings.spp);
+                }
                 c.committed = p + 1;
+                // Training passes render every pixel: the mask is decided after them.
                 if let Some(t) = settings.noise_threshold
                     && p + 1 < passes.len()
+                    && p + 1 >= n_train
                     && c.done >= ADAPTIVE_MIN_SAMPLES
                 {
                     let mut a = active.write().unwrap_or_else(|e| e.into_inner());
@@ -1451,7 +1415,10 @@ impl PassSchedule<'_> {
             }
         };
 
+        let n_workers = rayon::current_num_threads();
+        let started_workers = AtomicUsize::new(0);
         let worker = || {
+            started_workers.fetch_add(1, Ordering::SeqCst);
             // A panicking tile would leave its pass incomplete forever and the other workers
             // waiting for it: stop everything so the panic reaches the caller.
             let _unwind = OnUnwind(|| stop(0));
@@ -1462,11 +1429,32 @@ impl PassSchedule<'_> {
                     break;
                 }
                 let lookahead = lookahead_of(q);
-                if committed.load(Ordering::SeqCst) + lookahead < q {
-                    let mut g = lock(&wake.0);
-                    while committed.load(Ordering::SeqCst) + lookahead < q
+                let waiting = || {
+                    committed.load(Ordering::SeqCst) + lookahead < q
                         && q < halt.load(Ordering::SeqCst)
-                    {
+                };
+                if waiting() {
+                    // A pass waiting for a guide waits for the commit that learns it, whose
+                    // learning runs in parallel on this pool (`Learner::learn`): meanwhile this
+                    // worker takes the learning's jobs (once every worker has started, so that
+                    // what it takes is never another worker's loop, which could wait on this
+                    // one's tile), checking for the commit every millisecond.
+                    while q <= n_train && waiting() {
+                        let all = started_workers.load(Ordering::SeqCst) == n_workers;
+                        if all && rayon::yield_now() == Some(rayon::Yield::Executed) {
+                            continue;
+                        }
+                        let g = lock(&wake.0);
+                        if waiting() {
+                            drop(
+                                wake.1
+                                    .wait_timeout(g, Duration::from_millis(1))
+                                    .unwrap_or_else(|e| e.into_inner()),
+                            );
+                        }
+                    }
+                    let mut g = lock(&wake.0);
+                    while waiting() {
                         g = wake.1.wait(g).unwrap_or_else(|e| e.into_inner());
                     }
                     drop(g);
@@ -1533,7 +1521,7 @@ impl PassSchedule<'_> {
             }
         };
         rayon::scope(|s| {
-            for _ in 0..rayon::current_num_threads() {
+            for _ in 0..n_workers {
                 s.spawn(|_| worker());
             }
         });
@@ -1771,6 +1759,9 @@ struct Primary {
     first: Option<crate::geometry::primitive::Intersection>,
     /// Guiding: this sample's path is recorded for training (in a training pass).
     record: bool,
+    /// The sample enters the film (a guided training pass outside the render's range traces
+    /// samples for their records alone).
+    keep: bool,
 }
 
 /// The samples of one tile waiting for their first hits, and the wavefront path loop's state
@@ -1853,6 +1844,7 @@ impl Batch {
             weight: 0.0,
             first: None,
             record: false,
+            keep: true,
         });
         let last = self.0.len() - 1;
         &mut self.0[last]
@@ -1878,8 +1870,10 @@ impl Batch {
         {
             wf.trace(world, set, &mut self.0, out.stats);
             for (i, p) in self.0.iter().enumerate() {
-                let covered = out.coverage && aov::covers(world, &p.ray);
-                out.add(p.fx, p.fy, wf.radiance(i) * p.weight, covered);
+                if p.keep {
+                    let covered = out.coverage && aov::covers(world, &p.ray);
+                    out.add(p.fx, p.fy, wf.radiance(i) * p.weight, covered);
+                }
             }
             self.0.clear();
             return;
@@ -1887,9 +1881,9 @@ impl Batch {
         for p in &mut self.0 {
             // The first hit found above may be a medium interface or a cut-out: coverage asks
             // for the first solid surface, as the alpha AOV always has.
-            let covered = out.coverage && aov::covers(world, &p.ray);
+            let covered = p.keep && out.coverage && aov::covers(world, &p.ray);
             if let Some(g) = out.guiding.as_mut() {
-                let mut rec = out.aovs.is_some().then(AovPath::new);
+                let mut rec = (p.keep && out.aovs.is_some()).then(AovPath::new);
                 let l = with_records(g, p.record, |g| {
                     path::radiance_guided_from(
                         world,
@@ -1905,7 +1899,9 @@ impl Batch {
                 if let (Some(aovs), Some(rec)) = (out.aovs.as_deref_mut(), rec) {
                     aovs[p.slot].add(&rec.sample);
                 }
-                out.add(p.fx, p.fy, l * p.weight, covered);
+                if p.keep {
+                    out.add(p.fx, p.fy, l * p.weight, covered);
+                }
                 continue;
             }
             let l = match out.aovs.as_deref_mut() {
@@ -2080,6 +2076,7 @@ mod tests {
                     weight,
                     first,
                     record: false,
+                    keep: true,
                 });
             }
             let mut scalar_stats = RayStats::default();

@@ -143,9 +143,10 @@ fn parts_rendered_by_separate_processes_merge_to_the_single_render() {
     ));
     refuse(&[&sparts[0], &d.join("rgb.trp")], "spectral");
 
-    // Guided parts too: each part trains the same guide (the training phase draws samples of
-    // its own, whatever the range), so they merge to the guided render bit for bit, and a part
-    // resumed to the frame's end is that render as well.
+    // Guided parts too: each part learns the same guide (the training iterations are the
+    // frame's first samples, which a part that does not own them traces for their records
+    // alone), so they merge to the guided render bit for bit, and a part resumed to the frame's
+    // end is that render as well.
     let guided = ["--spp", "8", "--guiding"];
     ok(render(&guided, &d.join("gfull.exr")));
     let mut gparts = Vec::new();

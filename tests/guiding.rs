@@ -163,3 +163,55 @@ fn guided_media_agree_with_unguided() {
     s.guiding = false;
     assert!(render_world(&world, &s).data != guided.data);
 }
+
+/// The training iterations are the render's own first samples, kept in the image: every pixel
+/// of a guided film holds exactly `spp` samples (a training sample counted twice, or dropped,
+/// changes the count), and a render split inside the training (each part re-traces the
+/// training samples it does not own, to learn the same guide, and keeps its own samples only),
+/// or resumed from such a part, is the whole render bit for bit, also with 1 thread.
+#[test]
+fn guided_training_samples_are_counted_once_whatever_the_split() {
+    use std::sync::atomic::AtomicBool;
+    use trayecto::render::{NoObserver, RangeStart, guide_training_passes, render_range};
+    let world = world_of("cornell");
+    let (w, h, spp) = (16, 12, 16);
+    // The training takes samples 0..4 here (spp/4), in iterations 0..1 and 1..4.
+    assert_eq!(
+        guide_training_passes(spp, (w * h) as u64),
+        vec![(0, 1), (1, 4)]
+    );
+    let film = |s: &RenderSettings, samples: std::ops::Range<u32>, resume| {
+        let start = RangeStart { samples, resume };
+        render_range(&world, s, start, &NoObserver, &AtomicBool::new(false))
+            .expect("renders")
+            .film
+    };
+    let s = settings(w, h, spp, 3, true);
+    let whole = film(&s, 0..spp, None);
+    assert!(
+        whole.counts().iter().all(|&n| n == spp),
+        "{:?}",
+        whole.counts()
+    );
+    // Guided: the image differs from the unguided one.
+    let plain = film(&settings(w, h, spp, 3, false), 0..spp, None);
+    assert!(plain.raw() != whole.raw());
+    // Split inside the second training iteration.
+    let mut one = s.clone();
+    one.threads = Some(1);
+    let head = film(&one, 0..2, None);
+    let mut merged = head.clone();
+    merged
+        .add_film(&film(&s, 2..spp, None))
+        .expect("parts merge");
+    assert!(merged.counts().iter().all(|&n| n == spp));
+    assert!(merged.raw() == whole.raw(), "split at 2 differs");
+    // A part inside the training, and a resume from the first part.
+    let mut parts = film(&s, 0..1, None);
+    for r in [1..3, 3..4, 4..9, 9..spp] {
+        parts.add_film(&film(&one, r, None)).expect("parts merge");
+    }
+    assert!(parts.raw() == whole.raw(), "split at 1, 3, 9 differs");
+    let resumed = film(&s, 0..spp, Some((head, 2)));
+    assert!(resumed.raw() == whole.raw(), "resumed from 2 differs");
+}

@@ -14,13 +14,15 @@
 //! Guiding in Production", §10.2), clamped to [`ALPHA_MIN`, `ALPHA_MAX`] so that the BSDF always
 //! keeps some probability (the mixture then covers every direction the BSDF does: unbiased).
 //!
-//! Learning is iterative: the render's passes of 1, 1, 2, 4, … samples are the training
-//! iterations. After an iteration, its records (a path vertex's position, the direction it
-//! continued in and the radiance that came back along it) are splatted into a tree whose
-//! structure was refined from the previous iteration's; that tree becomes the guide the next
-//! iteration samples with, and its refinement the tree the next records go into. The records are
-//! merged in a fixed order (passes in order, tiles in order, samples in order), so the guide is a
-//! function of the seed and the settings, never of the thread count.
+//! Learning is iterative: the render's first passes, of 1, 2, 4, … samples per pixel, are the
+//! training iterations, and their samples stay in the image (`render::guide_training_passes`).
+//! After an iteration, its records (a path vertex's position, the direction it continued in and
+//! the radiance that came back along it) are splatted into a tree whose structure was refined
+//! from the previous iteration's; that tree becomes the guide the next iteration samples with,
+//! and its refinement the tree the next records go into. The records are merged in a fixed
+//! order (passes in order, tiles in order, samples in order; each leaf's in that order when the
+//! leaves learn in parallel), so the guide is a function of the seed and the settings, never of
+//! the thread count.
 
 use crate::material::Bsdf;
 use crate::material::bxdf::BsdfSample;
@@ -29,7 +31,11 @@ use crate::medium::HenyeyGreenstein;
 
 /// Smallest and largest probability of sampling the BSDF: the guide never takes every sample
 /// (its density may be zero where light arrives), nor the BSDF (which would waste the guide).
-pub const ALPHA_MIN: f32 = 0.1;
+/// A BSDF-branch sample where the guide's density is near zero weighs up to 1/α more than
+/// BSDF sampling would, at every guided bounce: with α ≥ 0.1 those samples made the fireflies
+/// that set veach-ajar's error (relMSE 1.7–2.5 against 1.4 unguided at 64 spp); with α ≥ 0.3,
+/// 1.22–1.46 (BENCHMARKS.md, "Path guiding").
+pub const ALPHA_MIN: f32 = 0.3;
 pub const ALPHA_MAX: f32 = 0.9;
 /// A quadtree node is subdivided while it holds more than this share of its tree's radiance
 /// (Müller 2017's ρ).
@@ -84,6 +90,40 @@ fn fixed_alpha() -> Option<f32> {
             .and_then(|v| v.parse::<f32>().ok())
             .map(|a| a.clamp(ALPHA_MIN, ALPHA_MAX))
     })
+}
+
+/// Measured settings of where the guide is used (docs/DESIGN.md "Path guiding"), each with a
+/// benchmarking knob: `TRAYECTO_GUIDING_ALPHA_MIN` (the BSDF's least share, [`ALPHA_MIN`] by
+/// default), `TRAYECTO_GUIDING_MIN_RECORDS` (a leaf whose iteration splatted fewer records is
+/// left to the BSDF: 1 by default) and `TRAYECTO_GUIDING_DEPTH` (vertices from this bounce on are
+/// left to the BSDF: none by default). Each decides from the guide and the vertex alone, so
+/// the estimate stays unbiased whatever they are.
+#[derive(Clone, Copy, Debug)]
+struct Knobs {
+    alpha_min: f32,
+    min_records: u32,
+    depth: u32,
+}
+
+fn knobs() -> &'static Knobs {
+    static K: std::sync::OnceLock<Knobs> = std::sync::OnceLock::new();
+    K.get_or_init(|| {
+        fn var<T: std::str::FromStr>(name: &str) -> Option<T> {
+            std::env::var(name).ok().and_then(|v| v.parse().ok())
+        }
+        Knobs {
+            alpha_min: var::<f32>("TRAYECTO_GUIDING_ALPHA_MIN")
+                .map_or(ALPHA_MIN, |a| a.clamp(0.01, ALPHA_MAX)),
+            min_records: var("TRAYECTO_GUIDING_MIN_RECORDS").unwrap_or(1),
+            depth: var("TRAYECTO_GUIDING_DEPTH").unwrap_or(u32::MAX),
+        }
+    })
+}
+
+/// Whether a vertex after `bounces` scattering events may be guided ([`Knobs`]).
+#[inline]
+pub fn guides_bounce(bounces: u32) -> bool {
+    bounces < knobs().depth
 }
 
 /// Whether training records light samples too (`TRAYECTO_GUIDING_OFF=nee` leaves them out).
@@ -307,10 +347,11 @@ impl Guide {
         let leaf = self.leaf_at(p, bin);
         let l = &self.leaves[leaf as usize];
         let total: f32 = self.quads[l.root as usize].sum.iter().sum();
-        (total > 0.0 && total.is_finite()).then(|| Mix {
+        let k = knobs();
+        (total > 0.0 && total.is_finite() && l.count >= k.min_records).then(|| Mix {
             guide: self,
             leaf,
-            alpha: fixed_alpha().unwrap_or_else(|| sigmoid(l.theta).clamp(ALPHA_MIN, ALPHA_MAX)),
+            alpha: fixed_alpha().unwrap_or_else(|| sigmoid(l.theta).clamp(k.alpha_min, ALPHA_MAX)),
         })
     }
 
@@ -408,41 +449,55 @@ impl Guide {
         size
     }
 
-    /// Adds `value` to every node on the path to the square point `p` in `leaf`'s tree.
-    fn deposit(&mut self, leaf: u32, mut p: Vec2, value: f32) {
-        let mut n = self.leaves[leaf as usize].root as usize;
-        for _ in 0..=MAX_DEPTH {
-            let (ix, iy) = ((p.x >= 0.5) as usize, (p.y >= 0.5) as usize);
-            let i = ix + 2 * iy;
-            self.quads[n].sum[i] += value;
-            let c = self.quads[n].child[i];
-            if c == 0 {
-                break;
-            }
-            n = c as usize;
-            p = Vec2::new(p.x * 2.0 - ix as f32, p.y * 2.0 - iy as f32);
+    /// Where record `r`, the `i`-th of its iteration (`key`), lands: its leaf, and with the
+    /// stochastic box filter ([`Learner::learn`]) the target leaf and square point of its
+    /// splat, drawn from a hash of `i`.
+    fn place(&self, r: &Record, i: u64, key: u64, filter: bool) -> Splat {
+        let mut s = Splat {
+            leaf: u32::MAX,
+            target: u32::MAX,
+            at: Vec2::ZERO,
+            value: 0.0,
+            adam: false,
+        };
+        if !(r.pdf > 0.0) || !r.radiance.is_finite() || !r.p.is_finite() {
+            return s;
         }
-    }
-
-    /// One Adam step on `leaf`'s BSDF share from a record drawn from the mixture (Müller 2019
-    /// §10.2): the gradient of the KL divergence from the normalized product F = f·Lᵢ·cos to
-    /// the mixture q = α·p_bsdf + (1−α)·p_guide, estimated with the record's direction, is
-    /// −(F/q)·(p_bsdf − p_guide)/q · dα/dθ.
-    fn adam(&mut self, leaf: u32, r: &Record) {
-        let l = &mut self.leaves[leaf as usize];
-        let a = sigmoid(l.theta);
-        let g =
-            -(r.f_cos * r.radiance / r.pdf) * (r.pdf_bsdf - r.pdf_guide) / r.pdf * a * (1.0 - a);
-        if !g.is_finite() {
-            return;
+        let (leaf, size) = self.locate(r.p, r.bin);
+        s.leaf = leaf;
+        s.adam = r.pdf_guide > 0.0 || r.alpha < 1.0;
+        let h0 = mix64(key ^ i);
+        let h1 = mix64(h0);
+        let h2 = mix64(h1);
+        let j = Vec3::new(unit(h0), unit(h0 << 24), unit(h1)) - Vec3::splat(0.5);
+        s.target = if filter {
+            self.leaf_at(r.p + j * size, r.bin)
+        } else {
+            leaf
+        };
+        let value = r.radiance / r.pdf;
+        if diag_on() && r.bin < 6 && value > 0.0 && value.is_finite() {
+            let mut n = Vec3::ZERO;
+            n[(r.bin / 2) as usize] = if r.bin.is_multiple_of(2) { 1.0 } else { -1.0 };
+            let k = if r.wi.dot(n) > 0.0 { 2 } else { 3 };
+            DIAG[k].fetch_add(value as u64 + 1, std::sync::atomic::Ordering::Relaxed);
         }
-        l.t += 1;
-        l.m = ADAM_B1 * l.m + (1.0 - ADAM_B1) * g;
-        l.v = ADAM_B2 * l.v + (1.0 - ADAM_B2) * g * g;
-        let mh = l.m / (1.0 - ADAM_B1.powi(l.t as i32));
-        let vh = l.v / (1.0 - ADAM_B2.powi(l.t as i32));
-        // θ stays where the clamp still answers to it.
-        l.theta = (l.theta - ADAM_LR * mh / (vh.sqrt() + 1e-8)).clamp(-4.0, 4.0);
+        if value > 0.0 && value.is_finite() {
+            let sq = dir_to_square(r.wi);
+            let side = if filter {
+                self.quad_size_at(s.target, sq)
+            } else {
+                0.0
+            };
+            let (jx, jy) = (unit(h1 << 24) - 0.5, unit(h2) - 0.5);
+            let x = (sq.x + jx * side).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+            let y = (sq.y + jy * side)
+                .rem_euclid(1.0)
+                .min(1.0 - f32::EPSILON / 2.0);
+            s.at = Vec2::new(x, y);
+            s.value = value;
+        }
+        s
     }
 
     /// Copies the structure of `src`'s tree rooted at `n` into `self.quads` with zero sums,
@@ -618,50 +673,73 @@ impl Learner {
     /// centred on its position, the leaf quadrant's side centred on its direction, φ wrapping
     /// around), whose expectation is the box filter's splat. Neighbouring cells then share what
     /// their records saw, which a tree trained on few records per cell needs.
+    ///
+    /// In parallel on the current rayon pool, bit for bit the serial result: where each record
+    /// lands (its leaf, the filtered target leaf and square point, a function of the record and
+    /// its index alone) is found for all records in parallel; then each spatial leaf, whose
+    /// Adam state and quadtree nodes no other leaf touches, takes its records' Adam steps and
+    /// splats in record order, the leaves in parallel. Every float sum therefore adds the same
+    /// terms in the same order as one loop over the records would.
     pub fn learn<'r>(&mut self, records: impl IntoIterator<Item = &'r Record>, spp: u32) {
+        use rayon::prelude::*;
         self.iteration += 1;
         let key = mix64(self.iteration.wrapping_mul(0x9e37_79b9_7f4a_7c15));
         let filter = !knob_off("filter");
+        let records: Vec<&Record> = records.into_iter().collect();
+        let b = &self.building;
+        let n_leaves = b.leaves.len();
+        let splats: Vec<Splat> = records
+            .par_iter()
+            .enumerate()
+            .with_min_len(4096)
+            .map(|(i, r)| b.place(r, i as u64, key, filter))
+            .collect();
+        // Records by leaf (for Adam) and by target leaf (for the splats), each in record order:
+        // a counting sort.
+        let adam = bucket(n_leaves, splats.iter().map(|s| s.adam_leaf()));
+        let dep = bucket(n_leaves, splats.iter().map(|s| s.target_leaf()));
         let b = &mut self.building;
-        for (i, r) in records.into_iter().enumerate() {
-            if !(r.pdf > 0.0) || !r.radiance.is_finite() || !r.p.is_finite() {
-                continue;
-            }
-            let (leaf, size) = b.locate(r.p, r.bin);
-            if r.pdf_guide > 0.0 || r.alpha < 1.0 {
-                b.adam(leaf, r);
-            }
-            let h0 = mix64(key ^ i as u64);
-            let h1 = mix64(h0);
-            let h2 = mix64(h1);
-            let j = Vec3::new(unit(h0), unit(h0 << 24), unit(h1)) - Vec3::splat(0.5);
-            let target = if filter {
-                b.leaf_at(r.p + j * size, r.bin)
-            } else {
-                leaf
-            };
-            let l = &mut b.leaves[target as usize];
-            l.count = l.count.saturating_add(1);
-            let value = r.radiance / r.pdf;
-            if diag_on() && r.bin < 6 && value > 0.0 && value.is_finite() {
-                let mut n = Vec3::ZERO;
-                n[(r.bin / 2) as usize] = if r.bin % 2 == 0 { 1.0 } else { -1.0 };
-                let k = if r.wi.dot(n) > 0.0 { 2 } else { 3 };
-                DIAG[k].fetch_add(value as u64 + 1, std::sync::atomic::Ordering::Relaxed);
-            }
-            if value > 0.0 && value.is_finite() {
-                let sq = dir_to_square(r.wi);
-                let side = if filter {
-                    b.quad_size_at(target, sq)
+        // Each leaf's quadtree nodes are one contiguous run of `quads`, from its root to the
+        // next leaf's root (`Guide::new` and `refined` build them so); split them apart.
+        let roots: Vec<usize> = b.leaves.iter().map(|l| l.root as usize).collect();
+        let contiguous = roots.first() == Some(&0) && roots.windows(2).all(|w| w[0] < w[1]);
+        let mut jobs = Vec::with_capacity(n_leaves);
+        {
+            let mut rest: &mut [QuadNode] = &mut b.quads[..];
+            let total = rest.len();
+            for (k, leaf) in b.leaves.iter_mut().enumerate() {
+                let (start, end) = if contiguous {
+                    (roots[k], roots.get(k + 1).copied().unwrap_or(total))
                 } else {
-                    0.0
+                    (0, 0)
                 };
-                let (jx, jy) = (unit(h1 << 24) - 0.5, unit(h2) - 0.5);
-                let x = (sq.x + jx * side).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
-                let y = (sq.y + jy * side)
-                    .rem_euclid(1.0)
-                    .min(1.0 - f32::EPSILON / 2.0);
-                b.deposit(target, Vec2::new(x, y), value);
+                let (mine, tail) = std::mem::take(&mut rest).split_at_mut(end - start);
+                rest = tail;
+                let (a, d) = (adam.of(k), dep.of(k));
+                if !a.is_empty() || !d.is_empty() {
+                    jobs.push((leaf, mine, start, a, d));
+                }
+            }
+        }
+        if contiguous {
+            jobs.into_par_iter().for_each(|(leaf, quads, base, a, d)| {
+                learn_leaf(leaf, quads, base, a, d, &records, &splats)
+            });
+        } else {
+            // Not built by this module's constructors: one leaf after another, in the whole
+            // node array.
+            drop(jobs);
+            for k in 0..n_leaves {
+                let leaf = &mut b.leaves[k];
+                learn_leaf(
+                    leaf,
+                    &mut b.quads,
+                    0,
+                    adam.of(k),
+                    dep.of(k),
+                    &records,
+                    &splats,
+                );
             }
         }
         let next = self.building.refined(spp);
@@ -689,6 +767,116 @@ impl Learner {
         }
         self.guide = Some(std::sync::Arc::new(filled));
     }
+}
+
+/// Where one record lands ([`Guide::place`]): its spatial leaf (`u32::MAX` for a record left
+/// out), the leaf its filtered splat goes to, the square point there and the value (0: nothing
+/// to splat), and whether it takes an Adam step.
+#[derive(Clone, Copy, Debug)]
+struct Splat {
+    leaf: u32,
+    target: u32,
+    at: Vec2,
+    value: f32,
+    adam: bool,
+}
+
+impl Splat {
+    fn adam_leaf(&self) -> Option<u32> {
+        (self.leaf != u32::MAX && self.adam).then_some(self.leaf)
+    }
+
+    fn target_leaf(&self) -> Option<u32> {
+        (self.target != u32::MAX).then_some(self.target)
+    }
+}
+
+/// Record indices grouped by leaf, each group in record order (a counting sort).
+struct Buckets {
+    start: Vec<u32>,
+    idx: Vec<u32>,
+}
+
+impl Buckets {
+    fn of(&self, k: usize) -> &[u32] {
+        &self.idx[self.start[k] as usize..self.start[k + 1] as usize]
+    }
+}
+
+fn bucket(n: usize, keys: impl Iterator<Item = Option<u32>> + Clone) -> Buckets {
+    let mut start = vec![0u32; n + 1];
+    for k in keys.clone().flatten() {
+        start[k as usize + 1] += 1;
+    }
+    for k in 0..n {
+        start[k + 1] += start[k];
+    }
+    let mut fill = start.clone();
+    let mut idx = vec![0u32; start[n] as usize];
+    for (i, k) in keys.enumerate() {
+        if let Some(k) = k {
+            idx[fill[k as usize] as usize] = i as u32;
+            fill[k as usize] += 1;
+        }
+    }
+    Buckets { start, idx }
+}
+
+/// One leaf's share of an iteration ([`Learner::learn`]): the Adam steps of the records in its
+/// cell (`adam`) and the splats of those filtered into it (`dep`), each in record order, into
+/// its quadtree `quads` (the nodes from index `base` on).
+fn learn_leaf(
+    leaf: &mut Leaf,
+    quads: &mut [QuadNode],
+    base: usize,
+    adam: &[u32],
+    dep: &[u32],
+    records: &[&Record],
+    splats: &[Splat],
+) {
+    for &i in adam {
+        adam_step(leaf, records[i as usize]);
+    }
+    for &i in dep {
+        leaf.count = leaf.count.saturating_add(1);
+        let s = splats[i as usize];
+        if s.value > 0.0 {
+            // Adds the value to every node on the path to the square point.
+            let mut n = leaf.root as usize;
+            let mut p = s.at;
+            for _ in 0..=MAX_DEPTH {
+                let (ix, iy) = ((p.x >= 0.5) as usize, (p.y >= 0.5) as usize);
+                let q = ix + 2 * iy;
+                let node = &mut quads[n - base];
+                node.sum[q] += s.value;
+                let c = node.child[q];
+                if c == 0 {
+                    break;
+                }
+                n = c as usize;
+                p = Vec2::new(p.x * 2.0 - ix as f32, p.y * 2.0 - iy as f32);
+            }
+        }
+    }
+}
+
+/// One Adam step on a leaf's BSDF share from a record drawn from the mixture (Müller 2019
+/// §10.2): the gradient of the KL divergence from the normalized product F = f·Lᵢ·cos to
+/// the mixture q = α·p_bsdf + (1−α)·p_guide, estimated with the record's direction, is
+/// −(F/q)·(p_bsdf − p_guide)/q · dα/dθ.
+fn adam_step(l: &mut Leaf, r: &Record) {
+    let a = sigmoid(l.theta);
+    let g = -(r.f_cos * r.radiance / r.pdf) * (r.pdf_bsdf - r.pdf_guide) / r.pdf * a * (1.0 - a);
+    if !g.is_finite() {
+        return;
+    }
+    l.t += 1;
+    l.m = ADAM_B1 * l.m + (1.0 - ADAM_B1) * g;
+    l.v = ADAM_B2 * l.v + (1.0 - ADAM_B2) * g * g;
+    let mh = l.m / (1.0 - ADAM_B1.powi(l.t as i32));
+    let vh = l.v / (1.0 - ADAM_B2.powi(l.t as i32));
+    // θ stays where the clamp still answers to it.
+    l.theta = (l.theta - ADAM_LR * mh / (vh.sqrt() + 1e-8)).clamp(-4.0, 4.0);
 }
 
 /// Diagnostic counters (`TRAYECTO_GUIDING_DIAG=1`, printed at the end of a render): guide

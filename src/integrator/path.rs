@@ -259,7 +259,9 @@ fn continue_path(
         // The vertex's tree: its normal faced toward the side the path arrived from.
         let bin = g.is_some().then(|| guiding::normal_bin(v.ng, wo));
         let mix = match (guide, bin) {
-            (Some(gd), Some(b)) if guiding::guidable(&v.bsdf) => gd.mix_in(v.hit.p, b),
+            (Some(gd), Some(b)) if guiding::guidable(&v.bsdf) && guiding::guides_bounce(depth) => {
+                gd.mix_in(v.hit.p, b)
+            }
             _ => None,
         };
         // While training, the light sample is a record too: the radiance NEE found along its

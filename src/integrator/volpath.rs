@@ -273,7 +273,9 @@ fn trace(
                                     return l;
                                 }
                                 let wo = -ray.d;
-                                let mix = guide.and_then(|gd| gd.mix_in(p, guiding::MEDIUM_BIN));
+                                let mix = guide
+                                    .filter(|_| guiding::guides_bounce(depth - 1))
+                                    .and_then(|gd| gd.mix_in(p, guiding::MEDIUM_BIN));
                                 l += set.clamp(
                                     sample_ld(
                                         world,
@@ -435,7 +437,9 @@ fn trace(
         // A guided surface vertex: its tree by the normal faced toward the arriving path.
         let bin = g.is_some().then(|| guiding::normal_bin(hit.ng, wo));
         let mix = match (guide, bin) {
-            (Some(gd), Some(b)) if guiding::guidable(bsdf) => gd.mix_in(hit.p, b),
+            (Some(gd), Some(b)) if guiding::guidable(bsdf) && guiding::guides_bounce(depth - 1) => {
+                gd.mix_in(hit.p, b)
+            }
             _ => None,
         };
 

@@ -362,12 +362,12 @@ pub struct RenderArgs {
     /// A Mitsuba scene parameter, NAME=VALUE (overrides the file's <default>; repeatable).
     #[arg(short = 'D', long = "define", help_heading = HEADING_SCENE, value_name = "NAME=VALUE", value_parser = trayecto::scene::mitsuba::parse_define)]
     pub define: Vec<(String, String)>,
-    /// Path guiding (experimental): before rendering, learn where indirect light comes from
-    /// from training samples of its own (about 2^17 in all, at most spp/4 per pixel, not in the
-    /// image) and sample those directions too, at surfaces and in media. Unbiased and
-    /// deterministic (split and resumed renders train the same guide); meant for light through a
-    /// gap or off a small bright patch, but it does not yet pay at equal time in the measured
-    /// scenes (BENCHMARKS.md).
+    /// Path guiding (experimental): learn where indirect light comes from in the render's first
+    /// samples (iterations of 1, 2, 4, … per pixel, about 2^17 in all, at most spp/4 per pixel,
+    /// kept in the image) and sample those directions too, at surfaces and in media. Unbiased
+    /// and deterministic (split and resumed renders learn the same guide); meant for light
+    /// through a gap or off a small bright patch, but at equal time it gains little or loses in
+    /// the measured scenes (BENCHMARKS.md).
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub guiding: bool,
     /// Most a sample's direct light may add (its largest colour channel; off by default).
