@@ -37,11 +37,32 @@ pub const TARGETS: &[(&str, Entry)] = &[
     ("request", request),
 ];
 
-/// Compiles a loaded scene into a world (which builds the BVH), as `trayecto render` does.
+/// Compiles a loaded scene into a world (which builds the BVH), as `trayecto render` does; an
+/// animated scene also at a moment and motion-blurred over a shutter (`--time 0.5`, `--shutter
+/// 0,0.25 --shutter-steps 3`), so its keys, poses and per-segment BVHs are built from the
+/// fuzzed file too.
 fn build(scene: Result<Scene, SceneError>) {
-    if let Ok(scene) = scene {
-        let _ = World::build(scene, &WorldOptions::default());
+    let Ok(scene) = scene else { return };
+    if scene.animation.is_some() {
+        for time in [
+            trayecto::world::motion::TimeOptions {
+                time: Some(0.5),
+                ..Default::default()
+            },
+            trayecto::world::motion::TimeOptions {
+                shutter: Some([0.0, 0.25]),
+                steps: 3,
+                ..Default::default()
+            },
+        ] {
+            let options = WorldOptions {
+                time,
+                ..WorldOptions::default()
+            };
+            let _ = World::build(scene.clone(), &options);
+        }
     }
+    let _ = World::build(scene, &WorldOptions::default());
 }
 
 /// A fresh empty folder for one call (the process id and a counter: the regression test runs
