@@ -52,7 +52,10 @@ BIN="fuzz/target/x86_64-unknown-linux-gnu/release"
 SHARED="$ROOT/../shared/scenes"
 seeds() {
     case "$1" in
-        gltf) ls scenes/gltf_bsdf_extensions.gltf scenes/gltf-files/*.glb ;;
+        # With three small animated models (node TRS, morph targets, every interpolation),
+        # whose motion the entry builds at a moment and over a shutter.
+        gltf) ls scenes/gltf_bsdf_extensions.gltf scenes/gltf-files/*.glb \
+            "$SHARED"/gltf-anim/{AnimatedMorphCube,BoxAnimated,InterpolationTest}/glTF-Binary/*.glb ;;
         toml) ls scenes/*.toml scenes/media/*.toml ;;
         pbrt) ls scenes/pbrt/*.pbrt scenes/pbrt/media/*.pbrt ;;
         obj) ls "$SHARED"/mitsuba/common/meshes/cbox/*.obj ;;
