@@ -20,6 +20,11 @@ fn shared(rel: &str) -> String {
     format!("{}/../shared/scenes/{rel}", env!("CARGO_MANIFEST_DIR"))
 }
 
+/// A file of this repository.
+fn repo(rel: &str) -> String {
+    format!("{}/{rel}", env!("CARGO_MANIFEST_DIR"))
+}
+
 /// Every model of the reference, at every time: each mesh object's sampled vertices in world
 /// space agree with the script's to 1e-4 (relative to the model's size).
 #[test]
@@ -697,11 +702,7 @@ fn a_moving_instances_boxes_hold_it() {
 /// arcs by chords (worst block 0.10), and the still at the shutter's opening is far (0.42).
 #[test]
 fn pbrt_object_instance_motion_agrees_with_pbrt_v4() {
-    let path = format!(
-        "{}/scenes/pbrt/motion-instance.pbrt",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let scene = trayecto::scene::load(&path).unwrap();
+    let scene = trayecto::scene::load(&repo("scenes/pbrt/motion-instance.pbrt")).unwrap();
     assert!(
         !scene.warnings.iter().any(|w| w.contains("start time")
             || w.contains("not supported")
@@ -711,20 +712,8 @@ fn pbrt_object_instance_motion_agrees_with_pbrt_v4() {
     );
     let anim = scene.animation.clone().expect("the motion was read");
     assert!(matches!(anim.rigid[..], [RigidMotion::Instance { .. }]));
-    let mut settings = RenderSettings {
-        width: scene.hints.width.unwrap(),
-        height: scene.hints.height.unwrap(),
-        spp: 128,
-        filter: scene.hints.filter.unwrap(),
-        threads: Some(2),
-        ..Default::default()
-    };
-    settings.path.max_depth = scene.hints.max_depth.unwrap();
-    let reference = trayecto::film::output::read_exr(std::path::Path::new(&format!(
-        "{}/tests/references/pbrt/motion-instance.exr",
-        env!("CARGO_MANIFEST_DIR")
-    )))
-    .unwrap();
+    let settings = file_settings(&scene, 128);
+    let reference = pbrt_reference("motion-instance");
     // The file's shutter with three keys.
     let time = TimeOptions {
         steps: 2,
@@ -899,6 +888,30 @@ fn worst_of_blocks(img: &Image, reference: &Image, n: u32) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// pbrt-v4's render of `name`, `tests/references/pbrt/{name}.exr` (made by
+/// `scripts/pbrt_references.sh 1024 NAME`).
+fn pbrt_reference(name: &str) -> Image {
+    trayecto::film::output::read_exr(std::path::Path::new(&repo(&format!(
+        "tests/references/pbrt/{name}.exr"
+    ))))
+    .unwrap()
+}
+
+/// Render settings as a pbrt file gives them (its film size, pixel filter and maximum depth),
+/// at `spp` samples on 2 threads.
+fn file_settings(scene: &Scene, spp: u32) -> RenderSettings {
+    let mut settings = RenderSettings {
+        width: scene.hints.width.unwrap(),
+        height: scene.hints.height.unwrap(),
+        spp,
+        filter: scene.hints.filter.unwrap(),
+        threads: Some(2),
+        ..Default::default()
+    };
+    settings.path.max_depth = scene.hints.max_depth.unwrap();
+    settings
+}
+
 /// scenes/pbrt/motion-blur.pbrt (a sliding sphere and a turning panel between TransformTimes 0
 /// and 1, a camera shutter open over [0.25, 1]) agrees with pbrt-v4's render of it
 /// (tests/references/pbrt/motion-blur.exr, scripts/pbrt_references.sh 1024 motion-blur), and the
@@ -906,11 +919,7 @@ fn worst_of_blocks(img: &Image, reference: &Image, n: u32) -> f64 {
 /// without it every block is a third too bright (worst block 0.34).
 #[test]
 fn pbrt_transform_times_agree_with_pbrt_v4() {
-    let path = format!(
-        "{}/scenes/pbrt/motion-blur.pbrt",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let scene = trayecto::scene::load(&path).unwrap();
+    let scene = trayecto::scene::load(&repo("scenes/pbrt/motion-blur.pbrt")).unwrap();
     assert!(
         !scene
             .warnings
@@ -921,20 +930,8 @@ fn pbrt_transform_times_agree_with_pbrt_v4() {
     );
     let anim = scene.animation.clone().expect("the motion was read");
     assert_eq!(anim.shutter, Some((0.25, 1.0)));
-    let mut settings = RenderSettings {
-        width: scene.hints.width.unwrap(),
-        height: scene.hints.height.unwrap(),
-        spp: 128,
-        filter: scene.hints.filter.unwrap(),
-        threads: Some(2),
-        ..Default::default()
-    };
-    settings.path.max_depth = scene.hints.max_depth.unwrap();
-    let reference = trayecto::film::output::read_exr(std::path::Path::new(&format!(
-        "{}/tests/references/pbrt/motion-blur.exr",
-        env!("CARGO_MANIFEST_DIR")
-    )))
-    .unwrap();
+    let settings = file_settings(&scene, 128);
+    let reference = pbrt_reference("motion-blur");
     // The file's shutter, cut into 32 steps.
     let blurred = render_with(
         &scene,
@@ -972,11 +969,7 @@ fn pbrt_transform_times_agree_with_pbrt_v4() {
 /// follow that order (keyed in file order, another mesh's slot went to the cube).
 #[test]
 fn a_moving_medium_boundary_agrees_with_pbrt_v4() {
-    let path = format!(
-        "{}/scenes/pbrt/media/fog-moving.pbrt",
-        env!("CARGO_MANIFEST_DIR")
-    );
-    let scene = trayecto::scene::load(&path).unwrap();
+    let scene = trayecto::scene::load(&repo("scenes/pbrt/media/fog-moving.pbrt")).unwrap();
     assert_eq!(scene.animation.as_ref().unwrap().shutter, Some((0.0, 1.0)));
     let world = common::posed_world(&scene, TimeOptions::default());
     assert!(world.has_media() && world.motion.is_empty());
@@ -990,11 +983,7 @@ fn a_moving_medium_boundary_agrees_with_pbrt_v4() {
         "{:?}",
         world.warnings
     );
-    let reference = trayecto::film::output::read_exr(std::path::Path::new(&format!(
-        "{}/tests/references/pbrt/media/fog-moving.exr",
-        env!("CARGO_MANIFEST_DIR")
-    )))
-    .unwrap();
+    let reference = pbrt_reference("media/fog-moving");
     let mut settings = RenderSettings {
         width: reference.width,
         height: reference.height,

@@ -28,25 +28,34 @@ pub fn add_floor(s: &mut Scene, half: f32, albedo: f32) {
     );
 }
 
-/// Adds the motion-blur tests' card to `s`: a 0.4 × 0.6 quad in the z = 0 plane centred on the
-/// origin (two triangles, no normals or uvs) and a blue diffuse material; returns (mesh, material).
-pub fn add_blue_card(s: &mut Scene) -> (trayecto::scene::MeshId, trayecto::scene::MaterialId) {
-    let blue = s.add_material(Material::diffuse("blue", Vec3::new(0.1, 0.2, 0.9)));
-    let card = s.add_mesh(trayecto::scene::Mesh {
-        name: "card".into(),
-        positions: vec![
-            Vec3::new(-0.2, -0.3, 0.0),
-            Vec3::new(0.2, -0.3, 0.0),
-            Vec3::new(0.2, 0.3, 0.0),
-            Vec3::new(-0.2, 0.3, 0.0),
-        ],
+/// A quad mesh of the four `corners` in order, as the two triangles (0, 1, 2) and (0, 2, 3) (its
+/// front is (c1 − c0) × (c2 − c0)); no normals, tangents, uvs or colours.
+pub fn quad_mesh(name: &str, corners: [Vec3; 4]) -> trayecto::scene::Mesh {
+    trayecto::scene::Mesh {
+        name: name.into(),
+        positions: corners.to_vec(),
         indices: vec![[0, 1, 2], [0, 2, 3]],
         normals: None,
         tangents: None,
         uv0: None,
         uv1: None,
         colors: None,
-    });
+    }
+}
+
+/// Adds the motion-blur tests' card to `s`: a 0.4 × 0.6 quad in the z = 0 plane centred on the
+/// origin (two triangles, no normals or uvs) and a blue diffuse material; returns (mesh, material).
+pub fn add_blue_card(s: &mut Scene) -> (trayecto::scene::MeshId, trayecto::scene::MaterialId) {
+    let blue = s.add_material(Material::diffuse("blue", Vec3::new(0.1, 0.2, 0.9)));
+    let card = s.add_mesh(quad_mesh(
+        "card",
+        [
+            Vec3::new(-0.2, -0.3, 0.0),
+            Vec3::new(0.2, -0.3, 0.0),
+            Vec3::new(0.2, 0.3, 0.0),
+            Vec3::new(-0.2, 0.3, 0.0),
+        ],
+    ));
     (card, blue)
 }
 
@@ -375,21 +384,15 @@ pub fn cornell_with_moving_emitters() -> Scene {
     let ball_mat = s.add_material(ball_mat);
     let a = 0.15;
     // Wound so that the front (e1 × e2) faces −y.
-    let panel = s.add_mesh(trayecto::scene::Mesh {
-        name: "panel".into(),
-        positions: vec![
+    let panel = s.add_mesh(quad_mesh(
+        "panel",
+        [
             Vec3::new(-a, 0.0, -a),
             Vec3::new(a, 0.0, -a),
             Vec3::new(a, 0.0, a),
             Vec3::new(-a, 0.0, a),
         ],
-        indices: vec![[0, 1, 2], [0, 2, 3]],
-        normals: None,
-        tangents: None,
-        uv0: None,
-        uv1: None,
-        colors: None,
-    });
+    ));
     let panel_object = s.objects.len();
     s.add_object("panel", Shape::Mesh(panel), Mat4::IDENTITY, panel_mat);
     let ball_object = s.objects.len();
