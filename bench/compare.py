@@ -520,6 +520,16 @@ def bpy_manylight(bpy):
           f"(0.005 to {0.005 + 0.005 * max(levels):.3f})", flush=True)
 
 
+def bpy_studio_world(bpy):
+    """The scene's world: the studio HDR (HDR) as an environment texture on the Background."""
+    world = bpy.data.worlds.new("world")
+    bpy.context.scene.world = world
+    world.use_nodes = True
+    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(HDR)
+    world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+
+
 def bpy_envlit(bpy):
     """A product shot: a smooth Suzanne (diffuse) and a rough metal sphere on a grey floor, lit
     only by the studio HDR environment. Unlike the other scenes this one is Z-up, Blender's own
@@ -541,12 +551,7 @@ def bpy_envlit(bpy):
     bpy_mesh(bpy, "ball", sv, sf, bpy_material(bpy, "metal", (0.9, 0.7, 0.4), metallic=1.0, roughness=0.3,
                                                specular=0.5),
              [[0.45, 0, 0, 0.6], [0, 0.45, 0, -0.2], [0, 0, 0.45, 0.45]], smooth=True)
-    world = bpy.data.worlds.new("world")
-    bpy.context.scene.world = world
-    world.use_nodes = True
-    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
-    env.image = bpy.data.images.load(HDR)
-    world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+    bpy_studio_world(bpy)
 
 
 def bpy_gltf_model(bpy, path):
@@ -569,12 +574,7 @@ def bpy_gltf_model(bpy, path):
     d = mathutils.Vector((0.45, -1.0, 0.35)).normalized()
     eye = centre + d * (radius / math.sin(math.radians(fov) / 2) * 1.05)
     bpy_camera(bpy, tuple(eye), tuple(centre), fov, up="Z")
-    world = bpy.data.worlds.new("world")
-    bpy.context.scene.world = world
-    world.use_nodes = True
-    env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
-    env.image = bpy.data.images.load(HDR)
-    world.node_tree.links.new(env.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+    bpy_studio_world(bpy)
 
 
 def dragon_ply():
