@@ -21,7 +21,7 @@
 use std::borrow::Cow;
 
 use super::mesh::MeshAttributes;
-use super::motion::{KeyedTransform, STILL};
+use super::motion::{KeyedTransform, STILL, key_segment};
 use super::triangle::TriangleVerts;
 use super::{Bounds3, Ray};
 use crate::math::{Mat3, Mat4, Vec3, Vec4, transform_normal};
@@ -221,11 +221,10 @@ impl InstanceStore {
     /// instance moves.
     #[inline]
     pub fn segment(&self, u: f32) -> usize {
-        let n = self.segments();
-        if n == 0 {
-            return 0;
+        match self.segments() {
+            0 => 0,
+            n => key_segment(u, n).0,
         }
-        ((u.clamp(0.0, 1.0) * n as f32) as usize).min(n - 1)
     }
 
     /// `inst` where it is at shutter time `u`: itself if it does not move, else placed by its

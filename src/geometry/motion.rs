@@ -136,15 +136,22 @@ impl MotionStore {
     }
 }
 
+/// Which of `segments` (≥ 1) equal key segments of the shutter holds time `u` (clamped to
+/// [0, 1]), and the fraction into it: keys `k` and `k + 1` weighted `1 − f` and `f`. Every
+/// keyed motion (moving vertices, transforms, the per-segment BVHs) splits the shutter so.
+#[inline]
+pub fn key_segment(u: f32, segments: usize) -> (usize, f32) {
+    let x = u.clamp(0.0, 1.0) * segments as f32;
+    let k = (x as usize).min(segments - 1);
+    (k, x - k as f32)
+}
+
 impl MotionStore {
     /// The key segment holding shutter time `u` and the fraction into it: keys `k` and `k + 1`
     /// weighted `1 − f` and `f`.
     #[inline]
     pub fn segment(&self, u: f32) -> (usize, f32) {
-        let n = self.keys - 1;
-        let x = u.clamp(0.0, 1.0) * n as f32;
-        let k = (x as usize).min(n - 1);
-        (k, x - k as f32)
+        key_segment(u, self.keys - 1)
     }
 
     /// The moving mesh of flattened mesh `mesh`, if it moves.
@@ -314,10 +321,8 @@ impl KeyedTransform {
     /// The transform at fraction `u` in [0, 1] of the shutter.
     #[inline]
     pub fn at(&self, u: f32) -> Mat4 {
-        let n = self.keys.len() - 1;
-        let x = u.clamp(0.0, 1.0) * n as f32;
-        let i = (x as usize).min(n - 1);
-        self.interpolate(i, x - i as f32)
+        let (i, f) = key_segment(u, self.keys.len() - 1);
+        self.interpolate(i, f)
     }
 
     /// The transform at fraction `f` of key segment `i` (between keys `i` and `i + 1`).
