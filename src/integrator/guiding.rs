@@ -700,48 +700,28 @@ impl Learner {
         let dep = bucket(n_leaves, splats.iter().map(|s| s.target_leaf()));
         let b = &mut self.building;
         // Each leaf's quadtree nodes are one contiguous run of `quads`, from its root to the
-        // next leaf's root (`Guide::new` and `refined` build them so); split them apart.
+        // next leaf's root: `Guide::new` and `refined`, the only builders of a tree, lay each
+        // leaf's quadtree out depth-first after the previous one's. Split them apart.
         let roots: Vec<usize> = b.leaves.iter().map(|l| l.root as usize).collect();
-        let contiguous = roots.first() == Some(&0) && roots.windows(2).all(|w| w[0] < w[1]);
+        assert!(
+            roots.first() == Some(&0) && roots.windows(2).all(|w| w[0] < w[1]),
+            "the leaves' quadtrees are laid out one after another"
+        );
         let mut jobs = Vec::with_capacity(n_leaves);
-        {
-            let mut rest: &mut [QuadNode] = &mut b.quads[..];
-            let total = rest.len();
-            for (k, leaf) in b.leaves.iter_mut().enumerate() {
-                let (start, end) = if contiguous {
-                    (roots[k], roots.get(k + 1).copied().unwrap_or(total))
-                } else {
-                    (0, 0)
-                };
-                let (mine, tail) = std::mem::take(&mut rest).split_at_mut(end - start);
-                rest = tail;
-                let (a, d) = (adam.of(k), dep.of(k));
-                if !a.is_empty() || !d.is_empty() {
-                    jobs.push((leaf, mine, start, a, d));
-                }
+        let mut rest: &mut [QuadNode] = &mut b.quads[..];
+        let total = rest.len();
+        for (k, leaf) in b.leaves.iter_mut().enumerate() {
+            let (start, end) = (roots[k], roots.get(k + 1).copied().unwrap_or(total));
+            let (mine, tail) = std::mem::take(&mut rest).split_at_mut(end - start);
+            rest = tail;
+            let (a, d) = (adam.of(k), dep.of(k));
+            if !a.is_empty() || !d.is_empty() {
+                jobs.push((leaf, mine, start, a, d));
             }
         }
-        if contiguous {
-            jobs.into_par_iter().for_each(|(leaf, quads, base, a, d)| {
-                learn_leaf(leaf, quads, base, a, d, &records, &splats)
-            });
-        } else {
-            // Not built by this module's constructors: one leaf after another, in the whole
-            // node array.
-            drop(jobs);
-            for k in 0..n_leaves {
-                let leaf = &mut b.leaves[k];
-                learn_leaf(
-                    leaf,
-                    &mut b.quads,
-                    0,
-                    adam.of(k),
-                    dep.of(k),
-                    &records,
-                    &splats,
-                );
-            }
-        }
+        jobs.into_par_iter().for_each(|(leaf, quads, base, a, d)| {
+            learn_leaf(leaf, quads, base, a, d, &records, &splats)
+        });
         let next = self.building.refined(spp);
         let next_count = next.leaves.len();
         let filled = std::mem::replace(&mut self.building, next);
