@@ -112,14 +112,17 @@ pub fn assign(scene: &mut Scene) -> Result<WorldMedia, GridError> {
     // first, the interface would be crossed and its continuation ray, offset past the plane,
     // would miss the floor (a dark patch under the volume) or reach it in the wrong medium;
     // found second, the floor is hit in the medium the ray is in, as when the volume reaches
-    // a little into the floor. The stable partition keeps every other object's order (lights
-    // and all), and scenes without interface surfaces are not reordered.
-    if passthrough.iter().any(|&p| p) {
-        let (rest, iface): (Vec<_>, Vec<_>) = std::mem::take(&mut scene.objects)
+    // a little into the floor. The order ([`object_order`], which motion blur's keys follow too)
+    // keeps every other object's (lights and all); scenes without interface surfaces keep theirs.
+    if let Some(order) = object_order(scene) {
+        let mut objects: Vec<_> = std::mem::take(&mut scene.objects)
             .into_iter()
-            .partition(|o| !passthrough[o.material]);
-        scene.objects = rest;
-        scene.objects.extend(iface);
+            .map(Some)
+            .collect();
+        scene.objects = order
+            .into_iter()
+            .map(|i| objects[i].take().expect("an order names each object once"))
+            .collect();
     }
     Ok(WorldMedia {
         media,
