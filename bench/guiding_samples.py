@@ -8,10 +8,13 @@ bench/guiding.py, which caches it in bench/out/guiding/):
         TRAYECTO_GUIDING_ALPHA_MIN=0.3           # guided, with a knob
     python3 bench/guiding_samples.py target/release/trayecto veach-ajar 64 1,2,3 plain --plain
 
-Options: --res WxH (96x72), --threads N (2), --refspp N (2048: the reference's samples).
+Options: --res WxH (96x72), --threads N (2), --refspp N (2048: the reference's samples),
+--ref FILE (a reference of your own instead, e.g. one rendered with the same --max-depth),
+--max-depth D (passed to every render: 2 keeps direct light and one indirect bounce).
 For each seed: render --spp SPP --seed S [--guiding] with the KEY=VALUE environment, and print
 relMSE (RGB, as bench/compare.py and bench/guiding.py) and the luminance relMSE's per-pixel
-median, 90th and 99th percentiles and maximum (the mean is set by the top pixels), and the
+median, 90th and 99th percentiles, maximum and mean without the worst 0.5 % of pixels (the
+mean is set by the top pixels), and the
 share of the RGB relMSE in the ten worst pixels with the first three of them (x, y, error).
 """
 import os
@@ -28,7 +31,8 @@ def main():
     args = sys.argv[1:]
     plain = "--plain" in args
     args = [a for a in args if a != "--plain"]
-    opts = {"--res": "96x72", "--threads": "2", "--refspp": "2048"}
+    opts = {"--res": "96x72", "--threads": "2", "--refspp": "2048", "--ref": None,
+            "--max-depth": None}
     for flag in list(opts):
         if flag in args:
             i = args.index(flag)
@@ -43,7 +47,8 @@ def main():
         env[k] = v
     res = opts["--res"]
     w, h = res.split("x")
-    ref = G.read_hdr(os.path.join(G.OUT, f"ref_{scene}_{res}_{opts['--refspp']}.hdr"))
+    ref = G.read_hdr(opts["--ref"] or
+                     os.path.join(G.OUT, f"ref_{scene}_{res}_{opts['--refspp']}.hdr"))
 
     def lum(img):
         return [0.2126 * img[i] + 0.7152 * img[i + 1] + 0.0722 * img[i + 2]
@@ -56,6 +61,8 @@ def main():
                "--spp", spp, "--seed", seed, "--threads", opts["--threads"], "--quiet"]
         if not plain:
             cmd.append("--guiding")
+        if opts["--max-depth"]:
+            cmd += ["--max-depth", opts["--max-depth"]]
         t = time.time()
         subprocess.run(cmd, check=True, env=env)
         t = time.time() - t
@@ -75,7 +82,9 @@ def main():
         share = sum(rgb[i] for i in worst) / max(sum(rgb), 1e-30)
         top = [(i % width, i // width, round(rgb[i])) for i in worst[:3]]
         print(f"{scene} {label} seed {seed}: relMSE {e:.4g} p50 {q(0.5):.3g} p90 {q(0.9):.3g} "
-              f"p99 {q(0.99):.3g} max {pp[-1]:.3g} top-10 share {share:.2f} {top} "
+              f"p99 {q(0.99):.3g} max {pp[-1]:.3g} "
+              f"mean without the top 0.5 % {sum(pp[:int(0.995 * len(pp))]) / int(0.995 * len(pp)):.3g} "
+              f"top-10 share {share:.2f} {top} "
               f"time {t:.1f}s", flush=True)
 
 
