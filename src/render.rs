@@ -578,16 +578,18 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
 
 /// The training iterations of a guided render, as sample ranges of every pixel's own sample
 /// stream: the render's first samples, 1, 2, 4, … per pixel (the last one takes the rest) up to
-/// [`GUIDE_TRAINING_SAMPLES`] camera samples in all, whatever the resolution (a small image
-/// trains on more samples per pixel: the guide needs records per cell, not per pixel), but at
-/// most `spp`/4 per pixel (at least 1). Iteration k samples with the guide learned from the
+/// [`GUIDE_TRAINING_SAMPLES`] camera samples in all (a small image trains on more samples per
+/// pixel: the guide needs records per cell, not per pixel) and at least
+/// [`GUIDE_TRAINING_MIN_SPP`] per pixel, but at most `spp`/4 per pixel (at least 1). Iteration k samples with the guide learned from the
 /// iterations before it; every sample enters the image with the same weight, so the image is
 /// the mean of `spp` unbiased samples. `TRAYECTO_GUIDING_TRAIN=n` trains on n samples per pixel
 /// instead (a benchmarking knob; 0: no training, no guide).
 pub fn guide_training_passes(spp: u32, pixels: u64) -> Vec<(u32, u32)> {
     let per_pixel = match guide_training_knob() {
         Some(n) => n,
-        None => (GUIDE_TRAINING_SAMPLES.div_ceil(pixels.max(1)) as u32).clamp(1, (spp / 4).max(1)),
+        None => (GUIDE_TRAINING_SAMPLES.div_ceil(pixels.max(1)) as u32)
+            .max(GUIDE_TRAINING_MIN_SPP)
+            .clamp(1, (spp / 4).max(1)),
     };
     // Doubling iterations; the last one takes the rest, so that the total is `per_pixel`.
     let mut passes: Vec<(u32, u32)> = Vec::new();
@@ -607,6 +609,12 @@ pub fn guide_training_passes(spp: u32, pixels: u64) -> Vec<(u32, u32)> {
 
 /// Camera samples a guided render's training phase draws in all (over every pixel).
 pub const GUIDE_TRAINING_SAMPLES: u64 = 1 << 17;
+/// Fewest training samples per pixel (when `spp`/4 allows): four iterations (1 + 2 + 4 + 8).
+/// The guide an iteration learns has the spatial and directional structure refined from the
+/// iteration before it, so a single iteration — what [`GUIDE_TRAINING_SAMPLES`] alone gives a
+/// frame of 2¹⁷ pixels or more, 512² or 1280×720 — left the whole render a guide of seven
+/// leaves whose quadtrees are their roots, four quadrants each (BENCHMARKS.md, "Path guiding").
+pub const GUIDE_TRAINING_MIN_SPP: u32 = 15;
 
 /// `TRAYECTO_GUIDING_TRAIN`: training samples per pixel instead of the budget (a benchmarking
 /// knob).

@@ -32,10 +32,11 @@ use crate::medium::HenyeyGreenstein;
 /// Smallest and largest probability of sampling the BSDF: the guide never takes every sample
 /// (its density may be zero where light arrives), nor the BSDF (which would waste the guide).
 /// A BSDF-branch sample where the guide's density is near zero weighs up to 1/α more than
-/// BSDF sampling would, at every guided bounce: with α ≥ 0.1 those samples made the fireflies
-/// that set veach-ajar's error (relMSE 1.7–2.5 against 1.4 unguided at 64 spp); with α ≥ 0.3,
-/// 1.22–1.46 (BENCHMARKS.md, "Path guiding").
-pub const ALPHA_MIN: f32 = 0.3;
+/// BSDF sampling would, at every guided bounce, and those samples make the fireflies that set
+/// relMSE: with α ≥ 0.1 veach-ajar's was 1.7–2.5 against 1.4 unguided at 64 spp, with α ≥ 0.3
+/// 1.26–1.46, with α ≥ 0.7 1.02–1.23; on gap-room at 384×288 the floor 0.7 turned the guide's
+/// halved median error into a lower mean as well (BENCHMARKS.md, "Path guiding").
+pub const ALPHA_MIN: f32 = 0.7;
 pub const ALPHA_MAX: f32 = 0.9;
 /// A quadtree node is subdivided while it holds more than this share of its tree's radiance
 /// (Müller 2017's ρ).

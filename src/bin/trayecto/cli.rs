@@ -363,8 +363,8 @@ pub struct RenderArgs {
     #[arg(short = 'D', long = "define", help_heading = HEADING_SCENE, value_name = "NAME=VALUE", value_parser = trayecto::scene::mitsuba::parse_define)]
     pub define: Vec<(String, String)>,
     /// Path guiding (experimental): learn where indirect light comes from in the render's first
-    /// samples (iterations of 1, 2, 4, … per pixel, about 2^17 in all, at most spp/4 per pixel,
-    /// kept in the image) and sample those directions too, at surfaces and in media. Unbiased
+    /// samples (iterations of 1, 2, 4, … per pixel, about 2^17 in all and at least 15 per pixel,
+    /// at most spp/4 per pixel, kept in the image) and sample those directions too, at surfaces and in media. Unbiased
     /// and deterministic (split and resumed renders learn the same guide); meant for light
     /// through a gap or off a small bright patch, but at equal time it gains little or loses in
     /// the measured scenes (BENCHMARKS.md).
