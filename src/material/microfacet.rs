@@ -141,6 +141,18 @@ impl Ggx {
         self.g1(w) / w.z * self.d(m) * w.dot(m).max(0.0)
     }
 
+    /// [`Self::d_visible`] given D(m) and Λ(w) already evaluated (`d_m = self.d(m)`,
+    /// `lambda_w = self.lambda(w)`; Λ is even in w, so the mirrored w's is the same): the same
+    /// operations in the same order, so the same bits.
+    #[inline]
+    pub fn d_visible_given(&self, w: Vec3, m: Vec3, d_m: f32, lambda_w: f32) -> f32 {
+        let w = if w.z < 0.0 { -w } else { w };
+        if w.z == 0.0 {
+            return 0.0;
+        }
+        1.0 / (1.0 + lambda_w) / w.z * d_m * w.dot(m).max(0.0)
+    }
+
     /// Samples a visible normal as seen from `w` (Heitz 2018, listing 1). The returned normal is
     /// in the upper hemisphere; `w` below the surface is mirrored first.
     #[inline]

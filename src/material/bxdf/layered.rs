@@ -217,6 +217,48 @@ impl Coat {
         }
     }
 
+    /// [`Self::f`] and [`Self::pdf`] of the same pair, sharing the half vector, the Fresnel
+    /// term, D(m) and Λ(wo) that both evaluate (the rough `sample` needs both for every
+    /// direction it draws: a fifth of coffee's instructions went to the two calls). Each result
+    /// is computed by the same operations in the same order as the separate call, so it has
+    /// the same bits (`tests::fused_f_pdf_is_f_and_pdf_bit_for_bit`).
+    #[inline]
+    fn f_pdf(&self, wo: Vec3, wi: Vec3, radiance: bool, lobes: Lobes) -> (f32, f32) {
+        if self.is_specular() {
+            return (0.0, 0.0);
+        }
+        let Some((wm, etap, is_reflect)) = self.half_vector(wo, wi) else {
+            return (0.0, 0.0);
+        };
+        let d = &self.dist;
+        let r = fresnel_dielectric(wo.dot(wm), self.eta);
+        let d_m = d.d(wm);
+        let lambda_o = d.lambda(wo);
+        let g2 = 1.0 / (1.0 + lambda_o + d.lambda(wi));
+        let f = if is_reflect {
+            d_m * g2 * r / (4.0 * wi.z * wo.z).abs()
+        } else {
+            let denom = (wi.dot(wm) + wo.dot(wm) / etap).powi(2) * wi.z * wo.z;
+            let mut ft = d_m * g2 * (1.0 - r) * (wi.dot(wm) * wo.dot(wm) / denom).abs();
+            if radiance {
+                ft /= etap * etap;
+            }
+            ft
+        };
+        let (pr, pt) = mask(r, 1.0 - r, lobes);
+        if pr + pt == 0.0 {
+            return (f, 0.0);
+        }
+        let d_vis = d.d_visible_given(wo, wm, d_m, lambda_o);
+        let pdf = if is_reflect {
+            d_vis / (4.0 * wo.dot(wm).abs()) * pr / (pr + pt)
+        } else {
+            let denom = (wi.dot(wm) + wo.dot(wm) / etap).powi(2);
+            d_vis * wi.dot(wm).abs() / denom * pt / (pr + pt)
+        };
+        (f, pdf)
+    }
+
     fn sample(&self, wo: Vec3, uc: f32, u: Vec2, radiance: bool, lobes: Lobes) -> Option<Event> {
         if wo.z == 0.0 {
             return None;
@@ -272,13 +314,13 @@ impl Coat {
             }
             (wi, true)
         };
-        let pdf = self.pdf(wo, wi, lobes);
+        let (f, pdf) = self.f_pdf(wo, wi, radiance, lobes);
         if !(pdf > 0.0) {
             return None;
         }
         Some(Event {
             wi,
-            f: Vec3::splat(self.f(wo, wi, radiance)),
+            f: Vec3::splat(f),
             pdf,
             specular: false,
             transmission,
@@ -751,6 +793,42 @@ mod tests {
             sum += l.eval(wo, wi).x as f64 * PI as f64;
         }
         sum / n as f64
+    }
+
+    /// `Coat::f_pdf` is `Coat::f` and `Coat::pdf` of the same pair, bit for bit, for every
+    /// kind of pair the walks ask about (reflection and transmission, from above and below,
+    /// isotropic and anisotropic, both lobe masks, radiance or importance), including the
+    /// rejected ones.
+    #[test]
+    fn fused_f_pdf_is_f_and_pdf_bit_for_bit() {
+        let mut rng = Pcg32::new(0xf00d, 7);
+        let mut unit = || {
+            let u = u2(&mut rng);
+            let z = 1.0 - 2.0 * u.x;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = 2.0 * PI * u.y;
+            Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        };
+        let mut nonzero = 0;
+        for (ax, ay) in [(0.001, 0.001), (0.1, 0.1), (0.3, 0.05), (0.7, 0.7)] {
+            let coat = Coat {
+                eta: 1.5,
+                dist: Ggx::anisotropic(ax, ay),
+                eta_spectrum: None,
+            };
+            for _ in 0..2000 {
+                let (wo, wi) = (unit(), unit());
+                for lobes in [Lobes::All, Lobes::Reflection, Lobes::Transmission] {
+                    for radiance in [true, false] {
+                        let (f, pdf) = coat.f_pdf(wo, wi, radiance, lobes);
+                        assert_eq!(f.to_bits(), coat.f(wo, wi, radiance).to_bits());
+                        assert_eq!(pdf.to_bits(), coat.pdf(wo, wi, lobes).to_bits());
+                        nonzero += (pdf > 0.0 && f > 0.0) as u32;
+                    }
+                }
+            }
+        }
+        assert!(nonzero > 10_000, "{nonzero}");
     }
 
     fn dir(theta_deg: f32) -> Vec3 {
