@@ -365,9 +365,9 @@ pub struct RenderArgs {
     /// Path guiding (experimental): learn where indirect light comes from in the render's first
     /// samples (iterations of 1, 2, 4, … per pixel, about 2^17 in all and at least 15 per pixel,
     /// at most spp/4 per pixel, kept in the image) and sample those directions too, at surfaces
-    /// and in media. Unbiased and deterministic (split and resumed renders learn the same guide); meant for light
-    /// through a gap or off a small bright patch, but at equal time it gains little (at most
-    /// 1.23×) in the measured scenes (BENCHMARKS.md).
+    /// and in media. Unbiased and deterministic (split and resumed renders learn the same
+    /// guide); meant for light through a gap or off a small bright patch, but at equal time it
+    /// gains little (at most 1.23×) in the measured scenes (BENCHMARKS.md).
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub guiding: bool,
     /// Most a sample's direct light may add (its largest colour channel; off by default).
