@@ -157,6 +157,20 @@ fn render_instanced(
         .image
 }
 
+/// `scene` posed over `time` with every shared mesh instanced (the world the instance-motion
+/// tests inspect before rendering it with [`render_instanced`]).
+fn instanced_world(scene: &Scene, time: TimeOptions) -> World {
+    World::build_posed(
+        scene.clone(),
+        &WorldOptions {
+            time,
+            instancing: Instancing::Always,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
 fn mse(a: &Image, b: &Image) -> f64 {
     a.data
         .iter()
@@ -421,15 +435,7 @@ fn motion_blur_of_a_moving_instance_in_one_world() {
         steps: 2,
         ..Default::default()
     };
-    let world = World::build_posed(
-        scene.clone(),
-        &WorldOptions {
-            time: time.clone(),
-            instancing: Instancing::Always,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let world = instanced_world(&scene, time.clone());
     let instances = &world.geometry.instances;
     assert!(world.motion.is_empty() && world.geometry.motion.is_none() && !world.is_still());
     assert_eq!((instances.instances.len(), instances.motion.len()), (2, 1));
@@ -719,15 +725,7 @@ fn pbrt_object_instance_motion_agrees_with_pbrt_v4() {
         steps: 2,
         ..Default::default()
     };
-    let world = World::build_posed(
-        scene.clone(),
-        &WorldOptions {
-            time: time.clone(),
-            instancing: Instancing::Always,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let world = instanced_world(&scene, time.clone());
     assert_eq!(world.geometry.instances.motion.len(), 1);
     assert!(world.motion.is_empty());
     let blurred = render_instanced(&scene, time, &settings, Instancing::Always);
@@ -900,16 +898,10 @@ fn pbrt_reference(name: &str) -> Image {
 /// Render settings as a pbrt file gives them (its film size, pixel filter and maximum depth),
 /// at `spp` samples on 2 threads.
 fn file_settings(scene: &Scene, spp: u32) -> RenderSettings {
-    let mut settings = RenderSettings {
-        width: scene.hints.width.unwrap(),
-        height: scene.hints.height.unwrap(),
-        spp,
-        filter: scene.hints.filter.unwrap(),
+    RenderSettings {
         threads: Some(2),
-        ..Default::default()
-    };
-    settings.path.max_depth = scene.hints.max_depth.unwrap();
-    settings
+        ..common::file_settings(scene, spp)
+    }
 }
 
 /// scenes/pbrt/motion-blur.pbrt (a sliding sphere and a turning panel between TransformTimes 0

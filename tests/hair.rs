@@ -213,15 +213,7 @@ fn hair_curves_agree_with_pbrt_v4() {
     )
     .expect("reference");
     let render = |scene: &trayecto::scene::Scene| {
-        let mut s = trayecto::render::RenderSettings {
-            width: scene.hints.width.unwrap(),
-            height: scene.hints.height.unwrap(),
-            spp: 64,
-            filter: scene.hints.filter.unwrap(),
-            ..Default::default()
-        };
-        s.path.max_depth = scene.hints.max_depth.unwrap();
-        common::render_scene(scene, &s)
+        common::render_scene(scene, &common::file_settings(scene, 64))
     };
     let (mean, block) = compare(&render(&scene), &reference);
     eprintln!("hair: mean {mean:.4}, worst 4x4 block {block:.4}");

@@ -34,18 +34,7 @@ fn render(scene: &Scene, spp: u32) -> Image {
 
 /// [`render`] in RGB (`--rgb`), for the tests that measure what RGB rendering misses.
 fn render_rgb(scene: &Scene, spp: u32) -> Image {
-    let mut s = RenderSettings {
-        width: scene.hints.width.unwrap(),
-        height: scene.hints.height.unwrap(),
-        spp,
-        filter: scene
-            .hints
-            .filter
-            .expect("the pbrt loader always sets the filter"),
-        ..Default::default()
-    };
-    s.path.max_depth = scene.hints.max_depth.unwrap();
-    common::render_scene(scene, &s)
+    common::render_scene(scene, &common::file_settings(scene, spp))
 }
 
 fn read_exr(p: &Path) -> Image {
@@ -253,14 +242,7 @@ fn blackbody_and_named_spectra_match_pbrt_v4() {
 
 /// [`render_rgb`] in spectral mode (`--spectral`, a pbrt file's default).
 fn render_spectral(scene: &Scene, spp: u32) -> Image {
-    let mut s = RenderSettings {
-        width: scene.hints.width.unwrap(),
-        height: scene.hints.height.unwrap(),
-        spp,
-        filter: scene.hints.filter.unwrap(),
-        ..Default::default()
-    };
-    s.path.max_depth = scene.hints.max_depth.unwrap();
+    let mut s = common::file_settings(scene, spp);
     s.path.spectral = true;
     common::render_scene(scene, &s)
 }

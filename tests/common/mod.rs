@@ -59,6 +59,32 @@ pub fn add_blue_card(s: &mut Scene) -> (trayecto::scene::MeshId, trayecto::scene
     (card, blue)
 }
 
+/// Render settings as a pbrt file gives them: its film size, pixel filter and maximum depth, at
+/// `spp` samples (RGB; the loader's spectral choice is left to the caller).
+pub fn file_settings(scene: &Scene, spp: u32) -> RenderSettings {
+    let mut s = RenderSettings {
+        width: scene
+            .hints
+            .width
+            .expect("the pbrt loader sets the film size"),
+        height: scene
+            .hints
+            .height
+            .expect("the pbrt loader sets the film size"),
+        spp,
+        filter: scene
+            .hints
+            .filter
+            .expect("the pbrt loader always sets the filter"),
+        ..Default::default()
+    };
+    s.path.max_depth = scene
+        .hints
+        .max_depth
+        .expect("the pbrt loader sets maxdepth");
+    s
+}
+
 /// Renders `scene` in-process and returns the linear image.
 pub fn render_scene(scene: &Scene, settings: &RenderSettings) -> Image {
     let world = World::build(
