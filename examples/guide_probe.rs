@@ -19,7 +19,6 @@
 //! α = 0.5 and 0.3, and its relative variance printed: what the guide buys per sample when its
 //! records are dense around the point.
 use std::error::Error;
-use std::f32::consts::PI;
 
 use trayecto::geometry::Ray;
 use trayecto::geometry::primitive::NO_LIGHT;
@@ -28,6 +27,7 @@ use trayecto::integrator::guiding::{Learner, Record, normal_bin};
 use trayecto::integrator::path::{PathSettings, radiance};
 use trayecto::math::{Frame, Vec2, Vec3, luminance};
 use trayecto::sampling::rng::Pcg32;
+use trayecto::sampling::warp::{cosine_hemisphere, cosine_hemisphere_pdf};
 use trayecto::sampling::{SampleStream, SamplerKind};
 use trayecto::world::{World, WorldOptions};
 
@@ -40,12 +40,6 @@ fn vec3(s: &str) -> Result<Vec3, Box<dyn Error>> {
         [x, y, z] => Ok(Vec3::new(x, y, z)),
         _ => Err(format!("{s}: expected x,y,z").into()),
     }
-}
-
-fn cosine(u: Vec2) -> Vec3 {
-    let r = u.x.sqrt();
-    let phi = 2.0 * PI * u.y;
-    Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u.x).max(0.0).sqrt())
 }
 
 const ALPHA: f32 = 0.3;
@@ -95,13 +89,13 @@ fn main() -> Result<(), Box<dyn Error>> {
             let u = Vec2::new(rng.next_f32(), rng.next_f32());
             let d = match &mix {
                 Some(m) if rng.next_f32() >= ALPHA => m.guide.sample(m.leaf, u),
-                _ => frame.to_world(cosine(u)),
+                _ => frame.to_world(cosine_hemisphere(u)),
             };
             let cos = d.dot(n);
             if cos <= 0.0 {
                 continue;
             }
-            let pdf_bsdf = cos / PI;
+            let pdf_bsdf = cosine_hemisphere_pdf(cos);
             let (pdf_guide, alpha) = match &mix {
                 Some(m) => (m.guide.pdf(m.leaf, d), ALPHA),
                 None => (0.0, 1.0),
@@ -111,7 +105,8 @@ fn main() -> Result<(), Box<dyn Error>> {
                 bin,
                 wi: d,
                 radiance: incident(p, d),
-                f_cos: cos / PI,
+                // A white Lambertian surface: f·cos = cos/π, the cosine density.
+                f_cos: pdf_bsdf,
                 pdf_bsdf,
                 pdf_guide,
                 pdf: alpha * pdf_bsdf + (1.0 - alpha) * pdf_guide,
@@ -137,16 +132,18 @@ fn main() -> Result<(), Box<dyn Error>> {
         for _ in 0..samples {
             let u = Vec2::new(rng.next_f32(), rng.next_f32());
             let d = if rng.next_f32() < alpha {
-                frame.to_world(cosine(u))
+                frame.to_world(cosine_hemisphere(u))
             } else {
                 g.sample(m.leaf, u)
             };
             let cos = d.dot(n);
             let v = if cos > 0.0 {
-                let q = alpha * cos / PI + (1.0 - alpha) * g.pdf(m.leaf, d);
+                // f·cos of a white Lambertian surface, which is the cosine density.
+                let f_cos = cosine_hemisphere_pdf(cos);
+                let q = alpha * f_cos + (1.0 - alpha) * g.pdf(m.leaf, d);
                 let l = incident(p0, d);
                 lit += (l > 0.0) as u32;
-                (l * cos / PI / q) as f64
+                (l * f_cos / q) as f64
             } else {
                 0.0
             };
