@@ -134,11 +134,7 @@ impl Ggx {
     /// (Heitz 2018 eq. 3). Handles w below the surface by mirroring it, as the sampler does.
     #[inline]
     pub fn d_visible(&self, w: Vec3, m: Vec3) -> f32 {
-        let w = if w.z < 0.0 { -w } else { w };
-        if w.z == 0.0 {
-            return 0.0;
-        }
-        self.g1(w) / w.z * self.d(m) * w.dot(m).max(0.0)
+        self.d_visible_given(w, m, self.d(m), self.lambda(w))
     }
 
     /// [`Self::d_visible`] given D(m) and Λ(w) already evaluated (`d_m = self.d(m)`,
