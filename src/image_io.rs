@@ -599,10 +599,6 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), ReadError> {
     Ok((w as u32, h as u32, data))
 }
 
-/// Checks an EXR's header before its pixels are read (the `exr` crate allocates what the header
-/// claims): the file must be a regular file, big enough to hold the offset table of every chunk
-/// the header declares (8 bytes each, OpenEXR file layout), and the pixels as read
-/// (`bytes_per_pixel` of the channel count) must fit in the load's memory budget.
 /// An image file's width and height from its header alone (OpenEXR, Radiance HDR and the
 /// formats `image` reads); `None` when it is not one.
 pub fn image_dimensions(path: &Path) -> Option<(u32, u32)> {
@@ -622,6 +618,12 @@ pub fn image_dimensions(path: &Path) -> Option<(u32, u32)> {
         .ok()
 }
 
+/// Checks an EXR's header before its pixels are read (the `exr` crate allocates what the header
+/// claims): the file must be a regular file, big enough to hold the offset table of every chunk
+/// the header declares (8 bytes each, OpenEXR file layout), and the pixels as read
+/// (`bytes_per_pixel` of the channel count) together with one block's buffer (a tile, or the
+/// scan lines the compression groups) must fit in the load's memory budget: a small image may
+/// declare tiles of 10⁹ × 10⁹ pixels, and the decoder allocates a whole tile.
 fn check_exr_header(path: &Path, bytes_per_pixel: impl Fn(u64) -> u64) -> Result<(), String> {
     let file_len = std::fs::metadata(path)
         .map_err(|e| e.to_string())
@@ -640,8 +642,17 @@ fn check_exr_header(path: &Path, bytes_per_pixel: impl Fn(u64) -> u64) -> Result
         chunks = chunks.saturating_add(h.chunk_count as u64);
         let (w, ht) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
         let channels = h.channels.list.len() as u64;
+        let block = match h.blocks {
+            exr::meta::BlockDescription::Tiles(t) => {
+                (t.tile_size.width() as u64).saturating_mul(t.tile_size.height() as u64)
+            }
+            exr::meta::BlockDescription::ScanLines => {
+                w.saturating_mul(h.compression.scan_lines_per_block() as u64)
+            }
+        };
         bytes = bytes.max(
             w.saturating_mul(ht)
+                .saturating_add(block)
                 .saturating_mul(bytes_per_pixel(channels.max(1))),
         );
     }
