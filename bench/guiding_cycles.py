@@ -33,11 +33,14 @@ guiding is there to remove), and Filter Glossy is off (its default 1 blurs gloss
 seen after a rough bounce: on veach-ajar's metal floor it darkens the converged image by 20 %;
 the other scenes have no glossy surface). Adaptive sampling stays on (its default). No denoiser.
 
-Each renderer is scored against its own long reference (`--ref-spp`, unguided, cached in
-bench/out/guiding/): relMSE as bench/compare.py. The two references are also compared to each
-other (mean ratio and the relMSE between them), which says whether the two renderers render the
-same scene. Repetitions are interleaved: Trayecto unguided, Trayecto guided, Cycles unguided,
-Cycles guided, each with `--seconds`, then the next repetition with another seed.
+Each renderer's error is its relative variance, from a pair of renders with different seeds
+(`guiding.pair_rel_var`: half the mean squared difference over (r^2 + 0.01), an unbiased
+estimate of its relMSE against the exact image, without any reference's noise), normalised by
+its own long reference (`--ref-spp`, unguided, cached in bench/out/guiding/). The two references
+are also compared to each other (mean ratio and the relMSE between them), which says whether the
+two renderers render the same scene. Repetitions are interleaved: Trayecto unguided, Trayecto
+guided, Cycles unguided, Cycles guided, each with `--seconds`, twice (the pair), then the next
+repetition with other seeds.
 """
 import argparse
 import math
@@ -52,7 +55,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 OUT = os.path.join(HERE, "out", "guiding")
 sys.path.insert(0, HERE)
-from guiding import SCENES as SCENE_FILES, read_hdr, rel_mse, render as trayecto_render  # noqa: E402
+from guiding import SCENES as SCENE_FILES, pair_rel_var, read_hdr, rel_mse, render as trayecto_render  # noqa: E402
 
 SCENES = ["veach-ajar", "gap-room", "sunlit-interior", "bright-patch", "fog-gap"]
 
@@ -570,17 +573,21 @@ def main():
         between = rel_mse(cr, tr)
         errs = {k: [] for k in ("t_plain", "t_guided", "c_plain", "c_guided")}
         for rep in range(args.reps):
-            seed = 1 + rep
-            for mode in ("plain", "guided"):
-                out = os.path.join(OUT, f"{tag}_t_{mode}_{rep}.hdr")
-                extra = ["--time-limit", str(args.seconds)] + (["--guiding"] if mode == "guided" else [])
-                trayecto_render(exe, path, out, res, seed, args.threads, extra)
-                errs["t_" + mode].append(rel_mse(read_hdr(out), tr))
-            for mode in ("plain", "guided"):
-                out = os.path.join(OUT, f"{tag}_c_{mode}_{rep}.hdr")
-                cycles_render(py, scene, out, res, seed, args.threads, args.seconds, 1 << 24,
-                              mode == "guided")
-                errs["c_" + mode].append(rel_mse(flip(read_hdr(out)), cr))
+            imgs = {k: [] for k in errs}
+            for half in (0, 1):
+                seed = 1 + 2 * rep + half
+                for mode in ("plain", "guided"):
+                    out = os.path.join(OUT, f"{tag}_t_{mode}_{rep}_{half}.hdr")
+                    extra = ["--time-limit", str(args.seconds)] + (["--guiding"] if mode == "guided" else [])
+                    trayecto_render(exe, path, out, res, seed, args.threads, extra)
+                    imgs["t_" + mode].append(read_hdr(out))
+                for mode in ("plain", "guided"):
+                    out = os.path.join(OUT, f"{tag}_c_{mode}_{rep}_{half}.hdr")
+                    cycles_render(py, scene, out, res, seed, args.threads, args.seconds, 1 << 24,
+                                  mode == "guided")
+                    imgs["c_" + mode].append(flip(read_hdr(out)))
+            for k in errs:
+                errs[k].append(pair_rel_var(*imgs[k], tr if k.startswith("t_") else cr))
             print(f"[{name}] rep {rep}: " + ", ".join(f"{k} {v[-1]:.4g}" for k, v in errs.items()),
                   file=sys.stderr, flush=True)
         rows.append((name, agree, between, errs))

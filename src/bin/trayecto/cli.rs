@@ -366,8 +366,10 @@ pub struct RenderArgs {
     /// samples (iterations of 1, 2, 4, … per pixel, about 2^17 in all and at least 15 per pixel,
     /// at most spp/4 per pixel, kept in the image) and sample those directions too, at surfaces
     /// and in media. Unbiased and deterministic (split and resumed renders learn the same
-    /// guide); meant for light through a gap or off a small bright patch, but at equal time it
-    /// gains little (at most 1.23×) in the measured scenes (BENCHMARKS.md).
+    /// guide). For indirect light through a door ajar or a window, or off a small bright patch,
+    /// in frames of about 384×288 or more with a minute or more per image: there it lowered the
+    /// error 1.3–2.2× at equal time; on small frames, and through a thin slit, it loses up to a
+    /// quarter (BENCHMARKS.md, "Path guiding").
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub guiding: bool,
     /// Most a sample's direct light may add (its largest colour channel; off by default).
