@@ -280,7 +280,10 @@ fn raw_entry_names(body: &[u8], max_entries: usize) -> Option<Vec<Vec<u8>>> {
         if body[loc..loc + 4] != *b"PK\x06\x07" {
             return None;
         }
-        let rec = usize::try_from(le64(body, loc + 8)?).ok()?;
+        // An offset past the end is refused before any arithmetic on it can overflow.
+        let rec = usize::try_from(le64(body, loc + 8)?)
+            .ok()
+            .filter(|&r| r < body.len())?;
         if body.get(rec..rec + 4)? != b"PK\x06\x06" {
             return None;
         }
@@ -295,7 +298,7 @@ fn raw_entry_names(body: &[u8], max_entries: usize) -> Option<Vec<Vec<u8>>> {
     // Data prepended to the archive (a self-extractor) shifts every offset: the directory then
     // ends where the end record starts.
     let mut at = usize::try_from(offset).ok()?;
-    if body.get(at..at + 4) != Some(&CENTRAL[..]) && count > 0 {
+    if (at > body.len() || body.get(at..at + 4) != Some(&CENTRAL[..])) && count > 0 {
         at = eocd.checked_sub(usize::try_from(size).ok()?)?;
     }
     let mut names = Vec::with_capacity(count as usize);
