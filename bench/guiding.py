@@ -95,22 +95,26 @@ def render(exe, scene, out, res, seed, threads, extra, off="", env_extra=()):
     return time.time() - t
 
 
-def rel_mse(img, ref):
+def rel_sq(a, b, ref):
+    """Mean over pixels and channels of (a - b)^2 / (ref^2 + 0.01)."""
     s = 0.0
-    for x, r in zip(img, ref):
-        s += (x - r) ** 2 / (r * r + 0.01)
+    for x, y, r in zip(a, b, ref):
+        s += (x - y) ** 2 / (r * r + 0.01)
     return s / len(ref)
+
+
+def rel_mse(img, ref):
+    return rel_sq(img, ref, ref)
 
 
 def pair_rel_var(a, b, ref):
     """Relative variance of one render, from two independent renders a and b of the same
     settings: half the mean squared difference, normalised by the reference as `rel_mse`. For an
     unbiased renderer its expectation is the relMSE of one render against the exact image, with
-    none of the reference's own noise in it."""
-    s = 0.0
-    for x, y, r in zip(a, b, ref):
-        s += (x - y) ** 2 / (r * r + 0.01)
-    return s / (2 * len(ref))
+    none of the reference's own noise in it. (The same difference estimate as
+    compare.combine_reference_halves, there for a reference's own noise; this script reads its
+    images without numpy.)"""
+    return rel_sq(a, b, ref) / 2
 
 
 def main():

@@ -246,16 +246,22 @@ fn entry_parts(raw: &[u8]) -> Result<Option<Vec<String>>, UploadError> {
     Ok(Some(parts))
 }
 
+/// The `n` bytes of `b` from `at`, or `None` when they are not all in it. Offsets come from the
+/// archive itself (up to 2⁶⁴ − 1 in a Zip64 record), so the end is a checked sum.
+fn field(b: &[u8], at: usize, n: usize) -> Option<&[u8]> {
+    b.get(at..at.checked_add(n)?)
+}
+
 fn le16(b: &[u8], at: usize) -> Option<u64> {
-    Some(u16::from_le_bytes(b.get(at..at + 2)?.try_into().ok()?) as u64)
+    Some(u16::from_le_bytes(field(b, at, 2)?.try_into().ok()?) as u64)
 }
 
 fn le32(b: &[u8], at: usize) -> Option<u64> {
-    Some(u32::from_le_bytes(b.get(at..at + 4)?.try_into().ok()?) as u64)
+    Some(u32::from_le_bytes(field(b, at, 4)?.try_into().ok()?) as u64)
 }
 
 fn le64(b: &[u8], at: usize) -> Option<u64> {
-    Some(u64::from_le_bytes(b.get(at..at + 8)?.try_into().ok()?))
+    Some(u64::from_le_bytes(field(b, at, 8)?.try_into().ok()?))
 }
 
 /// The entry names exactly as the archive's central directory lists them, duplicates included
@@ -280,11 +286,8 @@ fn raw_entry_names(body: &[u8], max_entries: usize) -> Option<Vec<Vec<u8>>> {
         if body[loc..loc + 4] != *b"PK\x06\x07" {
             return None;
         }
-        // An offset past the end is refused before any arithmetic on it can overflow.
-        let rec = usize::try_from(le64(body, loc + 8)?)
-            .ok()
-            .filter(|&r| r < body.len())?;
-        if body.get(rec..rec + 4)? != b"PK\x06\x06" {
+        let rec = usize::try_from(le64(body, loc + 8)?).ok()?;
+        if field(body, rec, 4)? != b"PK\x06\x06" {
             return None;
         }
         count = le64(body, rec + 32)?;
@@ -298,18 +301,18 @@ fn raw_entry_names(body: &[u8], max_entries: usize) -> Option<Vec<Vec<u8>>> {
     // Data prepended to the archive (a self-extractor) shifts every offset: the directory then
     // ends where the end record starts.
     let mut at = usize::try_from(offset).ok()?;
-    if (at > body.len() || body.get(at..at + 4) != Some(&CENTRAL[..])) && count > 0 {
+    if field(body, at, 4) != Some(&CENTRAL[..]) && count > 0 {
         at = eocd.checked_sub(usize::try_from(size).ok()?)?;
     }
     let mut names = Vec::with_capacity(count as usize);
     for _ in 0..count {
-        if body.get(at..at + 4)? != CENTRAL {
+        if field(body, at, 4)? != CENTRAL {
             return None;
         }
         let name_len = le16(body, at + 28)? as usize;
         let extra_len = le16(body, at + 30)? as usize;
         let comment_len = le16(body, at + 32)? as usize;
-        names.push(body.get(at + 46..at + 46 + name_len)?.to_vec());
+        names.push(field(body, at + 46, name_len)?.to_vec());
         at += 46 + name_len + extra_len + comment_len;
     }
     Some(names)
