@@ -576,27 +576,36 @@ pub fn pass_schedule(spp: u32) -> Vec<(u32, u32)> {
     passes
 }
 
-/// The training iterations of a guided render, as sample ranges of every pixel's own sample
-/// stream: the render's first samples, 1, 2, 4, … per pixel (the last one takes the rest) up to
-/// [`GUIDE_TRAINING_SAMPLES`] camera samples in all (a small image trains on more samples per
-/// pixel: the guide needs records per cell, not per pixel) and at least
-/// [`GUIDE_TRAINING_MIN_SPP`] per pixel, but at most `spp`/4 per pixel (at least 1). Iteration k samples with the guide learned from the
-/// iterations before it; every sample enters the image with the same weight, so the image is
-/// the mean of `spp` unbiased samples. `TRAYECTO_GUIDING_TRAIN=n` trains on n samples per pixel
-/// instead (a benchmarking knob; 0: no training, no guide).
+/// The training iterations of a guided render of `pixels` film pixels, as sample ranges of
+/// every pixel's own sample stream: the render's first samples, 1, 2, 4, … per pixel. Iteration
+/// k samples with the guide learned from the iterations before it; every sample enters the
+/// image with the same weight, so the image is the mean of `spp` unbiased samples.
+///
+/// Each iteration's tree is refined from the last (Müller et al. 2017 §3.4), so the guide grows
+/// finer with every doubling for as long as each iteration brings more records than the one
+/// before. The iterations go on until the first whose records fill the budget of one
+/// ([`GUIDE_RECORD_BUDGET`]: an iteration after it, recording a fraction of its samples, would
+/// learn from no more records, so its guide would be no better, and a training sample costs
+/// more than another), but at least [`GUIDE_TRAINING_MIN_ITERATIONS`] of them, and at most a
+/// quarter of `spp` in all (the last iteration then takes the rest). A `--time-limit` render,
+/// whose sample count is not known in advance, also ends its training by time
+/// ([`GUIDE_TRAINING_TIME_SHARE`]). Measured: BENCHMARKS.md, "Path guiding".
+/// `TRAYECTO_GUIDING_TRAIN=n` trains on exactly n samples per pixel instead (a benchmarking
+/// knob; 0: no training, no guide).
 pub fn guide_training_passes(spp: u32, pixels: u64) -> Vec<(u32, u32)> {
-    let per_pixel = match guide_training_knob() {
-        Some(n) => n,
-        None => (GUIDE_TRAINING_SAMPLES.div_ceil(pixels.max(1)) as u32)
-            .max(GUIDE_TRAINING_MIN_SPP)
-            .clamp(1, (spp / 4).max(1)),
-    };
-    // Doubling iterations; the last one takes the rest, so that the total is `per_pixel`.
+    let knob = guide_training_knob();
+    let per_pixel = knob.unwrap_or((spp / 4).max(1));
+    // Doubling iterations; the last one takes the rest, so that the total is `per_pixel`,
+    // unless the record budget ended them first.
     let mut passes: Vec<(u32, u32)> = Vec::new();
     let (mut s, mut n) = (0u32, 1u32);
     while s.saturating_add(n) <= per_pixel {
         passes.push((s, s + n));
         s += n;
+        let full = pixels.saturating_mul(u64::from(n) * 4) >= GUIDE_RECORD_BUDGET;
+        if knob.is_none() && full && passes.len() >= GUIDE_TRAINING_MIN_ITERATIONS {
+            return passes;
+        }
         n = n.saturating_mul(2);
     }
     match passes.last_mut() {
@@ -607,14 +616,31 @@ pub fn guide_training_passes(spp: u32, pixels: u64) -> Vec<(u32, u32)> {
     passes
 }
 
-/// Camera samples a guided render's training phase draws in all (over every pixel).
-pub const GUIDE_TRAINING_SAMPLES: u64 = 1 << 17;
-/// Fewest training samples per pixel (when `spp`/4 allows): four iterations (1 + 2 + 4 + 8).
-/// The guide an iteration learns has the spatial and directional structure refined from the
-/// iteration before it, so a single iteration — what [`GUIDE_TRAINING_SAMPLES`] alone gives a
-/// frame of 2¹⁷ pixels or more, 512² or 1280×720 — left the whole render a guide of seven
-/// leaves whose quadtrees are their roots, four quadrants each (BENCHMARKS.md, "Path guiding").
-pub const GUIDE_TRAINING_MIN_SPP: u32 = 15;
+/// Fewest training iterations (when a quarter of the samples allows): 1 + 2 + 4 + 8 samples
+/// per pixel. A guide's structure comes from the iteration before it, so one iteration — which
+/// a budget in camera samples alone gave frames of 2¹⁷ pixels or more — left a render a guide
+/// of seven leaves whose quadtrees were their roots.
+pub const GUIDE_TRAINING_MIN_ITERATIONS: usize = 4;
+
+/// A guided `--time-limit` render trains while the next (doubled) iteration is predicted to
+/// end within this share of the time limit, so its training ends between a sixth and a third
+/// of it; the rest of the time samples with the last guide. The prediction is the last
+/// iteration's time, rendering and learning, doubled. Measured against trainings of fixed
+/// length at equal time (BENCHMARKS.md, "Path guiding").
+pub const GUIDE_TRAINING_TIME_SHARE: f64 = 1.0 / 3.0;
+
+/// [`GUIDE_TRAINING_TIME_SHARE`], unless `TRAYECTO_GUIDING_TRAIN_SHARE` sets another share of the
+/// time limit (a benchmarking knob).
+fn guide_training_time_share() -> f64 {
+    static K: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+    *K.get_or_init(|| {
+        std::env::var("TRAYECTO_GUIDING_TRAIN_SHARE")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .filter(|f: &f64| *f > 0.0 && *f <= 1.0)
+            .unwrap_or(GUIDE_TRAINING_TIME_SHARE)
+    })
+}
 
 /// `TRAYECTO_GUIDING_TRAIN`: training samples per pixel instead of the budget (a benchmarking
 /// knob).
@@ -627,9 +653,9 @@ fn guide_training_knob() -> Option<u32> {
     })
 }
 
-/// Records a training pass keeps at most (48 bytes each): a pass of more samples records every
-/// n-th sample of each pixel only.
-const GUIDE_RECORD_BUDGET: u64 = 1 << 21;
+/// Records a training pass keeps at most (48 bytes each; counted as four per camera sample): a
+/// pass of more samples records every n-th sample of each pixel only.
+pub const GUIDE_RECORD_BUDGET: u64 = 1 << 21;
 
 /// Settings the volumetric path tracer cannot honour are refused rather than ignored: it has no
 /// first-hit splitting (`secondary`; the first vertex may be in a medium), so a scene with media
@@ -887,6 +913,9 @@ fn render_in_pool(
     // them, to learn the same guide, and keeps only its own samples' radiance: the guide, and
     // so every sample, is the same whatever the range, the split or the thread count.
     let guided = settings.guiding && matches!(integrator, Integrator::Path | Integrator::VolPath);
+    // A time-limited render does not know its sample count: its training ends by time
+    // (`GUIDE_TRAINING_TIME_SHARE`), and the passes after it are planned once it has.
+    let timed_training = guided && settings.time_limit.is_some();
     let end = range_start.samples.end;
     let mut passes: Vec<(u32, u32)> = Vec::new();
     // The samples of each pass that enter the film (empty: traced to learn only).
@@ -909,7 +938,7 @@ fn render_in_pool(
     // Passes over the samples still to do. The film's sums are exact (see `film`), so how the
     // samples are grouped into passes does not change the image.
     let rest = from.max(trained_until);
-    if rest < end {
+    if rest < end && !timed_training {
         for (a, b) in pass_schedule(end - rest) {
             passes.push((a + rest, b + rest));
             keep.push((a + rest, b + rest));
@@ -967,18 +996,24 @@ fn render_in_pool(
         // Training passes render every pixel, adaptive sampling or not.
         pixels: fw as u64 * fh as u64,
     };
+    let deadline = settings
+        .time_limit
+        .map(|t| start + Duration::from_secs_f64(t));
     let schedule = PassSchedule {
         settings,
         passes: &passes,
         keep: &keep,
         tiles: &tiles,
         film_width: fw,
-        deadline: settings
-            .time_limit
-            .map(|t| start + Duration::from_secs_f64(t)),
+        deadline,
         n_train,
         guide: &guide,
         record_pixels: work.pixels,
+        training_ends_by: settings
+            .time_limit
+            .filter(|_| timed_training)
+            .map(|t| start + Duration::from_secs_f64(t * guide_training_time_share())),
+        more_after: timed_training,
     };
     let state = Commit {
         film,
@@ -988,20 +1023,52 @@ fn render_in_pool(
         committed: 0,
         scratch,
         learner,
+        last_commit: Instant::now(),
     };
-    let c = schedule.run(state, active, observer, cancel, |q, s0, s1, tile, mask| {
-        // Pass q samples with the guide of the training passes before it (the schedule holds
-        // it back until they are committed). Training passes render every pixel: the adaptive
-        // mask is decided after them.
-        let g = work
-            .guided
-            .then(|| guide.read().unwrap_or_else(|e| e.into_inner()).clone())
-            .flatten();
-        let train = q < n_train;
-        let mask = if train { None } else { mask };
-        work.render(s0, s1, keep[q], tile, mask, g.as_deref(), train)
-    });
-    let complete = c.committed == passes.len();
+    let mut c = schedule.run(
+        state,
+        active,
+        observer,
+        cancel,
+        tile_job(&work, &guide, &keep, n_train),
+    );
+    let mut complete = c.committed == passes.len();
+    // A time-limited guided render: the training above stopped by time (or ran its whole
+    // chain); the rest of the time samples with the last guide.
+    if timed_training
+        && !cancel.load(Ordering::Relaxed)
+        && deadline.is_some_and(|d| Instant::now() < d)
+        && c.done < end
+    {
+        c.learner = None;
+        c.committed = 0;
+        let rest = c.done;
+        let passes: Vec<(u32, u32)> = pass_schedule(end - rest)
+            .into_iter()
+            .map(|(a, b)| (a + rest, b + rest))
+            .collect();
+        let schedule = PassSchedule {
+            passes: &passes,
+            keep: &passes,
+            n_train: 0,
+            training_ends_by: None,
+            more_after: false,
+            ..schedule
+        };
+        let active = if adaptive {
+            vec![true; pixels]
+        } else {
+            Vec::new()
+        };
+        c = schedule.run(
+            c,
+            active,
+            observer,
+            cancel,
+            tile_job(&work, &guide, &passes, 0),
+        );
+        complete = c.committed == passes.len();
+    }
     // An incomplete render with the flag set was cancelled (whichever check saw it first: a
     // worker before its tile or the commit before a pass), else it stopped early (time limit,
     // adaptive sampling's clean film).
@@ -1228,6 +1295,30 @@ struct Commit {
     scratch: Vec<bool>,
     /// Guiding's training state (while training passes remain).
     learner: Option<Learner>,
+    /// When the last pass was committed (the render's start before any): a training pass
+    /// waits for the commit before it, so the time since is what the pass took.
+    last_commit: Instant,
+}
+
+/// The work of one (pass, tile) job of a render whose passes keep `keep` and whose first
+/// `n_train` passes train the guide: pass q samples with the guide of the training passes
+/// before it (the schedule holds it back until they are committed). Training passes render
+/// every pixel: the adaptive mask is decided after them.
+fn tile_job<'a>(
+    work: &'a TileWork<'a>,
+    guide: &'a RwLock<Option<Arc<Guide>>>,
+    keep: &'a [(u32, u32)],
+    n_train: usize,
+) -> impl Fn(usize, u32, u32, TileRect, Option<&[bool]>) -> Tile + Sync + 'a {
+    move |q, s0, s1, tile, mask| {
+        let g = work
+            .guided
+            .then(|| guide.read().unwrap_or_else(|e| e.into_inner()).clone())
+            .flatten();
+        let train = q < n_train;
+        let mask = if train { None } else { mask };
+        work.render(s0, s1, keep[q], tile, mask, g.as_deref(), train)
+    }
 }
 
 /// The pass/tile scheduler: runs every (pass, tile) job on the pool's threads and commits the
@@ -1248,6 +1339,11 @@ struct PassSchedule<'a> {
     guide: &'a RwLock<Option<Arc<Guide>>>,
     /// [`TileWork::pixels`]: the training passes' record stride.
     record_pixels: u64,
+    /// A time-limited guided render: the training stops after the iteration whose successor
+    /// is predicted to end after this ([`GUIDE_TRAINING_TIME_SHARE`]).
+    training_ends_by: Option<Instant>,
+    /// Samples follow the last pass (in a schedule of their own), so its training learns.
+    more_after: bool,
 }
 
 impl PassSchedule<'_> {
@@ -1355,7 +1451,7 @@ impl PassSchedule<'_> {
                     }
                 }
                 if train
-                    && p + 1 < passes.len()
+                    && (p + 1 < passes.len() || self.more_after)
                     && let Some(learner) = c.learner.as_mut()
                 {
                     let (s0, s1) = passes[p];
@@ -1379,6 +1475,18 @@ impl PassSchedule<'_> {
                     if p + 1 == n_train {
                         c.learner = None;
                     }
+                    // By time: the next iteration, of `grow` times the samples, would take
+                    // about `grow` times this one's rendering and learning.
+                    if let Some(by) = self.training_ends_by
+                        && let Some(&(n0, n1)) = passes.get(p + 1)
+                    {
+                        let now = Instant::now();
+                        let grow = f64::from(n1 - n0) / f64::from((s1 - s0).max(1));
+                        let took = now.saturating_duration_since(c.last_commit);
+                        if now + took.mul_f64(grow) > by {
+                            halt.fetch_min(p + 1, Ordering::SeqCst);
+                        }
+                    }
                 }
                 drop(records);
                 let kept = self.keep[p];
@@ -1400,6 +1508,7 @@ impl PassSchedule<'_> {
                     observer.pass_done(&c.film, c.done, settings.spp);
                 }
                 c.committed = p + 1;
+                c.last_commit = Instant::now();
                 // Training passes render every pixel: the mask is decided after them.
                 if let Some(t) = settings.noise_threshold
                     && p + 1 < passes.len()

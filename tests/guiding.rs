@@ -215,3 +215,81 @@ fn guided_training_samples_are_counted_once_whatever_the_split() {
     let resumed = film(&s, 0..spp, Some((head, 2)));
     assert!(resumed.raw() == whole.raw(), "resumed from 2 differs");
 }
+
+/// The training budget: doubling iterations until the first whose records fill the budget of
+/// one (at least four iterations), at most a quarter of the samples (the last takes the rest). A time-limited render (whose sample count is not known in advance) ends its training
+/// by time instead, then samples with the last guide until the time is up: every pixel holds
+/// the same number of samples, more than the training took, and the image estimates the
+/// unguided one.
+#[test]
+fn guided_training_ends_by_records_samples_or_time() {
+    use std::sync::atomic::AtomicBool;
+    use trayecto::render::{
+        GUIDE_RECORD_BUDGET, RangeStart, TIME_LIMIT_SPP, guide_training_passes, render_range,
+    };
+    assert_eq!(
+        guide_training_passes(512, 96 * 72),
+        vec![
+            (0, 1),
+            (1, 3),
+            (3, 7),
+            (7, 15),
+            (15, 31),
+            (31, 63),
+            (63, 128)
+        ]
+    );
+    assert_eq!(guide_training_passes(2, 96 * 72), vec![(0, 1)]);
+    // Until the first iteration whose records fill the budget (here of 32 samples per pixel),
+    // but never fewer than four iterations.
+    let pixels = GUIDE_RECORD_BUDGET / 4 / 32;
+    assert_eq!(
+        guide_training_passes(4096, pixels),
+        vec![(0, 1), (1, 3), (3, 7), (7, 15), (15, 31), (31, 63)]
+    );
+    assert_eq!(
+        guide_training_passes(4096, 1280 * 720),
+        vec![(0, 1), (1, 3), (3, 7), (7, 15)]
+    );
+    let world = world_of("cornell");
+    let (w, h) = (16, 12);
+    let mut s = settings(w, h, TIME_LIMIT_SPP, 5, true);
+    let limit = 1.5;
+    s.time_limit = Some(limit);
+    let start = RangeStart {
+        samples: 0..TIME_LIMIT_SPP,
+        resume: None,
+    };
+    /// The samples per pixel after each committed pass.
+    struct Passes(std::sync::Mutex<Vec<u32>>);
+    impl trayecto::render::RenderObserver for Passes {
+        fn pass_done(&self, _: &trayecto::film::Film, done: u32, _: u32) {
+            self.0.lock().unwrap().push(done);
+        }
+    }
+    let passes = Passes(Default::default());
+    let t0 = std::time::Instant::now();
+    let r = render_range(&world, &s, start, &passes, &AtomicBool::new(false)).expect("renders");
+    let took = t0.elapsed().as_secs_f64();
+    assert!(!r.cancelled && r.stopped_early);
+    let counts = r.film.counts();
+    assert!(counts.iter().all(|&n| n == r.done), "{:?}", &counts[..4]);
+    assert!(took < limit + 1.0, "a {limit}-second render took {took} s");
+    // The training iterations double (1, 2, 4, … samples); the passes after them start again
+    // from one sample. Training ended where the passes first shrink, before the time did (a
+    // training that ran until the time limit, as its sample budget of a quarter of
+    // `TIME_LIMIT_SPP` would, has no such place).
+    let done = passes.0.into_inner().unwrap();
+    let step: Vec<u32> = std::iter::once(done[0])
+        .chain(done.windows(2).map(|p| p[1] - p[0]))
+        .collect();
+    let trained = (1..step.len())
+        .find(|&i| step[i] < step[i - 1])
+        .map(|i| done[i - 1])
+        .unwrap_or_else(|| panic!("the training never ended: passes {done:?}"));
+    assert!(trained < r.done, "passes {done:?}");
+    // Unbiased: the time-limited guided image estimates the unguided one.
+    let plain = render_world(&world, &settings(w, h, 256, 9, false));
+    let guided = r.film.to_image();
+    assert_same_expectation(&guided, &plain, "time-limited guided Cornell box");
+}

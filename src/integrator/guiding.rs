@@ -216,11 +216,13 @@ struct Leaf {
     root: u32,
     /// Records splatted into this leaf in the iteration that filled it.
     count: u32,
-    /// The BSDF's share of the mixture: α = clamp(sigmoid(θ)); Adam's moments and step count.
+    /// The BSDF's share of the mixture: α = clamp(sigmoid(θ)); Adam's moments, and β₁ᵗ and
+    /// β₂ᵗ after its t steps (its bias corrections).
     theta: f32,
     m: f32,
     v: f32,
-    t: u32,
+    b1t: f32,
+    b2t: f32,
 }
 
 /// The learned incident-radiance field: an SD-tree.
@@ -293,7 +295,8 @@ impl Guide {
                     theta: 0.0,
                     m: 0.0,
                     v: 0.0,
-                    t: 0,
+                    b1t: 1.0,
+                    b2t: 1.0,
                 })
                 .collect(),
             quads: vec![QuadNode::default(); ROOTS],
@@ -459,14 +462,16 @@ impl Guide {
             target: u32::MAX,
             at: Vec2::ZERO,
             value: 0.0,
-            adam: false,
+            grad: f32::NAN,
         };
         if !(r.pdf > 0.0) || !r.radiance.is_finite() || !r.p.is_finite() {
             return s;
         }
         let (leaf, size) = self.locate(r.p, r.bin);
         s.leaf = leaf;
-        s.adam = r.pdf_guide > 0.0 || r.alpha < 1.0;
+        if r.pdf_guide > 0.0 || r.alpha < 1.0 {
+            s.grad = adam_gradient(r);
+        }
         let h0 = mix64(key ^ i);
         let h1 = mix64(h0);
         let h2 = mix64(h1);
@@ -695,10 +700,9 @@ impl Learner {
             .with_min_len(4096)
             .map(|(i, r)| b.place(r, i as u64, key, filter))
             .collect();
-        // Records by leaf (for Adam) and by target leaf (for the splats), each in record order:
-        // a counting sort.
-        let adam = bucket(n_leaves, splats.iter().map(|s| s.adam_leaf()));
-        let dep = bucket(n_leaves, splats.iter().map(|s| s.target_leaf()));
+        // The gradients by leaf (for Adam) and the splats by target leaf, each in record order.
+        let adam = group(n_leaves, splats.iter().map(Splat::adam));
+        let dep = group(n_leaves, splats.iter().map(Splat::deposit));
         let b = &mut self.building;
         // Each leaf's quadtree nodes are one contiguous run of `quads`, from its root to the
         // next leaf's root: `Guide::new` and `refined`, the only builders of a tree, lay each
@@ -720,9 +724,8 @@ impl Learner {
                 jobs.push((leaf, mine, start, a, d));
             }
         }
-        jobs.into_par_iter().for_each(|(leaf, quads, base, a, d)| {
-            learn_leaf(leaf, quads, base, a, d, &records, &splats)
-        });
+        jobs.into_par_iter()
+            .for_each(|(leaf, quads, base, a, d)| learn_leaf(leaf, quads, base, a, d));
         let next = self.building.refined(spp);
         let next_count = next.leaves.len();
         let filled = std::mem::replace(&mut self.building, next);
@@ -752,84 +755,85 @@ impl Learner {
 
 /// Where one record lands ([`Guide::place`]): its spatial leaf (`u32::MAX` for a record left
 /// out), the leaf its filtered splat goes to, the square point there and the value (0: nothing
-/// to splat), and whether it takes an Adam step.
+/// to splat), and its Adam gradient ([`adam_gradient`]; NaN: no step).
 #[derive(Clone, Copy, Debug)]
 struct Splat {
     leaf: u32,
     target: u32,
     at: Vec2,
     value: f32,
-    adam: bool,
+    grad: f32,
 }
 
 impl Splat {
-    fn adam_leaf(&self) -> Option<u32> {
-        (self.leaf != u32::MAX && self.adam).then_some(self.leaf)
+    fn adam(&self) -> Option<(u32, f32)> {
+        (self.leaf != u32::MAX && !self.grad.is_nan()).then_some((self.leaf, self.grad))
     }
 
-    fn target_leaf(&self) -> Option<u32> {
-        (self.target != u32::MAX).then_some(self.target)
+    fn deposit(&self) -> Option<(u32, (Vec2, f32))> {
+        (self.target != u32::MAX).then_some((self.target, (self.at, self.value)))
     }
 }
 
-/// Record indices grouped by leaf, each group in record order (a counting sort).
-struct Buckets {
+/// Values grouped by leaf, each group in record order: a counting sort, whose scatter reads
+/// the splats in order and writes one run per leaf, so that each leaf's learning then reads its
+/// values contiguously (reading the records of a leaf where they lie, scattered over the
+/// iteration's, was a cache miss per record: most of the learning's time).
+struct Groups<T> {
     start: Vec<u32>,
-    idx: Vec<u32>,
+    vals: Vec<T>,
 }
 
-impl Buckets {
-    fn of(&self, k: usize) -> &[u32] {
-        &self.idx[self.start[k] as usize..self.start[k + 1] as usize]
+impl<T> Groups<T> {
+    fn of(&self, k: usize) -> &[T] {
+        &self.vals[self.start[k] as usize..self.start[k + 1] as usize]
     }
 }
 
-fn bucket(n: usize, keys: impl Iterator<Item = Option<u32>> + Clone) -> Buckets {
+fn group<T: Copy + Default>(
+    n: usize,
+    items: impl Iterator<Item = Option<(u32, T)>> + Clone,
+) -> Groups<T> {
     let mut start = vec![0u32; n + 1];
-    for k in keys.clone().flatten() {
+    for (k, _) in items.clone().flatten() {
         start[k as usize + 1] += 1;
     }
     for k in 0..n {
         start[k + 1] += start[k];
     }
     let mut fill = start.clone();
-    let mut idx = vec![0u32; start[n] as usize];
-    for (i, k) in keys.enumerate() {
-        if let Some(k) = k {
-            idx[fill[k as usize] as usize] = i as u32;
-            fill[k as usize] += 1;
-        }
+    let mut vals = vec![T::default(); start[n] as usize];
+    for (k, v) in items.flatten() {
+        vals[fill[k as usize] as usize] = v;
+        fill[k as usize] += 1;
     }
-    Buckets { start, idx }
+    Groups { start, vals }
 }
 
 /// One leaf's share of an iteration ([`Learner::learn`]): the Adam steps of the records in its
-/// cell (`adam`) and the splats of those filtered into it (`dep`), each in record order, into
-/// its quadtree `quads` (the nodes from index `base` on).
+/// cell (their gradients `adam`) and the splats of those filtered into it (`dep`: square point
+/// and value), each in record order, into its quadtree `quads` (the nodes from index `base` on).
 fn learn_leaf(
     leaf: &mut Leaf,
     quads: &mut [QuadNode],
     base: usize,
-    adam: &[u32],
-    dep: &[u32],
-    records: &[&Record],
-    splats: &[Splat],
+    adam: &[f32],
+    dep: &[(Vec2, f32)],
 ) {
-    for &i in adam {
-        adam_step(leaf, records[i as usize]);
+    for &g in adam {
+        adam_step(leaf, g);
     }
-    for &i in dep {
+    for &(at, value) in dep {
         leaf.count = leaf.count.saturating_add(1);
-        let s = splats[i as usize];
-        if s.value > 0.0 {
+        if value > 0.0 {
             // Adds the value to every node on the path to the square point.
             let mut n = leaf.root as usize;
-            let mut p = s.at;
+            let mut p = at;
             for _ in 0..=MAX_DEPTH {
                 let (ix, iy) = ((p.x >= 0.5) as usize, (p.y >= 0.5) as usize);
                 let q = ix + 2 * iy;
                 let node = &mut quads[n - base];
-                node.sum[q] += s.value;
+                node.sum[q] += value;
                 let c = node.child[q];
                 if c == 0 {
                     break;
@@ -841,21 +845,27 @@ fn learn_leaf(
     }
 }
 
-/// One Adam step on a leaf's BSDF share from a record drawn from the mixture (Müller 2019
-/// §10.2): the gradient of the KL divergence from the normalized product F = f·Lᵢ·cos to
-/// the mixture q = α·p_bsdf + (1−α)·p_guide, estimated with the record's direction, is
-/// −(F/q)·(p_bsdf − p_guide)/q · dα/dθ.
-fn adam_step(l: &mut Leaf, r: &Record) {
+/// The gradient of the KL divergence from the normalized product F = f·Lᵢ·cos to the mixture
+/// q = α·p_bsdf + (1−α)·p_guide with respect to α, estimated with a record drawn from the
+/// mixture (Müller 2019 §10.2): −(F/q)·(p_bsdf − p_guide)/q. [`adam_step`] multiplies it by
+/// dα/dθ.
+fn adam_gradient(r: &Record) -> f32 {
+    -(r.f_cos * r.radiance / r.pdf) * (r.pdf_bsdf - r.pdf_guide) / r.pdf
+}
+
+/// One Adam step on a leaf's BSDF share with a record's gradient `g` ([`adam_gradient`]).
+fn adam_step(l: &mut Leaf, g: f32) {
     let a = sigmoid(l.theta);
-    let g = -(r.f_cos * r.radiance / r.pdf) * (r.pdf_bsdf - r.pdf_guide) / r.pdf * a * (1.0 - a);
+    let g = g * a * (1.0 - a);
     if !g.is_finite() {
         return;
     }
-    l.t += 1;
+    l.b1t *= ADAM_B1;
+    l.b2t *= ADAM_B2;
     l.m = ADAM_B1 * l.m + (1.0 - ADAM_B1) * g;
     l.v = ADAM_B2 * l.v + (1.0 - ADAM_B2) * g * g;
-    let mh = l.m / (1.0 - ADAM_B1.powi(l.t as i32));
-    let vh = l.v / (1.0 - ADAM_B2.powi(l.t as i32));
+    let mh = l.m / (1.0 - l.b1t);
+    let vh = l.v / (1.0 - l.b2t);
     // θ stays where the clamp still answers to it.
     l.theta = (l.theta - ADAM_LR * mh / (vh.sqrt() + 1e-8)).clamp(-4.0, 4.0);
 }

@@ -363,13 +363,12 @@ pub struct RenderArgs {
     #[arg(short = 'D', long = "define", help_heading = HEADING_SCENE, value_name = "NAME=VALUE", value_parser = trayecto::scene::mitsuba::parse_define)]
     pub define: Vec<(String, String)>,
     /// Path guiding (experimental): learn where indirect light comes from in the render's first
-    /// samples (iterations of 1, 2, 4, … per pixel, about 2^17 in all and at least 15 per pixel,
-    /// at most spp/4 per pixel, kept in the image) and sample those directions too, at surfaces
-    /// and in media. Unbiased and deterministic (split and resumed renders learn the same
-    /// guide). For indirect light through a door ajar or a window, or off a small bright patch,
-    /// in frames of about 384×288 or more with a minute or more per image: there it lowered the
-    /// error 1.3–2.2× at equal time; on small frames, and through a thin slit, it loses up to a
-    /// quarter (BENCHMARKS.md, "Path guiding").
+    /// samples (iterations of 1, 2, 4, … per pixel until one fills its record budget, at most
+    /// spp/4, under --time-limit at most about a third of the time; kept in the image) and
+    /// sample those directions too, at surfaces and in media. Unbiased and deterministic (split
+    /// and resumed renders learn the same guide). For indirect light through a door ajar or a
+    /// window, or off a small bright patch: there it lowered the error 1.2–2.2× at equal time;
+    /// through a thin slit and in fog it loses 10–20 % (BENCHMARKS.md, "Path guiding").
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub guiding: bool,
     /// Most a sample's direct light may add (its largest colour channel; off by default).
