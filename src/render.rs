@@ -653,7 +653,7 @@ fn guide_training_knob() -> Option<u32> {
     })
 }
 
-/// Records a training pass keeps at most (48 bytes each; counted as four per camera sample): a
+/// Records a training pass keeps at most (52 bytes each; counted as four per camera sample): a
 /// pass of more samples records every n-th sample of each pixel only.
 pub const GUIDE_RECORD_BUDGET: u64 = 1 << 21;
 
@@ -1013,7 +1013,6 @@ fn render_in_pool(
             .time_limit
             .filter(|_| timed_training)
             .map(|t| start + Duration::from_secs_f64(t * guide_training_time_share())),
-        more_after: timed_training,
     };
     let state = Commit {
         film,
@@ -1023,7 +1022,6 @@ fn render_in_pool(
         committed: 0,
         scratch,
         learner,
-        last_commit: Instant::now(),
     };
     let mut c = schedule.run(
         state,
@@ -1052,7 +1050,6 @@ fn render_in_pool(
             keep: &passes,
             n_train: 0,
             training_ends_by: None,
-            more_after: false,
             ..schedule
         };
         let active = if adaptive {
@@ -1295,9 +1292,6 @@ struct Commit {
     scratch: Vec<bool>,
     /// Guiding's training state (while training passes remain).
     learner: Option<Learner>,
-    /// When the last pass was committed (the render's start before any): a training pass
-    /// waits for the commit before it, so the time since is what the pass took.
-    last_commit: Instant,
 }
 
 /// The work of one (pass, tile) job of a render whose passes keep `keep` and whose first
@@ -1340,10 +1334,9 @@ struct PassSchedule<'a> {
     /// [`TileWork::pixels`]: the training passes' record stride.
     record_pixels: u64,
     /// A time-limited guided render: the training stops after the iteration whose successor
-    /// is predicted to end after this ([`GUIDE_TRAINING_TIME_SHARE`]).
+    /// is predicted to end after this ([`GUIDE_TRAINING_TIME_SHARE`]). The samples after the
+    /// training follow in a schedule of their own, so even the last pass here learns.
     training_ends_by: Option<Instant>,
-    /// Samples follow the last pass (in a schedule of their own), so its training learns.
-    more_after: bool,
 }
 
 impl PassSchedule<'_> {
@@ -1451,7 +1444,7 @@ impl PassSchedule<'_> {
                     }
                 }
                 if train
-                    && (p + 1 < passes.len() || self.more_after)
+                    && (p + 1 < passes.len() || self.training_ends_by.is_some())
                     && let Some(learner) = c.learner.as_mut()
                 {
                     let (s0, s1) = passes[p];
@@ -1476,14 +1469,16 @@ impl PassSchedule<'_> {
                         c.learner = None;
                     }
                     // By time: the next iteration, of `grow` times the samples, would take
-                    // about `grow` times this one's rendering and learning.
+                    // about `grow` times this one's rendering and learning (a training pass
+                    // waits for the commit before it: it took the time since that commit).
                     if let Some(by) = self.training_ends_by
                         && let Some(&(n0, n1)) = passes.get(p + 1)
                     {
-                        let now = Instant::now();
+                        let now = started.elapsed();
+                        let before = lock(&committed_work).map_or(Duration::ZERO, |t| t.last.1);
                         let grow = f64::from(n1 - n0) / f64::from((s1 - s0).max(1));
-                        let took = now.saturating_duration_since(c.last_commit);
-                        if now + took.mul_f64(grow) > by {
+                        let took = now.saturating_sub(before);
+                        if started + now + took.mul_f64(grow) > by {
                             halt.fetch_min(p + 1, Ordering::SeqCst);
                         }
                     }
@@ -1508,7 +1503,6 @@ impl PassSchedule<'_> {
                     observer.pass_done(&c.film, c.done, settings.spp);
                 }
                 c.committed = p + 1;
-                c.last_commit = Instant::now();
                 // Training passes render every pixel: the mask is decided after them.
                 if let Some(t) = settings.noise_threshold
                     && p + 1 < passes.len()
