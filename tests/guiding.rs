@@ -109,6 +109,86 @@ fn guided_renders_agree_with_unguided() {
     agree(&world_of(gap.to_str().unwrap()), 32, 24, 64, "gap room");
 }
 
+/// Guiding composes with textures (the guide learns from, and the mixture weighs, the textured
+/// BSDF at each hit) and with many emitters sampled through the light BVH (NEE's MIS weight uses
+/// the mixture's density): the guided renders keep the unguided expectation.
+#[test]
+fn guided_renders_agree_with_textures_and_many_lights() {
+    for (file, what) in [
+        (
+            "gltf/BoxTextured/glTF-Binary/BoxTextured.glb",
+            "textured glTF",
+        ),
+        (
+            "gltf/EmissiveStrengthTest/glTF-Binary/EmissiveStrengthTest.glb",
+            "glTF with many emitters",
+        ),
+    ] {
+        let world = world_of(scene_file(file).to_str().unwrap());
+        if what.contains("emitters") {
+            // Chosen by the light BVH, not by power alone.
+            assert_ne!(
+                world.lights.sampler_kind(),
+                trayecto::light::LightSamplerKind::Power,
+                "{what}: {} lights",
+                world.lights.lights.len()
+            );
+        }
+        agree(&world, 32, 32, 64, what);
+    }
+}
+
+/// Guiding composes with the in-loop AOVs the denoiser is guided by: asking for them leaves the
+/// guided image the same bit for bit, and the albedo and normal layers (functions of the camera
+/// samples' first hits, which guiding does not change) are the unguided render's exactly, for
+/// 1 and 2 threads.
+#[test]
+fn guided_renders_record_the_unguided_aovs() {
+    use std::sync::atomic::AtomicBool;
+    use trayecto::film::aov::AovKind;
+    use trayecto::render::{NoObserver, RangeStart, aov_layers, render_range_aovs};
+    let world = world_of("cornell");
+    let (w, h, spp) = (20, 16, 16);
+    let run = |guiding: bool, aovs: bool, threads: usize| {
+        let mut s = settings(w, h, spp, 3, guiding);
+        s.threads = Some(threads);
+        let start = RangeStart {
+            samples: 0..spp,
+            resume: None,
+        };
+        render_range_aovs(
+            &world,
+            &s,
+            start,
+            aovs,
+            &NoObserver,
+            &AtomicBool::new(false),
+        )
+        .expect("renders")
+    };
+    let layers = |r: &trayecto::render::FilmRender| {
+        let acc = r.aovs.as_ref().expect("the path loop recorded the AOVs");
+        aov_layers(&[AovKind::Albedo, AovKind::Normal], w, h, acc)
+            .into_iter()
+            .map(|l| l.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>())
+            .collect::<Vec<_>>()
+    };
+    let guided = run(true, true, 2);
+    assert!(
+        guided.film.to_image().data == run(true, false, 2).film.to_image().data,
+        "recording the AOVs changed the guided image"
+    );
+    let plain = run(false, true, 2);
+    assert!(guided.film.to_image().data != plain.film.to_image().data);
+    assert!(
+        layers(&guided) == layers(&plain),
+        "guiding changed the AOVs"
+    );
+    let one = run(true, true, 1);
+    assert!(one.film.to_image().data == guided.film.to_image().data);
+    assert!(layers(&one) == layers(&guided));
+}
+
 /// The guide is learned from records merged in tile order: the image is the same bit for bit
 /// for 1 and 2 threads, also with adaptive sampling and with the in-loop AOVs.
 #[test]
