@@ -89,7 +89,7 @@ pub struct World {
     /// Participating media and the medium interfaces of surfaces.
     pub media: crate::medium::world::WorldMedia,
     /// The spectra BSDFs name by id for spectral rendering (sampled η and k; the named metals and
-    /// glasses are built in): [`crate::material::Bsdf::to_spectral`].
+    /// glasses are built in): [`crate::material::Bsdf::make_spectral`].
     pub bsdf_spectra: crate::spectrum::BsdfSpectra,
     /// Per material: true if its alpha mode is MASK or BLEND, so a hit on it may be a hole.
     cutout: Vec<bool>,

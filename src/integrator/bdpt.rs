@@ -717,7 +717,7 @@ fn walk(
         // Spectral mode: the BSDF at the sample's wavelengths (as the path tracer's vertices).
         if let Some(w) = &set.wavelengths {
             media.hero_only |= v.v.bsdf.disperses();
-            v.v.bsdf = v.v.bsdf.to_spectral(w.lambda, &world.bsdf_spectra);
+            v.v.bsdf.make_spectral(w.lambda, &world.bsdf_spectra);
         }
         v.medium = medium;
         let prev_p = path[path.len() - 1].p;

@@ -164,7 +164,7 @@ pub fn trace(
                 hero_only = true;
                 beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
             }
-            v.bsdf = v.bsdf.to_spectral(w.lambda, &world.bsdf_spectra);
+            v.bsdf.make_spectral(w.lambda, &world.bsdf_spectra);
         }
         // Join this vertex to the camera (t = 1): two numbers, always drawn.
         let u_cam = s.next_2d();

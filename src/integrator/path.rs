@@ -249,7 +249,7 @@ fn continue_path(
                 hero_only = true;
                 beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
             }
-            v.bsdf = v.bsdf.to_spectral(w.lambda, &world.bsdf_spectra);
+            v.bsdf.make_spectral(w.lambda, &world.bsdf_spectra);
         }
         // A guided vertex samples the BSDF–guide mixture, and NEE weighs against it.
         let (guide, training) = match g.as_deref() {

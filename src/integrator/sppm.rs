@@ -181,7 +181,7 @@ pub fn visible_point(
                 vp.hero_only = true;
                 beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
             }
-            vp.v.bsdf = vp.v.bsdf.to_spectral(w.lambda, &world.bsdf_spectra);
+            vp.v.bsdf.make_spectral(w.lambda, &world.bsdf_spectra);
         }
         let specular = vp.v.bsdf.is_specular();
         if !specular {
@@ -268,7 +268,7 @@ pub fn trace_photon(
                 hero_only = true;
                 beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
             }
-            v.bsdf = v.bsdf.to_spectral(w.lambda, &world.bsdf_spectra);
+            v.bsdf.make_spectral(w.lambda, &world.bsdf_spectra);
         }
         if bounces >= 1 && !v.bsdf.is_specular() {
             points.push(v.hit.p);

@@ -221,7 +221,7 @@ impl<'a> Vcm<'a> {
                     hero_only = true;
                     beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
                 }
-                v.bsdf = v.bsdf.to_spectral(w.lambda, &world.bsdf_spectra);
+                v.bsdf.make_spectral(w.lambda, &world.bsdf_spectra);
             }
             let cos_in = mis(v.ng.dot(wo).abs());
             let g = if infinite && len == 1 {
@@ -478,7 +478,7 @@ impl<'a> Vcm<'a> {
                     hero_only = true;
                     beta = Vec3::new(3.0 * beta.x, 0.0, 0.0);
                 }
-                v.bsdf = v.bsdf.to_spectral(w.lambda, &world.bsdf_spectra);
+                v.bsdf.make_spectral(w.lambda, &world.bsdf_spectra);
             }
             let u_light = s.next_1d();
             let u_point = s.next_2d();

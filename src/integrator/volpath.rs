@@ -431,7 +431,7 @@ fn trace(
                 hero_only = true;
                 st.beta = Vec3::new(3.0 * st.beta.x, 0.0, 0.0);
             }
-            v.bsdf = v.bsdf.to_spectral(l, &world.bsdf_spectra);
+            v.bsdf.make_spectral(l, &world.bsdf_spectra);
         }
         let (bsdf, ng, frame, wo_local, hit) = (&v.bsdf, v.ng, &v.frame, v.wo_local, &v.hit);
         // A guided surface vertex: its tree by the normal faced toward the arriving path.

@@ -46,10 +46,12 @@ impl Bsdf {
     /// n(λ) = A + B/λ² through KHR_materials_dispersion's per-channel IORs — and the path has
     /// dropped the other two wavelengths before it gets here. Thin-film iridescence takes the
     /// Airy reflectance at each wavelength ([`super::iridescence::Iridescence::wavelengths`]).
-    pub fn to_spectral(&self, lambda: Vec3, spectra: &crate::spectrum::BsdfSpectra) -> Bsdf {
+    ///
+    /// In place: the path's vertex holds the BSDF, and a copy in and out of a function returning
+    /// a new one was two `memcpy`s of the whole enum per spectral hit (~30 % of this call).
+    pub fn make_spectral(&mut self, lambda: Vec3, spectra: &crate::spectrum::BsdfSpectra) {
         use crate::spectrum::rgb2spec::{reflectance as refl, unbounded};
-        let mut b = *self;
-        match &mut b {
+        match self {
             Bsdf::Diffuse(d) => d.albedo = refl(d.albedo, lambda),
             Bsdf::MetallicRoughness(m) => {
                 m.base = refl(m.base, lambda);
@@ -126,7 +128,6 @@ impl Bsdf {
             }
             Bsdf::Hair(h) => h.sigma_a = unbounded(h.sigma_a, lambda),
         }
-        b
     }
 
     /// True if where the BSDF sends light depends on the wavelength: a dielectric, a thin

@@ -103,6 +103,59 @@ pub fn rgb_to_polynomial(rgb: Vec3) -> SigmoidPolynomial {
             c: Vec3::new(0.0, 0.0, c2),
         };
     }
+    if !rgb.is_finite() {
+        return table_polynomial(v);
+    }
+    // The table's trilinear lookup (a binary search over the brightness nodes and 24 table
+    // reads) is ~300 instructions, paid at every spectral hit for each reflectance of the BSDF,
+    // and a scene holds few distinct colours: a small per-thread cache of the last lookups, keyed
+    // by the colour's bits, returns the same coefficients (a pure function of those bits, so the
+    // image cannot change) for ~20.
+    let key = [rgb.x.to_bits(), rgb.y.to_bits(), rgb.z.to_bits()];
+    let h = key[0]
+        .wrapping_mul(0x9e37_79b1)
+        .wrapping_add(key[1].wrapping_mul(0x85eb_ca77))
+        .wrapping_add(key[2].wrapping_mul(0xc2b2_ae3d));
+    let slot = (h >> (32 - CACHE_BITS)) as usize;
+    CACHE.with(|c| {
+        let e = c[slot].get();
+        if e.filled && e.key == key {
+            return SigmoidPolynomial { c: e.c };
+        }
+        let p = table_polynomial(v);
+        c[slot].set(CacheEntry {
+            filled: true,
+            key,
+            c: p.c,
+        });
+        p
+    })
+}
+
+/// Slots of the per-thread cache of [`rgb_to_polynomial`] (2^6 = 64 colours, 1.5 KB).
+const CACHE_BITS: u32 = 6;
+
+#[derive(Clone, Copy)]
+struct CacheEntry {
+    filled: bool,
+    key: [u32; 3],
+    c: Vec3,
+}
+
+thread_local! {
+    static CACHE: [std::cell::Cell<CacheEntry>; 1 << CACHE_BITS] = const {
+        [const {
+            std::cell::Cell::new(CacheEntry {
+                filled: false,
+                key: [0; 3],
+                c: Vec3::ZERO,
+            })
+        }; 1 << CACHE_BITS]
+    };
+}
+
+/// [`rgb_to_polynomial`]'s table lookup for a colour `v` (clamped, not grey).
+fn table_polynomial(v: [f32; 3]) -> SigmoidPolynomial {
     let m = if v[0] >= v[1] && v[0] >= v[2] {
         0
     } else if v[1] >= v[2] {

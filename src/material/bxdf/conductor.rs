@@ -20,7 +20,7 @@ pub struct Conductor {
     /// Microfacet distribution; a Dirac mirror when [`Ggx::effectively_smooth`].
     pub dist: Ggx,
     /// η and k as named spectra, which spectral rendering evaluates per wavelength
-    /// ([`crate::material::Bsdf::to_spectral`]); `eta`/`k` are their RGB projections.
+    /// ([`crate::material::Bsdf::make_spectral`]); `eta`/`k` are their RGB projections.
     pub spectra: Option<crate::spectrum::ConductorSpectra>,
 }
 

@@ -31,7 +31,7 @@ pub struct Dielectric {
     pub dispersion: Option<Vec3>,
     /// The id of an η spectrum varying with λ ([`crate::spectrum::BsdfSpectra`]: a named
     /// glass or a sampled η) that spectral rendering follows
-    /// ([`crate::material::Bsdf::to_spectral`]); RGB rendering ignores it (`eta` is its index).
+    /// ([`crate::material::Bsdf::make_spectral`]); RGB rendering ignores it (`eta` is its index).
     pub eta_spectrum: Option<u16>,
 }
 

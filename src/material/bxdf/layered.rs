@@ -33,7 +33,7 @@ pub struct Coat {
     pub dist: Ggx,
     /// The id of an η spectrum varying with λ ([`crate::spectrum::BsdfSpectra`]: a named glass
     /// or a sampled η) that spectral rendering follows at the hero wavelength
-    /// ([`crate::material::Bsdf::to_spectral`], pbrt-v4's coated materials); RGB rendering
+    /// ([`crate::material::Bsdf::make_spectral`], pbrt-v4's coated materials); RGB rendering
     /// ignores it (`eta` is its index at 587.56 nm).
     pub eta_spectrum: Option<u16>,
 }

@@ -16,7 +16,7 @@ pub struct ThinDielectric {
     pub ggx: Option<Ggx>,
     /// The id of an η spectrum varying with λ ([`crate::spectrum::BsdfSpectra`]; pbrt's
     /// `thindielectric` with a named glass or a sampled η) that spectral rendering follows at
-    /// the hero wavelength ([`crate::material::Bsdf::to_spectral`], as pbrt-v4's
+    /// the hero wavelength ([`crate::material::Bsdf::make_spectral`], as pbrt-v4's
     /// `ThinDielectricMaterial`); RGB rendering ignores it (`eta` is its index at 587.56 nm).
     pub eta_spectrum: Option<u16>,
 }
