@@ -373,6 +373,36 @@ mod tests {
     use super::*;
     use crate::spectrum::reflectance_to_rgb;
 
+    /// The per-thread cache returns the table's coefficients for every colour, also when colours
+    /// that share a slot evict each other and come back (more colours than slots, revisited in
+    /// another order).
+    #[test]
+    fn cached_polynomials_are_the_tables() {
+        let colours: Vec<Vec3> = (0..500u32)
+            .map(|i| {
+                let h = |k: u32| ((i * 2654435761 + k * 40503) % 1000) as f32 / 999.0;
+                Vec3::new(h(1), h(2), h(3))
+            })
+            .collect();
+        for pass in 0..3 {
+            for (j, c) in colours.iter().enumerate() {
+                let c = if pass == 1 { colours[499 - j] } else { *c };
+                let v = c.clamp(Vec3::ZERO, Vec3::ONE);
+                if v.x == v.y && v.y == v.z {
+                    continue;
+                }
+                assert_eq!(
+                    rgb_to_polynomial(c).c.to_array().map(f32::to_bits),
+                    table_polynomial([v.x, v.y, v.z])
+                        .c
+                        .to_array()
+                        .map(f32::to_bits),
+                    "{c:?}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn the_y_integral_is_the_tables() {
         let s: f32 = (360..=830).map(|l| cie_xyz(l as f32).y).sum();
