@@ -191,6 +191,9 @@ pub struct GivenSettings {
     /// format's default ([`crate::scene::RenderHints::spectral`]: pbrt files spectral), RGB
     /// where the integrator has no spectral path ([`rgb_fallback`]).
     pub spectral: bool,
+    /// Path guiding on or off (`--guiding`/`--no-guiding`: `settings.guiding`); else the scene
+    /// file's ([`crate::scene::RenderHints::guiding`]), else off.
+    pub guiding: bool,
 }
 
 impl GivenSettings {
@@ -203,6 +206,7 @@ impl GivenSettings {
         filter: true,
         integrator: true,
         spectral: true,
+        guiding: true,
     };
 }
 
@@ -623,6 +627,11 @@ impl RenderJob {
         }
         if !self.given.spectral {
             s.path.spectral = h.spectral;
+        }
+        if !self.given.guiding
+            && let Some(g) = h.guiding
+        {
+            s.guiding = g;
         }
         // The photon settings the job was not given, from the file.
         s.photon.photons_per_iteration = s.photon.photons_per_iteration.or(h.photons_per_iteration);

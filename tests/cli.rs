@@ -317,3 +317,52 @@ fn pbrt_files_render_spectrally_by_default_and_the_log_says_why() {
     let log = ok(run("cornell", "cornell.exr", &[]));
     assert!(log.contains("threads, RGB\n"), "{log}");
 }
+
+/// A TOML scene's `[render] guiding = true` guides the command line's render as `--guiding`
+/// does (the same image, byte for byte), `--no-guiding` turns it off (the unguided image), and
+/// `--guiding --no-guiding` is refused.
+#[test]
+fn a_toml_scene_can_turn_guiding_on() {
+    let dir = temp_dir("toml-guiding");
+    let room = "[[camera]]\neye = [0.0, 1.0, 3.0]\ntarget = [0.0, 0.5, 0.0]\n\
+        [[material]]\nname = \"grey\"\nbase_color = [0.7, 0.7, 0.7]\n\
+        [[object]]\ntype = \"box\"\nmin = [-1.0, 0.0, -1.0]\nmax = [1.0, 0.2, 1.0]\nmaterial = \"grey\"\n\
+        [[object]]\ntype = \"sphere\"\ncenter = [0.0, 0.6, 0.0]\nradius = 0.4\nmaterial = \"grey\"\n";
+    std::fs::write(dir.join("plain.toml"), room).unwrap();
+    std::fs::write(
+        dir.join("guided.toml"),
+        format!("{room}[render]\nguiding = true\n"),
+    )
+    .unwrap();
+    let render = |scene: &str, out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "render", scene, "--width", "24", "--height", "16", "--spp", "16", "--quiet", "-o", out,
+        ];
+        args.extend_from_slice(extra);
+        let o = trayecto(&args, &dir);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(dir.join(out)).unwrap()
+    };
+    let by_file = render("guided.toml", "by-file.exr", &[]);
+    let by_flag = render("plain.toml", "by-flag.exr", &["--guiding"]);
+    let plain = render("plain.toml", "plain.exr", &[]);
+    let turned_off = render("guided.toml", "off.exr", &["--no-guiding"]);
+    assert!(by_file == by_flag, "the file's guiding is not --guiding");
+    assert!(
+        turned_off == plain,
+        "--no-guiding did not turn the file's guiding off"
+    );
+    assert!(by_file != plain, "guiding changed nothing");
+    let o = trayecto(
+        &[
+            "render",
+            "plain.toml",
+            "--guiding",
+            "--no-guiding",
+            "-o",
+            "x.exr",
+        ],
+        &dir,
+    );
+    assert!(!o.status.success());
+}

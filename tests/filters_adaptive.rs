@@ -585,6 +585,7 @@ Shape "sphere" "float radius" 1
             filter: false,
             integrator: false,
             spectral: false,
+            guiding: false,
         },
         outputs: vec![],
         split: Default::default(),

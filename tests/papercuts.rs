@@ -28,6 +28,7 @@ fn job(width: Option<u32>, height: Option<u32>) -> RenderJob {
             filter: false,
             integrator: false,
             spectral: false,
+            guiding: false,
         },
         split: Default::default(),
         aovs: Vec::new(),
@@ -113,6 +114,40 @@ fn toml_render_table_gives_the_resolution() {
     )
     .unwrap_err();
     assert_eq!(e.to_string(), "t.toml: [render] width must be at least 1");
+}
+
+/// A TOML scene's `[render] guiding` turns path guiding on for its renders unless the job says
+/// otherwise (`--guiding`/`--no-guiding`, the web request's and the Python options' `guiding`).
+#[test]
+fn toml_render_table_turns_guiding_on_unless_the_job_says() {
+    let load = |toml: &[u8]| {
+        trayecto::scene::toml_scene::load_from_bytes(toml, std::path::Path::new("."), "t.toml")
+            .unwrap()
+    };
+    let on = load(b"[render]\nguiding = true\n");
+    let off = load(b"[render]\nguiding = false\n");
+    let silent = load(b"[render]\nspp = 4\n");
+    assert_eq!(
+        (on.hints.guiding, off.hints.guiding, silent.hints.guiding),
+        (Some(true), Some(false), None)
+    );
+    let mut j = job(None, None);
+    assert!(j.settings_for(&on).guiding);
+    assert!(!j.settings_for(&off).guiding);
+    assert!(!j.settings_for(&silent).guiding);
+    // Given by the job (`--no-guiding`; `--guiding` sets it true), the job's wins.
+    j.given.guiding = true;
+    assert!(!j.settings_for(&on).guiding);
+    j.settings.guiding = true;
+    assert!(j.settings_for(&off).guiding);
+    assert!(j.settings_for(&silent).guiding);
+    let e = trayecto::scene::toml_scene::load_from_bytes(
+        b"[render]\nguiding = 1\n",
+        std::path::Path::new("."),
+        "t.toml",
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("guiding"), "{e}");
 }
 
 #[test]

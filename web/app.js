@@ -4,7 +4,7 @@
 "use strict";
 
 const FIELDS = ["scene", "output", "width", "height", "spp", "secondary", "max_depth",
-  "exposure", "integrator", "tonemap", "default_light", "denoise", "transparent", "spectral", "environment",
+  "exposure", "integrator", "tonemap", "default_light", "denoise", "transparent", "spectral", "guiding", "environment",
   "env_rotation", "view_spp", "aovs", "variant", "time", "frames", "fps", "shutter"];
 const $ = (id) => document.getElementById(id);
 let options = null;
@@ -79,6 +79,8 @@ function readForm() {
   body.transparent = $("transparent").checked;
   // "" = the scene file's default (pbrt files spectral, as pbrt-v4; other formats RGB).
   body.spectral = { "": null, spectral: true, rgb: false }[$("spectral").value];
+  // "" = the scene file's setting (TOML [render] guiding), else off.
+  body.guiding = { "": null, on: true, off: false }[$("guiding").value];
   body.environment = $("environment").value || null;
   // "" = the file's default materials (KHR_materials_variants); the list is the scene's own.
   body.variant = $("variant").value || null;

@@ -498,6 +498,9 @@ pub struct RenderHints {
     /// The format renders spectrally by default (pbrt-v4 files: pbrt-v4 always does); the
     /// user's `--spectral`/`--rgb` wins ([`crate::pipeline::GivenSettings::spectral`]).
     pub spectral: bool,
+    /// Path guiding as the file asks (TOML `[render] guiding`); the user's `--guiding` /
+    /// `--no-guiding` wins ([`crate::pipeline::GivenSettings::guiding`]).
+    pub guiding: Option<bool>,
 }
 
 impl MediumDesc {

@@ -53,6 +53,9 @@ struct RenderSpec {
     height: Option<u32>,
     spp: Option<u32>,
     max_depth: Option<u32>,
+    /// Path guiding (`--guiding`): the scenes it pays on (interiors lit through a door or a
+    /// window) can turn it on for every render of the file.
+    guiding: Option<bool>,
 }
 
 /// A participating medium. `sigma_a`, `sigma_s` per unit length, times `scale`.
@@ -278,6 +281,7 @@ pub fn load_from_bytes(bytes: &[u8], dir: &Path, label: &str) -> Result<Scene, S
         scene.hints.height = r.height;
         scene.hints.spp = r.spp;
         scene.hints.max_depth = r.max_depth;
+        scene.hints.guiding = r.guiding;
     }
 
     let mut by_name: HashMap<String, MaterialId> = HashMap::new();

@@ -130,6 +130,9 @@ pub struct RenderRequest {
     /// absent or null: the scene file's default (pbrt files spectral, as `--spectral`/`--rgb`
     /// left out on the command line).
     pub spectral_given: bool,
+    /// Whether the request said `guiding` true or false (`settings.guiding`); absent or null:
+    /// the scene file's (TOML `[render] guiding`), else off.
+    pub guiding_given: bool,
     /// `crop`: fractions [x0, x1, y0, y1] of the image (pbrt's cropwindow).
     pub crop: Option<crate::pipeline::CropSpec>,
     /// glTF material variant (`KHR_materials_variants`); `None`: the file's default materials.
@@ -426,6 +429,7 @@ fn resolved_settings(
             filter: false,
             integrator: false,
             spectral: false,
+            guiding: false,
         },
         split: Default::default(),
         aovs: Vec::new(),
@@ -640,7 +644,8 @@ struct Options {
     time_limit: Option<f64>,
     crop: Option<crate::pipeline::CropSpec>,
     denoise: bool,
-    guiding: bool,
+    /// `None`: the scene file's setting.
+    guiding: Option<bool>,
     transparent: bool,
     /// `None`: the scene file's default.
     spectral: Option<bool>,
@@ -766,7 +771,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
         track_variance: false,
         // Set by the pipeline when the alpha AOV is asked for.
         track_coverage: false,
-        guiding: o.guiding,
+        guiding: o.guiding.unwrap_or(false),
         photon: Default::default(),
         mlt: Default::default(),
     };
@@ -787,6 +792,7 @@ pub fn parse_request(body: &[u8], policy: &Policy) -> Result<RenderRequest, Requ
             default_light: o.default_light,
             filter_given: o.filter.is_some(),
             spectral_given: o.spectral.is_some(),
+            guiding_given: o.guiding.is_some(),
             crop: o.crop,
             denoise: o.denoise,
             variant: o.variant,
@@ -1073,7 +1079,10 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
     let time_limit = positive_field(b.time_limit.as_ref(), "time_limit", MAX_TIME_LIMIT, errors);
     let crop = check_crop(b.crop.as_ref(), errors);
     let denoise = bool_field(b.denoise.as_ref(), "denoise", errors);
-    let guiding = bool_field(b.guiding.as_ref(), "guiding", errors);
+    let guiding = match b.guiding.as_ref() {
+        None | Some(Value::Null) => None,
+        v => Some(bool_field(v, "guiding", errors)),
+    };
     let transparent = bool_field(b.transparent.as_ref(), "transparent", errors);
     let spectral = match b.spectral.as_ref() {
         None | Some(Value::Null) => None,
@@ -1280,6 +1289,23 @@ mod tests {
         assert!(
             parse(r#"{"scene":"cornell","spectral":false,"integrator":"whitted"}"#).spectral_given
         );
+    }
+
+    /// `guiding` is three-way too: absent or null leaves the scene file's setting (TOML
+    /// `[render] guiding`), true and false force it; anything else is refused by name.
+    #[test]
+    fn guiding_is_true_false_or_the_files() {
+        let parse = |b: &str| parse_request(b.as_bytes(), &policy()).unwrap();
+        for (body, given, guiding) in [
+            (r#"{"scene":"cornell"}"#, false, false),
+            (r#"{"scene":"cornell","guiding":null}"#, false, false),
+            (r#"{"scene":"cornell","guiding":true}"#, true, true),
+            (r#"{"scene":"cornell","guiding":false}"#, true, false),
+        ] {
+            let r = parse(body);
+            assert_eq!((r.guiding_given, r.settings.guiding), (given, guiding));
+        }
+        assert!(fields(r#"{"scene":"cornell","guiding":"yes"}"#).contains_key("guiding"));
     }
 
     /// The #19 fields reach the settings, and absurd values are refused by name.

@@ -126,7 +126,10 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("time_limit", s.time_limit)?;
     d.set_item("crop", &none)?;
     d.set_item("pixel_bounds", &none)?;
-    d.set_item("guiding", s.guiding)?;
+    // None: the scene file's (TOML `[render] guiding`), else off; True/False: forced.
+    d.set_item("guiding", &none)?;
+    // The command line's `--no-guiding`: guiding=False.
+    d.set_item("no_guiding", false)?;
     // SPPM and VCM: None is the scene file's, else the integrator's own default.
     d.set_item("photons_per_iteration", s.photon.photons_per_iteration)?;
     d.set_item("photon_radius", s.photon.radius)?;
@@ -313,7 +316,21 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
     s.seed = opt(d, "seed")?.unwrap_or(s.seed);
     // 0 means every core, as on the command line.
     s.threads = opt::<usize>(d, "threads")?.filter(|&t| t > 0);
-    s.guiding = opt(d, "guiding")?.unwrap_or(s.guiding);
+    // `--guiding`/`--no-guiding`: None leaves the scene file's (GivenSettings::guiding).
+    let guiding_given: Option<bool> = opt(d, "guiding")?;
+    let guiding_given = match (
+        guiding_given,
+        opt::<bool>(d, "no_guiding")?.unwrap_or(false),
+    ) {
+        (Some(true), true) => {
+            return Err(bad(
+                "invalid setting: give guiding=True or no_guiding=True, not both",
+            ));
+        }
+        (_, true) => Some(false),
+        (g, false) => g,
+    };
+    s.guiding = guiding_given.unwrap_or(false);
     s.photon.photons_per_iteration = opt(d, "photons_per_iteration")?;
     s.photon.radius = opt(d, "photon_radius")?;
     s.photon.no_merge = opt(d, "vcm_no_merge")?.unwrap_or(s.photon.no_merge);
@@ -484,6 +501,7 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
             filter: filter_kind.is_some(),
             integrator: integrator_given.is_some(),
             spectral: spectral_given.is_some(),
+            guiding: guiding_given.is_some(),
         },
         crop,
         aovs,

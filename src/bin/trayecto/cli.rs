@@ -371,6 +371,9 @@ pub struct RenderArgs {
     /// through a thin slit and in fog it loses 10–20 % (BENCHMARKS.md, "Path guiding").
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub guiding: bool,
+    /// No path guiding, also where the scene file turns it on (TOML `[render] guiding = true`).
+    #[arg(long, help_heading = HEADING_SAMPLING, hide_short_help = true, conflicts_with = "guiding")]
+    pub no_guiding: bool,
     /// Most a sample's direct light may add (its largest colour channel; off by default).
     ///
     /// Light seen by the camera or after one bounce is scaled down to X. Biased, like Cycles'
@@ -639,6 +642,7 @@ impl RenderArgs {
                 filter: self.filter.is_some(),
                 integrator: self.integrator.is_some(),
                 spectral: self.spectral || self.rgb,
+                guiding: self.guiding || self.no_guiding,
             },
             outputs: vec![OutputSpec {
                 path: self.output.clone(),

@@ -798,6 +798,7 @@ fn run_job(job: &Job, out_dir: &std::path::Path) -> Result<(), JobEnd> {
         given: GivenSettings {
             filter: r.filter_given,
             spectral: r.spectral_given,
+            guiding: r.guiding_given,
             ..GivenSettings::ALL
         },
         outputs: vec![output(&png), output(&exr)],
@@ -883,6 +884,7 @@ mod tests {
             denoise: false,
             filter_given: false,
             spectral_given: false,
+            guiding_given: false,
             crop: None,
             variant: None,
             environment: None,
