@@ -367,8 +367,9 @@ pub struct RenderArgs {
     /// spp/4, under --time-limit at most about a third of the time; kept in the image) and
     /// sample those directions too, at surfaces and in media. Unbiased and deterministic (split
     /// and resumed renders learn the same guide). For indirect light through a door ajar or a
-    /// window, or off a small bright patch: there it lowered the error 1.2–2.2× at equal time;
-    /// through a thin slit and in fog it loses 10–20 % (BENCHMARKS.md, "Path guiding").
+    /// window, or off a small bright patch: there it lowered the error 1.2–1.9× at equal time;
+    /// through a thin slit and in fog it loses 11–21 % (BENCHMARKS.md, "Path guiding"). A TOML
+    /// scene's `[render] guiding = true` turns it on too.
     #[arg(long, help_heading = HEADING_SAMPLING)]
     pub guiding: bool,
     /// No path guiding, also where the scene file turns it on (TOML `[render] guiding = true`).
