@@ -112,11 +112,7 @@ pub fn rgb_to_polynomial(rgb: Vec3) -> SigmoidPolynomial {
     // by the colour's bits, returns the same coefficients (a pure function of those bits, so the
     // image cannot change) for ~20.
     let key = [rgb.x.to_bits(), rgb.y.to_bits(), rgb.z.to_bits()];
-    let h = key[0]
-        .wrapping_mul(0x9e37_79b1)
-        .wrapping_add(key[1].wrapping_mul(0x85eb_ca77))
-        .wrapping_add(key[2].wrapping_mul(0xc2b2_ae3d));
-    let slot = (h >> (32 - CACHE_BITS)) as usize;
+    let slot = cache_slot(key);
     CACHE.with(|c| {
         let e = c[slot].get();
         if e.filled && e.key == key {
@@ -130,6 +126,16 @@ pub fn rgb_to_polynomial(rgb: Vec3) -> SigmoidPolynomial {
         });
         p
     })
+}
+
+/// The cache slot of a colour's bits: a multiplicative hash of the three.
+#[inline]
+fn cache_slot(key: [u32; 3]) -> usize {
+    let h = key[0]
+        .wrapping_mul(0x9e37_79b1)
+        .wrapping_add(key[1].wrapping_mul(0x85eb_ca77))
+        .wrapping_add(key[2].wrapping_mul(0xc2b2_ae3d));
+    (h >> (32 - CACHE_BITS)) as usize
 }
 
 /// Slots of the per-thread cache of [`rgb_to_polynomial`] (2^6 = 64 colours, 1.5 KB).
@@ -373,34 +379,52 @@ mod tests {
     use super::*;
     use crate::spectrum::reflectance_to_rgb;
 
-    /// The per-thread cache returns the table's coefficients for every colour, also when colours
-    /// that share a slot evict each other and come back (more colours than slots, revisited in
-    /// another order).
+    /// The per-thread cache returns the table's coefficients for every colour: also right after a
+    /// colour in the same slot that differs in one channel only (a key compared in part would
+    /// return that one's coefficients), and when colours evict each other and come back.
     #[test]
     fn cached_polynomials_are_the_tables() {
-        let colours: Vec<Vec3> = (0..500u32)
-            .map(|i| {
-                let h = |k: u32| ((i * 2654435761 + k * 40503) % 1000) as f32 / 999.0;
-                Vec3::new(h(1), h(2), h(3))
-            })
-            .collect();
-        for pass in 0..3 {
-            for (j, c) in colours.iter().enumerate() {
-                let c = if pass == 1 { colours[499 - j] } else { *c };
-                let v = c.clamp(Vec3::ZERO, Vec3::ONE);
-                if v.x == v.y && v.y == v.z {
-                    continue;
-                }
-                assert_eq!(
-                    rgb_to_polynomial(c).c.to_array().map(f32::to_bits),
-                    table_polynomial([v.x, v.y, v.z])
-                        .c
-                        .to_array()
-                        .map(f32::to_bits),
-                    "{c:?}"
+        let check = |c: Vec3| {
+            let v = c.clamp(Vec3::ZERO, Vec3::ONE);
+            assert_eq!(
+                rgb_to_polynomial(c).c.to_array().map(f32::to_bits),
+                table_polynomial([v.x, v.y, v.z])
+                    .c
+                    .to_array()
+                    .map(f32::to_bits),
+                "{c:?}"
+            );
+        };
+        let key = |c: Vec3| [c.x.to_bits(), c.y.to_bits(), c.z.to_bits()];
+        let mut pairs = 0;
+        for pass in 0..2u32 {
+            for j in 0..200u32 {
+                let i = if pass == 0 { j } else { 199 - j };
+                let c = Vec3::new(
+                    0.1 + (i % 9) as f32 * 0.1,
+                    0.05 + (i / 9 % 7) as f32 * 0.12,
+                    0.03 + (i % 5) as f32 * 0.17,
                 );
+                check(c);
+                for axis in 0..3 {
+                    // A colour changed in this channel alone that lands in the same slot.
+                    let d = (1..1000).map(|t| {
+                        let mut d = c;
+                        d[axis] = t as f32 / 1000.0;
+                        d
+                    });
+                    if let Some(d) = d
+                        .filter(|d| *d != c && cache_slot(key(*d)) == cache_slot(key(c)))
+                        .find(|d| !(d.x == d.y && d.y == d.z))
+                    {
+                        check(d);
+                        check(c);
+                        pairs += 1;
+                    }
+                }
             }
         }
+        assert!(pairs > 1000, "{pairs} colliding pairs");
     }
 
     #[test]
