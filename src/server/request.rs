@@ -243,6 +243,18 @@ fn bool_field(v: Option<&Value>, key: &str, errors: &mut BTreeMap<String, String
     }
 }
 
+/// A true/false field whose absence (or null) means "the scene file's": `None` then.
+fn optional_bool_field(
+    v: Option<&Value>,
+    key: &str,
+    errors: &mut BTreeMap<String, String>,
+) -> Option<bool> {
+    match v {
+        None | Some(Value::Null) => None,
+        v => Some(bool_field(v, key, errors)),
+    }
+}
+
 /// A positive number field at most `max` (`None` when absent or null).
 fn positive_field(
     v: Option<&Value>,
@@ -1079,15 +1091,9 @@ fn check_options(b: &RequestBody, errors: &mut Errors) -> Options {
     let time_limit = positive_field(b.time_limit.as_ref(), "time_limit", MAX_TIME_LIMIT, errors);
     let crop = check_crop(b.crop.as_ref(), errors);
     let denoise = bool_field(b.denoise.as_ref(), "denoise", errors);
-    let guiding = match b.guiding.as_ref() {
-        None | Some(Value::Null) => None,
-        v => Some(bool_field(v, "guiding", errors)),
-    };
+    let guiding = optional_bool_field(b.guiding.as_ref(), "guiding", errors);
     let transparent = bool_field(b.transparent.as_ref(), "transparent", errors);
-    let spectral = match b.spectral.as_ref() {
-        None | Some(Value::Null) => None,
-        v => Some(bool_field(v, "spectral", errors)),
-    };
+    let spectral = optional_bool_field(b.spectral.as_ref(), "spectral", errors);
     Options {
         exposure,
         integrator,

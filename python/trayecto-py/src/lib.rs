@@ -186,6 +186,18 @@ fn choices(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     Ok(d)
 }
 
+/// A setting the scene file may give, as the command line's `--key`/`--off` pair: `key=True` or
+/// `False` forces it, `off=True` is `key=False`, both true is refused; `None` leaves the file's.
+fn forced_or_files(d: &Bound<'_, PyDict>, key: &str, off: &str) -> PyResult<Option<bool>> {
+    match (opt::<bool>(d, key)?, opt::<bool>(d, off)?.unwrap_or(false)) {
+        (Some(true), true) => Err(bad(format!(
+            "invalid setting: give {key}=True or {off}=True, not both"
+        ))),
+        (_, true) => Ok(Some(false)),
+        (v, false) => Ok(v),
+    }
+}
+
 /// A keyword's value, `None` when it is absent or `None`.
 fn opt<'py, T: FromPyObject<'py>>(d: &Bound<'py, PyDict>, key: &str) -> PyResult<Option<T>> {
     match d.get_item(key)? {
@@ -317,19 +329,7 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
     // 0 means every core, as on the command line.
     s.threads = opt::<usize>(d, "threads")?.filter(|&t| t > 0);
     // `--guiding`/`--no-guiding`: None leaves the scene file's (GivenSettings::guiding).
-    let guiding_given: Option<bool> = opt(d, "guiding")?;
-    let guiding_given = match (
-        guiding_given,
-        opt::<bool>(d, "no_guiding")?.unwrap_or(false),
-    ) {
-        (Some(true), true) => {
-            return Err(bad(
-                "invalid setting: give guiding=True or no_guiding=True, not both",
-            ));
-        }
-        (_, true) => Some(false),
-        (g, false) => g,
-    };
+    let guiding_given = forced_or_files(d, "guiding", "no_guiding")?;
     s.guiding = guiding_given.unwrap_or(false);
     s.photon.photons_per_iteration = opt(d, "photons_per_iteration")?;
     s.photon.radius = opt(d, "photon_radius")?;
@@ -361,16 +361,7 @@ fn options(d: &Bound<'_, PyDict>) -> PyResult<Options> {
     }
     p.transparent = opt(d, "transparent")?.unwrap_or(p.transparent);
     // `--spectral`/`--rgb`: None leaves the scene file's default (GivenSettings::spectral).
-    let spectral_given: Option<bool> = opt(d, "spectral")?;
-    let spectral_given = match (spectral_given, opt::<bool>(d, "rgb")?.unwrap_or(false)) {
-        (Some(true), true) => {
-            return Err(bad(
-                "invalid setting: give spectral=True or rgb=True, not both",
-            ));
-        }
-        (_, true) => Some(false),
-        (s, false) => s,
-    };
+    let spectral_given = forced_or_files(d, "spectral", "rgb")?;
     p.spectral = spectral_given.unwrap_or(false);
     // AOV names; with the raycast integrator a single view name picks what the image shows.
     let aov_names: Vec<String> = match d.get_item("aovs")?.filter(|v| !v.is_none()) {
