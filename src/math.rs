@@ -212,21 +212,26 @@ pub fn mat4_is_finite(m: &Mat4) -> bool {
     m.to_cols_array().iter().all(|v| v.is_finite())
 }
 
-/// The instruction sets the renderer's run-time dispatch chooses between. Two structures have a
-/// second copy of their hot loop compiled with AVX2 enabled, chosen when they are built: the
+/// The instruction sets the renderer's run-time dispatch chooses between. Three hot loops have
+/// copies compiled with wider instruction sets, chosen when their structure is built: the
 /// geometry BVH's traversal (`accel::bvh`, with AVX's eight-lane triangle pair test) and the light
-/// BVH's descent (`light::bvh`). Everything else is compiled for the target's baseline (SSE2 on
+/// BVH's descent (`light::bvh`) have an AVX2 copy (used at `avx2` and `avx512`: the eight-wide
+/// BVH's slab test is one 256-bit operation per plane already); the wavefront path loop's
+/// per-bounce sample numbers (`sampling::sampler::WaveDraw`, a loop across the wave's paths) have
+/// an AVX2 and an AVX-512 copy. Everything else is compiled for the target's baseline (SSE2 on
 /// x86-64, where a few SSE2 intrinsics are used without detection because every x86-64 CPU has
-/// them). There is no SSE4 or AVX-512 copy of anything: the eight-wide BVH's slab test is one
-/// 256-bit operation per plane already. Both copies compute every float with the same IEEE
-/// operations (no FMA: it is not enabled, and Rust never contracts `a * b + c`), so the image does
-/// not depend on the level (tests/simd.rs renders each level and compares the bits).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// them). Every copy computes every float with the same IEEE operations (no FMA: it is not
+/// enabled, and Rust never contracts `a * b + c`), so the image does not depend on the level
+/// (tests/simd.rs renders each level and compares the bits).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum SimdLevel {
     /// The baseline code only.
     Portable,
-    /// The AVX2 copies of the BVH traversal and the light BVH descent.
+    /// The AVX2 copies of the BVH traversal, the light BVH descent and the wave's sample numbers.
     Avx2,
+    /// The AVX2 copies of the BVH traversal and descent and the AVX-512 copy (F, DQ, VL, BW) of
+    /// the wave's sample numbers.
+    Avx512,
 }
 
 /// How the `TRAYECTO_SIMD` setting can be wrong.
@@ -234,7 +239,7 @@ pub enum SimdLevel {
 pub enum SimdError {
     /// A name that is not one of [`SimdLevel::ALL`].
     #[error(
-        "TRAYECTO_SIMD={name:?} is not a SIMD level of this renderer (portable, avx2){hint}",
+        "TRAYECTO_SIMD={name:?} is not a SIMD level of this renderer (portable, avx2, avx512){hint}",
         name = .0,
         hint = simd_hint(.0)
     )]
@@ -250,7 +255,7 @@ pub enum SimdError {
 
 fn simd_hint(name: &str) -> &'static str {
     match name.to_ascii_lowercase().as_str() {
-        "avx512" | "avx-512" | "avx512f" => ": there is no AVX-512 code, avx2 is the widest",
+        "avx-512" | "avx512f" | "avx512bw" | "avx512dq" => ": AVX-512 is `avx512`",
         "sse" | "sse2" | "sse4" | "sse4.1" | "sse4.2" => {
             ": `portable` is the SSE2 baseline on x86-64, and there is no SSE4 code"
         }
@@ -260,13 +265,14 @@ fn simd_hint(name: &str) -> &'static str {
 
 impl SimdLevel {
     /// Every level the code has, narrowest first.
-    pub const ALL: [SimdLevel; 2] = [SimdLevel::Portable, SimdLevel::Avx2];
+    pub const ALL: [SimdLevel; 3] = [SimdLevel::Portable, SimdLevel::Avx2, SimdLevel::Avx512];
 
     /// The name `TRAYECTO_SIMD` takes.
     pub fn name(self) -> &'static str {
         match self {
             SimdLevel::Portable => "portable",
             SimdLevel::Avx2 => "avx2",
+            SimdLevel::Avx512 => "avx512",
         }
     }
 
@@ -284,8 +290,16 @@ impl SimdLevel {
             SimdLevel::Portable => true,
             #[cfg(target_arch = "x86_64")]
             SimdLevel::Avx2 => std::is_x86_feature_detected!("avx2"),
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx512 => {
+                std::is_x86_feature_detected!("avx2")
+                    && std::is_x86_feature_detected!("avx512f")
+                    && std::is_x86_feature_detected!("avx512dq")
+                    && std::is_x86_feature_detected!("avx512vl")
+                    && std::is_x86_feature_detected!("avx512bw")
+            }
             #[cfg(not(target_arch = "x86_64"))]
-            SimdLevel::Avx2 => false,
+            SimdLevel::Avx2 | SimdLevel::Avx512 => false,
         }
     }
 
@@ -326,7 +340,7 @@ impl std::fmt::Display for SimdLevel {
     }
 }
 
-/// The SIMD level this process was asked for: `TRAYECTO_SIMD` (`portable` or `avx2`), or
+/// The SIMD level this process was asked for: `TRAYECTO_SIMD` (`portable`, `avx2`, `avx512`), or
 /// `TRAYECTO_NO_AVX2` set (= `portable`), or else the widest the CPU has. Read once per process.
 /// An unknown name or a level the CPU lacks is an error ([`SimdError`]); the render pipeline
 /// refuses to start with it (`pipeline::RenderJob::check`).
@@ -356,10 +370,11 @@ pub fn simd_level() -> SimdLevel {
 }
 
 /// Whether the structures with an AVX2-compiled copy of their hot loop (the geometry BVH's
-/// traversal, the light BVH's descent) use it: [`simd_level`] is [`SimdLevel::Avx2`], which
-/// implies the running CPU has AVX2 (false off x86-64). Asked once when such a structure is built.
+/// traversal, the light BVH's descent) use it: [`simd_level`] is [`SimdLevel::Avx2`] or wider,
+/// which implies the running CPU has AVX2 (false off x86-64). Asked once when such a structure is
+/// built.
 pub fn detect_avx2() -> bool {
-    simd_level() == SimdLevel::Avx2
+    simd_level() >= SimdLevel::Avx2
 }
 
 /// ⌊x⌋ as an integer and as a float, bit for bit `(x.floor() as i64, x.floor())`. The target's
@@ -418,7 +433,8 @@ mod tests {
     use super::*;
 
     /// `TRAYECTO_SIMD` and its alias: each level by its name (or an error naming what the CPU
-    /// lacks), unknown names and AVX-512 refused with the name in the message, the alias alone is
+    /// lacks), unknown names refused with the name in the message (AVX-512's other spellings with
+    /// a hint), the alias alone is
     /// the portable code, and the alias beside another level is refused rather than either won.
     #[test]
     fn simd_setting_names_levels_and_refuses_the_rest() {
@@ -443,13 +459,13 @@ mod tests {
             SimdLevel::from_settings(Some("avx2"), true),
             Err(SimdError::Conflict("avx2".into()))
         );
-        for bad in ["avx512", "sse2", "AVX2", "", "fast"] {
+        for bad in ["avx-512", "sse2", "AVX2", "", "fast"] {
             let e = SimdLevel::from_settings(Some(bad), false).unwrap_err();
             assert_eq!(e, SimdError::Unknown(bad.into()));
             assert!(e.to_string().contains(&format!("{bad:?}")), "{e}");
         }
-        let e = SimdError::Unknown("avx512".into()).to_string();
-        assert!(e.contains("no AVX-512 code"), "{e}");
+        let e = SimdError::Unknown("avx512f".into()).to_string();
+        assert!(e.contains("AVX-512 is `avx512`"), "{e}");
     }
 
     /// `floor_i64` is bit for bit `floor` (value, sign of zero, integer) on a sweep of ordinary

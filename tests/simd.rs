@@ -4,8 +4,8 @@
 //! mesh, the light BVH's descent (four- and eight-way) over hundreds of emissive triangles,
 //! textures, normal maps and the environment map — in the wavefront loop (RGB) and in the
 //! spectral scalar tracer (pbrt). A level the CPU lacks is skipped by name on stderr. The setting
-//! is checked too: the render log names the level that ran, and an unknown level, a level the
-//! code lacks (AVX-512) or the old `TRAYECTO_NO_AVX2` beside another level is an error, not
+//! is checked too: the render log names the level that ran, and an unknown level (AVX-512 spelt
+//! other than `avx512`), a level the CPU lacks or the old `TRAYECTO_NO_AVX2` beside another level is an error, not
 //! silently some other code.
 
 mod common;
@@ -76,6 +76,13 @@ fn every_simd_level_renders_the_same_bits() {
         (emissive, vec!["--light-sampler", "bvh8"]),
         ("scenes/mitsuba/envmap.toml".into(), vec![]),
         ("scenes/mitsuba/textured.toml".into(), vec![]),
+        // The wave's bounce numbers (`sampling::sampler::WaveDraw`, an AVX2 and an AVX-512
+        // copy): stratified (above, 16 spp), and stratified then hashed past the padded
+        // sampler's dimensions, with roulette's numbers from the second bounce.
+        (
+            "cornell".into(),
+            vec!["--sampler", "padded", "--rr-depth", "1"],
+        ),
         // Spectral, the scalar tracer: the wavefront loop does not run it.
         (
             shared("pbrt/veach-mis/scene-v4.pbrt"),
@@ -104,7 +111,7 @@ fn a_simd_level_that_cannot_run_as_asked_is_an_error() {
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("bad.exr");
     let mut refused: Vec<(Vec<(&str, &str)>, &str)> = vec![
-        (vec![("TRAYECTO_SIMD", "avx512")], "no AVX-512 code"),
+        (vec![("TRAYECTO_SIMD", "avx-512")], "AVX-512 is `avx512`"),
         (vec![("TRAYECTO_SIMD", "fastest")], "\"fastest\""),
         (
             vec![("TRAYECTO_SIMD", "avx2"), ("TRAYECTO_NO_AVX2", "1")],

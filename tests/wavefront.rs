@@ -2,7 +2,8 @@
 //! renders bit for bit what the scalar path tracer renders, on scenes that exercise its stages:
 //! textures and normal maps, MIS between light and BSDF samples with several lights, many
 //! emitters, an environment map, delta lights, transmission and specular chains, the depth
-//! limit and clamping. Each scene is rendered with the loop forced each way
+//! limit and clamping, and each sampler's way of handing out the bounces' numbers (drawn for the
+//! whole wave or path by path). Each scene is rendered with the loop forced each way
 //! (`TRAYECTO_PATH_LOOP`) and with the portable and the widest SIMD code this CPU has
 //! (`TRAYECTO_SIMD`; tests/simd.rs covers each level by name), and every float of the four images
 //! must be the same bits.
@@ -22,7 +23,7 @@ fn render(
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_trayecto"));
     cmd.args(["render", scene, "-o"])
         .arg(&out)
-        .args(["--width", "40", "--height", "32", "--spp", "8", "-q"])
+        .args(["--width", "40", "--height", "32", "-q"])
         .args(extra)
         .current_dir(common::repo_dir())
         .env("TRAYECTO_PATH_LOOP", path_loop);
@@ -31,6 +32,11 @@ fn render(
         cmd.env_remove("TRAYECTO_SIMD");
     } else {
         cmd.env("TRAYECTO_SIMD", "portable");
+    }
+    if !extra.contains(&"--spp") {
+        // A square power of two: the stratified sampler's bounce numbers are drawn for the
+        // whole wave (`sampling::sampler::WaveDraw`).
+        cmd.args(["--spp", "16"]);
     }
     let o = cmd.output().expect("binary runs");
     assert!(
@@ -55,6 +61,16 @@ fn the_wavefront_loop_renders_the_scalar_tracers_image_bit_for_bit() {
             vec!["--clamp-indirect", "0.5", "--rr-depth", "1"],
         ),
         ("cornell".into(), vec!["--no-mis"]),
+        // Bounce numbers drawn by each path as it goes: a sample count whose grid is not a
+        // power of two, and a sampler the wave's kernel does not cover.
+        ("cornell".into(), vec!["--spp", "8"]),
+        ("cornell".into(), vec!["--sampler", "zsobol"]),
+        // Stratified then hashed numbers from the third bounce on (`--rr-depth 1`: roulette's
+        // numbers too).
+        (
+            "cornell".into(),
+            vec!["--sampler", "padded", "--rr-depth", "1"],
+        ),
         (
             shared("gltf/BoxTextured/glTF-Binary/BoxTextured.glb"),
             vec![],

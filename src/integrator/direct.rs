@@ -10,8 +10,8 @@ use crate::geometry::primitive::SurfaceHit;
 use crate::light::{EnvPdf, LightSample, LocalLight};
 use crate::material::local_shading::{ShadingModel, brdf};
 use crate::math::Vec3;
-use crate::sampling::SampleStream;
 use crate::sampling::warp::power_heuristic;
+use crate::sampling::{Numbers, SampleStream};
 use crate::world::World;
 
 /// Light samples per shading point for area lights in [`shade_local`].
@@ -84,10 +84,10 @@ pub struct PendingLd {
 /// (`wavefront.rs`) runs it for a batch of vertices, traces their shadow rays together, then
 /// finishes them: the same arithmetic as [`sample_ld_mix`], in stages.
 #[inline(always)]
-pub fn sample_ld_begin(
+pub fn sample_ld_begin<S: Numbers>(
     world: &World,
     v: &Vertex,
-    s: &mut SampleStream,
+    s: &mut S,
     set: &PathSettings,
 ) -> Option<PendingLd> {
     // A specular vertex takes no light sample, and a black BSDF would make `f` zero below: their

@@ -7,7 +7,7 @@ use crate::light::EnvPdf;
 use crate::material::Bsdf;
 use crate::material::bxdf::{BsdfSample, Diffuse, TransportMode};
 use crate::math::{Frame, Vec2, Vec3};
-use crate::sampling::SampleStream;
+use crate::sampling::Numbers;
 use crate::world::World;
 
 /// A direction sampled from `bsdf` at `wo_local` with the next numbers of the path's stream: one
@@ -15,7 +15,7 @@ use crate::world::World;
 /// same three numbers) and two for the direction. The path tracers' unguided bounce: the surface
 /// loop, its wavefront form and the volumetric loop draw identically through it.
 #[inline]
-pub fn sample_bsdf(bsdf: &Bsdf, wo_local: Vec3, s: &mut SampleStream) -> Option<BsdfSample> {
+pub fn sample_bsdf<S: Numbers>(bsdf: &Bsdf, wo_local: Vec3, s: &mut S) -> Option<BsdfSample> {
     let u_lobe = if bsdf.has_one_lobe() {
         s.skip(1);
         0.0

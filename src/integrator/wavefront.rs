@@ -26,8 +26,9 @@ use super::vertex::{Vertex, sample_bsdf};
 use crate::geometry::Ray;
 use crate::geometry::primitive::{Intersection, NO_LIGHT, SurfaceHit};
 use crate::math::Vec3;
-use crate::sampling::SampleStream;
+use crate::sampling::sampler::{Drawn, WAVE_LANES, WaveDraw};
 use crate::sampling::warp::power_heuristic;
+use crate::sampling::{Numbers, SampleStream};
 use crate::world::World;
 
 /// Whether the renderer runs the surface path tracer's bounces in wavefront form where it
@@ -83,6 +84,9 @@ struct Lane {
     beta: Vec3,
     eta_scale: f32,
     depth: u32,
+    /// The path's place in this bounce's [`WaveDraw`] (its sample numbers, drawn for the whole
+    /// wave at once).
+    slot: u32,
     /// The light sample waiting for its shadow ray, and whether that ray was blocked.
     pending: Option<PendingLd>,
     occluded: bool,
@@ -110,6 +114,7 @@ impl Lane {
             beta: Vec3::ONE,
             eta_scale: 1.0,
             depth: 0,
+            slot: 0,
             pending: None,
             occluded: false,
             ray: Ray::new(Vec3::ZERO, Vec3::Z),
@@ -131,6 +136,7 @@ impl Lane {
 /// waves remove rose only from 11 to 15 (92 in the scalar loop); so the renderer's 64-sample
 /// batch runs as two waves of 32 (BENCHMARKS.md, "Wavefront path loop").
 const WAVE: usize = 32;
+const _: () = assert!(WAVE <= WAVE_LANES);
 
 /// A worker's wavefront state: one [`Lane`] per sample of the largest batch it has traced and
 /// the lists of live paths, allocated when the worker's batch is made (never per ray or per
@@ -139,6 +145,7 @@ pub struct Wavefront {
     lanes: Vec<Lane>,
     live: Vec<u32>,
     next: Vec<u32>,
+    draw: Box<WaveDraw>,
 }
 
 impl Wavefront {
@@ -148,6 +155,7 @@ impl Wavefront {
             lanes: (0..capacity).map(|_| Lane::new()).collect(),
             live: Vec::with_capacity(capacity),
             next: Vec::with_capacity(capacity),
+            draw: Box::new(WaveDraw::new()),
         }
     }
 
@@ -228,12 +236,44 @@ impl Wavefront {
             self.live.push(i as u32);
         }
         let lanes = &mut self.lanes[..];
+        let draw = &mut *self.draw;
+        let drawn = self
+            .live
+            .first()
+            .is_some_and(|&i| WaveDraw::covers(paths[i as usize].stream()));
         while !self.live.is_empty() {
-            // Shade each vertex and draw its light sample (`sample_ld_begin`).
+            // Shade each vertex.
             for &i in &self.live {
                 let lane = &mut lanes[i as usize];
                 lane.v.shade(world, lane.wo);
-                lane.pending = sample_ld_begin(world, &lane.v, paths[i as usize].stream(), set);
+            }
+            // The bounce's sample numbers for every live path at once, where the sampler
+            // allows it (otherwise each path draws its own as it goes: the same numbers). Only
+            // the draws some path will ask for: the light's spare number with more than one
+            // light, the light's point unless every vertex is specular or black, the lobe
+            // unless every BSDF has one, and roulette's number from its depth on (the wave's
+            // paths are all at the same depth).
+            draw.begin();
+            if drawn {
+                let mut need = [false, false, false, true, false];
+                for (k, &i) in self.live.iter().enumerate() {
+                    let lane = &mut lanes[i as usize];
+                    lane.slot = k as u32;
+                    draw.push(paths[i as usize].stream());
+                    let b = &lane.v.bsdf;
+                    need[1] |= !(b.is_specular() || b.is_black());
+                    need[2] |= !b.has_one_lobe();
+                    need[4] |= lane.depth + 1 >= set.rr_depth;
+                }
+                need[0] = need[1] && world.light_count() > 1;
+                draw.run(need);
+            }
+            let draw = &*draw;
+            // Draw each vertex's light sample (`sample_ld_begin`).
+            for &i in &self.live {
+                let lane = &mut lanes[i as usize];
+                let mut s = Drawn::new(paths[i as usize].stream(), draw, lane.slot as usize);
+                lane.pending = sample_ld_begin(world, &lane.v, &mut s, set);
             }
             // The batch's shadow rays.
             for &i in &self.live {
@@ -248,7 +288,13 @@ impl Wavefront {
             for &i in &self.live {
                 let lane = &mut lanes[i as usize];
                 let s = paths[i as usize].stream();
-                if bounce(world, set, lane, s, stats) {
+                if bounce(
+                    world,
+                    set,
+                    lane,
+                    &mut Drawn::new(s, draw, lane.slot as usize),
+                    stats,
+                ) {
                     self.next.push(i);
                 }
             }
@@ -264,7 +310,12 @@ impl Wavefront {
             for &i in &self.live {
                 let lane = &mut lanes[i as usize];
                 let s = paths[i as usize].stream();
-                if arrive(world, set, lane, s) {
+                if arrive(
+                    world,
+                    set,
+                    lane,
+                    &mut Drawn::new(s, draw, lane.slot as usize),
+                ) {
                     self.next.push(i);
                 }
             }
@@ -280,7 +331,7 @@ fn bounce(
     world: &World,
     set: &PathSettings,
     lane: &mut Lane,
-    s: &mut SampleStream,
+    s: &mut Drawn,
     stats: &mut RayStats,
 ) -> bool {
     let v = &lane.v;
@@ -318,7 +369,7 @@ fn bounce(
 /// what it emits (or the lights at infinity if it escaped), then the depth limit and Russian
 /// roulette; `false` when the path ends here.
 #[inline(always)]
-fn arrive(world: &World, set: &PathSettings, lane: &mut Lane, s: &mut SampleStream) -> bool {
+fn arrive(world: &World, set: &PathSettings, lane: &mut Lane, s: &mut Drawn) -> bool {
     let (beta, depth, wi) = (lane.beta, lane.depth, lane.wi);
     let hit = match lane.candidate {
         Some(isect) => {

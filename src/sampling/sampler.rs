@@ -89,6 +89,36 @@ impl std::str::FromStr for SamplerKind {
     }
 }
 
+mod wave;
+pub use wave::{BOUNCE_DIMS, Drawn, WAVE_LANES, WaveDraw};
+
+/// Where a path's sampling routines take their numbers from: its [`SampleStream`], or the
+/// stream with a bounce's numbers computed ahead for a whole wave of paths ([`Drawn`]). Either
+/// gives the same numbers for the same dimensions.
+pub trait Numbers {
+    /// The next number (one dimension).
+    fn next_1d(&mut self) -> f32;
+    /// The next two numbers (one 2D point).
+    fn next_2d(&mut self) -> Vec2;
+    /// Skips `n` dimensions (see [`SampleStream::skip`]).
+    fn skip(&mut self, n: u32);
+}
+
+impl Numbers for SampleStream {
+    #[inline(always)]
+    fn next_1d(&mut self) -> f32 {
+        SampleStream::next_1d(self)
+    }
+    #[inline(always)]
+    fn next_2d(&mut self) -> Vec2 {
+        SampleStream::next_2d(self)
+    }
+    #[inline(always)]
+    fn skip(&mut self, n: u32) {
+        SampleStream::skip(self, n)
+    }
+}
+
 /// The random numbers of one camera sample of one pixel.
 #[derive(Clone, Debug)]
 pub struct SampleStream {
