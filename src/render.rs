@@ -12,7 +12,8 @@ use crate::integrator::aov::{self, AovPath, PixelAovs};
 use crate::integrator::guiding::{Guide, Guiding, Learner, Record};
 use crate::integrator::wavefront::{self, Wavefront};
 use crate::integrator::{Integrator, IntegratorKind, PathSettings, RayStats, path};
-use crate::sampling::{SampleStream, SamplerKind, SamplerSetup};
+use crate::sampling::sampler::{Drawn, WAVE_LANES, WaveDraw};
+use crate::sampling::{Numbers, SampleStream, SamplerKind, SamplerSetup};
 use crate::world::World;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -1187,14 +1188,20 @@ impl TileWork<'_> {
                         continue;
                     }
                     if batched {
-                        // The sample's stream draws its camera numbers where the batch keeps it.
+                        // The batch draws the camera numbers and rays of all its samples at
+                        // once, when it is traced.
                         let p = batch.push(fx, fy, slot, self.sampler.stream(pixel_key, s));
+                        p.pixel = (x, y);
                         p.record = train && records_sample(fx, fy, fw, s, stride);
                         p.keep = kept;
-                        (p.ray, p.weight) =
-                            camera_ray(&self.camera, &self.filter, &mut p.stream, x, y);
                         if batch.is_full() {
-                            batch.trace(world, &settings.path, &mut out);
+                            batch.trace(
+                                world,
+                                &self.camera,
+                                &self.filter,
+                                &settings.path,
+                                &mut out,
+                            );
                         }
                         continue;
                     }
@@ -1254,7 +1261,7 @@ impl TileWork<'_> {
                 }
             }
         }
-        batch.trace(world, &settings.path, &mut out);
+        batch.trace(world, &self.camera, &self.filter, &settings.path, &mut out);
         drop(out);
         (block, st, aov_block, records)
     }
@@ -1680,10 +1687,10 @@ pub fn aov_layers(kinds: &[AovKind], width: u32, height: u32, acc: &[PixelAovs])
 /// the pixel, a box filter, as the reference images use; [`FilterSampler::film_point`]), the next
 /// two place it on the lens. The AOV pass draws the same numbers, so it sees the same rays.
 #[inline]
-fn camera_ray(
+fn camera_ray<S: Numbers>(
     camera: &crate::camera::Camera,
     filter: &FilterSampler,
-    stream: &mut SampleStream,
+    stream: &mut S,
     x: u32,
     y: u32,
 ) -> (crate::geometry::Ray, f32) {
@@ -1694,10 +1701,10 @@ fn camera_ray(
 /// [`camera_ray`]'s film point, lens point and filter weight, from the stream's first four
 /// numbers.
 #[inline]
-fn film_and_lens(
+fn film_and_lens<S: Numbers>(
     camera: &crate::camera::Camera,
     filter: &FilterSampler,
-    stream: &mut SampleStream,
+    stream: &mut S,
     x: u32,
     y: u32,
 ) -> (crate::math::Vec2, crate::math::Vec2, f32) {
@@ -1858,11 +1865,13 @@ pub fn render_aovs_samples(
 /// sample-by-sample order, so the image is bit-identical and the rays counted are the same.
 const BATCH: usize = 64;
 
-/// One camera sample of a [`Batch`]: its film pixel and AOV slot, its stream after the camera
-/// numbers, its ray and filter weight, and (once traced) the ray's closest-hit candidate.
+/// One camera sample of a [`Batch`]: its film pixel, image pixel and AOV slot, its stream (after
+/// the camera numbers once the batch's rays are drawn), its ray and filter weight, and (once
+/// traced) the ray's closest-hit candidate.
 struct Primary {
     fx: u32,
     fy: u32,
+    pixel: (u32, u32),
     slot: usize,
     stream: SampleStream,
     ray: crate::geometry::Ray,
@@ -1875,10 +1884,11 @@ struct Primary {
     keep: bool,
 }
 
-/// The samples of one tile waiting for their first hits, and the wavefront path loop's state
-/// (`integrator::wavefront`, when it runs the batch's paths); allocated once per tile job (never
+/// The samples of one tile waiting for their camera rays and first hits, the wavefront path
+/// loop's state (`integrator::wavefront`, when it runs the batch's paths) and the scratch in which
+/// the batch's camera numbers are drawn across its samples; allocated once per tile job (never
 /// per sample), empty when the integrator traces sample by sample.
-struct Batch(Vec<Primary>, Option<Wavefront>);
+struct Batch(Vec<Primary>, Option<Wavefront>, Box<WaveDraw>);
 
 impl crate::integrator::wavefront::PathStart for Primary {
     #[inline]
@@ -1940,6 +1950,7 @@ impl Batch {
         Batch(
             Vec::with_capacity(if batched { BATCH } else { 0 }),
             (batched && wavefront).then(|| Wavefront::new(BATCH)),
+            Box::default(),
         )
     }
 
@@ -1949,6 +1960,7 @@ impl Batch {
         self.0.push(Primary {
             fx,
             fy,
+            pixel: (0, 0),
             slot,
             stream,
             ray: crate::geometry::Ray::new(crate::math::Vec3::ZERO, crate::math::Vec3::Z),
@@ -1966,9 +1978,39 @@ impl Batch {
         self.0.len() >= BATCH
     }
 
-    /// Finds every waiting sample's first hit, then runs their paths in order and adds them to
-    /// `out`; leaves the batch empty.
-    fn trace(&mut self, world: &World, set: &PathSettings, out: &mut BatchOut) {
+    /// Each sample's camera ray and filter weight ([`camera_ray`]), its film and lens numbers
+    /// computed for up to [`WAVE_LANES`] samples at once where the sampler allows it
+    /// ([`WaveDraw::run_camera`]; the same numbers as the streams draw one by one).
+    fn camera_rays(&mut self, camera: &crate::camera::Camera, filter: &FilterSampler) {
+        let Batch(samples, _, draw) = self;
+        let drawn = samples.first().is_some_and(|p| WaveDraw::covers(&p.stream));
+        for chunk in samples.chunks_mut(WAVE_LANES) {
+            draw.begin();
+            if drawn {
+                for p in chunk.iter() {
+                    draw.push(&p.stream);
+                }
+                draw.run_camera(camera.uses_lens());
+            }
+            for (k, p) in chunk.iter_mut().enumerate() {
+                let (x, y) = p.pixel;
+                let mut s = Drawn::new(&mut p.stream, draw, k);
+                (p.ray, p.weight) = camera_ray(camera, filter, &mut s, x, y);
+            }
+        }
+    }
+
+    /// Draws every waiting sample's camera ray, finds its first hit, then runs their paths in
+    /// order and adds them to `out`; leaves the batch empty.
+    fn trace(
+        &mut self,
+        world: &World,
+        camera: &crate::camera::Camera,
+        filter: &FilterSampler,
+        set: &PathSettings,
+        out: &mut BatchOut,
+    ) {
+        self.camera_rays(camera, filter);
         for p in &mut self.0 {
             p.first = world.candidate(&p.ray);
         }
@@ -2181,6 +2223,7 @@ mod tests {
                 batch.push(Primary {
                     fx: x,
                     fy: y,
+                    pixel: (x, y),
                     slot: 0,
                     stream,
                     ray,
@@ -2240,9 +2283,20 @@ mod tests {
     /// partial tiles and partial batches are both exercised; two threads run the passes.
     #[test]
     fn batched_first_hits_render_what_sample_by_sample_tracing_does() {
-        let scene = crate::scene::builtin::load("cornell").unwrap();
+        // 6 spp: each stream draws its own camera numbers; 16 spp: the batch draws them for its
+        // samples at once (`Batch::camera_rays`), with a pinhole and with a thin lens.
+        for (spp, aperture) in [(6u32, 0.0f32), (16, 0.0), (16, 0.05)] {
+            batched_first_hits_case(spp, aperture);
+        }
+    }
+
+    fn batched_first_hits_case(spp: u32, aperture: f32) {
+        let mut scene = crate::scene::builtin::load("cornell").unwrap();
+        for c in &mut scene.cameras {
+            c.aperture_radius = aperture;
+        }
         let world = World::build(scene, &Default::default()).unwrap();
-        let (w, h, spp) = (21u32, 18u32, 6u32);
+        let (w, h) = (21u32, 18u32);
         let settings = RenderSettings {
             width: w,
             height: h,
@@ -2252,6 +2306,7 @@ mod tests {
         };
         // Reference: sample by sample, each pixel's samples in order.
         let camera = crate::camera::Camera::new(&world.camera, w, h);
+        assert_eq!(camera.uses_lens(), aperture > 0.0);
         let sampler = SamplerSetup::new(settings.sampler, settings.seed, spp).for_image(w, h);
         let filter = FilterSampler::new(&settings.filter);
         let mut block = FilmBlock::new(0, 0, w, h);

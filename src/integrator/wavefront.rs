@@ -155,7 +155,7 @@ impl Wavefront {
             lanes: (0..capacity).map(|_| Lane::new()).collect(),
             live: Vec::with_capacity(capacity),
             next: Vec::with_capacity(capacity),
-            draw: Box::new(WaveDraw::new()),
+            draw: Box::default(),
         }
     }
 

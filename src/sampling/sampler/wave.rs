@@ -36,6 +36,8 @@ const _: () = assert!(WAVE_LANES.is_multiple_of(CHUNK));
 /// start relative to the bounce's first dimension, with whether each is 2D.
 pub const BOUNCE_DIMS: u32 = 7;
 const DRAWS: [(usize, bool); 5] = [(0, false), (1, true), (3, false), (4, true), (6, false)];
+/// The camera's draws from a stream's first dimension: film (2D), lens (2D).
+const CAMERA_DRAWS: [(usize, bool); 2] = [(0, true), (2, true)];
 
 /// A path's stream with its bounce's numbers, computed for the whole wave by [`WaveDraw`], in
 /// front: the numbers the stream would give, the stream's position kept as if it had drawn them.
@@ -196,6 +198,20 @@ impl WaveDraw {
     /// names (in the bounce's order: light spare, light point, lobe, direction, roulette); a
     /// draw no lane will ask for is left to the stream (which skips it).
     pub fn run(&mut self, need: [bool; 5]) {
+        self.run_draws(&DRAWS, &need);
+    }
+
+    /// Computes the camera's numbers of the lanes pushed since [`Self::begin`] (streams at their
+    /// first dimension): the film position's 2D number (dimensions 0–1) and, if `lens`, the
+    /// lens position's (2–3), as [`crate::render`]'s `film_and_lens` draws them.
+    pub fn run_camera(&mut self, lens: bool) {
+        self.run_draws(&CAMERA_DRAWS, &[true, lens]);
+    }
+
+    /// The draws `draws` (offset from each lane's pushed dimension, and whether 2D) of which
+    /// `need` says some lane will ask for.
+    fn run_draws(&mut self, draws: &[(usize, bool)], need: &[bool]) {
+        debug_assert!(draws.len() == need.len() && draws.len() <= DRAWS.len());
         self.have_1d = 0;
         self.have_2d = 0;
         let Some(st) = self.setup else { return };
@@ -204,12 +220,13 @@ impl WaveDraw {
         }
         // Which draws are stratified for every lane, hashed (padded) for every lane, or mixed
         // (a padded stream whose lanes sit on both sides of its stratified dimensions).
-        let mut kinds = [Kind::Mixed; DRAWS.len()];
+        let mut kinds = [Kind::Skip; DRAWS.len()];
+        let kinds = &mut kinds[..draws.len()];
         let dims = &self.lanes.dim[..self.n];
         let lo = dims.iter().fold(u32::MAX, |a, &d| a.min(d));
         let hi = dims.iter().fold(0, |a, &d| a.max(d));
         let uniform = lo == hi;
-        for (j, &(o, two)) in DRAWS.iter().enumerate() {
+        for (j, &(o, two)) in draws.iter().enumerate() {
             let last = o as u32 + two as u32;
             kinds[j] = if hi.saturating_add(last) < st.strat_dims {
                 Kind::Stratified
@@ -233,12 +250,14 @@ impl WaveDraw {
             // (`with_level` falls back to portable otherwise), which is what the
             // `#[target_feature]` copies require.
             SimdLevel::Avx512 => unsafe {
-                kernel_avx512(&c, &kinds, uniform, self.n, &mut self.lanes)
+                kernel_avx512(&c, draws, kinds, uniform, self.n, &mut self.lanes)
             },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above, for AVX2.
-            SimdLevel::Avx2 => unsafe { kernel_avx2(&c, &kinds, uniform, self.n, &mut self.lanes) },
-            _ => kernel::<CHUNK, false>(&c, &kinds, uniform, self.n, &mut self.lanes),
+            SimdLevel::Avx2 => unsafe {
+                kernel_avx2(&c, draws, kinds, uniform, self.n, &mut self.lanes)
+            },
+            _ => kernel::<CHUNK, false>(&c, draws, kinds, uniform, self.n, &mut self.lanes),
         }
     }
 }
@@ -459,7 +478,8 @@ unsafe fn fill_hashes_vl(
 #[inline(always)]
 fn kernel<const CH: usize, const VL512: bool>(
     c: &Consts,
-    kinds: &[Kind; DRAWS.len()],
+    draws: &[(usize, bool)],
+    kinds: &[Kind],
     uniform: bool,
     n: usize,
     l: &mut Lanes,
@@ -478,7 +498,7 @@ fn kernel<const CH: usize, const VL512: bool>(
         hashes,
         out,
     } = l;
-    for (&(o, two), &kind) in DRAWS.iter().zip(kinds) {
+    for (&(o, two), &kind) in draws.iter().zip(kinds) {
         let off = o as u32;
         if two {
             let (xs, ys) = out.split_at_mut(o + 1);
@@ -560,16 +580,30 @@ fn kernel<const CH: usize, const VL512: bool>(
 /// [`kernel`] compiled for AVX2: eight 32-bit or four 64-bit lanes per instruction.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn kernel_avx2(c: &Consts, kinds: &[Kind; DRAWS.len()], uniform: bool, n: usize, l: &mut Lanes) {
-    kernel::<CHUNK, false>(c, kinds, uniform, n, l)
+fn kernel_avx2(
+    c: &Consts,
+    draws: &[(usize, bool)],
+    kinds: &[Kind],
+    uniform: bool,
+    n: usize,
+    l: &mut Lanes,
+) {
+    kernel::<CHUNK, false>(c, draws, kinds, uniform, n, l)
 }
 
 /// [`kernel`] for the `avx512` level: the AVX2 copy, whose stratified draws hash their 64-bit
 /// words with AVX-512's 256-bit `vpmullq` ([`fill_hashes_vl`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn kernel_avx512(c: &Consts, kinds: &[Kind; DRAWS.len()], uniform: bool, n: usize, l: &mut Lanes) {
-    kernel::<CHUNK, true>(c, kinds, uniform, n, l)
+fn kernel_avx512(
+    c: &Consts,
+    draws: &[(usize, bool)],
+    kinds: &[Kind],
+    uniform: bool,
+    n: usize,
+    l: &mut Lanes,
+) {
+    kernel::<CHUNK, true>(c, draws, kinds, uniform, n, l)
 }
 
 #[cfg(test)]
@@ -695,6 +729,51 @@ mod tests {
             }
         }
         assert!(checked > 1000, "{checked}");
+    }
+
+    /// The camera's numbers ([`WaveDraw::run_camera`]): the film's and, with a lens, the lens's
+    /// 2D numbers of each lane's stream from its first dimension, at every level; without a lens
+    /// the lens's dimensions are left to the stream.
+    #[test]
+    fn every_level_draws_the_camera_numbers() {
+        for level in SimdLevel::ALL.into_iter().filter(|l| l.available()) {
+            for spp in [4u32, 64, 1024] {
+                let setup = SamplerSetup::new(SamplerKind::Stratified, 11, spp);
+                for (lanes, lens) in [(32usize, true), (9, false), (32, false)] {
+                    let mut draw = WaveDraw::with_level(level);
+                    let mut streams: Vec<SampleStream> = (0..lanes)
+                        .map(|k| setup.stream(setup.pixel_key((k as u32, 3)), k as u32 * 5 % spp))
+                        .collect();
+                    draw.begin();
+                    for s in &streams {
+                        draw.push(s);
+                    }
+                    draw.run_camera(lens);
+                    assert_eq!((draw.have_2d, draw.have_1d), (1 | (lens as u32) << 2, 0));
+                    for (k, s) in streams.iter_mut().enumerate() {
+                        let mut lazy = s.clone();
+                        let (film, lens_point) = (lazy.next_2d(), lazy.next_2d());
+                        let out = &draw.lanes.out;
+                        assert_eq!(
+                            [out[0][k], out[1][k]].map(f32::to_bits),
+                            film.to_array().map(f32::to_bits),
+                            "{level} {spp} spp, lane {k}"
+                        );
+                        if lens {
+                            assert_eq!(
+                                [out[2][k], out[3][k]].map(f32::to_bits),
+                                lens_point.to_array().map(f32::to_bits),
+                                "{level} {spp} spp, lane {k}"
+                            );
+                        }
+                        let mut d = Drawn::new(s, &draw, k);
+                        assert_eq!(d.next_2d().to_array(), film.to_array());
+                        assert_eq!(d.next_2d().to_array(), lens_point.to_array());
+                        assert_eq!(s.dim, lazy.dim);
+                    }
+                }
+            }
+        }
     }
 
     /// A wave's bounce without [`WaveDraw::run`] (a sampler the kernel does not cover) hands
