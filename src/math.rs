@@ -218,19 +218,20 @@ pub fn mat4_is_finite(m: &Mat4) -> bool {
 /// BVH's descent (`light::bvh`) have an AVX2 copy (used at `avx2` and `avx512`: the eight-wide
 /// BVH's slab test is one 256-bit operation per plane already); the wavefront path loop's
 /// per-bounce sample numbers (`sampling::sampler::WaveDraw`, a loop across the wave's paths) have
-/// an AVX2 and an AVX-512 copy. Everything else is compiled for the target's baseline (SSE2 on
-/// x86-64, where a few SSE2 intrinsics are used without detection because every x86-64 CPU has
-/// them). Every copy computes every float with the same IEEE operations (no FMA: it is not
-/// enabled, and Rust never contracts `a * b + c`), so the image does not depend on the level
-/// (tests/simd.rs renders each level and compares the bits).
+/// an AVX2 copy and, at `avx512`, that copy with its 64-bit hashing in AVX-512 instructions.
+/// Everything else is compiled for the target's baseline (SSE2 on x86-64, where a few SSE2
+/// intrinsics are used without detection because every x86-64 CPU has them). Every copy computes
+/// every float with the same IEEE operations (no FMA: it is not enabled, and Rust never contracts
+/// `a * b + c`), so the image does not depend on the level (tests/simd.rs renders each level and
+/// compares the bits).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum SimdLevel {
     /// The baseline code only.
     Portable,
     /// The AVX2 copies of the BVH traversal, the light BVH descent and the wave's sample numbers.
     Avx2,
-    /// The AVX2 copies of the BVH traversal and descent and the AVX-512 copy (F, DQ, VL, BW) of
-    /// the wave's sample numbers.
+    /// The AVX2 copies, with the wave's sample numbers hashed by AVX-512 (F, DQ, VL) on 256-bit
+    /// registers.
     Avx512,
 }
 
@@ -296,7 +297,6 @@ impl SimdLevel {
                     && std::is_x86_feature_detected!("avx512f")
                     && std::is_x86_feature_detected!("avx512dq")
                     && std::is_x86_feature_detected!("avx512vl")
-                    && std::is_x86_feature_detected!("avx512bw")
             }
             #[cfg(not(target_arch = "x86_64"))]
             SimdLevel::Avx2 | SimdLevel::Avx512 => false,

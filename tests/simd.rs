@@ -5,8 +5,8 @@
 //! textures, normal maps and the environment map — in the wavefront loop (RGB) and in the
 //! spectral scalar tracer (pbrt). A level the CPU lacks is skipped by name on stderr. The setting
 //! is checked too: the render log names the level that ran, and an unknown level (AVX-512 spelt
-//! other than `avx512`), a level the CPU lacks or the old `TRAYECTO_NO_AVX2` beside another level is an error, not
-//! silently some other code.
+//! other than `avx512`), a level the CPU lacks or the old `TRAYECTO_NO_AVX2` beside another
+//! level is an error, not silently some other code.
 
 mod common;
 
@@ -76,9 +76,9 @@ fn every_simd_level_renders_the_same_bits() {
         (emissive, vec!["--light-sampler", "bvh8"]),
         ("scenes/mitsuba/envmap.toml".into(), vec![]),
         ("scenes/mitsuba/textured.toml".into(), vec![]),
-        // The wave's bounce numbers (`sampling::sampler::WaveDraw`, an AVX2 and an AVX-512
-        // copy): stratified (above, 16 spp), and stratified then hashed past the padded
-        // sampler's dimensions, with roulette's numbers from the second bounce.
+        // The wave's bounce numbers (`sampling::sampler::WaveDraw`, an AVX2 copy hashing with
+        // AVX-512 at `avx512`): stratified (above, 16 spp), and stratified then hashed past the
+        // padded sampler's dimensions, with roulette's numbers from the second bounce.
         (
             "cornell".into(),
             vec!["--sampler", "padded", "--rr-depth", "1"],

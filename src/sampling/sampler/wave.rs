@@ -1,7 +1,9 @@
 //! One bounce's numbers for a wave of paths at once: the stratified sampler's hashing and
 //! permutations run across the wave's lanes (structure of arrays, one loop per number) instead of
-//! path by path as the bounce draws them, so the compiler runs them 2, 8 or 16 lanes wide
-//! (SSE2, AVX2, AVX-512: the copy is chosen at run time, `crate::math::SimdLevel`).
+//! path by path as the bounce draws them, so the compiler runs them several lanes wide: 4 (64-bit
+//! hashing) and 8 (32-bit permutations) per AVX2 instruction, with AVX-512's 64-bit
+//! multiplication at the `avx512` level, 2 to 4 in the SSE2 baseline (the copy is chosen at run
+//! time, `crate::math::SimdLevel`).
 //!
 //! A bounce of the surface path tracer draws seven dimensions from its path's stream, from the
 //! dimension `d` it has reached: the light sample's spare number (`d`, 1D) and point (`d + 1`,
@@ -176,8 +178,9 @@ impl WaveDraw {
     }
 
     /// Adds the stream of the next lane, at the dimension its bounce starts from; the k-th lane
-    /// pushed takes its numbers through [`Drawn::new`]`(stream, self, k)`. Requires [`Self::covers`], fewer than
-    /// [`WAVE_LANES`] lanes, and the same render's streams in one wave.
+    /// pushed takes its numbers through [`Drawn::new`]`(stream, self, k)`. Requires
+    /// [`Self::covers`], fewer than [`WAVE_LANES`] lanes, and the same render's streams in one
+    /// wave.
     #[inline]
     pub fn push(&mut self, s: &SampleStream) {
         debug_assert!(Self::covers(s) && self.n < WAVE_LANES);
