@@ -28,7 +28,7 @@ use crate::geometry::primitive::{Intersection, NO_LIGHT, SurfaceHit};
 use crate::math::Vec3;
 use crate::sampling::sampler::{Drawn, WAVE_LANES, WaveDraw};
 use crate::sampling::warp::power_heuristic;
-use crate::sampling::{Numbers, SampleStream};
+use crate::sampling::{Numbers, SampleStream, UniformSource};
 use crate::world::World;
 
 /// Whether the renderer runs the surface path tracer's bounces in wavefront form where it

@@ -15,25 +15,8 @@
 
 use super::ONE_MINUS_EPSILON;
 use super::rng::Pcg32;
-use super::sampler::SampleStream;
+pub use super::sampler::UniformSource;
 use crate::math::Vec2;
-
-/// A source of uniform numbers in [0, 1), one or two at a time.
-pub trait UniformSource {
-    fn next_1d(&mut self) -> f32;
-    fn next_2d(&mut self) -> Vec2;
-}
-
-impl UniformSource for SampleStream {
-    #[inline(always)]
-    fn next_1d(&mut self) -> f32 {
-        SampleStream::next_1d(self)
-    }
-    #[inline(always)]
-    fn next_2d(&mut self) -> Vec2 {
-        SampleStream::next_2d(self)
-    }
-}
 
 /// `Primary::modified` of a number not made yet.
 const NEVER: u64 = u64::MAX;

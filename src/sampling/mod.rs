@@ -17,4 +17,4 @@ pub mod zsobol;
 pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
 pub use distribution::Distribution1D;
-pub use sampler::{Numbers, SampleStream, SamplerKind, SamplerSetup};
+pub use sampler::{Numbers, SampleStream, SamplerKind, SamplerSetup, UniformSource};

@@ -90,21 +90,25 @@ impl std::str::FromStr for SamplerKind {
 }
 
 mod wave;
-pub use wave::{BOUNCE_DIMS, Drawn, WAVE_LANES, WaveDraw};
+pub use wave::{Drawn, WAVE_LANES, WaveDraw};
 
-/// Where a path's sampling routines take their numbers from: its [`SampleStream`], or the
-/// stream with a bounce's numbers computed ahead for a whole wave of paths ([`Drawn`]). Either
-/// gives the same numbers for the same dimensions.
-pub trait Numbers {
-    /// The next number (one dimension).
+/// A source of uniform numbers in [0, 1), one or two at a time: a pixel sample's
+/// [`SampleStream`], the stream with a wave's numbers computed ahead ([`Drawn`]), or the
+/// primary-sample vector of a Metropolis chain (`super::mlt::MltSampler`).
+pub trait UniformSource {
     fn next_1d(&mut self) -> f32;
-    /// The next two numbers (one 2D point).
     fn next_2d(&mut self) -> Vec2;
+}
+
+/// A [`UniformSource`] whose numbers are numbered dimensions, so that a routine can skip the
+/// ones it does not use and keep the later ones' meaning: the stream, or the stream with a
+/// wave's numbers in front ([`Drawn`]); either gives the same numbers for the same dimensions.
+pub trait Numbers: UniformSource {
     /// Skips `n` dimensions (see [`SampleStream::skip`]).
     fn skip(&mut self, n: u32);
 }
 
-impl Numbers for SampleStream {
+impl UniformSource for SampleStream {
     #[inline(always)]
     fn next_1d(&mut self) -> f32 {
         SampleStream::next_1d(self)
@@ -113,6 +117,9 @@ impl Numbers for SampleStream {
     fn next_2d(&mut self) -> Vec2 {
         SampleStream::next_2d(self)
     }
+}
+
+impl Numbers for SampleStream {
     #[inline(always)]
     fn skip(&mut self, n: u32) {
         SampleStream::skip(self, n)
